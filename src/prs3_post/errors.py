@@ -1,0 +1,45 @@
+"""The one error hierarchy of prs3-post.
+
+Everything raised on purpose across module boundaries is a :class:`Prs3Error`; the CLI prints it
+as ``where: message`` and exits non-zero, never with a traceback.
+"""
+
+from __future__ import annotations
+
+
+class Prs3Error(Exception):
+    """Reported by the CLI as `where: message`; never a traceback."""
+
+    exit_code = 1
+
+
+class InputError(Prs3Error):
+    """A file or option the user gave is wrong; names the file (and line) and what would be valid."""
+
+    exit_code = 2
+
+    def __init__(self, message: str, *, path: str, line: int | None = None):
+        super().__init__(message)
+        self.path, self.line = path, line
+
+    def __str__(self) -> str:
+        where = self.path if self.line is None else f"{self.path}:{self.line}"
+        return f"{where}: {self.args[0]}"
+
+
+class ConfigError(InputError):
+    """A machine or dialect TOML file is wrong; the message starts with the dotted key."""
+
+
+class LimitError(Prs3Error):
+    """A point would drive the machine past a limit: names the source line/step, limit, value, margin."""
+
+
+class ReachError(Prs3Error):
+    """A pose is outside the workspace (cannot assemble, or needs a stage the machine lacks)."""
+
+
+class FeatureError(Prs3Error):
+    """An operation cannot be placed as asked (does not fit the face, tool too big, bad size)."""
+
+    exit_code = 2

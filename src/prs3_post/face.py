@@ -1,0 +1,86 @@
+"""A planar face of a part, with its own frame (u, v, w).
+
+Face frame: origin at the face centroid, ``w`` = outward normal, ``u`` = the down-slope direction
+within the face (for a horizontal face, the part's +x), ``v = w × u``. Face coordinates (u, v, w)
+are mm along those unit vectors; w > 0 is outside the material, w < 0 is depth into it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+
+from prs3_post.types import FloatArray, IntArray
+
+
+def frame_from_normal(normal: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The face frame's (u, v) for an outward unit normal ``w``.
+
+    ``u`` is the steepest descent within the plane (−z projected onto it); for a horizontal face
+    (either way up) there is none and ``u`` is the part's +x projected onto the plane.
+
+    Parameters
+    ----------
+    normal : (3,) float — unit outward normal w
+
+    Returns
+    -------
+    u, v : (3,) float — unit vectors, ``v = w × u``
+
+    >>> u, v = frame_from_normal(np.array([0.6, 0.0, 0.8]))
+    >>> np.round(u, 6).tolist(), np.round(v, 6).tolist()
+    ([0.8, 0.0, -0.6], [0.0, 1.0, 0.0])
+    """
+    w = np.asarray(normal, dtype=np.float64)
+    down = np.array([0.0, 0.0, -1.0]) - w * (-w[2])   # -z minus its component along w
+    if np.linalg.norm(down) < 1e-9:                    # horizontal face: no slope, use +x
+        down = np.array([1.0, 0.0, 0.0]) - w * w[0]
+    u = down / np.linalg.norm(down)
+    v = np.cross(w, u)
+    return u, v / np.linalg.norm(v)
+
+
+@dataclass(frozen=True, slots=True)
+class Face:
+    """One planar face of a part (part coordinates, mm).
+
+    Attributes
+    ----------
+    index : int — position in the part's face table (largest area first)
+    area : float — mm²
+    normal : (3,) float — outward unit normal, the frame's w
+    origin : (3,) float — mm, area centroid of the face, the frame's origin
+    u, v : (3,) float — in-plane unit vectors (u down-slope, v = w × u)
+    inclination : float — rad, angle between the normal and the part's +z
+    boundary : shapely.Polygon — outline (with holes) in face (u, v) coordinates, mm
+    triangles : (K,) int — indices of the mesh triangles that make the face
+    """
+
+    index: int
+    area: float
+    normal: FloatArray
+    origin: FloatArray
+    u: FloatArray
+    v: FloatArray
+    inclination: float
+    boundary: shapely.Polygon
+    triangles: IntArray
+
+    @property
+    def rotation(self) -> FloatArray:
+        """(3, 3) float — columns u, v, w: face coordinates → part directions."""
+        return np.column_stack([self.u, self.v, self.normal])
+
+    def to_part(self, uvw: FloatArray) -> FloatArray:
+        """Face coordinates (N, 3) [or (N, 2), w = 0] in mm → part coordinates (N, 3) mm."""
+        uvw = np.asarray(uvw, dtype=np.float64).reshape(-1, np.shape(uvw)[-1] if np.ndim(uvw) else 3)
+        if uvw.shape[1] == 2:
+            uvw = np.column_stack([uvw, np.zeros(len(uvw))])
+        return self.origin + uvw @ self.rotation.T
+
+    def from_part(self, xyz: FloatArray) -> FloatArray:
+        """Part coordinates (N, 3) mm → face coordinates (u, v, w) (N, 3) mm."""
+        xyz = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
+        return (xyz - self.origin) @ self.rotation

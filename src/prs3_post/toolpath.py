@@ -1,0 +1,160 @@
+"""The one intermediate representation: a toolpath as a struct of arrays, plus non-motion events.
+
+Every stage after a reader or an operation works on a :class:`Toolpath`; after inverse kinematics
+the same rows become a :class:`JointProgram` (actuator space), which the emitter writes.
+
+Rows are motion *end points*. The start of row 0 is wherever the machine is (the emitter's safe
+start puts it at a known place). ``source[i]`` is the line number (readers) or the operation step
+(operations) that row ``i`` came from; ``source_labels`` (when not empty) names each step, so that
+an error can say ``hole 2, peck 3`` instead of ``step 17``.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from prs3_post.types import FloatArray, IntArray
+
+
+class MoveKind(enum.IntEnum):
+    """How the machine moves to a row's end point."""
+
+    RAPID = 0
+    """G0: the fastest joint-space move; the path between end points is not controlled."""
+    FEED = 1
+    """G1: a controlled move at the row's tip feed, straight at the tool tip."""
+
+
+class EventKind(enum.Enum):
+    """A non-motion action between rows."""
+
+    SPINDLE_ON = "spindle_on"
+    """M3 at ``value`` rpm (clockwise)."""
+    SPINDLE_OFF = "spindle_off"
+    """M5."""
+    COOLANT_ON = "coolant_on"
+    """M8 (flood) or M7 (mist, ``text == 'mist'``)."""
+    COOLANT_OFF = "coolant_off"
+    """M9."""
+    TOOL_CHANGE = "tool_change"
+    """M6 T``value``; ``text`` describes the tool."""
+    DWELL = "dwell"
+    """G4 P``value`` seconds."""
+    COMMENT = "comment"
+    """An operator-visible comment ``text``."""
+    STOP = "stop"
+    """M0: program stop, cycle start resumes."""
+
+
+@dataclass(frozen=True, slots=True)
+class Event:
+    """A non-motion event that happens before motion row ``before`` (== N: after the last row)."""
+
+    before: int
+    kind: EventKind
+    value: float = 0.0
+    text: str = ""
+
+
+def _frozen(array: np.ndarray, dtype: type, shape_tail: tuple[int, ...], name: str) -> np.ndarray:
+    out = np.array(array, dtype=dtype, copy=True)
+    if out.ndim == 1 and shape_tail and out.size == 0:
+        out = out.reshape((0, *shape_tail))
+    if out.shape[1:] != shape_tail:
+        raise ValueError(f"{name}: expected shape (N, {', '.join(map(str, shape_tail))}), got {out.shape}")
+    out.flags.writeable = False
+    return out
+
+
+@dataclass(frozen=True, slots=True)
+class Toolpath:
+    """Motion end points in one frame (part or machine), one row per point.
+
+    Attributes
+    ----------
+    kind : (N,) int — :class:`MoveKind` values
+    tip : (N, 3) float — mm, tool tip
+    axis : (N, 3) float — unit vector from the tool tip toward the spindle
+    feed : (N,) float — mm/min tip feed for FEED rows, 0 for RAPID rows
+    source : (N,) int — input line number or operation step of each row
+    events : tuple of Event — non-motion events, ordered by ``before``
+    source_labels : tuple of str — names of the steps ``source`` indexes (empty: source is a line number)
+    """
+
+    kind: IntArray
+    tip: FloatArray
+    axis: FloatArray
+    feed: FloatArray
+    source: IntArray
+    events: tuple[Event, ...] = ()
+    source_labels: tuple[str, ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        n = len(self.kind)
+        for name, dtype, tail in (
+            ("kind", np.int64, ()),
+            ("tip", np.float64, (3,)),
+            ("axis", np.float64, (3,)),
+            ("feed", np.float64, ()),
+            ("source", np.int64, ()),
+        ):
+            value = _frozen(getattr(self, name), dtype, tail, name)
+            if len(value) != n:
+                raise ValueError(f"{name}: {len(value)} rows, kind has {n}")
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "events", tuple(sorted(self.events, key=lambda e: e.before)))
+
+    def __len__(self) -> int:
+        return len(self.kind)
+
+    def describe(self, row: int) -> str:
+        """Human name of the line/step row ``row`` came from (``line 12`` or the step label)."""
+        src = int(self.source[row])
+        if self.source_labels:
+            return self.source_labels[src]
+        return f"line {src}"
+
+
+@dataclass(frozen=True, slots=True)
+class JointProgram:
+    """A toolpath in actuator space, ready to emit: the machine's own axes, one row per end point.
+
+    Attributes
+    ----------
+    kind : (N,) int — :class:`MoveKind` values
+    stage : (N, 2) float — mm, stage X, Y (zeros on a machine without a stage)
+    strokes : (N, 3) float — mm, actuator strokes T1, T2, T3
+    inverse_time : (N,) float — 1/min, G93 F word of FEED rows (move time = 1/F min), 0 for rapids
+    source : (N,) int — as in :class:`Toolpath`
+    events : tuple of Event — as in :class:`Toolpath`
+    source_labels : tuple of str — as in :class:`Toolpath`
+    """
+
+    kind: IntArray
+    stage: FloatArray
+    strokes: FloatArray
+    inverse_time: FloatArray
+    source: IntArray
+    events: tuple[Event, ...] = ()
+    source_labels: tuple[str, ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        n = len(self.kind)
+        for name, dtype, tail in (
+            ("kind", np.int64, ()),
+            ("stage", np.float64, (2,)),
+            ("strokes", np.float64, (3,)),
+            ("inverse_time", np.float64, ()),
+            ("source", np.int64, ()),
+        ):
+            value = _frozen(getattr(self, name), dtype, tail, name)
+            if len(value) != n:
+                raise ValueError(f"{name}: {len(value)} rows, kind has {n}")
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "events", tuple(sorted(self.events, key=lambda e: e.before)))
+
+    def __len__(self) -> int:
+        return len(self.kind)
