@@ -1,0 +1,422 @@
+"""What every machining operation shares: cutting data, the fit check, depth passes and the row builder.
+
+An operation turns a :class:`~prs3_post.face.Face` plus options into a
+:class:`~prs3_post.toolpath.Toolpath` in PART coordinates. It plans in the face frame (u, v, w),
+w = outward normal (toward the spindle, w < 0 is depth into the material), and converts to part
+coordinates once at the end (:meth:`ToolpathBuilder.build`). The tool axis is the face normal on
+every row: the tool stays normal to the face.
+
+Heights along w:
+
+* ``retract`` — safe height for moves between features (and at the start/end of the program);
+* ``clearance`` — just above the face, where rapids stop and feed moves start;
+* ``0`` — the face; ``-d`` — depth ``d`` into the material.
+
+Error messages name options the way the CLI spells them (``--feed``, ``--tool-diameter``), since
+that is what the user typed; the CLI's option for a field is the field name with ``-`` for ``_``.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+
+from prs3_post.errors import FeatureError
+from prs3_post.face import Face
+from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
+from prs3_post.types import FloatArray
+
+__all__ = [
+    "Coolant",
+    "Cutting",
+    "ToolpathBuilder",
+    "approach",
+    "check_fits",
+    "check_heights",
+    "depart",
+    "end_program",
+    "format_mm",
+    "format_uv",
+    "pass_depths",
+    "require_nonnegative",
+    "require_positive",
+    "start_program",
+    "swept_region",
+]
+
+
+# --------------------------------------------------------------------------------------------
+# Option checks (shared so that every operation words its messages the same way)
+# --------------------------------------------------------------------------------------------
+def _unit_suffix(unit: str) -> str:
+    return f" {unit}" if unit else ""
+
+
+def require_positive(option: str, value: float, unit: str = "") -> None:
+    """Raise unless ``value`` is a finite number > 0.
+
+    Parameters
+    ----------
+    option : str — the CLI option, e.g. ``--feed``
+    value : float — what the user gave
+    unit : str — unit for the message (``mm``, ``mm/min``, or empty)
+
+    Raises
+    ------
+    FeatureError
+        ``--feed must be > 0 mm/min (got 0)``.
+    """
+    if not (math.isfinite(value) and value > 0):
+        raise FeatureError(f"{option} must be > 0{_unit_suffix(unit)} (got {value:g})")
+
+
+def require_nonnegative(option: str, value: float, unit: str = "") -> None:
+    """Raise unless ``value`` is a finite number ≥ 0 (same wording as :func:`require_positive`).
+
+    Raises
+    ------
+    FeatureError
+        ``--dwell must be ≥ 0 s (got -1)``.
+    """
+    if not (math.isfinite(value) and value >= 0):
+        raise FeatureError(f"{option} must be ≥ 0{_unit_suffix(unit)} (got {value:g})")
+
+
+def check_heights(clearance: float, retract: float) -> None:
+    """Check the two safe heights above the face (mm along w).
+
+    Raises
+    ------
+    FeatureError
+        ``--clearance must be > 0 mm (got 0)``, or
+        ``--retract must be ≥ --clearance (got --retract 1.000 mm < --clearance 2.000 mm)``.
+    """
+    require_positive("--clearance", clearance, "mm")
+    require_positive("--retract", retract, "mm")
+    if retract < clearance:
+        raise FeatureError(
+            f"--retract must be ≥ --clearance "
+            f"(got --retract {retract:.3f} mm < --clearance {clearance:.3f} mm)"
+        )
+
+
+def pass_depths(depth: float, step: float, *, rel_tol: float = 1e-9) -> FloatArray:
+    """Depths of successive passes (pecks, step-downs): ``d_k = min(k·step, depth)``.
+
+    ``k = 1 .. ceil(depth/step)``; a ratio that is an integer up to floating error (0.9/0.3 =
+    3.0000000000000004) does not make an extra pass thinner than ``rel_tol·step``: that sliver
+    goes into the last pass. The last depth is ``depth`` exactly.
+
+    Parameters
+    ----------
+    depth : float — mm, > 0, final depth
+    step : float — mm, > 0, depth per pass
+    rel_tol : float — fraction of a step below which a last pass is merged into the previous one
+
+    Returns
+    -------
+    depths : (K,) float — mm, increasing, ``depths[-1] == depth``, K ≥ 1
+
+    >>> pass_depths(10.0, 3.0).tolist()
+    [3.0, 6.0, 9.0, 10.0]
+    >>> pass_depths(0.9, 0.3).tolist()
+    [0.3, 0.6, 0.9]
+    """
+    count = max(1, math.ceil(depth / step - rel_tol))
+    depths = np.minimum(np.arange(1, count + 1, dtype=np.float64) * step, depth)
+    depths[-1] = depth
+    return depths
+
+
+def format_mm(value: float) -> str:
+    """``12.345``: 3 decimals, never ``-0.000``."""
+    text = f"{value:.3f}"
+    return text[1:] if text == "-0.000" else text
+
+
+def format_uv(uv: FloatArray) -> str:
+    """``(u 10.000, v 0.000)`` for a face point (2,) mm, as messages and comments write it."""
+    return f"(u {format_mm(uv[0])}, v {format_mm(uv[1])})"
+
+
+# --------------------------------------------------------------------------------------------
+# Cutting data
+# --------------------------------------------------------------------------------------------
+class Coolant(enum.Enum):
+    """Coolant used while the tool cuts."""
+
+    FLOOD = "flood"
+    """M8: flood coolant on while cutting, M9 at the end."""
+    MIST = "mist"
+    """M7: mist coolant on while cutting, M9 at the end."""
+    OFF = "off"
+    """No coolant words at all (dry cutting)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Cutting:
+    """The tool and how it cuts, shared by every operation.
+
+    Attributes
+    ----------
+    tool_diameter : float — mm, > 0 (``--tool-diameter``)
+    feed : float — mm/min, > 0, tip feed along the contour (``--feed``)
+    plunge_feed : float — mm/min, > 0, tip feed when moving into the material along the axis or
+        down a ramp (``--plunge-feed``)
+    spindle_rpm : float — rev/min, > 0, clockwise (M3) (``--spindle-rpm``)
+    coolant : Coolant — (``--coolant``)
+    tool_number : int — ≥ 1, the T word of the tool change (``--tool-number``)
+
+    Raises
+    ------
+    FeatureError
+        On a value out of range, naming the option: ``--feed must be > 0 mm/min (got 0)``.
+    """
+
+    tool_diameter: float
+    feed: float
+    plunge_feed: float
+    spindle_rpm: float
+    coolant: Coolant
+    tool_number: int
+
+    def __post_init__(self) -> None:
+        require_positive("--tool-diameter", self.tool_diameter, "mm")
+        require_positive("--feed", self.feed, "mm/min")
+        require_positive("--plunge-feed", self.plunge_feed, "mm/min")
+        require_positive("--spindle-rpm", self.spindle_rpm, "rpm")
+        number_ok = isinstance(self.tool_number, numbers.Integral) and not isinstance(self.tool_number, bool)
+        if not (number_ok and self.tool_number >= 1):
+            raise FeatureError(f"--tool-number must be an integer ≥ 1 (got {self.tool_number!r})")
+
+    @property
+    def tool_radius(self) -> float:
+        """mm, half the tool diameter."""
+        return 0.5 * self.tool_diameter
+
+
+# --------------------------------------------------------------------------------------------
+# Does a feature fit on the face?
+# --------------------------------------------------------------------------------------------
+def swept_region(path_uv: FloatArray, tool_radius: float, *, tolerance: float = 1e-4) -> shapely.Polygon:
+    """The area the tool covers while its centre follows ``path_uv`` (face u, v).
+
+    Parameters
+    ----------
+    path_uv : (N, 2) float — mm, tool-centre points in face (u, v); N = 1 is a plunge (a disc)
+    tool_radius : float — mm, > 0
+    tolerance : float — mm, how far the polygon's round parts may fall inside the true circles
+
+    Returns
+    -------
+    shapely.Polygon — may have interior rings (a closed contour sweeps a band)
+    """
+    path_uv = np.asarray(path_uv, dtype=np.float64).reshape(-1, 2)
+    if len(path_uv) == 0:
+        raise ValueError("swept_region: empty path")
+    # Segments per quarter circle so that the sagitta r(1 - cos(Δ/2)) stays ≤ tolerance;
+    # clip: a tolerance larger than the diameter allows any step.
+    max_step = 2.0 * math.acos(float(np.clip(1.0 - tolerance / tool_radius, -1.0, 1.0)))
+    quad_segs = max(4, math.ceil((0.5 * math.pi) / max_step))
+    if len(path_uv) == 1 or np.all(path_uv == path_uv[0]):
+        return shapely.Point(path_uv[0]).buffer(tool_radius, quad_segs=quad_segs)
+    return shapely.LineString(path_uv).buffer(tool_radius, quad_segs=quad_segs)
+
+
+def _reach(region: shapely.Geometry, material: shapely.Geometry, *, tol: float = 1e-6) -> float:
+    """sup over the points p of ``region`` of distance(p, ``material``), mm.
+
+    The maximum is often at a vertex of ``region`` (a straight face edge: distance is linear
+    along each segment), which gives a lower bound; it is accepted when ``region`` lies within
+    ``material`` grown by it. Otherwise (the region covers the middle of an opening, where the
+    maximum is inside the region) it is bisected on "region within material grown by t".
+    """
+    if region.is_empty:
+        return 0.0
+    vertices = shapely.points(shapely.get_coordinates(region))
+    low = float(np.max(shapely.distance(vertices, material)))
+    grow_segs = 256   # the grown material's round corners fall inside by t·1.2e-6 at most
+
+    def covered(t: float) -> bool:
+        return bool(region.covered_by(material.buffer(t, quad_segs=grow_segs)))
+
+    if covered(low + tol):
+        return low
+    minx, miny, maxx, maxy = region.bounds
+    high = low + math.hypot(maxx - minx, maxy - miny) + tol
+    while not covered(high):            # only a region far away from the material needs this
+        high *= 2.0
+    while high - low > tol:
+        middle = 0.5 * (low + high)
+        low, high = (low, middle) if covered(middle) else (middle, high)
+    return high
+
+
+def check_fits(face: Face, region: shapely.Geometry, what: str) -> None:
+    """Refuse a feature whose swept area leaves the face material.
+
+    The region must lie within ``face.boundary`` (touching its outer edge is allowed: the tool
+    then just reaches the edge) and must not touch any hole in the face (interior ring).
+
+    Parameters
+    ----------
+    face : Face
+    region : shapely geometry — face (u, v), mm: the area the tool sweeps (outline plus tool
+        radius, e.g. from :func:`swept_region`)
+    what : str — the feature, for the message, e.g. ``hole 2 at (u 10.000, v 0.000) with tool Ø6.000``
+
+    Raises
+    ------
+    FeatureError
+        ``<what>: does not fit on face 0: overshoots its edge by 12.345 mm`` (the largest distance
+        of the part of the region outside the face from the face, mm), or
+        ``<what>: does not fit on face 0: cuts 1.234 mm into the hole in the face at (u 5.000, v 0.000)``
+        (how deep the region reaches into the hole; ``touches the hole ...`` when it only touches).
+    """
+    outline = shapely.Polygon(face.boundary.exterior)
+    head = f"{what}: does not fit on face {face.index}"
+    if not region.covered_by(outline):
+        raise FeatureError(f"{head}: overshoots its edge by {_reach(region, outline):.3f} mm")
+    for ring in face.boundary.interiors:
+        opening = shapely.Polygon(ring)
+        if region.intersects(opening):
+            depth = _reach(region.intersection(opening), face.boundary)
+            centroid = opening.centroid   # not inside a non-convex opening: then any inside point
+            where = centroid if centroid.within(opening) else opening.representative_point()
+            place = f"the hole in the face at {format_uv((where.x, where.y))}"
+            if f"{depth:.3f}" == "0.000":
+                raise FeatureError(f"{head}: touches {place}")
+            raise FeatureError(f"{head}: cuts {depth:.3f} mm into {place}")
+
+
+# --------------------------------------------------------------------------------------------
+# Building the rows
+# --------------------------------------------------------------------------------------------
+class ToolpathBuilder:
+    """Collects motion rows in face coordinates (u, v, w) and events, then makes a part-frame Toolpath.
+
+    Rows belong to the current *step* (a human label such as ``hole 2 peck 3 feed``); ``source``
+    of each row is the index of its step in ``source_labels``. Events are placed before the next
+    row to be added.
+
+    Parameters
+    ----------
+    face : Face — gives the frame; every row's axis is ``face.normal``
+    """
+
+    __slots__ = ("_face", "_uvw", "_kind", "_feed", "_source", "_labels", "_events", "_rows")
+
+    def __init__(self, face: Face) -> None:
+        self._face = face
+        self._uvw: list[FloatArray] = []
+        self._kind: list[np.ndarray] = []
+        self._feed: list[FloatArray] = []
+        self._source: list[np.ndarray] = []
+        self._labels: list[str] = []
+        self._events: list[Event] = []
+        self._rows = 0
+
+    @property
+    def position(self) -> FloatArray:
+        """(3,) float — mm, face (u, v, w) of the last row added."""
+        if not self._uvw:
+            raise ValueError("ToolpathBuilder.position: no rows yet")
+        return self._uvw[-1][-1].copy()
+
+    def step(self, label: str) -> None:
+        """Start a new step: rows added from now on have ``source`` = this step's index."""
+        self._labels.append(label)
+
+    def _add(self, kind: MoveKind, uvw: FloatArray, feed: float) -> None:
+        if not self._labels:
+            raise ValueError("ToolpathBuilder: call step() before adding rows")
+        uvw = np.asarray(uvw, dtype=np.float64).reshape(-1, 3)
+        n = len(uvw)
+        self._uvw.append(uvw)
+        self._kind.append(np.full(n, int(kind), dtype=np.int64))
+        self._feed.append(np.full(n, feed, dtype=np.float64))
+        self._source.append(np.full(n, len(self._labels) - 1, dtype=np.int64))
+        self._rows += n
+
+    def rapid(self, uvw: FloatArray) -> None:
+        """Add RAPID rows to face points ``uvw`` : (n, 3) or (3,) float — mm."""
+        self._add(MoveKind.RAPID, uvw, 0.0)
+
+    def feed(self, uvw: FloatArray, feed: float) -> None:
+        """Add FEED rows to face points ``uvw`` : (n, 3) or (3,) float — mm, at ``feed`` mm/min."""
+        self._add(MoveKind.FEED, uvw, feed)
+
+    def event(self, kind: EventKind, value: float = 0.0, text: str = "") -> None:
+        """Add an event before the next row (after the last row if none follows)."""
+        self._events.append(Event(before=self._rows, kind=kind, value=value, text=text))
+
+    def comment(self, text: str) -> None:
+        """Add an operator-visible comment before the next row."""
+        self.event(EventKind.COMMENT, text=text)
+
+    def build(self) -> Toolpath:
+        """The rows in PART coordinates, axis = face normal on every row.
+
+        Returns
+        -------
+        Toolpath — tip (N, 3) mm part frame, axis (N, 3) = ``face.normal``, feed (N,) mm/min
+        (0 on rapids), source (N,) step indices into ``source_labels``.
+        """
+        if self._uvw:
+            uvw = np.concatenate(self._uvw)
+            kind = np.concatenate(self._kind)
+            feed = np.concatenate(self._feed)
+            source = np.concatenate(self._source)
+        else:
+            uvw = np.zeros((0, 3))
+            kind = np.zeros(0, dtype=np.int64)
+            feed = np.zeros(0)
+            source = np.zeros(0, dtype=np.int64)
+        tip = self._face.to_part(uvw).reshape(-1, 3)
+        axis = np.tile(np.asarray(self._face.normal, dtype=np.float64), (len(uvw), 1))
+        return Toolpath(
+            kind=kind,
+            tip=tip,
+            axis=axis,
+            feed=feed,
+            source=source,
+            events=tuple(self._events),
+            source_labels=tuple(self._labels),
+        )
+
+
+def _at(uv: FloatArray, w: float) -> FloatArray:
+    return np.array([uv[0], uv[1], w], dtype=np.float64)
+
+
+def approach(builder: ToolpathBuilder, uv: FloatArray, clearance: float, retract: float, label: str) -> None:
+    """Step ``label``: RAPID to ``retract`` above face point ``uv`` (2,) mm, then RAPID down to ``clearance``."""
+    builder.step(label)
+    builder.rapid(np.stack([_at(uv, retract), _at(uv, clearance)]))
+
+
+def depart(builder: ToolpathBuilder, uv: FloatArray, clearance: float, retract: float, label: str) -> None:
+    """Step ``label``: RAPID up along +w to ``clearance`` above face point ``uv`` (2,) mm, then to ``retract``."""
+    builder.step(label)
+    builder.rapid(np.stack([_at(uv, clearance), _at(uv, retract)]))
+
+
+def start_program(builder: ToolpathBuilder, cutting: Cutting, title: str) -> None:
+    """Events before the first row: comment ``title``, tool change, spindle on (M3), coolant on."""
+    builder.comment(title)
+    builder.event(EventKind.TOOL_CHANGE, value=float(cutting.tool_number), text=f"Ø{cutting.tool_diameter:.3f} mm tool")
+    builder.event(EventKind.SPINDLE_ON, value=float(cutting.spindle_rpm))
+    if cutting.coolant is not Coolant.OFF:
+        builder.event(EventKind.COOLANT_ON, text=cutting.coolant.value)
+
+
+def end_program(builder: ToolpathBuilder, cutting: Cutting) -> None:
+    """Events after the last row: coolant off (if it was on), spindle off."""
+    if cutting.coolant is not Coolant.OFF:
+        builder.event(EventKind.COOLANT_OFF)
+    builder.event(EventKind.SPINDLE_OFF)
