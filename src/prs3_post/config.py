@@ -324,3 +324,359 @@ def load_machine(name_or_path: str) -> Machine:
         stage=stage,
         part_origin=part_origin,  # type: ignore[arg-type]
     )
+
+
+# =============================================================================================
+# ----------------------------------------------------------------------------- dialects
+# (G-code dialects for the emitter. Owned separately from the machine part above; it only reuses
+# the strict-reading helpers `_Table`, `_read_toml`, `resolve` and `_display`.)
+
+#: RS-274 axis letters a dialect may map a machine axis to. Every other letter already means
+#: something in a motion block (G, M, F, S, T, P, N, O, and the arc/cycle words D E H I J K L Q R).
+AXIS_LETTERS = "ABCUVWXYZ"
+#: Program end codes the emitter may write (both end the program and rewind).
+_END_CODES = ("M2", "M30")
+#: Line endings a dialect may choose (LinuxCNC counts the CR of CRLF towards the line length).
+_LINE_ENDINGS = {"\n": "LF", "\r\n": "CRLF"}
+#: Units of the G4 P word: LinuxCNC reads seconds, Fanuc (P without a decimal point) milliseconds.
+_DWELL_UNITS = ("s", "ms")
+
+
+@dataclass(frozen=True, slots=True)
+class AxisLetters:
+    """Which word letter each machine axis is written with (all distinct, from :data:`AXIS_LETTERS`).
+
+    Attributes
+    ----------
+    x, y : str — stage X, Y (not written on a machine without a stage)
+    t1, t2, t3 : str — actuator strokes T1, T2, T3
+    """
+
+    x: str
+    y: str
+    t1: str
+    t2: str
+    t3: str
+
+    def __post_init__(self) -> None:
+        letters = (self.x, self.y, self.t1, self.t2, self.t3)
+        if any(len(a) != 1 or a not in AXIS_LETTERS for a in letters) or len(set(letters)) != 5:
+            raise ValueError(f"axis letters must be 5 distinct letters from {AXIS_LETTERS}, got {letters}")
+
+
+@dataclass(frozen=True, slots=True)
+class Decimals:
+    """Digits after the decimal point of each kind of number word.
+
+    Attributes
+    ----------
+    length : int — 1..8, X Y and actuator words (mm)
+    inverse_time : int — 1..8, the G93 F word (1/min)
+    spindle : int — 0..8, the S word (rpm)
+    dwell : int — 0..8, the G4 P word (in the dialect's dwell unit)
+    """
+
+    length: int
+    inverse_time: int
+    spindle: int
+    dwell: int
+
+
+@dataclass(frozen=True, slots=True)
+class LineNumbers:
+    """Block numbers (``N10``) in front of every block except ``%``, the ``O`` line and comment lines.
+
+    Attributes
+    ----------
+    enabled : bool — write them at all (the CLI may override)
+    letter : str — the word letter, normally ``N``
+    start : int — ≥ 0, the first number (the CLI may override)
+    step : int — ≥ 1, the increment (the CLI may override)
+    wrap_after : int — ≥ start, the largest number the control accepts; the next one is ``start`` again
+    """
+
+    enabled: bool
+    letter: str
+    start: int
+    step: int
+    wrap_after: int
+
+
+@dataclass(frozen=True, slots=True)
+class CommentStyle:
+    """How a comment is written and how its text is made safe.
+
+    Attributes
+    ----------
+    open, close : str — what surrounds the text (``(`` and ``)``)
+    uppercase : bool — upper-case the text (old Fanuc controls reject lower case)
+    replace : tuple of (str, str) — single characters and their replacements, applied first; covers
+        every character of ``open`` and ``close`` so that a text can never end its comment early
+    control : str — replacement for control characters (newline, tab, CR, ...) not in ``replace``
+    non_ascii : str — replacement for any other character outside printable ASCII not in ``replace``
+    """
+
+    open: str
+    close: str
+    uppercase: bool
+    replace: tuple[tuple[str, str], ...]
+    control: str
+    non_ascii: str
+
+
+@dataclass(frozen=True, slots=True)
+class Dialect:
+    """A G-code dialect: everything the emitter writes that is not motion data.
+
+    Attributes
+    ----------
+    name : str — the file's stem (``linuxcnc``)
+    description : str — one line for listings
+    source : str — where it was loaded from, as shown in messages
+    axes : AxisLetters — word letter of each machine axis
+    decimals : Decimals — fixed decimals of each kind of number
+    line_numbers : LineNumbers — block numbering
+    comments : CommentStyle — comment delimiters and sanitizing
+    percent : bool — a ``%`` line opens and closes the program
+    program_number : int — 0: no ``O`` line; else ``O<n>`` right after the opening ``%``
+    program_name : str — comment on the ``O`` line (empty: none)
+    end_code : str — ``M2`` or ``M30``
+    line_ending : str — ``"\\n"`` or ``"\\r\\n"``
+    max_line_length : int — characters per line without the line ending (LinuxCNC: 252)
+    safe_start : tuple of str — blocks that put the control in a known state
+    preamble : tuple of str — blocks after the safe start, before the first move
+    postamble : tuple of str — blocks after the last move, before the end code
+    modal_motion : bool — write G0/G1 only when it changes (False: on every motion line)
+    dwell_unit : str — unit of the G4 P word, ``s`` or ``ms``
+    """
+
+    name: str
+    description: str
+    source: str
+    axes: AxisLetters
+    decimals: Decimals
+    line_numbers: LineNumbers
+    comments: CommentStyle
+    percent: bool
+    program_number: int
+    program_name: str
+    end_code: str
+    line_ending: str
+    max_line_length: int
+    safe_start: tuple[str, ...]
+    preamble: tuple[str, ...]
+    postamble: tuple[str, ...]
+    modal_motion: bool
+    dwell_unit: str
+
+    def __post_init__(self) -> None:
+        if self.end_code not in _END_CODES:
+            raise ValueError(f"end_code must be one of {_END_CODES}, got {self.end_code!r}")
+        if self.line_ending not in _LINE_ENDINGS:
+            raise ValueError(f"line_ending must be LF or CRLF, got {self.line_ending!r}")
+        if self.dwell_unit not in _DWELL_UNITS:
+            raise ValueError(f"dwell_unit must be one of {_DWELL_UNITS}, got {self.dwell_unit!r}")
+
+
+def _printable(text: str) -> bool:
+    """Only printable ASCII (space to ``~``)."""
+    return all(" " <= c <= "~" for c in text)
+
+
+def _decimals(table: _Table, key: str, minimum: int) -> int:
+    value = table.integer(key)
+    if not minimum <= value <= 8:
+        raise table._error(key, f"must be {minimum}..8 digits after the point, got {value}")
+    return value
+
+
+def _letter(table: _Table, key: str) -> str:
+    value = table.text(key)
+    if len(value) != 1 or not "A" <= value <= "Z":
+        raise table._error(key, f"expected one upper-case letter A-Z, got {value!r}")
+    return value
+
+
+def _blocks(table: _Table, key: str, room: int) -> tuple[str, ...]:
+    """A list of literal blocks: each one line of printable ASCII, no ``%``, short enough to number."""
+    lines = table.strings(key)
+    for i, line in enumerate(lines):
+        problem = ""
+        if not line.strip():
+            problem = "is empty (remove it)"
+        elif not _printable(line):
+            problem = f"must be one line of printable ASCII, got {line!r}"
+        elif "%" in line:
+            problem = f"must not contain '%' (the program start/end is program.percent), got {line!r}"
+        elif line != line.strip():
+            problem = f"has leading or trailing spaces, got {line!r}"
+        elif len(line) > room:
+            problem = f"is {len(line)} characters, at most {room} fit on a numbered line"
+        if problem:
+            raise table._error(f"{key}[{i}]", problem)
+    return lines
+
+
+def load_dialect(name_or_path: str) -> Dialect:
+    """Load a shipped dialect by name or a dialect TOML file by path, strictly.
+
+    Parameters
+    ----------
+    name_or_path : str
+        A shipped name (``linuxcnc``, ``fanuc``) or the path of a dialect TOML file.
+
+    Returns
+    -------
+    Dialect
+
+    Raises
+    ------
+    ConfigError
+        ``file: dotted.key: problem`` for anything missing, unknown, mistyped or out of range: axis
+        letters that are not distinct axis letters, decimals outside their range, a comment style that
+        a text could break out of, blocks that are not one line of printable ASCII, ...
+    """
+    path = resolve("dialects", name_or_path)
+    shown = _display(path)
+    top = _Table(_read_toml(path), shown)
+    description = top.text("description")
+
+    # Tables are read in the order their checks depend on: program (line length) before blocks.
+    ax = top.table("axes")
+    letters: dict[str, str] = {}
+    for key in ("x", "y", "t1", "t2", "t3"):
+        letter = _letter(ax, key)
+        if letter not in AXIS_LETTERS:
+            raise ax._error(key, f"{letter!r} is not an axis letter (use one of {' '.join(AXIS_LETTERS)})")
+        for other, used in letters.items():
+            if used == letter:
+                raise ax._error(key, f"{letter!r} is already the letter of axes.{other}")
+        letters[key] = letter
+    ax.finish()
+    axes = AxisLetters(**letters)
+
+    dec = top.table("decimals")
+    decimals = Decimals(
+        length=_decimals(dec, "length", 1),
+        inverse_time=_decimals(dec, "inverse_time", 1),
+        spindle=_decimals(dec, "spindle", 0),
+        dwell=_decimals(dec, "dwell", 0),
+    )
+    dec.finish()
+
+    num = top.table("line_numbers")
+    enabled = num.boolean("enabled")
+    n_letter = num.text("letter")
+    if n_letter != "N":
+        # Every other letter is an axis letter or a word of its own (G M F S T P O D E H I J K L Q R).
+        raise num._error("letter", f"RS-274 block numbers are written with 'N', got {n_letter!r}")
+    start = num.integer("start", minimum=0)
+    step = num.integer("step", minimum=1)
+    wrap_after = num.integer("wrap_after", minimum=1)
+    if wrap_after < start:
+        raise num._error("wrap_after", f"must be ≥ line_numbers.start = {start}, got {wrap_after}")
+    num.finish()
+    line_numbers = LineNumbers(enabled, n_letter, start, step, wrap_after)
+
+    com = top.table("comments")
+    c_open = com.text("open")
+    c_close = com.text("close")
+    for key, value in (("open", c_open), ("close", c_close)):
+        if not _printable(value) or value != value.strip():
+            raise com._error(key, f"must be printable ASCII without spaces, got {value!r}")
+    if not c_open:
+        raise com._error("open", "must not be empty")
+    uppercase = com.boolean("uppercase")
+    control = com.text("control")
+    non_ascii = com.text("non_ascii")
+    for key, value in (("control", control), ("non_ascii", non_ascii)):
+        if not _printable(value):
+            raise com._error(key, f"must be printable ASCII, got {value!r}")
+    rep = com.table("replace")
+    replace: list[tuple[str, str]] = []
+    # The keys of this table are data (characters), not a fixed schema: walk them all. Each is
+    # taken through rep.text(), so rep.finish() below still has nothing left to reject.
+    for char in sorted(rep._data):
+        full_key = f"replace.{char}" if char.isalnum() else f'replace."{char}"'
+        if len(char) != 1:
+            raise com._error(full_key, "keys must be single characters")
+        value = rep.text(char)
+        if not _printable(value):
+            raise com._error(full_key, f"must be printable ASCII, got {value!r}")
+        replace.append((char, value))
+    rep.finish()
+    replaced = dict(replace)
+    # The text must never be able to end (or, for LinuxCNC, nest) its comment: every delimiter
+    # character is replaced, and no replacement brings one back.
+    delimiters = sorted(set(c_open + c_close))
+    for char in delimiters:
+        if char not in replaced:
+            raise com._error("replace", f"must replace {char!r} (a comment delimiter character)")
+    for key, value in (*((f'replace."{c}"', v) for c, v in replace), ("control", control), ("non_ascii", non_ascii)):
+        bad = sorted(set(value) & set(delimiters))
+        if bad:
+            raise com._error(key, f"must not contain the comment delimiter {bad[0]!r}, got {value!r}")
+    com.finish()
+    comments = CommentStyle(c_open, c_close, uppercase, tuple(replace), control, non_ascii)
+
+    prog = top.table("program")
+    percent = prog.boolean("percent")
+    program_number = prog.integer("number", minimum=0)
+    if program_number > 99999999:
+        raise prog._error("number", f"must be 0 (no O line) or 1..99999999, got {program_number}")
+    program_name = prog.text("name")
+    if not _printable(program_name) or set(program_name) & set(c_open + c_close):
+        raise prog._error("name", f"must be printable ASCII without {c_open!r} or {c_close!r}, got {program_name!r}")
+    if program_name and not program_number:
+        raise prog._error("name", "needs program.number > 0 (the name is a comment on the O line)")
+    end_code = prog.text("end_code")
+    if end_code not in _END_CODES:
+        raise prog._error("end_code", f"expected one of {', '.join(_END_CODES)}, got {end_code!r}")
+    line_ending = prog.text("line_ending")
+    if line_ending not in _LINE_ENDINGS:
+        raise prog._error("line_ending", f'expected "\\n" or "\\r\\n", got {line_ending!r}')
+    max_line_length = prog.integer("max_line_length", minimum=40)
+    if max_line_length > 252:
+        raise prog._error("max_line_length", f"must be 40..252 (LinuxCNC's limit), got {max_line_length}")
+    prog.finish()
+
+    # A literal block must fit behind the longest block number, e.g. "N99999 ", whether or not
+    # numbers are enabled here (the CLI may switch them on).
+    room = max_line_length - (len(line_ending) - 1) - len(f"{n_letter}{wrap_after} ")
+    o_line = f"O{program_number} {c_open}{program_name}{c_close}" if program_name else f"O{program_number}"
+    if program_number and len(o_line) > room:
+        raise ConfigError(f"program.name: the O line would be {len(o_line)} characters, at most {room} fit", path=shown)
+    blk = top.table("blocks")
+    safe_start = _blocks(blk, "safe_start", room)
+    preamble = _blocks(blk, "preamble", room)
+    postamble = _blocks(blk, "postamble", room)
+    blk.finish()
+
+    words = top.table("words")
+    modal_motion = words.boolean("modal_motion")
+    dwell_unit = words.text("dwell_unit")
+    if dwell_unit not in _DWELL_UNITS:
+        raise words._error("dwell_unit", f"expected one of {', '.join(_DWELL_UNITS)}, got {dwell_unit!r}")
+    words.finish()
+    top.finish()
+
+    return Dialect(
+        name=path.stem,
+        description=description,
+        source=shown,
+        axes=axes,
+        decimals=decimals,
+        line_numbers=line_numbers,
+        comments=comments,
+        percent=percent,
+        program_number=program_number,
+        program_name=program_name,
+        end_code=end_code,
+        line_ending=line_ending,
+        max_line_length=max_line_length,
+        safe_start=safe_start,
+        preamble=preamble,
+        postamble=postamble,
+        modal_motion=modal_motion,
+        dwell_unit=dwell_unit,
+    )
