@@ -1,0 +1,114 @@
+"""Machine limits on every point: values, margins, and the error for the first violation.
+
+A margin is the distance from a value to the nearest bound of its limit, in the limit's unit
+(mm, rad or plain number): positive inside, 0 on the boundary (still allowed), negative outside.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from prs3_post.config import Machine
+from prs3_post.errors import LimitError
+from prs3_post.kinematics import IKResult
+from prs3_post.types import BoolArray, FloatArray
+
+
+@dataclass(frozen=True, slots=True)
+class LimitReport:
+    """Every limit of a machine evaluated on N points.
+
+    Attributes
+    ----------
+    names : (L,) str — ``T1 stroke`` … ``condition number``, ``stage X``
+    units : (L,) str — ``mm``, ``deg`` (values kept in rad) or ``""``
+    low, high : (L,) float — bounds (``-inf`` / ``inf`` where there is none)
+    value : (N, L) float — each point's value (mm, rad, number)
+    margin : (N, L) float — distance to the nearest bound, negative outside
+    ok : (N,) bool — every margin ≥ 0
+    """
+
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    low: FloatArray
+    high: FloatArray
+    value: FloatArray
+    margin: FloatArray
+    ok: BoolArray
+
+    def describe(self, row: int, column: int) -> str:
+        """``T2 stroke 412.3456 mm is above the maximum 400.0000 mm by 12.3456 mm`` (or the margin)."""
+        name, unit = self.names[column], self.units[column]
+        scale = math.degrees(1.0) if unit == "deg" else 1.0
+        value, margin = self.value[row, column] * scale, self.margin[row, column] * scale
+        low, high = self.low[column] * scale, self.high[column] * scale
+        suffix = f" {unit}" if unit else ""
+        if margin >= 0:
+            return f"{name} {value:.4f}{suffix} is within [{low:.4f}, {high:.4f}]{suffix} with margin {margin:.4f}{suffix}"
+        if value > high:
+            return f"{name} {value:.4f}{suffix} is above the maximum {high:.4f}{suffix} by {-margin:.4f}{suffix}"
+        return f"{name} {value:.4f}{suffix} is below the minimum {low:.4f}{suffix} by {-margin:.4f}{suffix}"
+
+
+def check_limits(machine: Machine, ik: IKResult, axis: FloatArray) -> LimitReport:
+    """Evaluate every limit of ``machine`` on IK results.
+
+    Parameters
+    ----------
+    machine : Machine
+    ik : IKResult — N points
+    axis : (N, 3) float — unit tool axes of the same points (for the tilt)
+
+    Returns
+    -------
+    LimitReport
+    """
+    lim = machine.limits
+    columns: list[tuple[str, str, float, float, FloatArray]] = []
+    for leg in range(3):
+        columns.append((f"T{leg + 1} stroke", "mm", *lim.stroke, ik.strokes[:, leg]))
+    for leg in range(3):
+        columns.append((f"θ{leg + 1} link angle", "deg", *lim.link_angle, ik.link_angle[:, leg]))
+    tilt = np.arccos(np.clip(np.asarray(axis, dtype=np.float64).reshape(-1, 3)[:, 2], -1.0, 1.0))  # clip: rounding
+    columns.append(("tilt", "deg", -math.inf, lim.max_tilt, tilt))
+    columns.append(("condition number", "", -math.inf, lim.max_condition, ik.condition))
+    if machine.stage.present:
+        columns.append(("stage X", "mm", *machine.stage.travel_x, ik.stage[:, 0]))
+        columns.append(("stage Y", "mm", *machine.stage.travel_y, ik.stage[:, 1]))
+    low = np.array([c[2] for c in columns])
+    high = np.array([c[3] for c in columns])
+    value = np.column_stack([c[4] for c in columns]) if columns else np.zeros((0, 0))
+    value = value.reshape(len(ik.strokes), len(columns))
+    margin = np.minimum(value - low, high - value)
+    with np.errstate(invalid="ignore"):
+        ok = np.all(margin >= 0.0, axis=1)             # NaN (unreachable) is never ok
+    return LimitReport(
+        names=tuple(c[0] for c in columns),
+        units=tuple(c[1] for c in columns),
+        low=low,
+        high=high,
+        value=value,
+        margin=margin,
+        ok=ok,
+    )
+
+
+def raise_first_violation(report: LimitReport, describe_row: Callable[[int], str]) -> None:
+    """Raise :class:`LimitError` for the first point outside a limit (its first broken limit), if any.
+
+    Parameters
+    ----------
+    report : LimitReport
+    describe_row : row index → where it came from (``hole 1 feed``, ``line 12``)
+    """
+    bad = np.flatnonzero(~report.ok)
+    if not len(bad):
+        return
+    row = int(bad[0])
+    column = int(np.flatnonzero(~(report.margin[row] >= 0.0))[0])   # first limit broken (or NaN)
+    count = f" ({len(bad)} points outside limits in all)" if len(bad) > 1 else ""
+    raise LimitError(f"{describe_row(row)}: {report.describe(row, column)}{count}")

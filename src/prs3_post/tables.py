@@ -1,0 +1,131 @@
+"""IK and FK results as records, CSV and text: pure formatting for the ``ik`` and ``fk`` commands.
+
+CSV columns and JSON keys are the same names; numbers are written at full float precision
+(``repr``), so a CSV round trip is exact.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from prs3_post.kinematics import FKResult, IKResult
+from prs3_post.limits import LimitReport
+from prs3_post.readers.poses import POSE_COLUMNS
+from prs3_post.types import FloatArray
+
+IK_COLUMNS = ("X", "Y", "T1", "T2", "T3", "theta1_deg", "theta2_deg", "theta3_deg", "cond", "ok")
+FK_COLUMNS = (
+    "tip_x", "tip_y", "tip_z", "axis_x", "axis_y", "axis_z",
+    "theta1_deg", "theta2_deg", "theta3_deg", "tilt_deg", "converged", "iterations", "residual_mm",
+)
+
+
+def _number(value: float) -> float | None:
+    """A JSON-safe float: NaN (unreachable) becomes null."""
+    return None if math.isnan(value) else float(value)
+
+
+def ik_records(tip: FloatArray, axis: FloatArray, ik: IKResult, report: LimitReport) -> list[dict[str, Any]]:
+    """One record per pose: the pose, IK_COLUMNS, and ``violations`` (limit, value, margin).
+
+    Angles in the records are degrees, as their names say; margins are in each limit's unit.
+    """
+    values = np.column_stack([
+        tip, axis, ik.stage, ik.strokes, np.degrees(ik.link_angle), ik.condition,
+    ])
+    names = POSE_COLUMNS + IK_COLUMNS[:-1]
+    records = []
+    for row in range(len(values)):
+        record: dict[str, Any] = {name: _number(v) for name, v in zip(names, values[row].tolist(), strict=True)}
+        record["ok"] = bool(report.ok[row])
+        record["reachable"] = bool(ik.reachable[row])
+        record["violations"] = [
+            {
+                "limit": report.names[col],
+                "value": _number(_shown(report, row, col, report.value)),
+                "margin": _number(_shown(report, row, col, report.margin)),
+                "unit": report.units[col],
+            }
+            for col in range(len(report.names))
+            if not report.margin[row, col] >= 0.0
+        ]
+        records.append(record)
+    return records
+
+
+def _shown(report: LimitReport, row: int, col: int, table: FloatArray) -> float:
+    value = float(table[row, col])
+    return math.degrees(value) if report.units[col] == "deg" else value
+
+
+def ik_csv(tip: FloatArray, axis: FloatArray, ik: IKResult, report: LimitReport) -> str:
+    """The batch output: the input columns then IK_COLUMNS, one line per pose, ``\\n`` endings."""
+    values = np.column_stack([tip, axis, ik.stage, ik.strokes, np.degrees(ik.link_angle), ik.condition])
+    ok = np.where(report.ok, "true", "false")
+    lines = [",".join(POSE_COLUMNS + IK_COLUMNS)]
+    lines += [",".join(map(repr, row)) + f",{flag}" for row, flag in zip(values.tolist(), ok.tolist(), strict=True)]
+    return "\n".join(lines) + "\n"
+
+
+def ik_text(record: dict[str, Any]) -> str:
+    """A short human-readable report of one IK record."""
+    def show(key: str, decimals: int = 4) -> str:
+        return fixed(record[key], decimals)
+
+    lines = [
+        f"tip   {show('tip_x')} {show('tip_y')} {show('tip_z')} mm   axis {show('axis_x', 6)} "
+        f"{show('axis_y', 6)} {show('axis_z', 6)}",
+        f"stage X {show('X')}  Y {show('Y')} mm",
+        f"strokes T1 {show('T1')}  T2 {show('T2')}  T3 {show('T3')} mm",
+        f"link angles {show('theta1_deg')}  {show('theta2_deg')}  {show('theta3_deg')} deg",
+        f"condition number {show('cond', 3)}",
+    ]
+    if record["ok"]:
+        lines.append("ok: within every limit")
+    for v in record["violations"]:
+        unit = f" {v['unit']}" if v["unit"] else ""
+        lines.append(f"LIMIT {v['limit']}: {fixed(v['value'])}{unit} (margin {fixed(v['margin'])}{unit})")
+    return "\n".join(lines) + "\n"
+
+
+def fk_records(fk: FKResult) -> list[dict[str, Any]]:
+    """One record per actuator setting, keys FK_COLUMNS (angles in degrees)."""
+    tilt = np.degrees(np.arccos(np.clip(fk.axis[:, 2], -1.0, 1.0)))   # clip: rounding past 1
+    values = np.column_stack([fk.tip, fk.axis, np.degrees(fk.link_angle), tilt])
+    records = []
+    for row in range(len(values)):
+        record: dict[str, Any] = {
+            name: _number(v) for name, v in zip(FK_COLUMNS[:10], values[row].tolist(), strict=True)
+        }
+        record["converged"] = bool(fk.converged[row])
+        record["iterations"] = int(fk.iterations[row])
+        record["residual_mm"] = float(fk.residual[row])
+        records.append(record)
+    return records
+
+
+def fixed(value: float | None, decimals: int = 4) -> str:
+    """Fixed decimals, ``n/a`` for a missing value, never ``-0.0000``.
+
+    >>> fixed(-0.00001), fixed(1.23456, 2), fixed(None)
+    ('0.0000', '1.23', 'n/a')
+    """
+    if value is None:
+        return "n/a"
+    text = f"{value:.{decimals}f}"
+    return text[1:] if text.startswith("-") and float(text) == 0 else text
+
+
+def fk_text(record: dict[str, Any]) -> str:
+    """A short human-readable report of one FK record."""
+    r = {key: fixed(value, 6 if key.startswith("axis") else 4) if isinstance(value, float) else value
+         for key, value in record.items()}
+    return (
+        f"tip   {r['tip_x']} {r['tip_y']} {r['tip_z']} mm\n"
+        f"axis  {r['axis_x']} {r['axis_y']} {r['axis_z']}   tilt {r['tilt_deg']} deg\n"
+        f"link angles {r['theta1_deg']}  {r['theta2_deg']}  {r['theta3_deg']} deg\n"
+        f"converged in {record['iterations']} Newton steps, residual {record['residual_mm']:.1e} mm\n"
+    )
