@@ -84,6 +84,11 @@ class HoleParams:
             )
 
 
+def _on_axis(center_uv: FloatArray, w: float) -> FloatArray:
+    """(3,) face point (u, v, w) mm on the hole's axis at height ``w`` (negative: depth)."""
+    return np.array([center_uv[0], center_uv[1], w], dtype=np.float64)
+
+
 def _hole_name(index: int, center_uv: FloatArray, cutting: Cutting) -> str:
     return f"hole {index} at {format_uv(center_uv)} with tool Ø{cutting.tool_diameter:.3f}"
 
@@ -137,19 +142,15 @@ def plan_holes(face: Face, centers_uv: FloatArray, params: HoleParams, cutting: 
     for index, center in enumerate(centers, start=1):
         builder.comment(f"hole {index}/{count} at {format_uv(center)}")
         approach(builder, center, params.clearance, params.retract, f"hole {index} approach")
-
-        def bottom(depth: float) -> FloatArray:
-            return np.array([center[0], center[1], -depth])
-
         for peck, depth in enumerate(depths, start=1):
-            if peck > 1:
+            if peck > 1:                               # out to clear the chips, back to just above the bottom
                 previous = float(depths[peck - 2])
                 builder.step(f"hole {index} peck {peck - 1} clear")
-                builder.rapid(np.array([center[0], center[1], params.clearance]))
+                builder.rapid(_on_axis(center, params.clearance))
                 builder.step(f"hole {index} peck {peck} reapproach")
-                builder.rapid(bottom(previous - params.reapproach_gap))
+                builder.rapid(_on_axis(center, -(previous - params.reapproach_gap)))
             builder.step(f"hole {index} peck {peck} feed" if len(depths) > 1 else f"hole {index} feed")
-            builder.feed(bottom(float(depth)), cutting.plunge_feed)
+            builder.feed(_on_axis(center, -float(depth)), cutting.plunge_feed)
         if params.dwell > 0:
             builder.event(EventKind.DWELL, value=float(params.dwell))
         depart(builder, center, params.clearance, params.retract, f"hole {index} retract")

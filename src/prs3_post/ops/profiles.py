@@ -296,6 +296,8 @@ def tool_center_contour(
         than the tool radius.
     """
     require_positive("--tolerance", tolerance, "mm")
+    if not isinstance(shape, (SquareShape, RoundShape)):
+        raise TypeError(f"tool_center_contour: shape must be SquareShape or RoundShape, got {type(shape).__name__}")
     radius = 0.5 * tool_diameter
     offset = {Side.ON: 0.0, Side.OUTSIDE: radius, Side.INSIDE: -radius}[side]
     if side is Side.INSIDE:
@@ -318,8 +320,8 @@ def tool_center_contour(
 
     if isinstance(shape, SquareShape):
         local = _square_contour(0.5 * shape.size + offset, shape.corner_radius + offset, tolerance=tolerance)
-        cos_r, sin_r = math.cos(shape.rotation), math.sin(shape.rotation)
-        if shape.rotation != 0.0:
+        if shape.rotation != 0.0:                                        # keep unrotated sides exactly straight
+            cos_r, sin_r = math.cos(shape.rotation), math.sin(shape.rotation)
             local = local @ np.array([[cos_r, sin_r], [-sin_r, cos_r]])   # rows rotated CCW by rotation
     else:
         local = arc_points(np.zeros(2), 0.5 * shape.diameter + offset, 0.0, 2.0 * math.pi, tolerance=tolerance)
