@@ -1,0 +1,377 @@
+"""Kinematics: the paper's tables, the exact model's proofs, and the paper-vs-exact figures.
+
+Numbers come from DESIGN.md ("The paper's numbers (checked)"), with the paper's typos corrected.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
+from numpy.testing import assert_allclose
+
+from prs3_post.config import load_machine
+from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, forward, inverse, unit_axes
+from prs3_post.kinematics.exact import inverse_exact, platform_centre_xy, spherical_joints
+from prs3_post.kinematics.paper import paper_joints
+from prs3_post.limits import check_limits, raise_first_violation
+from prs3_post.errors import LimitError
+
+MACHINE = load_machine("patel2020")
+GEO = MACHINE.geometry
+AXIS_2A = np.array([0.447214, 0.0, 0.894427])
+TIP_2A = np.array([-81.0264, 21.2132, -679.4865])
+TIP_2B = np.array([-86.5836, 0.0, -676.7079])
+TIPS = np.array([TIP_2A, TIP_2B])
+AXES = unit_axes(TIPS, np.array([AXIS_2A, AXIS_2A]))
+
+# ------------------------------------------------------------------ the paper's tables (paper model)
+
+PAPER_JOINTS = np.array([
+    [[-131.1507, -75.7199, -458.7683], [127.0333, -73.3427, -587.8606], [0.0, 194.3907, -524.3438]],
+    [[-144.1769, -83.2405, -452.2552], [131.0382, -75.6549, -589.8631], [0.0, 172.9550, -524.3438]],
+])
+PAPER_THETA_DEG = np.array([[60.0586, 59.4042, 65.7949], [62.1014, 60.0407, 62.9687]])
+PAPER_STROKES = np.array([[41.0978, 172.9648, 84.7195], [26.2745, 172.2674, 94.9981]])
+
+
+def test_paper_model_reproduces_tables_2_and_3():
+    result = inverse(GEO, TIPS, AXES, model=IKModel.PAPER)
+    assert_allclose(result.strokes, PAPER_STROKES, atol=5e-4)
+    assert_allclose(np.degrees(result.link_angle), PAPER_THETA_DEG, atol=1e-3)
+    assert_allclose(paper_joints(GEO, TIPS, AXES), PAPER_JOINTS, atol=2e-4)
+    assert_allclose(result.stage, 0.0, atol=0.0)
+
+
+def test_paper_platform_centre_case_2a():
+    # M = tip + TL a; the paper prints z -522.6918, a typo for -522.9618
+    assert_allclose(TIP_2A + GEO.tool_length * AXES[0], [-2.7639, 21.2132, -522.9618], atol=1e-4)
+
+
+def test_paper_joints_are_not_a_rigid_platform():
+    joints = paper_joints(GEO, TIPS[:1], AXES[:1])[0]
+    sides = [np.linalg.norm(joints[i] - joints[(i + 1) % 3]) for i in range(3)]
+    assert_allclose(sides, [288.668, 303.073, 307.344], atol=1e-3)   # DESIGN: 288.7 / 303.0 / 307.4
+
+
+# ------------------------------------------------------------------ paper vs exact (DESIGN.md figures)
+
+
+def test_exact_stage_positions_for_cases_2a_2b():
+    result = inverse(GEO, TIPS, AXES)
+    assert_allclose(result.stage, [[-2.7639, 12.0703], [-8.3211, -9.1429]], atol=1e-4)
+    assert result.reachable.all()
+
+
+def test_paper_minus_exact_strokes():
+    paper = inverse(GEO, TIPS, AXES, model=IKModel.PAPER)
+    exact = inverse(GEO, TIPS, AXES)
+    assert_allclose(paper.strokes - exact.strokes, [[4.87, 2.58, -4.23], [-7.17, 4.66, 8.82]], atol=5e-3)
+
+
+def test_rigid_machine_driven_with_paper_strokes_tilts_the_tool():
+    paper = inverse(GEO, TIPS, AXES, model=IKModel.PAPER)
+    fk = forward(GEO, paper.strokes)
+    assert fk.converged.all()
+    error_deg = np.degrees(np.arccos(np.clip(np.sum(fk.axis * AXES, axis=1), -1, 1)))
+    assert_allclose(error_deg, [2.27, 4.89], atol=5e-3)
+
+
+# ------------------------------------------------------------------ exact model: round trip proofs
+
+
+def poses_from(tilt_deg, azimuth_deg, tip):
+    tilt, azimuth = np.radians(tilt_deg), np.radians(azimuth_deg)
+    axis = np.column_stack([np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)])
+    return np.asarray(tip, dtype=np.float64).reshape(-1, 3), axis
+
+
+# The test workspace: tilt <= 45 deg any azimuth, tip x, y in [-150, 150], z in [-750, -600] mm.
+# Every pose in it respects every limit of patel2020 (asserted below, not assumed).
+workspace = st.tuples(
+    st.floats(0.0, 45.0),
+    st.floats(0.0, 360.0),
+    st.floats(-150.0, 150.0),
+    st.floats(-150.0, 150.0),
+    st.floats(-750.0, -600.0),
+)
+
+
+@settings(deadline=None, max_examples=300)
+@given(workspace)
+@example((45.0, 30.0, -150.0, 150.0, -750.0))      # worst condition number, extreme corner
+@example((0.0, 0.0, 0.0, 0.0, -600.0))             # untilted: c = 1/2, no parasitic motion
+def test_fk_of_ik_round_trip(pose):
+    tilt, azimuth, x, y, z = pose
+    tip, axis = poses_from(tilt, azimuth, [x, y, z])
+    ik = inverse(GEO, tip, axis)
+    assert check_limits(MACHINE, ik, axis).ok.all()
+    fk = forward(GEO, ik.strokes, ik.stage)
+    assert fk.converged.all()
+    assert_allclose(fk.tip, tip, atol=1e-9)
+    assert_allclose(fk.axis, axis, atol=1e-12)
+    assert_allclose(fk.link_angle, ik.link_angle, atol=1e-10)
+    # the rigid platform's joints stay in their legs' planes and 300 mm apart
+    head_tip = tip - np.column_stack([ik.stage, np.zeros(1)])
+    joints = spherical_joints(GEO, head_tip, axis)[0]
+    for leg, alpha in enumerate(GEO.leg_azimuth):
+        assert abs(joints[leg] @ [-math.sin(alpha), math.cos(alpha), 0.0]) <= 1e-9
+    sides = [np.linalg.norm(joints[i] - joints[(i + 1) % 3]) for i in range(3)]
+    assert_allclose(sides, 300.0, atol=1e-9)
+    # and the legs (eq. 1 from the strokes and link angles) meet exactly those joints
+    alpha = np.asarray(GEO.leg_azimuth)
+    radius = GEO.guide_radius - GEO.link_length * np.cos(ik.link_angle[0])
+    from_legs = np.column_stack([radius * np.cos(alpha), radius * np.sin(alpha),
+                                 -ik.strokes[0] - GEO.link_length * np.sin(ik.link_angle[0])])
+    assert_allclose(from_legs, joints, atol=1e-9)
+
+
+def test_round_trip_in_bulk():
+    rng = np.random.default_rng(7)
+    n = 20000
+    tip, axis = poses_from(rng.uniform(0, 45, n), rng.uniform(0, 360, n),
+                           np.column_stack([rng.uniform(-150, 150, n), rng.uniform(-150, 150, n),
+                                            rng.uniform(-750, -600, n)]))
+    ik = inverse(GEO, tip, axis)
+    fk = forward(GEO, ik.strokes, ik.stage, block_rows=4096)
+    assert fk.converged.all()
+    assert_allclose(fk.tip, tip, atol=1e-9)
+    assert_allclose(fk.axis, axis, atol=1e-12)
+    assert fk.iterations.max() <= 8
+    assert fk.residual.max() < 1e-11
+
+
+# ------------------------------------------------------------------ oracles: plain per-point versions
+
+
+def scalar_ik(tip, axis):
+    """Plain per-point exact IK straight from DESIGN.md (legs at 210/330/90 deg)."""
+    ax, ay, az = axis
+    rp, k, u, tl = GEO.platform_radius, GEO.guide_radius, GEO.link_length, GEO.tool_length
+    px, py = rp * ax * ay / (1 + az), rp * (ax * ax - ay * ay) / (2 * (1 + az))
+    centre = np.array([px, py, tip[2] + tl * az])
+    v = np.cross([0.0, 0.0, 1.0], axis)
+    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    rot = np.eye(3) + vx + vx @ vx / (1 + az)
+    strokes, angles = [], []
+    for alpha in GEO.leg_azimuth:
+        e = np.array([math.cos(alpha), math.sin(alpha), 0.0])
+        s = centre + rp * rot @ e
+        theta = math.acos((k - s @ e) / u)
+        strokes.append(-s[2] - u * math.sin(theta))
+        angles.append(theta)
+    stage = [tip[0] - (px - tl * ax), tip[1] - (py - tl * ay)]
+    return stage, strokes, angles
+
+
+def scalar_jacobian(tip, axis, h=1e-6):
+    """dT/d(M_z, r_p a_x, r_p a_y) by central differences, (3, 3)."""
+    rp, tl = GEO.platform_radius, GEO.tool_length
+
+    def strokes(p):
+        mz, u, v = p
+        ax, ay = u / rp, v / rp
+        az = math.sqrt(1 - ax * ax - ay * ay)
+        return np.array(scalar_ik([0.0, 0.0, mz - tl * az], [ax, ay, az])[1])
+
+    p0 = np.array([tip[2] + tl * axis[2], rp * axis[0], rp * axis[1]])
+    return np.column_stack([(strokes(p0 + d) - strokes(p0 - d)) / (2 * h) for d in np.eye(3) * h])
+
+
+def scalar_condition(tip, axis):
+    return np.linalg.cond(scalar_jacobian(tip, axis))
+
+
+@pytest.mark.parametrize("n", [0, 1, 5000])
+def test_vectorized_ik_equals_scalar_reference(n):
+    rng = np.random.default_rng(n)
+    tip, axis = poses_from(rng.uniform(0, 45, n), rng.uniform(0, 360, n),
+                           np.column_stack([rng.uniform(-150, 150, n), rng.uniform(-150, 150, n),
+                                            rng.uniform(-750, -600, n)]))
+    result = inverse_exact(GEO, tip, axis, block_rows=777)      # odd block size: blocks must not matter
+    assert result.strokes.shape == (n, 3) and result.stage.shape == (n, 2) and result.condition.shape == (n,)
+    for i in range(n):
+        stage, strokes, angles = scalar_ik(tip[i], axis[i])
+        assert_allclose(result.stage[i], stage, atol=1e-9)
+        assert_allclose(result.strokes[i], strokes, atol=1e-9)
+        assert_allclose(result.link_angle[i], angles, atol=1e-12)
+    for i in range(min(n, 200)):
+        assert_allclose(result.condition[i], scalar_condition(tip[i], axis[i]), rtol=1e-5)
+
+
+def scalar_fk(strokes, guess):
+    """Plain per-point FK: Newton with a finite-difference Jacobian on |S_i - S_j| = q."""
+    k, u, q = GEO.guide_radius, GEO.link_length, GEO.platform_radius * math.sqrt(3)
+    alpha = GEO.leg_azimuth
+
+    def joints(theta):
+        return [np.array([(k - u * math.cos(t)) * math.cos(a), (k - u * math.cos(t)) * math.sin(a),
+                          -s - u * math.sin(t)]) for t, a, s in zip(theta, alpha, strokes)]
+
+    def residual(theta):
+        j = joints(theta)
+        return np.array([np.linalg.norm(j[i] - j[(i + 1) % 3]) - q for i in range(3)])
+
+    theta = np.array(guess, dtype=float)
+    for _ in range(50):
+        r = residual(theta)
+        if np.abs(r).max() < 1e-12:
+            break
+        jac = np.column_stack([(residual(theta + d) - residual(theta - d)) / 2e-7 for d in np.eye(3) * 1e-7])
+        theta = theta - np.linalg.solve(jac, r)
+    j = joints(theta)
+    normal = np.cross(j[1] - j[0], j[2] - j[0])
+    axis = normal / np.linalg.norm(normal)
+    return sum(j) / 3 - GEO.tool_length * axis, axis
+
+
+@pytest.mark.parametrize("n", [0, 1, 5000])
+def test_vectorized_fk_equals_scalar_reference(n):
+    rng = np.random.default_rng(100 + n)
+    tip, axis = poses_from(rng.uniform(0, 40, n), rng.uniform(0, 360, n),
+                           np.column_stack([np.zeros(n), np.zeros(n), rng.uniform(-750, -600, n)]))
+    strokes = inverse(GEO, tip, axis).strokes + rng.uniform(-5.0, 5.0, (n, 3))   # not from any one pose
+    result = forward(GEO, strokes, block_rows=999)
+    assert result.tip.shape == (n, 3) and result.axis.shape == (n, 3) and result.converged.shape == (n,)
+    assert result.converged.all()
+    for i in range(0, n, 10):
+        tip, axis = scalar_fk(strokes[i], result.link_angle[i] + 0.01)
+        assert_allclose(result.tip[i], tip, atol=1e-8)
+        assert_allclose(result.axis[i], axis, atol=1e-10)
+
+
+# ------------------------------------------------------------------ condition number and singularity
+
+
+def worst_condition(tilt_deg):
+    tip, axis = poses_from(np.full(360, tilt_deg), np.arange(360.0), np.tile([0.0, 0.0, -680.0], (360, 1)))
+    cond = inverse(GEO, tip, axis).condition
+    return cond.max(), float(np.arange(360.0)[np.argmax(cond)])
+
+
+def test_condition_numbers_of_design_md():
+    assert_allclose(worst_condition(0.0)[0], math.sqrt(2), atol=1e-12)
+    assert_allclose(worst_condition(35.0), (2.796019, 30.0), atol=1e-5)
+    assert_allclose(worst_condition(45.0), (7.199175, 30.0), atol=1e-5)
+
+
+def test_singularity_first_reached_at_49_82_deg_away_from_a_leg():
+    def det_sign(tilt):
+        tip, axis = poses_from([tilt], [30.0], [[0.0, 0.0, -680.0]])
+        return np.sign(np.linalg.det(scalar_jacobian(tip[0], axis[0])))
+
+    low, high = 45.0, 50.0
+    assert det_sign(low) != det_sign(high)
+    for _ in range(30):                                   # bisect the tilt where det J changes sign
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if det_sign(mid) == det_sign(45.0) else (low, mid)
+    assert_allclose(low, 49.82, atol=5e-3)
+    for azimuth in (30.0, 150.0, 270.0):
+        tip, axis = poses_from([49.819], [azimuth], [[0.0, 0.0, -680.0]])
+        assert inverse(GEO, tip, axis).condition[0] > 1e3
+    tip, axis = poses_from([49.819], [90.0], [[0.0, 0.0, -680.0]])   # toward a leg: far from singular
+    assert inverse(GEO, tip, axis).condition[0] < 10
+
+
+# ------------------------------------------------------------------ head model, bad poses, non-assembly
+
+
+def test_head_model_reports_the_missing_xy():
+    head = load_machine("patel2020-head").geometry
+    result = inverse(head, TIPS[:1], AXES[:1], model=IKModel.HEAD)
+    assert not result.reachable[0]
+    assert_allclose(result.stage[0], [-2.7639, 12.0703], atol=1e-4)
+    # the pose whose tip is exactly where the head puts it is reachable
+    on_target = TIPS[:1] - np.append(result.stage[0], 0.0)
+    ok = inverse(head, on_target, AXES[:1], model=IKModel.HEAD)
+    assert ok.reachable[0] and np.hypot(*ok.stage[0]) <= HEAD_XY_TOL
+    assert_allclose(ok.strokes, inverse(GEO, TIPS[:1], AXES[:1]).strokes, atol=1e-9)
+
+
+def test_parasitic_centre_matches_design_closed_form():
+    tip, axis = poses_from(np.array([10.0, 30.0, 45.0]), np.array([0.0, 77.0, 200.0]), np.zeros((3, 3)))
+    ax, ay, az = axis.T
+    expected = np.column_stack([GEO.platform_radius * ax * ay / (1 + az),
+                                GEO.platform_radius * (ax**2 - ay**2) / (2 * (1 + az))])
+    assert_allclose(platform_centre_xy(GEO, axis), expected, atol=1e-12)
+
+
+def test_bad_poses_are_named_by_row():
+    tip = np.array([[0, 0, -680], [np.nan, 0, -680], [0, 0, -680], [0, 0, -680], [0, 0, -680.0]])
+    axis = np.array([[0, 0, 1], [0, 0, 1], [0, 0, 0], [0, 0.5, -1], [1, 0, 0.0]])
+    with pytest.raises(PoseError) as caught:
+        unit_axes(tip, axis)
+    assert str(caught.value) == (
+        "row 1: a value is NaN or infinite; row 2: the axis has zero length; "
+        "rows 3, 4: the axis points away from the spindle (axis z must be > 0)"
+    )
+
+
+def test_unreachable_pose_is_nan_not_garbage():
+    short_links = dataclasses.replace(GEO, link_length=230.0)       # K - r_p = 218.8 mm: barely assembles
+    tip, axis = poses_from([0.0, 20.0], [90.0, 90.0], [[0.0, 0.0, -680.0]] * 2)
+    result = inverse(short_links, tip, axis)
+    assert result.reachable.tolist() == [True, False]              # leg 3 would need cos θ > 1
+    assert np.isnan(result.strokes[1]).all() and np.isnan(result.stage[1]).all()
+    assert np.isnan(result.condition[1]) and np.isfinite(result.strokes[0]).all()
+
+
+def test_fk_reports_strokes_that_do_not_assemble():
+    # 2000 mm apart: no triangle of side 300 fits; 900: a platform fits, but not in the working mode
+    result = forward(GEO, np.array([[0.0, 0.0, 2000.0], [0.0, 0.0, 900.0], [36.2244, 170.3886, 88.9519]]))
+    assert result.converged.tolist() == [False, False, True]
+    assert np.isnan(result.tip[:2]).all() and np.isnan(result.axis[:2]).all()
+    assert result.iterations[0] == 30 and result.residual[0] > 1.0
+
+
+# ------------------------------------------------------------------ limits fire exactly at the boundary
+
+
+def _report_with(limits_change=None, stage_change=None):
+    machine = MACHINE
+    if limits_change:
+        machine = dataclasses.replace(machine, limits=dataclasses.replace(machine.limits, **limits_change))
+    if stage_change:
+        machine = dataclasses.replace(machine, stage=dataclasses.replace(machine.stage, **stage_change))
+    ik = inverse(GEO, TIPS[:1], AXES[:1])
+    return check_limits(machine, ik, AXES[:1]), ik
+
+
+@pytest.mark.parametrize(("limit", "broken"), [
+    ("stroke_max", ["T2 stroke"]), ("stroke_min", ["T1 stroke"]),
+    ("link_min", ["θ1 link angle", "θ2 link angle"]),           # case 2a: θ1 = θ2 exactly (pose symmetric in x)
+    ("link_max", ["θ3 link angle"]), ("tilt", ["tilt"]), ("condition", ["condition number"]),
+    ("stage_x", ["stage X"]), ("stage_y", ["stage Y"]),
+])
+def test_each_limit_fires_exactly_at_its_boundary(limit, broken):
+    _, ik = _report_with()
+    t2, t1 = ik.strokes[0, 1], ik.strokes[0, 0]
+    th_max, th_min = ik.link_angle[0].max(), ik.link_angle[0].min()
+    tilt = math.acos(AXES[0, 2])
+    x, y = ik.stage[0]
+    at, beyond = {
+        "stroke_max": ({"stroke": (-100.0, t2)}, {"stroke": (-100.0, np.nextafter(t2, -np.inf))}),
+        "stroke_min": ({"stroke": (t1, 400.0)}, {"stroke": (np.nextafter(t1, np.inf), 400.0)}),
+        "link_min": ({"link_angle": (th_min, 1.4)}, {"link_angle": (np.nextafter(th_min, 9), 1.4)}),
+        "link_max": ({"link_angle": (0.5, th_max)}, {"link_angle": (0.5, np.nextafter(th_max, 0))}),
+        "tilt": ({"max_tilt": tilt}, {"max_tilt": np.nextafter(tilt, 0)}),
+        "condition": ({"max_condition": ik.condition[0]}, {"max_condition": np.nextafter(ik.condition[0], 0)}),
+        "stage_x": ({"travel_x": (x, 300.0)}, {"travel_x": (np.nextafter(x, 9), 300.0)}),
+        "stage_y": ({"travel_y": (-300.0, y)}, {"travel_y": (-300.0, np.nextafter(y, 0))}),
+    }[limit]
+    key = "stage_change" if limit.startswith("stage") else "limits_change"
+    inside, _ = _report_with(**{key: at})
+    outside, _ = _report_with(**{key: beyond})
+    assert inside.ok[0] and not outside.ok[0]
+    assert [outside.names[c] for c in np.flatnonzero(outside.margin[0] < 0)] == broken
+
+
+def test_limit_error_message_names_step_limit_value_and_margin():
+    report, _ = _report_with(limits_change={"stroke": (-100.0, 170.0)})
+    with pytest.raises(LimitError) as caught:
+        raise_first_violation(report, lambda row: "hole 1 feed")
+    assert str(caught.value) == "hole 1 feed: T2 stroke 170.3886 mm is above the maximum 170.0000 mm by 0.3886 mm"
