@@ -1,0 +1,133 @@
+"""The ik, fk and machines commands: values, CSV batch round trip, exact error messages, exit codes."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from numpy.testing import assert_allclose
+
+from prs3_post.cli import main
+
+POSES = Path(__file__).resolve().parents[1] / "fixtures" / "poses" / "cases_2a_2b.csv"
+TIP_2A, AXIS_2A = "-81.0264,21.2132,-679.4865", "0.447214,0,0.894427"
+
+
+def run(*args: str):
+    return CliRunner().invoke(main, list(args))
+
+
+def test_ik_json_case_2a():
+    result = run("ik", "--tip", TIP_2A, "--axis", AXIS_2A, "--json")
+    assert result.exit_code == 0, result.output
+    record = json.loads(result.output)
+    assert_allclose([record[k] for k in ("X", "Y", "T1", "T2", "T3")],
+                    [-2.7640, 12.0703, 36.2244, 170.3886, 88.9519], atol=1e-4)
+    assert_allclose([record["theta1_deg"], record["theta3_deg"], record["cond"]], [60.5347, 64.2154, 2.0034], atol=1e-4)
+    assert record["ok"] is True and record["violations"] == []
+
+
+def test_ik_paper_model_json():
+    record = json.loads(run("ik", "--tip", TIP_2A, "--axis", AXIS_2A, "--model", "paper", "--json").output)
+    assert_allclose([record["T1"], record["T2"], record["T3"]], [41.0978, 172.9648, 84.7195], atol=5e-4)
+    assert [record["X"], record["Y"]] == [0.0, 0.0]
+
+
+def test_ik_text_report_and_limit_exit_code():
+    result = run("ik", "--tip", TIP_2A, "--axis", "0.9,0,0.3")
+    assert result.exit_code == 1
+    assert result.output.splitlines()[-2:] == [
+        "LIMIT T2 stroke: 422.0763 mm (margin -22.0763 mm)",
+        "LIMIT tilt: 71.5651 deg (margin -26.5651 deg)",
+    ]
+
+
+def test_ik_batch_round_trip(tmp_path):
+    out = tmp_path / "out.csv"
+    result = run("ik", "--batch", str(POSES), "-o", str(out))
+    assert result.exit_code == 1                        # the third pose breaks limits
+    assert result.output == ("prs3-post: 1 of 3 poses unreachable or outside limits (lines 5); "
+                             "see the ok column\n")
+    rows = list(csv.DictReader(io.StringIO(out.read_text())))
+    assert list(rows[0]) == ["tip_x", "tip_y", "tip_z", "axis_x", "axis_y", "axis_z", "X", "Y", "T1", "T2", "T3",
+                             "theta1_deg", "theta2_deg", "theta3_deg", "cond", "ok"]
+    assert [r["ok"] for r in rows] == ["true", "true", "false"]
+    # full precision: the strokes read back reproduce the tips through FK exactly
+    for row in rows[:2]:
+        fk = json.loads(run("fk", "--strokes", f"{row['T1']},{row['T2']},{row['T3']}",
+                            "--xy", f"{row['X']},{row['Y']}", "--json").output)
+        assert_allclose([fk["tip_x"], fk["tip_y"], fk["tip_z"]],
+                        [float(row["tip_x"]), float(row["tip_y"]), float(row["tip_z"])], atol=1e-9)
+    assert_allclose(float(rows[1]["X"]), -8.3211, atol=1e-4)
+
+
+@pytest.mark.parametrize(("content", "message"), [
+    ("x,y,z\n1,2,3\n", "{p}:1: expected the header tip_x,tip_y,tip_z,axis_x,axis_y,axis_z, got 'x,y,z'"),
+    ("", "{p}:1: expected the header tip_x,tip_y,tip_z,axis_x,axis_y,axis_z, got an empty file"),
+    ("tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n1,2,3,0,0\n",
+     "{p}:2: expected 6 values (tip_x,tip_y,tip_z,axis_x,axis_y,axis_z), got 5"),
+    ("tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n1,2,3,0,0,1\n1,2,abc,0,0,1\n", "{p}:3: not a number: 'abc'"),
+    ("tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n1,2,3,0,0,1\n\n1,2,3,0,0,0\n1,2,3,0,0,-1\n",
+     "{p}: line 4: the axis has zero length; line 5: the axis points away from the spindle (axis z must be > 0)"),
+])
+def test_ik_batch_bad_input(tmp_path, content, message):
+    path, out = tmp_path / "poses.csv", tmp_path / "out.csv"
+    path.write_text(content)
+    result = run("ik", "--batch", str(path), "-o", str(out))
+    assert result.exit_code == 2
+    assert result.output == f"prs3-post: error: {message.format(p=path)}\n"
+    assert not out.exists() and list(tmp_path.iterdir()) == [path]
+
+
+def test_ik_missing_batch_file(tmp_path):
+    result = run("ik", "--batch", str(tmp_path / "none.csv"))
+    assert (result.exit_code, result.output) == (2, f"prs3-post: error: {tmp_path / 'none.csv'}: file not found\n")
+
+
+def test_ik_bad_option_values():
+    result = run("ik", "--tip", "1,2", "--axis", AXIS_2A)
+    assert result.exit_code == 2
+    assert "Invalid value for '--tip': expected 3 numbers X,Y,Z, got '1,2'" in result.output
+    result = run("ik", "--tip", TIP_2A, "--axis", "0,0,-1")
+    assert (result.exit_code, result.output) == (
+        2, "prs3-post: error: pose 0: the axis points away from the spindle (axis z must be > 0)\n")
+
+
+def test_ik_head_machine_reports_the_missing_xy():
+    result = run("ik", "--tip", TIP_2A, "--axis", AXIS_2A, "--model", "head", "--machine", "patel2020-head")
+    assert result.exit_code == 1
+    assert result.output == (
+        "prs3-post: error: machine patel2020-head has no stage and its head alone misses this tip by 12.3827 mm "
+        "(x -2.7640, y 12.0703): the tilt's parasitic shift must be matched by the part setup, "
+        "or use a machine with an XY stage\n"
+    )
+
+
+def test_fk_text_and_json():
+    result = run("fk", "--strokes", "36.2243753,170.3884539,88.9518701", "--xy", "-2.7640208,12.0703266")
+    assert result.exit_code == 0
+    assert result.output.splitlines()[:2] == [
+        "tip   -81.0264 21.2132 -679.4865 mm",
+        "axis  0.447214 0.000000 0.894427   tilt 26.5651 deg",
+    ]
+    record = json.loads(run("fk", "--strokes", "36.2243753,170.3884539,88.9518701", "--json").output)
+    assert record["converged"] is True and record["iterations"] <= 6
+    assert_allclose(record["tilt_deg"], np.degrees(np.arctan(0.5)), atol=1e-6)
+
+
+def test_fk_does_not_assemble():
+    result = run("fk", "--strokes", "0,0,2000")
+    assert result.exit_code == 1
+    assert result.output.startswith(
+        "prs3-post: error: strokes 0, 0, 2000 mm do not assemble the head of patel2020 (no rigid platform pose")
+
+
+def test_machines_list():
+    result = run("machines")
+    assert result.exit_code == 0
+    assert [line.split()[0] for line in result.output.splitlines()] == ["patel2020", "patel2020-head"]
