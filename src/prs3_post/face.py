@@ -30,7 +30,7 @@ def frame_from_normal(normal: FloatArray) -> tuple[FloatArray, FloatArray]:
     u, v : (3,) float — unit vectors, ``v = w × u``
 
     >>> u, v = frame_from_normal(np.array([0.6, 0.0, 0.8]))
-    >>> np.round(u, 6).tolist(), np.round(v, 6).tolist()
+    >>> (np.round(u, 6) + 0.0).tolist(), (np.round(v, 6) + 0.0).tolist()   # + 0.0: no -0.0
     ([0.8, 0.0, -0.6], [0.0, 1.0, 0.0])
     """
     w = np.asarray(normal, dtype=np.float64)
