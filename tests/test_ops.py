@@ -290,7 +290,7 @@ def test_hole_positions_refused(centers: np.ndarray, message: str) -> None:
         (dict(feed=-100.0), "--feed must be > 0 mm/min (got -100)"),
         (dict(feed=math.inf), "--feed must be > 0 mm/min (got inf)"),
         (dict(plunge_feed=0.0), "--plunge-feed must be > 0 mm/min (got 0)"),
-        (dict(spindle_rpm=0.0), "--spindle-rpm must be > 0 rpm (got 0)"),
+        (dict(spindle_rpm=0.0), "--spindle must be > 0 rpm (got 0)"),
         (dict(tool_number=0), "--tool-number must be an integer ≥ 1 (got 0)"),
         (dict(tool_number=1.5), "--tool-number must be an integer ≥ 1 (got 1.5)"),
     ],

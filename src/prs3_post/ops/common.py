@@ -168,7 +168,7 @@ class Cutting:
     feed : float — mm/min, > 0, tip feed along the contour (``--feed``)
     plunge_feed : float — mm/min, > 0, tip feed when moving into the material along the axis or
         down a ramp (``--plunge-feed``)
-    spindle_rpm : float — rev/min, > 0, clockwise (M3) (``--spindle-rpm``)
+    spindle_rpm : float — rev/min, > 0, clockwise (M3) (``--spindle``)
     coolant : Coolant — (``--coolant``)
     tool_number : int — ≥ 1, the T word of the tool change (``--tool-number``)
 
@@ -189,7 +189,7 @@ class Cutting:
         require_positive("--tool-diameter", self.tool_diameter, "mm")
         require_positive("--feed", self.feed, "mm/min")
         require_positive("--plunge-feed", self.plunge_feed, "mm/min")
-        require_positive("--spindle-rpm", self.spindle_rpm, "rpm")
+        require_positive("--spindle", self.spindle_rpm, "rpm")
         number_ok = isinstance(self.tool_number, numbers.Integral) and not isinstance(self.tool_number, bool)
         if not (number_ok and self.tool_number >= 1):
             raise FeatureError(f"--tool-number must be an integer ≥ 1 (got {self.tool_number!r})")
