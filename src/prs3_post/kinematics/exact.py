@@ -96,7 +96,7 @@ def platform_centre_xy(geometry: Geometry, axis: FloatArray) -> FloatArray:
 
     >>> from prs3_post.config import load_machine
     >>> g = load_machine("patel2020").geometry
-    >>> np.round(platform_centre_xy(g, np.array([[0.447214, 0.0, 0.894427]])), 4).tolist()
+    >>> (np.round(platform_centre_xy(g, np.array([[0.447214, 0.0, 0.894427]])), 4) + 0.0).tolist()
     [[0.0, 9.1429]]
     """
     axis = np.asarray(axis, dtype=np.float64).reshape(-1, 3)
@@ -242,7 +242,7 @@ def inverse_exact(
     >>> a = np.array([[1.0, 0.0, 2.0]]) / np.sqrt(5.0)
     >>> r = inverse_exact(g, np.array([[-81.0264, 21.2132, -679.4865]]), a)
     >>> np.round(r.stage, 4).tolist(), np.round(r.strokes, 4).tolist()
-    ([[-2.764, 12.0703]], [[36.2244, 170.3886, 88.9519]])
+    ([[-2.764, 12.0703]], [[36.2244, 170.3885, 88.9519]])
     """
     tip = np.asarray(tip, dtype=np.float64).reshape(-1, 3)
     axis = np.asarray(axis, dtype=np.float64).reshape(-1, 3)

@@ -1,0 +1,154 @@
+"""From a part-frame toolpath to a checked actuator-space program.
+
+    part toolpath ──► setup (part → machine) ──► subdivide axis changes ──► IK ──► reach + limits
+                  ──► inverse-time feeds ──► JointProgram
+
+Pure: no files. The first failure is raised with the operation step (or source line) it came
+from; nothing is emitted for a program that has one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from prs3_post.config import Machine
+from prs3_post.errors import LimitError, ReachError
+from prs3_post.kinematics import IKModel, IKResult, PoseError, inverse, unit_axes
+from prs3_post.limits import LimitReport, check_limits, raise_first_violation
+from prs3_post.linearize import subdivide_axis_changes
+from prs3_post.toolpath import JointProgram, MoveKind, Toolpath
+from prs3_post.types import FloatArray
+
+
+def part_to_machine(part_origin: FloatArray) -> FloatArray:
+    """(4, 4) homogeneous transform of a setup that only translates the part (no rotation).
+
+    >>> part_to_machine(np.array([-100.0, -200.0, -970.0]))[:3, 3].tolist()
+    [-100.0, -200.0, -970.0]
+    """
+    transform = np.eye(4)
+    transform[:3, 3] = part_origin
+    return transform
+
+
+def transform_toolpath(path: Toolpath, transform: FloatArray) -> Toolpath:
+    """The toolpath with tips and axes carried through a (4, 4) rigid transform."""
+    rotation, shift = transform[:3, :3], transform[:3, 3]
+    return Toolpath(
+        kind=path.kind, tip=path.tip @ rotation.T + shift, axis=path.axis @ rotation.T, feed=path.feed,
+        source=path.source, events=path.events, source_labels=path.source_labels,
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class PostResult:
+    """A checked program and what it was made from.
+
+    Attributes
+    ----------
+    program : JointProgram — ready to emit
+    path : Toolpath — the machine-frame toolpath after subdivision (one row per program row)
+    ik : IKResult — per row
+    limits : LimitReport — per row (all ok)
+    """
+
+    program: JointProgram
+    path: Toolpath
+    ik: IKResult
+    limits: LimitReport
+
+
+def model_for(machine: Machine) -> IKModel:
+    """The IK model a machine runs: exact with a stage, head alone without one."""
+    return IKModel.EXACT if machine.stage.present else IKModel.HEAD
+
+
+def post_process(machine: Machine, path_part: Toolpath, part_origin: FloatArray, *, tolerance: float = 0.002) -> PostResult:
+    """Turn a part-frame toolpath into a checked joint-space program.
+
+    Parameters
+    ----------
+    machine : Machine
+    path_part : Toolpath — part coordinates
+    part_origin : (3,) float — mm, machine coordinates of the part origin (the setup)
+    tolerance : float — mm, tip deviation allowed on moves whose axis changes
+
+    Returns
+    -------
+    PostResult
+
+    Raises
+    ------
+    ReachError
+        A pose that does not assemble, or that a machine without a stage cannot reach.
+    LimitError
+        A point outside a machine limit, or a feed move with zero length.
+    """
+    path = transform_toolpath(path_part, part_to_machine(np.asarray(part_origin, dtype=np.float64)))
+    try:
+        unit = unit_axes(path.tip, path.axis)
+    except PoseError as error:
+        raise ReachError(f"toolpath: {error}") from error
+    path = Toolpath(kind=path.kind, tip=path.tip, axis=unit, feed=path.feed, source=path.source,
+                    events=path.events, source_labels=path.source_labels)
+    path = subdivide_axis_changes(machine.geometry, path, tolerance=tolerance)
+    model = model_for(machine)
+    ik = inverse(machine.geometry, path.tip, path.axis, model=model)
+    _raise_unreachable(machine, path, ik, model)
+    report = check_limits(machine, ik, path.axis)
+    raise_first_violation(report, path.describe)
+    stage = ik.stage if model is IKModel.EXACT else np.zeros_like(ik.stage)
+    return PostResult(
+        program=JointProgram(
+            kind=path.kind, stage=stage, strokes=ik.strokes, inverse_time=inverse_time(path),
+            source=path.source, events=path.events, source_labels=path.source_labels,
+        ),
+        path=path,
+        ik=ik,
+        limits=report,
+    )
+
+
+def _raise_unreachable(machine: Machine, path: Toolpath, ik: IKResult, model: IKModel) -> None:
+    bad = np.flatnonzero(~ik.reachable)
+    if not len(bad):
+        return
+    row = int(bad[0])
+    where = path.describe(row)
+    tip = ", ".join(f"{v:.4f}" for v in path.tip[row])
+    count = f" ({len(bad)} points unreachable in all)" if len(bad) > 1 else ""
+    if model is IKModel.HEAD and np.isfinite(ik.stage[row]).all():
+        dx, dy = ik.stage[row]
+        raise ReachError(
+            f"{where}: machine {machine.name} has no stage and its head alone misses the tip ({tip}) by "
+            f"{np.hypot(dx, dy):.4f} mm (x {dx:.4f}, y {dy:.4f}){count}"
+        )
+    raise ReachError(f"{where}: the head cannot reach the tip ({tip}) mm with this axis: a link cannot reach "
+                     f"its joint (check --part-origin){count}")
+
+
+def inverse_time(path: Toolpath) -> FloatArray:
+    """G93 F words: tip feed / tip path length of each FEED row (1/min); 0 for RAPID rows.
+
+    Every move's tip path is the straight line between its end points (moves whose axis changes
+    were subdivided until the joint-space line stays within tolerance of it).
+
+    Raises
+    ------
+    LimitError
+        A FEED row as the first row (no start point) or with zero length (no time to give it).
+    """
+    feed_rows = np.flatnonzero(path.kind == MoveKind.FEED)
+    out = np.zeros(len(path))
+    if not len(feed_rows):
+        return out
+    if feed_rows[0] == 0:
+        raise LimitError(f"{path.describe(0)}: the program starts with a feed move; its start point is unknown")
+    length = np.linalg.norm(path.tip[feed_rows] - path.tip[feed_rows - 1], axis=1)
+    zero = np.flatnonzero(length < 1e-9)
+    if len(zero):
+        raise LimitError(f"{path.describe(int(feed_rows[zero[0]]))}: feed move of zero length")
+    out[feed_rows] = path.feed[feed_rows] / length
+    return out
