@@ -7,6 +7,7 @@ its exit code (2 for bad input or configuration, 1 for limits and reach); never 
 from __future__ import annotations
 
 import json
+import math
 import os
 import sys
 import tempfile
@@ -18,8 +19,12 @@ import click
 import numpy as np
 
 from prs3_post import __version__
-from prs3_post.config import load_machine, shipped_names
-from prs3_post.errors import InputError, Prs3Error, ReachError
+from prs3_post.config import load_dialect, load_machine, postproc_dir, shipped_names
+from prs3_post.errors import FeatureError, InputError, Prs3Error, ReachError
+from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
+from prs3_post.job import JobSpec, Operation, run_job
+from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
+from prs3_post.readers.stl import load_part
 from prs3_post.kinematics import IKModel, PoseError, forward, inverse, unit_axes
 from prs3_post.limits import check_limits
 from prs3_post.readers.poses import read_poses
@@ -81,6 +86,11 @@ def run_reported(action: Callable[[], int | None]) -> None:
     sys.exit(code or 0)
 
 
+def demo_part() -> Path:
+    """The bundled demo part: the paper's wedge."""
+    return postproc_dir() / "parts" / "patel2020-wedge.stl"
+
+
 machine_option = click.option(
     "--machine", "machine_name", default="patel2020", show_default=True, metavar="NAME|PATH",
     help="Shipped machine name (see `prs3-post machines`) or path to a machine TOML file.",
@@ -90,18 +100,31 @@ machine_option = click.option(
 # ----------------------------------------------------------------------------- commands
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+class _MainGroup(click.Group):
+    """A group whose first argument may be a part file: ``prs3-post PART.stl ...`` means ``run``."""
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        if args and not args[0].startswith("-") and args[0] not in self.commands:
+            args = ["run", *args]
+        return super().parse_args(ctx, args)
+
+
+@click.group(cls=_MainGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, prog_name="prs3-post")
 def main() -> None:
     """prs3-post: the post-processor for 3-PRS parallel-kinematic machines.
 
-    Turns a tool pose (tip and axis) into actuator strokes T1, T2, T3 and stage X, Y, and back.
+    Drills and grooves inclined faces with the tool normal to the face: reads an STL part, finds
+    its inclined face, plans the operation and writes a G-code program in actuator space
+    (stage X, Y and strokes T1, T2, T3 as U, V, W), checked against every machine limit.
 
     \b
     Examples:
+      prs3-post demo --profile square -o demo.ngc        (the paper's wedge, bundled)
+      prs3-post part.stl --profile hole --depth 8 --peck 2 -o part.ngc
+      prs3-post faces part.stl
       prs3-post ik --tip -81.0264,21.2132,-679.4865 --axis 0.447214,0,0.894427
       prs3-post fk --strokes 36.2244,170.3886,88.9519 --xy -2.7640,12.0703
-      prs3-post machines
     """
 
 
@@ -211,6 +234,186 @@ def machines() -> None:
             machine = load_machine(name)
             stage = "XY stage" if machine.stage.present else "no stage"
             click.echo(f"{name:<18} {stage:<9} {machine.description}")
+        return 0
+
+    run_reported(body)
+
+
+# ----------------------------------------------------------------------------- the main job
+
+
+def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """The options of the main job (``run`` and ``demo``), grouped as ``--help`` shows them."""
+    options = [
+        # what to cut
+        click.option("--profile", type=click.Choice([o.value for o in Operation]), required=True,
+                     help="Operation: hole (drill, optional pecking), square or round (groove or wall)."),
+        click.option("--face", "face_choice", default="auto", show_default=True, metavar="auto|N",
+                     help="Face to work on: auto = largest upward inclined face; N = index from `prs3-post faces`."),
+        click.option("--at", "at_uv", type=Numbers("U,V"), multiple=True,
+                     help="Feature position in face coordinates, mm (repeat for several holes). Default: face origin."),
+        click.option("--at-xyz", "at_xyz", type=Numbers("X,Y,Z"), multiple=True,
+                     help="Feature position in part coordinates, mm, projected onto the face (repeatable)."),
+        click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True,
+                     help="Length unit of the STL file."),
+        # feature geometry
+        click.option("--depth", type=float, default=None,
+                     help="Depth below the face along the tool axis, mm.  [default: 5 for hole, 2 for square/round]"),
+        click.option("--peck", type=float, default=0.0, show_default=True,
+                     help="hole: peck depth, mm (0 = drill in one go); each peck retracts to --clearance."),
+        click.option("--reapproach-gap", type=float, default=0.5, show_default=True,
+                     help="hole: gap above the previous peck bottom where feed resumes, mm."),
+        click.option("--dwell", type=float, default=0.0, show_default=True, help="hole: dwell at the bottom, s."),
+        click.option("--size", type=float, default=30.0, show_default=True, help="square: side length, mm."),
+        click.option("--corner-radius", type=float, default=0.0, show_default=True, help="square: corner radius, mm."),
+        click.option("--rotation", type=float, default=0.0, show_default=True,
+                     help="square: rotation about the face normal from the down-slope direction u, degrees."),
+        click.option("--diameter", type=float, default=30.0, show_default=True, help="round: diameter, mm."),
+        click.option("--side", type=click.Choice([s.value for s in Side]), default="on", show_default=True,
+                     help="Tool centre on the outline (a groove), inside it or outside it (offset by the tool radius)."),
+        click.option("--step-down", type=float, default=1.0, show_default=True, help="square/round: depth per pass, mm."),
+        click.option("--direction", type=click.Choice([d.value for d in Direction]), default="climb", show_default=True,
+                     help="square/round: climb or conventional milling (spindle clockwise, M3)."),
+        click.option("--entry", type=click.Choice([e.value for e in Entry]), default="ramp", show_default=True,
+                     help="square/round: how each pass enters the material."),
+        click.option("--ramp-angle", type=float, default=3.0, show_default=True, help="Ramp entry angle, degrees."),
+        click.option("--clearance", type=float, default=2.0, show_default=True,
+                     help="Height above the face where rapids end and feeds begin, mm (along the tool axis)."),
+        click.option("--retract", type=float, default=10.0, show_default=True,
+                     help="Safe height above the face between features, mm (along the tool axis)."),
+        # tool and cutting data
+        click.option("--tool-diameter", type=float, default=6.0, show_default=True, help="Tool diameter, mm."),
+        click.option("--tool-number", type=int, default=1, show_default=True, help="Tool number (T word)."),
+        click.option("--feed", type=float, default=300.0, show_default=True, help="Cutting feed at the tool tip, mm/min."),
+        click.option("--plunge-feed", type=float, default=100.0, show_default=True,
+                     help="Feed into the material (drilling, plunges, ramps), mm/min."),
+        click.option("--spindle", type=float, default=3000.0, show_default=True, help="Spindle speed, rpm (clockwise)."),
+        click.option("--coolant", type=click.Choice([c.value for c in Coolant]), default="flood", show_default=True),
+        # machine, setup and output
+        machine_option,
+        click.option("--part-origin", type=Numbers("X,Y,Z"), default=None,
+                     help="Machine coordinates of the part origin, mm.  [default: the machine file's setup]"),
+        click.option("--dialect", "dialect_name", default="linuxcnc", show_default=True, metavar="NAME|PATH",
+                     help="G-code dialect: linuxcnc, fanuc, or a dialect TOML file."),
+        click.option("--line-numbers/--no-line-numbers", default=None,
+                     help="Number the blocks (N words).  [default: as the dialect says]"),
+        click.option("--line-start", type=click.IntRange(0, 99999), default=None, help="First block number."),
+        click.option("--line-step", type=click.IntRange(1, 1000), default=None, help="Block number increment."),
+        click.option("--tolerance", type=float, default=0.002, show_default=True,
+                     help="Chordal tolerance of arcs (and of moves that turn the tool axis), mm."),
+        click.option("-o", "--output", "out_path", type=click.Path(dir_okay=False),
+                     help="Program file (written to a temp file, then renamed). Default: standard output."),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
+def _run_job(part: str, **opts: Any) -> int:
+    """Build the JobSpec from the options, run it, write the program."""
+    operation = Operation(opts["profile"])
+    depth = opts["depth"] if opts["depth"] is not None else (5.0 if operation is Operation.HOLE else 2.0)
+    face_choice = opts["face_choice"]
+    if face_choice == "auto":
+        face = None
+    elif face_choice.isdigit():
+        face = int(face_choice)
+    else:
+        raise click.BadParameter(f"expected auto or a face index, got {face_choice!r}", param_hint="'--face'")
+    cutting = Cutting(
+        tool_diameter=opts["tool_diameter"], feed=opts["feed"], plunge_feed=opts["plunge_feed"],
+        spindle_rpm=opts["spindle"], coolant=Coolant(opts["coolant"]), tool_number=opts["tool_number"],
+    )
+    holes = shape = profile = None
+    if operation is Operation.HOLE:
+        holes = HoleParams(depth=depth, peck=opts["peck"], dwell=opts["dwell"], clearance=opts["clearance"],
+                           retract=opts["retract"], reapproach_gap=opts["reapproach_gap"])
+    else:
+        if operation is Operation.SQUARE:
+            shape = SquareShape(size=opts["size"], corner_radius=opts["corner_radius"],
+                                rotation=math.radians(opts["rotation"]))
+        else:
+            shape = RoundShape(diameter=opts["diameter"])
+        profile = ProfileParams(
+            side=Side(opts["side"]), depth=depth, step_down=opts["step_down"], direction=Direction(opts["direction"]),
+            entry=Entry(opts["entry"]), ramp_angle=math.radians(opts["ramp_angle"]), clearance=opts["clearance"],
+            retract=opts["retract"],
+        )
+    spec = JobSpec(
+        part=part, units=opts["units"], face=face, operation=operation,
+        at_uv=np.array(opts["at_uv"], dtype=np.float64).reshape(-1, 2),
+        at_xyz=np.array(opts["at_xyz"], dtype=np.float64).reshape(-1, 3),
+        holes=holes, shape=shape, profile=profile, cutting=cutting,
+        machine=load_machine(opts["machine_name"]), dialect=load_dialect(opts["dialect_name"]),
+        part_origin=opts["part_origin"], tolerance=opts["tolerance"],
+        line_numbers=opts["line_numbers"], line_start=opts["line_start"], line_step=opts["line_step"],
+    )
+    result = run_job(spec)
+    output(result.text, opts["out_path"])
+    if opts["out_path"]:
+        click.echo(f"prs3-post: wrote {opts['out_path']}: {result.text.count(chr(10))} lines, "
+                   f"{len(result.post.program)} moves; {result.face_note}", err=True)
+    return 0
+
+
+@main.command()
+@click.argument("part", type=click.Path(dir_okay=False), metavar="PART.stl")
+@_job_options
+def run(part: str, **opts: Any) -> None:
+    """The main job: cut a hole, square or round profile on a part's inclined face.
+
+    Loads PART.stl, picks the inclined face (--face), places the feature (--at / --at-xyz, default
+    the face centre), plans it with the tool normal to the face, runs the exact inverse kinematics
+    and writes the program in actuator space. Nothing is written if any point breaks a limit.
+    `prs3-post PART.stl ...` is short for `prs3-post run PART.stl ...`.
+
+    \\b
+    Examples:
+      prs3-post part.stl --profile hole --at 10,0 --at -10,0 --depth 8 --peck 2 -o holes.ngc
+      prs3-post part.stl --profile square --size 40 --corner-radius 5 --side inside -o pocket.ngc
+      prs3-post part.stl --profile round --diameter 25 --dialect fanuc --line-numbers -o round.nc
+    """
+    run_reported(lambda: _run_job(part, **opts))
+
+
+@main.command()
+@_job_options
+def demo(**opts: Any) -> None:
+    """The main job on the bundled demo part: the paper's wedge (26.57° face, Patel 2020).
+
+    Same options as `run`. The wedge spans x −50…50, y 150…250 mm with its top face
+    z = 300 − x/2, placed at machine (−100, −200, −970) by the default setup.
+
+    \\b
+    Examples:
+      prs3-post demo --profile square -o demo-square.ngc
+      prs3-post demo --profile hole --at-xyz 18.9736,221.2132,290.5135      (the paper's case 2a)
+    """
+    run_reported(lambda: _run_job(str(demo_part()), **opts))
+
+
+@main.command()
+@click.argument("part", type=click.Path(dir_okay=False), metavar="PART.stl")
+@click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True, help="Length unit of the STL.")
+@click.option("--json", "as_json", is_flag=True, help="Print the table as JSON.")
+def faces(part: str, units: str, as_json: bool) -> None:
+    """List a part's planar faces: index, area, normal, inclination, origin; and the automatic choice.
+
+    \\b
+    Example:
+      prs3-post faces part.stl --json
+    """
+
+    def body() -> int:
+        found = find_faces(load_part(part, units=units))
+        if as_json:
+            click.echo(json.dumps(face_table(found), indent=2))
+            return 0
+        click.echo(format_face_table(found), nl=False)
+        try:
+            click.echo(select_face(found, None)[1])
+        except FeatureError as error:
+            click.echo(f"auto: {error}")
         return 0
 
     run_reported(body)
