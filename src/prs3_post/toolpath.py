@@ -69,6 +69,24 @@ def _frozen(array: np.ndarray, dtype: type, shape_tail: tuple[int, ...], name: s
     return out
 
 
+def _freeze_rows(table: object, fields: tuple[tuple[str, type, tuple[int, ...]], ...]) -> None:
+    """Replace each (name, dtype, row shape) field of a frozen row table by a read-only array copy,
+    check that all have the first field's row count, and sort the events by position."""
+    rows = len(getattr(table, fields[0][0]))
+    for name, dtype, tail in fields:
+        value = _frozen(getattr(table, name), dtype, tail, name)
+        if len(value) != rows:
+            raise ValueError(f"{name}: {len(value)} rows, {fields[0][0]} has {rows}")
+        object.__setattr__(table, name, value)
+    object.__setattr__(table, "events", tuple(sorted(table.events, key=lambda e: e.before)))  # type: ignore[attr-defined]
+
+
+def describe_source(source: IntArray, labels: tuple[str, ...], row: int) -> str:
+    """``line 12`` (readers: source is a line number) or the step label (operations)."""
+    step = int(source[row])
+    return labels[step] if labels else f"line {step}"
+
+
 @dataclass(frozen=True, slots=True)
 class Toolpath:
     """Motion end points in one frame (part or machine), one row per point.
@@ -93,29 +111,15 @@ class Toolpath:
     source_labels: tuple[str, ...] = field(default=())
 
     def __post_init__(self) -> None:
-        n = len(self.kind)
-        for name, dtype, tail in (
-            ("kind", np.int64, ()),
-            ("tip", np.float64, (3,)),
-            ("axis", np.float64, (3,)),
-            ("feed", np.float64, ()),
-            ("source", np.int64, ()),
-        ):
-            value = _frozen(getattr(self, name), dtype, tail, name)
-            if len(value) != n:
-                raise ValueError(f"{name}: {len(value)} rows, kind has {n}")
-            object.__setattr__(self, name, value)
-        object.__setattr__(self, "events", tuple(sorted(self.events, key=lambda e: e.before)))
+        _freeze_rows(self, (("kind", np.int64, ()), ("tip", np.float64, (3,)), ("axis", np.float64, (3,)),
+                            ("feed", np.float64, ()), ("source", np.int64, ())))
 
     def __len__(self) -> int:
         return len(self.kind)
 
     def describe(self, row: int) -> str:
         """Human name of the line/step row ``row`` came from (``line 12`` or the step label)."""
-        src = int(self.source[row])
-        if self.source_labels:
-            return self.source_labels[src]
-        return f"line {src}"
+        return describe_source(self.source, self.source_labels, row)
 
 
 @dataclass(frozen=True, slots=True)
@@ -142,19 +146,12 @@ class JointProgram:
     source_labels: tuple[str, ...] = field(default=())
 
     def __post_init__(self) -> None:
-        n = len(self.kind)
-        for name, dtype, tail in (
-            ("kind", np.int64, ()),
-            ("stage", np.float64, (2,)),
-            ("strokes", np.float64, (3,)),
-            ("inverse_time", np.float64, ()),
-            ("source", np.int64, ()),
-        ):
-            value = _frozen(getattr(self, name), dtype, tail, name)
-            if len(value) != n:
-                raise ValueError(f"{name}: {len(value)} rows, kind has {n}")
-            object.__setattr__(self, name, value)
-        object.__setattr__(self, "events", tuple(sorted(self.events, key=lambda e: e.before)))
+        _freeze_rows(self, (("kind", np.int64, ()), ("stage", np.float64, (2,)), ("strokes", np.float64, (3,)),
+                            ("inverse_time", np.float64, ()), ("source", np.int64, ())))
 
     def __len__(self) -> int:
         return len(self.kind)
+
+    def describe(self, row: int) -> str:
+        """Human name of the line/step row ``row`` came from (``line 12`` or the step label)."""
+        return describe_source(self.source, self.source_labels, row)

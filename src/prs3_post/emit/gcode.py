@@ -163,18 +163,8 @@ class _Lines:
         return ending.join(self.lines) + ending
 
 
-def _label(program: JointProgram, row: int) -> str:
-    """Where row ``row`` came from: its step label, or ``line n`` for a reader's row."""
-    src = int(program.source[row])
-    if not program.source_labels:
-        return f"line {src}"
-    if 0 <= src < len(program.source_labels):
-        return program.source_labels[src]
-    return f"step {src}"
-
-
 def _row(program: JointProgram, row: int) -> str:
-    return f"row {row} from {_label(program, row)}"
+    return f"row {row} from {program.describe(row)}"
 
 
 def _event_where(program: JointProgram, event: Event) -> str:
