@@ -195,8 +195,13 @@ def test_boundary_area_equals_face_area_and_frames_match(name):
 def _gable_roof() -> trimesh.Trimesh:
     """A symmetric gable roof: two equal 30° faces (area 100 x 50/cos 30°)."""
     ridge = 20 + 50 * math.tan(math.radians(30))
-    points = [(x, y, z) for y in (0.0, 100.0) for x, z in ((-50, 0), (50, 0), (50, 20), (0, ridge), (-50, 20))]
-    return trimesh.convex.convex_hull(np.array(points, dtype=float))
+    outline = ((-50, 0), (50, 0), (50, 20), (0, ridge), (-50, 20))   # the gable end, counter-clockwise in x-z
+    points = np.array([(x, y, z) for y in (0.0, 100.0) for x, z in outline], dtype=float)
+    caps = [(0, 2, 1), (0, 3, 2), (0, 4, 3), (5, 6, 7), (5, 7, 8), (5, 8, 9)]
+    sides = [tri for i in range(5) for tri in ((i, (i + 1) % 5, 5 + i), ((i + 1) % 5, 5 + (i + 1) % 5, 5 + i))]
+    mesh = trimesh.Trimesh(points, np.array(caps + sides), process=True)
+    trimesh.repair.fix_normals(mesh)                  # outward winding without needing scipy
+    return mesh
 
 
 def test_equal_area_tie_is_reported():
