@@ -16,30 +16,32 @@ from prs3_post.types import FloatArray, IntArray
 
 
 def frame_from_normal(normal: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """The face frame's (u, v) for an outward unit normal ``w``.
+    """The face frame's (u, v) for outward unit normals ``w``, one or many.
 
     ``u`` is the steepest descent within the plane (−z projected onto it); for a horizontal face
     (either way up) there is none and ``u`` is the part's +x projected onto the plane.
 
     Parameters
     ----------
-    normal : (3,) float — unit outward normal w
+    normal : (3,) or (G, 3) float — unit outward normals w
 
     Returns
     -------
-    u, v : (3,) float — unit vectors, ``v = w × u``
+    u, v : same shape as ``normal`` — unit vectors, ``v = w × u``
 
     >>> u, v = frame_from_normal(np.array([0.6, 0.0, 0.8]))
     >>> (np.round(u, 6) + 0.0).tolist(), (np.round(v, 6) + 0.0).tolist()   # + 0.0: no -0.0
     ([0.8, 0.0, -0.6], [0.0, 1.0, 0.0])
     """
     w = np.asarray(normal, dtype=np.float64)
-    down = np.array([0.0, 0.0, -1.0]) - w * (-w[2])   # -z minus its component along w
-    if np.linalg.norm(down) < 1e-9:                    # horizontal face: no slope, use +x
-        down = np.array([1.0, 0.0, 0.0]) - w * w[0]
-    u = down / np.linalg.norm(down)
-    v = np.cross(w, u)
-    return u, v / np.linalg.norm(v)
+    rows = w.reshape(-1, 3)
+    down = np.array([0.0, 0.0, -1.0]) - rows * (-rows[:, 2:3])    # -z minus its component along w
+    flat = np.linalg.norm(down, axis=1) < 1e-9                      # horizontal face: no slope, use +x
+    down[flat] = np.array([1.0, 0.0, 0.0]) - rows[flat] * rows[flat, 0:1]
+    u = down / np.linalg.norm(down, axis=1, keepdims=True)
+    v = np.cross(rows, u)
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    return u.reshape(w.shape), v.reshape(w.shape)
 
 
 @dataclass(frozen=True, slots=True)

@@ -37,7 +37,7 @@ import shapely
 import trimesh
 
 from prs3_post.errors import FeatureError
-from prs3_post.face import Face
+from prs3_post.face import Face, frame_from_normal
 from prs3_post.types import FloatArray, IntArray
 
 INCLINED_MIN_DEG = 1.0
@@ -101,7 +101,7 @@ def find_faces(mesh: trimesh.Trimesh, *, flatness_tol: float = 1e-3) -> tuple[Fa
     rank[order] = np.arange(len(order))
     labels = np.where(labels >= 0, rank[np.maximum(labels, 0)], -1)
     area, normal, origin = area[order], normal[order], origin[order]
-    u, v = _frames_from_normals(normal)  # (G, 3) each
+    u, v = frame_from_normal(normal)  # (G, 3) each
     inclination = np.arccos(np.clip(normal[:, 2], -1.0, 1.0))  # clip: |n_z| may round past 1
     boundaries = _boundaries(labels, triangles, area_tri, origin, u, v)
     members = _members(labels, len(area))
@@ -174,26 +174,6 @@ def _face_order(area: FloatArray, normal: FloatArray, origin: FloatArray) -> Int
     n = np.round(normal, 9) + 0.0  # + 0.0 turns -0.0 into 0.0
     o = np.round(origin, 6) + 0.0
     return np.lexsort((o[:, 2], o[:, 1], o[:, 0], -n[:, 0], -n[:, 1], -n[:, 2], -area_key))
-
-
-def _frames_from_normals(normal: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """:func:`prs3_post.face.frame_from_normal` for many normals at once (same arithmetic).
-
-    Parameters
-    ----------
-    normal : (G, 3) float — unit outward normals w
-
-    Returns
-    -------
-    u, v : (G, 3) float — unit; u down-slope (+x projected for horizontal faces), v = w × u
-    """
-    w = normal
-    down = np.array([0.0, 0.0, -1.0]) - w * (-w[:, 2:3])  # -z minus its component along w
-    flat = np.linalg.norm(down, axis=1) < 1e-9  # horizontal face: no slope, use +x
-    down[flat] = np.array([1.0, 0.0, 0.0]) - w[flat] * w[flat, 0:1]
-    u = down / np.linalg.norm(down, axis=1, keepdims=True)
-    v = np.cross(w, u)
-    return u, v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
 def _boundaries(
