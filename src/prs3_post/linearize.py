@@ -11,6 +11,8 @@ that still need it at once.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from prs3_post.config import Geometry
@@ -100,10 +102,12 @@ def subdivide_axis_changes(
         origin = np.insert(origin, at, -1)
         tip = np.insert(tip, at, mid_tip, axis=0)
         axis = np.insert(axis, at, mid_axis, axis=0)
-    new_index = np.full(len(path) + 1, len(kind))
+    # an event before original row r happens before the move to r, i.e. right after row r - 1
+    # (and before any row inserted into that move)
+    new_index = np.zeros(len(path), dtype=np.int64)
     new_index[origin[origin >= 0]] = np.flatnonzero(origin >= 0)
     events = tuple(
-        type(e)(before=int(new_index[e.before]), kind=e.kind, value=e.value, text=e.text) for e in path.events
+        replace(e, before=0 if e.before == 0 else int(new_index[e.before - 1]) + 1) for e in path.events
     )
     return Toolpath(kind=kind, tip=tip, axis=axis, feed=feed, source=source, events=events,
                     source_labels=path.source_labels)

@@ -1,0 +1,151 @@
+"""pipeline and linearize: setup transform, inverse-time feeds, axis-change subdivision, reach and limit errors."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from prs3_post.config import load_machine
+from prs3_post.errors import LimitError, ReachError
+from prs3_post.kinematics import forward, inverse
+from prs3_post.linearize import CHECK_FRACTIONS, joint_path_deviation, slerp, subdivide_axis_changes
+from prs3_post.pipeline import inverse_time, post_process
+from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
+
+MACHINE = load_machine("patel2020")
+ORIGIN = np.array([-100.0, -200.0, -970.0])
+A = np.array([1.0, 0.0, 2.0]) / np.sqrt(5.0)           # the wedge face normal
+
+
+def path(tips, axes, kinds, feeds, labels=(), events=()):
+    n = len(tips)
+    return Toolpath(kind=np.array(kinds), tip=np.array(tips, dtype=float), axis=np.array(axes, dtype=float),
+                    feed=np.array(feeds, dtype=float), source=np.arange(n), events=tuple(events),
+                    source_labels=tuple(labels) or tuple(f"step {i}" for i in range(n)))
+
+
+def test_inverse_time_is_feed_over_length():
+    p = path([[0, 0, 0], [3, 4, 0], [3, 4, 0.5], [3, 4, 10]], [A] * 4,
+             [MoveKind.RAPID, MoveKind.FEED, MoveKind.FEED, MoveKind.RAPID], [0, 300, 100, 0])
+    assert_allclose(inverse_time(p), [0.0, 60.0, 200.0, 0.0], atol=1e-12)
+
+
+def test_inverse_time_refuses_a_first_feed_and_a_zero_length_feed():
+    with pytest.raises(LimitError) as caught:
+        inverse_time(path([[0, 0, 0]], [A], [MoveKind.FEED], [100]))
+    assert str(caught.value) == "step 0: the program starts with a feed move; its start point is unknown"
+    with pytest.raises(LimitError) as caught:
+        inverse_time(path([[0, 0, 0], [0, 0, 0]], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100]))
+    assert str(caught.value) == "step 1: feed move of zero length"
+
+
+def test_post_process_places_the_part_and_matches_case_2a():
+    tip_part = np.array([18.9736, 221.2132, 290.5135])         # the paper's point 2a on the wedge
+    p = path([tip_part + 10 * A, tip_part], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100])
+    result = post_process(MACHINE, p, ORIGIN)
+    assert_allclose(result.path.tip[1], [-81.0264, 21.2132, -679.4865], atol=1e-12)
+    # DESIGN's -2.7639 is for the rounded axis (0.447214, 0, 0.894427); the exact normal gives -2.76402
+    assert_allclose(result.program.stage[1], [-2.7639, 12.0703], atol=2e-4)
+    assert_allclose(result.program.stage[1], [-2.764021, 12.070327], atol=1e-6)
+    assert_allclose(result.program.strokes[1], [36.2244, 170.3886, 88.9519], atol=2e-4)   # same axis rounding
+    direct = inverse(MACHINE.geometry, np.array([[-81.0264, 21.2132, -679.4865]]), A[None, :])
+    assert_allclose(result.program.strokes[1], direct.strokes[0], atol=1e-9)
+    assert_allclose(result.program.inverse_time, [0.0, 10.0], atol=1e-12)
+    assert result.limits.ok.all()
+
+
+def test_limit_error_names_the_step():
+    far = np.array([0.0, 0.0, 900.0])                            # 900 mm above the part origin: stroke < -100
+    p = path([far, far - A], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100], labels=("hole 1 approach", "hole 1 feed"))
+    with pytest.raises(LimitError) as caught:
+        post_process(MACHINE, p, ORIGIN)
+    assert str(caught.value) == ("hole 1 approach: T1 stroke -573.2621 mm is below the minimum -100.0000 mm "
+                                 "by 473.2621 mm (2 points outside limits in all)")
+
+
+def test_head_machine_reports_how_far_off_the_tip_is():
+    head = load_machine("patel2020-head")
+    tip_part = np.array([18.9736, 221.2132, 290.5135])
+    p = path([tip_part + 10 * A, tip_part], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100],
+             labels=("hole 1 approach", "hole 1 feed"))
+    with pytest.raises(ReachError) as caught:
+        post_process(head, p, ORIGIN)
+    assert str(caught.value) == (
+        "hole 1 approach: machine patel2020-head has no stage and its head alone misses the tip "
+        "(-76.5543, 21.2132, -670.5422) by 12.1906 mm (x 1.7081, y 12.0703) (2 points unreachable in all)"
+    )
+
+
+def test_head_alone_moves_its_tip_only_vertically_at_a_fixed_tilt():
+    """With the axis fixed, the head's tip x, y are fixed (parasitic shift - TL a_xy): only z is free.
+
+    So a pure head cannot feed along a tilted axis; it reaches a tilted pose only where the setup
+    puts the part under that x, y, and then moves vertically.
+    """
+    head = load_machine("patel2020-head")
+    tip_part = np.array([18.9736, 221.2132, 290.5135])
+    p = path([tip_part + [0, 0, 10], tip_part], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100])
+    shifted = ORIGIN - np.array([-2.7640208, 12.0703266, 0.0])   # the part placed under the head's tip
+    result = post_process(head, p, shifted)
+    assert_allclose(result.program.stage, 0.0, atol=0.0)
+    assert_allclose(result.ik.stage, 0.0, atol=1e-6)
+    assert_allclose(np.diff(result.program.strokes, axis=0), [[10.0, 10.0, 10.0]], atol=1e-9)
+
+
+def test_slerp_ends_and_midpoint():
+    a, b = np.array([[0.0, 0.0, 1.0]]), np.array([[1.0, 0.0, 0.0]])
+    assert_allclose(slerp(a, b, np.array([0.0])), a, atol=1e-15)
+    assert_allclose(slerp(a, b, np.array([1.0])), b, atol=1e-15)
+    assert_allclose(slerp(a, b, np.array([0.5])), [[np.sqrt(0.5), 0.0, np.sqrt(0.5)]], atol=1e-15)
+
+
+def test_axis_changing_feed_is_subdivided_until_within_tolerance():
+    start_axis = np.array([0.0, 0.0, 1.0])
+    tips = np.array([[-80.0, 20.0, -690.0], [-80.0, 20.0, -680.0], [-40.0, 20.0, -680.0]])
+    axes = np.array([start_axis, start_axis, A])
+    events = (Event(before=2, kind=EventKind.COMMENT, text="turn"), Event(before=3, kind=EventKind.SPINDLE_OFF))
+    p = path(tips, axes, [MoveKind.RAPID, MoveKind.FEED, MoveKind.FEED], [0, 100, 100], events=events)
+    before = joint_path_deviation(MACHINE.geometry, p.tip, p.axis, np.array([1]))
+    assert before[0] > 0.1                                      # the raw joint-space line strays far
+    out = subdivide_axis_changes(MACHINE.geometry, p, tolerance=0.002)
+    assert len(out) > len(p)
+    assert_allclose(out.tip[[0, 1, -1]], tips, atol=0.0)        # original rows kept, in order
+    # every inserted row lies on the intended move: tip on the segment, axis on the great circle
+    inserted = out.tip[2:-1]
+    t = (inserted[:, 0] - tips[1, 0]) / (tips[2, 0] - tips[1, 0])
+    assert_allclose(inserted, tips[1] + t[:, None] * (tips[2] - tips[1]), atol=1e-12)
+    assert_allclose(out.axis[2:-1], slerp(np.tile(start_axis, (len(t), 1)), np.tile(A, (len(t), 1)), t), atol=1e-12)
+    assert (out.source[2:] == 2).all() and (out.kind[2:] == MoveKind.FEED).all()
+    # events moved with their rows: the comment still precedes the turning move, spindle off stays last
+    assert [e.before for e in out.events] == [2, len(out)]
+    # and now the joint-space line of every piece stays within tolerance at the checked fractions
+    deviation = joint_path_deviation(MACHINE.geometry, out.tip, out.axis, np.arange(1, len(out) - 1))
+    assert deviation.max() <= 0.002
+    # independent check at other fractions than the ones the subdivision looked at
+    ik = inverse(MACHINE.geometry, out.tip, out.axis)
+    joints = np.column_stack([ik.stage, ik.strokes])
+    for frac in (0.1, 0.4, 0.9):
+        assert frac not in CHECK_FRACTIONS
+        mixed = (1 - frac) * joints[1:-1] + frac * joints[2:]
+        fk = forward(MACHINE.geometry, mixed[:, 2:], mixed[:, :2])
+        intended = (1 - frac) * out.tip[1:-1] + frac * out.tip[2:]
+        assert np.linalg.norm(fk.tip - intended, axis=1).max() <= 0.002
+
+
+def test_constant_axis_moves_are_not_subdivided():
+    tips = np.array([[-80.0, 20.0, -690.0], [-40.0, 60.0, -670.0]])
+    p = path(tips, [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100])
+    out = subdivide_axis_changes(MACHINE.geometry, p)
+    assert len(out) == 2
+    assert joint_path_deviation(MACHINE.geometry, p.tip, p.axis, np.array([0]))[0] <= 1e-9
+
+
+def test_machine_without_stage_emits_zero_stage():
+    head = dataclasses.replace(MACHINE, stage=dataclasses.replace(MACHINE.stage, present=False), name="nostage")
+    tip_part = np.array([0.0, 200.0, 300.0])
+    p = path([tip_part + 10 * A, tip_part], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100])
+    with pytest.raises(ReachError):
+        post_process(head, p, ORIGIN)
