@@ -143,7 +143,7 @@ def test_constant_axis_moves_are_not_subdivided():
     assert joint_path_deviation(MACHINE.geometry, p.tip, p.axis, np.array([0]))[0] <= 1e-9
 
 
-def test_machine_without_stage_emits_zero_stage():
+def test_machine_without_stage_refuses_a_feed_along_a_tilted_axis():
     head = dataclasses.replace(MACHINE, stage=dataclasses.replace(MACHINE.stage, present=False), name="nostage")
     tip_part = np.array([0.0, 200.0, 300.0])
     p = path([tip_part + 10 * A, tip_part], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100])
