@@ -288,7 +288,8 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
         click.option("--plunge-feed", type=float, default=100.0, show_default=True,
                      help="Feed into the material (drilling, plunges, ramps), mm/min."),
         click.option("--spindle", type=float, default=3000.0, show_default=True, help="Spindle speed, rpm (clockwise)."),
-        click.option("--coolant", type=click.Choice([c.value for c in Coolant]), default="flood", show_default=True),
+        click.option("--coolant", type=click.Choice([c.value for c in Coolant]), default="flood", show_default=True,
+                     help="Coolant during cutting: flood (M8), mist (M7) or off."),
         # machine, setup and output
         machine_option,
         click.option("--part-origin", type=Numbers("X,Y,Z"), default=None,
@@ -367,7 +368,7 @@ def run(part: str, **opts: Any) -> None:
     and writes the program in actuator space. Nothing is written if any point breaks a limit.
     `prs3-post PART.stl ...` is short for `prs3-post run PART.stl ...`.
 
-    \\b
+    \b
     Examples:
       prs3-post part.stl --profile hole --at 10,0 --at -10,0 --depth 8 --peck 2 -o holes.ngc
       prs3-post part.stl --profile square --size 40 --corner-radius 5 --side inside -o pocket.ngc
@@ -384,7 +385,7 @@ def demo(**opts: Any) -> None:
     Same options as `run`. The wedge spans x −50…50, y 150…250 mm with its top face
     z = 300 − x/2, placed at machine (−100, −200, −970) by the default setup.
 
-    \\b
+    \b
     Examples:
       prs3-post demo --profile square -o demo-square.ngc
       prs3-post demo --profile hole --at-xyz 18.9736,221.2132,290.5135      (the paper's case 2a)
@@ -399,7 +400,7 @@ def demo(**opts: Any) -> None:
 def faces(part: str, units: str, as_json: bool) -> None:
     """List a part's planar faces: index, area, normal, inclination, origin; and the automatic choice.
 
-    \\b
+    \b
     Example:
       prs3-post faces part.stl --json
     """
