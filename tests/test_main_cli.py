@@ -1,0 +1,253 @@
+"""The main job's command line: bad inputs (exact message, exit code, no output file), `faces`, `--help`.
+
+Exit codes: 2 for a wrong input file or option, 1 for a program that would break a machine limit
+or leave the workspace. Paths in messages are as the user typed them, so the tests run from the
+repository root with relative paths.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+import pytest
+from click.testing import CliRunner
+from numpy.testing import assert_allclose
+
+from prs3_post.cli import demo, main, run
+
+REPO = Path(__file__).resolve().parents[1]
+WEDGE = "fixtures/parts/wedge.stl"
+
+
+@pytest.fixture
+def at_repo(monkeypatch: pytest.MonkeyPatch) -> Path:
+    monkeypatch.chdir(REPO)
+    return REPO
+
+
+def invoke(*args: str):
+    return CliRunner().invoke(main, list(args), prog_name="prs3-post")
+
+
+def _usage(message: str, command: str = "run", part: str = " PART.stl") -> str:
+    return (f"Usage: prs3-post {command} [OPTIONS]{part}\nTry 'prs3-post {command} --help' for help.\n\n"
+            f"Error: {message}\n")
+
+
+# (id, arguments, the whole of standard error, exit code)
+BAD = [
+    # the part file
+    ("missing-file", ["run", "fixtures/parts/missing.stl", "--profile", "hole"],
+     "prs3-post: error: fixtures/parts/missing.stl: file not found\n", 2),
+    ("not-an-stl", ["run", "fixtures/bad/not_an_stl.stl", "--profile", "hole"],
+     "prs3-post: error: fixtures/bad/not_an_stl.stl: not an STL file (expected ASCII 'solid ...' or binary STL): "
+     "text starting with 'This is a text file, not an STL.' instead of 'solid'\n", 2),
+    ("empty-mesh", ["run", "fixtures/bad/empty.stl", "--profile", "hole"],
+     "prs3-post: error: fixtures/bad/empty.stl: STL has no triangles\n", 2),
+    ("no-inclined-face", ["run", "fixtures/bad/cube.stl", "--profile", "hole"],
+     "prs3-post: error: no upward-facing inclined face (1° < inclination < 89°, normal z > 0): found 6 faces: "
+     "1 horizontal up, 1 horizontal down, 4 vertical\n", 2),
+    ("only-downward-face", ["run", "fixtures/bad/downward.stl", "--profile", "hole"],
+     "prs3-post: error: no upward-facing inclined face (1° < inclination < 89°, normal z > 0): found 7 faces: "
+     "1 horizontal up, 1 horizontal down, 4 vertical, 1 inclined 45.0° facing down (cannot be reached from above)\n",
+     2),
+    ("wrong-units", ["run", "fixtures/bad/tiny.stl", "--profile", "hole"],
+     "prs3-post: error: fixtures/bad/tiny.stl: part is only 0.1 x 0.1 x 0.325 mm (largest extent under 1 mm): "
+     "if the file is in inches, use --units inch (2.54 x 2.54 x 8.25 mm); if it is in metres, scale it by 1000 "
+     "(100 x 100 x 325 mm)\n", 2),
+    ("part-is-a-folder", ["run", "fixtures/parts", "--profile", "hole"],
+     _usage("Invalid value for 'PART.stl': File 'fixtures/parts' is a directory."), 2),
+    # the face
+    ("face-99", ["run", WEDGE, "--profile", "hole", "--face", "99"],
+     "prs3-post: error: face 99 does not exist (valid: 0 to 5)\n", 2),
+    ("face-abc", ["run", WEDGE, "--profile", "hole", "--face", "abc"],
+     _usage("Invalid value for '--face': expected auto or a face index, got 'abc'"), 2),
+    ("face-facing-down", ["run", WEDGE, "--profile", "hole", "--face", "5"],
+     "prs3-post: error: face 5 does not face up (normal z = -1.0000, inclination 180.0°): the tool cannot reach it "
+     "from above\n", 2),
+    # the feature
+    ("does-not-fit", ["run", WEDGE, "--profile", "square", "--size", "200"],
+     "prs3-post: error: square 200.000 mm at (u 0.000, v 0.000) with tool Ø6.000: does not fit on face 4: "
+     "overshoots its edge by 69.668 mm\n", 2),
+    ("does-not-fit-demo", ["demo", "--profile", "round", "--diameter", "120"],
+     "prs3-post: error: round Ø120.000 mm at (u 0.000, v 0.000) with tool Ø6.000: does not fit on face 4: "
+     "overshoots its edge by 12.999 mm\n", 2),
+    ("hole-off-the-face", ["run", WEDGE, "--profile", "hole", "--at", "0,0", "--at", "1000,0"],
+     "prs3-post: error: hole 2 at (u 1000.000, v 0.000) with tool Ø6.000: does not fit on face 4: "
+     "overshoots its edge by 947.098 mm\n", 2),
+    ("tool-larger-than-inside-round", ["run", WEDGE, "--profile", "round", "--side", "inside", "--diameter", "5",
+                                       "--tool-diameter", "6"],
+     "prs3-post: error: --side inside: the tool Ø6.000 mm does not fit inside the round Ø5.000 mm "
+     "(use a tool smaller than Ø5.000)\n", 2),
+    ("tool-larger-than-inside-corner", ["run", WEDGE, "--profile", "square", "--side", "inside", "--size", "20",
+                                        "--corner-radius", "1"],
+     "prs3-post: error: --side inside: corner radius 1.000 mm is smaller than the tool radius 3.000 mm "
+     "(use --corner-radius ≥ 3.000 or a smaller tool)\n", 2),
+    ("two-centres-for-a-profile", ["run", WEDGE, "--profile", "square", "--at", "0,0", "--at", "1,1"],
+     "prs3-post: error: --profile square cuts one feature: give one --at or --at-xyz (got 2)\n", 2),
+    # numbers that must be > 0
+    ("depth-negative", ["run", WEDGE, "--profile", "hole", "--depth", "-1"],
+     "prs3-post: error: --depth must be > 0 mm (got -1)\n", 2),
+    ("depth-zero", ["run", WEDGE, "--profile", "square", "--depth", "0"],
+     "prs3-post: error: --depth must be > 0 mm (got 0)\n", 2),
+    ("size-zero", ["run", WEDGE, "--profile", "square", "--size", "0"],
+     "prs3-post: error: --size must be > 0 mm (got 0)\n", 2),
+    ("size-negative", ["run", WEDGE, "--profile", "square", "--size", "-3"],
+     "prs3-post: error: --size must be > 0 mm (got -3)\n", 2),
+    ("diameter-zero", ["run", WEDGE, "--profile", "round", "--diameter", "0"],
+     "prs3-post: error: --diameter must be > 0 mm (got 0)\n", 2),
+    ("feed-zero", ["run", WEDGE, "--profile", "square", "--feed", "0"],
+     "prs3-post: error: --feed must be > 0 mm/min (got 0)\n", 2),
+    ("feed-negative", ["run", WEDGE, "--profile", "hole", "--feed", "-5"],
+     "prs3-post: error: --feed must be > 0 mm/min (got -5)\n", 2),
+    ("plunge-feed-zero", ["run", WEDGE, "--profile", "hole", "--plunge-feed", "0"],
+     "prs3-post: error: --plunge-feed must be > 0 mm/min (got 0)\n", 2),
+    ("step-down-zero", ["run", WEDGE, "--profile", "round", "--step-down", "0"],
+     "prs3-post: error: --step-down must be > 0 mm (got 0)\n", 2),
+    # the machine and the dialect
+    ("machine-does-not-exist", ["run", WEDGE, "--profile", "hole", "--machine", "nosuch"],
+     "prs3-post: error: nosuch: no such machine file or shipped name (shipped: patel2020, patel2020-head)\n", 2),
+    ("dialect-does-not-exist", ["run", WEDGE, "--profile", "hole", "--dialect", "nosuch"],
+     "prs3-post: error: nosuch: no such dialect file or shipped name (shipped: fanuc, linuxcnc)\n", 2),
+    # reach and limits: the message names the step, the limit, the value and the margin
+    ("stroke-limit", ["run", WEDGE, "--profile", "hole", "--part-origin", "0,0,0"],
+     "prs3-post: error: hole 1 approach: T1 stroke -952.2064 mm is below the minimum -100.0000 mm by 852.2064 mm "
+     "(5 points outside limits in all)\n", 1),
+    ("stage-limit", ["run", WEDGE, "--profile", "hole", "--part-origin", "500,0,-970"],
+     "prs3-post: error: hole 1 approach: stage X 582.7345 mm is above the maximum 300.0000 mm by 282.7345 mm "
+     "(5 points outside limits in all)\n", 1),
+    ("head-without-stage", ["run", WEDGE, "--profile", "hole", "--machine", "patel2020-head"],
+     "prs3-post: error: hole 1 approach: machine patel2020-head has no stage and its head alone misses the tip "
+     "(-95.5279, -0.0000, -661.0557) by 19.5369 mm (x -17.2655, y -9.1429) (5 points unreachable in all)\n", 1),
+]
+
+
+@pytest.mark.parametrize(("args", "message", "code"), [b[1:] for b in BAD], ids=[b[0] for b in BAD])
+def test_bad_input_is_refused_and_nothing_is_written(at_repo: Path, tmp_path: Path, args: list[str], message: str,
+                                                     code: int) -> None:
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    result = invoke(*args, "-o", str(out_dir / "program.ngc"))
+    assert result.stderr == message
+    assert result.stdout == ""
+    assert result.exit_code == code
+    assert list(out_dir.iterdir()) == []          # no program, no temp file
+
+
+def test_bad_input_keeps_an_existing_output_file(at_repo: Path, tmp_path: Path) -> None:
+    """A refused job leaves a program that is already there as it was."""
+    target = tmp_path / "program.ngc"
+    target.write_bytes(b"old\n")
+    result = invoke("run", WEDGE, "--profile", "hole", "--part-origin", "0,0,0", "-o", str(target))
+    assert result.exit_code == 1
+    assert target.read_bytes() == b"old\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["program.ngc"]
+
+
+def test_program_goes_to_standard_output_without_o(at_repo: Path) -> None:
+    result = invoke("run", WEDGE, "--profile", "hole", "--dialect", "fanuc")
+    assert result.exit_code == 0
+    assert result.stderr == ""
+    lines = result.stdout.split("\n")
+    assert lines[:2] == ["%", "O1000 (PRS3-POST)"] and lines[-2:] == ["%", ""]
+
+
+# ----------------------------------------------------------------------------- faces
+
+WEDGE_FACES = """\
+face   area mm²    incl °   normal x   normal y   normal z  origin x  origin y  origin z  kind
+   0  32500.000   90.0000  -1.000000   0.000000   0.000000  -50.0000  200.0000  162.5000  vertical
+   1  30000.000   90.0000   0.000000   1.000000   0.000000   -1.3889  250.0000  150.3472  vertical
+   2  30000.000   90.0000   0.000000  -1.000000   0.000000   -1.3889  150.0000  150.3472  vertical
+   3  27500.000   90.0000   1.000000   0.000000   0.000000   50.0000  200.0000  137.5000  vertical
+   4  11180.340   26.5651   0.447214   0.000000   0.894427    0.0000  200.0000  300.0000  inclined up
+   5  10000.000  180.0000   0.000000   0.000000  -1.000000    0.0000  200.0000    0.0000  horizontal down
+auto: face 4 is the largest upward-facing inclined face (inclination 26.5651°, area 11180.3 mm²)
+"""
+
+
+def test_faces_text(at_repo: Path) -> None:
+    result = invoke("faces", WEDGE)
+    assert (result.exit_code, result.stderr) == (0, "")
+    assert result.stdout == WEDGE_FACES
+
+
+def test_faces_json(at_repo: Path) -> None:
+    """The same table as JSON: exact keys, indexes and order; values to 1e-9 (full float precision)."""
+    result = invoke("faces", WEDGE, "--json")
+    assert (result.exit_code, result.stderr) == (0, "")
+    rows = json.loads(result.stdout)
+    assert [list(r) for r in rows] == [["index", "area_mm2", "normal", "inclination_deg", "origin"]] * 6
+    assert [r["index"] for r in rows] == [0, 1, 2, 3, 4, 5]
+    s5 = 5.0 ** 0.5
+    expected = [
+        (32500.0, [-1.0, 0.0, 0.0], 90.0, [-50.0, 200.0, 162.5]),
+        (30000.0, [0.0, 1.0, 0.0], 90.0, [-25.0 / 18.0, 250.0, 150.0 + 25.0 / 72.0]),
+        (30000.0, [0.0, -1.0, 0.0], 90.0, [-25.0 / 18.0, 150.0, 150.0 + 25.0 / 72.0]),
+        (27500.0, [1.0, 0.0, 0.0], 90.0, [50.0, 200.0, 137.5]),
+        (10000.0 * s5 / 2.0, [1.0 / s5, 0.0, 2.0 / s5], 26.56505117707799, [0.0, 200.0, 300.0]),
+        (10000.0, [0.0, 0.0, -1.0], 180.0, [0.0, 200.0, 0.0]),
+    ]
+    for row, (area, normal, inclination, origin) in zip(rows, expected):
+        assert_allclose(row["area_mm2"], area, rtol=0, atol=1e-9)
+        assert_allclose(row["normal"], normal, rtol=0, atol=1e-9)
+        assert_allclose(row["inclination_deg"], inclination, rtol=0, atol=1e-9)
+        assert_allclose(row["origin"], origin, rtol=0, atol=1e-9)
+
+
+def test_faces_of_twofaces_name_the_other_face(at_repo: Path) -> None:
+    """twofaces.stl: auto takes face 5 (20°, larger); face 6 (30°) is what --face 6 means in test_job."""
+    result = invoke("faces", "fixtures/parts/twofaces.stl")
+    assert result.exit_code == 0
+    lines = result.stdout.splitlines()
+    assert lines[6].split()[0] == "5" and lines[6].split()[2] == "20.0000" and lines[6].endswith("inclined up")
+    assert lines[7].split()[0] == "6" and lines[7].split()[2] == "30.0000" and lines[7].endswith("inclined up")
+    assert lines[-1] == ("auto: face 5 is the largest upward-facing inclined face (inclination 20.0000°, "
+                         "area 8513.4 mm²)")
+
+
+def test_faces_bad_file(at_repo: Path) -> None:
+    result = invoke("faces", "fixtures/bad/empty.stl")
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == "prs3-post: error: fixtures/bad/empty.stl: STL has no triangles\n"
+
+
+def test_faces_without_inclined_face_says_so(at_repo: Path) -> None:
+    result = invoke("faces", "fixtures/bad/cube.stl")
+    assert result.exit_code == 0
+    assert result.stdout.splitlines()[-1] == (
+        "auto: no upward-facing inclined face (1° < inclination < 89°, normal z > 0): found 6 faces: "
+        "1 horizontal up, 1 horizontal down, 4 vertical")
+
+
+# ----------------------------------------------------------------------------- --help
+
+KEY_OPTIONS = {
+    "--profile", "--face", "--at", "--at-xyz", "--units", "--depth", "--peck", "--dwell", "--reapproach-gap",
+    "--size", "--corner-radius", "--rotation", "--diameter", "--side", "--step-down", "--direction", "--entry",
+    "--ramp-angle", "--clearance", "--retract", "--tool-diameter", "--tool-number", "--feed", "--plunge-feed",
+    "--spindle", "--coolant", "--machine", "--part-origin", "--dialect", "--line-numbers", "--no-line-numbers",
+    "--line-start", "--line-step", "--tolerance", "-o", "--output",
+}
+
+
+def _option_names(command: click.Command) -> set[str]:
+    return {name for p in command.params if isinstance(p, click.Option) for name in (*p.opts, *p.secondary_opts)}
+
+
+@pytest.mark.parametrize("command", [run, demo], ids=["run", "demo"])
+def test_help_mentions_every_option(command: click.Command) -> None:
+    names = _option_names(command)
+    assert KEY_OPTIONS <= names
+    result = CliRunner().invoke(main, [command.name, "--help"], prog_name="prs3-post")
+    assert result.exit_code == 0
+    words = set(result.stdout.replace("/", " ").replace(",", " ").split())
+    assert names - {"-h"} <= words, sorted(names - words)
+
+
+def test_run_and_demo_take_the_same_options() -> None:
+    assert _option_names(run) == _option_names(demo)
+    assert [p.name for p in run.params if isinstance(p, click.Argument)] == ["part"]
+    assert [p for p in demo.params if isinstance(p, click.Argument)] == []
