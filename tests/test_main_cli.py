@@ -47,11 +47,12 @@ BAD = [
     ("empty-mesh", ["run", "fixtures/bad/empty.stl", "--profile", "hole"],
      "prs3-post: error: fixtures/bad/empty.stl: STL has no triangles\n", 2),
     ("no-inclined-face", ["run", "fixtures/bad/cube.stl", "--profile", "hole"],
-     "prs3-post: error: no upward-facing inclined face (1° < inclination < 89°, normal z > 0): found 6 faces: "
-     "1 horizontal up, 1 horizontal down, 4 vertical\n", 2),
+     "prs3-post: error: fixtures/bad/cube.stl: no upward-facing inclined face (1° < inclination < 89°, normal z > 0): "
+     "found 6 faces: 1 horizontal up, 1 horizontal down, 4 vertical\n", 2),
     ("only-downward-face", ["run", "fixtures/bad/downward.stl", "--profile", "hole"],
-     "prs3-post: error: no upward-facing inclined face (1° < inclination < 89°, normal z > 0): found 7 faces: "
-     "1 horizontal up, 1 horizontal down, 4 vertical, 1 inclined 45.0° facing down (cannot be reached from above)\n",
+     "prs3-post: error: fixtures/bad/downward.stl: no upward-facing inclined face (1° < inclination < 89°, "
+     "normal z > 0): found 7 faces: 1 horizontal up, 1 horizontal down, 4 vertical, 1 inclined 45.0° facing down "
+     "(cannot be reached from above)\n",
      2),
     ("wrong-units", ["run", "fixtures/bad/tiny.stl", "--profile", "hole"],
      "prs3-post: error: fixtures/bad/tiny.stl: part is only 0.1 x 0.1 x 0.325 mm (largest extent under 1 mm): "
@@ -61,12 +62,12 @@ BAD = [
      _usage("Invalid value for 'PART.stl': File 'fixtures/parts' is a directory."), 2),
     # the face
     ("face-99", ["run", WEDGE, "--profile", "hole", "--face", "99"],
-     "prs3-post: error: face 99 does not exist (valid: 0 to 5)\n", 2),
+     "prs3-post: error: fixtures/parts/wedge.stl: face 99 does not exist (valid: 0 to 5)\n", 2),
     ("face-abc", ["run", WEDGE, "--profile", "hole", "--face", "abc"],
      _usage("Invalid value for '--face': expected auto or a face index, got 'abc'"), 2),
     ("face-facing-down", ["run", WEDGE, "--profile", "hole", "--face", "5"],
-     "prs3-post: error: face 5 does not face up (normal z = -1.0000, inclination 180.0°): the tool cannot reach it "
-     "from above\n", 2),
+     "prs3-post: error: fixtures/parts/wedge.stl: face 5 does not face up (normal z = -1.0000, inclination 180.0°): "
+     "the tool cannot reach it from above\n", 2),
     # the feature
     ("does-not-fit", ["run", WEDGE, "--profile", "square", "--size", "200"],
      "prs3-post: error: square 200.000 mm at (u 0.000, v 0.000) with tool Ø6.000: does not fit on face 4: "

@@ -18,6 +18,7 @@ import numpy as np
 from prs3_post import __version__
 from prs3_post.config import Dialect, Machine
 from prs3_post.emit.gcode import emit_program
+from prs3_post.errors import FeatureError, InputError
 from prs3_post.face import Face
 from prs3_post.geometry import find_faces, project_onto_face, select_face
 from prs3_post.ops import Cutting, HoleParams, ProfileParams, RoundShape, SquareShape, plan_holes, plan_profile
@@ -121,8 +122,6 @@ def plan(spec: JobSpec, face: Face) -> Toolpath:
         return plan_holes(face, centres, spec.holes, spec.cutting)
     assert spec.shape is not None and spec.profile is not None  # noqa: S101
     if len(centres) > 1:
-        from prs3_post.errors import FeatureError
-
         raise FeatureError(f"--profile {spec.operation.value} cuts one feature: give one --at or --at-xyz "
                            f"(got {len(centres)})")
     return plan_profile(face, centres[0], spec.shape, spec.profile, spec.cutting, tolerance=spec.tolerance)
@@ -137,7 +136,10 @@ def run_job(spec: JobSpec) -> JobResult:
     """
     mesh = load_part(spec.part, units=spec.units)
     faces = find_faces(mesh)
-    face, note = select_face(faces, spec.face)
+    try:
+        face, note = select_face(faces, spec.face)
+    except FeatureError as error:                     # about this file's faces: say which file
+        raise InputError(str(error), path=spec.part) from error
     path_part = plan(spec, face)
     origin = np.asarray(spec.machine.part_origin if spec.part_origin is None else spec.part_origin, dtype=np.float64)
     post = post_process(spec.machine, path_part, origin, tolerance=spec.tolerance)
@@ -183,10 +185,10 @@ def header(spec: JobSpec, face: Face, origin: FloatArray) -> tuple[tuple[str, st
         ("face", f"{face.index}: inclination {_fixed(math.degrees(face.inclination))} deg, "
                  f"normal ({_mm(face.normal, 6)}), origin ({_mm(face.origin)}) mm"),
         ("setup", f"part origin at machine ({_mm(origin)}) mm"),
-        ("operation", f"{op.value} at face (u, v) " + "; ".join(f"({_mm(c)})" for c in centres) + " mm"),
+        ("operation", f"{op.value} at face (u, v) " + ", ".join(f"({_mm(c)})" for c in centres) + " mm"),
         ("parameters", params),
         ("tool", f"T{cut.tool_number} diameter {_fixed(cut.tool_diameter, 3)} mm, feed {_fixed(cut.feed, 1)} mm/min, "
                  f"plunge {_fixed(cut.plunge_feed, 1)} mm/min, spindle {_fixed(cut.spindle_rpm, 0)} rpm, "
                  f"coolant {cut.coolant.value}"),
-        ("units", "mm; G93 inverse time: F = 1/minutes of each move"),
+        ("units", "mm, G93 inverse time: F = 1/minutes of each move"),
     )
