@@ -1,0 +1,785 @@
+"""Verify a program: replay its moves through forward kinematics and check what the machine would do.
+
+    program rows (X, Y, T1..T3) ──► sample every move in joint space ──► FK (+ exact IK for the
+    condition number) ──► tip path, limits, straightness, feeds ──► deviation from the intended path
+
+Pure: arrays in, a :class:`VerifyReport` out (plus its text and JSON forms); the CLI reads files.
+
+The controller interpolates the machine axes linearly, so the machine passes through the joint
+values q(t) = q_{k-1} + t (q_k - q_{k-1}), t in [0, 1], on move k, and its tool tip follows the
+curve p(t) = FK(q(t)). Strokes and stage are linear in t, so they can only reach their extremes at
+the end points; link angles, tilt, the condition number and the tip's distance from a straight
+line are not, so every move is sampled.
+
+Sampling rule and its error bound
+---------------------------------
+Move k is sampled at t = j/n_k, j = 1 … n_k (t = 0 is the previous move's last sample). Between
+two samples h = 1/n_k apart, a smooth f(t) differs from the straight line through its samples
+by at most h²/8 · max|f''| (the linear interpolation error). This bounds what sampling can miss
+of the tip's deviation from any straight intended chord (whose second derivative is zero:
+|d''| = |p''|) and, with f = U·θ_i (U the link length, so that angles count as the length they
+move a link end), of the link angles. max|f''| is estimated from second differences of the
+samples, |f(t+h) - 2 f(t) + f(t-h)| / h² (= |f''| somewhere in [t-h, t+h]), taken over the
+move and doubled for safety (SAFETY): M_k. The rule: probe every move with PROBE_INTERVALS = 8,
+then use
+
+    n_k = max(8, ceil(sqrt(SAFETY · M_k / (8 ε))))      (at most MAX_INTERVALS)
+
+with ε = tolerance / 20, recomputing M_k on the denser samples and repeating (never coarsening,
+at most REFINE_ROUNDS times) until n_k no longer grows; so the reported bound SAFETY · M_k h² / 8
+(per move, from the final samples) is ≤ ε: the worst deviation between samples exceeds the worst sampled one by
+less than 5 % of the tolerance. Moves whose tool axis does not change are straight at the tip and
+their link angles are constant (M_k ≈ 0): they keep 8 intervals. The estimate is exact for a
+constant f'' and is good when the probe resolves the curvature (h·max|f'''| ≪ max|f''|), which
+holds for moves a machine can make: the curvature of FK varies on the scale of the link length.
+
+Reports
+-------
+- The FK tool-tip path in part coordinates (every sample).
+- The closest approach to every limit of the machine (``prs3_post.limits.check_limits`` on the
+  samples; condition numbers from exact IK of the FK poses): value, margin and line.
+- Straightness: the largest distance of a G1's tip from the straight line between its end points
+  (must be ≤ tolerance: a prs3-post program only makes moves that are straight at the tip).
+- Feeds (G93: F = 1 / minutes): the implied tip feed of each G1 = chord length × F. With an
+  intended path that has feeds (``--against PART.stl``), each one must equal the intended feed
+  within what the output rounding allows (of F and of the end points). Without one, the feeds are
+  grouped (equal within rounding); a prs3-post operation uses only its feed and plunge feed, so a
+  G1 whose implied feed matches no other G1 is *warned* about (a hand-edited F or point), without
+  failing the check.
+- Against an intended path (one pose per program row): tip and axis deviation at every end point
+  and along every G1 (intended: the straight chord and the great-circle axis), their maximum,
+  mean and the line of the maximum. Allowed: tolerance + the output rounding (the tip error that
+  half a unit of the last decimal on every axis word can cause, from the FK Jacobian) for the
+  tip, ``axis_tolerance`` for the axis.
+
+Any limit broken, a pose that does not assemble, a G1 not straight within the tolerance, a
+deviation or a feed outside what is allowed is a *problem*: the program fails (exit status 1).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from prs3_post.config import Machine
+from prs3_post.errors import Prs3Error
+from prs3_post.kinematics import IKModel, IKResult, forward, inverse
+from prs3_post.limits import LimitReport, check_limits
+from prs3_post.linearize import slerp
+from prs3_post.tables import fixed
+from prs3_post.toolpath import EventKind, JointProgram, MoveKind
+from prs3_post.types import BoolArray, FloatArray, IntArray
+
+#: Intervals every move is probed with (and its minimum).
+PROBE_INTERVALS = 8
+#: Most intervals one move gets.
+MAX_INTERVALS = 4096
+#: The sampling aims at a bound ε = tolerance × EPSILON_FRACTION.
+EPSILON_FRACTION = 0.05
+#: Rounds of refinement (each recomputes the curvature on the denser samples).
+REFINE_ROUNDS = 4
+#: Factor on the curvature estimated from second differences.
+SAFETY = 2.0
+#: mm/min: the rapid rate used for program time: the longest joint travel of a G0 at this rate
+#: (a nominal value: the real one depends on the machine's axis settings).
+NOMINAL_RAPID_RATE = 5000.0
+#: Rows of the text report's problem list.
+SHOWN_PROBLEMS = 10
+
+
+# ============================================================================= replay
+
+
+@dataclass(frozen=True, slots=True)
+class Replay:
+    """A program's moves replayed through forward kinematics, S samples in all.
+
+    Attributes
+    ----------
+    row : (S,) int — program row (move) of each sample; samples of a row are contiguous
+    fraction : (S,) float — t in (0, 1] along the move (row 0, whose start is unknown: its end, 1)
+    joints : (S, 5) float — mm, X, Y, T1, T2, T3 (joint-space interpolation)
+    tip : (S, 3) float — mm, tool tip, machine frame (part-relative: stage included)
+    axis : (S, 3) float — unit tool axis
+    converged : (S,) bool — FK found the head's pose (NaN tip/axis where not)
+    link_angle : (S, 3) float — rad
+    condition : (S,) float — actuator-Jacobian condition number (exact IK of the FK pose)
+    limits : LimitReport — every limit of the machine on every sample
+    first, end : (N,) int — index of each row's first and last (t = 1) sample
+    intervals : (N,) int — n_k (row 0: 1)
+    bound : (N,) float — mm, the sampling error bound SAFETY · M_k / (8 n_k²) of each move
+    epsilon : float — mm, the bound the rule aims for
+    """
+
+    row: IntArray
+    fraction: FloatArray
+    joints: FloatArray
+    tip: FloatArray
+    axis: FloatArray
+    converged: BoolArray
+    link_angle: FloatArray
+    condition: FloatArray
+    limits: LimitReport
+    first: IntArray
+    end: IntArray
+    intervals: IntArray
+    bound: FloatArray
+    epsilon: float
+
+
+def joints_of(program: JointProgram) -> FloatArray:
+    """(N, 5) float — mm, X, Y, T1, T2, T3 of every row."""
+    return np.column_stack([program.stage, program.strokes]).reshape(-1, 5)
+
+
+def _sample_moves(joints: FloatArray, intervals: IntArray) -> tuple[IntArray, FloatArray, FloatArray, IntArray]:
+    """Samples of every move: row (S,), fraction (S,), joints (S, 5), first sample of each row (N,)."""
+    n = len(joints)
+    row = np.repeat(np.arange(n), intervals)
+    first = np.cumsum(intervals) - intervals
+    step = np.arange(len(row)) - first[row] + 1
+    fraction = step / intervals[row]
+    start = joints[np.maximum(row - 1, 0)]
+    sampled = start + fraction[:, None] * (joints[row] - start)
+    sampled[first + intervals - 1] = joints            # end points exactly as programmed
+    return row, fraction, sampled, first
+
+
+def _curvature(row: IntArray, intervals: IntArray, tip: FloatArray, link_angle: FloatArray, link_length: float,
+               n: int) -> FloatArray:
+    """(N,) max |f''| per move from second differences (f = tip, mm; U·θ_i, mm), times SAFETY."""
+    i = np.arange(1, len(row) - 1)
+    i = i[row[i + 1] == row[i]]                        # not a move's last sample: both neighbours on the move
+    h2 = (1.0 / intervals[row[i]]) ** 2
+    tip2 = np.linalg.norm(tip[i + 1] - 2.0 * tip[i] + tip[i - 1], axis=1)
+    angle2 = link_length * np.max(np.abs(link_angle[i + 1] - 2.0 * link_angle[i] + link_angle[i - 1]), axis=1)
+    out = np.zeros(n)
+    np.fmax.at(out, row[i], np.fmax(tip2, angle2) / h2)     # fmax: a NaN (no assembly) is reported elsewhere
+    return SAFETY * out
+
+
+def replay(machine: Machine, program: JointProgram, *, tolerance: float = 0.002) -> Replay:
+    """Sample every move of ``program`` in joint space and run FK (and exact IK) on the samples.
+
+    Parameters
+    ----------
+    machine : Machine
+    program : JointProgram — N ≥ 1 rows; ``stage`` zeros on a machine without a stage
+    tolerance : float — mm; the sampling aims at a bound of ε = tolerance × EPSILON_FRACTION (1/20)
+
+    Returns
+    -------
+    Replay
+    """
+    geometry = machine.geometry
+    joints = joints_of(program)
+    n = len(joints)
+    epsilon = tolerance * EPSILON_FRACTION
+    intervals = np.full(n, PROBE_INTERVALS, dtype=np.int64)
+    if n:
+        intervals[0] = 1
+    def run() -> tuple[IntArray, FloatArray, FloatArray, IntArray, Any, FloatArray]:
+        row, fraction, sampled, first = _sample_moves(joints, intervals)
+        fk = forward(geometry, sampled[:, 2:], sampled[:, :2])
+        return row, fraction, sampled, first, fk, _curvature(row, intervals, fk.tip, fk.link_angle,
+                                                             geometry.link_length, n)
+
+    row, fraction, sampled, first, fk, curvature = run()
+    for _ in range(REFINE_ROUNDS):                     # refine until the bound holds (never coarsen)
+        needed = np.ceil(np.sqrt(curvature / (8.0 * epsilon)))
+        wanted = np.maximum(np.clip(needed, PROBE_INTERVALS, MAX_INTERVALS).astype(np.int64), intervals)
+        wanted[:1] = 1
+        if np.array_equal(wanted, intervals):
+            break
+        intervals = wanted
+        row, fraction, sampled, first, fk, curvature = run()
+    bound = curvature / (8.0 * intervals.astype(np.float64) ** 2)
+    if n:
+        bound[0] = 0.0
+    ik = inverse(geometry, fk.tip, fk.axis, model=IKModel.EXACT)
+    like = IKResult(stage=sampled[:, :2], strokes=sampled[:, 2:], link_angle=fk.link_angle,
+                    condition=ik.condition, reachable=fk.converged)
+    limits = check_limits(machine, like, fk.axis)
+    return Replay(
+        row=row, fraction=fraction, joints=sampled, tip=fk.tip, axis=fk.axis, converged=fk.converged,
+        link_angle=fk.link_angle, condition=ik.condition, limits=limits, first=first,
+        end=first + intervals - 1, intervals=intervals, bound=bound, epsilon=epsilon,
+    )
+
+
+def rounding_allowance(machine: Machine, program: JointProgram, decimals: int, *, step: float = 1e-3) -> FloatArray:
+    """(N,) float — mm, the most the tip of each row can move when every axis word is off by half a
+    unit of its last decimal: ½·10^-decimals · Σ_j |∂tip/∂q_j| (FK Jacobian by central differences)."""
+    half = 0.5 * 10.0 ** (-decimals)
+    strokes = np.asarray(program.strokes)
+    total = np.full(len(strokes), 2.0 if machine.stage.present else 0.0)   # ∂tip/∂X, ∂tip/∂Y: unit vectors
+    for leg in range(3):
+        delta = np.zeros(3)
+        delta[leg] = step
+        plus = forward(machine.geometry, strokes + delta).tip
+        minus = forward(machine.geometry, strokes - delta).tip
+        total += np.linalg.norm(plus - minus, axis=1) / (2.0 * step)
+    return half * total
+
+
+def row_times(program: JointProgram, *, rapid_rate: float = NOMINAL_RAPID_RATE) -> tuple[FloatArray, FloatArray]:
+    """Start and end time of every row's move, min (G1: 1/F; G0: longest joint travel / rapid_rate;
+    G4 dwells before a row delay it; row 0 starts and ends at 0, its start being unknown).
+
+    Returns
+    -------
+    start, end : (N,) float — min
+    """
+    joints = joints_of(program)
+    n = len(joints)
+    duration = np.zeros(n)
+    if n > 1:
+        travel = np.max(np.abs(np.diff(joints, axis=0)), axis=1)
+        feed = program.kind[1:] == MoveKind.FEED
+        with np.errstate(divide="ignore"):
+            duration[1:] = np.where(feed, 1.0 / np.where(feed, program.inverse_time[1:], 1.0), travel / rapid_rate)
+    dwell = np.zeros(n + 1)
+    for event in program.events:
+        if event.kind is EventKind.DWELL:
+            dwell[event.before] += event.value / 60.0
+    end = np.cumsum(dwell[:n] + duration)
+    return end - duration, end
+
+
+def margin_fraction(limits: LimitReport) -> FloatArray:
+    """(L,) float — the bounds' spread each margin is measured against: max − min for a two-sided
+    limit, |bound| for a one-sided one (tilt, condition number). Divide a margin by it."""
+    low, high = limits.low, limits.high
+    both = np.isfinite(low) & np.isfinite(high)
+    one = np.where(np.isfinite(high), np.abs(high), np.abs(low))
+    return np.where(both, high - low, one)
+
+
+# ============================================================================= checks
+
+
+@dataclass(frozen=True, slots=True)
+class Intended:
+    """The path a program should make: one pose per program row, machine frame.
+
+    Attributes
+    ----------
+    tip : (N, 3) float — mm, part-relative tip in the machine frame (as ``ik`` takes it)
+    axis : (N, 3) float — unit tool axes
+    feed : (N,) float — mm/min tip feed of G1 rows, NaN where unknown (no check)
+    kind : (N,) int — MoveKind of each row, −1 where unknown
+    label : str — where it came from, for the report
+    """
+
+    tip: FloatArray
+    axis: FloatArray
+    feed: FloatArray
+    kind: IntArray
+    label: str
+
+
+@dataclass(frozen=True, slots=True)
+class Problem:
+    """One reason a program fails (or, as a warning, a thing to look at).
+
+    Attributes
+    ----------
+    line : int — program line (0: the whole program)
+    kind : str — ``limit``, ``reach``, ``straightness``, ``deviation``, ``axis``, ``feed``, ``move``
+    message : str — ``line 12: ...``
+    """
+
+    line: int
+    kind: str
+    message: str
+
+
+@dataclass(frozen=True, slots=True)
+class Closest:
+    """The closest approach to one limit over all samples."""
+
+    name: str
+    unit: str
+    low: float
+    high: float
+    value: float
+    margin: float
+    fraction_of_range: float
+    line: int
+    at: float
+
+
+@dataclass(frozen=True, slots=True)
+class FeedGroup:
+    """G1 moves whose implied tip feeds are equal within the output rounding."""
+
+    feed: float
+    lines: tuple[int, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Against:
+    """Deviation of the replayed path from the intended one (C compared samples).
+
+    Attributes
+    ----------
+    label : str
+    compared : (S,) bool — end points of every row, and every sample of G1 moves
+    tip_deviation : (S, 3) float — mm, FK tip − intended tip (NaN where not compared)
+    axis_deviation : (S,) float — rad, angle between FK axis and intended axis (NaN where not compared)
+    allowed : (S,) float — mm, tolerance + output rounding at each sample
+    """
+
+    label: str
+    compared: BoolArray
+    tip_deviation: FloatArray
+    axis_deviation: FloatArray
+    allowed: FloatArray
+
+
+@dataclass(frozen=True, slots=True)
+class VerifyReport:
+    """Everything ``prs3-post verify`` found (see the module docstring).
+
+    Attributes
+    ----------
+    program : JointProgram — the rows as read (``source`` = line numbers)
+    replay : Replay
+    machine : str
+    part_origin : (3,) float — mm, machine coordinates of the part origin
+    tolerance : float — mm
+    axis_tolerance : float — rad
+    rounding : (N,) float — mm, tip allowance for the output rounding of each row
+    straightness : (S,) float — mm, |tip − straight chord| on G1 samples, NaN elsewhere
+    chord : (N,) float — mm, tip chord length of each move (NaN for row 0)
+    implied_feed : (N,) float — mm/min, chord × F of G1 rows, NaN elsewhere
+    feed_slack : (N,) float — mm/min, what the rounding of F and of the end points allows
+    feed_groups : tuple of FeedGroup
+    closest : tuple of Closest — one per limit
+    against : Against | None
+    problems, warnings : tuple of Problem
+    """
+
+    program: JointProgram
+    replay: Replay
+    machine: str
+    part_origin: FloatArray
+    tolerance: float
+    axis_tolerance: float
+    rounding: FloatArray
+    straightness: FloatArray
+    chord: FloatArray
+    implied_feed: FloatArray
+    feed_slack: FloatArray
+    feed_groups: tuple[FeedGroup, ...]
+    closest: tuple[Closest, ...]
+    against: Against | None
+    problems: tuple[Problem, ...]
+    warnings: tuple[Problem, ...]
+
+    @property
+    def ok(self) -> bool:
+        """No problem: within every limit and tolerance."""
+        return not self.problems
+
+    @property
+    def line(self) -> IntArray:
+        """(S,) int — the program line of every sample."""
+        return self.program.source[self.replay.row]
+
+    @property
+    def tip_part(self) -> FloatArray:
+        """(S, 3) float — mm, FK tool tip in part coordinates."""
+        return self.replay.tip - self.part_origin
+
+
+def verify_program(
+    machine: Machine,
+    program: JointProgram,
+    *,
+    part_origin: FloatArray,
+    tolerance: float = 0.002,
+    axis_tolerance: float = math.radians(0.01),
+    length_decimals: int = 4,
+    feed_decimals: int = 4,
+    intended: Intended | None = None,
+) -> VerifyReport:
+    """Replay and check a program (module docstring).
+
+    Parameters
+    ----------
+    machine : Machine
+    program : JointProgram — N ≥ 1 rows, ``source`` = line numbers
+    part_origin : (3,) float — mm, machine coordinates of the part origin (the setup)
+    tolerance : float — mm, allowed tip deviation (plus the output rounding against a path)
+    axis_tolerance : float — rad, allowed axis deviation from an intended path
+    length_decimals, feed_decimals : int — decimals of the axis words and of F (the dialect's)
+    intended : Intended, optional — one pose per row
+
+    Returns
+    -------
+    VerifyReport
+
+    Raises
+    ------
+    Prs3Error
+        When ``intended`` has another number of rows than the program (not the same program).
+    """
+    n = len(program)
+    if intended is not None and len(intended.tip) != n:
+        raise Prs3Error(f"the program has {n} moves, {intended.label} has {len(intended.tip)}: they do not "
+                        "describe the same path (check the options it was made with)")
+    rep = replay(machine, program, tolerance=tolerance)
+    lines = program.source
+    problems: list[Problem] = []
+    warnings: list[Problem] = []
+    feed_row = program.kind == MoveKind.FEED
+    rounding = rounding_allowance(machine, program, length_decimals)
+
+    # ---- assembly and limits
+    bad_rows = np.unique(rep.row[~rep.converged])
+    for r in bad_rows.tolist():
+        i = int(np.flatnonzero((rep.row == r) & ~rep.converged)[0])
+        strokes = ", ".join(f"{v:.4f}" for v in rep.joints[i, 2:])
+        problems.append(Problem(int(lines[r]), "reach", f"line {lines[r]}: the head does not assemble at "
+                                f"{_at(rep.fraction[i])} (strokes {strokes} mm)"))
+    limits = rep.limits
+    with np.errstate(invalid="ignore"):
+        outside = limits.margin < 0.0
+    for col in range(len(limits.names)):
+        rows = np.unique(rep.row[outside[:, col]])
+        for r in rows.tolist():
+            on_row = np.flatnonzero(rep.row == r)
+            i = int(on_row[np.nanargmin(limits.margin[on_row, col])])
+            problems.append(Problem(int(lines[r]), "limit",
+                                    f"line {lines[r]}: {limits.describe(i, col)} at {_at(rep.fraction[i])}"))
+    closest = tuple(_closest(rep, lines, col) for col in range(len(limits.names)))
+
+    # ---- straightness of G1 moves
+    end = rep.end
+    start_tip = rep.tip[end[np.maximum(rep.row - 1, 0)]]
+    chord_point = start_tip + rep.fraction[:, None] * (rep.tip[end[rep.row]] - start_tip)
+    on_feed = feed_row[rep.row] & (rep.row > 0)
+    straightness = np.where(on_feed, np.linalg.norm(rep.tip - chord_point, axis=1), np.nan)
+    for r in np.flatnonzero(feed_row).tolist():
+        if r == 0:
+            continue
+        span = slice(rep.first[r], end[r] + 1)
+        worst = int(np.argmax(np.nan_to_num(straightness[span], nan=np.inf))) + rep.first[r]
+        if not straightness[worst] <= tolerance:
+            problems.append(Problem(int(lines[r]), "straightness",
+                                    f"line {lines[r]}: the tip leaves the straight line between the move's end "
+                                    f"points by {straightness[worst]:.6f} mm at {_at(rep.fraction[worst])} "
+                                    f"(tolerance {tolerance:g} mm)"))
+
+    # ---- feeds
+    chord = np.full(n, np.nan)
+    if n > 1:
+        chord[1:] = np.linalg.norm(rep.tip[end[1:]] - rep.tip[end[:-1]], axis=1)
+    inverse_time = np.asarray(program.inverse_time)
+    implied = np.where(feed_row, chord * inverse_time, np.nan)
+    half_f = 0.5 * 10.0 ** (-feed_decimals)
+    ends_rounding = np.full(n, np.nan)
+    if n > 1:
+        ends_rounding[1:] = rounding[1:] + rounding[:-1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        slack = np.where(feed_row, implied * half_f / inverse_time + inverse_time * ends_rounding, np.nan) + 1e-9
+    if n and feed_row[0]:
+        warnings.append(Problem(int(lines[0]), "feed", f"line {lines[0]}: the program starts with a G1: its start "
+                                "point, and so its tip feed, is unknown"))
+    for r in np.flatnonzero(feed_row[1:] & (chord[1:] < 1e-9)).tolist():
+        warnings.append(Problem(int(lines[r + 1]), "feed", f"line {lines[r + 1]}: G1 of zero length (it only "
+                                "waits 1/F min)"))
+    if intended is not None:
+        want = np.asarray(intended.feed)
+        check = feed_row & np.isfinite(want) & np.isfinite(implied)
+        for r in np.flatnonzero(check & ~(np.abs(implied - want) <= slack)).tolist():
+            problems.append(Problem(int(lines[r]), "feed",
+                                    f"line {lines[r]}: implied tip feed {implied[r]:.3f} mm/min (chord "
+                                    f"{chord[r]:.4f} mm × F {inverse_time[r]:g}) is not the intended "
+                                    f"{want[r]:.3f} mm/min (allowed ± {slack[r]:.3f} for the rounding)"))
+    groups = _feed_groups(implied, slack, lines)
+    known = intended is not None and bool(np.isfinite(intended.feed[feed_row]).any())
+    if not known and int(feed_row[1:].sum()) >= 3 and len(groups) > 1:
+        shown = ", ".join(f"{g.feed:.1f} ×{len(g.lines)}" for g in groups if len(g.lines) > 1) or "none repeat"
+        for g in groups:
+            if len(g.lines) == 1:
+                warnings.append(Problem(g.lines[0], "feed", f"line {g.lines[0]}: implied tip feed {g.feed:.3f} "
+                                        f"mm/min matches no other G1 (feeds: {shown}): a hand-edited F or point?"))
+
+    # ---- against an intended path
+    against = None
+    if intended is not None:
+        against = _against(rep, program, intended, rounding, tolerance)
+        _against_problems(against, rep, program, intended, axis_tolerance, problems)
+
+    problems.sort(key=lambda p: p.line)
+    warnings.sort(key=lambda p: p.line)
+    return VerifyReport(
+        program=program, replay=rep, machine=machine.name, part_origin=np.asarray(part_origin, dtype=np.float64),
+        tolerance=tolerance, axis_tolerance=axis_tolerance, rounding=rounding, straightness=straightness,
+        chord=chord, implied_feed=implied, feed_slack=slack, feed_groups=groups, closest=closest,
+        against=against, problems=tuple(problems), warnings=tuple(warnings),
+    )
+
+
+def _at(fraction: float) -> str:
+    """Where on a move a sample is: ``the end point`` or ``37.5 % of the move``."""
+    return "the end point" if fraction >= 1.0 else f"{100.0 * fraction:.1f} % of the move"
+
+
+def _closest(rep: Replay, lines: IntArray, col: int) -> Closest:
+    limits = rep.limits
+    margin = limits.margin[:, col]
+    spread = float(margin_fraction(limits)[col])
+    scale = math.degrees(1.0) if limits.units[col] == "deg" else 1.0
+    if not np.isfinite(margin).any():
+        i, value, worst = 0, math.nan, math.nan
+    else:
+        i = int(np.nanargmin(margin))
+        value, worst = float(limits.value[i, col]), float(margin[i])
+    return Closest(
+        name=limits.names[col], unit=limits.units[col], low=float(limits.low[col]) * scale,
+        high=float(limits.high[col]) * scale, value=value * scale, margin=worst * scale,
+        fraction_of_range=worst / spread, line=int(lines[rep.row[i]]), at=float(rep.fraction[i]),
+    )
+
+
+def _feed_groups(implied: FloatArray, slack: FloatArray, lines: IntArray) -> tuple[FeedGroup, ...]:
+    """Implied feeds sorted and chained into groups where neighbours agree within their slacks."""
+    rows = np.flatnonzero(np.isfinite(implied) & (implied > 0))
+    if not len(rows):
+        return ()
+    rows = rows[np.argsort(implied[rows], kind="stable")]
+    split = np.flatnonzero(np.diff(implied[rows]) > slack[rows[:-1]] + slack[rows[1:]]) + 1
+    groups = []
+    for part in np.split(rows, split):
+        members = np.sort(part)
+        groups.append(FeedGroup(feed=float(np.mean(implied[members])), lines=tuple(int(lines[r]) for r in members)))
+    return tuple(groups)
+
+
+def _against(rep: Replay, program: JointProgram, intended: Intended, rounding: FloatArray,
+             tolerance: float) -> Against:
+    row, t = rep.row, rep.fraction
+    kind = np.where(np.asarray(intended.kind) >= 0, intended.kind, program.kind)
+    is_end = np.zeros(len(row), dtype=bool)
+    is_end[rep.end] = True
+    compared = is_end | ((kind[row] == MoveKind.FEED) & (row > 0))
+    prev = np.maximum(row - 1, 0)
+    target_tip = intended.tip[prev] + t[:, None] * (intended.tip[row] - intended.tip[prev])
+    target_tip[is_end] = intended.tip[row[is_end]]
+    target_axis = slerp(intended.axis[prev], intended.axis[row], t)
+    target_axis[is_end] = intended.axis[row[is_end]]
+    tip_dev = np.where(compared[:, None], rep.tip - target_tip, np.nan)
+    cross = np.linalg.norm(np.cross(rep.axis, target_axis), axis=1)
+    axis_dev = np.where(compared, np.arctan2(cross, np.sum(rep.axis * target_axis, axis=1)), np.nan)
+    allowed = tolerance + np.where(is_end, rounding[row], np.maximum(rounding[row], rounding[prev]))
+    return Against(label=intended.label, compared=compared, tip_deviation=tip_dev, axis_deviation=axis_dev,
+                   allowed=allowed)
+
+
+def _against_problems(against: Against, rep: Replay, program: JointProgram, intended: Intended,
+                      axis_tolerance: float, problems: list[Problem]) -> None:
+    lines = program.source
+    for r in np.flatnonzero((intended.kind >= 0) & (intended.kind != program.kind)).tolist():
+        want = "G1" if intended.kind[r] == MoveKind.FEED else "G0"
+        problems.append(Problem(int(lines[r]), "move", f"line {lines[r]}: {want} intended, the program has "
+                                f"{'G1' if program.kind[r] == MoveKind.FEED else 'G0'}"))
+    tip = np.linalg.norm(against.tip_deviation, axis=1)
+    with np.errstate(invalid="ignore"):
+        tip_over = tip > against.allowed
+        axis_over = against.axis_deviation > axis_tolerance
+    for r in np.unique(rep.row[tip_over]).tolist():
+        span = np.flatnonzero(rep.row == r)
+        i = int(span[np.nanargmax(tip[span])])
+        problems.append(Problem(int(lines[r]), "deviation",
+                                f"line {lines[r]}: the tip is {tip[i]:.6f} mm from the intended path at "
+                                f"{_at(rep.fraction[i])} (allowed {against.allowed[i]:.6f} mm: tolerance + "
+                                "output rounding)"))
+    for r in np.unique(rep.row[axis_over]).tolist():
+        span = np.flatnonzero(rep.row == r)
+        i = int(span[np.nanargmax(against.axis_deviation[span])])
+        problems.append(Problem(int(lines[r]), "axis",
+                                f"line {lines[r]}: the tool axis is {math.degrees(against.axis_deviation[i]):.4f}° "
+                                f"from the intended axis at {_at(rep.fraction[i])} (allowed "
+                                f"{math.degrees(axis_tolerance):g}°)"))
+
+
+# ============================================================================= output
+
+
+def _num(value: float) -> float | None:
+    """A JSON-safe float (NaN and infinities become null)."""
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def _nums(values: FloatArray) -> list[Any]:
+    """Nested lists of JSON-safe floats."""
+    array = np.asarray(values, dtype=np.float64)
+    return [_nums(v) for v in array] if array.ndim > 1 else [_num(v) for v in array.tolist()]
+
+
+def _kind_name(kind: int) -> str:
+    return "feed" if kind == MoveKind.FEED else "rapid"
+
+
+def _worst(values: FloatArray, rows: IntArray, lines: IntArray) -> tuple[float | None, int | None, int | None]:
+    """Max of ``values`` (NaN ignored): value, program line, sample index."""
+    if not np.isfinite(values).any():
+        return None, None, None
+    i = int(np.nanargmax(values))
+    return float(values[i]), int(lines[rows[i]]), i
+
+
+def summary(report: VerifyReport, *, rapid_rate: float = NOMINAL_RAPID_RATE) -> dict[str, Any]:
+    """Headline numbers shared by the text and JSON reports."""
+    program, rep = report.program, report.replay
+    feed_row = program.kind == MoveKind.FEED
+    start, end = row_times(program, rapid_rate=rapid_rate)
+    durations = end - start
+    dwell = sum(e.value for e in program.events if e.kind is EventKind.DWELL) / 60.0
+    straight, straight_line, _ = _worst(report.straightness, rep.row, program.source)
+    implied = report.implied_feed[np.isfinite(report.implied_feed)]
+    return {
+        "moves": len(program), "feed_moves": int(feed_row.sum()), "rapid_moves": int((~feed_row).sum()),
+        "samples": len(rep.row),
+        "intervals_min": int(rep.intervals[1:].min()) if len(program) > 1 else 0,
+        "intervals_max": int(rep.intervals[1:].max()) if len(program) > 1 else 0,
+        "sampling_bound_mm": float(rep.bound.max()) if len(program) else 0.0,
+        "straightness_mm": straight, "straightness_line": straight_line,
+        "implied_feed_min": float(implied.min()) if len(implied) else None,
+        "implied_feed_max": float(implied.max()) if len(implied) else None,
+        "time_feed_min": float(durations[feed_row].sum()), "time_rapid_min": float(durations[~feed_row].sum()),
+        "time_dwell_min": float(dwell), "time_total_min": float(end[-1]) if len(end) else 0.0,
+    }
+
+
+def report_record(report: VerifyReport, *, path: str = "", dialect: str = "",
+                  rapid_rate: float = NOMINAL_RAPID_RATE) -> dict[str, Any]:
+    """The complete report as JSON-ready data (angles in degrees where the key says ``_deg``)."""
+    program, rep = report.program, report.replay
+    head = summary(report, rapid_rate=rapid_rate)
+    lines = program.source
+    tip_part = report.tip_part
+    rows = []
+    joints = joints_of(program)
+    for r in range(len(program)):
+        e = int(rep.end[r])
+        span = slice(int(rep.first[r]), e + 1)
+        record: dict[str, Any] = {
+            "line": int(lines[r]), "kind": _kind_name(int(program.kind[r])),
+            "X": _num(joints[r, 0]), "Y": _num(joints[r, 1]), "T1": _num(joints[r, 2]), "T2": _num(joints[r, 3]),
+            "T3": _num(joints[r, 4]), "F": _num(program.inverse_time[r]) if program.kind[r] == MoveKind.FEED else None,
+            "tip_part": _nums(tip_part[e]), "axis": _nums(rep.axis[e]),
+            "intervals": int(rep.intervals[r]), "sampling_bound_mm": _num(rep.bound[r]),
+            "rounding_mm": _num(report.rounding[r]), "chord_mm": _num(report.chord[r]),
+            "straightness_mm": _num(np.nanmax(report.straightness[span]))
+            if np.isfinite(report.straightness[span]).any() else None,
+            "implied_feed_mm_per_min": _num(report.implied_feed[r]),
+        }
+        if report.against is not None:
+            a = report.against
+            record["tip_deviation_mm"] = _nums(a.tip_deviation[e])
+            record["tip_deviation_norm_mm"] = _num(np.linalg.norm(a.tip_deviation[e]))
+            record["axis_deviation_deg"] = _num(math.degrees(a.axis_deviation[e]))
+        rows.append(record)
+    record_against = None
+    if report.against is not None:
+        a = report.against
+        tip = np.linalg.norm(a.tip_deviation, axis=1)
+        tip_max, tip_line, tip_i = _worst(tip, rep.row, lines)
+        axis_max, axis_line, axis_i = _worst(a.axis_deviation, rep.row, lines)
+        record_against = {
+            "label": a.label, "compared_samples": int(a.compared.sum()),
+            "tip_max_mm": tip_max, "tip_max_line": tip_line,
+            "tip_max_at": None if tip_i is None else float(rep.fraction[tip_i]),
+            "tip_max_vector_mm": None if tip_i is None else _nums(a.tip_deviation[tip_i]),
+            "tip_mean_mm": _num(np.nanmean(tip)) if np.isfinite(tip).any() else None,
+            "axis_max_deg": None if axis_max is None else math.degrees(axis_max), "axis_max_line": axis_line,
+            "axis_mean_deg": _num(math.degrees(np.nanmean(a.axis_deviation)))
+            if np.isfinite(a.axis_deviation).any() else None,
+        }
+    return {
+        "program": path, "dialect": dialect, "machine": report.machine, "ok": report.ok,
+        "part_origin_mm": _nums(report.part_origin), "tolerance_mm": report.tolerance,
+        "axis_tolerance_deg": math.degrees(report.axis_tolerance),
+        **head,
+        "sampling": {
+            "rule": "n = max(8, ceil(sqrt(M / (8 eps)))) intervals per move, M = 2 max|f''| from second "
+                    "differences of the tip and of link length x link angle, eps = tolerance / 20; "
+                    "bound = M / (8 n^2)",
+            "epsilon_mm": rep.epsilon, "probe_intervals": PROBE_INTERVALS, "max_intervals": MAX_INTERVALS,
+        },
+        "rapid_rate_mm_per_min": rapid_rate,
+        "limits": [
+            {"limit": c.name, "unit": c.unit, "min": _num(c.low), "max": _num(c.high), "value": _num(c.value),
+             "margin": _num(c.margin), "margin_fraction": _num(c.fraction_of_range), "line": c.line, "at": c.at}
+            for c in report.closest
+        ],
+        "feeds": {
+            "mode": "G93 inverse time: F = 1/min of each G1; implied tip feed = chord x F",
+            "groups": [{"feed_mm_per_min": g.feed, "moves": len(g.lines), "lines": list(g.lines)}
+                       for g in report.feed_groups],
+        },
+        "against": record_against,
+        "problems": [{"line": p.line, "kind": p.kind, "message": p.message} for p in report.problems],
+        "warnings": [{"line": p.line, "kind": p.kind, "message": p.message} for p in report.warnings],
+        "moves_detail": rows,
+        "path": {
+            "line": [int(v) for v in lines[rep.row].tolist()], "fraction": rep.fraction.tolist(),
+            "kind": [_kind_name(int(k)) for k in program.kind[rep.row].tolist()],
+            "tip_part": _nums(tip_part), "axis": _nums(rep.axis),
+        },
+    }
+
+
+def report_text(report: VerifyReport, *, path: str = "", dialect: str = "",
+                rapid_rate: float = NOMINAL_RAPID_RATE) -> str:
+    """A short readable report: headline, limits, feeds, deviation, result."""
+    head = summary(report, rapid_rate=rapid_rate)
+    out = [
+        f"{path}: {head['moves']} moves ({head['feed_moves']} G1, {head['rapid_moves']} G0), dialect {dialect}, "
+        f"machine {report.machine}",
+        f"  replay: {head['samples']} FK samples, {head['intervals_min']}..{head['intervals_max']} intervals per move, "
+        f"sampling error ≤ {head['sampling_bound_mm']:.1e} mm",
+    ]
+    if head["straightness_mm"] is not None:
+        out.append(f"  straightness: G1 tips within {head['straightness_mm']:.6f} mm of their chords "
+                   f"(tolerance {report.tolerance:g} mm; worst line {head['straightness_line']})")
+    out.append("  limits, closest approach:")
+    width = max((len(c.name) for c in report.closest), default=0)
+    for c in report.closest:
+        unit = f" {c.unit}" if c.unit else ""
+        bounds = (f"{fixed(c.low, 1)}..{fixed(c.high, 1)}" if math.isfinite(c.low) and math.isfinite(c.high)
+                  else f"≤ {fixed(c.high, 1)}")
+        out.append(f"    {c.name:<{width}}  {fixed(c.value):>9}{unit:<4} margin {fixed(c.margin):>9}{unit:<4}"
+                   f" ({100 * c.fraction_of_range:5.1f} % of {bounds}{unit}) line {c.line}")
+    if head["implied_feed_min"] is not None:
+        groups = ", ".join(f"{g.feed:.1f} ×{len(g.lines)}" for g in report.feed_groups[:6])
+        more = f", ... ({len(report.feed_groups)} groups)" if len(report.feed_groups) > 6 else ""
+        out.append(f"  feeds (G93, chord × F): {head['implied_feed_min']:.1f}..{head['implied_feed_max']:.1f} mm/min; "
+                   f"{groups}{more}")
+    out.append(f"  time: {head['time_total_min']:.3f} min (G1 {head['time_feed_min']:.3f}, G0 "
+               f"{head['time_rapid_min']:.3f} at {rapid_rate:g} mm/min, dwell {head['time_dwell_min']:.3f})")
+    if report.against is not None:
+        rec = report_record(report, path=path, dialect=dialect, rapid_rate=rapid_rate)["against"]
+        out.append(f"  against {rec['label']}: tip max {fixed(rec['tip_max_mm'], 6)} mm at line {rec['tip_max_line']}"
+                   f" (mean {fixed(rec['tip_mean_mm'], 6)}), axis max {fixed(rec['axis_max_deg'])}° at line "
+                   f"{rec['axis_max_line']} (mean {fixed(rec['axis_mean_deg'])}°)")
+    for w in report.warnings[:SHOWN_PROBLEMS]:
+        out.append(f"  warning: {w.message}")
+    if len(report.warnings) > SHOWN_PROBLEMS:
+        out.append(f"  ... and {len(report.warnings) - SHOWN_PROBLEMS} more warnings (--json lists all)")
+    if report.ok:
+        out.append("OK: within every limit and tolerance")
+    else:
+        out.append(f"FAIL: {len(report.problems)} problem{'s' if len(report.problems) > 1 else ''}")
+        out += [f"  {p.message}" for p in report.problems[:SHOWN_PROBLEMS]]
+        if len(report.problems) > SHOWN_PROBLEMS:
+            out.append(f"  ... and {len(report.problems) - SHOWN_PROBLEMS} more (--json lists all)")
+    return "\n".join(out) + "\n"
