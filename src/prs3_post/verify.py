@@ -442,7 +442,7 @@ def verify_program(
     # ---- assembly and limits
     bad_rows = np.unique(rep.row[~rep.converged])
     for r in bad_rows.tolist():
-        i = int(np.flatnonzero((rep.row == r) & ~rep.converged)[0])
+        i = int(rep.first[r] + np.flatnonzero(~rep.converged[rep.first[r]:rep.end[r] + 1])[0])
         strokes = ", ".join(f"{v:.4f}" for v in rep.joints[i, 2:])
         problems.append(Problem(int(lines[r]), "reach", f"line {lines[r]}: the head does not assemble at "
                                 f"{_at(rep.fraction[i])} (strokes {strokes} mm)"))
@@ -452,8 +452,7 @@ def verify_program(
     for col in range(len(limits.names)):
         rows = np.unique(rep.row[outside[:, col]])
         for r in rows.tolist():
-            on_row = np.flatnonzero(rep.row == r)
-            i = int(on_row[np.nanargmin(limits.margin[on_row, col])])
+            i = int(rep.first[r] + np.nanargmin(limits.margin[rep.first[r]:rep.end[r] + 1, col]))
             problems.append(Problem(int(lines[r]), "limit",
                                     f"line {lines[r]}: {limits.describe(i, col)} at {_at(rep.fraction[i])}"))
     closest = tuple(_closest(rep, lines, col) for col in range(len(limits.names)))
@@ -594,15 +593,13 @@ def _against_problems(against: Against, rep: Replay, program: JointProgram, inte
         tip_over = tip > against.allowed
         axis_over = against.axis_deviation > axis_tolerance
     for r in np.unique(rep.row[tip_over]).tolist():
-        span = np.flatnonzero(rep.row == r)
-        i = int(span[np.nanargmax(tip[span])])
+        i = int(rep.first[r] + np.nanargmax(tip[rep.first[r]:rep.end[r] + 1]))
         problems.append(Problem(int(lines[r]), "deviation",
                                 f"line {lines[r]}: the tip is {tip[i]:.6f} mm from the intended path at "
                                 f"{_at(rep.fraction[i])} (allowed {against.allowed[i]:.6f} mm: tolerance + "
                                 "output rounding)"))
     for r in np.unique(rep.row[axis_over]).tolist():
-        span = np.flatnonzero(rep.row == r)
-        i = int(span[np.nanargmax(against.axis_deviation[span])])
+        i = int(rep.first[r] + np.nanargmax(against.axis_deviation[rep.first[r]:rep.end[r] + 1]))
         problems.append(Problem(int(lines[r]), "axis",
                                 f"line {lines[r]}: the tool axis is {math.degrees(against.axis_deviation[i]):.4f}° "
                                 f"from the intended axis at {_at(rep.fraction[i])} (allowed "
