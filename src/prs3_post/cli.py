@@ -19,8 +19,9 @@ import click
 import numpy as np
 
 from prs3_post import __version__
-from prs3_post.config import load_dialect, load_machine, postproc_dir, shipped_names
+from prs3_post.config import Dialect, Machine, load_dialect, load_machine, postproc_dir, shipped_names
 from prs3_post.errors import FeatureError, InputError, Prs3Error, ReachError
+from prs3_post.face import Face
 from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
 from prs3_post.job import JobSpec, Operation, run_job
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
@@ -28,6 +29,9 @@ from prs3_post.readers.stl import load_part
 from prs3_post.kinematics import IKModel, PoseError, forward, inverse, unit_axes
 from prs3_post.limits import check_limits
 from prs3_post.readers.poses import read_poses
+from prs3_post.readers.program import ProgramFile, load_program, read_program
+from prs3_post.toolpath import MoveKind
+from prs3_post.verify import Intended, VerifyReport, report_record, report_text, verify_program
 from prs3_post.tables import fk_records, fk_text, ik_csv, ik_records, ik_text
 
 
@@ -62,6 +66,19 @@ def write_atomic(path: str, text: str) -> None:
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as stream:
             stream.write(text)
+        os.replace(tmp, target)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_atomic_bytes(path: str, data: bytes) -> None:
+    """Write ``data`` to ``path`` via a temp file in the same folder and a rename (images)."""
+    target = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent or ".")
+    try:
+        with os.fdopen(fd, "wb") as stream:
+            stream.write(data)
         os.replace(tmp, target)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -304,6 +321,9 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="Chordal tolerance of arcs (and of moves that turn the tool axis), mm."),
         click.option("-o", "--output", "out_path", type=click.Path(dir_okay=False),
                      help="Program file (written to a temp file, then renamed). Default: standard output."),
+        click.option("--preview", "preview_path", type=click.Path(dir_okay=False), metavar="OUT.png|OUT.svg",
+                     help="Also draw the program (as `prs3-post preview` does, on this part and face). "
+                          "Needs matplotlib: pip install 'prs3-post[plot]'."),
     ]
     for option in reversed(options):
         func = option(func)
@@ -311,7 +331,29 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 
 def _run_job(part: str, **opts: Any) -> int:
-    """Build the JobSpec from the options, run it, write the program."""
+    """Build the JobSpec from the options, run it, write the program (and its preview)."""
+    spec = _job_spec(part, opts)
+    fmt = _image_format(opts["preview_path"]) if opts["preview_path"] else None
+    result = run_job(spec)
+    image = None
+    if fmt is not None:                                # draw before writing anything: no half results
+        program = read_program(result.text, spec.dialect, path=opts["out_path"] or "<program>",
+                               stage=spec.machine.stage.present)
+        mesh = load_part(part, units=spec.units)
+        image = _preview_bytes(program, spec.machine, result.part_origin, fmt, tolerance=spec.tolerance,
+                               mesh=mesh.triangles, face=result.face, title=Path(part).name, dialect=spec.dialect)
+    output(result.text, opts["out_path"])
+    if opts["out_path"]:
+        click.echo(f"prs3-post: wrote {opts['out_path']}: {result.text.count(chr(10))} lines, "
+                   f"{len(result.post.program)} moves; {result.face_note}", err=True)
+    if image is not None:
+        write_atomic_bytes(opts["preview_path"], image)
+        click.echo(f"prs3-post: wrote {opts['preview_path']}", err=True)
+    return 0
+
+
+def _job_spec(part: str, opts: dict[str, Any]) -> JobSpec:
+    """The JobSpec the main job's options describe (also rebuilt by `verify --against PART.stl`)."""
     operation = Operation(opts["profile"])
     depth = opts["depth"] if opts["depth"] is not None else (5.0 if operation is Operation.HOLE else 2.0)
     face_choice = opts["face_choice"]
@@ -340,21 +382,15 @@ def _run_job(part: str, **opts: Any) -> int:
             entry=Entry(opts["entry"]), ramp_angle=math.radians(opts["ramp_angle"]), clearance=opts["clearance"],
             retract=opts["retract"],
         )
-    spec = JobSpec(
+    return JobSpec(
         part=part, units=opts["units"], face=face, operation=operation,
         at_uv=np.array(opts["at_uv"], dtype=np.float64).reshape(-1, 2),
         at_xyz=np.array(opts["at_xyz"], dtype=np.float64).reshape(-1, 3),
         holes=holes, shape=shape, profile=profile, cutting=cutting,
         machine=load_machine(opts["machine_name"]), dialect=load_dialect(opts["dialect_name"]),
         part_origin=opts["part_origin"], tolerance=opts["tolerance"],
-        line_numbers=opts["line_numbers"], line_start=opts["line_start"], line_step=opts["line_step"],
+        line_numbers=opts.get("line_numbers"), line_start=opts.get("line_start"), line_step=opts.get("line_step"),
     )
-    result = run_job(spec)
-    output(result.text, opts["out_path"])
-    if opts["out_path"]:
-        click.echo(f"prs3-post: wrote {opts['out_path']}: {result.text.count(chr(10))} lines, "
-                   f"{len(result.post.program)} moves; {result.face_note}", err=True)
-    return 0
 
 
 @main.command()
@@ -415,6 +451,215 @@ def faces(part: str, units: str, as_json: bool) -> None:
             click.echo(select_face(found, None)[1])
         except FeatureError as error:
             click.echo(f"auto: {error}")
+        return 0
+
+    run_reported(body)
+
+
+# ----------------------------------------------------------------------------- verify and preview
+
+
+def _against_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """The main job's options, for `verify --against PART.stl` to rebuild the intended path with:
+    the same options and defaults, but --profile not required and without the output-only ones."""
+    probe = _job_options(lambda **_: None)
+    skip = {"out_path", "preview_path", "line_numbers", "line_start", "line_step"}
+    params = getattr(func, "__click_params__", [])
+    for param in probe.__click_params__:             # in click's stored (reversed) order
+        if param.name in skip:
+            continue
+        if param.name == "profile":
+            param.required = False
+            param.help = "Operation the program was made with (only with --against PART.stl)."
+        if param.name == "tolerance":
+            param.help = ("Allowed tip deviation, mm (plus the output rounding against a path); also the "
+                          "chordal tolerance the job is rebuilt with for --against PART.stl.")
+        params.append(param)
+    func.__click_params__ = params                   # type: ignore[attr-defined]
+    return func
+
+
+def _image_format(path: str) -> str:
+    """``png`` or ``svg`` from an output file's suffix."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in (".png", ".svg"):
+        raise click.BadParameter(f"the image must end in .png or .svg, got {path!r}", param_hint="'-o' / '--preview'")
+    return suffix[1:]
+
+
+def _verify_loaded(program: ProgramFile, machine: Machine, part_origin: tuple[float, ...] | np.ndarray,
+                   dialect: Dialect, *,
+                   tolerance: float, axis_tolerance_deg: float = 0.01,
+                   intended: Intended | None = None) -> VerifyReport:
+    """verify_program on a read program, with the dialect's decimals; no moves is an input error."""
+    if not len(program.moves):
+        raise InputError("no moves (G0/G1 lines) in the program", path=program.path)
+    return verify_program(
+        machine, program.moves, part_origin=np.asarray(part_origin, dtype=np.float64), tolerance=tolerance,
+        axis_tolerance=math.radians(axis_tolerance_deg), intended=intended,
+        length_decimals=dialect.decimals.length, feed_decimals=dialect.decimals.inverse_time,
+    )
+
+
+def _preview_bytes(program: ProgramFile, machine: Machine, part_origin: tuple[float, ...] | np.ndarray, fmt: str, *,
+                   dialect: Dialect, tolerance: float = 0.002, mesh: np.ndarray | None = None,
+                   face: Face | None = None, title: str = "", rapid_rate: float = 5000.0) -> bytes:
+    """Replay a read program and draw it (prs3_post.preview imports matplotlib lazily)."""
+    from prs3_post.preview import figure_bytes, render_preview
+
+    report = _verify_loaded(program, machine, part_origin, dialect, tolerance=tolerance)
+    label = "face" if face is None else f"face {face.index} ({math.degrees(face.inclination):.2f}°)"
+    heading = f"{title}: " if title else ""
+    fig = render_preview(
+        report, machine, mesh=mesh, face_triangles=None if face is None else face.triangles, face_label=label,
+        title=f"{heading}{Path(program.path).name}, machine {machine.name}, {len(program.moves)} moves "
+              f"({'ok' if report.ok else f'{len(report.problems)} problems'})",
+        rapid_rate=rapid_rate,
+    )
+    return figure_bytes(fig, fmt)
+
+
+def _intended(against: str, program: ProgramFile, opts: dict[str, Any]) -> Intended:
+    """The intended path of `verify --against`: rebuilt from PART.stl and the options, or POSES.csv."""
+    suffix = Path(against).suffix.lower()
+    if suffix == ".stl":
+        if not opts["profile"]:
+            raise click.UsageError("--against PART.stl needs --profile and the other operation options the "
+                                   "program was made with")
+        result = run_job(_job_spec(against, opts))
+        path = result.post.path
+        feed = np.where(path.kind == MoveKind.FEED, path.feed, np.nan)
+        return Intended(tip=path.tip, axis=path.axis, feed=feed, kind=path.kind,
+                        label=f"{Path(against).name} ({opts['profile']})")
+    if suffix == ".csv":
+        table = read_poses(against)
+        try:
+            unit = unit_axes(table.tip, table.axis, row_name="line", row_numbers=table.line)
+        except PoseError as error:
+            raise InputError(str(error), path=against) from error
+        if len(unit) != len(program.moves):
+            raise InputError(f"{len(unit)} poses for the {len(program.moves)} motion lines of {program.path}: "
+                             "give one pose per G0/G1 line, in order", path=against)
+        return Intended(tip=table.tip, axis=unit, feed=np.full(len(unit), np.nan),
+                        kind=np.full(len(unit), -1, dtype=np.int64), label=Path(against).name)
+    raise InputError("--against takes PART.stl (with the operation options the program was made with) or "
+                     "POSES.csv (one pose per motion line); verifying against CAM input (APT CL, G-code) is "
+                     "not supported yet", path=against)
+
+
+@main.command()
+@click.argument("program_path", type=click.Path(dir_okay=False), metavar="PROGRAM.ngc")
+@click.option("--against", "against_path", type=click.Path(dir_okay=False), metavar="PART.stl|POSES.csv",
+              help="The intended path: PART.stl plus the operation options the program was made with "
+                   "(--profile, --at, --depth, ... as for the main job), or POSES.csv (the `ik --batch` format, "
+                   "machine frame, one pose per G0/G1 line). CAM input (APT CL, G-code) is not supported yet.")
+@click.option("--axis-tolerance", "axis_tolerance_deg", type=float, default=0.01, show_default=True,
+              help="Allowed tool-axis deviation from the --against path, degrees.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print the complete report as JSON: every move, the FK tool-tip path in part coordinates, "
+                   "every limit's closest approach, feeds, deviations, problems.")
+@_against_options
+def verify(program_path: str, against_path: str | None, axis_tolerance_deg: float, as_json: bool,
+           **opts: Any) -> None:
+    """Replay a program through forward kinematics and check it: limits, straightness, feeds, deviation.
+
+    Reads PROGRAM.ngc in --dialect (letters, decimals, comments), samples every move in joint
+    space as the controller interpolates it (X, Y, T1..T3 linear; at least 8 samples per move,
+    more where the tip path or a link angle curves, so that what falls between samples is below
+    --tolerance / 20) and checks every sample:
+
+    \b
+    - limits: the closest approach to each limit of --machine (value, margin, line);
+    - straightness: a G1's tip stays within --tolerance of the line between its end points;
+    - feeds: implied tip feed = chord × F (G93, F = 1/min); against PART.stl it must equal the
+      intended feed within the rounding of F and the points; otherwise a G1 whose feed matches
+      no other G1 is warned about (a hand edit?);
+    - with --against: tip and axis deviation from the intended path (max, mean, line); allowed:
+      --tolerance plus what the output rounding moves the tip, and --axis-tolerance.
+
+    --tolerance (mm, default 0.002) is the allowed tip deviation (and, with --against PART.stl,
+    the tolerance the job is rebuilt with). The operation options (--profile ... --retract) are
+    used only with --against PART.stl. Exit status: 0 within every limit and tolerance, 1 if not,
+    2 for a program or option it cannot read.
+
+    \b
+    Examples:
+      prs3-post demo --profile square -o sq.ngc
+      prs3-post verify sq.ngc
+      prs3-post verify sq.ngc --against postproc/parts/patel2020-wedge.stl --profile square --json
+      prs3-post verify paper_2a_2b.ngc --against paper_2a_2b.csv
+    """
+
+    def body() -> int:
+        machine = load_machine(opts["machine_name"])
+        dialect = load_dialect(opts["dialect_name"])
+        program = load_program(program_path, dialect, stage=machine.stage.present)
+        origin = opts["part_origin"] if opts["part_origin"] is not None else machine.part_origin
+        if opts["profile"] and not (against_path and Path(against_path).suffix.lower() == ".stl"):
+            raise click.UsageError("--profile and the operation options are only used with --against PART.stl")
+        intended = _intended(against_path, program, opts) if against_path else None
+        report = _verify_loaded(program, machine, origin, dialect, tolerance=opts["tolerance"],
+                                axis_tolerance_deg=axis_tolerance_deg, intended=intended)
+        if as_json:
+            click.echo(json.dumps(report_record(report, path=program_path, dialect=dialect.name)))
+        else:
+            click.echo(report_text(report, path=program_path, dialect=dialect.name), nl=False)
+        return 0 if report.ok else 1
+
+    run_reported(body)
+
+
+@main.command()
+@click.argument("program_path", type=click.Path(dir_okay=False), metavar="PROGRAM.ngc")
+@click.option("-o", "--output", "out_path", type=click.Path(dir_okay=False), required=True,
+              metavar="OUT.png|OUT.svg", help="Image file (PNG or SVG by suffix; written to a temp file, then renamed).")
+@click.option("--part", "part_path", type=click.Path(dir_okay=False), metavar="PART.stl",
+              help="Draw the part (part coordinates) and highlight its face (--face).")
+@click.option("--face", "face_choice", default="auto", show_default=True, metavar="auto|N",
+              help="Face to highlight: auto = the main job's automatic choice; N = index from `prs3-post faces`.")
+@click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True, help="Length unit of the STL.")
+@machine_option
+@click.option("--dialect", "dialect_name", default="linuxcnc", show_default=True, metavar="NAME|PATH",
+              help="G-code dialect of the program: linuxcnc, fanuc, or a dialect TOML file.")
+@click.option("--part-origin", type=Numbers("X,Y,Z"), default=None,
+              help="Machine coordinates of the part origin, mm.  [default: the machine file's setup]")
+@click.option("--rapid-rate", type=click.FloatRange(min=0.0, min_open=True), default=5000.0, show_default=True,
+              help="Joint-space rate of G0 moves for the time axis, mm/min (the longest joint travel at this rate).")
+def preview(program_path: str, out_path: str, part_path: str | None, face_choice: str, units: str,
+            machine_name: str, dialect_name: str, part_origin: tuple[float, ...] | None, rapid_rate: float) -> None:
+    """Draw a program: the FK tool path on the part, the axes over time, the limit margins.
+
+    One figure: (a) 3D view in part coordinates of the part mesh (--part), its face (highlighted)
+    and the tool-tip path replayed through forward kinematics (G1 solid, G0 dashed) with the tool
+    axis at a few points; (b) the strokes T1..T3 and stage X, Y over program time (G1: 1/F min,
+    G0: the longest joint travel at --rapid-rate), the machine's limits shaded; (c) the worst margin
+    of every limit as a fraction of its range. Needs matplotlib: pip install 'prs3-post[plot]'.
+    `prs3-post PART.stl ... --preview OUT.png` makes a program and its picture in one step.
+
+    \b
+    Examples:
+      prs3-post demo --profile square -o sq.ngc
+      prs3-post preview sq.ngc --part postproc/parts/patel2020-wedge.stl -o sq.png
+      prs3-post demo --profile round -o round.ngc --preview round.svg
+    """
+
+    def body() -> int:
+        fmt = _image_format(out_path)
+        machine = load_machine(machine_name)
+        dialect = load_dialect(dialect_name)
+        program = load_program(program_path, dialect, stage=machine.stage.present)
+        origin = part_origin if part_origin is not None else machine.part_origin
+        mesh = face = None
+        if part_path is not None:
+            if face_choice != "auto" and not face_choice.isdigit():
+                raise click.BadParameter(f"expected auto or a face index, got {face_choice!r}", param_hint="'--face'")
+            loaded = load_part(part_path, units=units)
+            face, _ = select_face(find_faces(loaded), None if face_choice == "auto" else int(face_choice))
+            mesh = loaded.triangles
+        image = _preview_bytes(program, machine, origin, fmt, dialect=dialect, mesh=mesh, face=face,
+                               rapid_rate=rapid_rate, title=Path(part_path).name if part_path else "")
+        write_atomic_bytes(out_path, image)
+        click.echo(f"prs3-post: wrote {out_path}", err=True)
         return 0
 
     run_reported(body)

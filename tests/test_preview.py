@@ -1,0 +1,155 @@
+"""prs3-post preview and --preview: the figure shows the FK path, the image is a real picture, errors are clear."""
+
+from __future__ import annotations
+
+import io
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from numpy.testing import assert_allclose
+
+from prs3_post.cli import main
+from prs3_post.config import load_dialect, load_machine
+from prs3_post.errors import Prs3Error
+from prs3_post.geometry import find_faces, select_face
+from prs3_post.kinematics import forward
+from prs3_post.readers.program import load_program
+from prs3_post.readers.stl import load_part
+from prs3_post.toolpath import MoveKind
+from prs3_post.verify import row_times, verify_program
+
+matplotlib = pytest.importorskip("matplotlib")
+
+REPO = Path(__file__).resolve().parents[1]
+VERIFY = REPO / "fixtures" / "verify"
+WEDGE = REPO / "postproc" / "parts" / "patel2020-wedge.stl"
+MACHINE = load_machine("patel2020")
+ORIGIN = np.array(MACHINE.part_origin)
+
+
+def run(*args: object):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def drawn():
+    """The small fixture program replayed and drawn on the wedge with its automatic face."""
+    from prs3_post.preview import render_preview
+
+    program = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc"))
+    mesh = load_part(WEDGE)
+    face, _ = select_face(find_faces(mesh), None)
+    report = verify_program(MACHINE, program.moves, part_origin=ORIGIN)
+    figure = render_preview(report, MACHINE, mesh=mesh.triangles, face_triangles=face.triangles, face_label="face 4")
+    return program.moves, report, figure
+
+
+def _pieces(data: np.ndarray) -> list[np.ndarray]:
+    """A NaN-separated line's pieces."""
+    breaks = np.flatnonzero(np.isnan(data[:, 0]))
+    finite = [piece[np.isfinite(piece[:, 0])] for piece in np.split(data, breaks)]
+    return [piece for piece in finite if len(piece)]
+
+
+@pytest.mark.parametrize(("label", "kind"), [("G1 (feed)", MoveKind.FEED), ("G0 (rapid)", MoveKind.RAPID)])
+def test_3d_path_is_the_fk_path_of_the_joint_interpolation(drawn, label, kind):
+    """Each move's piece is FK of (1 - t) q_a + t q_b at evenly spaced t, in part coordinates (1e-9 mm)."""
+    moves, _, figure = drawn
+    line = next(ln for ln in figure.axes[0].get_lines() if ln.get_label() == label)
+    pieces = _pieces(np.column_stack(line.get_data_3d()))
+    joints = np.column_stack([moves.stage, moves.strokes])
+    rows = [r for r in np.flatnonzero(moves.kind == kind).tolist() if r > 0]
+    assert len(pieces) == len(rows)
+    for r, piece in zip(rows, pieces, strict=True):
+        t = np.linspace(0.0, 1.0, len(piece))[:, None]
+        q = (1 - t) * joints[r - 1] + t * joints[r]
+        fk = forward(MACHINE.geometry, q[:, 2:], q[:, :2])
+        assert_allclose(piece, fk.tip - ORIGIN, atol=1e-9)
+        assert len(piece) >= 9                          # at least 8 intervals per move
+
+
+def test_the_other_panels_show_program_data(drawn):
+    moves, report, figure = drawn
+    ax3d, ax_t, ax_xy, ax_bar = figure.axes
+    assert [c.get_label() for c in ax3d.collections] == ["face 4", "start"]
+    assert [ln.get_label() for ln in ax3d.get_lines()] == ["part edges", "G1 (feed)", "G0 (rapid)", "tool axis"]
+    start, end = row_times(moves)
+    for leg, line in enumerate(ax_t.get_lines()[:3]):
+        assert line.get_label() == f"T{leg + 1}"
+        assert_allclose(line.get_xdata()[1::2], end, atol=0)
+        assert_allclose(line.get_ydata()[1::2], moves.strokes[:, leg], atol=0)
+    x_line = ax_xy.get_lines()[0]
+    assert x_line.get_label() == "X"
+    assert_allclose(x_line.get_ydata()[1::2], moves.stage[:, 0], atol=0)
+    widths = [patch.get_width() for patch in ax_bar.patches]
+    assert_allclose(widths, [c.fraction_of_range for c in report.closest], atol=0)
+    assert [t.get_text() for t in ax_bar.get_yticklabels()] == [c.name for c in report.closest]
+
+
+def test_preview_png_is_a_real_picture(tmp_path):
+    out = tmp_path / "small.png"
+    result = run("preview", VERIFY / "small.ngc", "--part", WEDGE, "-o", out)
+    assert result.exit_code == 0, result.output
+    assert result.output == f"prs3-post: wrote {out}\n"
+    data = out.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) < 300_000
+    image = matplotlib.image.imread(io.BytesIO(data))
+    assert image.shape == (800, 1300, 4)
+    grey = image[..., :3].mean(axis=2)
+    assert grey.std() > 0.1                             # not blank: white background, dark lines, coloured areas
+    colours = np.unique((image[..., :3] * 255).round().astype(np.uint8).reshape(-1, 3), axis=0)
+    assert len(colours) > 500
+    assert [p for p in tmp_path.iterdir()] == [out]     # no temp file left behind
+    again = tmp_path / "again.png"
+    assert run("preview", VERIFY / "small.ngc", "--part", WEDGE, "-o", again).exit_code == 0
+    assert again.read_bytes() == data                   # deterministic: no time stamp, no version
+
+
+def test_main_job_writes_program_and_svg_preview_in_one_step(tmp_path):
+    program, image = tmp_path / "hole.ngc", tmp_path / "hole.svg"
+    result = run("demo", "--profile", "hole", "--peck", "2", "-o", program, "--preview", image)
+    assert result.exit_code == 0, result.output
+    assert result.output.splitlines()[-1] == f"prs3-post: wrote {image}"
+    svg = image.read_text()
+    assert svg.startswith("<?xml") and "<dc:date>" not in svg and "Matplotlib v" not in svg
+    assert run("verify", program).exit_code == 0
+
+
+def test_preview_without_matplotlib_is_a_clear_error(tmp_path, monkeypatch):
+    from prs3_post.preview import render_preview
+
+    for name in [n for n in sys.modules if n.split(".")[0] in ("matplotlib", "mpl_toolkits")]:
+        monkeypatch.setitem(sys.modules, name, None)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)
+    program = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc"))
+    with pytest.raises(Prs3Error) as caught:
+        render_preview(verify_program(MACHINE, program.moves, part_origin=ORIGIN), MACHINE)
+    assert str(caught.value) == "preview needs matplotlib: pip install 'prs3-post[plot]'"
+    out, ngc = tmp_path / "p.png", tmp_path / "p.ngc"
+    for args in (("preview", VERIFY / "small.ngc", "-o", out),
+                 ("demo", "--profile", "square", "-o", ngc, "--preview", out)):
+        result = run(*args)
+        assert (result.exit_code, result.output) == (
+            1, "prs3-post: error: preview needs matplotlib: pip install 'prs3-post[plot]'\n")
+    assert list(tmp_path.iterdir()) == []               # neither the image nor the program
+
+
+def test_preview_refuses_other_image_types_and_bad_programs(tmp_path):
+    result = run("preview", VERIFY / "small.ngc", "-o", tmp_path / "p.jpg")
+    assert result.exit_code == 2
+    assert result.output.splitlines()[-1] == (
+        f"Error: Invalid value for '-o' / '--preview': the image must end in .png or .svg, got '{tmp_path / 'p.jpg'}'")
+    bad = VERIFY / "bad" / "z_word.ngc"
+    result = run("preview", bad, "-o", tmp_path / "p.png")
+    assert (result.exit_code, result.output) == (
+        2, f"prs3-post: error: {bad}:12: word 'Z' is not an axis of dialect linuxcnc (axes: X Y U V W)\n")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_preview_help_has_an_example():
+    text = run("preview", "--help").output
+    assert "  prs3-post preview sq.ngc --part postproc/parts/patel2020-wedge.stl -o sq.png" in text
+    assert "'prs3-post[plot]'" in text
