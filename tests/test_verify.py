@@ -350,3 +350,14 @@ def test_good_fixtures_pass_linuxcnc(rs274_check):
     """The hand-written fixture programs are programs LinuxCNC accepts (only the bad ones are bad)."""
     code, out = rs274_check(VERIFY / "small.ngc", VERIFY / "paper_2a_2b.ngc", VERIFY / "tilt_midmove.ngc")
     assert code == 0, out
+
+
+def test_g64_blending_is_read_and_warned_about(tmp_path):
+    path = tmp_path / "blend.ngc"
+    lines = (VERIFY / "small.ngc").read_text().split("\n")
+    lines[3] = "G64 P0.01"                               # instead of G61
+    path.write_text("\n".join(lines))
+    code, report = verify_json(path)
+    assert (code, report["warnings"]) == (0, [{
+        "line": 4, "kind": "blending", "message": "line 4: G64 path blending: the control may round corners in "
+        "joint space (a curve at the tip); the replay assumes exact stops (G61)"}])

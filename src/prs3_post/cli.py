@@ -498,6 +498,7 @@ def _verify_loaded(program: ProgramFile, machine: Machine, part_origin: tuple[fl
         machine, program.moves, part_origin=np.asarray(part_origin, dtype=np.float64), tolerance=tolerance,
         axis_tolerance=math.radians(axis_tolerance_deg), intended=intended,
         length_decimals=dialect.decimals.length, feed_decimals=dialect.decimals.inverse_time,
+        blending_lines=program.blending_lines,
     )
 
 

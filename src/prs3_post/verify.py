@@ -406,6 +406,7 @@ def verify_program(
     length_decimals: int = 4,
     feed_decimals: int = 4,
     intended: Intended | None = None,
+    blending_lines: tuple[int, ...] = (),
 ) -> VerifyReport:
     """Replay and check a program (module docstring).
 
@@ -418,6 +419,8 @@ def verify_program(
     axis_tolerance : float — rad, allowed axis deviation from an intended path
     length_decimals, feed_decimals : int — decimals of the axis words and of F (the dialect's)
     intended : Intended, optional — one pose per row
+    blending_lines : tuple of int — lines that switch on G64 path blending (each gets a warning: the
+        replay assumes exact stops at every row, as G61 asks)
 
     Returns
     -------
@@ -515,6 +518,9 @@ def verify_program(
         against = _against(rep, program, intended, rounding, tolerance)
         _against_problems(against, rep, program, intended, axis_tolerance, problems)
 
+    for number in blending_lines:
+        warnings.append(Problem(number, "blending", f"line {number}: G64 path blending: the control may round "
+                                "corners in joint space (a curve at the tip); the replay assumes exact stops (G61)"))
     problems.sort(key=lambda p: p.line)
     warnings.sort(key=lambda p: p.line)
     return VerifyReport(
