@@ -252,3 +252,25 @@ def test_run_and_demo_take_the_same_options() -> None:
     assert _option_names(run) == _option_names(demo)
     assert [p.name for p in run.params if isinstance(p, click.Argument)] == ["part"]
     assert [p for p in demo.params if isinstance(p, click.Argument)] == []
+
+
+def test_output_into_a_missing_folder_is_a_clear_error(tmp_path):
+    target = tmp_path / "no" / "such" / "folder" / "demo.ngc"
+    result = CliRunner().invoke(main, ["demo", "--profile", "hole", "-o", str(target)])
+    assert result.exit_code == 2
+    assert result.stderr == f"prs3-post: error: {target}: cannot write the output here: No such file or directory\n"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_output_file_gets_ordinary_permissions(tmp_path):
+    import os
+    import stat
+
+    target = tmp_path / "demo.ngc"
+    umask = os.umask(0o022)
+    try:
+        assert CliRunner().invoke(main, ["demo", "--profile", "hole", "-o", str(target)]).exit_code == 0
+    finally:
+        os.umask(umask)
+    assert stat.S_IMODE(target.stat().st_mode) == 0o644
+    assert [p.name for p in tmp_path.iterdir()] == ["demo.ngc"]        # no temp file left behind

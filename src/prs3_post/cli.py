@@ -59,30 +59,36 @@ class Numbers(click.ParamType):
         return numbers
 
 
-def write_atomic(path: str, text: str) -> None:
-    """Write ``text`` to ``path`` via a temp file in the same folder and a rename: never half a file."""
+def write_atomic(path: str, data: str | bytes) -> None:
+    """Write ``data`` (text as UTF-8, or bytes) to ``path`` via a temp file in the same folder and a
+    rename: never half a file, and no temp file left behind. The file gets the usual permissions
+    (0666 less the umask), not the temp file's 0600.
+
+    Raises
+    ------
+    InputError
+        When the folder does not exist or cannot be written.
+    """
     target = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent or ".")
+    payload = data.encode("utf-8") if isinstance(data, str) else data
     try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as stream:
-            stream.write(text)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def write_atomic_bytes(path: str, data: bytes) -> None:
-    """Write ``data`` to ``path`` via a temp file in the same folder and a rename (images)."""
-    target = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent or ".")
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except OSError as exc:
+        raise InputError(f"cannot write the output here: {exc.strerror}", path=path) from exc
+    written = False
     try:
         with os.fdopen(fd, "wb") as stream:
-            stream.write(data)
+            stream.write(payload)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        written = True
+    except OSError as exc:
+        raise InputError(f"cannot write the output: {exc.strerror}", path=path) from exc
+    finally:
+        if not written:
+            Path(tmp).unlink(missing_ok=True)
 
 
 def output(text: str, path: str | None) -> None:
@@ -347,7 +353,7 @@ def _run_job(part: str, **opts: Any) -> int:
         click.echo(f"prs3-post: wrote {opts['out_path']}: {result.text.count(chr(10))} lines, "
                    f"{len(result.post.program)} moves; {result.face_note}", err=True)
     if image is not None:
-        write_atomic_bytes(opts["preview_path"], image)
+        write_atomic(opts["preview_path"], image)
         click.echo(f"prs3-post: wrote {opts['preview_path']}", err=True)
     return 0
 
@@ -659,7 +665,7 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
             mesh = loaded.triangles
         image = _preview_bytes(program, machine, origin, fmt, dialect=dialect, mesh=mesh, face=face,
                                rapid_rate=rapid_rate, title=Path(part_path).name if part_path else "")
-        write_atomic_bytes(out_path, image)
+        write_atomic(out_path, image)
         click.echo(f"prs3-post: wrote {out_path}", err=True)
         return 0
 
