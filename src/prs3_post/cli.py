@@ -31,7 +31,8 @@ from prs3_post.limits import check_limits
 from prs3_post.readers.poses import read_poses
 from prs3_post.readers.program import ProgramFile, load_program, read_program
 from prs3_post.toolpath import MoveKind
-from prs3_post.verify import Intended, VerifyReport, report_record, report_text, verify_program
+from prs3_post.verify import Intended, VerifyReport, verify_program
+from prs3_post.verify_format import report_record, report_text
 from prs3_post.tables import fk_records, fk_text, ik_csv, ik_records, ik_text
 
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import csv
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from prs3_post.errors import InputError
+from prs3_post.readers.files import read_input
 from prs3_post.types import FloatArray, IntArray
 
 POSE_COLUMNS = ("tip_x", "tip_y", "tip_z", "axis_x", "axis_y", "axis_z")
@@ -40,11 +40,9 @@ def read_poses(path: str) -> PoseTable:
     InputError
     """
     try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError as exc:
-        raise InputError("file not found", path=path) from exc
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read as UTF-8 text: {exc}", path=path) from exc
+        text = read_input(path, "a CSV file").decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not UTF-8 text: {exc.reason} at byte {exc.start}", path=path) from exc
     rows = csv.reader(text.splitlines())
     header = next(rows, None)
     expected = ",".join(POSE_COLUMNS)

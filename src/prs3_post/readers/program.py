@@ -41,6 +41,7 @@ import pygcode.exceptions
 
 from prs3_post.config import AXIS_LETTERS, Dialect
 from prs3_post.errors import InputError
+from prs3_post.readers.files import read_input
 from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind
 
 __all__ = ["ALLOWED_G", "ALLOWED_M", "ProgramFile", "load_program", "read_program"]
@@ -105,15 +106,7 @@ def load_program(path: str, dialect: Dialect, *, stage: bool = True) -> ProgramF
         ``path: message`` for a file that cannot be read or is not text, ``path:line: message``
         for the first line that is not understood.
     """
-    try:
-        with open(path, "rb") as stream:
-            data = stream.read()
-    except FileNotFoundError as exc:
-        raise InputError("file not found", path=path) from exc
-    except IsADirectoryError as exc:
-        raise InputError("is a directory, not a G-code program", path=path) from exc
-    except OSError as exc:
-        raise InputError(f"cannot read the file: {exc.strerror or exc}", path=path) from exc
+    data = read_input(path, "a G-code program")
     return read_program(text_from_bytes(data, path), dialect, path=path, stage=stage)
 
 

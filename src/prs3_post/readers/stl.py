@@ -31,6 +31,7 @@ import numpy as np
 import trimesh
 
 from prs3_post.errors import InputError
+from prs3_post.readers.files import read_input
 from prs3_post.types import FloatArray
 
 UNIT_SCALE: dict[str, float] = {"mm": 1.0, "inch": 25.4}
@@ -79,7 +80,7 @@ def load_part(path: str | os.PathLike[str], *, units: str = "mm") -> trimesh.Tri
     where = os.fspath(path)
     if units not in UNIT_SCALE:
         raise InputError(f"unknown units {units!r} (valid: {', '.join(UNIT_SCALE)})", path=where)
-    triangles = _triangles_from_bytes(_read_bytes(where), where)  # (F, 3, 3) file units
+    triangles = _triangles_from_bytes(read_input(where, "an STL file"), where)  # (F, 3, 3) file units
     count = len(triangles)
     if count == 0:
         raise InputError("STL has no triangles", path=where)
@@ -105,20 +106,6 @@ def load_part(path: str | os.PathLike[str], *, units: str = "mm") -> trimesh.Tri
     _check_size(mesh, units, where)
     _orient_outward(mesh, where)
     return mesh
-
-
-def _read_bytes(where: str) -> bytes:
-    try:
-        with open(where, "rb") as stream:
-            return stream.read()
-    except FileNotFoundError as exc:
-        raise InputError("file not found", path=where) from exc
-    except IsADirectoryError as exc:
-        raise InputError("is a directory, not an STL file", path=where) from exc
-    except PermissionError as exc:
-        raise InputError("permission denied", path=where) from exc
-    except OSError as exc:
-        raise InputError(f"cannot read the file: {exc.strerror or exc}", path=where) from exc
 
 
 def _triangles_from_bytes(data: bytes, where: str) -> FloatArray:
