@@ -346,9 +346,8 @@ def _run_job(part: str, **opts: Any) -> int:
     if fmt is not None:                                # draw before writing anything: no half results
         program = read_program(result.text, spec.dialect, path=opts["out_path"] or "<program>",
                                stage=spec.machine.stage.present)
-        mesh = load_part(part, units=spec.units)
         image = _preview_bytes(program, spec.machine, result.part_origin, fmt, tolerance=spec.tolerance,
-                               mesh=mesh.triangles, face=result.face, title=Path(part).name, dialect=spec.dialect)
+                               mesh=result.triangles, face=result.face, title=Path(part).name, dialect=spec.dialect)
     output(result.text, opts["out_path"])
     if opts["out_path"]:
         click.echo(f"prs3-post: wrote {opts['out_path']}: {result.text.count(chr(10))} lines, "

@@ -93,6 +93,7 @@ class JobResult:
     path_part : Toolpath — the operation's toolpath in part coordinates
     post : PostResult — the machine-frame rows, IK, limits and the joint program
     part_origin : (3,) float — the setup used
+    triangles : (F, 3, 3) float — mm, the part's triangles in part coordinates (for pictures)
     """
 
     text: str
@@ -101,6 +102,7 @@ class JobResult:
     path_part: Toolpath
     post: PostResult
     part_origin: FloatArray
+    triangles: FloatArray
 
 
 def positions(face: Face, at_uv: FloatArray, at_xyz: FloatArray) -> FloatArray:
@@ -146,7 +148,8 @@ def run_job(spec: JobSpec) -> JobResult:
     text = emit_program(post.program, spec.dialect, header=header(spec, face, origin),
                         stage=spec.machine.stage.present, line_numbers=spec.line_numbers,
                         line_start=spec.line_start, line_step=spec.line_step)
-    return JobResult(text=text, face=face, face_note=note, path_part=path_part, post=post, part_origin=origin)
+    return JobResult(text=text, face=face, face_note=note, path_part=path_part, post=post, part_origin=origin,
+                     triangles=np.asarray(mesh.triangles, dtype=np.float64))
 
 
 def _mm(values: FloatArray | tuple[float, ...], decimals: int = 4) -> str:
