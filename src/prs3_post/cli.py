@@ -251,7 +251,16 @@ def fk(strokes: tuple[float, ...], xy: tuple[float, ...], machine_name: str, as_
 
 @main.command()
 def machines() -> None:
-    """List the shipped machines (use a name or a TOML path with --machine)."""
+    """List the shipped machines (use a name or a TOML path with --machine).
+
+    Each line: name, whether it has an XY stage, and its description. The files live in
+    postproc/machines/ (every key commented); copy one to describe your own machine.
+
+    \b
+    Example:
+      prs3-post machines
+      prs3-post ik --tip 0,200,-680 --axis 0,0,1 --machine my-machine.toml
+    """
 
     def body() -> int:
         for name in shipped_names("machines"):
