@@ -131,3 +131,21 @@ def test_machines_list():
     result = run("machines")
     assert result.exit_code == 0
     assert [line.split()[0] for line in result.output.splitlines()] == ["patel2020", "patel2020-head"]
+
+
+def test_pose_reader_fast_and_careful_paths_agree(tmp_path):
+    from prs3_post.readers.poses import read_poses
+
+    header = "tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n"
+    clean, quoted = tmp_path / "clean.csv", tmp_path / "quoted.csv"
+    clean.write_text(header + "1.5,2,-680,0,0,1\n\n-3,4e1,-690.25,0.1,0,1\n")
+    quoted.write_text(header + '"1.5",2,-680,0,0,1\n\n-3,4e1,-690.25,0.1,0,"1"\n')   # csv quoting: careful path
+    fast, careful = read_poses(str(clean)), read_poses(str(quoted))
+    for a, b in ((fast.tip, careful.tip), (fast.axis, careful.axis)):
+        assert_allclose(a, b, atol=0.0)
+    assert fast.line.tolist() == careful.line.tolist() == [2, 4]
+    commented = tmp_path / "commented.csv"
+    commented.write_text(header + "#1,2,3,0,0,1\n")
+    with pytest.raises(Exception) as caught:
+        read_poses(str(commented))
+    assert str(caught.value) == f"{commented}:2: not a number: '#1'"
