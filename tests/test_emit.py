@@ -644,3 +644,30 @@ def test_caller_mistakes(linuxcnc: Dialect) -> None:
     program = _program([R], [[0, 0]], [[1, 2, 3]], [0])
     assert _error(program, linuxcnc, ValueError, line_start=100000) == "line_start must be 0..99999, got 100000"
     assert _error(program, linuxcnc, ValueError, line_step=0) == "line_step must be ≥ 1, got 0"
+
+
+def test_comments_the_controller_would_act_on_stay_plain_comments(tmp_path):
+    """LinuxCNC pops up (MSG, ...) and acts on DEBUG, PRINT, LOG...; text from outside must not do that."""
+    import subprocess
+
+    dialect = load_dialect("linuxcnc")
+    long_text = "x" * 246 + " msg, split onto the next line"        # wraps right before "msg,"
+    program = JointProgram(
+        kind=np.array([MoveKind.RAPID]), stage=np.zeros((1, 2)), strokes=np.zeros((1, 3)),
+        inverse_time=np.zeros(1), source=np.zeros(1, dtype=np.int64),
+        events=(Event(0, EventKind.COMMENT, text=" MSG, stop here"), Event(0, EventKind.COMMENT, text=long_text),
+                Event(1, EventKind.COMMENT, text="debug,#<x>")),
+    )
+    text = emit_program(program, dialect)
+    comments = [line for line in text.splitlines() if line.startswith("(")]
+    assert "( MSG. stop here)" in comments and "(debug.#<x>)" in comments
+    assert "(  msg. split onto the next line)" in comments      # the continuation line is guarded too
+    assert all(len(line) <= 252 for line in text.splitlines())
+    if _rs274_missing():
+        _unavailable(_rs274_missing())
+    path = tmp_path / "comments.ngc"
+    path.write_text(text)
+    canon = subprocess.run([sys.executable, str(RS274_CHECK), "-a", "XYUVW", "--canon", "-", str(path)],
+                           capture_output=True, text=True, check=False)
+    assert canon.returncode == 0, canon.stdout + canon.stderr
+    assert "MESSAGE" not in canon.stdout

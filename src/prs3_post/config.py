@@ -414,6 +414,8 @@ class CommentStyle:
         every character of ``open`` and ``close`` so that a text can never end its comment early
     control : str — replacement for control characters (newline, tab, CR, ...) not in ``replace``
     non_ascii : str — replacement for any other character outside printable ASCII not in ``replace``
+    active_words : tuple of str — words the controller acts on when a comment starts with
+        ``WORD,`` (LinuxCNC: ``(MSG, ...)`` pops up a message); in such a text that comma becomes a period
     """
 
     open: str
@@ -422,6 +424,7 @@ class CommentStyle:
     replace: tuple[tuple[str, str], ...]
     control: str
     non_ascii: str
+    active_words: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -616,8 +619,13 @@ def load_dialect(name_or_path: str) -> Dialect:
         bad = sorted(set(value) & set(delimiters))
         if bad:
             raise com._error(key, f"must not contain the comment delimiter {bad[0]!r}, got {value!r}")
+    active_words = com.strings("active_words", default=[])
+    for word in active_words:
+        if not (word.isascii() and word.isalpha()):
+            raise com._error("active_words", f"expected words of letters A-Z, got {word!r}")
     com.finish()
-    comments = CommentStyle(c_open, c_close, uppercase, tuple(replace), control, non_ascii)
+    comments = CommentStyle(c_open, c_close, uppercase, tuple(replace), control, non_ascii,
+                            tuple(w.upper() for w in active_words))
 
     prog = top.table("program")
     percent = prog.boolean("percent")

@@ -38,7 +38,7 @@ from prs3_post.config import CommentStyle, Dialect
 from prs3_post.errors import LimitError
 from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind
 
-__all__ = ["emit_program", "format_word", "sanitize_comment"]
+__all__ = ["emit_program", "format_word", "inert", "sanitize_comment"]
 
 #: Indent of the continuation lines of a comment too long for one line.
 _CONTINUATION = "  "
@@ -82,8 +82,10 @@ def sanitize_comment(text: str, style: CommentStyle) -> str:
 
     Each character of ``style.replace`` is replaced first; then control characters (newline, tab,
     CR, ...) become ``style.control`` and any other character outside printable ASCII becomes
-    ``style.non_ascii``; last, the text is upper-cased if the style asks for it (after the
-    replacements, so that only ASCII is upper-cased).
+    ``style.non_ascii``; then the text is upper-cased if the style asks for it (after the
+    replacements, so that only ASCII is upper-cased); last, a text that starts with one of the
+    controller's ``active_words`` and a comma (LinuxCNC's ``MSG,``, ``DEBUG,``, ...; leading
+    spaces and case do not matter to it) gets that comma turned into a period (:func:`inert`).
 
     Parameters
     ----------
@@ -102,6 +104,8 @@ def sanitize_comment(text: str, style: CommentStyle) -> str:
     >>> from prs3_post.config import load_dialect
     >>> sanitize_comment("hole (1)\\nat 26.6°", load_dialect("linuxcnc").comments)
     'hole [1] at 26.6 deg'
+    >>> sanitize_comment(" msg, stop here", load_dialect("linuxcnc").comments)
+    ' msg. stop here'
     """
     replace = dict(style.replace)
     out: list[str] = []
@@ -115,7 +119,21 @@ def sanitize_comment(text: str, style: CommentStyle) -> str:
         else:
             out.append(style.non_ascii)
     safe = "".join(out)
-    return safe.upper() if style.uppercase else safe
+    return inert(safe.upper() if style.uppercase else safe, style)
+
+
+def inert(text: str, style: CommentStyle) -> str:
+    """``text``, with the comma after a leading active word made a period so the controller does
+    not act on it (``MSG, x`` → ``MSG. x``: a plain comment, and the same length).
+
+    >>> from prs3_post.config import load_dialect
+    >>> inert("  Debug, x", load_dialect("linuxcnc").comments), inert("debugging, x", load_dialect("linuxcnc").comments)
+    ('  Debug. x', 'debugging, x')
+    """
+    head = text.lstrip().split(",", 1)
+    if len(head) == 2 and head[0].strip().upper() in style.active_words:
+        return text.replace(",", ".", 1)
+    return text
 
 
 class _Lines:
@@ -156,7 +174,8 @@ class _Lines:
             subsequent_indent=_CONTINUATION,
             break_on_hyphens=False,
         ) or [""]
-        self.lines.extend(f"{style.open}{part}{style.close}" for part in parts)
+        # a continuation line could start with an active word again: guard every line
+        self.lines.extend(f"{style.open}{inert(part, style)}{style.close}" for part in parts)
 
     def text(self) -> str:
         ending = self.dialect.line_ending
