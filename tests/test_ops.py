@@ -571,7 +571,7 @@ def test_smallest_inside_round_still_plans() -> None:
         (lambda: profile_params(retract=1.0), "--retract must be ≥ --clearance (got --retract 1.000 mm < --clearance 2.000 mm)"),
         (
             lambda: plan_profile(FACE, np.zeros(2), RoundShape(10.0), profile_params(), CUT, tolerance=0.0),
-            "--tolerance must be > 0 mm (got 0)",
+            "--tolerance must be ≥ 0.0001 mm, the resolution of the program (got 0)",
         ),
         (
             lambda: plan_profile(FACE, np.zeros(3), RoundShape(10.0), profile_params(), CUT),
@@ -583,3 +583,31 @@ def test_profile_options_refused(make: object, message: str) -> None:
     with pytest.raises(FeatureError) as err:
         make()  # type: ignore[operator]
     assert str(err.value) == message
+
+
+@pytest.mark.parametrize(("call", "message"), [
+    (lambda: pass_depths(1e6, 1e-6), "--depth 1e+06 mm in --step-down 1e-06 mm steps would take 1e+12 passes "
+                                     "(at most 10000): use a larger --step-down"),
+    (lambda: pass_depths(5.0, 1e-6, option="--peck"), "--depth 5 mm in --peck 1e-06 mm steps would take 5e+06 passes "
+                                                       "(at most 10000): use a larger --peck"),
+])
+def test_absurd_pass_counts_are_refused(call, message):
+    with pytest.raises(FeatureError) as caught:
+        call()
+    assert str(caught.value) == message
+    assert len(pass_depths(10_000.0, 1.0)) == 10_000                  # the limit itself is allowed
+
+
+def test_overshoot_of_a_far_away_feature_terminates():
+    """The overshoot bisection works to the float spacing at the feature's size, not only to 1e-6 mm
+    (which a float near 1e10 cannot resolve: the search used to loop for ever)."""
+    with pytest.raises(FeatureError) as caught:
+        plan_holes(FACE, np.array([[1e10, 0.0]]), HoleParams(depth=5, peck=0, dwell=0, clearance=2, retract=10), CUT)
+    assert str(caught.value).startswith("hole 1 at (u 10000000000.000, v 0.000) with tool Ø6.000: does not fit on face 0: "
+                                        "overshoots its edge by 99999999")
+
+
+def test_absurd_lengths_are_refused():
+    with pytest.raises(FeatureError) as caught:
+        SquareShape(size=1e300)
+    assert str(caught.value) == "--size must be ≤ 1e+06 mm (got 1e+300)"

@@ -43,6 +43,7 @@ __all__ = [
     "format_mm",
     "format_uv",
     "pass_depths",
+    "require_tolerance",
     "require_nonnegative",
     "require_positive",
     "start_program",
@@ -53,12 +54,17 @@ __all__ = [
 # --------------------------------------------------------------------------------------------
 # Option checks (shared so that every operation words its messages the same way)
 # --------------------------------------------------------------------------------------------
+#: mm, the largest length any option may have: a kilometre is a typo, and far larger values
+#: overflow the outline geometry.
+MAX_LENGTH = 1e6
+
+
 def _unit_suffix(unit: str) -> str:
     return f" {unit}" if unit else ""
 
 
 def require_positive(option: str, value: float, unit: str = "") -> None:
-    """Raise unless ``value`` is a finite number > 0.
+    """Raise unless ``value`` is a finite number > 0 (and, for lengths in mm, ≤ MAX_LENGTH).
 
     Parameters
     ----------
@@ -69,10 +75,16 @@ def require_positive(option: str, value: float, unit: str = "") -> None:
     Raises
     ------
     FeatureError
-        ``--feed must be > 0 mm/min (got 0)``.
+        ``--feed must be > 0 mm/min (got 0)``, ``--size must be ≤ 1e+06 mm (got 1e+300)``.
     """
     if not (math.isfinite(value) and value > 0):
         raise FeatureError(f"{option} must be > 0{_unit_suffix(unit)} (got {value:g})")
+    _require_plausible_length(option, value, unit)
+
+
+def _require_plausible_length(option: str, value: float, unit: str) -> None:
+    if unit == "mm" and value > MAX_LENGTH:
+        raise FeatureError(f"{option} must be ≤ {MAX_LENGTH:g} mm (got {value:g})")
 
 
 def require_nonnegative(option: str, value: float, unit: str = "") -> None:
@@ -85,6 +97,7 @@ def require_nonnegative(option: str, value: float, unit: str = "") -> None:
     """
     if not (math.isfinite(value) and value >= 0):
         raise FeatureError(f"{option} must be ≥ 0{_unit_suffix(unit)} (got {value:g})")
+    _require_plausible_length(option, value, unit)
 
 
 def check_heights(clearance: float, retract: float) -> None:
@@ -105,7 +118,21 @@ def check_heights(clearance: float, retract: float) -> None:
         )
 
 
-def pass_depths(depth: float, step: float, *, rel_tol: float = 1e-9) -> FloatArray:
+#: Most passes (step-downs) or pecks one feature may take: more is a typo, not a plan.
+MAX_PASSES = 10_000
+#: mm, the finest chordal tolerance: the programs are written with 4 decimals (0.0001 mm).
+MIN_TOLERANCE = 1e-4
+
+
+def require_tolerance(tolerance: float) -> None:
+    """Raise unless ``--tolerance`` is a finite number ≥ MIN_TOLERANCE (mm)."""
+    if not (math.isfinite(tolerance) and tolerance >= MIN_TOLERANCE):
+        raise FeatureError(
+            f"--tolerance must be ≥ {MIN_TOLERANCE:g} mm, the resolution of the program (got {tolerance:g})"
+        )
+
+
+def pass_depths(depth: float, step: float, *, rel_tol: float = 1e-9, option: str = "--step-down") -> FloatArray:
     """Depths of successive passes (pecks, step-downs): ``d_k = min(k·step, depth)``.
 
     ``k = 1 .. ceil(depth/step)``; a ratio that is an integer up to floating error (0.9/0.3 =
@@ -117,17 +144,29 @@ def pass_depths(depth: float, step: float, *, rel_tol: float = 1e-9) -> FloatArr
     depth : float — mm, > 0, final depth
     step : float — mm, > 0, depth per pass
     rel_tol : float — fraction of a step below which a last pass is merged into the previous one
+    option : str — the option that sets ``step`` (``--step-down``, ``--peck``), for the message
 
     Returns
     -------
     depths : (K,) float — mm, increasing, ``depths[-1] == depth``, K ≥ 1
+
+    Raises
+    ------
+    FeatureError
+        When it would take more than MAX_PASSES passes.
 
     >>> pass_depths(10.0, 3.0).tolist()
     [3.0, 6.0, 9.0, 10.0]
     >>> pass_depths(0.9, 0.3).tolist()
     [0.3, 0.6, 0.9]
     """
-    count = max(1, math.ceil(depth / step - rel_tol))
+    passes = depth / step - rel_tol
+    if passes > MAX_PASSES:
+        raise FeatureError(
+            f"--depth {depth:g} mm in {option} {step:g} mm steps would take {math.ceil(passes):g} passes "
+            f"(at most {MAX_PASSES}): use a larger {option}"
+        )
+    count = max(1, math.ceil(passes))
     depths = np.minimum(np.arange(1, count + 1, dtype=np.float64) * step, depth)
     depths[-1] = depth
     return depths
@@ -249,9 +288,14 @@ def _reach(region: shapely.Geometry, material: shapely.Geometry, *, tol: float =
         return low
     minx, miny, maxx, maxy = region.bounds
     high = low + math.hypot(maxx - minx, maxy - miny) + tol
-    while not covered(high):            # only a region far away from the material needs this
+    for _ in range(64):                 # only a region far away from the material needs this
+        if covered(high):
+            break
         high *= 2.0
-    while high - low > tol:
+    # bisect to tol, or to the float spacing at this size (an absolute 1e-6 never comes for 1e10 mm)
+    for _ in range(200):
+        if high - low <= max(tol, 4.0 * math.ulp(high)):
+            break
         middle = 0.5 * (low + high)
         low, high = (low, middle) if covered(middle) else (middle, high)
     return high

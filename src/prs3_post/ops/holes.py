@@ -128,7 +128,7 @@ def plan_holes(face: Face, centers_uv: FloatArray, params: HoleParams, cutting: 
     for index, center in enumerate(centers, start=1):   # refuse before planning anything
         check_fits(face, swept_region(center, cutting.tool_radius), _hole_name(index, center, cutting))
 
-    depths = pass_depths(params.depth, params.peck) if params.peck > 0 else np.array([params.depth])
+    depths = pass_depths(params.depth, params.peck, option="--peck") if params.peck > 0 else np.array([params.depth])
     count = len(centers)
     builder = ToolpathBuilder(face)
     pecking = f", pecks of {params.peck:.3f} mm" if len(depths) > 1 else ""

@@ -48,6 +48,7 @@ from prs3_post.ops.common import (
     pass_depths,
     require_nonnegative,
     require_positive,
+    require_tolerance,
     start_program,
     swept_region,
 )
@@ -295,7 +296,7 @@ def tool_center_contour(
         For INSIDE when the tool does not fit in the shape, or a square's corner radius is smaller
         than the tool radius.
     """
-    require_positive("--tolerance", tolerance, "mm")
+    require_tolerance(tolerance)
     if not isinstance(shape, (SquareShape, RoundShape)):
         raise TypeError(f"tool_center_contour: shape must be SquareShape or RoundShape, got {type(shape).__name__}")
     radius = 0.5 * tool_diameter
