@@ -274,3 +274,50 @@ def test_output_file_gets_ordinary_permissions(tmp_path):
         os.umask(umask)
     assert stat.S_IMODE(target.stat().st_mode) == 0o644
     assert [p.name for p in tmp_path.iterdir()] == ["demo.ngc"]        # no temp file left behind
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["demo", "--profile", "hole", "--face", "²"], "Invalid value for '--face': expected auto or a face index, got '²'"),
+    (["demo", "--profile", "hole", "--line-numbers", "--line-start", "99999", "--line-step", "1000"],
+     "Invalid value for '--line-start': --line-start 99999 + --line-step 1000 passes dialect linuxcnc's largest "
+     "block number 99999: every block would get the same number"),
+])
+def test_option_values_that_cannot_work_are_usage_errors(args, message):
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 2
+    assert result.stderr.splitlines()[-1] == f"Error: {message}"
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["demo", "--profile", "hole", "--at-xyz", "18.9736,221.2132,280.5135"],
+     "point (18.9736, 221.2132, 280.5135) is 8.9440 mm off the plane of face 4 (allowed: 0.0100 mm)"),
+    (["demo", "--profile", "hole", "--tolerance", "nan"],
+     "--tolerance must be ≥ 0.0001 mm, the resolution of the program (got nan)"),
+    (["demo", "--profile", "hole", "-o", "sub/"], "sub/: is a folder or empty: give a file name"),
+])
+def test_bad_values_are_refused_with_their_reason(args, message, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    result = CliRunner().invoke(main, args)
+    assert (result.exit_code, result.stderr) == (2, f"prs3-post: error: {message}\n")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_fk_json_never_writes_infinity():
+    result = CliRunner().invoke(main, ["fk", "--strokes", "1e308,1e308,1e308", "--json"])
+    assert result.exit_code == 1
+    assert result.stdout == "" and "do not assemble" in result.stderr
+
+
+def test_verify_refuses_operation_options_without_an_stl(tmp_path):
+    program = tmp_path / "sq.ngc"
+    assert CliRunner().invoke(main, ["demo", "--profile", "square", "-o", str(program)]).exit_code == 0
+    result = CliRunner().invoke(main, ["verify", str(program), "--depth", "9", "--size", "80", "--face", "3"])
+    assert result.exit_code == 2
+    assert result.stderr.splitlines()[-1] == (
+        "Error: --face, --depth, --size: the operation options are only used with --against PART.stl")
+    for option, value, message in (
+        ("--tolerance", "0", "prs3-post: error: --tolerance must be ≥ 0.0001 mm, the resolution of the program (got 0)"),
+        ("--axis-tolerance", "nan", "Error: Invalid value for '--axis-tolerance': must be a number ≥ 0 degrees, got nan"),
+    ):
+        result = CliRunner().invoke(main, ["verify", str(program), option, value])
+        assert result.exit_code == 2 and result.stderr.splitlines()[-1] == message

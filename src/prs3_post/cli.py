@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import sys
 import tempfile
 from collections.abc import Callable
@@ -24,6 +25,7 @@ from prs3_post.errors import FeatureError, InputError, Prs3Error, ReachError
 from prs3_post.face import Face
 from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
 from prs3_post.job import JobSpec, Operation, run_job
+from prs3_post.ops.common import require_tolerance
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
 from prs3_post.readers.stl import load_part
 from prs3_post.kinematics import IKModel, PoseError, forward, inverse, unit_axes
@@ -70,6 +72,8 @@ def write_atomic(path: str, data: str | bytes) -> None:
     InputError
         When the folder does not exist or cannot be written.
     """
+    if not path or path.endswith(("/", os.sep)) or Path(path).is_dir():
+        raise InputError("is a folder or empty: give a file name", path=path or "''")
     target = Path(path)
     payload = data.encode("utf-8") if isinstance(data, str) else data
     try:
@@ -92,9 +96,14 @@ def write_atomic(path: str, data: str | bytes) -> None:
             Path(tmp).unlink(missing_ok=True)
 
 
+def to_stdout(path: str | None) -> bool:
+    """No path, or ``-``: the program goes to standard output."""
+    return path is None or path == "-"
+
+
 def output(text: str, path: str | None) -> None:
     """``text`` to ``path`` (atomically) or, without a path, to standard output."""
-    if path is None or path == "-":
+    if to_stdout(path):
         click.echo(text, nl=False)
     else:
         write_atomic(path, text)
@@ -214,7 +223,7 @@ def ik(tip: tuple[float, ...] | None, axis: tuple[float, ...] | None, batch_path
             raise ReachError("this pose cannot be reached: the head does not assemble there (a link cannot reach)")
         report = check_limits(machine, result, axes)
         record = ik_records(tips, axes, result, report)[0]
-        click.echo(json.dumps(record, indent=2) if as_json else ik_text(record), nl=as_json)
+        click.echo(json.dumps(record, indent=2, allow_nan=False) if as_json else ik_text(record), nl=as_json)
         return 0 if record["ok"] else 1
 
     run_reported(body)
@@ -243,7 +252,7 @@ def fk(strokes: tuple[float, ...], xy: tuple[float, ...], machine_name: str, as_
                 f"side-length error {result.residual[0]:.3g} mm)"
             )
         record = fk_records(result)[0]
-        click.echo(json.dumps(record, indent=2) if as_json else fk_text(record), nl=as_json)
+        click.echo(json.dumps(record, indent=2, allow_nan=False) if as_json else fk_text(record), nl=as_json)
         return 0
 
     run_reported(body)
@@ -358,7 +367,7 @@ def _run_job(part: str, **opts: Any) -> int:
         image = _preview_bytes(program, spec.machine, result.part_origin, fmt, tolerance=spec.tolerance,
                                mesh=result.triangles, face=result.face, title=Path(part).name, dialect=spec.dialect)
     output(result.text, opts["out_path"])
-    if opts["out_path"]:
+    if not to_stdout(opts["out_path"]):
         click.echo(f"prs3-post: wrote {opts['out_path']}: {result.text.count(chr(10))} lines, "
                    f"{len(result.post.program)} moves; {result.face_note}", err=True)
     if image is not None:
@@ -367,17 +376,20 @@ def _run_job(part: str, **opts: Any) -> int:
     return 0
 
 
+def _face_index(choice: str) -> int | None:
+    """``auto`` → None, ``7`` → 7 (ASCII digits only: ``²`` is a digit to Python, not to us)."""
+    if choice == "auto":
+        return None
+    if re.fullmatch(r"[0-9]+", choice):
+        return int(choice)
+    raise click.BadParameter(f"expected auto or a face index, got {choice!r}", param_hint="'--face'")
+
+
 def _job_spec(part: str, opts: dict[str, Any]) -> JobSpec:
     """The JobSpec the main job's options describe (also rebuilt by `verify --against PART.stl`)."""
     operation = Operation(opts["profile"])
     depth = opts["depth"] if opts["depth"] is not None else (5.0 if operation is Operation.HOLE else 2.0)
-    face_choice = opts["face_choice"]
-    if face_choice == "auto":
-        face = None
-    elif face_choice.isdigit():
-        face = int(face_choice)
-    else:
-        raise click.BadParameter(f"expected auto or a face index, got {face_choice!r}", param_hint="'--face'")
+    face = _face_index(opts["face_choice"])
     cutting = Cutting(
         tool_diameter=opts["tool_diameter"], feed=opts["feed"], plunge_feed=opts["plunge_feed"],
         spindle_rpm=opts["spindle"], coolant=Coolant(opts["coolant"]), tool_number=opts["tool_number"],
@@ -397,12 +409,20 @@ def _job_spec(part: str, opts: dict[str, Any]) -> JobSpec:
             entry=Entry(opts["entry"]), ramp_angle=math.radians(opts["ramp_angle"]), clearance=opts["clearance"],
             retract=opts["retract"],
         )
+    dialect = load_dialect(opts["dialect_name"])
+    wrap = dialect.line_numbers.wrap_after
+    start = dialect.line_numbers.start if opts.get("line_start") is None else opts["line_start"]
+    step = dialect.line_numbers.step if opts.get("line_step") is None else opts["line_step"]
+    if start + step > wrap:
+        raise click.BadParameter(
+            f"--line-start {start} + --line-step {step} passes dialect {dialect.name}'s largest block number "
+            f"{wrap}: every block would get the same number", param_hint="'--line-start'")
     return JobSpec(
         part=part, units=opts["units"], face=face, operation=operation,
         at_uv=np.array(opts["at_uv"], dtype=np.float64).reshape(-1, 2),
         at_xyz=np.array(opts["at_xyz"], dtype=np.float64).reshape(-1, 3),
         holes=holes, shape=shape, profile=profile, cutting=cutting,
-        machine=load_machine(opts["machine_name"]), dialect=load_dialect(opts["dialect_name"]),
+        machine=load_machine(opts["machine_name"]), dialect=dialect,
         part_origin=opts["part_origin"], tolerance=opts["tolerance"],
         line_numbers=opts.get("line_numbers"), line_start=opts.get("line_start"), line_step=opts.get("line_step"),
     )
@@ -459,7 +479,7 @@ def faces(part: str, units: str, as_json: bool) -> None:
     def body() -> int:
         found = find_faces(load_part(part, units=units))
         if as_json:
-            click.echo(json.dumps(face_table(found), indent=2))
+            click.echo(json.dumps(face_table(found), indent=2, allow_nan=False))
             return 0
         click.echo(format_face_table(found), nl=False)
         try:
@@ -492,6 +512,20 @@ def _against_options(func: Callable[..., Any]) -> Callable[..., Any]:
         params.append(param)
     func.__click_params__ = params                   # type: ignore[attr-defined]
     return func
+
+
+#: The main job's options that describe the operation: `verify` uses them only with --against PART.stl.
+_OPERATION_OPTIONS = (
+    "profile", "face_choice", "at_uv", "at_xyz", "units", "depth", "peck", "reapproach_gap", "dwell", "size",
+    "corner_radius", "rotation", "diameter", "side", "step_down", "direction", "entry", "ramp_angle", "clearance",
+    "retract", "tool_diameter", "tool_number", "feed", "plunge_feed", "spindle", "coolant",
+)
+
+
+def _option_flags(ctx: click.Context, names: list[str]) -> list[str]:
+    """The flags as the user spells them (``--face`` for the parameter ``face_choice``)."""
+    flags = {f"--{p.name.replace('_', '-')}": p.opts[0] for p in ctx.command.params if p.name}
+    return [flags.get(name, name) for name in names]
 
 
 def _image_format(path: str) -> str:
@@ -611,13 +645,22 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
         dialect = load_dialect(opts["dialect_name"])
         program = load_program(program_path, dialect, stage=machine.stage.present)
         origin = opts["part_origin"] if opts["part_origin"] is not None else machine.part_origin
-        if opts["profile"] and not (against_path and Path(against_path).suffix.lower() == ".stl"):
-            raise click.UsageError("--profile and the operation options are only used with --against PART.stl")
+        require_tolerance(opts["tolerance"])
+        if not (math.isfinite(axis_tolerance_deg) and axis_tolerance_deg >= 0):
+            raise click.BadParameter(f"must be a number ≥ 0 degrees, got {axis_tolerance_deg:g}",
+                                     param_hint="'--axis-tolerance'")
+        if not (against_path and Path(against_path).suffix.lower() == ".stl"):
+            ctx = click.get_current_context()
+            given = [f"--{name.replace('_', '-')}" for name in _OPERATION_OPTIONS
+                     if ctx.get_parameter_source(name) is not click.core.ParameterSource.DEFAULT]
+            if given:
+                raise click.UsageError(f"{', '.join(_option_flags(ctx, given))}: the operation options are only "
+                                       "used with --against PART.stl")
         intended = _intended(against_path, program, opts) if against_path else None
         report = _verify_loaded(program, machine, origin, dialect, tolerance=opts["tolerance"],
                                 axis_tolerance_deg=axis_tolerance_deg, intended=intended)
         if as_json:
-            click.echo(json.dumps(report_record(report, path=program_path, dialect=dialect.name)))
+            click.echo(json.dumps(report_record(report, path=program_path, dialect=dialect.name), allow_nan=False))
         else:
             click.echo(report_text(report, path=program_path, dialect=dialect.name), nl=False)
         return 0 if report.ok else 1
@@ -667,10 +710,9 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
         origin = part_origin if part_origin is not None else machine.part_origin
         mesh = face = None
         if part_path is not None:
-            if face_choice != "auto" and not face_choice.isdigit():
-                raise click.BadParameter(f"expected auto or a face index, got {face_choice!r}", param_hint="'--face'")
+            choice = _face_index(face_choice)
             loaded = load_part(part_path, units=units)
-            face, _ = select_face(find_faces(loaded), None if face_choice == "auto" else int(face_choice))
+            face, _ = select_face(find_faces(loaded), choice)
             mesh = loaded.triangles
         image = _preview_bytes(program, machine, origin, fmt, dialect=dialect, mesh=mesh, face=face,
                                rapid_rate=rapid_rate, title=Path(part_path).name if part_path else "")

@@ -21,6 +21,7 @@ from prs3_post.emit.gcode import emit_program
 from prs3_post.errors import FeatureError, InputError
 from prs3_post.face import Face
 from prs3_post.geometry import find_faces, project_onto_face, select_face
+from prs3_post.ops.common import require_tolerance
 from prs3_post.ops import Cutting, HoleParams, ProfileParams, RoundShape, SquareShape, plan_holes, plan_profile
 from prs3_post.pipeline import PostResult, post_process
 from prs3_post.readers.stl import load_part
@@ -106,12 +107,13 @@ class JobResult:
 
 
 def positions(face: Face, at_uv: FloatArray, at_xyz: FloatArray) -> FloatArray:
-    """Feature positions in face (u, v): the --at points, then the projected --at-xyz points;
-    the face origin when neither is given. (K, 2) mm."""
+    """Feature positions in face (u, v): the --at points, then the --at-xyz points projected onto the
+    face (each must lie on its plane within 0.01 mm: a point off the face is a mistake, not a
+    position to move silently); the face origin when neither is given. (K, 2) mm."""
     uv = [np.asarray(at_uv, dtype=np.float64).reshape(-1, 2)]
     xyz = np.asarray(at_xyz, dtype=np.float64).reshape(-1, 3)
     if len(xyz):
-        uv.append(project_onto_face(face, xyz, max_offset=None))
+        uv.append(project_onto_face(face, xyz))
     out = np.concatenate(uv)
     return out if len(out) else np.zeros((1, 2))
 
@@ -136,6 +138,7 @@ def run_job(spec: JobSpec) -> JobResult:
     ------
     InputError, FeatureError, ReachError, LimitError
     """
+    require_tolerance(spec.tolerance)
     mesh = load_part(spec.part, units=spec.units)
     faces = find_faces(mesh)
     try:

@@ -41,7 +41,7 @@ def run_blocks(kernel: Callable[[slice], None], n: int, *, block_rows: int = BLO
         raise ValueError("block_rows must be > 0")
     slices = [slice(start, min(start + block_rows, n)) for start in range(0, n, block_rows)]
     workers = default_workers() if workers is None else workers
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         if workers <= 1 or len(slices) <= 1:
             for rows in slices:
                 kernel(rows)
@@ -54,7 +54,7 @@ def _quiet(kernel: Callable[[slice], None]) -> Callable[[slice], None]:
     """``kernel`` with floating-point warnings off (errstate is per thread)."""
 
     def call(rows: slice) -> None:
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             kernel(rows)
 
     return call

@@ -139,7 +139,12 @@ def _pose_block(geometry: Geometry, strokes: FloatArray, stage: FloatArray, tol:
     tip = joints.sum(axis=1) * (1.0 / 3.0) - geometry.tool_length * axis
     tip[:, :2] += stage
     theta = np.arctan2(sin_t, cos_t).T
-    converged = (out["residual"] < tol) & (axis[:, 2] > 0.0) & np.all((theta > 0.0) & (theta < np.pi / 2), axis=1)
+    converged = (
+        (out["residual"] < tol)
+        & (axis[:, 2] > 0.0)
+        & np.all((theta > 0.0) & (theta < np.pi / 2), axis=1)
+        & np.isfinite(tip).all(axis=1)                # strokes of 1e308 overflow to inf, not a pose
+    )
     for values in (tip, axis, theta, joints):
         values[~converged] = np.nan
     out["tip"][:], out["axis"][:], out["link_angle"][:], out["converged"][:] = tip, axis, theta, converged
