@@ -295,7 +295,7 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
         click.option("--at", "at_uv", type=Numbers("U,V"), multiple=True,
                      help="Feature position in face coordinates, mm (repeat for several holes). Default: face origin."),
         click.option("--at-xyz", "at_xyz", type=Numbers("X,Y,Z"), multiple=True,
-                     help="Feature position in part coordinates, mm, projected onto the face (repeatable)."),
+                     help="Feature position in part coordinates, mm: a point on the face (within 0.01 mm; repeatable)."),
         click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True,
                      help="Length unit of the STL file."),
         # feature geometry
