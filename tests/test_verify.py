@@ -18,7 +18,7 @@ from prs3_post.job import run_job
 from prs3_post.kinematics import forward
 from prs3_post.readers.program import load_program, read_program
 from prs3_post.toolpath import EventKind, MoveKind
-from prs3_post.verify import EPSILON_FRACTION, PROBE_INTERVALS, replay, verify_program
+from prs3_post.verify import EPSILON_FRACTION, PROBE_INTERVALS, Intended, replay, verify_program
 
 REPO = Path(__file__).resolve().parents[1]
 VERIFY = REPO / "fixtures" / "verify"
@@ -361,3 +361,39 @@ def test_g64_blending_is_read_and_warned_about(tmp_path):
     assert (code, report["warnings"]) == (0, [{
         "line": 4, "kind": "blending", "message": "line 4: G64 path blending: the control may round corners in "
         "joint space (a curve at the tip); the replay assumes exact stops (G61)"}])
+
+
+def test_text_report_against_line_comes_from_the_summary_not_the_json_record(monkeypatch):
+    """The text report's against line needs the maxima and means only: it never builds the JSON record
+    (every sample as lists, and the summary again)."""
+    import prs3_post.verify_format as fmt
+
+    moves = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc")).moves
+    fk = forward(MACHINE.geometry, moves.strokes, moves.stage)
+    tip, axis = fk.tip.copy(), fk.axis.copy()
+    tip[2] += [0.01, 0.0, 0.0]                          # line 11's end point, 10 µm off in x
+    axis[3] = (axis[3] + [0.001, 0.0, 0.0]) / np.linalg.norm(axis[3] + [0.001, 0.0, 0.0])   # line 12's axis
+    intended = Intended(tip=tip, axis=axis, feed=np.full(len(tip), np.nan), kind=np.full(len(tip), -1),
+                        label="shifted.csv")
+    report = verify_program(MACHINE, moves, part_origin=np.array(MACHINE.part_origin), intended=intended)
+    record = fmt.report_record(report, path="small.ngc", dialect="linuxcnc")
+    assert fmt.against_summary(report) == record["against"]
+    turned = math.degrees(math.acos(np.clip(fk.axis[3] @ axis[3], -1.0, 1.0)))   # clip: rounding past 1
+    assert_allclose([record["against"]["tip_max_mm"], record["against"]["axis_max_deg"]], [0.01, turned], atol=1e-9)
+    summaries = []
+
+    def counted(*args, **kwargs):
+        summaries.append(1)
+        return fmt_row_times(*args, **kwargs)
+
+    def refused(*args, **kwargs):
+        raise AssertionError("report_text built the whole JSON record")
+
+    fmt_row_times = fmt.row_times
+    monkeypatch.setattr(fmt, "row_times", counted)
+    monkeypatch.setattr(fmt, "report_record", refused)
+    text = fmt.report_text(report, path="small.ngc", dialect="linuxcnc").splitlines()
+    assert len(summaries) == 1                          # the headline's summary, once
+    assert [ln for ln in text if ln.startswith("  against")] == [
+        "  against shifted.csv: tip max 0.010000 mm at line 11 (mean 0.004211), axis max 0.0512° at line 12 "
+        "(mean 0.0121°)"]

@@ -23,7 +23,7 @@ from prs3_post.verify import (
     row_times,
 )
 
-__all__ = ["report_record", "report_text", "summary"]
+__all__ = ["against_summary", "report_record", "report_text", "summary"]
 
 #: Rows of the text report's problem list.
 SHOWN_PROBLEMS = 10
@@ -76,6 +76,32 @@ def summary(report: VerifyReport, *, rapid_rate: float = NOMINAL_RAPID_RATE) -> 
     }
 
 
+def against_summary(report: VerifyReport) -> dict[str, Any] | None:
+    """The deviation from the intended path in a few numbers (None without ``--against``).
+
+    Max and mean of the tip deviation (mm) and of the axis deviation (degrees), with the line of
+    each maximum: the ``against`` entry of the JSON report and the text report's ``against`` line.
+    Reductions over the samples only: no per-sample lists (the text report calls it).
+    """
+    a = report.against
+    if a is None:
+        return None
+    rep, lines = report.replay, report.program.source
+    tip = np.linalg.norm(a.tip_deviation, axis=1)
+    tip_max, tip_line, tip_i = _worst(tip, rep.row, lines)
+    axis_max, axis_line, _ = _worst(a.axis_deviation, rep.row, lines)
+    return {
+        "label": a.label, "compared_samples": int(a.compared.sum()),
+        "tip_max_mm": tip_max, "tip_max_line": tip_line,
+        "tip_max_at": None if tip_i is None else float(rep.fraction[tip_i]),
+        "tip_max_vector_mm": None if tip_i is None else _nums(a.tip_deviation[tip_i]),
+        "tip_mean_mm": _num(np.nanmean(tip)) if np.isfinite(tip).any() else None,
+        "axis_max_deg": None if axis_max is None else math.degrees(axis_max), "axis_max_line": axis_line,
+        "axis_mean_deg": _num(math.degrees(np.nanmean(a.axis_deviation)))
+        if np.isfinite(a.axis_deviation).any() else None,
+    }
+
+
 def report_record(report: VerifyReport, *, path: str = "", dialect: str = "",
                   rapid_rate: float = NOMINAL_RAPID_RATE) -> dict[str, Any]:
     """The complete report as JSON-ready data (angles in degrees where the key says ``_deg``)."""
@@ -105,22 +131,6 @@ def report_record(report: VerifyReport, *, path: str = "", dialect: str = "",
             record["tip_deviation_norm_mm"] = _num(np.linalg.norm(a.tip_deviation[e]))
             record["axis_deviation_deg"] = _num(math.degrees(a.axis_deviation[e]))
         rows.append(record)
-    record_against = None
-    if report.against is not None:
-        a = report.against
-        tip = np.linalg.norm(a.tip_deviation, axis=1)
-        tip_max, tip_line, tip_i = _worst(tip, rep.row, lines)
-        axis_max, axis_line, axis_i = _worst(a.axis_deviation, rep.row, lines)
-        record_against = {
-            "label": a.label, "compared_samples": int(a.compared.sum()),
-            "tip_max_mm": tip_max, "tip_max_line": tip_line,
-            "tip_max_at": None if tip_i is None else float(rep.fraction[tip_i]),
-            "tip_max_vector_mm": None if tip_i is None else _nums(a.tip_deviation[tip_i]),
-            "tip_mean_mm": _num(np.nanmean(tip)) if np.isfinite(tip).any() else None,
-            "axis_max_deg": None if axis_max is None else math.degrees(axis_max), "axis_max_line": axis_line,
-            "axis_mean_deg": _num(math.degrees(np.nanmean(a.axis_deviation)))
-            if np.isfinite(a.axis_deviation).any() else None,
-        }
     return {
         "program": path, "dialect": dialect, "machine": report.machine, "ok": report.ok,
         "part_origin_mm": _nums(report.part_origin), "tolerance_mm": report.tolerance,
@@ -143,7 +153,7 @@ def report_record(report: VerifyReport, *, path: str = "", dialect: str = "",
             "groups": [{"feed_mm_per_min": g.feed, "moves": len(g.lines), "lines": list(g.lines)}
                        for g in report.feed_groups],
         },
-        "against": record_against,
+        "against": against_summary(report),
         "problems": [{"line": p.line, "kind": p.kind, "message": p.message} for p in report.problems],
         "warnings": [{"line": p.line, "kind": p.kind, "message": p.message} for p in report.warnings],
         "moves_detail": rows,
@@ -183,8 +193,8 @@ def report_text(report: VerifyReport, *, path: str = "", dialect: str = "",
                    f"{groups}{more}")
     out.append(f"  time: {head['time_total_min']:.3f} min (G1 {head['time_feed_min']:.3f}, G0 "
                f"{head['time_rapid_min']:.3f} at {rapid_rate:g} mm/min, dwell {head['time_dwell_min']:.3f})")
-    if report.against is not None:
-        rec = report_record(report, path=path, dialect=dialect, rapid_rate=rapid_rate)["against"]
+    rec = against_summary(report)
+    if rec is not None:
         out.append(f"  against {rec['label']}: tip max {fixed(rec['tip_max_mm'], 6)} mm at line {rec['tip_max_line']}"
                    f" (mean {fixed(rec['tip_mean_mm'], 6)}), axis max {fixed(rec['axis_max_deg'])}° at line "
                    f"{rec['axis_max_line']} (mean {fixed(rec['axis_mean_deg'])}°)")
