@@ -397,3 +397,27 @@ def test_text_report_against_line_comes_from_the_summary_not_the_json_record(mon
     assert [ln for ln in text if ln.startswith("  against")] == [
         "  against shifted.csv: tip max 0.010000 mm at line 11 (mean 0.004211), axis max 0.0512° at line 12 "
         "(mean 0.0121°)"]
+
+
+def test_no_straightness_problem_where_the_head_does_not_assemble(tmp_path):
+    """W600 on a G1 of the demo square: the head does not assemble there, so the line's problems are that and
+    the stroke limit; no 'leaves the straight line by nan mm' besides (nor on the next move, which starts there)."""
+    out = tmp_path / "square.ngc"
+    assert run("demo", "--profile", "square", "-o", out).exit_code == 0
+    lines = out.read_text().split("\n")
+    number = next(n for n, ln in enumerate(lines, start=1) if ln.startswith("G1 ") and " W" in ln)
+    lines[number - 1] = " ".join("W600" if w.startswith("W") else w for w in lines[number - 1].split())
+    assert lines[number - 1] == "G1 X-8.3212 U33.4461 V167.6102 W600 F50.0000"
+    out.write_text("\n".join(lines))
+    code, report = verify_json(out)
+    assert (code, report["problems"]) == (1, [
+        {"line": 22, "kind": "reach", "message": "line 22: the head does not assemble at 25.0 % of the move "
+                                                 "(strokes 32.1044, 166.2685, 213.2885 mm)"},
+        {"line": 22, "kind": "limit", "message": "line 22: T3 stroke 600.0000 mm is above the maximum 400.0000 mm "
+                                                 "by 200.0000 mm at the end point"},
+        {"line": 24, "kind": "reach", "message": "line 24: the head does not assemble at 12.5 % of the move "
+                                                 "(strokes 33.5340, 167.6981, 535.8596 mm)"},
+        {"line": 24, "kind": "limit", "message": "line 24: T3 stroke 535.8596 mm is above the maximum 400.0000 mm "
+                                                 "by 135.8596 mm at 12.5 % of the move"},
+    ])
+    assert number == 22

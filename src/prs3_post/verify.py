@@ -54,6 +54,8 @@ Reports
 
 Any limit broken, a pose that does not assemble, a G1 not straight within the tolerance, a
 deviation or a feed outside what is allowed is a *problem*: the program fails (exit status 1).
+Where the head does not assemble there is no tip, so a move with a reach problem (or whose start
+point has one) gets no straightness problem: its straightness is unknown (NaN), not too large.
 """
 
 from __future__ import annotations
@@ -463,8 +465,11 @@ def verify_program(
     chord_point = start_tip + rep.fraction[:, None] * (rep.tip[end[rep.row]] - start_tip)
     on_feed = feed_row[rep.row] & (rep.row > 0)
     straightness = np.where(on_feed, np.linalg.norm(rep.tip - chord_point, axis=1), np.nan)
+    unassembled = set(bad_rows.tolist())
     for r in np.flatnonzero(feed_row).tolist():
-        if r == 0:
+        # No tip where the head does not assemble, so no chord to measure from (NaN): the reach
+        # problem of this line, or of the previous one (the move's start point), already says so.
+        if r == 0 or r in unassembled or not rep.converged[end[r - 1]]:
             continue
         span = slice(rep.first[r], end[r] + 1)
         worst = int(np.argmax(np.nan_to_num(straightness[span], nan=np.inf))) + rep.first[r]
