@@ -140,6 +140,27 @@ def test_reader_rejects_with_exact_messages(tmp_path, text, message):
     assert str(caught.value) == f"{path}:{sep}{message}"
 
 
+@pytest.mark.parametrize(("ending", "length", "message"), [
+    ("\r\n", 252, "2: the line is 252 characters, dialect linuxcnc allows 251 with a CRLF line ending "
+                  "(LinuxCNC counts the CR; 252 with LF)"),
+    ("\r\n", 251, None),
+    ("\n", 252, None),
+    ("\n", 253, "2: the line is 253 characters, dialect linuxcnc allows 252"),
+])
+def test_reader_line_length_counts_the_cr_of_crlf(tmp_path, ending, length, message):
+    """LinuxCNC counts a CRLF line's CR towards its 252 characters, as the emitter does (one less)."""
+    comment = "(" + "c" * (length - 2) + ")"
+    path = tmp_path / "p.ngc"
+    path.write_bytes(ending.join(["G0 X1 Y1 U1 V1 W1", comment, "M2", ""]).encode("ascii"))
+    if message is None:
+        read = load_program(str(path), load_dialect("linuxcnc"))
+        assert (read.lines[1], read.end_line) == (comment, 3)
+    else:
+        with pytest.raises(InputError) as caught:
+            load_program(str(path), load_dialect("linuxcnc"))
+        assert str(caught.value) == f"{path}:{message}"
+
+
 def test_reader_refuses_stage_words_without_a_stage():
     with pytest.raises(InputError) as caught:
         read_program("G0 X1 U1 V1 W1\nM2\n", load_dialect("linuxcnc"), path="h.ngc", stage=False)

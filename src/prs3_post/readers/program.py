@@ -194,9 +194,10 @@ def read_program(text: str, dialect: Dialect, *, path: str, stage: bool = True) 
     lines = text.split("\n")
     if lines and lines[-1] == "":
         lines.pop()                                    # the final line ending
-    lines = [ln[:-1] if ln.endswith("\r") else ln for ln in lines]
-    for number, line in enumerate(lines, start=1):
-        reader.line(number, line)
+    crlf = [ln.endswith("\r") for ln in lines]
+    lines = [ln[:-1] if cr else ln for ln, cr in zip(lines, crlf, strict=True)]
+    for number, (line, cr) in enumerate(zip(lines, crlf, strict=True), start=1):
+        reader.line(number, line, crlf=cr)
     return reader.finish(tuple(lines))
 
 
@@ -232,11 +233,14 @@ class _Reader:
         self.events.append(Event(before=len(self.kind), kind=kind, value=value, text=text))
 
     # ------------------------------------------------------------------ one line
-    def line(self, number: int, line: str) -> None:
+    def line(self, number: int, line: str, *, crlf: bool = False) -> None:
+        """One line without its ending; ``crlf``: it ended in a CR (``\\r\\n``), which LinuxCNC counts
+        towards its line-length limit (the emitter allows one character less for CRLF, too)."""
         self.number = number
-        limit = self.dialect.max_line_length
+        limit = self.dialect.max_line_length - (1 if crlf else 0)
         if len(line) > limit:
-            raise self.error(f"the line is {len(line)} characters, dialect {self.dialect.name} allows {limit}")
+            ending = f" with a CRLF line ending (LinuxCNC counts the CR; {limit + 1} with LF)" if crlf else ""
+            raise self.error(f"the line is {len(line)} characters, dialect {self.dialect.name} allows {limit}{ending}")
         style = self.dialect.comments
         code, problem = _strip_comments(line, style.open, style.close)
         if problem:
