@@ -153,3 +153,37 @@ def test_preview_help_has_an_example():
     text = run("preview", "--help").output
     assert "  prs3-post preview sq.ngc --part postproc/parts/patel2020-wedge.stl -o sq.png" in text
     assert "'prs3-post[plot]'" in text
+
+
+def test_stage_panel_draws_each_axis_travel_in_its_own_colour(tmp_path):
+    """A Y travel tighter than X's (−20..20 mm, where small.ngc goes to Y −24.1429) is drawn at its own bounds."""
+    from matplotlib.colors import to_hex
+
+    from prs3_post.preview import render_preview
+
+    text = (REPO / "postproc" / "machines" / "patel2020.toml").read_text()
+    assert text.count("travel_y_mm = [-300.0, 300.0]") == 1
+    path = tmp_path / "narrow-y.toml"
+    path.write_text(text.replace("travel_y_mm = [-300.0, 300.0]", "travel_y_mm = [-20.0, 20.0]"))
+    machine = load_machine(str(path))
+    program = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc"))
+    report = verify_program(machine, program.moves, part_origin=ORIGIN)
+    ax_xy = render_preview(report, machine).axes[2]
+    x_colour, y_colour = "#9467bd", "#8c564b"
+    limit_lines = [(ln.get_label(), ln.get_color(), ln.get_linestyle(), list(ln.get_ydata()))
+                   for ln in ax_xy.get_lines()[2:]]
+    assert limit_lines == [
+        ("X travel", x_colour, ":", [-300.0, -300.0]), ("_nolegend_", x_colour, ":", [300.0, 300.0]),
+        ("Y travel", y_colour, ":", [-20.0, -20.0]), ("_nolegend_", y_colour, ":", [20.0, 20.0]),
+    ]
+    # beyond each axis' travel is shaded in its colour (y in data units; the bands reach 1e6 mm on)
+    bands = []
+    for patch in ax_xy.patches:
+        y = patch.get_patch_transform().transform(patch.get_path().vertices)[:, 1]
+        bands.append((to_hex(patch.get_facecolor()), float(y.min()), float(y.max())))
+    beyond = [band for band in bands if band[0] in (x_colour, y_colour)]
+    assert beyond == [(x_colour, 300.0, 300.0 + 1e6), (x_colour, -300.0 - 1e6, -300.0),
+                      (y_colour, 20.0, 20.0 + 1e6), (y_colour, -20.0 - 1e6, -20.0)]
+    low, high = ax_xy.get_ylim()
+    assert low < -24.1429 < -20.0 < high                # the Y limit is in view, with the Y move beyond it
+    assert [(p.line, p.kind) for p in report.problems] == [(12, "limit"), (13, "limit")]   # out to Y −24, back

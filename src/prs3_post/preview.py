@@ -10,7 +10,8 @@ Panels
 (b) The actuator strokes T1..T3 and the stage X, Y over program time: G1 moves take 1/F min (G93),
     G0 moves the longest joint travel at a nominal rapid rate (``rapid_rate``, 5000 mm/min unless
     given), G4 dwells their time. The axes move linearly in time within a move, so the end points
-    draw them exactly. G0 intervals are shaded grey; beyond the machine's limits is shaded red.
+    draw them exactly. G0 intervals are shaded grey; beyond the stroke limits is shaded red, beyond
+    each stage axis' travel in that axis' colour (dotted lines at its bounds).
 (c) The worst margin of every limit over the replay, as a fraction of the limit's range
     (:func:`prs3_post.verify.margin_fraction`): red below 0, orange below 10 %.
 
@@ -44,6 +45,7 @@ FORMATS = {".png": "png", ".svg": "svg"}
 _FEED_COLOUR, _RAPID_COLOUR, _AXIS_COLOUR = "#1f5fbf", "#d62728", "#2ca02c"
 _JOINT_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c")
 _STAGE_COLOURS = ("#9467bd", "#8c564b")
+_LIMIT_COLOUR = "#d62728"
 
 
 def _matplotlib() -> Any:
@@ -270,7 +272,8 @@ def render_preview(
                 ax.axvspan(start_t[r], end_t[r], color="#e0e0e0", linewidth=0)
     for leg in range(3):
         ax_t.plot(times, values[:, 2 + leg], color=_JOINT_COLOURS[leg], linewidth=1.2, label=f"T{leg + 1}")
-    _shade_limits(ax_t, values[:, 2:], limits.stroke)
+    _draw_limits(ax_t, limits.stroke, _LIMIT_COLOUR)
+    ax_t.set_ylim(*_limit_view(values[:, 2:], limits.stroke))
     ax_t.set_ylabel("stroke (mm)")
     ax_t.set_title(f"(b) strokes T1..T3 over time (limits {limits.stroke[0]:g}..{limits.stroke[1]:g} mm)",
                    fontsize=10)
@@ -278,9 +281,11 @@ def render_preview(
     if machine.stage.present:
         for i, name in enumerate("XY"):
             ax_xy.plot(times, values[:, i], color=_STAGE_COLOURS[i], linewidth=1.2, label=name)
-        travel = (min(machine.stage.travel_x[0], machine.stage.travel_y[0]),
-                  max(machine.stage.travel_x[1], machine.stage.travel_y[1]))
-        _shade_limits(ax_xy, values[:, :2], travel)
+        # each axis' own travel, in its colour: the union would hide a Y travel tighter than X's
+        travels = (machine.stage.travel_x, machine.stage.travel_y)
+        for i, name in enumerate("XY"):
+            _draw_limits(ax_xy, travels[i], _STAGE_COLOURS[i], label=f"{name} travel")
+        ax_xy.set_ylim(*_limit_view(values[:, :2], *travels))
         ax_xy.set_title(f"stage X, Y over time (travel X {machine.stage.travel_x[0]:g}..{machine.stage.travel_x[1]:g}, "
                         f"Y {machine.stage.travel_y[0]:g}..{machine.stage.travel_y[1]:g} mm)", fontsize=10)
         ax_xy.legend(loc="best", fontsize=8, ncols=2)
@@ -311,21 +316,25 @@ def render_preview(
     return fig
 
 
-def _shade_limits(ax: Any, values: FloatArray, bounds: tuple[float, float]) -> None:
-    """Red beyond ``bounds``; the view covers the data (and a bound when it is near the data)."""
+def _limit_view(values: FloatArray, *bounds: tuple[float, float]) -> tuple[float, float]:
+    """The y range of a panel: the data, padded, and each bound that is near the data (mm)."""
     finite = values[np.isfinite(values)]
-    low, high = (float(finite.min()), float(finite.max())) if len(finite) else bounds
+    low, high = (float(finite.min()), float(finite.max())) if len(finite) else bounds[0]
     pad = max(0.08 * (high - low), 2.0)
     view = [low - pad, high + pad]
-    for bound in bounds:
+    for bound in (b for pair in bounds for b in pair):
         if abs(bound - low) < 4 * pad or abs(bound - high) < 4 * pad:
             view = [min(view[0], bound - pad), max(view[1], bound + pad)]
+    return view[0], view[1]
+
+
+def _draw_limits(ax: Any, bounds: tuple[float, float], colour: str, *, label: str = "_nolegend_") -> None:
+    """Shade beyond ``bounds`` and draw them as dotted lines, in ``colour`` (the lines carry ``label``)."""
     far = 1e6
-    ax.axhspan(bounds[1], bounds[1] + far, color="#d62728", alpha=0.15, linewidth=0)
-    ax.axhspan(bounds[0] - far, bounds[0], color="#d62728", alpha=0.15, linewidth=0)
-    for bound in bounds:
-        ax.axhline(bound, color="#d62728", linewidth=0.8, linestyle=":")
-    ax.set_ylim(*view)
+    ax.axhspan(bounds[1], bounds[1] + far, color=colour, alpha=0.15, linewidth=0)
+    ax.axhspan(bounds[0] - far, bounds[0], color=colour, alpha=0.15, linewidth=0)
+    for i, bound in enumerate(bounds):
+        ax.axhline(bound, color=colour, linewidth=0.8, linestyle=":", label=label if i == 0 else "_nolegend_")
 
 
 def figure_bytes(fig: Figure, fmt: str) -> bytes:
