@@ -81,6 +81,12 @@ class JobSpec:
     line_start: int | None = None
     line_step: int | None = None
 
+    def __post_init__(self) -> None:
+        if self.operation is Operation.HOLE and self.holes is None:
+            raise ValueError("JobSpec: a hole operation needs holes (HoleParams)")
+        if self.operation is not Operation.HOLE and (self.shape is None or self.profile is None):
+            raise ValueError(f"JobSpec: a {self.operation.value} operation needs shape and profile")
+
 
 @dataclass(frozen=True, slots=True)
 class JobResult:
@@ -122,9 +128,7 @@ def plan(spec: JobSpec, face: Face) -> Toolpath:
     """The operation's toolpath in part coordinates."""
     centres = positions(face, spec.at_uv, spec.at_xyz)
     if spec.operation is Operation.HOLE:
-        assert spec.holes is not None  # the CLI always sets it for holes  # noqa: S101
         return plan_holes(face, centres, spec.holes, spec.cutting)
-    assert spec.shape is not None and spec.profile is not None  # noqa: S101
     if len(centres) > 1:
         raise FeatureError(f"--profile {spec.operation.value} cuts one feature: give one --at or --at-xyz "
                            f"(got {len(centres)})")
@@ -170,12 +174,10 @@ def header(spec: JobSpec, face: Face, origin: FloatArray) -> tuple[tuple[str, st
     op = spec.operation
     if op is Operation.HOLE:
         h = spec.holes
-        assert h is not None  # noqa: S101
         params = (f"depth {_fixed(h.depth, 3)} mm, peck {_fixed(h.peck, 3)} mm, dwell {_fixed(h.dwell, 3)} s, "
                   f"clearance {_fixed(h.clearance, 3)} mm, retract {_fixed(h.retract, 3)} mm")
     else:
         s, p = spec.shape, spec.profile
-        assert s is not None and p is not None  # noqa: S101
         if isinstance(s, SquareShape):
             size = (f"size {_fixed(s.size, 3)} mm, corner radius {_fixed(s.corner_radius, 3)} mm, "
                     f"rotation {_fixed(math.degrees(s.rotation), 3)} deg")
