@@ -8,11 +8,14 @@ are mm along those unit vectors; w > 0 is outside the material, w < 0 is depth i
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import shapely
 
 from prs3_post.types import FloatArray, IntArray
+
+if TYPE_CHECKING:                      # shapely costs 60 ms to import: only the commands that plan load it
+    import shapely
 
 
 def frame_from_normal(normal: FloatArray) -> tuple[FloatArray, FloatArray]:

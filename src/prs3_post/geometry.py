@@ -31,14 +31,17 @@ lengths are mm.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
-import shapely
-import trimesh
 
 from prs3_post.errors import FeatureError
 from prs3_post.face import Face, frame_from_normal
 from prs3_post.types import FloatArray, IntArray
+
+if TYPE_CHECKING:  # trimesh (200 ms) and shapely (60 ms) load only where a part is read
+    import shapely
+    import trimesh
 
 INCLINED_MIN_DEG = 1.0
 """Automatic selection: a face must be inclined strictly more than this from horizontal (degrees)."""
@@ -65,6 +68,7 @@ def find_faces(mesh: trimesh.Trimesh, *, flatness_tol: float = 1e-3) -> tuple[Fa
         Sorted by area (largest first, ties as in the module docstring), ``faces[i].index == i``.
         Empty for a mesh without triangles.
 
+    >>> import trimesh
     >>> faces = find_faces(trimesh.creation.box(extents=(2.0, 3.0, 4.0)))
     >>> [(f.index, round(f.area, 6)) for f in faces]
     [(0, 12.0), (1, 12.0), (2, 8.0), (3, 8.0), (4, 6.0), (5, 6.0)]
@@ -192,6 +196,8 @@ def _boundaries(
     -------
     list of shapely.Polygon, one per group
     """
+    import shapely
+
     groups = len(origin)
     kept = np.flatnonzero((labels >= 0) & (area_tri > 0.0))  # zero-area triangles outline nothing
     group = labels[kept]
@@ -209,6 +215,8 @@ def _boundaries(
 
 def _main_polygon(geometry: shapely.Geometry) -> shapely.Polygon:
     """The polygon itself, or the largest polygon of a collection (numerical slivers only)."""
+    import shapely
+
     if isinstance(geometry, shapely.Polygon):
         return geometry
     if not isinstance(geometry, (shapely.MultiPolygon, shapely.GeometryCollection)):

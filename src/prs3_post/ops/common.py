@@ -22,14 +22,17 @@ import enum
 import math
 import numbers
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import shapely
 
 from prs3_post.errors import FeatureError
 from prs3_post.face import Face
 from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
 from prs3_post.types import FloatArray
+
+if TYPE_CHECKING:                      # imported where used: `ik`, `fk`, `verify` never plan a feature
+    import shapely
 
 __all__ = [
     "Coolant",
@@ -255,6 +258,8 @@ def swept_region(path_uv: FloatArray, tool_radius: float, *, tolerance: float = 
     -------
     shapely.Polygon — may have interior rings (a closed contour sweeps a band)
     """
+    import shapely
+
     path_uv = np.asarray(path_uv, dtype=np.float64).reshape(-1, 2)
     if len(path_uv) == 0:
         raise ValueError("swept_region: empty path")
@@ -275,6 +280,8 @@ def _reach(region: shapely.Geometry, material: shapely.Geometry, *, tol: float =
     ``material`` grown by it. Otherwise (the region covers the middle of an opening, where the
     maximum is inside the region) it is bisected on "region within material grown by t".
     """
+    import shapely
+
     if region.is_empty:
         return 0.0
     vertices = shapely.points(shapely.get_coordinates(region))
@@ -322,6 +329,8 @@ def check_fits(face: Face, region: shapely.Geometry, what: str) -> None:
         ``<what>: does not fit on face 0: cuts 1.234 mm into the hole in the face at (u 5.000, v 0.000)``
         (how deep the region reaches into the hole; ``touches the hole ...`` when it only touches).
     """
+    import shapely
+
     outline = shapely.Polygon(face.boundary.exterior)
     head = f"{what}: does not fit on face {face.index}"
     if not region.covered_by(outline):

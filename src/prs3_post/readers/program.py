@@ -36,8 +36,6 @@ import re
 from dataclasses import dataclass
 
 import numpy as np
-import pygcode
-import pygcode.exceptions
 
 from prs3_post.config import AXIS_LETTERS, Dialect
 from prs3_post.errors import InputError
@@ -175,6 +173,8 @@ def _scan_words(code: str) -> tuple[list[tuple[str, float, str]], str | None]:
 
 def _pygcode_words(code: str) -> list[tuple[str, float]]:
     """pygcode's reading of the same code, as ``(letter, value)``; raises what pygcode raises."""
+    import pygcode  # only `verify` and `preview` read programs: the other commands need not load it
+
     line = pygcode.Line(code)
     return [(w.letter.upper(), float(w.value)) for w in line.block.words]
 
@@ -389,6 +389,8 @@ class _Reader:
 
     def cross_check(self, words: list[tuple[str, float, str]], code: str) -> None:
         """pygcode must read the same words from the same code; else it is not plain G-code."""
+        import pygcode.exceptions
+
         try:
             theirs = _pygcode_words(code)
         except (pygcode.exceptions.GCodeBlockFormatError, pygcode.exceptions.GCodeWordStrError,

@@ -27,12 +27,16 @@ from __future__ import annotations
 import os
 import re
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import trimesh
 
 from prs3_post.errors import InputError
 from prs3_post.readers.files import read_input
 from prs3_post.types import FloatArray
+
+if TYPE_CHECKING:  # trimesh (with networkx and PIL) costs 200 ms: imported by the commands that read an STL
+    import trimesh
 
 UNIT_SCALE: dict[str, float] = {"mm": 1.0, "inch": 25.4}
 """mm per file unit, for each accepted ``units`` value."""
@@ -84,6 +88,8 @@ def load_part(path: str | os.PathLike[str], *, units: str = "mm") -> trimesh.Tri
     count = len(triangles)
     if count == 0:
         raise InputError("STL has no triangles", path=where)
+    import trimesh
+
     try:
         mesh = trimesh.Trimesh(
             vertices=triangles.reshape(-1, 3),
@@ -307,6 +313,8 @@ def _orient_outward(mesh: trimesh.Trimesh, where: str) -> None:
             "repair the STL (close its holes) and export it again",
             path=where,
         )
+    import trimesh.repair
+
     trimesh.repair.fix_normals(mesh, multibody=True)
     if not mesh.is_winding_consistent:
         raise InputError(
