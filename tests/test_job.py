@@ -33,7 +33,8 @@ from numpy.testing import assert_allclose
 import prs3_post.cli as cli_module
 from prs3_post.cli import main
 from prs3_post.config import Geometry, load_dialect, load_machine
-from prs3_post.job import JobResult, JobSpec, Operation, run_job
+from prs3_post.job import JobResult, JobSpec, Operation, ProfileJob, run_job
+from prs3_post.setup import Setup
 from prs3_post.kinematics import forward, inverse
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, ProfileParams, Side, SquareShape
 from prs3_post.toolpath import MoveKind
@@ -384,7 +385,7 @@ def test_replay_through_forward_kinematics(made: dict[str, Made], name: str) -> 
     assert len(program) == len(result.post.path) == len(moves.kind) == n
     assert moves.kind.tolist() == program.kind.tolist() == path_part.kind.tolist()
     assert_allclose(path_part.axis, np.tile(face.normal, (n, 1)), rtol=0, atol=0)
-    intended_tip = path_part.tip + result.part_origin                      # machine frame, part-relative
+    intended_tip = path_part.tip + result.setup.shift                      # machine frame, part-relative
     exact = np.column_stack([program.stage, program.strokes])              # (N, 5) unrounded X Y T1 T2 T3
 
     # the printed words are the program's values rounded to their last digit
@@ -427,8 +428,8 @@ def test_replay_through_forward_kinematics(made: dict[str, Made], name: str) -> 
     rows = np.array(sorted(depth_of))
     assert len(rows) >= 1
     want = -np.array([depth_of[r] for r in rows])
-    w_exact = (fk.tip[rows] - result.part_origin - face.origin) @ face.normal
-    w_printed = (fk_printed.tip[rows] - result.part_origin - face.origin) @ face.normal
+    w_exact = (fk.tip[rows] - result.setup.shift - face.origin) @ face.normal
+    w_printed = (fk_printed.tip[rows] - result.setup.shift - face.origin) @ face.normal
     assert_allclose(w_exact, want, rtol=0, atol=1e-6)
     assert np.all(np.abs(w_printed - want) <= 1e-6 + tip_bound[rows])
     assert want.min() == -depth
@@ -449,7 +450,7 @@ def test_joint_space_moves_stay_straight(made: dict[str, Made], name: str) -> No
     geometry = load_machine("patel2020").geometry
     program = result.post.program
     joints = np.column_stack([program.stage, program.strokes])
-    tip = result.path_part.tip + result.part_origin
+    tip = result.path_part.tip + result.setup.shift
     for t in (0.25, 0.5, 0.75):
         mixed = (1 - t) * joints[:-1] + t * joints[1:]
         fk = forward(geometry, mixed[:, 2:], mixed[:, :2])
@@ -507,7 +508,7 @@ def test_case_2a_square_first_feed_ends_at_the_paper_point(made: dict[str, Made]
     assert_allclose(joints[2:], [36.2244, 170.3886, 88.9519], rtol=0, atol=5e-4)
 
     # the printed words of that row are the exact IK of the row's tip, rounded to 4 decimals
-    mine = _exact_ik(path.tip[row] + result.part_origin, result.face.normal)
+    mine = _exact_ik(path.tip[row] + result.setup.shift, result.face.normal)
     assert_allclose(mine, joints, rtol=0, atol=1e-9)
     words = read_moves(item.text).words[row]
     assert words == {a: f"{v:.4f}" for a, v in zip(AXES, mine)}
@@ -537,7 +538,7 @@ def test_case_2a_hole_at_the_paper_point(made: dict[str, Made]) -> None:
     t = clearance / (clearance + depth)
     joints = np.column_stack([program.stage, program.strokes])
     at_face = (1 - t) * joints[feed - 1] + t * joints[feed]
-    face_tip = dropped + result.part_origin
+    face_tip = dropped + result.setup.shift
     fk = forward(load_machine("patel2020").geometry, at_face[None, 2:], at_face[None, :2])
     assert_allclose(fk.tip[0], face_tip, rtol=0, atol=1e-6)
     assert_allclose(at_face, _exact_ik(face_tip, face.normal), rtol=0, atol=1e-9)
@@ -574,16 +575,17 @@ def test_job_spec_gives_the_cli_program(made: dict[str, Made]) -> None:
     """run_job with a JobSpec built by hand is the program the CLI wrote (options map one to one;
     --rotation is in degrees on the command line, radians in SquareShape)."""
     spec = JobSpec(
-        part=_part("tilt35.stl"), units="mm", face=None, operation=Operation.SQUARE,
-        at_uv=np.zeros((0, 2)), at_xyz=np.zeros((0, 3)), holes=None,
-        shape=SquareShape(size=40.0, corner_radius=4.0, rotation=math.radians(15.0)),
-        profile=ProfileParams(side=Side.INSIDE, depth=2.0, step_down=1.0, direction=Direction.CLIMB,
-                              entry=Entry.RAMP, ramp_angle=math.radians(3.0), clearance=2.0, retract=10.0),
+        part=_part("tilt35.stl"), units="mm", face=None,
+        work=ProfileJob(SquareShape(size=40.0, corner_radius=4.0, rotation=math.radians(15.0)),
+                        ProfileParams(side=Side.INSIDE, depth=2.0, step_down=1.0, direction=Direction.CLIMB,
+                                      entry=Entry.RAMP, ramp_angle=math.radians(3.0), clearance=2.0, retract=10.0)),
+        at_uv=np.zeros((0, 2)), at_xyz=np.zeros((0, 3)),
         cutting=Cutting(tool_diameter=6.0, feed=300.0, plunge_feed=100.0, spindle_rpm=3000.0,
                         coolant=Coolant.FLOOD, tool_number=1),
-        machine=load_machine("patel2020"), dialect=load_dialect("linuxcnc"), tolerance=0.01,
+        machine=load_machine("patel2020"), dialect=load_dialect("linuxcnc"),
+        setup=Setup.resolve(load_machine("patel2020")), tolerance=0.01,
     )
     result = run_job(spec)
     assert result.text == made["tilt35-square.ngc"].text
     assert result.face.index == 4
-    assert_allclose(result.part_origin, [-100.0, -200.0, -970.0], rtol=0, atol=0)
+    assert_allclose(result.setup.shift, [-100.0, -200.0, -970.0], rtol=0, atol=0)

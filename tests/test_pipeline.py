@@ -13,10 +13,11 @@ from prs3_post.errors import LimitError, ReachError
 from prs3_post.kinematics import forward, inverse
 from prs3_post.linearize import CHECK_FRACTIONS, joint_path_deviation, slerp, subdivide_axis_changes
 from prs3_post.pipeline import inverse_time, post_process
+from prs3_post.setup import Setup
 from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
 
 MACHINE = load_machine("patel2020")
-ORIGIN = np.array([-100.0, -200.0, -970.0])
+ORIGIN = Setup((-100.0, -200.0, -970.0))
 A = np.array([1.0, 0.0, 2.0]) / np.sqrt(5.0)           # the wedge face normal
 
 
@@ -88,7 +89,7 @@ def test_head_alone_moves_its_tip_only_vertically_at_a_fixed_tilt():
     head = load_machine("patel2020-head")
     tip_part = np.array([18.9736, 221.2132, 290.5135])
     p = path([tip_part + [0, 0, 10], tip_part], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100])
-    shifted = ORIGIN - np.array([-2.7640208, 12.0703266, 0.0])   # the part placed under the head's tip
+    shifted = ORIGIN.with_origin(ORIGIN.shift - np.array([-2.7640208, 12.0703266, 0.0]))   # the part placed under the head's tip
     result = post_process(head, p, shifted)
     assert_allclose(result.program.stage, 0.0, atol=0.0)
     assert_allclose(result.ik.stage, 0.0, atol=1e-6)

@@ -16,6 +16,7 @@ from prs3_post.config import load_dialect, load_machine
 from prs3_post.errors import Prs3Error
 from prs3_post.geometry import find_faces, select_face
 from prs3_post.kinematics import forward
+from prs3_post.setup import Setup
 from prs3_post.readers.program import load_program
 from prs3_post.readers.stl import load_part
 from prs3_post.toolpath import MoveKind
@@ -27,7 +28,7 @@ REPO = Path(__file__).resolve().parents[1]
 VERIFY = REPO / "fixtures" / "verify"
 WEDGE = REPO / "postproc" / "parts" / "patel2020-wedge.stl"
 MACHINE = load_machine("patel2020")
-ORIGIN = np.array(MACHINE.part_origin)
+SETUP = Setup.resolve(MACHINE)
 
 
 def run(*args: object):
@@ -42,7 +43,7 @@ def drawn():
     program = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc"))
     mesh = load_part(WEDGE)
     face, _ = select_face(find_faces(mesh), None)
-    report = verify_program(MACHINE, program.moves, part_origin=ORIGIN)
+    report = verify_program(MACHINE, program.moves, setup=SETUP)
     figure = render_preview(report, MACHINE, mesh=mesh.triangles, face_triangles=face.triangles, face_label="face 4")
     return program.moves, report, figure
 
@@ -67,7 +68,7 @@ def test_3d_path_is_the_fk_path_of_the_joint_interpolation(drawn, label, kind):
         t = np.linspace(0.0, 1.0, len(piece))[:, None]
         q = (1 - t) * joints[r - 1] + t * joints[r]
         fk = forward(MACHINE.geometry, q[:, 2:], q[:, :2])
-        assert_allclose(piece, fk.tip - ORIGIN, atol=1e-9)
+        assert_allclose(piece, fk.tip - SETUP.shift, atol=1e-9)
         assert len(piece) >= 9                          # at least 8 intervals per move
 
 
@@ -126,7 +127,7 @@ def test_preview_without_matplotlib_is_a_clear_error(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     program = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc"))
     with pytest.raises(Prs3Error) as caught:
-        render_preview(verify_program(MACHINE, program.moves, part_origin=ORIGIN), MACHINE)
+        render_preview(verify_program(MACHINE, program.moves, setup=SETUP), MACHINE)
     assert str(caught.value) == "preview needs matplotlib: pip install 'prs3-post[plot]'"
     out, ngc = tmp_path / "p.png", tmp_path / "p.ngc"
     for args in (("preview", VERIFY / "small.ngc", "-o", out),
@@ -167,7 +168,7 @@ def test_stage_panel_draws_each_axis_travel_in_its_own_colour(tmp_path):
     path.write_text(text.replace("travel_y_mm = [-300.0, 300.0]", "travel_y_mm = [-20.0, 20.0]"))
     machine = load_machine(str(path))
     program = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc"))
-    report = verify_program(machine, program.moves, part_origin=ORIGIN)
+    report = verify_program(machine, program.moves, setup=SETUP)
     ax_xy = render_preview(report, machine).axes[2]
     x_colour, y_colour = "#9467bd", "#8c564b"
     limit_lines = [(ln.get_label(), ln.get_color(), ln.get_linestyle(), list(ln.get_ydata()))

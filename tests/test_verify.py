@@ -16,6 +16,7 @@ from prs3_post.config import load_dialect, load_machine
 from prs3_post.errors import InputError
 from prs3_post.job import run_job
 from prs3_post.kinematics import forward
+from prs3_post.setup import Setup
 from prs3_post.readers.program import load_program, read_program
 from prs3_post.toolpath import EventKind, MoveKind
 from prs3_post.verify import EPSILON_FRACTION, PROBE_INTERVALS, Intended, replay, verify_program
@@ -360,7 +361,7 @@ def test_verify_help_has_an_example():
 
 def test_verify_program_library_call_reports_rounding():
     program = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc")).moves
-    report = verify_program(MACHINE, program, part_origin=np.array(MACHINE.part_origin))
+    report = verify_program(MACHINE, program, setup=Setup.resolve(MACHINE))
     assert report.ok
     # half a unit of 4 decimals on X, Y and the three strokes moves the tip by less than 5 × 5e-5 mm
     assert np.all((report.rounding > 5e-5) & (report.rounding < 2.5e-4))
@@ -396,7 +397,7 @@ def test_text_report_against_line_comes_from_the_summary_not_the_json_record(mon
     axis[3] = (axis[3] + [0.001, 0.0, 0.0]) / np.linalg.norm(axis[3] + [0.001, 0.0, 0.0])   # line 12's axis
     intended = Intended(tip=tip, axis=axis, feed=np.full(len(tip), np.nan), kind=np.full(len(tip), -1),
                         label="shifted.csv")
-    report = verify_program(MACHINE, moves, part_origin=np.array(MACHINE.part_origin), intended=intended)
+    report = verify_program(MACHINE, moves, setup=Setup.resolve(MACHINE), intended=intended)
     record = fmt.report_record(report, path="small.ngc", dialect="linuxcnc")
     assert fmt.against_summary(report) == record["against"]
     turned = math.degrees(math.acos(np.clip(fk.axis[3] @ axis[3], -1.0, 1.0)))   # clip: rounding past 1

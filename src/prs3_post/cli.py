@@ -24,10 +24,11 @@ from prs3_post.config import Dialect, Machine, load_dialect, load_machine, postp
 from prs3_post.errors import FeatureError, InputError, Prs3Error, ReachError
 from prs3_post.face import Face
 from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
-from prs3_post.job import JobSpec, Operation, run_job
+from prs3_post.job import HoleJob, JobSpec, Operation, ProfileJob, run_job
 from prs3_post.ops.common import require_tolerance
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
 from prs3_post.readers.stl import load_part
+from prs3_post.setup import Setup, SetupError
 from prs3_post.kinematics import IKModel, PoseError, forward, inverse, unit_axes
 from prs3_post.limits import check_limits
 from prs3_post.readers.poses import read_poses
@@ -122,6 +123,26 @@ def run_reported(action: Callable[[], int | None]) -> None:
 def demo_part() -> Path:
     """The bundled demo part: the paper's wedge."""
     return postproc_dir() / "parts" / "patel2020-wedge.stl"
+
+
+part_origin_option = click.option(
+    "--part-origin", type=Numbers("X,Y,Z"), default=None,
+    help="Machine coordinates of the part origin, mm.  [default: the machine file's setup]",
+)
+part_rotation_option = click.option(
+    "--part-rotation", "part_rotation", type=float, default=None, metavar="DEG",
+    help="Rotation of the part about the machine z axis, degrees, counter-clockwise seen from above "
+         "(p_machine = Rz(DEG)·p_part + part origin).  [default: 0]",
+)
+
+
+def resolve_setup(machine: Machine, origin: tuple[float, ...] | None, rotation_deg: float | None) -> Setup:
+    """The job's :class:`Setup` from --part-origin / --part-rotation (None: the machine's default)."""
+    try:
+        return Setup.resolve(machine, origin, rotation_deg)
+    except SetupError as error:
+        hint = "'--part-rotation'" if error.field == "rotation" else "'--part-origin'"
+        raise click.BadParameter(str(error), param_hint=hint) from error
 
 
 machine_option = click.option(
@@ -334,8 +355,8 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="Coolant during cutting: flood (M8), mist (M7) or off."),
         # machine, setup and output
         machine_option,
-        click.option("--part-origin", type=Numbers("X,Y,Z"), default=None,
-                     help="Machine coordinates of the part origin, mm.  [default: the machine file's setup]"),
+        part_origin_option,
+        part_rotation_option,
         click.option("--dialect", "dialect_name", default="linuxcnc", show_default=True, metavar="NAME|PATH",
                      help="G-code dialect: linuxcnc, fanuc, or a dialect TOML file."),
         click.option("--line-numbers/--no-line-numbers", default=None,
@@ -364,7 +385,7 @@ def _run_job(part: str, **opts: Any) -> int:
     if fmt is not None:                                # draw before writing anything: no half results
         program = read_program(result.text, spec.dialect, path=opts["out_path"] or "<program>",
                                stage=spec.machine.stage.present)
-        image = _preview_bytes(program, spec.machine, result.part_origin, fmt, tolerance=spec.tolerance,
+        image = _preview_bytes(program, spec.machine, result.setup, fmt, tolerance=spec.tolerance,
                                mesh=result.triangles, face=result.face, title=Path(part).name, dialect=spec.dialect)
     output(result.text, opts["out_path"])
     if not to_stdout(opts["out_path"]):
@@ -394,21 +415,22 @@ def _job_spec(part: str, opts: dict[str, Any]) -> JobSpec:
         tool_diameter=opts["tool_diameter"], feed=opts["feed"], plunge_feed=opts["plunge_feed"],
         spindle_rpm=opts["spindle"], coolant=Coolant(opts["coolant"]), tool_number=opts["tool_number"],
     )
-    holes = shape = profile = None
+    work: HoleJob | ProfileJob
     if operation is Operation.HOLE:
-        holes = HoleParams(depth=depth, peck=opts["peck"], dwell=opts["dwell"], clearance=opts["clearance"],
-                           retract=opts["retract"], reapproach_gap=opts["reapproach_gap"])
+        work = HoleJob(HoleParams(depth=depth, peck=opts["peck"], dwell=opts["dwell"], clearance=opts["clearance"],
+                                  retract=opts["retract"], reapproach_gap=opts["reapproach_gap"]))
     else:
+        shape: SquareShape | RoundShape
         if operation is Operation.SQUARE:
             shape = SquareShape(size=opts["size"], corner_radius=opts["corner_radius"],
                                 rotation=math.radians(opts["rotation"]))
         else:
             shape = RoundShape(diameter=opts["diameter"])
-        profile = ProfileParams(
+        work = ProfileJob(shape, ProfileParams(
             side=Side(opts["side"]), depth=depth, step_down=opts["step_down"], direction=Direction(opts["direction"]),
             entry=Entry(opts["entry"]), ramp_angle=math.radians(opts["ramp_angle"]), clearance=opts["clearance"],
             retract=opts["retract"],
-        )
+        ))
     dialect = load_dialect(opts["dialect_name"])
     wrap = dialect.line_numbers.wrap_after
     start = dialect.line_numbers.start if opts.get("line_start") is None else opts["line_start"]
@@ -417,13 +439,13 @@ def _job_spec(part: str, opts: dict[str, Any]) -> JobSpec:
         raise click.BadParameter(
             f"--line-start {start} + --line-step {step} passes dialect {dialect.name}'s largest block number "
             f"{wrap}: every block would get the same number", param_hint="'--line-start'")
+    machine = load_machine(opts["machine_name"])
     return JobSpec(
-        part=part, units=opts["units"], face=face, operation=operation,
+        part=part, units=opts["units"], face=face, work=work,
         at_uv=np.array(opts["at_uv"], dtype=np.float64).reshape(-1, 2),
         at_xyz=np.array(opts["at_xyz"], dtype=np.float64).reshape(-1, 3),
-        holes=holes, shape=shape, profile=profile, cutting=cutting,
-        machine=load_machine(opts["machine_name"]), dialect=dialect,
-        part_origin=opts["part_origin"], tolerance=opts["tolerance"],
+        cutting=cutting, machine=machine, dialect=dialect,
+        setup=resolve_setup(machine, opts["part_origin"], opts.get("part_rotation")), tolerance=opts["tolerance"],
         line_numbers=opts.get("line_numbers"), line_start=opts.get("line_start"), line_step=opts.get("line_step"),
     )
 
@@ -536,28 +558,27 @@ def _image_format(path: str) -> str:
     return suffix[1:]
 
 
-def _verify_loaded(program: ProgramFile, machine: Machine, part_origin: tuple[float, ...] | np.ndarray,
-                   dialect: Dialect, *,
+def _verify_loaded(program: ProgramFile, machine: Machine, setup: Setup, dialect: Dialect, *,
                    tolerance: float, axis_tolerance_deg: float = 0.01,
                    intended: Intended | None = None) -> VerifyReport:
     """verify_program on a read program, with the dialect's decimals; no moves is an input error."""
     if not len(program.moves):
         raise InputError("no moves (G0/G1 lines) in the program", path=program.path)
     return verify_program(
-        machine, program.moves, part_origin=np.asarray(part_origin, dtype=np.float64), tolerance=tolerance,
+        machine, program.moves, setup=setup, tolerance=tolerance,
         axis_tolerance=math.radians(axis_tolerance_deg), intended=intended,
         length_decimals=dialect.decimals.length, feed_decimals=dialect.decimals.inverse_time,
         blending_lines=program.blending_lines,
     )
 
 
-def _preview_bytes(program: ProgramFile, machine: Machine, part_origin: tuple[float, ...] | np.ndarray, fmt: str, *,
+def _preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str, *,
                    dialect: Dialect, tolerance: float = 0.002, mesh: np.ndarray | None = None,
                    face: Face | None = None, title: str = "", rapid_rate: float = 5000.0) -> bytes:
     """Replay a read program and draw it (prs3_post.preview imports matplotlib lazily)."""
     from prs3_post.preview import figure_bytes, render_preview
 
-    report = _verify_loaded(program, machine, part_origin, dialect, tolerance=tolerance)
+    report = _verify_loaded(program, machine, setup, dialect, tolerance=tolerance)
     label = "face" if face is None else f"face {face.index} ({math.degrees(face.inclination):.2f}°)"
     heading = f"{title}: " if title else ""
     fig = render_preview(
@@ -644,7 +665,7 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
         machine = load_machine(opts["machine_name"])
         dialect = load_dialect(opts["dialect_name"])
         program = load_program(program_path, dialect, stage=machine.stage.present)
-        origin = opts["part_origin"] if opts["part_origin"] is not None else machine.part_origin
+        setup = resolve_setup(machine, opts["part_origin"], opts["part_rotation"])
         require_tolerance(opts["tolerance"])
         if not (math.isfinite(axis_tolerance_deg) and axis_tolerance_deg >= 0):
             raise click.BadParameter(f"must be a number ≥ 0 degrees, got {axis_tolerance_deg:g}",
@@ -657,7 +678,7 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
                 raise click.UsageError(f"{', '.join(_option_flags(ctx, given))}: the operation options are only "
                                        "used with --against PART.stl")
         intended = _intended(against_path, program, opts) if against_path else None
-        report = _verify_loaded(program, machine, origin, dialect, tolerance=opts["tolerance"],
+        report = _verify_loaded(program, machine, setup, dialect, tolerance=opts["tolerance"],
                                 axis_tolerance_deg=axis_tolerance_deg, intended=intended)
         if as_json:
             click.echo(json.dumps(report_record(report, path=program_path, dialect=dialect.name), allow_nan=False))
@@ -680,12 +701,13 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
 @machine_option
 @click.option("--dialect", "dialect_name", default="linuxcnc", show_default=True, metavar="NAME|PATH",
               help="G-code dialect of the program: linuxcnc, fanuc, or a dialect TOML file.")
-@click.option("--part-origin", type=Numbers("X,Y,Z"), default=None,
-              help="Machine coordinates of the part origin, mm.  [default: the machine file's setup]")
+@part_origin_option
+@part_rotation_option
 @click.option("--rapid-rate", type=click.FloatRange(min=0.0, min_open=True), default=5000.0, show_default=True,
               help="Joint-space rate of G0 moves for the time axis, mm/min (the longest joint travel at this rate).")
 def preview(program_path: str, out_path: str, part_path: str | None, face_choice: str, units: str,
-            machine_name: str, dialect_name: str, part_origin: tuple[float, ...] | None, rapid_rate: float) -> None:
+            machine_name: str, dialect_name: str, part_origin: tuple[float, ...] | None, part_rotation: float | None,
+            rapid_rate: float) -> None:
     """Draw a program: the FK tool path on the part, the axes over time, the limit margins.
 
     One figure: (a) 3D view in part coordinates of the part mesh (--part), its face (highlighted)
@@ -707,14 +729,14 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
         machine = load_machine(machine_name)
         dialect = load_dialect(dialect_name)
         program = load_program(program_path, dialect, stage=machine.stage.present)
-        origin = part_origin if part_origin is not None else machine.part_origin
+        setup = resolve_setup(machine, part_origin, part_rotation)
         mesh = face = None
         if part_path is not None:
             choice = _face_index(face_choice)
             loaded = load_part(part_path, units=units)
             face, _ = select_face(find_faces(loaded), choice)
             mesh = loaded.triangles
-        image = _preview_bytes(program, machine, origin, fmt, dialect=dialect, mesh=mesh, face=face,
+        image = _preview_bytes(program, machine, setup, fmt, dialect=dialect, mesh=mesh, face=face,
                                rapid_rate=rapid_rate, title=Path(part_path).name if part_path else "")
         write_atomic(out_path, image)
         click.echo(f"prs3-post: wrote {out_path}", err=True)

@@ -25,6 +25,7 @@ from prs3_post.ops.common import require_tolerance
 from prs3_post.ops import Cutting, HoleParams, ProfileParams, RoundShape, SquareShape, plan_holes, plan_profile
 from prs3_post.pipeline import PostResult, post_process
 from prs3_post.readers.stl import load_part
+from prs3_post.setup import Setup
 from prs3_post.toolpath import Toolpath
 from prs3_post.types import FloatArray
 
@@ -41,24 +42,57 @@ class Operation(enum.Enum):
 
 
 @dataclass(frozen=True, slots=True)
+class HoleJob:
+    """A hole operation: drill at each position.
+
+    Attributes
+    ----------
+    params : HoleParams
+    """
+
+    params: HoleParams
+
+    @property
+    def operation(self) -> Operation:
+        """Always :attr:`Operation.HOLE`."""
+        return Operation.HOLE
+
+
+@dataclass(frozen=True, slots=True)
+class ProfileJob:
+    """A square or round profile at one position.
+
+    Attributes
+    ----------
+    shape : SquareShape | RoundShape — which outline (and so which operation)
+    params : ProfileParams
+    """
+
+    shape: SquareShape | RoundShape
+    params: ProfileParams
+
+    @property
+    def operation(self) -> Operation:
+        """:attr:`Operation.SQUARE` or :attr:`Operation.ROUND`, from the shape."""
+        return Operation.SQUARE if isinstance(self.shape, SquareShape) else Operation.ROUND
+
+
+@dataclass(frozen=True, slots=True)
 class JobSpec:
-    """Everything the main job needs; built by the CLI from its options.
+    """Everything the main job needs; built by the CLI from its options (or from a program header).
 
     Attributes
     ----------
     part : str — STL path
     units : str — ``mm`` or ``inch`` (the STL's length unit)
     face : int | None — face index, None = automatic choice
-    operation : Operation
+    work : HoleJob | ProfileJob — the operation and its parameters
     at_uv : (K, 2) float — mm, feature positions in face (u, v); empty = see ``at_xyz``
     at_xyz : (K, 3) float — mm, feature positions in part coordinates, projected onto the face
-    holes : HoleParams | None — for HOLE
-    shape : SquareShape | RoundShape | None — for SQUARE / ROUND
-    profile : ProfileParams | None — for SQUARE / ROUND
     cutting : Cutting
     machine : Machine
     dialect : Dialect
-    part_origin : (3,) float | None — mm, machine coordinates of the part origin (None: machine default)
+    setup : Setup — where the part sits on the machine (:meth:`Setup.resolve` gives the machine's default)
     tolerance : float — mm, chordal tolerance of arcs and of axis-changing moves
     line_numbers, line_start, line_step : optional overrides of the dialect's block numbering
     """
@@ -66,26 +100,22 @@ class JobSpec:
     part: str
     units: str
     face: int | None
-    operation: Operation
+    work: HoleJob | ProfileJob
     at_uv: FloatArray
     at_xyz: FloatArray
-    holes: HoleParams | None
-    shape: SquareShape | RoundShape | None
-    profile: ProfileParams | None
     cutting: Cutting
     machine: Machine
     dialect: Dialect
-    part_origin: tuple[float, float, float] | None = None
+    setup: Setup
     tolerance: float = 0.002
     line_numbers: bool | None = None
     line_start: int | None = None
     line_step: int | None = None
 
-    def __post_init__(self) -> None:
-        if self.operation is Operation.HOLE and self.holes is None:
-            raise ValueError("JobSpec: a hole operation needs holes (HoleParams)")
-        if self.operation is not Operation.HOLE and (self.shape is None or self.profile is None):
-            raise ValueError(f"JobSpec: a {self.operation.value} operation needs shape and profile")
+    @property
+    def operation(self) -> Operation:
+        """What is cut (from :attr:`work`)."""
+        return self.work.operation
 
 
 @dataclass(frozen=True, slots=True)
@@ -99,7 +129,7 @@ class JobResult:
     face_note : str — how that face was chosen
     path_part : Toolpath — the operation's toolpath in part coordinates
     post : PostResult — the machine-frame rows, IK, limits and the joint program
-    part_origin : (3,) float — the setup used
+    setup : Setup — the setup used
     triangles : (F, 3, 3) float — mm, the part's triangles in part coordinates (for pictures)
     """
 
@@ -108,7 +138,7 @@ class JobResult:
     face_note: str
     path_part: Toolpath
     post: PostResult
-    part_origin: FloatArray
+    setup: Setup
     triangles: FloatArray
 
 
@@ -127,12 +157,13 @@ def positions(face: Face, at_uv: FloatArray, at_xyz: FloatArray) -> FloatArray:
 def plan(spec: JobSpec, face: Face) -> Toolpath:
     """The operation's toolpath in part coordinates."""
     centres = positions(face, spec.at_uv, spec.at_xyz)
-    if spec.operation is Operation.HOLE:
-        return plan_holes(face, centres, spec.holes, spec.cutting)
+    work = spec.work
+    if isinstance(work, HoleJob):
+        return plan_holes(face, centres, work.params, spec.cutting)
     if len(centres) > 1:
         raise FeatureError(f"--profile {spec.operation.value} cuts one feature: give one --at or --at-xyz "
                            f"(got {len(centres)})")
-    return plan_profile(face, centres[0], spec.shape, spec.profile, spec.cutting, tolerance=spec.tolerance)
+    return plan_profile(face, centres[0], work.shape, work.params, spec.cutting, tolerance=spec.tolerance)
 
 
 def run_job(spec: JobSpec) -> JobResult:
@@ -150,12 +181,11 @@ def run_job(spec: JobSpec) -> JobResult:
     except FeatureError as error:                     # about this file's faces: say which file
         raise InputError(str(error), path=spec.part) from error
     path_part = plan(spec, face)
-    origin = np.asarray(spec.machine.part_origin if spec.part_origin is None else spec.part_origin, dtype=np.float64)
-    post = post_process(spec.machine, path_part, origin, tolerance=spec.tolerance)
-    text = emit_program(post.program, spec.dialect, header=header(spec, face, origin),
+    post = post_process(spec.machine, path_part, spec.setup, tolerance=spec.tolerance)
+    text = emit_program(post.program, spec.dialect, header=header(spec, face),
                         stage=spec.machine.stage.present, line_numbers=spec.line_numbers,
                         line_start=spec.line_start, line_step=spec.line_step)
-    return JobResult(text=text, face=face, face_note=note, path_part=path_part, post=post, part_origin=origin,
+    return JobResult(text=text, face=face, face_note=note, path_part=path_part, post=post, setup=spec.setup,
                      triangles=np.asarray(mesh.triangles, dtype=np.float64))
 
 
@@ -168,16 +198,16 @@ def _fixed(value: float, decimals: int = 4) -> str:
     return text[1:] if text.startswith("-") and float(text) == 0 else text
 
 
-def header(spec: JobSpec, face: Face, origin: FloatArray) -> tuple[tuple[str, str], ...]:
+def header(spec: JobSpec, face: Face) -> tuple[tuple[str, str], ...]:
     """The program's header comments: what was made, from what, on which machine, in which units."""
     cut = spec.cutting
     op = spec.operation
-    if op is Operation.HOLE:
-        h = spec.holes
+    if isinstance(spec.work, HoleJob):
+        h = spec.work.params
         params = (f"depth {_fixed(h.depth, 3)} mm, peck {_fixed(h.peck, 3)} mm, dwell {_fixed(h.dwell, 3)} s, "
                   f"clearance {_fixed(h.clearance, 3)} mm, retract {_fixed(h.retract, 3)} mm")
     else:
-        s, p = spec.shape, spec.profile
+        s, p = spec.work.shape, spec.work.params
         if isinstance(s, SquareShape):
             size = (f"size {_fixed(s.size, 3)} mm, corner radius {_fixed(s.corner_radius, 3)} mm, "
                     f"rotation {_fixed(math.degrees(s.rotation), 3)} deg")
@@ -192,7 +222,7 @@ def header(spec: JobSpec, face: Face, origin: FloatArray) -> tuple[tuple[str, st
         ("part", f"{Path(spec.part).name}, units {spec.units}"),
         ("face", f"{face.index}: inclination {_fixed(math.degrees(face.inclination))} deg, "
                  f"normal ({_mm(face.normal, 6)}), origin ({_mm(face.origin)}) mm"),
-        ("setup", f"part origin at machine ({_mm(origin)}) mm"),
+        ("setup", f"part origin at machine ({_mm(spec.setup.origin)}) mm"),
         ("operation", f"{op.value} at face (u, v) " + ", ".join(f"({_mm(c)})" for c in centres) + " mm"),
         ("parameters", params),
         ("tool", f"T{cut.tool_number} diameter {_fixed(cut.tool_diameter, 3)} mm, feed {_fixed(cut.feed, 1)} mm/min, "

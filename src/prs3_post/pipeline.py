@@ -18,26 +18,15 @@ from prs3_post.errors import LimitError, ReachError
 from prs3_post.kinematics import IKModel, IKResult, PoseError, inverse, unit_axes
 from prs3_post.limits import LimitReport, check_limits, raise_first_violation
 from prs3_post.linearize import subdivide_axis_changes
+from prs3_post.setup import Setup
 from prs3_post.toolpath import JointProgram, MoveKind, Toolpath
 from prs3_post.types import FloatArray
 
 
-def part_to_machine(part_origin: FloatArray) -> FloatArray:
-    """(4, 4) homogeneous transform of a setup that only translates the part (no rotation).
-
-    >>> part_to_machine(np.array([-100.0, -200.0, -970.0]))[:3, 3].tolist()
-    [-100.0, -200.0, -970.0]
-    """
-    transform = np.eye(4)
-    transform[:3, 3] = part_origin
-    return transform
-
-
-def transform_toolpath(path: Toolpath, transform: FloatArray) -> Toolpath:
-    """The toolpath with tips and axes carried through a (4, 4) rigid transform."""
-    rotation, shift = transform[:3, :3], transform[:3, 3]
+def place_toolpath(path: Toolpath, setup: Setup) -> Toolpath:
+    """The part-frame toolpath in the machine frame: tips and axes carried through the setup."""
     return Toolpath(
-        kind=path.kind, tip=path.tip @ rotation.T + shift, axis=path.axis @ rotation.T, feed=path.feed,
+        kind=path.kind, tip=setup.points_to_machine(path.tip), axis=setup.axes_to_machine(path.axis), feed=path.feed,
         source=path.source, events=path.events, source_labels=path.source_labels,
     )
 
@@ -65,14 +54,14 @@ def model_for(machine: Machine) -> IKModel:
     return IKModel.EXACT if machine.stage.present else IKModel.HEAD
 
 
-def post_process(machine: Machine, path_part: Toolpath, part_origin: FloatArray, *, tolerance: float = 0.002) -> PostResult:
+def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float = 0.002) -> PostResult:
     """Turn a part-frame toolpath into a checked joint-space program.
 
     Parameters
     ----------
     machine : Machine
     path_part : Toolpath — part coordinates
-    part_origin : (3,) float — mm, machine coordinates of the part origin (the setup)
+    setup : Setup — part → machine transform
     tolerance : float — mm, tip deviation allowed on moves whose axis changes
 
     Returns
@@ -86,7 +75,7 @@ def post_process(machine: Machine, path_part: Toolpath, part_origin: FloatArray,
     LimitError
         A point outside a machine limit, or a feed move with zero length.
     """
-    path = transform_toolpath(path_part, part_to_machine(np.asarray(part_origin, dtype=np.float64)))
+    path = place_toolpath(path_part, setup)
     try:
         unit = unit_axes(path.tip, path.axis)
     except PoseError as error:

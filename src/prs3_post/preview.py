@@ -88,7 +88,7 @@ def _axis_marks(report: VerifyReport, count: int, length: float) -> tuple[FloatA
         feed_rows = np.arange(len(report.program))
     chosen = feed_rows[np.unique(np.linspace(0, len(feed_rows) - 1, min(count, len(feed_rows))).round().astype(int))]
     ends = report.replay.end[chosen]
-    tip, axis = report.tip_part[ends], report.replay.axis[ends]
+    tip, axis = report.tip_part[ends], report.axis_part[ends]
     segments = np.stack([tip, tip + length * axis, np.full_like(tip, np.nan)], axis=1).reshape(-1, 3)
     return segments, chosen
 
@@ -253,7 +253,7 @@ def render_preview(
     ax3d.set_ylabel("y (mm)")
     ax3d.set_zlabel("z (mm)")
     ax3d.set_title("(a) tool path on the part (FK replay, part coordinates)", fontsize=10)
-    normal = np.nanmean(report.replay.axis, axis=0) if len(report.replay.axis) else np.array([0.0, 0.0, 1.0])
+    normal = np.nanmean(report.axis_part, axis=0) if len(report.replay.axis) else np.array([0.0, 0.0, 1.0])
     azimuth = math.degrees(math.atan2(normal[1], normal[0])) if np.hypot(normal[0], normal[1]) > 1e-6 else -60.0
     ax3d.view_init(elev=28.0, azim=azimuth - 55.0)
     ax3d.legend(loc="upper left", fontsize=8)

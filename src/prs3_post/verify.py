@@ -71,6 +71,7 @@ from prs3_post.errors import Prs3Error
 from prs3_post.kinematics import IKModel, IKResult, forward, inverse
 from prs3_post.limits import LimitReport, check_limits
 from prs3_post.linearize import slerp
+from prs3_post.setup import Setup
 from prs3_post.toolpath import EventKind, JointProgram, MoveKind
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
@@ -348,7 +349,7 @@ class VerifyReport:
     program : JointProgram — the rows as read (``source`` = line numbers)
     replay : Replay
     machine : str
-    part_origin : (3,) float — mm, machine coordinates of the part origin
+    setup : Setup — the part → machine transform the program was made for
     tolerance : float — mm
     axis_tolerance : float — rad
     rounding : (N,) float — mm, tip allowance for the output rounding of each row
@@ -365,7 +366,7 @@ class VerifyReport:
     program: JointProgram
     replay: Replay
     machine: str
-    part_origin: FloatArray
+    setup: Setup
     tolerance: float
     axis_tolerance: float
     rounding: FloatArray
@@ -392,14 +393,19 @@ class VerifyReport:
     @property
     def tip_part(self) -> FloatArray:
         """(S, 3) float — mm, FK tool tip in part coordinates."""
-        return self.replay.tip - self.part_origin
+        return self.setup.points_to_part(self.replay.tip)
+
+    @property
+    def axis_part(self) -> FloatArray:
+        """(S, 3) float — unit, FK tool axis in part coordinates."""
+        return self.setup.axes_to_part(self.replay.axis)
 
 
 def verify_program(
     machine: Machine,
     program: JointProgram,
     *,
-    part_origin: FloatArray,
+    setup: Setup,
     tolerance: float = 0.002,
     axis_tolerance: float = math.radians(0.01),
     length_decimals: int = 4,
@@ -413,7 +419,7 @@ def verify_program(
     ----------
     machine : Machine
     program : JointProgram — N ≥ 1 rows, ``source`` = line numbers
-    part_origin : (3,) float — mm, machine coordinates of the part origin (the setup)
+    setup : Setup — the part → machine transform (for part coordinates in the report)
     tolerance : float — mm, allowed tip deviation (plus the output rounding against a path)
     axis_tolerance : float — rad, allowed axis deviation from an intended path
     length_decimals, feed_decimals : int — decimals of the axis words and of F (the dialect's)
@@ -526,7 +532,7 @@ def verify_program(
     problems.sort(key=lambda p: p.line)
     warnings.sort(key=lambda p: p.line)
     return VerifyReport(
-        program=program, replay=rep, machine=machine.name, part_origin=np.asarray(part_origin, dtype=np.float64),
+        program=program, replay=rep, machine=machine.name, setup=setup,
         tolerance=tolerance, axis_tolerance=axis_tolerance, rounding=rounding, straightness=straightness,
         chord=chord, implied_feed=implied, feed_slack=slack, feed_groups=groups, closest=closest,
         against=against, problems=tuple(problems), warnings=tuple(warnings),

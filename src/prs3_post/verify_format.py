@@ -133,7 +133,8 @@ def report_record(report: VerifyReport, *, path: str = "", dialect: str = "",
         rows.append(record)
     return {
         "program": path, "dialect": dialect, "machine": report.machine, "ok": report.ok,
-        "part_origin_mm": _nums(report.part_origin), "tolerance_mm": report.tolerance,
+        "part_origin_mm": list(report.setup.origin), "part_rotation_deg": report.setup.rotation_deg,
+        "tolerance_mm": report.tolerance,
         "axis_tolerance_deg": math.degrees(report.axis_tolerance),
         **head,
         "sampling": {
