@@ -614,7 +614,7 @@ def test_line_too_long(linuxcnc: Dialect) -> None:
 
 
 SPINDLE = "spindle speed must be > 0 rpm once printed with decimals.spindle = 0, got"
-TOOL = "tool number must be a whole number ≥ 0, got"
+TOOL = "tool number must be a whole number 0..99999 (words.tool_number_max), got"
 
 
 @pytest.mark.parametrize(
@@ -625,6 +625,8 @@ TOOL = "tool number must be a whole number ≥ 0, got"
         (Event(1, EventKind.SPINDLE_ON, np.nan), f"spindle_on event before row 1 from hole 1 feed: {SPINDLE} nan"),
         (Event(2, EventKind.TOOL_CHANGE, 1.5), f"tool_change event after the last row: {TOOL} 1.5"),
         (Event(2, EventKind.TOOL_CHANGE, -1), f"tool_change event after the last row: {TOOL} -1.0"),
+        (Event(2, EventKind.TOOL_CHANGE, 100000), f"tool_change event after the last row: {TOOL} 100000.0"),
+        (Event(2, EventKind.TOOL_CHANGE, 1e20), f"tool_change event after the last row: {TOOL} 1e+20"),
         (
             Event(1, EventKind.DWELL, -0.5),
             "dwell event before row 1 from hole 1 feed: dwell must be a finite number ≥ 0 s, got -0.5",

@@ -346,7 +346,8 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="Safe height above the face between features, mm (along the tool axis)."),
         # tool and cutting data
         click.option("--tool-diameter", type=float, default=6.0, show_default=True, help="Tool diameter, mm."),
-        click.option("--tool-number", type=int, default=1, show_default=True, help="Tool number (T word)."),
+        click.option("--tool-number", type=int, default=1, show_default=True,
+                     help="Tool number (T word), 1 up to the dialect's words.tool_number_max (both shipped: 99999)."),
         click.option("--feed", type=float, default=300.0, show_default=True, help="Cutting feed at the tool tip, mm/min."),
         click.option("--plunge-feed", type=float, default=100.0, show_default=True,
                      help="Feed into the material (drilling, plunges, ramps), mm/min."),
@@ -432,6 +433,10 @@ def _job_spec(part: str, opts: dict[str, Any]) -> JobSpec:
             retract=opts["retract"],
         ))
     dialect = load_dialect(opts["dialect_name"])
+    if cutting.tool_number > dialect.tool_number_max:
+        raise click.BadParameter(
+            f"must be 1..{dialect.tool_number_max} with dialect {dialect.name} (its words.tool_number_max), "
+            f"got {cutting.tool_number}", param_hint="'--tool-number'")
     wrap = dialect.line_numbers.wrap_after
     start = dialect.line_numbers.start if opts.get("line_start") is None else opts["line_start"]
     step = dialect.line_numbers.step if opts.get("line_step") is None else opts["line_step"]

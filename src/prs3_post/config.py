@@ -340,6 +340,9 @@ _END_CODES = ("M2", "M30")
 _LINE_ENDINGS = {"\n": "LF", "\r\n": "CRLF"}
 #: Units of the G4 P word: LinuxCNC reads seconds, Fanuc (P without a decimal point) milliseconds.
 _DWELL_UNITS = ("s", "ms")
+#: The largest ``words.tool_number_max`` (8 digits, as program.number): far beyond it a tool
+#: number no longer survives the float of an event value (and LinuxCNC reads T2147483648 as negative).
+TOOL_NUMBER_LIMIT = 99_999_999
 
 
 @dataclass(frozen=True, slots=True)
@@ -451,6 +454,7 @@ class Dialect:
     postamble : tuple of str — blocks after the last move, before the end code
     modal_motion : bool — write G0/G1 only when it changes (False: on every motion line)
     dwell_unit : str — unit of the G4 P word, ``s`` or ``ms``
+    tool_number_max : int — the largest tool number (T word) the controller takes (1 is the smallest)
     """
 
     name: str
@@ -471,6 +475,7 @@ class Dialect:
     postamble: tuple[str, ...]
     modal_motion: bool
     dwell_unit: str
+    tool_number_max: int
 
     def __post_init__(self) -> None:
         if self.end_code not in _END_CODES:
@@ -665,6 +670,9 @@ def load_dialect(name_or_path: str) -> Dialect:
     dwell_unit = words.text("dwell_unit")
     if dwell_unit not in _DWELL_UNITS:
         raise words._error("dwell_unit", f"expected one of {', '.join(_DWELL_UNITS)}, got {dwell_unit!r}")
+    tool_number_max = words.integer("tool_number_max", minimum=1)
+    if tool_number_max > TOOL_NUMBER_LIMIT:
+        raise words._error("tool_number_max", f"must be 1..{TOOL_NUMBER_LIMIT}, got {tool_number_max}")
     words.finish()
     top.finish()
 
@@ -687,4 +695,5 @@ def load_dialect(name_or_path: str) -> Dialect:
         postamble=postamble,
         modal_motion=modal_motion,
         dwell_unit=dwell_unit,
+        tool_number_max=tool_number_max,
     )

@@ -242,8 +242,10 @@ def _event_blocks(program: JointProgram, event: Event, dialect: Dialect) -> tupl
     if event.kind is EventKind.COOLANT_OFF:
         return None, "M9"
     if event.kind is EventKind.TOOL_CHANGE:
-        if not (math.isfinite(value) and value >= 0 and value == int(value)):
-            raise LimitError(f"{where}: tool number must be a whole number ≥ 0, got {value!r}")
+        top = dialect.tool_number_max
+        if not (math.isfinite(value) and 0 <= value <= top and value == int(value)):
+            raise LimitError(f"{where}: tool number must be a whole number 0..{top} (words.tool_number_max), "
+                             f"got {value!r}")
         return (event.text or None), f"T{int(value)} M6"
     if event.kind is EventKind.DWELL:
         if not (math.isfinite(value) and value >= 0):
