@@ -82,19 +82,17 @@ def arc_sweep(centre: FloatArray, normal: FloatArray, start: FloatArray, end: Fl
 def arc_segment_count(radius: float, sweep: float, *, tolerance: float) -> int:
     """Fewest equal segments of an arc of ``radius`` (mm) and ``sweep`` (rad) with sagitta ≤ ``tolerance`` (mm).
 
-    At least 1; at least 4 for a full turn (so that the polygon has an area).
+    At least 1, and no segment spans more than a quarter turn (so a full turn has at least 4).
 
     >>> arc_segment_count(1.0, math.pi / 2, tolerance=0.1)
     2
     """
     if not (radius > 0.0 and tolerance > 0.0 and sweep > 0.0):
         raise ValueError(f"arc_segment_count: need radius, sweep, tolerance > 0, got {radius}, {sweep}, {tolerance}")
-    # clip: a tolerance of more than the diameter allows any step
-    max_step = 2.0 * math.acos(float(np.clip(1.0 - tolerance / radius, -1.0, 1.0)))
-    count = max(1, math.ceil(sweep / max_step - 1e-12))
-    if sweep >= 2.0 * math.pi - 1e-12:
-        count = max(4, count)
-    return count
+    # clip: a tolerance of more than the diameter allows any step; a quarter turn at most, so that
+    # the direction of the arc stays clear from its points
+    max_step = min(2.0 * math.acos(float(np.clip(1.0 - tolerance / radius, -1.0, 1.0))), 0.5 * math.pi)
+    return max(1, math.ceil(sweep / max_step - 1e-12))
 
 
 def arc_points_3d(centre: FloatArray, normal: FloatArray, start: FloatArray, end: FloatArray, *,
