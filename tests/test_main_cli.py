@@ -49,10 +49,10 @@ BAD = [
     ("no-inclined-face", ["run", "fixtures/bad/cube.stl", "--profile", "hole"],
      "prs3-post: error: fixtures/bad/cube.stl: no upward-facing inclined face (1° < inclination < 89°, normal z > 0): "
      "found 6 faces: 1 horizontal up, 1 horizontal down, 4 vertical\n", 2),
-    ("only-downward-face", ["run", "fixtures/bad/downward.stl", "--profile", "hole"],
-     "prs3-post: error: fixtures/bad/downward.stl: no upward-facing inclined face (1° < inclination < 89°, "
-     "normal z > 0): found 7 faces: 1 horizontal up, 1 horizontal down, 4 vertical, 1 inclined 45.0° facing down "
-     "(cannot be reached from above)\n",
+    ("only-downward-face", ["run", "fixtures/bad/downward.stl", "--profile", "hole"],  # plainer since issue 7
+     "prs3-post: error: fixtures/bad/downward.stl: the only inclined planar face, face 6 (45.0° from horizontal, "
+     "area 707.1 mm²), faces down (normal z = -0.7071): the tool cannot reach it from above; found 7 faces: "
+     "1 horizontal up, 1 horizontal down, 4 vertical, 1 inclined 45.0° facing down\n",
      2),
     ("wrong-units", ["run", "fixtures/bad/tiny.stl", "--profile", "hole"],
      "prs3-post: error: fixtures/bad/tiny.stl: part is only 0.1 x 0.1 x 0.325 mm (largest extent under 1 mm): "
@@ -158,13 +158,13 @@ def test_program_goes_to_standard_output_without_o(at_repo: Path) -> None:
 # ----------------------------------------------------------------------------- faces
 
 WEDGE_FACES = """\
-face   area mm²    incl °   normal x   normal y   normal z  origin x  origin y  origin z  kind
-   0  32500.000   90.0000  -1.000000   0.000000   0.000000  -50.0000  200.0000  162.5000  vertical
-   1  30000.000   90.0000   0.000000   1.000000   0.000000   -1.3889  250.0000  150.3472  vertical
-   2  30000.000   90.0000   0.000000  -1.000000   0.000000   -1.3889  150.0000  150.3472  vertical
-   3  27500.000   90.0000   1.000000   0.000000   0.000000   50.0000  200.0000  137.5000  vertical
-   4  11180.340   26.5651   0.447214   0.000000   0.894427    0.0000  200.0000  300.0000  inclined up
-   5  10000.000  180.0000   0.000000   0.000000  -1.000000    0.0000  200.0000    0.0000  horizontal down
+face   area mm²  width mm    incl °   normal x   normal y   normal z  origin x  origin y  origin z  kind             candidate  reason
+   0  32500.000    100.00   90.0000  -1.000000   0.000000   0.000000  -50.0000  200.0000  162.5000  vertical         no         vertical
+   1  30000.000    100.00   90.0000   0.000000   1.000000   0.000000   -1.3889  250.0000  150.3472  vertical         no         vertical
+   2  30000.000    100.00   90.0000   0.000000  -1.000000   0.000000   -1.3889  150.0000  150.3472  vertical         no         vertical
+   3  27500.000    100.00   90.0000   1.000000   0.000000   0.000000   50.0000  200.0000  137.5000  vertical         no         vertical
+   4  11180.340    100.00   26.5651   0.447214   0.000000   0.894427    0.0000  200.0000  300.0000  inclined up      yes        inclined up, 100.00 mm wide
+   5  10000.000    100.00  180.0000   0.000000   0.000000  -1.000000    0.0000  200.0000    0.0000  horizontal down  no         faces down
 auto: face 4 is the largest upward-facing inclined face (inclination 26.5651°, area 11180.3 mm²)
 """
 
@@ -180,7 +180,12 @@ def test_faces_json(at_repo: Path) -> None:
     result = invoke("faces", WEDGE, "--json")
     assert (result.exit_code, result.stderr) == (0, "")
     rows = json.loads(result.stdout)
-    assert [list(r) for r in rows] == [["index", "area_mm2", "normal", "inclination_deg", "origin"]] * 6
+    assert [list(r) for r in rows] == [["index", "area_mm2", "normal", "inclination_deg", "origin", "width_mm",
+                                        "curved", "candidate", "reason"]] * 6
+    assert [(r["candidate"], r["reason"]) for r in rows] == [(False, "vertical")] * 4 + [
+        (True, "inclined up, 100.00 mm wide"), (False, "faces down")]
+    assert_allclose([r["width_mm"] for r in rows], [100.0] * 6, rtol=0, atol=1e-9)
+    assert not any(r["curved"] for r in rows)
     assert [r["index"] for r in rows] == [0, 1, 2, 3, 4, 5]
     s5 = 5.0 ** 0.5
     expected = [
@@ -203,8 +208,10 @@ def test_faces_of_twofaces_name_the_other_face(at_repo: Path) -> None:
     result = invoke("faces", "fixtures/parts/twofaces.stl")
     assert result.exit_code == 0
     lines = result.stdout.splitlines()
-    assert lines[6].split()[0] == "5" and lines[6].split()[2] == "20.0000" and lines[6].endswith("inclined up")
-    assert lines[7].split()[0] == "6" and lines[7].split()[2] == "30.0000" and lines[7].endswith("inclined up")
+    assert lines[6].split()[:4] == ["5", "8513.422", "85.13", "20.0000"]
+    assert lines[6].endswith("inclined up      yes        inclined up, 85.13 mm wide")
+    assert lines[7].split()[:4] == ["6", "4618.803", "46.19", "30.0000"]
+    assert lines[7].endswith("inclined up      yes        inclined up, 46.19 mm wide")
     assert lines[-1] == ("auto: face 5 is the largest upward-facing inclined face (inclination 20.0000°, "
                          "area 8513.4 mm²)")
 
@@ -230,7 +237,7 @@ KEY_OPTIONS = {
     "--size", "--corner-radius", "--rotation", "--diameter", "--side", "--step-down", "--direction", "--entry",
     "--ramp-angle", "--clearance", "--retract", "--tool-diameter", "--tool-number", "--feed", "--plunge-feed",
     "--spindle", "--coolant", "--machine", "--part-origin", "--dialect", "--line-numbers", "--no-line-numbers",
-    "--line-start", "--line-step", "--tolerance", "-o", "--output",
+    "--line-start", "--line-step", "--tolerance", "-o", "--output", "--up",
 }
 
 

@@ -55,6 +55,8 @@ def make_face(boundary: shapely.Polygon | None = None) -> Face:
         inclination=BETA,
         boundary=outline,
         triangles=np.zeros(0, dtype=np.int64),
+        width=float(2.0 * shapely.maximum_inscribed_circle(outline).length),
+        curved=False,
     )
 
 

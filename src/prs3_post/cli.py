@@ -6,11 +6,15 @@ its exit code (2 for bad input or configuration, 1 for limits and reach); never 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
+import os
 import re
 import sys
-from collections.abc import Callable
+import tempfile
+import warnings
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -19,16 +23,15 @@ import numpy as np
 
 from prs3_post import __version__
 from prs3_post.config import Dialect, Machine, load_dialect, load_machine, postproc_dir, shipped_names
-from prs3_post.errors import FeatureError, InputError, Prs3Error, ReachError
+from prs3_post.errors import FeatureError, InputError, Prs3Error, Prs3Warning, ReachError
 from prs3_post.face import Face
 from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
 from prs3_post.job import HoleJob, JobSpec, Operation, ProfileJob, run_job
 from prs3_post.ops.common import require_tolerance
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
-from prs3_post.readers.stl import load_part
+from prs3_post.readers.stl import UP_ROTATION, load_part
 from prs3_post.setup import Setup, SetupError
 from prs3_post.kinematics import IKModel, PoseError, forward, inverse, unit_axes
-from prs3_post.output import is_stdout, refuse_overwriting, stdout_error, write_atomic, write_outputs
 from prs3_post.limits import check_limits
 from prs3_post.readers.poses import read_poses
 from prs3_post.readers.program import ProgramFile, load_program, read_program
@@ -62,51 +65,75 @@ class Numbers(click.ParamType):
         return numbers
 
 
-class OutputPath(click.Path):
-    """A file the command writes (``-o``, ``--preview``): checked against the inputs before any work."""
+def write_atomic(path: str, data: str | bytes) -> None:
+    """Write ``data`` (text as UTF-8, or bytes) to ``path`` via a temp file in the same folder and a
+    rename: never half a file, and no temp file left behind. The file gets the usual permissions
+    (0666 less the umask), not the temp file's 0600.
 
-    def __init__(self) -> None:
-        super().__init__(dir_okay=False)
+    Raises
+    ------
+    InputError
+        When the folder does not exist or cannot be written.
+    """
+    if not path or path.endswith(("/", os.sep)) or Path(path).is_dir():
+        raise InputError("is a folder or empty: give a file name", path=path or "''")
+    target = Path(path)
+    payload = data.encode("utf-8") if isinstance(data, str) else data
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except OSError as exc:
+        raise InputError(f"cannot write the output here: {exc.strerror}", path=path) from exc
+    written = False
+    try:
+        with os.fdopen(fd, "wb") as stream:
+            stream.write(payload)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, target)
+        written = True
+    except OSError as exc:
+        raise InputError(f"cannot write the output: {exc.strerror}", path=path) from exc
+    finally:
+        if not written:
+            Path(tmp).unlink(missing_ok=True)
+
+
+def to_stdout(path: str | None) -> bool:
+    """No path, or ``-``: the program goes to standard output."""
+    return path is None or path == "-"
 
 
 def output(text: str, path: str | None) -> None:
     """``text`` to ``path`` (atomically) or, without a path, to standard output."""
-    write_outputs([(path, text)])
+    if to_stdout(path):
+        click.echo(text, nl=False)
+    else:
+        write_atomic(path, text)
 
 
-def _refuse_overwriting_inputs(ctx: click.Context) -> None:
-    """No output may be one of the command's input files (PART.stl, POSES.csv, a machine TOML ...)."""
-    outputs: dict[str, str | None] = {}
-    inputs: dict[str, str | None] = {}
-    for param in ctx.command.params:
-        value = ctx.params.get(param.name or "")
-        if not isinstance(value, str):
-            continue
-        name = max(param.opts, key=len) if isinstance(param, click.Option) else param.human_readable_name
-        if isinstance(param.type, OutputPath):
-            outputs[name] = value
-        elif isinstance(param.type, click.Path) or param.name in ("machine_name", "dialect_name"):
-            inputs[name] = value
-    refuse_overwriting(outputs, inputs)
+@contextlib.contextmanager
+def warnings_to_stderr() -> Iterator[None]:
+    """Print every :class:`Prs3Warning` as ``prs3-post: warning: message`` on standard error, when it happens."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", Prs3Warning)
+        shown = warnings.showwarning
+
+        def show(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:
+            if issubclass(category, Prs3Warning):
+                click.echo(f"prs3-post: warning: {message}", err=True)
+            else:
+                shown(message, category, *args, **kwargs)
+
+        warnings.showwarning = show
+        yield
 
 
 def run_reported(action: Callable[[], int | None]) -> None:
-    """Run a command body; report :class:`Prs3Error` as one line and exit with its code.
-
-    Before anything, outputs that name an input are refused; a standard output that cannot be
-    written (full, closed pipe) is reported like any other error."""
+    """Run a command body; report :class:`Prs3Error` as one line and exit with its code."""
     try:
-        ctx = click.get_current_context(silent=True)
-        if ctx is not None:
-            _refuse_overwriting_inputs(ctx)
-        try:
+        with warnings_to_stderr():
             code = action()
-            sys.stdout.flush()
-        except OSError as exc:                       # the library reports its own I/O as Prs3Error
-            failed = stdout_error(exc)
-            if failed is None:
-                raise                                # not standard output: a bug, and its traceback helps
-            raise failed from exc
     except Prs3Error as error:
         click.echo(f"prs3-post: error: {error}", err=True)
         sys.exit(error.exit_code)
@@ -116,6 +143,13 @@ def run_reported(action: Callable[[], int | None]) -> None:
 def demo_part() -> Path:
     """The bundled demo part: the paper's wedge."""
     return postproc_dir() / "parts" / "patel2020-wedge.stl"
+
+
+up_option = click.option(
+    "--up", type=click.Choice(list(UP_ROTATION)), default="z", show_default=True,
+    help="The STL's up axis; the part is turned so that it becomes +z: "
+         + ", ".join(f"{axis}: {turn}" for axis, (turn, _) in UP_ROTATION.items() if axis != "z") + ".",
+)
 
 
 part_origin_option = click.option(
@@ -182,7 +216,7 @@ def main() -> None:
     "--batch", "batch_path", type=click.Path(dir_okay=False), metavar="POSES.csv",
     help="Many poses: CSV with header tip_x,tip_y,tip_z,axis_x,axis_y,axis_z.",
 )
-@click.option("-o", "--output", "out_path", type=OutputPath(), help="Batch output CSV (default: standard output).")
+@click.option("-o", "--output", "out_path", type=click.Path(dir_okay=False), help="Batch output CSV (default: standard output).")
 @click.option(
     "--model", type=click.Choice([m.value for m in IKModel]), default="exact", show_default=True,
     help="exact: rigid platform + XY stage; head: no stage; paper: the paper's per-leg method (validation).",
@@ -312,6 +346,7 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="Feature position in part coordinates, mm: a point on the face (within 0.01 mm; repeatable)."),
         click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True,
                      help="Length unit of the STL file."),
+        up_option,
         # feature geometry
         click.option("--depth", type=float, default=None,
                      help="Depth below the face along the tool axis, mm.  [default: 5 for hole, 2 for square/round]"),
@@ -359,9 +394,9 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
         click.option("--line-step", type=click.IntRange(1, 1000), default=None, help="Block number increment."),
         click.option("--tolerance", type=float, default=0.002, show_default=True,
                      help="Chordal tolerance of arcs (and of moves that turn the tool axis), mm."),
-        click.option("-o", "--output", "out_path", type=OutputPath(),
+        click.option("-o", "--output", "out_path", type=click.Path(dir_okay=False),
                      help="Program file (written to a temp file, then renamed). Default: standard output."),
-        click.option("--preview", "preview_path", type=OutputPath(), metavar="OUT.png|OUT.svg",
+        click.option("--preview", "preview_path", type=click.Path(dir_okay=False), metavar="OUT.png|OUT.svg",
                      help="Also draw the program (as `prs3-post preview` does, on this part and face). "
                           "Needs matplotlib: pip install 'prs3-post[plot]'."),
     ]
@@ -381,11 +416,12 @@ def _run_job(part: str, **opts: Any) -> int:
                                stage=spec.machine.stage.present)
         image = _preview_bytes(program, spec.machine, result.setup, fmt, tolerance=spec.tolerance,
                                mesh=result.triangles, face=result.face, title=Path(part).name, dialect=spec.dialect)
-    write_outputs([(opts["out_path"], result.text)] + ([] if image is None else [(opts["preview_path"], image)]))
-    if not is_stdout(opts["out_path"]):
+    output(result.text, opts["out_path"])
+    if not to_stdout(opts["out_path"]):
         click.echo(f"prs3-post: wrote {opts['out_path']}: {result.text.count(chr(10))} lines, "
                    f"{len(result.post.program)} moves; {result.face_note}", err=True)
     if image is not None:
+        write_atomic(opts["preview_path"], image)
         click.echo(f"prs3-post: wrote {opts['preview_path']}", err=True)
     return 0
 
@@ -444,6 +480,7 @@ def _job_spec(part: str, opts: dict[str, Any]) -> JobSpec:
         cutting=cutting, machine=machine, dialect=dialect,
         setup=resolve_setup(machine, opts["part_origin"], opts.get("part_rotation")), tolerance=opts["tolerance"],
         line_numbers=opts.get("line_numbers"), line_start=opts.get("line_start"), line_step=opts.get("line_step"),
+        up=opts.get("up", "z"),
     )
 
 
@@ -486,8 +523,9 @@ def demo(**opts: Any) -> None:
 @main.command()
 @click.argument("part", type=click.Path(dir_okay=False), metavar="PART.stl")
 @click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True, help="Length unit of the STL.")
+@up_option
 @click.option("--json", "as_json", is_flag=True, help="Print the table as JSON.")
-def faces(part: str, units: str, as_json: bool) -> None:
+def faces(part: str, units: str, up: str, as_json: bool) -> None:
     """List a part's planar faces: index, area, normal, inclination, origin; and the automatic choice.
 
     \b
@@ -496,7 +534,7 @@ def faces(part: str, units: str, as_json: bool) -> None:
     """
 
     def body() -> int:
-        found = find_faces(load_part(part, units=units))
+        found = find_faces(load_part(part, units=units, up=up))
         if as_json:
             click.echo(json.dumps(face_table(found), indent=2, allow_nan=False))
             return 0
@@ -535,7 +573,7 @@ def _against_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 #: The main job's options that describe the operation: `verify` uses them only with --against PART.stl.
 _OPERATION_OPTIONS = (
-    "profile", "face_choice", "at_uv", "at_xyz", "units", "depth", "peck", "reapproach_gap", "dwell", "size",
+    "profile", "face_choice", "at_uv", "at_xyz", "units", "up", "depth", "peck", "reapproach_gap", "dwell", "size",
     "corner_radius", "rotation", "diameter", "side", "step_down", "direction", "entry", "ramp_angle", "clearance",
     "retract", "tool_diameter", "tool_number", "feed", "plunge_feed", "spindle", "coolant",
 )
@@ -688,13 +726,14 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
 
 @main.command()
 @click.argument("program_path", type=click.Path(dir_okay=False), metavar="PROGRAM.ngc")
-@click.option("-o", "--output", "out_path", type=OutputPath(), required=True,
+@click.option("-o", "--output", "out_path", type=click.Path(dir_okay=False), required=True,
               metavar="OUT.png|OUT.svg", help="Image file (PNG or SVG by suffix; written to a temp file, then renamed).")
 @click.option("--part", "part_path", type=click.Path(dir_okay=False), metavar="PART.stl",
               help="Draw the part (part coordinates) and highlight its face (--face).")
 @click.option("--face", "face_choice", default="auto", show_default=True, metavar="auto|N",
               help="Face to highlight: auto = the main job's automatic choice; N = index from `prs3-post faces`.")
 @click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True, help="Length unit of the STL.")
+@up_option
 @machine_option
 @click.option("--dialect", "dialect_name", default="linuxcnc", show_default=True, metavar="NAME|PATH",
               help="G-code dialect of the program: linuxcnc, fanuc, or a dialect TOML file.")
@@ -702,7 +741,7 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
 @part_rotation_option
 @click.option("--rapid-rate", type=click.FloatRange(min=0.0, min_open=True), default=5000.0, show_default=True,
               help="Joint-space rate of G0 moves for the time axis, mm/min (the longest joint travel at this rate).")
-def preview(program_path: str, out_path: str, part_path: str | None, face_choice: str, units: str,
+def preview(program_path: str, out_path: str, part_path: str | None, face_choice: str, units: str, up: str,
             machine_name: str, dialect_name: str, part_origin: tuple[float, ...] | None, part_rotation: float | None,
             rapid_rate: float) -> None:
     """Draw a program: the FK tool path on the part, the axes over time, the limit margins.
@@ -730,7 +769,7 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
         mesh = face = None
         if part_path is not None:
             choice = _face_index(face_choice)
-            loaded = load_part(part_path, units=units)
+            loaded = load_part(part_path, units=units, up=up)
             face, _ = select_face(find_faces(loaded), choice)
             mesh = loaded.triangles
         image = _preview_bytes(program, machine, setup, fmt, dialect=dialect, mesh=mesh, face=face,

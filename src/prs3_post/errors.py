@@ -43,3 +43,8 @@ class FeatureError(Prs3Error):
     """An operation cannot be placed as asked (does not fit the face, tool too big, bad size)."""
 
     exit_code = 2
+
+
+class Prs3Warning(UserWarning):
+    """Something looks wrong but may be meant (a part of an unusual size): the CLI prints it as
+    ``prs3-post: warning: message`` on standard error and goes on."""

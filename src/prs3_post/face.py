@@ -61,6 +61,10 @@ class Face:
     inclination : float — rad, angle between the normal and the part's +z
     boundary : shapely.Polygon — outline (with holes) in face (u, v) coordinates, mm
     triangles : (K,) int — indices of the mesh triangles that make the face
+    width : float — mm, diameter of the largest circle inside ``boundary`` (to 0.1 % of the face's size):
+        the widest tool that fits
+    curved : bool — True when the face is one strip of a tessellated curved surface (neighbours at small
+        angles share most of its outline; see ``geometry.find_faces``), not a planar face of the design
     """
 
     index: int
@@ -72,6 +76,8 @@ class Face:
     inclination: float
     boundary: shapely.Polygon
     triangles: IntArray
+    width: float
+    curved: bool
 
     @property
     def rotation(self) -> FloatArray:

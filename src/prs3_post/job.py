@@ -20,7 +20,7 @@ from prs3_post.config import Dialect, Machine
 from prs3_post.emit.gcode import emit_program
 from prs3_post.errors import FeatureError, InputError
 from prs3_post.face import Face
-from prs3_post.geometry import find_faces, project_onto_face, select_face
+from prs3_post.geometry import MIN_FACE_WIDTH_MM, find_faces, project_onto_face, select_face
 from prs3_post.ops.common import require_tolerance
 from prs3_post.ops import Cutting, HoleParams, ProfileParams, RoundShape, SquareShape, plan_holes, plan_profile
 from prs3_post.pipeline import PostResult, post_process
@@ -95,6 +95,7 @@ class JobSpec:
     setup : Setup — where the part sits on the machine (:meth:`Setup.resolve` gives the machine's default)
     tolerance : float — mm, chordal tolerance of arcs and of axis-changing moves
     line_numbers, line_start, line_step : optional overrides of the dialect's block numbering
+    up : str — the STL's up axis, turned to +z when it is read (``z``, ``y``, ``-x``...: ``readers.stl.UP_ROTATION``)
     """
 
     part: str
@@ -111,6 +112,7 @@ class JobSpec:
     line_numbers: bool | None = None
     line_start: int | None = None
     line_step: int | None = None
+    up: str = "z"
 
     @property
     def operation(self) -> Operation:
@@ -174,10 +176,10 @@ def run_job(spec: JobSpec) -> JobResult:
     InputError, FeatureError, ReachError, LimitError
     """
     require_tolerance(spec.tolerance)
-    mesh = load_part(spec.part, units=spec.units)
+    mesh = load_part(spec.part, units=spec.units, up=spec.up)
     faces = find_faces(mesh)
-    try:
-        face, note = select_face(faces, spec.face)
+    try:  # automatic selection skips faces narrower than the tool
+        face, note = select_face(faces, spec.face, min_width=max(MIN_FACE_WIDTH_MM, spec.cutting.tool_diameter))
     except FeatureError as error:                     # about this file's faces: say which file
         raise InputError(str(error), path=spec.part) from error
     path_part = plan(spec, face)
@@ -219,7 +221,7 @@ def header(spec: JobSpec, face: Face) -> tuple[tuple[str, str], ...]:
     return (
         ("program", f"prs3-post {__version__}"),
         ("machine", f"{spec.machine.name} ({spec.machine.description})"),
-        ("part", f"{Path(spec.part).name}, units {spec.units}"),
+        ("part", f"{Path(spec.part).name}, units {spec.units}" + ("" if spec.up == "z" else f", up {spec.up}")),
         ("face", f"{face.index}: inclination {_fixed(math.degrees(face.inclination))} deg, "
                  f"normal ({_mm(face.normal, 6)}), origin ({_mm(face.origin)}) mm"),
         ("setup", f"part origin at machine ({_mm(spec.setup.origin)}) mm"),

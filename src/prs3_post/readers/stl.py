@@ -14,6 +14,24 @@ number in an ASCII STL ends its number parse quietly. This module checks the byt
 and hands trimesh only triangles it has validated (``trimesh.Trimesh(..., process=True)`` then merges
 the duplicated vertices, exactly as ``trimesh.load`` would).
 
+Up axis
+-------
+Many CAD systems export Y-up. ``up`` names the file's axis that points up on the machine; the part is
+turned by a quarter or half turn so that this axis becomes +z (a proper rotation, right-handed, so
+the winding and the outward side are kept):
+
+    up = z   unchanged
+    up = y   +90° about x   (y → z, z → −y)
+    up = -y  −90° about x   (−y → z, z → y)
+    up = x   −90° about y   (x → z, z → −x)
+    up = -x  +90° about y   (−x → z, z → x)
+    up = -z  180° about x   (−z → z, y → −y)
+
+Size
+----
+A part whose largest extent is under 1 mm is an error (wrong units, see the message); one under 2 mm
+or over 2 m is loaded with a :class:`~prs3_post.errors.Prs3Warning` (is the file in inches?).
+
 Orientation
 -----------
 Facet normals stored in the file are ignored: the outward side of each triangle comes from its vertex
@@ -26,12 +44,12 @@ from __future__ import annotations
 
 import os
 import re
-
+import warnings
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from prs3_post.errors import InputError
+from prs3_post.errors import InputError, Prs3Warning
 from prs3_post.readers.files import read_input
 from prs3_post.types import FloatArray
 
@@ -42,7 +60,20 @@ UNIT_SCALE: dict[str, float] = {"mm": 1.0, "inch": 25.4}
 """mm per file unit, for each accepted ``units`` value."""
 
 MIN_EXTENT_MM = 1.0
-"""A part whose largest extent is below this (mm) is taken to be in the wrong units."""
+"""A part whose largest extent is below this (mm) is taken to be in the wrong units (an error)."""
+WARN_EXTENT_MM = (2.0, 2000.0)
+"""A part whose largest extent is outside this range (mm) loads with a warning about its units."""
+
+UP_ROTATION: dict[str, tuple[str, tuple[tuple[int, int, int], ...]]] = {
+    "z": ("unchanged", ((1, 0, 0), (0, 1, 0), (0, 0, 1))),
+    "y": ("+90° about x", ((1, 0, 0), (0, 0, -1), (0, 1, 0))),
+    "-y": ("−90° about x", ((1, 0, 0), (0, 0, 1), (0, -1, 0))),
+    "x": ("−90° about y", ((0, 0, -1), (0, 1, 0), (1, 0, 0))),
+    "-x": ("+90° about y", ((0, 0, 1), (0, 1, 0), (-1, 0, 0))),
+    "-z": ("180° about x", ((1, 0, 0), (0, -1, 0), (0, 0, -1))),
+}
+"""For each accepted ``up``: the rotation in words and its matrix (rows; part = matrix @ file), which
+turns that file axis into +z."""
 
 _NOT_STL = "not an STL file (expected ASCII 'solid ...' or binary STL): "
 _BINARY_HEADER_BYTES = 84
@@ -60,13 +91,23 @@ _ASCII_VERTEX_COLUMNS = (8, 9, 10, 12, 13, 14, 16, 17, 18)
 _SOLID_LINE = re.compile(r"^[ \t]*(end)?solid\b[^\n]*", re.MULTILINE)
 
 
-def load_part(path: str | os.PathLike[str], *, units: str = "mm") -> trimesh.Trimesh:
-    """Load an STL part: closed, wound outward, in mm (part coordinates as in the file).
+def up_rotation(up: str) -> FloatArray:
+    """(3, 3) float — the proper rotation that turns the file axis ``up`` into +z (see ``UP_ROTATION``).
+
+    >>> (up_rotation("y") @ [0.0, 1.0, 0.0]).tolist()
+    [0.0, 0.0, 1.0]
+    """
+    return np.array(UP_ROTATION[up][1], dtype=np.float64)
+
+
+def load_part(path: str | os.PathLike[str], *, units: str = "mm", up: str = "z") -> trimesh.Trimesh:
+    """Load an STL part: closed, wound outward, in mm, turned so that ``up`` is +z (part coordinates).
 
     Parameters
     ----------
     path : str or path-like — the STL file (binary or ASCII)
     units : {"mm", "inch"} — length unit of the file's coordinates; "inch" scales by 25.4
+    up : {"z", "y", "x", "-x", "-y", "-z"} — the file's axis that points up (see the module docstring)
 
     Returns
     -------
@@ -77,14 +118,23 @@ def load_part(path: str | os.PathLike[str], *, units: str = "mm") -> trimesh.Tri
     Raises
     ------
     InputError
-        With ``path``: unknown ``units``; file not found or unreadable; not an STL; a malformed ASCII
+        With ``path``: unknown ``units`` or ``up``; file not found or unreadable; not an STL; a malformed ASCII
         STL (with the line); no triangles; a non-finite coordinate; a part smaller than 1 mm (wrong
         units); a mesh that is not closed.
+
+    Warns
+    -----
+    Prs3Warning
+        The part's largest extent is under 2 mm or over 2 m (``WARN_EXTENT_MM``): wrong units?
     """
     where = os.fspath(path)
     if units not in UNIT_SCALE:
         raise InputError(f"unknown units {units!r} (valid: {', '.join(UNIT_SCALE)})", path=where)
+    if up not in UP_ROTATION:
+        raise InputError(f"unknown up axis {up!r} (valid: {', '.join(UP_ROTATION)})", path=where)
     triangles = _triangles_from_bytes(read_input(where, "an STL file"), where)  # (F, 3, 3) file units
+    if up != "z":  # entries 0 and ±1: exact, so vertex merging is unaffected
+        triangles = triangles @ up_rotation(up).T
     count = len(triangles)
     if count == 0:
         raise InputError("STL has no triangles", path=where)
@@ -269,9 +319,13 @@ def _line_of_token(body: str, index: int) -> int:
 
 def _check_size(mesh: trimesh.Trimesh, units: str, where: str) -> None:
     extents = mesh.extents  # (3,) mm
-    if float(extents.max()) >= MIN_EXTENT_MM:
-        return
+    largest = float(extents.max())
     dims = _dims(extents)
+    low, high = WARN_EXTENT_MM
+    if largest > high or MIN_EXTENT_MM <= largest < low:
+        warnings.warn(Prs3Warning(f"{where}: {_size_doubt(extents, units)}"), stacklevel=3)
+    if largest >= MIN_EXTENT_MM:
+        return
     if units == "mm":
         message = (
             f"part is only {dims} mm (largest extent under {MIN_EXTENT_MM:g} mm): "
@@ -285,6 +339,23 @@ def _check_size(mesh: trimesh.Trimesh, units: str, where: str) -> None:
             f"({_dims(extents / UNIT_SCALE[units] * 1000.0)} mm)"
         )
     raise InputError(message, path=where)
+
+
+def _size_doubt(extents: FloatArray, units: str) -> str:
+    """Why a part of these extents (mm) is suspicious, and the likely fix (``WARN_EXTENT_MM``)."""
+    low, high = WARN_EXTENT_MM
+    small = float(extents.max()) < low
+    size = f"only {_dims(extents)} mm (largest extent under {low:g} mm)" if small else (
+        f"{_dims(extents)} mm (largest extent over {high / 1000.0:g} m)"
+    )
+    fixes = {
+        (True, "mm"): f"is this STL in inches? use --units inch ({_dims(extents * 25.4)} mm)",
+        (True, "inch"): f"is this STL in metres? scale it by 1000 and use --units mm "
+                        f"({_dims(extents / 25.4 * 1000.0)} mm)",
+        (False, "mm"): f"is this STL in micrometres? scale it by 1/1000 ({_dims(extents / 1000.0)} mm)",
+        (False, "inch"): f"is this STL in mm? use --units mm ({_dims(extents / 25.4)} mm)",
+    }
+    return f"part is {size}: {fixes[small, units]}"
 
 
 def _dims(extents: FloatArray) -> str:
