@@ -9,10 +9,8 @@ from __future__ import annotations
 import contextlib
 import json
 import math
-import os
 import re
 import sys
-import tempfile
 import warnings
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -32,6 +30,7 @@ from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, Profil
 from prs3_post.readers.stl import UP_ROTATION, load_part
 from prs3_post.setup import Setup, SetupError
 from prs3_post.kinematics import IKModel, PoseError, forward, inverse, unit_axes
+from prs3_post.output import is_stdout, refuse_overwriting, stdout_error, write_atomic, write_outputs
 from prs3_post.limits import check_limits
 from prs3_post.readers.poses import read_poses
 from prs3_post.readers.program import ProgramFile, load_program, read_program
@@ -65,51 +64,32 @@ class Numbers(click.ParamType):
         return numbers
 
 
-def write_atomic(path: str, data: str | bytes) -> None:
-    """Write ``data`` (text as UTF-8, or bytes) to ``path`` via a temp file in the same folder and a
-    rename: never half a file, and no temp file left behind. The file gets the usual permissions
-    (0666 less the umask), not the temp file's 0600.
+class OutputPath(click.Path):
+    """A file the command writes (``-o``, ``--preview``): checked against the inputs before any work."""
 
-    Raises
-    ------
-    InputError
-        When the folder does not exist or cannot be written.
-    """
-    if not path or path.endswith(("/", os.sep)) or Path(path).is_dir():
-        raise InputError("is a folder or empty: give a file name", path=path or "''")
-    target = Path(path)
-    payload = data.encode("utf-8") if isinstance(data, str) else data
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    except OSError as exc:
-        raise InputError(f"cannot write the output here: {exc.strerror}", path=path) from exc
-    written = False
-    try:
-        with os.fdopen(fd, "wb") as stream:
-            stream.write(payload)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, target)
-        written = True
-    except OSError as exc:
-        raise InputError(f"cannot write the output: {exc.strerror}", path=path) from exc
-    finally:
-        if not written:
-            Path(tmp).unlink(missing_ok=True)
-
-
-def to_stdout(path: str | None) -> bool:
-    """No path, or ``-``: the program goes to standard output."""
-    return path is None or path == "-"
+    def __init__(self) -> None:
+        super().__init__(dir_okay=False)
 
 
 def output(text: str, path: str | None) -> None:
     """``text`` to ``path`` (atomically) or, without a path, to standard output."""
-    if to_stdout(path):
-        click.echo(text, nl=False)
-    else:
-        write_atomic(path, text)
+    write_outputs([(path, text)])
+
+
+def _refuse_overwriting_inputs(ctx: click.Context) -> None:
+    """No output may be one of the command's input files (PART.stl, POSES.csv, a machine TOML ...)."""
+    outputs: dict[str, str | None] = {}
+    inputs: dict[str, str | None] = {}
+    for param in ctx.command.params:
+        value = ctx.params.get(param.name or "")
+        if not isinstance(value, str):
+            continue
+        name = max(param.opts, key=len) if isinstance(param, click.Option) else param.human_readable_name
+        if isinstance(param.type, OutputPath):
+            outputs[name] = value
+        elif isinstance(param.type, click.Path) or param.name in ("machine_name", "dialect_name"):
+            inputs[name] = value
+    refuse_overwriting(outputs, inputs)
 
 
 @contextlib.contextmanager
@@ -130,10 +110,23 @@ def warnings_to_stderr() -> Iterator[None]:
 
 
 def run_reported(action: Callable[[], int | None]) -> None:
-    """Run a command body; report :class:`Prs3Error` as one line and exit with its code."""
+    """Run a command body; report :class:`Prs3Error` as one line and exit with its code.
+
+    Before anything, outputs that name an input are refused; a standard output that cannot be
+    written (full, closed pipe) is reported like any other error."""
     try:
-        with warnings_to_stderr():
-            code = action()
+        ctx = click.get_current_context(silent=True)
+        if ctx is not None:
+            _refuse_overwriting_inputs(ctx)
+        try:
+            with warnings_to_stderr():
+                code = action()
+            sys.stdout.flush()
+        except OSError as exc:                       # the library reports its own I/O as Prs3Error
+            failed = stdout_error(exc)
+            if failed is None:
+                raise                                # not standard output: a bug, and its traceback helps
+            raise failed from exc
     except Prs3Error as error:
         click.echo(f"prs3-post: error: {error}", err=True)
         sys.exit(error.exit_code)
@@ -216,7 +209,7 @@ def main() -> None:
     "--batch", "batch_path", type=click.Path(dir_okay=False), metavar="POSES.csv",
     help="Many poses: CSV with header tip_x,tip_y,tip_z,axis_x,axis_y,axis_z.",
 )
-@click.option("-o", "--output", "out_path", type=click.Path(dir_okay=False), help="Batch output CSV (default: standard output).")
+@click.option("-o", "--output", "out_path", type=OutputPath(), help="Batch output CSV (default: standard output).")
 @click.option(
     "--model", type=click.Choice([m.value for m in IKModel]), default="exact", show_default=True,
     help="exact: rigid platform + XY stage; head: no stage; paper: the paper's per-leg method (validation).",
@@ -394,9 +387,9 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
         click.option("--line-step", type=click.IntRange(1, 1000), default=None, help="Block number increment."),
         click.option("--tolerance", type=float, default=0.002, show_default=True,
                      help="Chordal tolerance of arcs (and of moves that turn the tool axis), mm."),
-        click.option("-o", "--output", "out_path", type=click.Path(dir_okay=False),
+        click.option("-o", "--output", "out_path", type=OutputPath(),
                      help="Program file (written to a temp file, then renamed). Default: standard output."),
-        click.option("--preview", "preview_path", type=click.Path(dir_okay=False), metavar="OUT.png|OUT.svg",
+        click.option("--preview", "preview_path", type=OutputPath(), metavar="OUT.png|OUT.svg",
                      help="Also draw the program (as `prs3-post preview` does, on this part and face). "
                           "Needs matplotlib: pip install 'prs3-post[plot]'."),
     ]
@@ -416,12 +409,11 @@ def _run_job(part: str, **opts: Any) -> int:
                                stage=spec.machine.stage.present)
         image = _preview_bytes(program, spec.machine, result.setup, fmt, tolerance=spec.tolerance,
                                mesh=result.triangles, face=result.face, title=Path(part).name, dialect=spec.dialect)
-    output(result.text, opts["out_path"])
-    if not to_stdout(opts["out_path"]):
+    write_outputs([(opts["out_path"], result.text)] + ([] if image is None else [(opts["preview_path"], image)]))
+    if not is_stdout(opts["out_path"]):
         click.echo(f"prs3-post: wrote {opts['out_path']}: {result.text.count(chr(10))} lines, "
                    f"{len(result.post.program)} moves; {result.face_note}", err=True)
     if image is not None:
-        write_atomic(opts["preview_path"], image)
         click.echo(f"prs3-post: wrote {opts['preview_path']}", err=True)
     return 0
 
@@ -726,7 +718,7 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
 
 @main.command()
 @click.argument("program_path", type=click.Path(dir_okay=False), metavar="PROGRAM.ngc")
-@click.option("-o", "--output", "out_path", type=click.Path(dir_okay=False), required=True,
+@click.option("-o", "--output", "out_path", type=OutputPath(), required=True,
               metavar="OUT.png|OUT.svg", help="Image file (PNG or SVG by suffix; written to a temp file, then renamed).")
 @click.option("--part", "part_path", type=click.Path(dir_okay=False), metavar="PART.stl",
               help="Draw the part (part coordinates) and highlight its face (--face).")

@@ -1,0 +1,895 @@
+"""Read APT / CL data (text CLSF, as NX, Creo, CATIA and ISO-4343-style posts write it) into a Toolpath.
+
+The result is a :class:`~prs3_post.toolpath.Toolpath` in the PART frame (every ``MSYS/`` applied)
+in mm, plus an accounting of every record (:class:`ClCounts`), so that nothing in the file is lost
+without a trace. Every row and event keeps the line of the record it came from.
+
+Records
+-------
+A record is a line (blank lines are not records). A record whose text ends with a single ``$``
+continues on the next line (the ``$`` is removed and the lines joined); a file that ends inside
+such a record is a truncated record. ``$$`` starts a comment: a whole-line ``$$ text`` is a
+comment record, and ``$$ text`` after a record is that record's comment; both become COMMENT
+events. A record is ``WORD/arg,arg,...`` or a bare ``WORD``; arguments are numbers or minor words.
+
+Major words understood (anything else is an error naming file:line, unless it is in ``ignore``):
+
+- ``GOTO/x,y,z[,i,j,k]`` — a move; i,j,k (unit tool axis, tip → spindle) is modal when omitted.
+  ``FROM/`` (the start point) and ``GOHOME/`` (back to the start) take the same values and are
+  RAPID rows: the tool goes to the point the CAM system names, at rapid.
+- ``RAPID`` — the next GOTO/GOHOME only is a RAPID row; all other moves feed.
+- ``FEDRAT/f`` with the unit before or after the value: ``MMPM``, ``IPM`` (per minute),
+  ``MMPR``, ``IPR`` (per revolution: times the spindle speed at each move); no unit: the file's
+  length unit per minute.
+- ``MULTAX[/ON|OFF]`` (multi-axis GOTOs; with ``OFF`` a GOTO must not carry i,j,k), ``TLAXIS/i,j,k``.
+- ``MSYS/x0,y0,z0,xi,xj,xk,yi,yj,yk`` — the local frame of all following points and axes, relative
+  to the part: origin, x axis, y axis, z = x × y. The axes must be orthogonal unit vectors within
+  :data:`FRAME_TOLERANCE` (they are written with 7 decimals); they are then made exactly orthonormal.
+  A later MSYS replaces the frame (it is not composed with the previous one).
+- ``UNITS/MM|INCHES`` — the file's length unit, for the whole file. Without it, the caller's unit,
+  else inches when a ``FEDRAT`` is in IPM/IPR (and none in MMPM/MMPR), else mm.
+- ``LOADTL/n``, ``LOAD/TOOL,n`` — tool change (TOOL_CHANGE event); ``SELECT/TOOL,n`` pre-selects
+  the next tool (no event: the tool in the spindle does not change); ``TLDATA/...`` describes the
+  cutter's shape (kept in :attr:`ClFile.tool_data`; it does not give the tool's gauge length).
+- ``SPINDL/[RPM,]s[,CLW|CCLW]``, ``SPINDL/ON``, ``SPINDL/OFF`` — SPINDLE_ON (``text = 'ccw'`` for
+  CCLW) / SPINDLE_OFF events.
+- ``COOLNT/ON|FLOOD|MIST|OFF`` — COOLANT_ON (``text`` flood or mist) / COOLANT_OFF events.
+- ``CYCLE/DRILL|DEEP|BRKCHP,...`` (also ``DRILL,DEEP`` and ``DRILL,BRKCHP``) with ``RAPTO,c``,
+  ``FEDTO,d``, optional ``RTRCTO,r``, ``STEP,s``, ``DWELL,t`` and a feed ``MMPM|IPM|MMPR|IPR,f``;
+  each GOTO until ``CYCLE/OFF`` is a hole point, expanded along its tool axis by
+  :func:`prs3_post.cycles.drill_rows`. How the words are read: the GOTO point is the top of the
+  hole; RAPTO = clearance above it where the rapid stops; FEDTO = depth below it (its sign is
+  ignored: CAM systems write it either way, and a drill only goes down); RTRCTO = height above
+  the point after the hole (default: RAPTO); STEP = depth per peck (DEEP, BRKCHP only).
+- ``CIRCLE/xc,yc,zc,i,j,k,r[,...]`` followed by its end GOTO — an arc from the current point,
+  expanded within the chordal tolerance by :func:`prs3_post.arcs.arc_points_3d`. The tool moves
+  **clockwise about (i,j,k)** (counter-clockwise about −(i,j,k)): that is the convention of the
+  NX files in the corpus, where each arc is tangent to the moves around it (pinned by a test).
+  Start and end must lie on the circle within ``circle_tolerance`` (radially, and at one height
+  along the axis); the end GOTO may not change the tool axis.
+- ``PPRINT/text`` (or ``PPRINT text``) and ``$$`` comments — COMMENT events, text kept as written.
+- ``STOP`` — STOP event; ``OPSTOP`` — STOP event with ``text = 'optional'`` (M1).
+- ``END-OF-PATH`` ends a tool path (another may follow); ``FINI`` ends the file (only blank lines,
+  or the listing trailer, may follow).
+
+Display-only records (:data:`DISPLAY_WORDS`: ``PAINT/``, ``TOOL PATH/``) are skipped on purpose
+and counted. NX listings end with ``Tool Path Listing has N lines.``; after END-OF-PATH or FINI
+that trailer is skipped and counted too.
+
+Numbers are decimals (``-12.5``, ``.5``, ``5.``, ``+3``) with an optional exponent
+(``1.5E+02``): FORTRAN-formatted CL writers use exponents, and in CL text, unlike G-code, an
+``E`` cannot be read as another word. ``nan``, ``inf``, a FORTRAN ``D`` exponent and values that
+overflow are errors.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections import Counter
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from prs3_post.arcs import arc_points_3d
+from prs3_post.cycles import DrillCycle, Pecking, drill_rows
+from prs3_post.errors import InputError
+from prs3_post.readers.files import read_input
+from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
+from prs3_post.types import FloatArray
+
+__all__ = [
+    "DISPLAY_WORDS",
+    "FRAME_TOLERANCE",
+    "ClCounts",
+    "ClCycle",
+    "ClFile",
+    "ClFrame",
+    "ClToolData",
+    "parse_cl",
+    "read_cl",
+]
+
+#: Records that only drive a CAM system's display: skipped on purpose, and counted.
+DISPLAY_WORDS: frozenset[str] = frozenset({"PAINT", "TOOL PATH"})
+#: The NX listing trailer, skipped (and counted) after END-OF-PATH or FINI.
+LISTING_TRAILER = "Tool Path Listing"
+#: MSYS axes must be unit and orthogonal within this (they are printed with 7 decimals).
+FRAME_TOLERANCE = 1e-5
+#: A tool vector must have length 1 within this (it is then normalized).
+AXIS_LENGTH_TOLERANCE = 1e-3
+MM_PER_INCH = 25.4
+
+_MOTION_WORDS = ("GOTO", "FROM", "GOHOME")
+_KNOWN_WORDS = ("GOTO", "FROM", "GOHOME", "RAPID", "FEDRAT", "MULTAX", "TLAXIS", "MSYS", "UNITS", "LOADTL",
+                "LOAD", "SELECT", "TLDATA", "SPINDL", "COOLNT", "CYCLE", "CIRCLE", "PPRINT", "END-OF-PATH",
+                "FINI", "STOP", "OPSTOP")
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\Z")
+_TRAILER = re.compile(r"Tool Path Listing has \d+ lines\.\Z")
+_FEED_UNITS = {"MMPM": (1.0, False), "IPM": (MM_PER_INCH, False), "MMPR": (1.0, True), "IPR": (MM_PER_INCH, True)}
+_UNIT_WORDS = {"MM": "mm", "INCHES": "inch", "INCH": "inch"}
+_CYCLE_KINDS = {"DRILL": Pecking.NONE, "DEEP": Pecking.FULL_RETRACT, "BRKCHP": Pecking.CHIP_BREAK}
+
+
+# --------------------------------------------------------------------------------------------
+# Results
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class ClFrame:
+    """A local frame from an ``MSYS/`` record: p_part = origin + rotation @ p_local (mm).
+
+    Attributes
+    ----------
+    line : int — the MSYS record's line (0: the identity frame before any MSYS)
+    origin : (3,) float — mm, part coordinates of the local origin
+    rotation : (3, 3) float — columns are the local x, y, z axes in part coordinates (orthonormal, det +1)
+    """
+
+    line: int
+    origin: FloatArray
+    rotation: FloatArray
+
+    def to_part(self, local: FloatArray) -> FloatArray:
+        """(N, 3) local points (mm) → (N, 3) part points (mm)."""
+        return np.asarray(local, dtype=np.float64).reshape(-1, 3) @ self.rotation.T + self.origin
+
+    def to_local(self, part: FloatArray) -> FloatArray:
+        """(N, 3) part points (mm) → (N, 3) local points (mm): the inverse of :meth:`to_part`."""
+        return (np.asarray(part, dtype=np.float64).reshape(-1, 3) - self.origin) @ self.rotation
+
+
+@dataclass(frozen=True, slots=True)
+class ClCycle:
+    """A ``CYCLE/`` record as read, lengths in mm, and the holes drilled under it.
+
+    Attributes
+    ----------
+    line : int — the CYCLE record's line
+    words : tuple of str — the record's arguments as written (``DRILL``, ``RAPTO``, ``3.0000`` …)
+    cycle : DrillCycle — what each hole does (see :mod:`prs3_post.cycles`)
+    holes : int — GOTOs under this cycle (until ``CYCLE/OFF``)
+    """
+
+    line: int
+    words: tuple[str, ...]
+    cycle: DrillCycle
+    holes: int
+
+
+@dataclass(frozen=True, slots=True)
+class ClToolData:
+    """A ``TLDATA/`` record as written (the cutter's shape: diameter, corner radius, … in file units)."""
+
+    line: int
+    words: tuple[str, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class ClCounts:
+    """What the file held, record by record: every record is counted once in ``by_word``.
+
+    Attributes
+    ----------
+    records : int — records read (continuation lines joined; blank lines are not records)
+    gotos : int — GOTO/ records (moves, arc ends and hole points)
+    gotos_with_axis : int — of those, the ones that carry i,j,k
+    moves : int — GOTO/, FROM/ and GOHOME/ records that became one row each
+    arcs : int — CIRCLE/ records expanded
+    arc_segments : int — rows the arcs became
+    cycles : int — CYCLE/ records other than CYCLE/OFF
+    cycle_holes : int — GOTOs drilled as holes
+    cycle_rows : int — rows the holes became
+    comments : int — PPRINT and ``$$`` comments (inline ones included)
+    skipped : tuple of (str, int) — display-only and ignored records by word, skipped on purpose
+    by_word : tuple of (str, int) — every record by major word (``$$`` for comment lines), sorted
+    rows : int — rows of the toolpath
+    """
+
+    records: int
+    gotos: int
+    gotos_with_axis: int
+    moves: int
+    arcs: int
+    arc_segments: int
+    cycles: int
+    cycle_holes: int
+    cycle_rows: int
+    comments: int
+    skipped: tuple[tuple[str, int], ...]
+    by_word: tuple[tuple[str, int], ...]
+    rows: int
+
+
+@dataclass(frozen=True, slots=True)
+class ClFile:
+    """A CL file read into a part-frame toolpath.
+
+    Attributes
+    ----------
+    path : str — as given
+    units : str — the file's length unit, ``mm`` or ``inch`` (everything here is converted to mm)
+    toolpath : Toolpath — PART frame, mm; ``source`` is the 1-based line of each row's record
+    counts : ClCounts
+    frames : tuple of ClFrame — one per MSYS record, in order
+    cycles : tuple of ClCycle
+    tool_data : tuple of ClToolData
+    end_lines : tuple of int — lines of END-OF-PATH and FINI records
+    """
+
+    path: str
+    units: str
+    toolpath: Toolpath
+    counts: ClCounts
+    frames: tuple[ClFrame, ...] = ()
+    cycles: tuple[ClCycle, ...] = ()
+    tool_data: tuple[ClToolData, ...] = ()
+    end_lines: tuple[int, ...] = field(default=())
+
+
+# --------------------------------------------------------------------------------------------
+# Entry points
+# --------------------------------------------------------------------------------------------
+def read_cl(path: str, *, tolerance: float, units: str | None = None, ignore: frozenset[str] = frozenset(),
+            circle_tolerance: float = 0.01) -> ClFile:
+    """Read a CL file (see the module docstring for what is understood).
+
+    Parameters
+    ----------
+    path : str — shown unchanged in messages
+    tolerance : float — mm, > 0, chordal tolerance of the expanded arcs
+    units : str or None — ``mm`` or ``inch``: the file's length unit when it has no ``UNITS/``
+        record (None: inches if its feeds are IPM/IPR, else mm)
+    ignore : frozenset of str — major words to skip (and count) instead of refusing
+    circle_tolerance : float — mm, how far an arc's start and end may be from its circle
+
+    Returns
+    -------
+    ClFile
+
+    Raises
+    ------
+    InputError
+        ``path:line: message`` naming what was found and what would be valid.
+    """
+    return parse_cl(_text(read_input(path, "a CL file"), path), path=path, tolerance=tolerance, units=units,
+                    ignore=ignore, circle_tolerance=circle_tolerance)
+
+
+def parse_cl(text: str, *, path: str, tolerance: float, units: str | None = None,
+             ignore: frozenset[str] = frozenset(), circle_tolerance: float = 0.01) -> ClFile:
+    """Read CL text; ``path`` is only used in messages. Parameters as :func:`read_cl`."""
+    if units not in (None, "mm", "inch"):
+        raise ValueError(f"parse_cl: units must be 'mm', 'inch' or None, got {units!r}")
+    if not (math.isfinite(tolerance) and tolerance > 0):
+        raise ValueError(f"parse_cl: tolerance must be > 0 mm, got {tolerance!r}")
+    ignore = frozenset(word.upper() for word in ignore)
+    understood = sorted(ignore & {*_KNOWN_WORDS, *DISPLAY_WORDS})
+    if understood:
+        raise InputError(f"cannot ignore {', '.join(understood)}: the reader understands "
+                         f"{'it' if len(understood) == 1 else 'them'} (only unknown major words can be ignored)",
+                         path=path)
+    records = list(_records(text, path))
+    if not records:
+        raise InputError("not a CL file: no records (the file is empty)", path=path)
+    file_units = _file_units(records, path, units)
+    reader = _Reader(path, MM_PER_INCH if file_units == "inch" else 1.0, ignore, tolerance, circle_tolerance)
+    for record in records:
+        reader.record(record)
+    return reader.finish(file_units)
+
+
+# --------------------------------------------------------------------------------------------
+# Records
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class _Record:
+    line: int
+    word: str                   # major word, upper case ("$$" for a comment line)
+    args: tuple[str, ...]       # arguments, stripped, as written
+    text: str                   # the record as written (continuations joined), for messages
+    comment: str | None         # inline $$ comment
+
+
+def _text(data: bytes, path: str) -> str:
+    codes = np.frombuffer(data, dtype=np.uint8)
+    control = np.flatnonzero(((codes < 32) & ~np.isin(codes, (9, 10, 13))) | (codes == 127))
+    if len(control):
+        at = int(control[0])
+        raise InputError(f"not a CL file: binary data (byte 0x{codes[at]:02x} at offset {at})", path=path)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not a CL file: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start})",
+                         path=path) from exc
+
+
+def _split_comment(line: str) -> tuple[str, str | None]:
+    at = line.find("$$")
+    if at < 0:
+        return line, None
+    return line[:at], line[at + 2:].strip()
+
+
+def _records(text: str, path: str) -> Iterator[_Record]:
+    """Each record with its first line number; continuations joined, comments split off."""
+    pending: list[str] = []
+    start = 0
+    line_no = 0
+    for line_no, raw in enumerate(text.splitlines(), start=1):
+        code, comment = _split_comment(raw)
+        code = code.strip()
+        if not pending:
+            start = line_no
+            if not code:
+                if comment is not None:
+                    yield _Record(line_no, "$$", (), raw.strip(), comment)
+                continue
+        if code.endswith("$"):
+            pending.append(code[:-1])
+            continue
+        pending.append(code)
+        joined = "".join(pending)
+        pending = []
+        yield _split(start, joined, comment, path)
+    if pending:
+        raise InputError(f"truncated record: {_quote(''.join(pending))} continues with '$' but the file ends "
+                         "(a continued record needs its next line)", path=path, line=start)
+
+
+def _split(line: int, code: str, comment: str | None, path: str) -> _Record:
+    word, slash, rest = code.partition("/")
+    word = word.strip().upper()
+    if word == "PPRINT" or (not slash and code.upper().startswith("PPRINT ")):
+        text = rest if slash else code[len("PPRINT"):]
+        return _Record(line, "PPRINT", (text.strip(),), code, comment)
+    if not slash:
+        return _Record(line, word, (), code, comment)
+    args = tuple(arg.strip() for arg in rest.split(","))
+    return _Record(line, word, args, code, comment)
+
+
+def _quote(text: str, limit: int = 60) -> str:
+    text = text.strip()
+    return f"'{text[:limit]}...'" if len(text) > limit else f"'{text}'"
+
+
+def _file_units(records: list[_Record], path: str, caller: str | None) -> str:
+    """The file's length unit: UNITS/, else the caller's, else implied by the feed units, else mm."""
+    declared: tuple[str, int] | None = None
+    feed_units: dict[str, int] = {}
+    for record in records:
+        if record.word == "UNITS":
+            if len(record.args) != 1 or record.args[0].upper() not in _UNIT_WORDS:
+                raise InputError(f"UNITS/ expects one of MM, INCHES; found {_quote(record.text)}",
+                                 path=path, line=record.line)
+            unit = _UNIT_WORDS[record.args[0].upper()]
+            if declared is not None and declared[0] != unit:
+                raise InputError(f"UNITS/{record.args[0]} contradicts UNITS/ at line {declared[1]} "
+                                 f"({declared[0]}): one length unit per file", path=path, line=record.line)
+            declared = (unit, record.line)
+        elif record.word == "FEDRAT":
+            for arg in record.args:
+                if arg.upper() in _FEED_UNITS:
+                    feed_units.setdefault("inch" if arg.upper().startswith("I") else "mm", record.line)
+    if declared is not None:
+        if caller is not None and caller != declared[0]:
+            raise InputError(f"the file says UNITS/ {declared[0]} but {caller} was asked for: leave the unit out "
+                             "or give the file's own", path=path, line=declared[1])
+        return declared[0]
+    if caller is not None:
+        return caller
+    if len(feed_units) == 2:
+        raise InputError(f"feeds in both MMPM/MMPR (line {feed_units['mm']}) and IPM/IPR (line "
+                         f"{feed_units['inch']}) and no UNITS/ record: the length unit of the file is "
+                         "ambiguous; give it (mm or inch)", path=path)
+    return "inch" if "inch" in feed_units else "mm"
+
+
+def _number(text: str, what: str) -> float | str:
+    """A float, or an error text."""
+    if not _NUMBER.match(text):
+        return f"{what}: {text!r} is not a number (expected a decimal like -12.5, .5 or 1.5E+02)"
+    value = float(text)
+    if not math.isfinite(value):
+        return f"{what}: {text!r} is too large to be a finite number"
+    return value
+
+
+# --------------------------------------------------------------------------------------------
+# Interpretation
+# --------------------------------------------------------------------------------------------
+@dataclass(slots=True)
+class _Arc:
+    line: int
+    centre: FloatArray          # mm, local frame
+    axis: FloatArray            # unit, local frame, as written (the tool goes clockwise about it)
+    radius: float               # mm
+    text: str
+
+
+@dataclass(slots=True)
+class _ActiveCycle:
+    line: int
+    words: tuple[str, ...]
+    cycle: DrillCycle
+    holes: int = 0
+
+
+class _Reader:
+    """The modal state of a CL file as the records go by; rows in the LOCAL frame (mm) with their frame."""
+
+    def __init__(self, path: str, scale: float, ignore: frozenset[str], tolerance: float, circle_tolerance: float):
+        self.path, self.scale, self.ignore = path, scale, ignore
+        self.tolerance, self.circle_tolerance = tolerance, circle_tolerance
+        self.line = 0
+        self.tip: list[FloatArray] = []               # (n, 3) blocks, mm, local frame
+        self.axis: list[FloatArray] = []              # (n, 3) blocks, unit, local frame
+        self.kind: list[np.ndarray] = []
+        self.feed: list[np.ndarray] = []
+        self.source: list[np.ndarray] = []
+        self.frame_of: list[np.ndarray] = []          # frame index per row block
+        self.rows = 0
+        self.events: list[Event] = []
+        self.frames: list[ClFrame] = [ClFrame(0, np.zeros(3), np.eye(3))]
+        self.position: FloatArray | None = None       # mm, local frame of the current MSYS
+        self.tool_axis = np.array([0.0, 0.0, 1.0])
+        self.rapid_next = False
+        self.feed_value: float | None = None          # mm/min, or mm/rev when per_rev
+        self.per_rev = False
+        self.spindle_rpm = 0.0
+        self.spindle_on = False
+        self.spindle_text = ""                         # 'ccw' for CCLW
+        self.multax_on: bool | None = None
+        self.arc: _Arc | None = None
+        self.cycle: _ActiveCycle | None = None
+        self.cycles: list[ClCycle] = []
+        self.tool_data: list[ClToolData] = []
+        self.end_lines: list[int] = []
+        self.finished = False                         # FINI seen
+        self.after_end = False                        # END-OF-PATH or FINI seen last
+        self.by_word: Counter[str] = Counter()
+        self.skipped: Counter[str] = Counter()
+        self.records = self.gotos = self.gotos_with_axis = self.moves = 0
+        self.arcs = self.arc_segments = self.cycle_holes = self.cycle_rows = self.comments = 0
+
+    # ---- helpers
+    def error(self, message: str) -> InputError:
+        return InputError(message, path=self.path, line=self.line)
+
+    def numbers(self, record: _Record, args: tuple[str, ...] | None = None) -> list[float]:
+        values: list[float] = []
+        for index, text in enumerate(record.args if args is None else args, start=1):
+            if not text:
+                raise self.error(f"truncated record {_quote(record.text)}: value {index} of {record.word}/ is empty")
+            value = _number(text, f"{record.word}/ value {index}")
+            if isinstance(value, str):
+                raise self.error(value)
+            values.append(value)
+        return values
+
+    def unit_axis(self, values: list[float], what: str) -> FloatArray:
+        vector = np.array(values, dtype=np.float64)
+        length = float(np.linalg.norm(vector))
+        shown = ", ".join(f"{v:g}" for v in values)
+        if length == 0.0:
+            raise self.error(f"{what}: zero tool vector ({shown}); i,j,k must be a unit vector from the tool tip "
+                             "toward the spindle")
+        if abs(length - 1.0) > AXIS_LENGTH_TOLERANCE:
+            raise self.error(f"{what}: tool vector ({shown}) has length {length:.6g}; i,j,k must be a unit vector "
+                             f"(length 1 within {AXIS_LENGTH_TOLERANCE:g})")
+        return vector / length
+
+    def add_rows(self, tip: FloatArray, axis: FloatArray, kind: int | np.ndarray, feed: float | np.ndarray,
+                 source: int | np.ndarray) -> None:
+        tip = np.asarray(tip, dtype=np.float64).reshape(-1, 3)
+        n = len(tip)
+        self.tip.append(tip)
+        self.axis.append(np.broadcast_to(axis, (n, 3)))
+        self.kind.append(np.broadcast_to(np.asarray(kind, dtype=np.int64), (n,)))
+        self.feed.append(np.broadcast_to(np.asarray(feed, dtype=np.float64), (n,)))
+        self.source.append(np.broadcast_to(np.asarray(source, dtype=np.int64), (n,)))
+        self.frame_of.append(np.full(n, len(self.frames) - 1, dtype=np.int64))
+        self.rows += n
+        self.position = tip[-1].copy()
+
+    def event(self, kind: EventKind, value: float = 0.0, text: str = "") -> None:
+        self.events.append(Event(before=self.rows, kind=kind, value=value, text=text))
+
+    def current_feed(self) -> float:
+        """mm/min of a feed move now."""
+        if self.feed_value is None:
+            raise self.error("feed move before any FEDRAT/: the feed rate is unknown (give FEDRAT/ first, or "
+                             "RAPID before the move)")
+        if not self.per_rev:
+            return self.feed_value
+        if not (self.spindle_on and self.spindle_rpm > 0):
+            raise self.error("feed per revolution (MMPR/IPR) while the spindle is off: the feed rate is unknown "
+                             "(give SPINDL/ with a speed first, or a feed per minute)")
+        return self.feed_value * self.spindle_rpm
+
+    # ---- dispatch
+    def record(self, record: _Record) -> None:
+        self.line = record.line
+        self.records += 1
+        word = record.word
+        if self.finished and not _TRAILER.match(record.text):
+            raise self.error(f"{_quote(record.text)} after FINI: FINI ends the CL data")
+        if word != "$$" and record.comment is not None:
+            self.comments += 1
+            self.event(EventKind.COMMENT, text=record.comment)
+        if self.arc is not None and word not in ("GOTO", "$$", "PPRINT") and word not in DISPLAY_WORDS:
+            raise self.error(f"CIRCLE/ at line {self.arc.line} must be followed by its end GOTO/, found "
+                             f"{_quote(record.text)}")
+        if word in DISPLAY_WORDS or word in self.ignore:
+            self.by_word[word] += 1
+            self.skipped[word] += 1
+            return
+        if _TRAILER.match(record.text):
+            if not self.after_end:
+                raise self.error(f"listing trailer {_quote(record.text)} before END-OF-PATH/FINI: not CL data")
+            self.by_word[LISTING_TRAILER] += 1
+            self.skipped[LISTING_TRAILER] += 1
+            return
+        handler = _HANDLERS.get(word)
+        if handler is None:
+            raise self.error(
+                f"unknown major word {word[:40]!r} in {_quote(record.text)} (understood: {', '.join(_KNOWN_WORDS)}; "
+                f"display-only, skipped: {', '.join(sorted(DISPLAY_WORDS))}; other words can be ignored on purpose "
+                "by listing them as words to ignore)")
+        self.by_word[word] += 1
+        self.after_end = False
+        handler(self, record)
+
+    # ---- motion
+    def goto(self, record: _Record) -> None:
+        values = self.numbers(record)
+        if len(values) not in (3, 6):
+            raise self.error(f"{record.word}/ has {len(values)} values: expected 3 (x,y,z) or 6 (x,y,z,i,j,k); "
+                             f"found {_quote(record.text)}")
+        if len(values) == 6 and self.multax_on is False:
+            raise self.error(f"{record.word}/ with i,j,k under MULTAX/OFF: give x,y,z only, or MULTAX/ON first")
+        point = np.array(values[:3]) * self.scale
+        if len(values) == 6:
+            axis = self.unit_axis(values[3:], f"{record.word}/")
+        else:
+            axis = self.tool_axis
+        if record.word == "GOTO":
+            self.gotos += 1
+            self.gotos_with_axis += len(values) == 6
+        if self.arc is not None:
+            self.end_arc(point, axis, len(values) == 6)
+            return
+        self.tool_axis = axis
+        if self.cycle is not None and record.word == "GOTO":
+            self.hole(point, axis)
+            return
+        if self.cycle is not None:
+            raise self.error(f"{record.word}/ inside the CYCLE/ of line {self.cycle.line}: close it with CYCLE/OFF "
+                             "first")
+        rapid = self.rapid_next or record.word != "GOTO"
+        self.rapid_next = False
+        self.moves += 1
+        if rapid:
+            self.add_rows(point, axis, int(MoveKind.RAPID), 0.0, record.line)
+        else:
+            self.add_rows(point, axis, int(MoveKind.FEED), self.current_feed(), record.line)
+
+    def rapid(self, record: _Record) -> None:
+        if record.args:
+            raise self.error(f"RAPID takes no values; found {_quote(record.text)}")
+        self.rapid_next = True
+
+    def circle(self, record: _Record) -> None:
+        values = self.numbers(record)
+        if len(values) < 7:
+            raise self.error(f"CIRCLE/ has {len(values)} values: expected at least 7 (xc,yc,zc,i,j,k,r); found "
+                             f"{_quote(record.text)}")
+        if self.cycle is not None:
+            raise self.error(f"CIRCLE/ inside the CYCLE/ of line {self.cycle.line}: close it with CYCLE/OFF first")
+        if self.rapid_next:
+            raise self.error("CIRCLE/ after RAPID: an arc is cut at the feed rate (put RAPID before a GOTO/ only)")
+        if self.position is None:
+            raise self.error("CIRCLE/ before any move: the arc has no start point")
+        normal = np.array(values[3:6])
+        length = float(np.linalg.norm(normal))
+        if not length > 0:
+            raise self.error("CIRCLE/ axis i,j,k is the zero vector: it must give the circle's axis direction")
+        radius = values[6] * self.scale
+        if not radius > 0:
+            raise self.error(f"CIRCLE/ radius must be > 0, got {values[6]:g}")
+        self.current_feed()
+        self.arc = _Arc(record.line, np.array(values[:3]) * self.scale, normal / length, radius, record.text)
+
+    def end_arc(self, end: FloatArray, axis: FloatArray, has_axis: bool) -> None:
+        arc = self.arc
+        assert arc is not None and self.position is not None  # only called with an arc pending
+        if has_axis and float(np.linalg.norm(axis - self.tool_axis)) > 1e-9:
+            raise self.error(f"the end GOTO/ of the CIRCLE/ at line {arc.line} changes the tool axis: an arc is "
+                             "cut with a constant tool axis (give the end point without i,j,k, or the same i,j,k)")
+        start = self.position
+        for name, point in (("start", start), ("end", end)):
+            offset = point - arc.centre
+            height = float(offset @ arc.axis)
+            off_circle = float(np.linalg.norm(offset - height * arc.axis)) - arc.radius
+            if abs(off_circle) > self.circle_tolerance:
+                shown = ", ".join(f"{v / self.scale:.4f}" for v in point)
+                raise self.error(
+                    f"arc {name} point ({shown}) is {abs(off_circle):.4f} mm "
+                    f"{'outside' if off_circle > 0 else 'inside'} "
+                    f"the circle of CIRCLE/ at line {arc.line} (radius {arc.radius / self.scale:g}); start and end "
+                    f"must lie on the circle within {self.circle_tolerance:g} mm")
+            if name == "start":
+                start_height = height
+            elif abs(height - start_height) > self.circle_tolerance:
+                raise self.error(
+                    f"arc end point is {abs(height - start_height):.4f} mm off the plane of the arc's start, along "
+                    f"the axis of CIRCLE/ at line {arc.line}; start and end must lie on one circle within "
+                    f"{self.circle_tolerance:g} mm")
+        # The corpus convention: the tool moves clockwise about (i, j, k), i.e. counter-clockwise about −(i, j, k).
+        points = arc_points_3d(arc.centre, -arc.axis, start, end, tolerance=self.tolerance)[1:]
+        source = np.full(len(points), arc.line, dtype=np.int64)
+        source[-1] = self.line
+        self.add_rows(points, self.tool_axis, int(MoveKind.FEED), self.current_feed(), source)
+        self.arcs += 1
+        self.arc_segments += len(points)
+        self.arc = None
+
+    def hole(self, point: FloatArray, axis: FloatArray) -> None:
+        assert self.cycle is not None  # only called inside a cycle
+        tip, kind, bottom = drill_rows(point[None, :], axis[None, :], self.cycle.cycle)
+        feed = np.where(kind == int(MoveKind.FEED), self.cycle.cycle.feed, 0.0)
+        first = self.rows
+        self.add_rows(tip, axis, kind, feed, self.line)
+        if self.cycle.cycle.dwell > 0:
+            self.events.append(Event(before=first + int(bottom[0]) + 1, kind=EventKind.DWELL,
+                                     value=self.cycle.cycle.dwell))
+        self.cycle.holes += 1
+        self.cycle_holes += 1
+        self.cycle_rows += len(tip)
+
+    # ---- modal state
+    def fedrat(self, record: _Record) -> None:
+        unit: str | None = None
+        values: list[str] = []
+        for arg in record.args:
+            if arg.upper() in _FEED_UNITS:
+                if unit is not None:
+                    raise self.error(f"FEDRAT/ with two units ({unit}, {arg.upper()}): give one")
+                unit = arg.upper()
+            else:
+                values.append(arg)
+        if len(values) != 1:
+            raise self.error(f"FEDRAT/ expects one value and an optional unit (MMPM, IPM, MMPR, IPR) before or after "
+                             f"it; found {_quote(record.text)}")
+        (value,) = self.numbers(record, tuple(values))
+        if not value > 0:
+            raise self.error(f"FEDRAT/ must be > 0, got {values[0]}")
+        if unit is None:
+            self.feed_value, self.per_rev = value * self.scale, False
+        else:
+            factor, per_rev = _FEED_UNITS[unit]
+            self.feed_value, self.per_rev = value * factor, per_rev
+
+    def multax(self, record: _Record) -> None:
+        setting = record.args[0].upper() if record.args else "ON"
+        if len(record.args) > 1 or setting not in ("ON", "OFF"):
+            raise self.error(f"MULTAX expects nothing, ON or OFF; found {_quote(record.text)}")
+        self.multax_on = setting == "ON"
+
+    def tlaxis(self, record: _Record) -> None:
+        values = self.numbers(record)
+        if len(values) != 3:
+            raise self.error(f"TLAXIS/ has {len(values)} values: expected 3 (i,j,k); found {_quote(record.text)}")
+        self.tool_axis = self.unit_axis(values, "TLAXIS/")
+
+    def msys(self, record: _Record) -> None:
+        values = self.numbers(record)
+        if len(values) != 9:
+            raise self.error(f"MSYS/ has {len(values)} values: expected 9 (origin x,y,z, x axis i,j,k, y axis i,j,k); "
+                             f"found {_quote(record.text)}")
+        x_axis, y_axis = np.array(values[3:6]), np.array(values[6:9])
+        x_len, y_len, dot = float(np.linalg.norm(x_axis)), float(np.linalg.norm(y_axis)), float(x_axis @ y_axis)
+        if abs(x_len - 1) > FRAME_TOLERANCE or abs(y_len - 1) > FRAME_TOLERANCE or abs(dot) > FRAME_TOLERANCE:
+            raise self.error(
+                f"MSYS/ axes are not orthogonal unit vectors: x axis ({', '.join(f'{v:g}' for v in values[3:6])}), "
+                f"y axis ({', '.join(f'{v:g}' for v in values[6:9])}) have |x| = {x_len:.6g}, |y| = {y_len:.6g}, "
+                f"x·y = {dot:.6g} (valid: |x| = |y| = 1 and x·y = 0 within {FRAME_TOLERANCE:g})")
+        x_axis = x_axis / x_len
+        y_axis = y_axis - (y_axis @ x_axis) * x_axis
+        y_axis = y_axis / np.linalg.norm(y_axis)
+        rotation = np.column_stack([x_axis, y_axis, np.cross(x_axis, y_axis)])
+        self.frames.append(ClFrame(record.line, np.array(values[:3]) * self.scale, rotation))
+        if self.position is not None:       # the same place, now seen from the new frame
+            previous = self.frames[-2]
+            self.position = self.frames[-1].to_local(previous.to_part(self.position))[0]
+            self.tool_axis = rotation.T @ (previous.rotation @ self.tool_axis)
+        else:
+            self.tool_axis = rotation.T @ (self.frames[-2].rotation @ self.tool_axis)
+
+    def units(self, record: _Record) -> None:
+        """Checked and applied to the whole file before the records are read (see _file_units)."""
+
+    def tool_change(self, record: _Record) -> None:
+        args = record.args
+        if record.word == "LOAD" or record.word == "SELECT":
+            if not args or args[0].upper() != "TOOL":
+                raise self.error(f"{record.word}/ expects TOOL,n; found {_quote(record.text)}")
+            args = args[1:]
+        if not args:
+            raise self.error(f"{record.word}/ without a tool number; found {_quote(record.text)}")
+        (number,) = self.numbers(record, args[:1])
+        if number < 0 or number != int(number):
+            raise self.error(f"{record.word}/ tool number must be a whole number ≥ 0, got {args[0]}")
+        if record.word != "SELECT":
+            shape = f": TLDATA/{','.join(self.tool_data[-1].words)}" if self.tool_data else ""
+            self.event(EventKind.TOOL_CHANGE, value=float(number), text=f"tool {int(number)}{shape}")
+
+    def tldata(self, record: _Record) -> None:
+        self.tool_data.append(ClToolData(record.line, record.args))
+
+    def spindl(self, record: _Record) -> None:
+        words = [arg.upper() for arg in record.args]
+        if words in (["OFF"],):
+            self.spindle_on = False
+            self.event(EventKind.SPINDLE_OFF)
+            return
+        if words == ["ON"]:
+            if not self.spindle_rpm > 0:
+                raise self.error("SPINDL/ON before any spindle speed: give SPINDL/RPM,s,CLW first")
+            self.spindle_on = True
+            self.event(EventKind.SPINDLE_ON, value=self.spindle_rpm, text=self.spindle_text)
+            return
+        direction = "CLW"
+        speed: list[str] = []
+        for arg, upper in zip(record.args, words, strict=True):
+            if upper in ("CLW", "CCLW"):
+                direction = upper
+            elif upper == "RPM":
+                continue
+            elif _NUMBER.match(arg) or not upper.isalpha():
+                speed.append(arg)
+            else:
+                raise self.error(f"SPINDL/ word {arg!r} is not understood (valid: RPM, a speed, CLW, CCLW; or ON, "
+                                 "OFF alone)")
+        if len(speed) != 1:
+            raise self.error(f"SPINDL/ expects one speed in rpm; found {_quote(record.text)}")
+        (rpm,) = self.numbers(record, tuple(speed))
+        if not rpm > 0:
+            raise self.error(f"SPINDL/ speed must be > 0 rpm, got {speed[0]}")
+        self.spindle_rpm, self.spindle_on = rpm, True
+        self.spindle_text = "ccw" if direction == "CCLW" else ""
+        self.event(EventKind.SPINDLE_ON, value=rpm, text=self.spindle_text)
+
+    def coolnt(self, record: _Record) -> None:
+        words = {arg.upper() for arg in record.args}
+        if words == {"OFF"}:
+            self.event(EventKind.COOLANT_OFF)
+        elif words and words <= {"ON", "FLOOD"}:
+            self.event(EventKind.COOLANT_ON, text="flood")
+        elif words in ({"MIST"}, {"MIST", "ON"}):
+            self.event(EventKind.COOLANT_ON, text="mist")
+        else:
+            raise self.error(f"COOLNT/ expects ON, FLOOD, MIST or OFF; found {_quote(record.text)}")
+
+    def cycle_record(self, record: _Record) -> None:
+        words = [arg.upper() for arg in record.args]
+        if words == ["OFF"]:
+            if self.cycle is None:
+                raise self.error("CYCLE/OFF without an active CYCLE/")
+            active = self.cycle
+            self.cycles.append(ClCycle(active.line, active.words, active.cycle, active.holes))
+            self.cycle = None
+            return
+        if self.cycle is not None:
+            raise self.error(f"CYCLE/ while the CYCLE/ of line {self.cycle.line} is active: close it with CYCLE/OFF")
+        self.cycle = _ActiveCycle(record.line, record.args, self.parse_cycle(record, words))
+
+    def parse_cycle(self, record: _Record, words: list[str]) -> DrillCycle:
+        pecking: Pecking | None = None
+        params: dict[str, float] = {}
+        feed: float | None = None
+        index = 0
+        while index < len(words):
+            word = words[index]
+            if word in _CYCLE_KINDS:
+                kind = _CYCLE_KINDS[word]
+                if pecking is not None and kind is not Pecking.NONE and pecking is not Pecking.NONE:
+                    raise self.error(f"CYCLE/ with two kinds of pecking; found {_quote(record.text)}")
+                pecking = kind if pecking in (None, Pecking.NONE) else pecking
+                index += 1
+                continue
+            if word in ("RAPTO", "FEDTO", "RTRCTO", "STEP", "DWELL", *_FEED_UNITS):
+                if index + 1 >= len(words):
+                    raise self.error(f"truncated record {_quote(record.text)}: {word} without its value")
+                (value,) = self.numbers(record, (record.args[index + 1],))
+                if word in _FEED_UNITS:
+                    factor, per_rev = _FEED_UNITS[word]
+                    feed = value * factor * (self.spindle_rpm if per_rev else 1.0)
+                    if per_rev and not self.spindle_rpm > 0:
+                        raise self.error(f"CYCLE/ feed in {word} before any spindle speed: give SPINDL/ first")
+                else:
+                    params[word] = value
+                index += 2
+                continue
+            raise self.error(f"CYCLE/ word {record.args[index]!r} is not understood (valid: DRILL, DEEP, BRKCHP, "
+                             "RAPTO, FEDTO, RTRCTO, STEP, DWELL, MMPM, IPM, MMPR, IPR with their values; OFF)")
+        if pecking is None:
+            raise self.error(f"CYCLE/ without a kind (DRILL, DEEP or BRKCHP); found {_quote(record.text)}")
+        for needed in ("RAPTO", "FEDTO"):
+            if needed not in params:
+                raise self.error(f"CYCLE/ without {needed}: the cycle needs RAPTO (clearance) and FEDTO (depth); "
+                                 f"found {_quote(record.text)}")
+        if params["RAPTO"] < 0 or params.get("RTRCTO", 0.0) < 0:
+            raise self.error("CYCLE/ RAPTO and RTRCTO are heights above the hole point and must be ≥ 0")
+        if feed is None:
+            feed = self.current_feed()
+        if not feed > 0:
+            raise self.error("CYCLE/ feed must be > 0")
+        peck = params.get("STEP", 0.0) * self.scale
+        if pecking is not Pecking.NONE and "STEP" in params and not peck > 0:
+            raise self.error(f"CYCLE/ STEP must be > 0, got {params['STEP']:g}")
+        if params.get("DWELL", 0.0) < 0:
+            raise self.error(f"CYCLE/ DWELL must be ≥ 0 s, got {params['DWELL']:g}")
+        return DrillCycle(
+            depth=abs(params["FEDTO"]) * self.scale, clearance=params["RAPTO"] * self.scale,
+            retract=params.get("RTRCTO", params["RAPTO"]) * self.scale, feed=feed,
+            pecking=pecking if peck > 0 else Pecking.NONE, peck=peck, dwell=params.get("DWELL", 0.0))
+
+    def comment_record(self, record: _Record) -> None:
+        self.comments += 1
+        self.event(EventKind.COMMENT, text=(record.comment or "") if record.word == "$$" else record.args[0])
+
+    def stop(self, record: _Record) -> None:
+        if record.args:
+            raise self.error(f"{record.word} takes no values; found {_quote(record.text)}")
+        self.event(EventKind.STOP, text="optional" if record.word == "OPSTOP" else "")
+
+    def end(self, record: _Record) -> None:
+        if record.args:
+            raise self.error(f"{record.word} takes no values; found {_quote(record.text)}")
+        if self.cycle is not None:
+            raise self.error(f"{record.word} while the CYCLE/ of line {self.cycle.line} is active: close it with "
+                             "CYCLE/OFF first")
+        self.end_lines.append(record.line)
+        self.after_end = True
+        self.finished = record.word == "FINI"
+
+    # ---- result
+    def finish(self, units: str) -> ClFile:
+        if self.arc is not None:
+            self.line = self.arc.line
+            raise self.error("CIRCLE/ at the end of the file: its end GOTO/ is missing")
+        if self.cycle is not None:
+            self.line = self.cycle.line
+            raise self.error("CYCLE/ is not closed with CYCLE/OFF before the end of the file")
+        local = np.concatenate([np.zeros((0, 3)), *self.tip])
+        axis_local = np.concatenate([np.zeros((0, 3)), *self.axis])
+        frame = np.concatenate([np.zeros(0, dtype=np.int64), *self.frame_of])
+        tip = np.zeros_like(local)
+        axis = np.zeros_like(axis_local)
+        for index in np.unique(frame):              # one transform per MSYS, all its rows at once
+            rows = frame == index
+            tip[rows] = self.frames[index].to_part(local[rows])
+            axis[rows] = axis_local[rows] @ self.frames[index].rotation.T
+        kind: np.ndarray = np.concatenate([np.zeros(0, dtype=np.int64), *self.kind])
+        feed = np.concatenate([np.zeros(0), *self.feed])
+        source: np.ndarray = np.concatenate([np.zeros(0, dtype=np.int64), *self.source])
+        toolpath = Toolpath(kind=kind, tip=tip, axis=axis, feed=feed, source=source, events=tuple(self.events))
+        counts = ClCounts(
+            records=self.records, gotos=self.gotos, gotos_with_axis=self.gotos_with_axis, moves=self.moves,
+            arcs=self.arcs, arc_segments=self.arc_segments, cycles=len(self.cycles), cycle_holes=self.cycle_holes,
+            cycle_rows=self.cycle_rows, comments=self.comments, skipped=tuple(sorted(self.skipped.items())),
+            by_word=tuple(sorted(self.by_word.items())), rows=len(toolpath))
+        return ClFile(path=self.path, units=units, toolpath=toolpath, counts=counts, frames=tuple(self.frames[1:]),
+                      cycles=tuple(self.cycles), tool_data=tuple(self.tool_data), end_lines=tuple(self.end_lines))
+
+
+_HANDLERS = {
+    "GOTO": _Reader.goto, "FROM": _Reader.goto, "GOHOME": _Reader.goto, "RAPID": _Reader.rapid,
+    "CIRCLE": _Reader.circle, "FEDRAT": _Reader.fedrat, "MULTAX": _Reader.multax, "TLAXIS": _Reader.tlaxis,
+    "MSYS": _Reader.msys, "UNITS": _Reader.units, "LOADTL": _Reader.tool_change, "LOAD": _Reader.tool_change,
+    "SELECT": _Reader.tool_change, "TLDATA": _Reader.tldata, "SPINDL": _Reader.spindl, "COOLNT": _Reader.coolnt,
+    "CYCLE": _Reader.cycle_record, "PPRINT": _Reader.comment_record, "$$": _Reader.comment_record,
+    "STOP": _Reader.stop, "OPSTOP": _Reader.stop, "END-OF-PATH": _Reader.end, "FINI": _Reader.end,
+}

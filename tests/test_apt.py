@@ -1,0 +1,287 @@
+"""The APT / CL reader on the corpus (../shared/corpus/cl, read in place) and on bad and synthetic input."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from prs3_post.arcs import arc_segment_count
+from prs3_post.cycles import DrillCycle, Pecking, drill_rows
+from prs3_post.errors import InputError
+from prs3_post.readers.apt import ClFile, parse_cl, read_cl
+from prs3_post.toolpath import EventKind, MoveKind
+
+REPO = Path(__file__).resolve().parents[1]
+CORPUS = REPO.parent / "shared" / "corpus" / "cl"
+BAD = REPO / "fixtures" / "bad" / "cl"
+TOL = 0.002
+
+pytestmark = pytest.mark.skipif(not CORPUS.is_dir(), reason="../shared/corpus is not there")
+
+
+def _read(name: str, tolerance: float = TOL) -> ClFile:
+    return read_cl(str(CORPUS / name), tolerance=tolerance)
+
+
+def _parse(text: str, **kwargs: object) -> ClFile:
+    return parse_cl(text, path="t.cls", tolerance=TOL, **kwargs)  # type: ignore[arg-type]
+
+
+# --------------------------------------------------------------------------------------------
+# Every corpus file reads; the counts below were checked with grep on the files
+# (e.g. `grep -c '^GOTO/' f`, `grep -c '^GOTO/.*,.*,.*,.*,.*,' f`, `wc -l f`).
+# --------------------------------------------------------------------------------------------
+CORPUS_COUNTS = {
+    # name: (units, records, gotos, gotos_with_axis, moves, arcs, cycles, cycle_holes, skipped)
+    "humman_1_KONTUR_NAR_40_N2.cls": ("mm", 84, 46, 1, 27, 19, 0, 0, (("PAINT", 10), ("TOOL PATH", 1))),
+    "humman_4_SVERL_63_N2.cls": ("mm", 249, 89, 0, 91, 0, 0, 0, (("PAINT", 92), ("TOOL PATH", 1))),
+    "humman_deep_drill.clsf": ("mm", 14, 2, 1, 0, 0, 1, 2, (("PAINT", 5), ("TOOL PATH", 1))),
+    "humman_standart_drill.clsf": ("mm", 14, 2, 1, 0, 0, 1, 2, (("PAINT", 5), ("TOOL PATH", 1))),
+    "humman_ust_a_variable_contour.cls": ("mm", 662, 546, 120, 546, 0, 0, 0, (("PAINT", 70), ("TOOL PATH", 1))),
+    "mech491_APT_SimpleMillPlane.cls": ("mm", 82, 35, 1, 33, 2, 0, 0,
+                                        (("PAINT", 36), ("TOOL PATH", 1), ("Tool Path Listing", 1))),
+    "mech491_APT_Variable_Axis.cls": ("inch", 389, 348, 329, 348, 0, 0, 0,
+                                      (("PAINT", 31), ("TOOL PATH", 1), ("Tool Path Listing", 1))),
+    "mech491_APT_Zig_Zag_Smoothed.cls": ("mm", 163, 75, 1, 40, 35, 0, 0,
+                                         (("PAINT", 42), ("TOOL PATH", 1), ("Tool Path Listing", 1))),
+}
+
+
+def test_the_corpus_list_is_complete() -> None:
+    assert sorted(p.name for p in CORPUS.iterdir() if p.suffix in (".cls", ".clsf")) == sorted(CORPUS_COUNTS)
+
+
+@pytest.mark.parametrize("name", sorted(CORPUS_COUNTS))
+def test_every_corpus_file_reads_with_exact_counts(name: str) -> None:
+    units, records, gotos, with_axis, moves, arcs, cycles, holes, skipped = CORPUS_COUNTS[name]
+    cl = _read(name)
+    c = cl.counts
+    assert (cl.units, c.records, c.gotos, c.gotos_with_axis, c.moves, c.arcs, c.cycles, c.cycle_holes, c.skipped) \
+        == (units, records, gotos, with_axis, moves, arcs, cycles, holes, skipped)
+    assert sum(count for _, count in c.by_word) == c.records          # every record accounted for once
+    assert c.comments == 1                                            # each file has one "$$ centerline data"
+    assert c.rows == len(cl.toolpath) == c.moves + c.arc_segments + c.cycle_rows
+    tp = cl.toolpath
+    assert_allclose(np.linalg.norm(tp.axis, axis=1), 1.0, atol=1e-12)
+    assert np.all(np.isfinite(tp.tip))
+    assert np.all((tp.feed > 0) == (tp.kind == MoveKind.FEED))
+    assert np.all(np.diff(tp.source) >= 0) and tp.source.min() >= 1 and tp.source.max() <= records
+    assert [e.text for e in tp.events if e.kind is EventKind.COMMENT] == ["centerline data"]
+
+
+def test_modal_tool_axis_and_rapid_for_the_next_move_only() -> None:
+    """mech491_APT_Variable_Axis: the first GOTO sets i,j,k; the next ones without it keep it."""
+    tp = _read("mech491_APT_Variable_Axis.cls").toolpath
+    first = np.array([-0.3778015, -0.0069217, 0.9258607])
+    first /= np.linalg.norm(first)
+    assert_allclose(tp.axis[:10], np.tile(first, (10, 1)), atol=1e-15)          # lines 10 … 25
+    assert tp.source[:4].tolist() == [10, 13, 16, 17]
+    assert tp.kind[:4].tolist() == [MoveKind.RAPID, MoveKind.RAPID, MoveKind.FEED, MoveKind.FEED]
+    assert int(np.sum(tp.kind == MoveKind.RAPID)) == 3                          # 3 RAPID records
+
+
+def test_inches_implied_by_ipm_are_converted_to_mm() -> None:
+    cl = _read("mech491_APT_Variable_Axis.cls")
+    tp = cl.toolpath
+    # MSYS/3,3,0 (identity axes) in inches; GOTO/-4.2721,-3.0148,3.0000 (line 10)
+    assert_allclose(tp.tip[0], np.array([-1.2721, -0.0148, 3.0]) * 25.4, atol=1e-12)
+    assert_allclose(cl.frames[0].origin, [76.2, 76.2, 0.0], atol=1e-12)
+    assert set(tp.feed[tp.kind == MoveKind.FEED].tolist()) == {254.0}             # FEDRAT/IPM,10
+
+
+def test_units_given_by_the_caller_override_the_ipm_guess() -> None:
+    text = "FEDRAT/IPM,10.0\nGOTO/1.0,2.0,3.0\n"
+    as_mm = _parse(text, units="mm")
+    assert (as_mm.units, as_mm.toolpath.tip[0].tolist(), as_mm.toolpath.feed[0]) == ("mm", [1.0, 2.0, 3.0], 254.0)
+    guessed = _parse(text)
+    assert guessed.units == "inch"
+    assert_allclose(guessed.toolpath.tip[0], [25.4, 50.8, 76.2], atol=1e-12)
+
+
+def test_units_record_wins_and_contradictions_are_refused() -> None:
+    assert _parse("UNITS/INCHES\nFEDRAT/MMPM,100\nGOTO/1,0,0\n").toolpath.tip[0].tolist() == [25.4, 0.0, 0.0]
+    with pytest.raises(InputError) as info:
+        _parse("UNITS/MM\nGOTO/1,0,0\n", units="inch")
+    assert str(info.value) == ("t.cls:1: the file says UNITS/ mm but inch was asked for: leave the unit out or give "
+                               "the file's own")
+
+
+def test_msys_round_trip_on_the_flipped_frame() -> None:
+    """humman_4: MSYS/393,-297.5,3, x=(0,1,0), y=(1,0,0) → z = x × y = (0,0,-1)."""
+    cl = _read("humman_4_SVERL_63_N2.cls")
+    (frame,) = cl.frames
+    assert frame.line == 3
+    assert_allclose(frame.rotation, [[0, 1, 0], [1, 0, 0], [0, 0, -1]], atol=0)
+    local = np.array([[1558.4057, -837.0281, 418.0]])                   # line 10
+    part = frame.to_part(local)
+    assert_allclose(part, [[393 - 837.0281, -297.5 + 1558.4057, 3 - 418.0]], atol=1e-9)
+    assert_allclose(frame.to_local(part), local, atol=1e-9)
+    tp = cl.toolpath
+    assert tp.source[:2].tolist() == [8, 10]                             # FROM/, then the GOTO of line 10
+    assert_allclose(tp.tip[1], part[0], atol=1e-9)
+    assert_allclose(tp.axis, np.tile([0.0, 0.0, -1.0], (len(tp), 1)), atol=0)   # local +z is part -z
+    assert tp.kind[0] == MoveKind.RAPID and tp.kind[-1] == MoveKind.RAPID       # FROM/ and GOHOME/
+    assert set(tp.feed[tp.kind == MoveKind.FEED].tolist()) == {120.0}
+
+
+def test_msys_later_in_the_file_reframes_the_current_position() -> None:
+    text = ("RAPID\nGOTO/1,2,3,0,0,1\nMSYS/10,0,0,0,1,0,-1,0,0\nFEDRAT/100\nGOTO/0,0,0\n")
+    tp = _parse(text).toolpath
+    assert_allclose(tp.tip, [[1, 2, 3], [10, 0, 0]], atol=1e-12)
+    assert_allclose(tp.axis, [[0, 0, 1], [0, 0, 1]], atol=1e-12)        # the modal axis stays the same direction
+
+
+# --------------------------------------------------------------------------------------------
+# Arcs: the direction convention, from the corpus
+# --------------------------------------------------------------------------------------------
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+@pytest.mark.parametrize(("name", "junctions", "tangent_junctions"), [
+    ("mech491_APT_Zig_Zag_Smoothed.cls", 68, 67), ("humman_1_KONTUR_NAR_40_N2.cls", 38, 34),
+    ("mech491_APT_SimpleMillPlane.cls", 4, 2),
+])
+def test_arcs_run_clockwise_about_their_axis_tangent_to_their_neighbours(name: str, junctions: int,
+                                                                        tangent_junctions: int) -> None:
+    """Where a move meets an arc along (or against) the arc's tangent, the expanded arc continues the
+    move: the first chord leaves in the incoming direction, the next move leaves the last chord's way.
+    Reading the direction the other way round turns every one of these junctions into a reversal.
+    The other junctions are corners (plunges onto an arc, the 55° corners of humman_1), and none of
+    them reverses either."""
+    tp = _read(name, tolerance=1e-4).toolpath
+    arc_lines = {int(line) for line in np.unique(tp.source) if (tp.source == line).sum() > 1}
+    tip = tp.tip
+    cosines = []
+    for line in sorted(arc_lines):
+        rows = np.flatnonzero(tp.source == line)
+        first, last = rows[0], rows[-1] + 1                  # + 1: the end GOTO's row
+        if first >= 2:
+            cosines.append(float(_unit(tip[first] - tip[first - 1]) @ _unit(tip[first - 1] - tip[first - 2])))
+        if last + 1 < len(tip):
+            cosines.append(float(_unit(tip[last + 1] - tip[last]) @ _unit(tip[last] - tip[last - 1])))
+    cosines_arr = np.array(cosines)
+    tangent = np.abs(cosines_arr) > math.cos(0.05)           # within 3° either way (chords of 1e-4 mm sagitta)
+    assert (len(cosines_arr), int(tangent.sum())) == (junctions, tangent_junctions)
+    assert np.all(cosines_arr[tangent] > math.cos(0.05))
+    assert np.all(cosines_arr > -1e-9)
+
+
+def test_arc_rows_lie_on_the_circle_and_end_on_the_goto() -> None:
+    tp = _read("mech491_APT_SimpleMillPlane.cls").toolpath
+    rows = np.flatnonzero(tp.source == 14)                  # CIRCLE/-265,172.4997,100,0,0,-1,7.5 ; GOTO line 15
+    assert tp.source[rows[-1] + 1] == 15
+    arc = tp.tip[np.r_[rows[0] - 1, rows, rows[-1] + 1]]     # from the start point (the GOTO of line 13)
+    assert_allclose(np.linalg.norm(arc[:, :2] - [-265.0, 172.4997], axis=1), 7.5, atol=1e-9)
+    assert_allclose(arc[-1], [-265.0, 164.9997, 100.0], atol=0)
+    # clockwise about (0,0,-1) = counter-clockwise seen from +z: from the left of the centre to below it
+    # the short way round is a quarter turn through angles 180° → 270°
+    angle = np.degrees(np.arctan2(arc[:, 1] - 172.4997, arc[:, 0] + 265.0)) % 360
+    assert angle[0] == pytest.approx(180.0) and np.all(np.diff(angle[:-1]) > 0) and angle[-2] < 270
+
+
+def test_an_arc_end_equal_to_its_start_is_a_full_circle() -> None:
+    text = "FEDRAT/MMPM,100\nGOTO/10,0,0,0,0,1\nCIRCLE/0,0,0,0,0,1,10\nGOTO/10,0,0\n"
+    cl = _parse(text)
+    # sagitta 10·(1 − cos(Δ/2)) ≤ 0.002 → Δ ≤ 0.04 rad → 2π / 0.04 → 158 segments
+    assert cl.counts.arcs == 1 and cl.counts.arc_segments == arc_segment_count(10.0, 2 * math.pi, tolerance=TOL) == 158
+    assert_allclose(np.linalg.norm(cl.toolpath.tip[:, :2], axis=1), 10.0, atol=1e-9)
+
+
+# --------------------------------------------------------------------------------------------
+# Cycles, events, records
+# --------------------------------------------------------------------------------------------
+def test_drill_cycle_from_the_corpus() -> None:
+    """CYCLE/DRILL,RAPTO,3,FEDTO,0,MMPM,250 on two holes at z=240, axis +z."""
+    cl = _read("humman_standart_drill.clsf")
+    (cycle,) = cl.cycles
+    assert (cycle.line, cycle.holes, cycle.cycle) == (7, 2, DrillCycle(depth=0.0, clearance=3.0, retract=3.0,
+                                                                       feed=250.0))
+    tp = cl.toolpath
+    assert_allclose(tp.tip, [[66, 0, 243], [66, 0, 240], [66, 0, 243], [-255, 0, 243], [-255, 0, 240],
+                             [-255, 0, 243]], atol=0)
+    assert tp.kind.tolist() == [0, 1, 0, 0, 1, 0]
+    assert tp.source.tolist() == [9, 9, 9, 10, 10, 10]
+    assert tp.feed.tolist() == [0, 250, 0, 0, 250, 0]
+
+
+def test_peck_cycle_with_step_dwell_and_retract() -> None:
+    text = ("SPINDL/RPM,1000,CLW\nCYCLE/DRILL,DEEP,FEDTO,-5,RAPTO,2,RTRCTO,10,STEP,2,DWELL,0.5,MMPR,0.1\n"
+            "GOTO/0,0,0,0,0,1\nCYCLE/OFF\n")
+    cl = _parse(text)
+    assert cl.cycles[0].cycle == DrillCycle(depth=5.0, clearance=2.0, retract=10.0, feed=100.0,
+                                            pecking=Pecking.FULL_RETRACT, peck=2.0, dwell=0.5)
+    assert cl.toolpath.tip[:, 2].tolist() == [2, -2, 2, -1.5, -4, 2, -3.5, -5, 10]
+    dwell = [e for e in cl.toolpath.events if e.kind is EventKind.DWELL]
+    assert [(e.before, e.value) for e in dwell] == [(8, 0.5)]
+
+
+def test_chip_break_pattern_along_a_tilted_axis() -> None:
+    axis = _unit(np.array([[1.0, 0.0, 1.0]]))
+    tip, kind, bottom = drill_rows(np.array([[5.0, 0, 0]]), axis,
+                                   DrillCycle(depth=3, clearance=1, retract=4, feed=50, pecking=Pecking.CHIP_BREAK,
+                                              peck=1.5, gap=0.25))
+    heights = (tip - [5.0, 0, 0]) @ axis[0]
+    assert_allclose(heights, [1, -1.5, -1.25, -3, 4], atol=1e-12)
+    assert (kind.tolist(), bottom.tolist()) == ([0, 1, 0, 1, 0], [3])
+
+
+def test_events_spindle_coolant_tools_comments_stops() -> None:
+    text = ("TLDATA/MILL,10.0000,0.0000,50.0000,0.0000,0.0000\nLOADTL/3\nSPINDL/RPM,1200,CCLW\n"
+            "COOLNT/MIST\nPPRINT/ROUGH, THEN FINISH\nRAPID\nGOTO/0,0,10 $$ above\nSTOP\nOPSTOP\nCOOLNT/OFF\n"
+            "SPINDL/OFF\nSELECT/TOOL,4\nLOAD/TOOL,4\nFINI\n")
+    tp = _parse(text).toolpath
+    shown = [(e.before, e.kind.value, e.value, e.text) for e in tp.events]
+    assert shown == [
+        (0, "tool_change", 3.0, "tool 3: TLDATA/MILL,10.0000,0.0000,50.0000,0.0000,0.0000"),
+        (0, "spindle_on", 1200.0, "ccw"), (0, "coolant_on", 0.0, "mist"), (0, "comment", 0.0, "ROUGH, THEN FINISH"),
+        (0, "comment", 0.0, "above"), (1, "stop", 0.0, ""), (1, "stop", 0.0, "optional"),
+        (1, "coolant_off", 0.0, ""), (1, "spindle_off", 0.0, ""),
+        (1, "tool_change", 4.0, "tool 4: TLDATA/MILL,10.0000,0.0000,50.0000,0.0000,0.0000"),
+    ]
+
+
+def test_continuation_lines_and_exponents() -> None:
+    cl = _parse("FEDRAT/$\nMMPM,$\n1.5E+02\nGOTO/1.0E+01,$\n-2,3\n")
+    assert cl.toolpath.tip.tolist() == [[10.0, -2.0, 3.0]] and cl.toolpath.feed.tolist() == [150.0]
+    assert cl.toolpath.source.tolist() == [4] and cl.counts.records == 2
+
+
+def test_feed_unit_after_the_value_and_per_revolution() -> None:
+    cl = _parse("SPINDL/2000\nFEDRAT/0.05,MMPR\nGOTO/1,0,0\nFEDRAT/20,IPM\nGOTO/2,0,0\n", units="mm")
+    assert cl.toolpath.feed.tolist() == [100.0, 508.0]
+
+
+def test_ignored_words_are_skipped_and_counted() -> None:
+    cl = _parse("CUTCOM/LEFT\nRAPID\nGOTO/0,0,0\nCUTCOM/OFF\n", ignore=frozenset({"cutcom"}))
+    assert cl.counts.skipped == (("CUTCOM", 2),) and len(cl.toolpath) == 1
+    with pytest.raises(InputError) as info:
+        _parse("GOTO/0,0,0\n", ignore=frozenset({"GOTO", "PAINT"}))
+    assert str(info.value) == ("t.cls: cannot ignore GOTO, PAINT: the reader understands them (only unknown major "
+                               "words can be ignored)")
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in BAD.glob("*.cls")))
+def test_bad_cl_files_give_their_exact_message(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(REPO)
+    path = f"fixtures/bad/cl/{name}"
+    first = (REPO / path).read_text().splitlines()[0]
+    assert first.startswith("$$ expect: ")
+    with pytest.raises(InputError) as info:
+        read_cl(path, tolerance=TOL)
+    assert str(info.value) == first.removeprefix("$$ expect: ")
+    assert info.value.exit_code == 2
+
+
+def test_not_text_and_empty_files_are_refused(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(REPO)
+    with pytest.raises(InputError) as info:
+        read_cl("fixtures/bad/cube.stl", tolerance=TOL)
+    assert str(info.value) == "fixtures/bad/cube.stl: not a CL file: binary data (byte 0x00 at offset 0)"
+    with pytest.raises(InputError) as info:
+        _parse("\n  \n")
+    assert str(info.value) == "t.cls: not a CL file: no records (the file is empty)"

@@ -1,0 +1,176 @@
+"""Output never destroys anything: no output onto an input, FIFOs and devices written in place,
+no temp file left by a signal, a program and its preview both or neither, full standard output
+and impossible names reported (exit 2, no traceback)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import stat
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from prs3_post import output as output_module
+from prs3_post.cli import main
+from prs3_post.errors import InputError
+from prs3_post.output import write_atomic, write_outputs
+
+REPO = Path(__file__).resolve().parents[1]
+WEDGE = REPO / "fixtures" / "parts" / "wedge.stl"
+POSES = "tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n0,200,-680,0,0,1\n"
+
+
+def invoke(*args: str):
+    return CliRunner().invoke(main, list(args), prog_name="prs3-post")
+
+
+def _error(path: str, message: str) -> str:
+    return f"prs3-post: error: {path}: {message}\n"
+
+
+# ----------------------------------------------------------------------------- -o onto an input
+
+@pytest.fixture
+def folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "part.stl").write_bytes(WEDGE.read_bytes())
+    (tmp_path / "link.stl").symlink_to("part.stl")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "p.csv").write_text(POSES)
+    return tmp_path
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["part.stl", "--profile", "hole", "-o", "part.stl"],
+     _error("part.stl", "is also the input PART.stl: writing --output would destroy it (choose another file)")),
+    (["part.stl", "--profile", "hole", "-o", "./sub/../link.stl"],
+     _error("./sub/../link.stl",
+            "is also the input PART.stl: writing --output would destroy it (choose another file)")),
+    (["link.stl", "--profile", "hole", "--preview", "./part.stl"],
+     _error("./part.stl", "is also the input PART.stl: writing --preview would destroy it (choose another file)")),
+    (["demo", "--profile", "hole", "-o", "x.png", "--preview", "./x.png"],
+     _error("./x.png", "--output and --preview name the same file: one would overwrite the other")),
+    (["ik", "--batch", "p.csv", "-o", "./p.csv"],
+     _error("./p.csv", "is also the input --batch: writing --output would destroy it (choose another file)")),
+    (["preview", "part.stl", "-o", "link.stl"],
+     _error("link.stl", "is also the input PROGRAM.ngc: writing --output would destroy it (choose another file)")),
+    (["demo", "--profile", "hole", "--machine", "./m.toml", "-o", "m.toml"],
+     _error("m.toml", "is also the input --machine: writing --output would destroy it (choose another file)")),
+])
+def test_output_onto_an_input_is_refused_before_any_work(folder: Path, args: list[str], message: str) -> None:
+    before = {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()}
+    result = invoke(*args)
+    assert (result.exit_code, result.stderr, result.stdout) == (2, message, "")
+    assert {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()} == before
+    assert (folder / "link.stl").is_symlink()
+
+
+# ----------------------------------------------------------------------------- what the target is
+
+def test_a_fifo_is_written_into_not_replaced(tmp_path: Path) -> None:
+    fifo = tmp_path / "f.ngc"
+    os.mkfifo(fifo)
+    received: list[bytes] = []
+    reader = threading.Thread(target=lambda: received.append(fifo.read_bytes()))
+    reader.start()
+    result = invoke("demo", "--profile", "hole", "-o", str(fifo))
+    reader.join(timeout=10)
+    assert result.exit_code == 0
+    assert stat.S_ISFIFO(fifo.lstat().st_mode)
+    assert received == [invoke("demo", "--profile", "hole").stdout.encode()]
+    assert [p.name for p in tmp_path.iterdir()] == ["f.ngc"]
+
+
+def test_a_symbolic_link_is_written_through(tmp_path: Path) -> None:
+    (tmp_path / "real.ngc").write_text("old\n")
+    (tmp_path / "link.ngc").symlink_to("real.ngc")
+    write_atomic(str(tmp_path / "link.ngc"), ["G0 ", b"X1\n"])
+    assert (tmp_path / "link.ngc").is_symlink()
+    assert (tmp_path / "real.ngc").read_text() == "G0 X1\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link.ngc", "real.ngc"]
+
+
+def test_a_too_long_name_is_a_clear_error(tmp_path: Path) -> None:
+    name = str(tmp_path / ("a" * 300 + ".ngc"))
+    result = invoke("demo", "--profile", "hole", "-o", name)
+    assert (result.exit_code, result.stderr) == (2, _error(name, "cannot write the output here: File name too long"))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_long_name_that_fits_is_written(tmp_path: Path) -> None:
+    """The temp file's name must not be longer than the system allows when the target's is not."""
+    target = tmp_path / ("b" * 250)
+    write_atomic(str(target), "x\n")
+    assert [p.name for p in tmp_path.iterdir()] == [target.name]
+
+
+# ----------------------------------------------------------------------------- both or neither
+
+def test_a_failed_preview_leaves_no_program(tmp_path: Path) -> None:
+    program = tmp_path / "new.ngc"
+    result = invoke("demo", "--profile", "hole", "-o", str(program), "--preview", str(tmp_path / "no" / "x.png"))
+    assert (result.exit_code, result.stderr) == (
+        2, _error(str(tmp_path / "no" / "x.png"), "cannot write the output here: No such file or directory"))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_failed_rename_undoes_the_ones_before(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    first, second = tmp_path / "a.ngc", tmp_path / "b.png"
+    first.write_text("old\n")
+    real_replace = os.replace
+
+    def replace(src, dst):
+        if Path(dst) == second:
+            raise OSError(28, "No space left on device")
+        real_replace(src, dst)
+
+    monkeypatch.setattr(output_module.os, "replace", replace)
+    with pytest.raises(InputError) as caught:
+        write_outputs([(str(first), "new\n"), (str(second), b"png")])
+    assert str(caught.value) == f"{second}: cannot write the output: No space left on device"
+    assert first.read_text() == "old\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc"]
+
+
+# ----------------------------------------------------------------------------- signals and streams
+
+_SIGNAL_SCRIPT = """
+import os, signal, sys
+from prs3_post.output import write_atomic
+def chunks():
+    yield "first half\\n"
+    os.kill(os.getpid(), signal.{name})
+    yield "second half\\n"
+try:
+    write_atomic(sys.argv[1], chunks())
+except KeyboardInterrupt:
+    print("interrupted")
+"""
+
+
+@pytest.mark.parametrize(("name", "returncode", "stdout"), [
+    ("SIGTERM", -signal.SIGTERM, ""), ("SIGINT", 0, "interrupted\n"), ("SIGHUP", -signal.SIGHUP, ""),
+])
+def test_a_signal_during_a_write_leaves_no_temp_file(tmp_path: Path, name: str, returncode: int, stdout: str) -> None:
+    target = tmp_path / "prog.ngc"
+    target.write_text("old\n")
+    done = subprocess.run([sys.executable, "-c", _SIGNAL_SCRIPT.format(name=name), str(target)],
+                          capture_output=True, text=True, timeout=60, check=False)
+    assert (done.returncode, done.stdout) == (returncode, stdout), done.stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["prog.ngc"]
+    assert target.read_text() == "old\n"
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+@pytest.mark.parametrize("args", [["demo", "--profile", "hole"], ["faces", str(WEDGE)]], ids=["demo", "faces"])
+def test_full_standard_output_is_a_clear_error(args: list[str]) -> None:
+    with open("/dev/full", "w") as full:
+        done = subprocess.run([sys.executable, "-c", "from prs3_post.cli import main; main()", *args],
+                              stdout=full, stderr=subprocess.PIPE, text=True, timeout=60, check=False)
+    assert (done.returncode, done.stderr) == (
+        2, "prs3-post: error: standard output: cannot write: No space left on device\n")
