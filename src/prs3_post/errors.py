@@ -48,3 +48,20 @@ class FeatureError(Prs3Error):
 class Prs3Warning(UserWarning):
     """Something looks wrong but may be meant (a part of an unusual size): the CLI prints it as
     ``prs3-post: warning: message`` on standard error and goes on."""
+
+
+class LexError(Prs3Error):
+    """Text that is not G-code words (:mod:`prs3_post.readers.lexer`). It knows neither the file nor the
+    line: a reader wraps it in an :class:`InputError` with both (``raise InputError(...) from exc``).
+
+    Attributes
+    ----------
+    column : int | None — 1-based column in the line (None: not about one line, e.g. undecodable bytes)
+    found : str — the text that could not be read, from where reading stopped (``''`` if none)
+    """
+
+    exit_code = 2
+
+    def __init__(self, message: str, *, column: int | None = None, found: str = ""):
+        super().__init__(message)
+        self.column, self.found = column, found

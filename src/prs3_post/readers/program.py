@@ -23,26 +23,46 @@ otherwise unknown); one code per modal group and no letter twice on a line; the 
 M2 or M30 and only comments, blank lines and a closing ``%`` follow. A file that is not UTF-8
 text, has control bytes, or does not read as G-code words is refused as not G-code.
 
-Parsing: each line's code (comments removed) is scanned by a strict regular expression here, and
-cross-checked word for word with pygcode's reading of the same text; a disagreement is an error
-(pygcode alone silently drops some characters, e.g. NUL bytes, or truncates ``T1.5`` to ``T1``).
+Parsing: bytes, comments and words are the shared lexer's (:mod:`prs3_post.readers.lexer`; pygcode
+is its reference in a differential test, no longer a step here). Lines of the emitter's own motion
+shape (``N.. G0/G1 X.. Y.. <T1> <T2> <T3> F..``, upper case, no comment) are read a chunk at a time
+(:func:`~prs3_post.readers.lexer.lex_columns`) and replayed on the modal state in bulk; a chunk where
+any rule would fail, and every other line, goes through the careful reader one line at a time,
+which is the definition: the bulk step only ever takes lines it would read the same way.
+
+Streaming: :class:`ProgramStream` reads a file in pieces and hands out its moves a chunk of lines at
+a time, with the modal state and the last position carried across, so memory stays flat in the
+program's length; :func:`load_program` reads it whole.
 
 Every move keeps its 1-based line number (``JointProgram.source``), for the reports.
 """
 
 from __future__ import annotations
 
-import re
-from dataclasses import dataclass
+import itertools
+from collections.abc import Iterator
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from prs3_post.config import AXIS_LETTERS, Dialect
-from prs3_post.errors import InputError
+from prs3_post.errors import InputError, LexError
 from prs3_post.readers.files import read_input
+from prs3_post.readers.lexer import (
+    BYTE_ORDER_MARK,
+    EMPTY,
+    Word,
+    code_name,
+    decode,
+    lex_columns,
+    lex_words,
+    quote,
+    split_comments,
+)
 from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind
+from prs3_post.types import FloatArray, IntArray
 
-__all__ = ["ALLOWED_G", "ALLOWED_M", "ProgramFile", "load_program", "read_program"]
+__all__ = ["ALLOWED_G", "ALLOWED_M", "CHUNK_LINES", "ProgramFile", "ProgramStream", "load_program", "read_program"]
 
 #: G-codes the emitter writes, with their modal group (one code per group and line).
 ALLOWED_G: dict[int, str] = {
@@ -55,9 +75,11 @@ ALLOWED_M: dict[int, str] = {0: "stop", 2: "stop", 30: "stop", 3: "spindle", 5: 
                              7: "coolant", 8: "coolant", 9: "coolant"}
 #: Word letters other than axes: what each is for.
 _OTHER_LETTERS = "GMNFSTPO"
-_NUMBER = r"-?(?:\d+(?:\.\d*)?|\.\d+)"
-_WORD = re.compile(rf"([A-Z])({_NUMBER})")
 _AXIS_NAMES = ("stage X", "stage Y", "actuator T1", "actuator T2", "actuator T3")
+#: Lines handed out per chunk by :class:`ProgramStream` (and read in bulk at a time).
+CHUNK_LINES = 65536
+#: Bytes read from the file at a time.
+_PIECE_BYTES = 1 << 22
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,7 +108,7 @@ class ProgramFile:
 
 
 def load_program(path: str, dialect: Dialect, *, stage: bool = True) -> ProgramFile:
-    """Read a program file (see the module docstring for what is understood).
+    """Read a program file whole (see the module docstring for what is understood).
 
     Parameters
     ----------
@@ -109,81 +131,32 @@ def load_program(path: str, dialect: Dialect, *, stage: bool = True) -> ProgramF
 
 
 def text_from_bytes(data: bytes, path: str) -> str:
-    """The program text of a file's bytes; binary data, non-UTF-8 and empty files are refused.
+    """The program text of a file's bytes (:func:`prs3_post.readers.lexer.decode`, its errors naming ``path``).
 
     Raises
     ------
     InputError
         ``not a G-code program: ...`` with what was found.
     """
-    if not data.strip():
-        raise InputError("not a G-code program: the file is empty", path=path)
-    if data.startswith(b"\xef\xbb\xbf"):
-        raise InputError("starts with a UTF-8 byte-order mark, which LinuxCNC rejects ('Bad character')", path=path)
-    codes = np.frombuffer(data, dtype=np.uint8)
-    control = np.flatnonzero(((codes < 32) & ~np.isin(codes, (9, 10, 13))) | (codes == 127))
-    if len(control):
-        at = int(control[0])
-        raise InputError(f"not a G-code program: binary data (byte 0x{codes[at]:02x} at offset {at})", path=path)
     try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise InputError(f"not a G-code program: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset "
-                         f"{exc.start})", path=path) from exc
+        return decode(data)
+    except LexError as exc:
+        raise InputError(str(exc), path=path) from exc
 
 
-def _strip_comments(line: str, open_: str, close: str) -> tuple[str, str | None]:
-    """The line's code without comments, and an error text for an unclosed comment (or None)."""
-    code: list[str] = []
-    pos = 0
-    while True:
-        start = line.find(open_, pos)
-        if start < 0:
-            code.append(line[pos:])
-            return "".join(code), None
-        code.append(line[pos:start])
-        if not close:
-            return "".join(code), None
-        end = line.find(close, start + len(open_))
-        if end < 0:
-            return "", f"comment opened with {open_!r} at column {start + 1} is not closed with {close!r}"
-        if open_ in line[start + len(open_):end]:
-            return "", f"comment at column {start + 1} contains another {open_!r} (LinuxCNC rejects nested comments)"
-        pos = end + len(close)
+def _split_lines(text: str) -> tuple[list[str], list[bool]]:
+    """Lines without their endings (a final line ending ends the last line) and which ended in CRLF."""
+    lines = text.split("\n")
+    if lines and lines[-1] == "":
+        lines.pop()                                    # the final line ending
+    crlf = [ln.endswith("\r") for ln in lines]
+    if any(crlf):
+        lines = [ln[:-1] if cr else ln for ln, cr in zip(lines, crlf, strict=True)]
+    return lines, crlf
 
 
-def _quote(text: str, limit: int = 40) -> str:
-    text = text.strip()
-    return f"'{text[:limit]}...'" if len(text) > limit else f"'{text}'"
-
-
-def _scan_words(code: str) -> tuple[list[tuple[str, float, str]], str | None]:
-    """``(letter, value, text)`` of each word of comment-free code, or an error text."""
-    squeezed = re.sub(r"[ \t]+", "", code).upper()
-    words: list[tuple[str, float, str]] = []
-    pos = 0
-    while pos < len(squeezed):
-        match = _WORD.match(squeezed, pos)
-        if match is None:
-            return [], "bad"
-        words.append((match.group(1), float(match.group(2)), match.group(0)))
-        pos = match.end()
-    return words, None
-
-
-def _pygcode_words(code: str) -> list[tuple[str, float]]:
-    """pygcode's reading of the same code, as ``(letter, value)``; raises what pygcode raises."""
-    import pygcode  # only `verify` and `preview` read programs: the other commands need not load it
-
-    line = pygcode.Line(code)
-    return [(w.letter.upper(), float(w.value)) for w in line.block.words]
-
-
-def _code_name(letter: str, value: float) -> str:
-    return f"{letter}{int(value)}" if value == int(value) else f"{letter}{value:g}"
-
-
-def read_program(text: str, dialect: Dialect, *, path: str, stage: bool = True) -> ProgramFile:
+def read_program(text: str, dialect: Dialect, *, path: str, stage: bool = True,
+                 chunk_lines: int = CHUNK_LINES) -> ProgramFile:
     """Read program text (see the module docstring); ``path`` is only used in messages.
 
     Raises
@@ -191,14 +164,141 @@ def read_program(text: str, dialect: Dialect, *, path: str, stage: bool = True) 
     InputError
     """
     reader = _Reader(dialect, path, stage)
-    lines = text.split("\n")
-    if lines and lines[-1] == "":
-        lines.pop()                                    # the final line ending
-    crlf = [ln.endswith("\r") for ln in lines]
-    lines = [ln[:-1] if cr else ln for ln, cr in zip(lines, crlf, strict=True)]
-    for number, (line, cr) in enumerate(zip(lines, crlf, strict=True), start=1):
-        reader.line(number, line, crlf=cr)
-    return reader.finish(tuple(lines))
+    lines, crlf = _split_lines(text)
+    parts = []
+    for first in range(0, len(lines), chunk_lines):
+        reader.lines(first + 1, lines[first:first + chunk_lines], crlf[first:first + chunk_lines])
+        parts.append(reader.take())
+    reader.finish(len(lines))
+    moves = join_chunks(parts)
+    return ProgramFile(path=path, dialect=dialect.name, moves=moves, lines=tuple(lines),
+                       end_line=reader.end_line or 0, blending_lines=tuple(reader.blending))
+
+
+def join_chunks(parts: list[JointProgram]) -> JointProgram:
+    """One program of consecutive chunks (each chunk's events count rows from its own start)."""
+    events: list[Event] = []
+    offset = 0
+    for part in parts:
+        events += [Event(before=e.before + offset, kind=e.kind, value=e.value, text=e.text) for e in part.events]
+        offset += len(part)
+    if not parts:
+        return _rows([], np.zeros((0, 5)), [], [], [])
+    return JointProgram(
+        kind=np.concatenate([p.kind for p in parts]), stage=np.concatenate([p.stage for p in parts]),
+        strokes=np.concatenate([p.strokes for p in parts]),
+        inverse_time=np.concatenate([p.inverse_time for p in parts]),
+        source=np.concatenate([p.source for p in parts]), events=tuple(events))
+
+
+def _rows(kind: list[int] | IntArray, joints: FloatArray, feed: list[float] | FloatArray,
+          source: list[int] | IntArray, events: list[Event]) -> JointProgram:
+    joints = np.asarray(joints, dtype=np.float64).reshape(-1, 5)
+    return JointProgram(kind=np.asarray(kind, dtype=np.int64), stage=joints[:, :2], strokes=joints[:, 2:],
+                        inverse_time=np.asarray(feed, dtype=np.float64), source=np.asarray(source, dtype=np.int64),
+                        events=tuple(events))
+
+
+class ProgramStream:
+    """A program file read in chunks of lines, for a replay whose memory does not grow with the program.
+
+    Iterate it for one :class:`~prs3_post.toolpath.JointProgram` per chunk with moves or events (events
+    count rows from the chunk's start; ``source`` holds the file's line numbers); the modal state
+    and the last position carry across chunks, so the chunks are exactly the rows :func:`load_program`
+    reads, cut in pieces. After the iteration, ``end_line``, ``blending_lines`` and ``line_count`` are
+    set. The whole file is checked for being text (empty, byte-order mark, control bytes, UTF-8)
+    before its first line is read, as :func:`load_program` does.
+
+    Raises (during the iteration)
+    -----------------------------
+    InputError
+        As :func:`load_program`.
+    """
+
+    def __init__(self, path: str, dialect: Dialect, *, stage: bool = True, chunk_lines: int = CHUNK_LINES,
+                 piece_bytes: int = _PIECE_BYTES):
+        self.path, self.dialect, self.stage = path, dialect, stage
+        self.chunk_lines, self.piece_bytes = max(1, int(chunk_lines)), max(1, int(piece_bytes))
+        self.end_line = 0
+        self.blending_lines: tuple[int, ...] = ()
+        self.line_count = 0
+
+    def _pieces(self) -> Iterator[tuple[int, bytes]]:
+        """(offset, bytes) pieces of the file, each ending at a line end (or the file's end)."""
+        try:
+            with open(self.path, "rb") as stream:
+                offset, rest = 0, b""
+                while block := stream.read(self.piece_bytes):
+                    block = rest + block
+                    cut = block.rfind(b"\n") + 1
+                    if cut == 0:
+                        rest = block
+                        continue
+                    yield offset, block[:cut]
+                    offset, rest = offset + cut, block[cut:]
+                if rest:
+                    yield offset, rest
+        except FileNotFoundError as exc:
+            raise InputError("file not found", path=self.path) from exc
+        except IsADirectoryError as exc:
+            raise InputError("is a directory, not a G-code program", path=self.path) from exc
+        except PermissionError as exc:
+            raise InputError("permission denied", path=self.path) from exc
+        except OSError as exc:
+            raise InputError(f"cannot read the file: {exc.strerror or exc}", path=self.path) from exc
+
+    def _check_text(self) -> None:
+        """The whole file is text, with :func:`~prs3_post.readers.lexer.decode`'s errors in its order."""
+        blank, mark, first_error = True, False, None
+        for offset, piece in self._pieces():
+            blank = blank and not piece.strip()
+            mark = mark or (offset == 0 and piece.startswith(b"\xef\xbb\xbf"))
+            if first_error is None:
+                try:
+                    decode(piece, offset=offset)
+                except LexError as exc:
+                    first_error = exc
+        for problem in ((EMPTY if blank else None), (BYTE_ORDER_MARK if mark else None)):
+            if problem:
+                raise InputError(problem, path=self.path)
+        if first_error is not None:
+            raise InputError(str(first_error), path=self.path) from first_error
+
+    def __iter__(self) -> Iterator[JointProgram]:
+        self._check_text()
+        reader = _Reader(self.dialect, self.path, self.stage)
+        number = 1
+        pending: list[str] = []
+        pending_crlf: list[bool] = []
+        for offset, piece in self._pieces():
+            lines, crlf = _split_lines(decode(piece, offset=offset))
+            pending += lines
+            pending_crlf += crlf
+            while len(pending) >= self.chunk_lines:
+                reader.lines(number, pending[:self.chunk_lines], pending_crlf[:self.chunk_lines])
+                number += self.chunk_lines
+                del pending[:self.chunk_lines], pending_crlf[:self.chunk_lines]
+                if len(chunk := reader.take()) or chunk.events:
+                    yield chunk
+        if pending:
+            reader.lines(number, pending, pending_crlf)
+            number += len(pending)
+        chunk = reader.take()
+        reader.finish(number - 1)
+        if len(chunk) or chunk.events:
+            yield chunk
+        self.end_line, self.blending_lines, self.line_count = reader.end_line or 0, tuple(reader.blending), number - 1
+
+
+@dataclass(slots=True)
+class _Block:
+    """One line's words, sorted: what LinuxCNC executes for it."""
+
+    seen: dict[str, str] = field(default_factory=dict)         # letter → word text (not G, M)
+    g_codes: dict[str, int] = field(default_factory=dict)      # modal group → code
+    m_codes: dict[str, int] = field(default_factory=dict)
+    axes: dict[int, float] = field(default_factory=dict)       # axis index (X Y T1 T2 T3) → value
+    values: dict[str, float] = field(default_factory=dict)     # F S T P → value
 
 
 class _Reader:
@@ -210,16 +310,19 @@ class _Reader:
         self.letters = (ax.x, ax.y, ax.t1, ax.t2, ax.t3)
         self.axis_index = {letter: i for i, letter in enumerate(self.letters)}
         self.axes_text = " ".join(self.letters if stage else self.letters[2:])
+        self.bulk_letters = "NG" + "".join(self.letters) + "F"
         self.motion: int | None = None                # 0, 1 or None (after G80 / at start)
         self.inverse_time = False                      # G93 active
         self.spindle: float | None = None              # last S
         self.tool: int | None = None                   # last T
         self.position = np.full(5, np.nan) if stage else np.array([0.0, 0.0, np.nan, np.nan, np.nan])
-        self.kind: list[int] = []
-        self.joints: list[np.ndarray] = []
+        self.parts: list[JointProgram] = []            # rows since the last take(), in order
+        self.kind: list[int] = []                      # rows of the careful reader, not yet in parts
+        self.joints: list[FloatArray] = []
         self.feed: list[float] = []
         self.source: list[int] = []
-        self.events: list[Event] = []
+        self.events: list[Event] = []                  # since the last take(), rows counted from there
+        self.rows = 0                                  # rows since the last take()
         self.end_line: int | None = None
         self.percent = 0                               # % lines seen
         self.blending: list[int] = []
@@ -230,119 +333,227 @@ class _Reader:
         return InputError(message, path=self.path, line=self.number)
 
     def event(self, kind: EventKind, value: float = 0.0, text: str = "") -> None:
-        self.events.append(Event(before=len(self.kind), kind=kind, value=value, text=text))
+        self.events.append(Event(before=self.rows, kind=kind, value=value, text=text))
+
+    # ------------------------------------------------------------------ a chunk of lines
+    def lines(self, first: int, lines: list[str], crlf: list[bool]) -> None:
+        """Lines ``first``, ``first + 1``, ... (without endings; ``crlf``: each ended in CRLF).
+
+        Runs of lines of the emitter's motion shape go to :meth:`bulk`; the others, and a run the
+        bulk step refuses, to :meth:`line` one at a time.
+        """
+        if not lines:
+            return
+        values, fast = lex_columns(lines, self.bulk_letters)
+        fast &= np.fromiter(map(len, lines), dtype=np.int64, count=len(lines)) < self.dialect.max_line_length
+        g = values[:, 1]
+        fast &= np.isnan(g) | (g == 0.0) | (g == 1.0)
+        fast &= ~np.isnan(values[:, 1:]).all(axis=1)   # a G0/G1 or an axis word (not only N, nor blank)
+        edges = np.flatnonzero(np.diff(fast.astype(np.int8))) + 1
+        bounds = [0, *edges.tolist(), len(lines)]
+        for a, b in itertools.pairwise(bounds):
+            ended = self.end_line is not None or self.percent >= 2      # the careful reader says what is wrong
+            if not (fast[a] and not ended and self.bulk(first + a, values[a:b])):
+                for i in range(a, b):
+                    self.line(first + i, lines[i], crlf=crlf[i])
+
+    def bulk(self, first: int, values: FloatArray) -> bool:
+        """Lines ``first``... of the motion shape (``values`` (k, 8): N, G, the five axes, F, NaN where
+        absent), in bulk: True if done; False (state untouched) where any line would be an error."""
+        g, axes, feed = values[:, 1], values[:, 2:7], values[:, 7]
+        start = -1.0 if self.motion is None else float(self.motion)
+        motion = _forward_fill(np.concatenate([[start], g]))[1:]
+        has_f = ~np.isnan(feed)
+        feeding = motion == 1.0
+        position = _forward_fill(np.vstack([self.position, axes]))[1:]
+        if ((motion < 0).any() or (has_f & ~feeding).any() or not (feed[has_f] > 0).all()
+                or (feeding.any() and (not self.inverse_time or (feeding & ~has_f).any()))
+                or (not self.stage and not np.isnan(axes[:, :2]).all()) or np.isnan(position).any()):
+            return False
+        self.flush()
+        k = len(values)
+        self.parts.append(_rows(np.where(feeding, int(MoveKind.FEED), int(MoveKind.RAPID)), position,
+                                np.where(feeding, feed, 0.0), np.arange(first, first + k), []))
+        self.rows += k
+        self.motion = int(motion[-1])
+        self.position = position[-1].copy()
+        self.code_seen = True
+        self.number = first + k - 1
+        return True
+
+    def flush(self) -> None:
+        """The careful reader's rows into ``parts`` (before a bulk run, or when taken)."""
+        if self.kind:
+            self.parts.append(_rows(self.kind, np.array(self.joints), self.feed, self.source, []))
+            self.kind, self.joints, self.feed, self.source = [], [], [], []
+
+    def take(self) -> JointProgram:
+        """The rows and events since the last take (events count rows from the first of them)."""
+        self.flush()
+        parts, events = self.parts, self.events
+        self.parts, self.events, self.rows = [], [], 0
+        chunk = join_chunks(parts)
+        return JointProgram(kind=chunk.kind, stage=chunk.stage, strokes=chunk.strokes,
+                            inverse_time=chunk.inverse_time, source=chunk.source, events=tuple(events))
 
     # ------------------------------------------------------------------ one line
     def line(self, number: int, line: str, *, crlf: bool = False) -> None:
         """One line without its ending; ``crlf``: it ended in a CR (``\\r\\n``), which LinuxCNC counts
         towards its line-length limit (the emitter allows one character less for CRLF, too)."""
         self.number = number
-        limit = self.dialect.max_line_length - (1 if crlf else 0)
-        if len(line) > limit:
-            ending = f" with a CRLF line ending (LinuxCNC counts the CR; {limit + 1} with LF)" if crlf else ""
-            raise self.error(f"the line is {len(line)} characters, dialect {self.dialect.name} allows {limit}{ending}")
-        style = self.dialect.comments
-        code, problem = _strip_comments(line, style.open, style.close)
-        if problem:
-            raise self.error(problem)
+        self.check_length(line, crlf)
+        try:
+            code, _ = split_comments(line, ((self.dialect.comments.open, self.dialect.comments.close),))
+        except LexError as exc:
+            raise self.error(str(exc)) from exc
         code = code.strip()
         if self.percent >= 2:
             if line.strip():
-                raise self.error(f"text after the closing '%': {_quote(line)} (LinuxCNC never reads it)")
+                raise self.error(f"text after the closing '%': {quote(line)} (LinuxCNC never reads it)")
             return
         if code == "%":
-            if self.percent == 0 and not self.code_seen:
-                self.percent = 1                       # the opening %
-                return
-            if self.end_line is None:
-                raise self.error("'%' before the program end (M2 or M30): only the first line and the lines "
-                                 "after the end may be '%'")
-            self.percent = 2                           # the closing %: LinuxCNC reads no further
+            self.percent_line()
             return
         if not code:
             return
         if self.end_line is not None:
-            raise self.error(f"code after the program end (line {self.end_line}): {_quote(code)} "
+            raise self.error(f"code after the program end (line {self.end_line}): {quote(code)} "
                              "(LinuxCNC never reads it)")
-        words, bad = _scan_words(code)
-        if bad:
-            raise self.error(f"not G-code: cannot read {_quote(code)} as words "
-                             "(a letter and a number each, e.g. G1 X-1.5)")
         self.code_seen = True
-        self.words(words, code)
+        self.words(self.lex(code))
 
-    def words(self, words: list[tuple[str, float, str]], code: str) -> None:
-        # ---- which words, where: letters first, then codes and groups
+    def check_length(self, line: str, crlf: bool) -> None:
+        limit = self.dialect.max_line_length - (1 if crlf else 0)
+        if len(line) > limit:
+            ending = f" with a CRLF line ending (LinuxCNC counts the CR; {limit + 1} with LF)" if crlf else ""
+            raise self.error(f"the line is {len(line)} characters, dialect {self.dialect.name} allows {limit}{ending}")
+
+    def percent_line(self) -> None:
+        """A ``%`` line: the opening one (first code), or the closing one (after the end)."""
+        if self.percent == 0 and not self.code_seen:
+            self.percent = 1                           # the opening %
+            return
+        if self.end_line is None:
+            raise self.error("'%' before the program end (M2 or M30): only the first line and the lines "
+                             "after the end may be '%'")
+        self.percent = 2                               # the closing %: LinuxCNC reads no further
+
+    def lex(self, code: str) -> tuple[Word, ...]:
+        try:
+            return lex_words(code)
+        except LexError as exc:
+            if exc.found[:1] in ("[", "#") or exc.found[1:].lstrip("+-")[:1] in ("[", "#"):
+                raise self.error(f"not G-code: {exc}") from exc
+            raise self.error(f"not G-code: cannot read {quote(code)} as words "
+                             "(a letter and a number each, e.g. G1 X-1.5)") from exc
+
+    # ------------------------------------------------------------------ one line's words
+    def words(self, words: tuple[Word, ...]) -> None:
+        """Check and execute one line's words: which words, then what they mean, in LinuxCNC's order."""
         if words[0][0] == "O":
             if len(words) > 1:
                 raise self.error("an O (program number) word must be alone on its line")
             return
-        seen: dict[str, str] = {}
-        g_codes: dict[str, int] = {}
-        m_codes: dict[str, int] = {}
-        axes: dict[int, float] = {}
-        values: dict[str, float] = {}
-        for position, (letter, value, text) in enumerate(words):
-            if letter in AXIS_LETTERS:
-                if letter not in self.axis_index or (not self.stage and self.axis_index[letter] < 2):
-                    if letter in self.axis_index:
-                        raise self.error(f"word '{letter}' is the stage {'XY'[self.axis_index[letter]]} axis of "
-                                         f"dialect {self.dialect.name}, and the machine has no stage "
-                                         f"(axes: {self.axes_text})")
-                    raise self.error(f"word '{letter}' is not an axis of dialect {self.dialect.name} "
-                                     f"(axes: {self.axes_text})")
-            elif letter not in _OTHER_LETTERS:
-                raise self.error(f"word '{letter}' is not used in prs3-post programs (words read: G M N F S T P "
-                                 f"and the axes {self.axes_text})")
-            if letter in "GM":
-                table = ALLOWED_G if letter == "G" else ALLOWED_M
-                name = _code_name(letter, value)
-                if value != int(value) or int(value) not in table:
-                    allowed = " ".join(f"{letter}{c}" for c in sorted(table))
-                    raise self.error(f"{name} is not a code prs3-post programs use (allowed: {allowed})")
-                group = table[int(value)]
-                groups = g_codes if letter == "G" else m_codes
-                if group in groups:
-                    other = _code_name(letter, groups[group])
-                    raise self.error(f"{other} and {name} are in the same modal group ({group}): one per line")
-                groups[group] = int(value)
-                continue
-            if letter in seen:
-                raise self.error(f"word '{letter}' appears twice ({seen[letter]} and {text})")
-            seen[letter] = text
-            if letter == "N":
-                if position != 0:
-                    raise self.error(f"the block number {text} must be the first word of the line")
-            elif letter == "O":
-                raise self.error("an O (program number) word must be alone on its line")
-            elif letter in AXIS_LETTERS:
-                axes[self.axis_index[letter]] = value
+        block = _Block()
+        for position, word in enumerate(words):
+            self.check_letter(word[0])
+            if word[0] in "GM":
+                self.add_code(block, word)
             else:
-                values[letter] = value
-        self.cross_check(words, code)
+                self.add_word(block, position, word)
+        motion, moves = self.motion_of(block)
+        self.check_feed(block, motion, moves)
+        self.set_spindle_and_tool(block)
+        self.execute_events(block)
+        if block.g_codes.get("path control") == 64:
+            self.blending.append(self.number)
+        self.motion = motion
+        if moves:
+            assert motion is not None  # checked in motion_of: a move needs a motion mode
+            self.move(motion, block.axes, block.values.get("F", 0.0))
+        stop = block.m_codes.get("stop")
+        if stop == 0:
+            self.event(EventKind.STOP)
+        elif stop in (2, 30):
+            self.end_line = self.number
 
-        # ---- meaning, in LinuxCNC's order of execution
-        if "feed mode" in g_codes:
-            self.inverse_time = g_codes["feed mode"] == 93
-        motion = g_codes.get("motion", self.motion)
+    def check_letter(self, letter: str) -> None:
+        """The letter is an axis of the dialect (and of the machine), or one of G M N F S T P O."""
+        if letter in AXIS_LETTERS:
+            if letter not in self.axis_index or (not self.stage and self.axis_index[letter] < 2):
+                if letter in self.axis_index:
+                    raise self.error(f"word '{letter}' is the stage {'XY'[self.axis_index[letter]]} axis of "
+                                     f"dialect {self.dialect.name}, and the machine has no stage "
+                                     f"(axes: {self.axes_text})")
+                raise self.error(f"word '{letter}' is not an axis of dialect {self.dialect.name} "
+                                 f"(axes: {self.axes_text})")
+        elif letter not in _OTHER_LETTERS:
+            raise self.error(f"word '{letter}' is not used in prs3-post programs (words read: G M N F S T P "
+                             f"and the axes {self.axes_text})")
+
+    def add_code(self, block: _Block, word: Word) -> None:
+        """A G or M code: one the emitter writes, one per modal group."""
+        letter, value, _ = word
+        table = ALLOWED_G if letter == "G" else ALLOWED_M
+        name = code_name(letter, value)
+        if value != int(value) or int(value) not in table:
+            allowed = " ".join(f"{letter}{c}" for c in sorted(table))
+            raise self.error(f"{name} is not a code prs3-post programs use (allowed: {allowed})")
+        group = table[int(value)]
+        groups = block.g_codes if letter == "G" else block.m_codes
+        if group in groups:
+            other = code_name(letter, groups[group])
+            raise self.error(f"{other} and {name} are in the same modal group ({group}): one per line")
+        groups[group] = int(value)
+
+    def add_word(self, block: _Block, position: int, word: Word) -> None:
+        """Any other word: once per line; N first; O alone."""
+        letter, value, text = word
+        if letter in block.seen:
+            raise self.error(f"word '{letter}' appears twice ({block.seen[letter]} and {text})")
+        block.seen[letter] = text
+        if letter == "N":
+            if position != 0:
+                raise self.error(f"the block number {text} must be the first word of the line")
+        elif letter == "O":
+            raise self.error("an O (program number) word must be alone on its line")
+        elif letter in AXIS_LETTERS:
+            block.axes[self.axis_index[letter]] = value
+        else:
+            block.values[letter] = value
+
+    def motion_of(self, block: _Block) -> tuple[int | None, bool]:
+        """The feed mode (G93/G94 first), the motion mode after this line, and whether it moves."""
+        if "feed mode" in block.g_codes:
+            self.inverse_time = block.g_codes["feed mode"] == 93
+        motion = block.g_codes.get("motion", self.motion)
         if motion == 80:
             motion = None
-        moves = bool(axes) or ("motion" in g_codes and g_codes["motion"] != 80)
-        if axes and motion is None:
+        moves = bool(block.axes) or ("motion" in block.g_codes and block.g_codes["motion"] != 80)
+        if block.axes and motion is None:
             raise self.error("axis words without a motion mode (G0 or G1)")
-        if axes and "dwell" in g_codes:
+        if block.axes and "dwell" in block.g_codes:
             raise self.error("G4 (dwell) with axis words: the dwell and the move need their own lines")
+        return motion, moves
+
+    def check_feed(self, block: _Block, motion: int | None, moves: bool) -> None:
+        """F only on G1 moves, > 0; every G1 under G93 with its F."""
+        values = block.values
         if "F" in values:
             if not (moves and motion == 1):
                 raise self.error("F word on a line without a G1 move (prs3-post programs carry F only on G1 lines)")
             if not values["F"] > 0:
-                raise self.error(f"{seen['F']}: the feed must be > 0 (LinuxCNC raises F0 to 0.1 /min)")
+                raise self.error(f"{block.seen['F']}: the feed must be > 0 (LinuxCNC raises F0 to 0.1 /min)")
         if moves and motion == 1:
             if not self.inverse_time:
                 raise self.error("G1 under G94 (units per minute): prs3-post programs feed in G93 inverse time, "
                                  "where F = 1 / minutes of the move")
             if "F" not in values:
                 raise self.error("G1 without F under G93 (inverse time needs an F word on every G1)")
+
+    def set_spindle_and_tool(self, block: _Block) -> None:
+        """S (≥ 0) and T (whole, ≥ 0) are remembered; P needs G4 or G64."""
+        values, seen = block.values, block.seen
         if "S" in values:
             if values["S"] < 0:
                 raise self.error(f"{seen['S']}: the spindle speed must be ≥ 0 rpm")
@@ -351,8 +562,12 @@ class _Reader:
             if values["T"] < 0 or values["T"] != int(values["T"]):
                 raise self.error(f"{seen['T']}: the tool number must be a whole number ≥ 0")
             self.tool = int(values["T"])
-        if "P" in values and "dwell" not in g_codes and g_codes.get("path control") != 64:
+        if "P" in values and "dwell" not in block.g_codes and block.g_codes.get("path control") != 64:
             raise self.error(f"word 'P' ({seen['P']}) needs G4 (dwell) or G64 on the same line")
+
+    def execute_events(self, block: _Block) -> None:
+        """Tool change, spindle, coolant and dwell, in LinuxCNC's order of execution."""
+        m_codes = block.m_codes
         if m_codes.get("tool change") == 6:
             if self.tool is None:
                 raise self.error("M6 (tool change) without a tool number T")
@@ -369,37 +584,12 @@ class _Reader:
             self.event(EventKind.COOLANT_ON, 0.0, "mist" if coolant == 7 else "flood")
         elif coolant == 9:
             self.event(EventKind.COOLANT_OFF)
-        if "dwell" in g_codes:
-            if "P" not in values or values["P"] < 0:
+        if "dwell" in block.g_codes:
+            p = block.values.get("P")
+            if p is None or p < 0:
                 raise self.error("G4 (dwell) needs a P word ≥ 0 "
                                  f"({'seconds' if self.dialect.dwell_unit == 's' else 'milliseconds'})")
-            seconds = values["P"] / 1000.0 if self.dialect.dwell_unit == "ms" else values["P"]
-            self.event(EventKind.DWELL, seconds)
-        if g_codes.get("path control") == 64:
-            self.blending.append(self.number)
-        self.motion = motion
-        if moves:
-            assert motion is not None  # checked above: a move needs a motion mode  # noqa: S101
-            self.move(motion, axes, values.get("F", 0.0))
-        stop = m_codes.get("stop")
-        if stop == 0:
-            self.event(EventKind.STOP)
-        elif stop in (2, 30):
-            self.end_line = self.number
-
-    def cross_check(self, words: list[tuple[str, float, str]], code: str) -> None:
-        """pygcode must read the same words from the same code; else it is not plain G-code."""
-        import pygcode.exceptions
-
-        try:
-            theirs = _pygcode_words(code)
-        except (pygcode.exceptions.GCodeBlockFormatError, pygcode.exceptions.GCodeWordStrError,
-                pygcode.exceptions.GCodeParameterError, AssertionError, ValueError) as exc:
-            raise self.error(f"not G-code that pygcode reads: {exc}") from exc
-        ours = [(letter, value) for letter, value, _ in words]
-        if theirs != ours:
-            shown = " ".join(_code_name(letter, value) for letter, value in theirs)
-            raise self.error(f"pygcode reads {_quote(code)} as {shown!r}: not plain G-code")
+            self.event(EventKind.DWELL, p / 1000.0 if self.dialect.dwell_unit == "ms" else p)
 
     def move(self, motion: int, axes: dict[int, float], feed: float) -> None:
         for index, value in axes.items():
@@ -412,19 +602,21 @@ class _Reader:
         self.joints.append(self.position.copy())
         self.feed.append(feed)
         self.source.append(self.number)
+        self.rows += 1
 
     # ------------------------------------------------------------------ the end
-    def finish(self, lines: tuple[str, ...]) -> ProgramFile:
+    def finish(self, line_count: int) -> None:
+        """The program ended (M2/M30) and had code; else the error."""
         if self.end_line is None:
             if not self.code_seen:
                 raise InputError("not a G-code program: no code, only comments and blank lines", path=self.path)
-            raise InputError(f"the program never ends: no M2 or M30 in its {len(lines)} lines (truncated file?)",
+            raise InputError(f"the program never ends: no M2 or M30 in its {line_count} lines (truncated file?)",
                              path=self.path)
-        joints = np.array(self.joints, dtype=np.float64).reshape(-1, 5)
-        moves = JointProgram(
-            kind=np.array(self.kind, dtype=np.int64), stage=joints[:, :2], strokes=joints[:, 2:],
-            inverse_time=np.array(self.feed, dtype=np.float64), source=np.array(self.source, dtype=np.int64),
-            events=tuple(self.events),
-        )
-        return ProgramFile(path=self.path, dialect=self.dialect.name, moves=moves, lines=lines,
-                           end_line=self.end_line, blending_lines=tuple(self.blending))
+
+
+def _forward_fill(values: FloatArray) -> FloatArray:
+    """Each NaN replaced by the last non-NaN value above it in its column (NaN where there is none)."""
+    rows = np.arange(len(values)).reshape((-1,) + (1,) * (values.ndim - 1))
+    last = np.where(np.isnan(values), 0, rows)
+    np.maximum.accumulate(last, axis=0, out=last)
+    return np.take_along_axis(values, last, axis=0)

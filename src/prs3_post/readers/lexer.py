@@ -1,0 +1,274 @@
+"""The G-code lexer: bytes → text → lines → comments and words, shared by every reader of G-code.
+
+Strict on purpose: whatever it does not read exactly is a :class:`~prs3_post.errors.LexError` (with the
+column and the text found), never skipped. It knows no file and no line number: a reader wraps the
+error in an :class:`~prs3_post.errors.InputError` naming both. It knows no codes either: which
+letters and codes a program may use, modal groups and modal state are the readers' business
+(:mod:`prs3_post.readers.program` for prs3-post's own programs; the CAM G-code reader).
+
+What it reads (LinuxCNC's lexical rules, restricted to plain numbers)
+--------------------------------------------------------------------
+- :func:`decode`: the file is UTF-8 text without a byte-order mark and without control bytes
+  other than TAB, LF and CR (binary data, Latin-1 and empty files are refused with what was found).
+- :func:`split_comments`: comments between delimiters (``(...)``), or from an opener to the end of
+  the line (``;...``); several styles at once (``LINUXCNC_COMMENTS``: both) or a dialect's one pair.
+  An unclosed comment, or one that contains its own opener (LinuxCNC rejects nested comments), is
+  an error.
+- :func:`lex_words`: words, each a letter (either case; returned upper case) and a plain decimal
+  number: ``-12.5``, ``.5``, ``5.``, ``007``; no ``+``, no exponent (``1e-5`` reads as the words
+  ``1`` … ``E-5``: the reader decides that ``E`` is not a word it takes), no ``[expression]``, no
+  ``#parameter`` (a clear error: those need LinuxCNC's interpreter). Spaces and tabs between and
+  inside words are ignored, as LinuxCNC ignores them (``X 1 . 5`` is ``X1.5``). Non-ASCII
+  characters are errors (Python would upper-case ``ı`` to ``I`` and read ``٣`` as a digit).
+- :func:`lex_line`: both steps on one line.
+- :func:`code_name` (``G43.4``, ``M3``) and :func:`quote` (a line shortened for a message).
+
+Words are plain tuples ``(letter, value, text)``: ``('X', -1.5, 'X-1.5')``, the text upper case
+without spaces (for messages such as ``X1 and X2``).
+
+The fast path
+-------------
+:func:`lex_columns` reads a whole chunk of lines at once into a (N, L) array, one column per letter,
+for lines of a *regular shape*: upper-case words of the given letters in the given order, each at
+most once, separated by spaces (``G1 X-1.5 Y2 F100.``), no comment. It marks the lines it read;
+every other line (comments, other letters or order, lower case, spaces inside numbers, anything
+wrong) must go through :func:`lex_line`, which reads it or says exactly what is wrong. Where both
+read a line they agree exactly (values are ``float`` of the same text: correctly rounded).
+
+pygcode is the reference of a differential test (tests/test_lexer.py), where it is documented
+wrong listed there (it skips characters it does not know, reads non-ASCII letters, ...).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from functools import lru_cache
+
+import numpy as np
+
+from prs3_post.errors import LexError
+from prs3_post.types import BoolArray, FloatArray
+
+__all__ = [
+    "BYTE_ORDER_MARK", "EMPTY", "LINUXCNC_COMMENTS", "NUMBER", "Word", "code_name", "column_pattern", "decode", "lex_columns", "lex_line",
+    "lex_words", "quote", "split_comments",
+]
+
+#: A word: upper-case letter, value, text as read (upper case, no spaces): ``('G', 43.4, 'G43.4')``.
+Word = tuple[str, float, str]
+#: Comment delimiters LinuxCNC reads: ``(...)`` and ``;`` to the end of the line.
+LINUXCNC_COMMENTS: tuple[tuple[str, str], ...] = (("(", ")"), (";", ""))
+#: A plain decimal number (ASCII digits only: ``\d`` would take other scripts' digits).
+NUMBER = r"-?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)"
+_WORD = re.compile(rf"([A-Za-z])({NUMBER})")
+_WORDS = re.compile(rf"(?:[A-Za-z]{NUMBER})*")
+_SPACES = str.maketrans("", "", " \t")
+_HINT = "a letter and a plain decimal number, e.g. G1 X-1.5"
+
+
+# ----------------------------------------------------------------------------- bytes to text
+
+
+#: The message for a file with nothing but white space.
+EMPTY = "not a G-code program: the file is empty"
+#: The message for a file that starts with a UTF-8 byte-order mark.
+BYTE_ORDER_MARK = "starts with a UTF-8 byte-order mark, which LinuxCNC rejects ('Bad character')"
+
+
+def decode(data: bytes, *, offset: int | None = None) -> str:
+    """The text of a G-code file's bytes.
+
+    Parameters
+    ----------
+    data : bytes — the whole file; or, with ``offset``, a piece of it that starts at a line start
+    offset : int, optional — where the piece starts in the file (for byte offsets in messages). A
+        piece is not checked for being empty or for a byte-order mark: a reader that reads a file in
+        pieces checks that itself (``EMPTY``, ``BYTE_ORDER_MARK``), in this order: empty, mark, the
+        first piece's error.
+
+    Raises
+    ------
+    LexError
+        ``not a G-code program: the file is empty``, ``starts with a UTF-8 byte-order mark ...``,
+        ``not a G-code program: binary data (byte 0x1a at offset 6)``, ``not a G-code program: not
+        UTF-8 text (byte 0xe9 at offset 12)``.
+    """
+    if offset is None:
+        if not data.strip():
+            raise LexError(EMPTY)
+        if data.startswith(b"\xef\xbb\xbf"):
+            raise LexError(BYTE_ORDER_MARK)
+        offset = 0
+    codes = np.frombuffer(data, dtype=np.uint8)
+    control = np.flatnonzero(((codes < 32) & (codes != 9) & (codes != 10) & (codes != 13)) | (codes == 127))
+    if len(control):
+        at = int(control[0])
+        raise LexError(f"not a G-code program: binary data (byte 0x{codes[at]:02x} at offset {offset + at})")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise LexError(f"not a G-code program: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset "
+                       f"{offset + exc.start})") from exc
+
+
+# ----------------------------------------------------------------------------- one line
+
+
+def split_comments(line: str, delimiters: Sequence[tuple[str, str]] = LINUXCNC_COMMENTS) -> tuple[str, tuple[str, ...]]:
+    """A line's code without its comments, and the comments' texts (without delimiters).
+
+    Parameters
+    ----------
+    line : str — one line, without its line ending
+    delimiters : sequence of (open, close) — ``close == ''``: the comment runs to the end of the line.
+        The first opener on the line starts a comment, whose text may contain the other styles'
+        openers (``(a;b)`` is one comment) but not its own (a nested comment).
+
+    Raises
+    ------
+    LexError
+        ``comment opened with '(' at column 59 is not closed with ')'``, ``comment at column 3
+        contains another '(' (LinuxCNC rejects nested comments)``.
+    """
+    if not any(open_ in line for open_, _ in delimiters):
+        return line, ()
+    code: list[str] = []
+    comments: list[str] = []
+    pos = 0
+    while True:
+        found = [(at, open_, close) for open_, close in delimiters if (at := line.find(open_, pos)) >= 0]
+        if not found:
+            code.append(line[pos:])
+            return "".join(code), tuple(comments)
+        start, open_, close = min(found, key=lambda f: f[0])
+        code.append(line[pos:start])
+        inside = start + len(open_)
+        if not close:
+            comments.append(line[inside:])
+            return "".join(code), tuple(comments)
+        end = line.find(close, inside)
+        if end < 0:
+            raise LexError(f"comment opened with {open_!r} at column {start + 1} is not closed with {close!r}",
+                           column=start + 1, found=line[start:])
+        if open_ in line[inside:end]:
+            raise LexError(f"comment at column {start + 1} contains another {open_!r} (LinuxCNC rejects nested "
+                           "comments)", column=start + 1, found=line[start:end + len(close)])
+        comments.append(line[inside:end])
+        pos = end + len(close)
+
+
+def lex_words(code: str) -> tuple[Word, ...]:
+    """The words of comment-free code (module docstring: what a word is).
+
+    >>> lex_words("g1 x-1.5 Y .5 F 100.")
+    (('G', 1.0, 'G1'), ('X', -1.5, 'X-1.5'), ('Y', 0.5, 'Y.5'), ('F', 100.0, 'F100.'))
+
+    Raises
+    ------
+    LexError
+        With the column of the first character that does not continue a word: ``column 4: '['
+        starts an expression ...``, ``column 1: cannot read 'hello' as words (...)``.
+    """
+    squeezed = code.translate(_SPACES)
+    if _WORDS.fullmatch(squeezed) is None:
+        raise _word_error(code)
+    upper = squeezed.upper()                           # ASCII only: the pattern allows nothing else
+    return tuple((m[1], float(m[2]), m[0]) for m in _WORD.finditer(upper))
+
+
+def lex_line(line: str, delimiters: Sequence[tuple[str, str]] = LINUXCNC_COMMENTS) -> tuple[Word, ...]:
+    """The words of one line: :func:`split_comments`, then :func:`lex_words` (columns stay those of ``line``).
+
+    >>> lex_line("N10 G0 X1 (start) ; rapid")
+    (('N', 10.0, 'N10'), ('G', 0.0, 'G0'), ('X', 1.0, 'X1'))
+
+    Raises
+    ------
+    LexError
+    """
+    code, _ = split_comments(line, delimiters)
+    return lex_words(code)
+
+
+def _word_error(code: str) -> LexError:
+    """Where and why ``code`` is not words: the first character that does not continue a word."""
+    kept = [i for i, ch in enumerate(code) if ch not in " \t"]
+    squeezed = "".join(code[i] for i in kept)
+    pos = 0
+    while (match := _WORD.match(squeezed, pos)) is not None:
+        pos = match.end()
+    letter = squeezed[pos].isascii() and squeezed[pos].isalpha()
+    at = pos
+    if letter:                                         # the word's value starts with what? ([ # after a sign too)
+        at = pos + 1 + len(squeezed[pos + 1:]) - len(squeezed[pos + 1:].lstrip("+-"))
+        at = at if at < len(squeezed) and squeezed[at] in "[#" else pos
+    found = code[kept[pos]:].strip()
+    char = squeezed[at]
+    column = kept[at] + 1
+    if char == "[":
+        why = "'[' starts an expression ([1+2], LinuxCNC's arithmetic), which is not read here: use plain numbers"
+    elif char == "#":
+        why = "'#' is a parameter (#1, #<name>), which is not read here: use plain numbers"
+    elif letter:
+        why = (f"word '{squeezed[pos].upper()}' has no plain decimal number: found {quote(found)} "
+               "(a number is -12.5, .5 or 5.; no '+', no exponent)")
+    else:
+        why = f"cannot read {quote(found)} as words ({_HINT})"
+    return LexError(f"column {column}: {why}", column=column, found=found)
+
+
+def code_name(letter: str, value: float) -> str:
+    """A code as people write it: ``G1``, ``M30``, ``G43.4``.
+
+    >>> code_name("G", 43.4), code_name("M", 3.0)
+    ('G43.4', 'M3')
+    """
+    return f"{letter}{int(value)}" if value == int(value) else f"{letter}{value:g}"
+
+
+def quote(text: str, limit: int = 40) -> str:
+    """``text`` stripped and quoted for a message, cut to ``limit`` characters with ``...``."""
+    text = text.strip()
+    return f"'{text[:limit]}...'" if len(text) > limit else f"'{text}'"
+
+
+# ----------------------------------------------------------------------------- the fast path
+
+
+@lru_cache(maxsize=32)
+def column_pattern(letters: str) -> re.Pattern[str]:
+    """The regular line shape of :func:`lex_columns`: one optional group per letter, in order."""
+    if len(set(letters)) != len(letters) or not letters.isascii() or not letters.isupper():
+        raise ValueError(f"letters must be distinct upper-case ASCII letters, not {letters!r}")
+    words = " *".join(f"(?:{letter}({NUMBER}))?" for letter in letters)
+    return re.compile(f" *{words} *")
+
+
+def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArray]:
+    """Read the lines of the regular shape (module docstring) of a chunk in bulk.
+
+    Parameters
+    ----------
+    lines : sequence of str — without line endings
+    letters : str — the letters of a column each, in the order they must appear (``"NGXYZF"``)
+
+    Returns
+    -------
+    values : (N, L) float — the number of each letter's word, NaN where the line has none (and on
+        lines not read)
+    read : (N,) bool — the line has the regular shape (a blank line has: all NaN); False: read it
+        with :func:`lex_line` (which reads it, or raises what is wrong)
+
+    >>> values, read = lex_columns(["G1 X1.5 F2.", "G1 X1 X2", "(note)"], "GXF")
+    >>> values[0].tolist(), read.tolist()
+    ([1.0, 1.5, 2.0], [True, False, False])
+    """
+    pattern = column_pattern(letters)
+    width = len(letters)
+    matches = list(map(pattern.fullmatch, lines))
+    read = np.fromiter((m is not None for m in matches), dtype=bool, count=len(lines))
+    flat = [g or "nan" for m in matches if m is not None for g in m.groups()]
+    values = np.full((len(lines), width), np.nan)
+    values[read] = np.array(flat, dtype=np.float64).reshape(-1, width)
+    return values, read
