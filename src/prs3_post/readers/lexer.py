@@ -51,7 +51,8 @@ from prs3_post.errors import LexError
 from prs3_post.types import BoolArray, FloatArray
 
 __all__ = [
-    "BYTE_ORDER_MARK", "EMPTY", "LINUXCNC_COMMENTS", "NUMBER", "Word", "code_name", "column_pattern", "decode", "lex_columns", "lex_line",
+    "BYTE_ORDER_MARK", "EMPTY", "LINUXCNC_COMMENTS", "NUMBER", "Word", "code_name", "column_pattern", "decode",
+    "lex_columns", "lex_line",
     "lex_words", "quote", "split_comments",
 ]
 
