@@ -285,3 +285,25 @@ def test_not_text_and_empty_files_are_refused(monkeypatch: pytest.MonkeyPatch) -
     with pytest.raises(InputError) as info:
         _parse("\n  \n")
     assert str(info.value) == "t.cls: not a CL file: no records (the file is empty)"
+
+
+def test_rapid_is_used_up_by_the_next_motion_record_even_inside_a_cycle() -> None:
+    text = ("FEDRAT/MMPM,100\nCYCLE/DRILL,RAPTO,1,FEDTO,2\nRAPID\nGOTO/0,0,0\nCYCLE/OFF\nGOTO/5,0,0\n")
+    tp = _parse(text).toolpath
+    assert tp.kind.tolist() == [MoveKind.RAPID, MoveKind.FEED, MoveKind.RAPID, MoveKind.FEED]
+    assert tp.feed.tolist() == [0.0, 100.0, 0.0, 100.0]
+
+
+def test_tlaxis_sets_the_modal_axis_and_multax_off_refuses_ijk() -> None:
+    tp = _parse("TLAXIS/0,0.6,0.8\nRAPID\nGOTO/0,0,0\n").toolpath
+    assert tp.axis.tolist() == [[0.0, 0.6, 0.8]]
+    with pytest.raises(InputError) as info:
+        _parse("MULTAX/OFF\nRAPID\nGOTO/0,0,0,0,0,1\n")
+    assert str(info.value) == "t.cls:3: GOTO/ with i,j,k under MULTAX/OFF: give x,y,z only, or MULTAX/ON first"
+
+
+def test_deep_cycle_without_step_drills_in_one_feed() -> None:
+    """humman_deep_drill: CYCLE/DRILL,DEEP with no STEP has no peck depth: one feed per hole."""
+    (cycle,) = _read("humman_deep_drill.clsf").cycles
+    assert cycle.words == ("DRILL", "DEEP", "RAPTO", "3.0000", "FEDTO", "0.0000", "MMPM", "250.0000")
+    assert cycle.cycle.pecking is Pecking.NONE

@@ -40,7 +40,8 @@ Major words understood (anything else is an error naming file:line, unless it is
   :func:`prs3_post.cycles.drill_rows`. How the words are read: the GOTO point is the top of the
   hole; RAPTO = clearance above it where the rapid stops; FEDTO = depth below it (its sign is
   ignored: CAM systems write it either way, and a drill only goes down); RTRCTO = height above
-  the point after the hole (default: RAPTO); STEP = depth per peck (DEEP, BRKCHP only).
+  the point after the hole (default: RAPTO); STEP = depth per peck (DEEP, BRKCHP only; without
+  STEP there is no peck depth, and the hole is drilled in one feed).
 - ``CIRCLE/xc,yc,zc,i,j,k,r[,...]`` followed by its end GOTO — an arc from the current point,
   expanded within the chordal tolerance by :func:`prs3_post.arcs.arc_points_3d`. The tool moves
   **clockwise about (i,j,k)** (counter-clockwise about −(i,j,k)): that is the convention of the
@@ -66,9 +67,11 @@ from __future__ import annotations
 
 import math
 import re
+from array import array
 from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -105,10 +108,13 @@ _MOTION_WORDS = ("GOTO", "FROM", "GOHOME")
 _KNOWN_WORDS = ("GOTO", "FROM", "GOHOME", "RAPID", "FEDRAT", "MULTAX", "TLAXIS", "MSYS", "UNITS", "LOADTL",
                 "LOAD", "SELECT", "TLDATA", "SPINDL", "COOLNT", "CYCLE", "CIRCLE", "PPRINT", "END-OF-PATH",
                 "FINI", "STOP", "OPSTOP")
-_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\Z")
+_NUMBER_TEXT = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
+_NUMBER = re.compile(rf"{_NUMBER_TEXT}\Z")
+_NUMBER_LIST = re.compile(rf"[ \t]*{_NUMBER_TEXT}[ \t]*(?:,[ \t]*{_NUMBER_TEXT}[ \t]*)*\Z")
 _TRAILER = re.compile(r"Tool Path Listing has \d+ lines\.\Z")
 _FEED_UNITS = {"MMPM": (1.0, False), "IPM": (MM_PER_INCH, False), "MMPR": (1.0, True), "IPR": (MM_PER_INCH, True)}
 _UNIT_WORDS = {"MM": "mm", "INCHES": "inch", "INCH": "inch"}
+_RAPID, _FEED = int(MoveKind.RAPID), int(MoveKind.FEED)
 _CYCLE_KINDS = {"DRILL": Pecking.NONE, "DEEP": Pecking.FULL_RETRACT, "BRKCHP": Pecking.CHIP_BREAK}
 
 
@@ -282,13 +288,17 @@ def parse_cl(text: str, *, path: str, tolerance: float, units: str | None = None
 # --------------------------------------------------------------------------------------------
 # Records
 # --------------------------------------------------------------------------------------------
-@dataclass(frozen=True, slots=True)
-class _Record:
+class _Record(NamedTuple):
     line: int
     word: str                   # major word, upper case ("$$" for a comment line)
-    args: tuple[str, ...]       # arguments, stripped, as written
+    rest: str | None            # the text after the slash (None without one; PPRINT: its text)
     text: str                   # the record as written (continuations joined), for messages
     comment: str | None         # inline $$ comment
+
+    @property
+    def args(self) -> tuple[str, ...]:
+        """The arguments, stripped, as written (split on demand: GOTOs are read without it)."""
+        return () if self.rest is None else tuple(arg.strip() for arg in self.rest.split(","))
 
 
 def _text(data: bytes, path: str) -> str:
@@ -323,7 +333,7 @@ def _records(text: str, path: str) -> Iterator[_Record]:
             start = line_no
             if not code:
                 if comment is not None:
-                    yield _Record(line_no, "$$", (), raw.strip(), comment)
+                    yield _Record(line_no, "$$", None, raw.strip(), comment)
                 continue
         if code.endswith("$"):
             pending.append(code[:-1])
@@ -342,11 +352,8 @@ def _split(line: int, code: str, comment: str | None, path: str) -> _Record:
     word = word.strip().upper()
     if word == "PPRINT" or (not slash and code.upper().startswith("PPRINT ")):
         text = rest if slash else code[len("PPRINT"):]
-        return _Record(line, "PPRINT", (text.strip(),), code, comment)
-    if not slash:
-        return _Record(line, word, (), code, comment)
-    args = tuple(arg.strip() for arg in rest.split(","))
-    return _Record(line, word, args, code, comment)
+        return _Record(line, "PPRINT", text.strip(), code, comment)
+    return _Record(line, word, rest if slash else None, code, comment)
 
 
 def _quote(text: str, limit: int = 60) -> str:
@@ -423,17 +430,18 @@ class _Reader:
         self.path, self.scale, self.ignore = path, scale, ignore
         self.tolerance, self.circle_tolerance = tolerance, circle_tolerance
         self.line = 0
-        self.tip: list[FloatArray] = []               # (n, 3) blocks, mm, local frame
-        self.axis: list[FloatArray] = []              # (n, 3) blocks, unit, local frame
-        self.kind: list[np.ndarray] = []
-        self.feed: list[np.ndarray] = []
-        self.source: list[np.ndarray] = []
-        self.frame_of: list[np.ndarray] = []          # frame index per row block
+        # rows, flat (x, y, z per row): stdlib arrays append a row far faster than numpy blocks
+        self.tip = array("d")                         # mm, local frame
+        self.axis = array("d")                        # unit, local frame
+        self.kind = array("q")
+        self.feed = array("d")
+        self.source = array("q")
+        self.frame_of = array("q")                    # index into self.frames
         self.rows = 0
         self.events: list[Event] = []
         self.frames: list[ClFrame] = [ClFrame(0, np.zeros(3), np.eye(3))]
-        self.position: FloatArray | None = None       # mm, local frame of the current MSYS
-        self.tool_axis = np.array([0.0, 0.0, 1.0])
+        self.position: tuple[float, float, float] | None = None    # mm, local frame of the current MSYS
+        self.tool_axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
         self.rapid_next = False
         self.feed_value: float | None = None          # mm/min, or mm/rev when per_rev
         self.per_rev = False
@@ -458,7 +466,14 @@ class _Reader:
         return InputError(message, path=self.path, line=self.line)
 
     def numbers(self, record: _Record, args: tuple[str, ...] | None = None) -> list[float]:
-        values: list[float] = []
+        rest = record.rest
+        if args is None and rest is not None and _NUMBER_LIST.match(rest):   # the common case, checked at once
+            values = [float(text) for text in rest.split(",")]
+            if "e" not in rest and "E" not in rest:                  # only an exponent can overflow
+                return values
+            if all(math.isfinite(v) for v in values):
+                return values
+        values = []
         for index, text in enumerate(record.args if args is None else args, start=1):
             if not text:
                 raise self.error(f"truncated record {_quote(record.text)}: value {index} of {record.word}/ is empty")
@@ -468,9 +483,11 @@ class _Reader:
             values.append(value)
         return values
 
-    def unit_axis(self, values: list[float], what: str) -> FloatArray:
-        vector = np.array(values, dtype=np.float64)
-        length = float(np.linalg.norm(vector))
+    def unit_axis(self, values: list[float], what: str) -> tuple[float, float, float]:
+        i, j, k = values
+        length = math.sqrt(i * i + j * j + k * k)
+        if length == 1.0:
+            return i, j, k
         shown = ", ".join(f"{v:g}" for v in values)
         if length == 0.0:
             raise self.error(f"{what}: zero tool vector ({shown}); i,j,k must be a unit vector from the tool tip "
@@ -478,20 +495,32 @@ class _Reader:
         if abs(length - 1.0) > AXIS_LENGTH_TOLERANCE:
             raise self.error(f"{what}: tool vector ({shown}) has length {length:.6g}; i,j,k must be a unit vector "
                              f"(length 1 within {AXIS_LENGTH_TOLERANCE:g})")
-        return vector / length
+        return i / length, j / length, k / length
 
-    def add_rows(self, tip: FloatArray, axis: FloatArray, kind: int | np.ndarray, feed: float | np.ndarray,
-                 source: int | np.ndarray) -> None:
+    def add_row(self, point: tuple[float, float, float], axis: tuple[float, float, float], kind: int, feed: float,
+                source: int) -> None:
+        self.tip.extend(point)
+        self.axis.extend(axis)
+        self.kind.append(kind)
+        self.feed.append(feed)
+        self.source.append(source)
+        self.frame_of.append(len(self.frames) - 1)
+        self.rows += 1
+        self.position = point
+
+    def add_rows(self, tip: FloatArray, axis: tuple[float, float, float], kind: int | np.ndarray,
+                 feed: float | np.ndarray, source: int | np.ndarray) -> None:
         tip = np.asarray(tip, dtype=np.float64).reshape(-1, 3)
         n = len(tip)
-        self.tip.append(tip)
-        self.axis.append(np.broadcast_to(axis, (n, 3)))
-        self.kind.append(np.broadcast_to(np.asarray(kind, dtype=np.int64), (n,)))
-        self.feed.append(np.broadcast_to(np.asarray(feed, dtype=np.float64), (n,)))
-        self.source.append(np.broadcast_to(np.asarray(source, dtype=np.int64), (n,)))
-        self.frame_of.append(np.full(n, len(self.frames) - 1, dtype=np.int64))
+        self.tip.frombytes(tip.tobytes())
+        self.axis.frombytes(np.tile(np.asarray(axis, dtype=np.float64), n).tobytes())
+        self.kind.frombytes(np.broadcast_to(np.asarray(kind, dtype=np.int64), (n,)).tobytes())
+        self.feed.frombytes(np.broadcast_to(np.asarray(feed, dtype=np.float64), (n,)).tobytes())
+        self.source.frombytes(np.broadcast_to(np.asarray(source, dtype=np.int64), (n,)).tobytes())
+        self.frame_of.frombytes(np.full(n, len(self.frames) - 1, dtype=np.int64).tobytes())
         self.rows += n
-        self.position = tip[-1].copy()
+        x, y, z = tip[-1].tolist()
+        self.position = (x, y, z)
 
     def event(self, kind: EventKind, value: float = 0.0, text: str = "") -> None:
         self.events.append(Event(before=self.rows, kind=kind, value=value, text=text))
@@ -521,25 +550,24 @@ class _Reader:
         if self.arc is not None and word not in ("GOTO", "$$", "PPRINT") and word not in DISPLAY_WORDS:
             raise self.error(f"CIRCLE/ at line {self.arc.line} must be followed by its end GOTO/, found "
                              f"{_quote(record.text)}")
-        if word in DISPLAY_WORDS or word in self.ignore:
+        handler = _HANDLERS.get(word)
+        if handler is not None:
+            self.by_word[word] += 1
+            self.after_end = False
+            handler(self, record)
+        elif word in DISPLAY_WORDS or word in self.ignore:
             self.by_word[word] += 1
             self.skipped[word] += 1
-            return
-        if _TRAILER.match(record.text):
+        elif _TRAILER.match(record.text):
             if not self.after_end:
                 raise self.error(f"listing trailer {_quote(record.text)} before END-OF-PATH/FINI: not CL data")
             self.by_word[LISTING_TRAILER] += 1
             self.skipped[LISTING_TRAILER] += 1
-            return
-        handler = _HANDLERS.get(word)
-        if handler is None:
+        else:
             raise self.error(
                 f"unknown major word {word[:40]!r} in {_quote(record.text)} (understood: {', '.join(_KNOWN_WORDS)}; "
                 f"display-only, skipped: {', '.join(sorted(DISPLAY_WORDS))}; other words can be ignored on purpose "
                 "by listing them as words to ignore)")
-        self.by_word[word] += 1
-        self.after_end = False
-        handler(self, record)
 
     # ---- motion
     def goto(self, record: _Record) -> None:
@@ -549,7 +577,8 @@ class _Reader:
                              f"found {_quote(record.text)}")
         if len(values) == 6 and self.multax_on is False:
             raise self.error(f"{record.word}/ with i,j,k under MULTAX/OFF: give x,y,z only, or MULTAX/ON first")
-        point = np.array(values[:3]) * self.scale
+        scale = self.scale
+        point = (values[0] * scale, values[1] * scale, values[2] * scale)
         if len(values) == 6:
             axis = self.unit_axis(values[3:], f"{record.word}/")
         else:
@@ -557,6 +586,8 @@ class _Reader:
         if record.word == "GOTO":
             self.gotos += 1
             self.gotos_with_axis += len(values) == 6
+        rapid = self.rapid_next or record.word != "GOTO"
+        self.rapid_next = False                        # RAPID applies to the next motion record only
         if self.arc is not None:
             self.end_arc(point, axis, len(values) == 6)
             return
@@ -567,13 +598,11 @@ class _Reader:
         if self.cycle is not None:
             raise self.error(f"{record.word}/ inside the CYCLE/ of line {self.cycle.line}: close it with CYCLE/OFF "
                              "first")
-        rapid = self.rapid_next or record.word != "GOTO"
-        self.rapid_next = False
         self.moves += 1
         if rapid:
-            self.add_rows(point, axis, int(MoveKind.RAPID), 0.0, record.line)
+            self.add_row(point, axis, _RAPID, 0.0, record.line)
         else:
-            self.add_rows(point, axis, int(MoveKind.FEED), self.current_feed(), record.line)
+            self.add_row(point, axis, _FEED, self.current_feed(), record.line)
 
     def rapid(self, record: _Record) -> None:
         if record.args:
@@ -601,13 +630,13 @@ class _Reader:
         self.current_feed()
         self.arc = _Arc(record.line, np.array(values[:3]) * self.scale, normal / length, radius, record.text)
 
-    def end_arc(self, end: FloatArray, axis: FloatArray, has_axis: bool) -> None:
+    def end_arc(self, end_point: tuple[float, float, float], axis: tuple[float, float, float], has_axis: bool) -> None:
         arc = self.arc
         assert arc is not None and self.position is not None  # only called with an arc pending
-        if has_axis and float(np.linalg.norm(axis - self.tool_axis)) > 1e-9:
+        if has_axis and math.dist(axis, self.tool_axis) > 1e-9:
             raise self.error(f"the end GOTO/ of the CIRCLE/ at line {arc.line} changes the tool axis: an arc is "
                              "cut with a constant tool axis (give the end point without i,j,k, or the same i,j,k)")
-        start = self.position
+        start, end = np.array(self.position), np.array(end_point)
         for name, point in (("start", start), ("end", end)):
             offset = point - arc.centre
             height = float(offset @ arc.axis)
@@ -635,9 +664,9 @@ class _Reader:
         self.arc_segments += len(points)
         self.arc = None
 
-    def hole(self, point: FloatArray, axis: FloatArray) -> None:
+    def hole(self, point: tuple[float, float, float], axis: tuple[float, float, float]) -> None:
         assert self.cycle is not None  # only called inside a cycle
-        tip, kind, bottom = drill_rows(point[None, :], axis[None, :], self.cycle.cycle)
+        tip, kind, bottom = drill_rows(np.array([point]), np.array([axis]), self.cycle.cycle)
         feed = np.where(kind == int(MoveKind.FEED), self.cycle.cycle.feed, 0.0)
         first = self.rows
         self.add_rows(tip, axis, kind, feed, self.line)
@@ -700,12 +729,12 @@ class _Reader:
         y_axis = y_axis / np.linalg.norm(y_axis)
         rotation = np.column_stack([x_axis, y_axis, np.cross(x_axis, y_axis)])
         self.frames.append(ClFrame(record.line, np.array(values[:3]) * self.scale, rotation))
+        previous = self.frames[-2]
         if self.position is not None:       # the same place, now seen from the new frame
-            previous = self.frames[-2]
-            self.position = self.frames[-1].to_local(previous.to_part(self.position))[0]
-            self.tool_axis = rotation.T @ (previous.rotation @ self.tool_axis)
-        else:
-            self.tool_axis = rotation.T @ (self.frames[-2].rotation @ self.tool_axis)
+            x, y, z = self.frames[-1].to_local(previous.to_part(np.array(self.position)))[0].tolist()
+            self.position = (x, y, z)
+        i, j, k = (rotation.T @ (previous.rotation @ np.array(self.tool_axis))).tolist()
+        self.tool_axis = (i, j, k)
 
     def units(self, record: _Record) -> None:
         """Checked and applied to the whole file before the records are read (see _file_units)."""
@@ -838,7 +867,7 @@ class _Reader:
 
     def comment_record(self, record: _Record) -> None:
         self.comments += 1
-        self.event(EventKind.COMMENT, text=(record.comment or "") if record.word == "$$" else record.args[0])
+        self.event(EventKind.COMMENT, text=(record.comment if record.word == "$$" else record.rest) or "")
 
     def stop(self, record: _Record) -> None:
         if record.args:
@@ -863,18 +892,18 @@ class _Reader:
         if self.cycle is not None:
             self.line = self.cycle.line
             raise self.error("CYCLE/ is not closed with CYCLE/OFF before the end of the file")
-        local = np.concatenate([np.zeros((0, 3)), *self.tip])
-        axis_local = np.concatenate([np.zeros((0, 3)), *self.axis])
-        frame = np.concatenate([np.zeros(0, dtype=np.int64), *self.frame_of])
+        local = np.frombuffer(self.tip, dtype=np.float64).reshape(-1, 3)
+        axis_local = np.frombuffer(self.axis, dtype=np.float64).reshape(-1, 3)
+        frame = np.frombuffer(self.frame_of, dtype=np.int64)
         tip = np.zeros_like(local)
         axis = np.zeros_like(axis_local)
         for index in np.unique(frame):              # one transform per MSYS, all its rows at once
             rows = frame == index
             tip[rows] = self.frames[index].to_part(local[rows])
             axis[rows] = axis_local[rows] @ self.frames[index].rotation.T
-        kind: np.ndarray = np.concatenate([np.zeros(0, dtype=np.int64), *self.kind])
-        feed = np.concatenate([np.zeros(0), *self.feed])
-        source: np.ndarray = np.concatenate([np.zeros(0, dtype=np.int64), *self.source])
+        kind = np.frombuffer(self.kind, dtype=np.int64)
+        feed = np.frombuffer(self.feed, dtype=np.float64)
+        source = np.frombuffer(self.source, dtype=np.int64)
         toolpath = Toolpath(kind=kind, tip=tip, axis=axis, feed=feed, source=source, events=tuple(self.events))
         counts = ClCounts(
             records=self.records, gotos=self.gotos, gotos_with_axis=self.gotos_with_axis, moves=self.moves,
