@@ -17,7 +17,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from prs3_post.errors import ConfigError
+from prs3_post.errors import ConfigError, InputError
+from prs3_post.readers.files import read_text
 
 # ----------------------------------------------------------------------------- shipped files
 
@@ -136,13 +137,22 @@ class _Table:
 
 
 def _read_toml(path: Path) -> dict[str, Any]:
+    """The TOML file at ``path`` (UTF-8, a regular file of at most 1 MB) as a dict.
+
+    Raises
+    ------
+    ConfigError
+        ``not valid TOML: <reason>``; the reading errors of :func:`~prs3_post.readers.files.read_text`
+        (``line 3: not UTF-8 text (byte 0xe9): save the file as UTF-8``) as ConfigError too.
+    """
     try:
-        with path.open("rb") as stream:
-            return tomllib.load(stream)
+        text = read_text(str(path), "a TOML file")
+    except InputError as exc:
+        raise ConfigError(exc.args[0], path=exc.path, line=exc.line) from exc
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"not valid TOML: {exc}", path=str(path)) from exc
-    except OSError as exc:
-        raise ConfigError(f"cannot read: {exc.strerror}", path=str(path)) from exc
 
 
 def _display(path: Path) -> str:

@@ -1,32 +1,129 @@
-"""Reading an input file's bytes, with the same clear errors for every reader."""
+"""Opening and reading input files, with the same checks and clear errors for every reader.
+
+Only regular files are read: a FIFO would block forever waiting for a writer, and a device such
+as ``/dev/zero`` never ends. Each kind of input has a size limit (:data:`SIZE_LIMITS`), far above
+any real part, program or table, so that a wrong file is refused at once instead of filling the
+memory.
+"""
 
 from __future__ import annotations
 
+import os
+import stat
+from typing import BinaryIO
+
 from prs3_post.errors import InputError
 
+MB = 1_000_000
+SIZE_LIMITS: dict[str, int] = {
+    "an STL file": 500 * MB,          # ~10 million triangles in binary STL
+    "a G-code program": 1000 * MB,    # ~25 million lines
+    "a CSV file": 1000 * MB,          # ~15 million poses
+    "a TOML file": 1 * MB,            # a machine or dialect description is a few kB
+}
+"""Bytes, the largest file read for each kind of input (keyed by the ``what`` of :func:`read_input`)."""
+DEFAULT_SIZE_LIMIT = 100 * MB
+"""Bytes, the limit for a kind of input not in :data:`SIZE_LIMITS`."""
 
-def read_input(path: str, what: str) -> bytes:
-    """The whole file at ``path``.
+_NOT_REGULAR = (
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
+def open_input(path: str, what: str) -> BinaryIO:
+    """Open the regular file at ``path`` for reading (binary), after checking its kind and size.
 
     Parameters
     ----------
     path : str — as the user gave it (messages show it unchanged)
-    what : str — what the file should be, for the directory message (``an STL file``)
+    what : str — what the file should be (``an STL file``): for messages, and the key of its size limit
+
+    Returns
+    -------
+    BinaryIO
+        Positioned at the start; the caller closes it.
 
     Raises
     ------
     InputError
-        ``file not found``, ``is a directory, not <what>``, ``permission denied`` or
-        ``cannot read the file: <reason>``.
+        ``file not found``, ``is a directory, not <what>``, ``permission denied``,
+        ``is a FIFO (named pipe), not a regular file: give <what>``,
+        ``is 1.2 GB, more than the 500 MB limit for <what>`` or ``cannot read the file: <reason>``.
     """
     try:
-        with open(path, "rb") as stream:
-            return stream.read()
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))   # a FIFO must not block the open
     except FileNotFoundError as exc:
         raise InputError("file not found", path=path) from exc
-    except IsADirectoryError as exc:
-        raise InputError(f"is a directory, not {what}", path=path) from exc
     except PermissionError as exc:
         raise InputError("permission denied", path=path) from exc
     except OSError as exc:
         raise InputError(f"cannot read the file: {exc.strerror or exc}", path=path) from exc
+    try:
+        info = os.fstat(fd)
+        if stat.S_ISDIR(info.st_mode):
+            raise InputError(f"is a directory, not {what}", path=path)
+        for test, kind in _NOT_REGULAR:
+            if test(info.st_mode):
+                raise InputError(f"is {kind}, not a regular file: give {what}", path=path)
+        limit = SIZE_LIMITS.get(what, DEFAULT_SIZE_LIMIT)
+        if info.st_size > limit:
+            raise InputError(f"is {format_bytes(info.st_size)}, more than the {format_bytes(limit)} limit "
+                             f"for {what}", path=path)
+        if hasattr(os, "set_blocking"):
+            os.set_blocking(fd, True)
+        return open(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def read_input(path: str, what: str) -> bytes:
+    """The whole regular file at ``path`` (checked as :func:`open_input` does).
+
+    Raises
+    ------
+    InputError
+        As :func:`open_input`; also when the file grew past its limit while being read.
+    """
+    limit = SIZE_LIMITS.get(what, DEFAULT_SIZE_LIMIT)
+    with open_input(path, what) as stream:
+        try:
+            data = stream.read(limit + 1)
+        except OSError as exc:
+            raise InputError(f"cannot read the file: {exc.strerror or exc}", path=path) from exc
+    if len(data) > limit:
+        raise InputError(f"is more than the {format_bytes(limit)} limit for {what}", path=path)
+    return data
+
+
+def read_text(path: str, what: str) -> str:
+    """The regular file at ``path`` as UTF-8 text (a BOM is allowed).
+
+    Raises
+    ------
+    InputError
+        As :func:`read_input`, or ``line 3: not UTF-8 text (byte 0xe9): save the file as UTF-8``.
+    """
+    data = read_input(path, what)
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise InputError(f"not UTF-8 text (byte 0x{data[exc.start]:02x}): save the file as UTF-8",
+                         path=path, line=line) from exc
+
+
+def format_bytes(size: int) -> str:
+    """``1.2 GB``, ``500 MB``, ``12 kB``, ``80 bytes`` (decimal units, 2 significant digits at most).
+
+    >>> format_bytes(500_000_000), format_bytes(1_234_567_890), format_bytes(12_345), format_bytes(80)
+    ('500 MB', '1.2 GB', '12 kB', '80 bytes')
+    """
+    for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if size >= scale:
+            value = size / scale
+            return f"{value:.2g} {unit}" if value < 10 else f"{value:.0f} {unit}"
+    return f"{size} bytes"
