@@ -161,9 +161,10 @@ def _labels_from_facets(facets: list[IntArray], area_tri: FloatArray) -> IntArra
 
 
 def _drop_degenerate_singletons(labels: IntArray, area_tri: FloatArray) -> IntArray:
-    """Label -1 for zero-area triangles that are alone in their group; then number groups 0..G-1."""
-    sizes = np.bincount(labels[labels >= 0])
-    labels = np.where((labels >= 0) & (sizes[np.maximum(labels, 0)] == 1) & (area_tri <= 0.0), -1, labels)
+    """Label -1 for groups without area (a lone zero-area triangle, or a facet of only such: they have
+    no normal); then number groups 0..G-1."""
+    group_area = np.bincount(labels[labels >= 0], weights=area_tri[labels >= 0])
+    labels = np.where((labels >= 0) & (group_area[np.maximum(labels, 0)] <= 0.0), -1, labels)
     kept = labels >= 0
     compact = np.full(len(labels), -1, dtype=np.int64)
     compact[kept] = np.unique(labels[kept], return_inverse=True)[1]

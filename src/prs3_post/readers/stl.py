@@ -74,6 +74,8 @@ UP_ROTATION: dict[str, tuple[str, tuple[tuple[int, int, int], ...]]] = {
 }
 """For each accepted ``up``: the rotation in words and its matrix (rows; part = matrix @ file), which
 turns that file axis into +z."""
+MAX_COORDINATE_MM = 1e6
+"""A part's vertices must lie within ±this (mm, a kilometre): far larger ones overflow areas and outlines."""
 
 _NOT_STL = "not an STL file (expected ASCII 'solid ...' or binary STL): "
 _BINARY_HEADER_BYTES = 84
@@ -138,6 +140,10 @@ def load_part(path: str | os.PathLike[str], *, units: str = "mm", up: str = "z")
     count = len(triangles)
     if count == 0:
         raise InputError("STL has no triangles", path=where)
+    reach = float(np.abs(triangles).max()) * UNIT_SCALE[units]
+    if reach > MAX_COORDINATE_MM:
+        raise InputError(f"coordinates reach {reach:.3g} mm: beyond ±{MAX_COORDINATE_MM:g} mm, the largest part "
+                         "this tool handles (is the STL in the right units?)", path=where)
     import trimesh
 
     try:
