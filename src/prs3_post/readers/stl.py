@@ -163,6 +163,8 @@ def load_part(path: str | os.PathLike[str], *, units: str = "mm", up: str = "z")
         mesh.remove_unreferenced_vertices()
         if len(mesh.faces) == 0:
             raise InputError("STL has no triangles with three distinct vertices", path=where)
+    if not (mesh.area_faces > 0.0).any():
+        raise InputError("STL has no triangle with an area (all are flat slivers): it encloses no solid", path=where)
     if UNIT_SCALE[units] != 1.0:
         mesh.apply_scale(UNIT_SCALE[units])
     _check_size(mesh, units, where)
