@@ -14,6 +14,7 @@ kinematics of those joints is compared row by row with the operation's toolpath
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import math
 import os
@@ -300,7 +301,9 @@ def test_program_names_no_absolute_path(made: dict[str, Made], name: str) -> Non
     item = made[name]
     part = "patel2020-wedge.stl" if item.case.args[0] == "demo" else Path(item.case.args[1]).name
     header = [line for line in item.text.split("\n") if line.lower().startswith("(part: ")]
-    expected = f"(part: {part}, units mm)"
+    source = REPO / "postproc" / "parts" / part if item.case.args[0] == "demo" else Path(item.case.args[1])
+    digest = hashlib.sha256(source.read_bytes()).hexdigest()
+    expected = f"(part: {part}, units mm, up z, sha256 {digest})"
     assert header == [expected.upper() if name.endswith(".nc") else expected]   # fanuc upper-cases comments
     for folder in (REPO, REPO.parent, item.out.parent):
         assert str(folder) not in item.text

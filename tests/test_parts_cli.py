@@ -8,6 +8,7 @@ surfaces, nothing narrower than the smallest tool), saying why for every face. T
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -96,7 +97,8 @@ def test_main_job_and_verify_with_up(tmp_path):
     job = ["--units", "inch", "--up", "y", "--profile", "hole", "--at", "5,0", "--part-origin=0,-16.75,-700"]
     result = invoke(ANGLE_BLOCK, *job, "-o", str(out))
     assert result.exit_code == 0, result.stderr
-    assert out.read_text().splitlines()[2] == "(part: trimesh_angle_block.STL, units inch, up y)"
+    digest = hashlib.sha256(Path(ANGLE_BLOCK).read_bytes()).hexdigest()
+    assert out.read_text().splitlines()[3] == f"(part: trimesh_angle_block.STL, units inch, up y, sha256 {digest})"
     result = invoke("verify", str(out), "--against", ANGLE_BLOCK, *job)
     assert result.exit_code == 0, result.stdout + result.stderr
     result = invoke("verify", str(out), "--against", ANGLE_BLOCK, *job[:2], *job[4:])

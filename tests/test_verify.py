@@ -433,13 +433,13 @@ def test_no_straightness_problem_where_the_head_does_not_assemble(tmp_path):
     out.write_text("\n".join(lines))
     code, report = verify_json(out)
     assert (code, report["problems"]) == (1, [
-        {"line": 22, "kind": "reach", "message": "line 22: the head does not assemble at 25.0 % of the move "
+        {"line": 24, "kind": "reach", "message": "line 24: the head does not assemble at 25.0 % of the move "
                                                  "(strokes 32.1044, 166.2685, 213.2885 mm)"},
-        {"line": 22, "kind": "limit", "message": "line 22: T3 stroke 600.0000 mm is above the maximum 400.0000 mm "
+        {"line": 24, "kind": "limit", "message": "line 24: T3 stroke 600.0000 mm is above the maximum 400.0000 mm "
                                                  "by 200.0000 mm at the end point"},
-        {"line": 24, "kind": "reach", "message": "line 24: the head does not assemble at 12.5 % of the move "
+        {"line": 26, "kind": "reach", "message": "line 26: the head does not assemble at 12.5 % of the move "
                                                  "(strokes 33.5340, 167.6981, 535.8596 mm)"},
-        {"line": 24, "kind": "limit", "message": "line 24: T3 stroke 535.8596 mm is above the maximum 400.0000 mm "
+        {"line": 26, "kind": "limit", "message": "line 26: T3 stroke 535.8596 mm is above the maximum 400.0000 mm "
                                                  "by 135.8596 mm at 12.5 % of the move"},
     ])
-    assert number == 22
+    assert number == 24

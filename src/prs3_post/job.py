@@ -8,8 +8,6 @@ as text for the CLI to write.
 
 from __future__ import annotations
 
-import enum
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,60 +19,15 @@ from prs3_post.emit.gcode import emit_program
 from prs3_post.errors import FeatureError, InputError
 from prs3_post.face import Face
 from prs3_post.geometry import MIN_FACE_WIDTH_MM, find_faces, project_onto_face, select_face
+from prs3_post.ops import Cutting, plan_holes, plan_profile
 from prs3_post.ops.common import require_tolerance
-from prs3_post.ops import Cutting, HoleParams, ProfileParams, RoundShape, SquareShape, plan_holes, plan_profile
+from prs3_post.ops.work import HoleJob, Operation, ProfileJob
 from prs3_post.pipeline import PostResult, post_process
+from prs3_post.readers.header import ProgramHeader, file_sha256, header_entries
 from prs3_post.readers.stl import load_part
 from prs3_post.setup import Setup
 from prs3_post.toolpath import Toolpath
 from prs3_post.types import FloatArray
-
-
-class Operation(enum.Enum):
-    """What the machine cuts on the face."""
-
-    HOLE = "hole"
-    """Drill holes normal to the face, optionally pecking, at each --at point."""
-    SQUARE = "square"
-    """A square groove or wall (rounded corners allowed) in depth passes."""
-    ROUND = "round"
-    """A round groove or wall in depth passes."""
-
-
-@dataclass(frozen=True, slots=True)
-class HoleJob:
-    """A hole operation: drill at each position.
-
-    Attributes
-    ----------
-    params : HoleParams
-    """
-
-    params: HoleParams
-
-    @property
-    def operation(self) -> Operation:
-        """Always :attr:`Operation.HOLE`."""
-        return Operation.HOLE
-
-
-@dataclass(frozen=True, slots=True)
-class ProfileJob:
-    """A square or round profile at one position.
-
-    Attributes
-    ----------
-    shape : SquareShape | RoundShape — which outline (and so which operation)
-    params : ProfileParams
-    """
-
-    shape: SquareShape | RoundShape
-    params: ProfileParams
-
-    @property
-    def operation(self) -> Operation:
-        """:attr:`Operation.SQUARE` or :attr:`Operation.ROUND`, from the shape."""
-        return Operation.SQUARE if isinstance(self.shape, SquareShape) else Operation.ROUND
 
 
 @dataclass(frozen=True, slots=True)
@@ -184,51 +137,40 @@ def run_job(spec: JobSpec) -> JobResult:
         raise InputError(str(error), path=spec.part) from error
     path_part = plan(spec, face)
     post = post_process(spec.machine, path_part, spec.setup, tolerance=spec.tolerance)
-    text = emit_program(post.program, spec.dialect, header=header(spec, face),
+    entries = header_entries(header_of(spec, file_sha256(spec.part)), face, description=spec.machine.description)
+    text = emit_program(post.program, spec.dialect, header=entries,
                         stage=spec.machine.stage.present, line_numbers=spec.line_numbers,
                         line_start=spec.line_start, line_step=spec.line_step)
     return JobResult(text=text, face=face, face_note=note, path_part=path_part, post=post, setup=spec.setup,
                      triangles=np.asarray(mesh.triangles, dtype=np.float64))
 
 
-def _mm(values: FloatArray | tuple[float, ...], decimals: int = 4) -> str:
-    return ", ".join(_fixed(v, decimals) for v in values)
+def _file_given(source: str, kind: str, name: str) -> str | None:
+    """The path a machine or dialect was given by, or None for a shipped one (``machines/NAME.toml``)."""
+    return None if source == f"{kind}/{name}.toml" else source
 
 
-def _fixed(value: float, decimals: int = 4) -> str:
-    text = f"{value:.{decimals}f}"
-    return text[1:] if text.startswith("-") and float(text) == 0 else text
+def header_of(spec: JobSpec, part_sha256: str) -> ProgramHeader:
+    """What the program header records of ``spec`` (the part by its file name and SHA-256)."""
+    return ProgramHeader(
+        version=f"prs3-post {__version__}", machine=spec.machine.name,
+        machine_file=_file_given(spec.machine.source, "machines", spec.machine.name),
+        dialect=spec.dialect.name, dialect_file=_file_given(spec.dialect.source, "dialects", spec.dialect.name),
+        part_name=Path(spec.part).name, part_sha256=part_sha256, units=spec.units, up=spec.up, face=spec.face,
+        face_index=-1 if spec.face is None else spec.face, setup=spec.setup, work=spec.work,
+        at_uv=np.asarray(spec.at_uv, dtype=np.float64).reshape(-1, 2),
+        at_xyz=np.asarray(spec.at_xyz, dtype=np.float64).reshape(-1, 3), cutting=spec.cutting,
+        tolerance=spec.tolerance, line_numbers=spec.line_numbers, line_start=spec.line_start,
+        line_step=spec.line_step,
+    )
 
 
-def header(spec: JobSpec, face: Face) -> tuple[tuple[str, str], ...]:
-    """The program's header comments: what was made, from what, on which machine, in which units."""
-    cut = spec.cutting
-    op = spec.operation
-    if isinstance(spec.work, HoleJob):
-        h = spec.work.params
-        params = (f"depth {_fixed(h.depth, 3)} mm, peck {_fixed(h.peck, 3)} mm, dwell {_fixed(h.dwell, 3)} s, "
-                  f"clearance {_fixed(h.clearance, 3)} mm, retract {_fixed(h.retract, 3)} mm")
-    else:
-        s, p = spec.work.shape, spec.work.params
-        if isinstance(s, SquareShape):
-            size = (f"size {_fixed(s.size, 3)} mm, corner radius {_fixed(s.corner_radius, 3)} mm, "
-                    f"rotation {_fixed(math.degrees(s.rotation), 3)} deg")
-        else:
-            size = f"diameter {_fixed(s.diameter, 3)} mm"
-        params = (f"{size}, side {p.side.value}, depth {_fixed(p.depth, 3)} mm, step-down {_fixed(p.step_down, 3)} mm, "
-                  f"{p.direction.value}, {p.entry.value} entry")
-    centres = positions(face, spec.at_uv, spec.at_xyz)
-    return (
-        ("program", f"prs3-post {__version__}"),
-        ("machine", f"{spec.machine.name} ({spec.machine.description})"),
-        ("part", f"{Path(spec.part).name}, units {spec.units}" + ("" if spec.up == "z" else f", up {spec.up}")),
-        ("face", f"{face.index}: inclination {_fixed(math.degrees(face.inclination))} deg, "
-                 f"normal ({_mm(face.normal, 6)}), origin ({_mm(face.origin)}) mm"),
-        ("setup", f"part origin at machine ({_mm(spec.setup.origin)}) mm"),
-        ("operation", f"{op.value} at face (u, v) " + ", ".join(f"({_mm(c)})" for c in centres) + " mm"),
-        ("parameters", params),
-        ("tool", f"T{cut.tool_number} diameter {_fixed(cut.tool_diameter, 3)} mm, feed {_fixed(cut.feed, 1)} mm/min, "
-                 f"plunge {_fixed(cut.plunge_feed, 1)} mm/min, spindle {_fixed(cut.spindle_rpm, 0)} rpm, "
-                 f"coolant {cut.coolant.value}"),
-        ("units", "mm, G93 inverse time: F = 1/minutes of each move"),
+def spec_from_header(header: ProgramHeader, part: str, machine: Machine, dialect: Dialect) -> JobSpec:
+    """The JobSpec a program header records, on the part file ``part`` (the caller checks that it is
+    the recorded part) with the machine and dialect the header names (loaded by the caller)."""
+    return JobSpec(
+        part=part, units=header.units, face=header.face, work=header.work, at_uv=header.at_uv,
+        at_xyz=header.at_xyz, cutting=header.cutting, machine=machine, dialect=dialect, setup=header.setup,
+        tolerance=header.tolerance, line_numbers=header.line_numbers, line_start=header.line_start,
+        line_step=header.line_step, up=header.up,
     )

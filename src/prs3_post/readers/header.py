@@ -1,0 +1,519 @@
+"""The program header: what a program was made from, written as comments and read back.
+
+A program made by the main job opens with comment lines ``(key: value)`` that state everything
+needed to rebuild its intent (the key order is fixed; ``machine file`` and ``dialect file`` only
+appear for a machine or dialect given by path)::
+
+    (program: prs3-post 0.1.0)
+    (machine: patel2020 [Patel 2020 3-PRS head over an XY stage ...])
+    (machine file: my/machine.toml)
+    (dialect: linuxcnc)
+    (dialect file: my/dialect.toml)
+    (part: wedge.stl, units mm, up z, sha256 0f3a...)
+    (face: 4, chosen automatically: inclination 26.5651 deg, normal [...], origin [...] mm)
+    (setup: part origin at machine [-100.0000, -200.0000, -970.0000] mm, rotation 0.0000 deg about z)
+    (operation: hole at face [u, v] [10.0000, 0.0000], [-10.0000, 5.0000] mm)
+    (parameters: depth 8.000 mm, peck 3.000 mm, dwell 0.500 s, clearance 2.000 mm, ...)
+    (tool: T1 diameter 6.000 mm, feed 300.0 mm/min, plunge 100.0 mm/min, spindle 3000 rpm, coolant flood)
+    (tolerance: 0.002 mm)
+    (units: mm, G93 inverse time: F = 1/minutes of each move)
+
+Numbers are fixed decimals (``6.000``), with more decimals where that is what it takes to read
+back the exact value the job used: a header read back gives the same job, bit for bit. Angles kept
+in radians by the job are written in degrees such that converting them back gives the same radians.
+A comment text may have been upper-cased by its dialect: keys and words are read in any case.
+
+:func:`header_entries` writes the ``(key, value)`` pairs (the emitter puts them between the
+dialect's comment delimiters); :func:`parse_header` reads them back from comment texts;
+:func:`read_header` finds them at the top of a program file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from prs3_post.emit.gcode import _CONTINUATION  # the indent of a wrapped comment's continuation lines
+from prs3_post.errors import InputError, Prs3Error
+from prs3_post.face import Face
+from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
+from prs3_post.ops.work import HoleJob, ProfileJob
+from prs3_post.readers.files import read_input
+from prs3_post.setup import Setup
+from prs3_post.types import FloatArray
+
+#: The header's first key; a program without it has no header.
+PROGRAM_KEY = "program"
+#: How many bytes of a program's start :func:`read_header` looks at (a header is about 1 KB).
+HEAD_BYTES = 64 * 1024
+
+
+@dataclass(frozen=True, slots=True)
+class ProgramHeader:
+    """What a program says it was made from.
+
+    Attributes
+    ----------
+    version : str — ``prs3-post 0.1.0``
+    machine : str — the machine's name (the file's stem)
+    machine_file : str | None — the machine file's path as given, when it was given by path
+    dialect : str — the dialect's name
+    dialect_file : str | None — the dialect file's path as given, when it was given by path
+    part_name : str — the STL's file name (no folder)
+    part_sha256 : str — lower-case hex SHA-256 of the STL file's bytes
+    units : str — ``mm`` or ``inch``
+    up : str — the STL's up axis (``z``, ``-y``, ...)
+    face : int | None — the face asked for (None: the automatic choice)
+    face_index : int — the face worked on
+    setup : Setup
+    work : HoleJob | ProfileJob
+    at_uv : (K, 2) float — mm, positions given in face coordinates
+    at_xyz : (K, 3) float — mm, positions given in part coordinates
+    cutting : Cutting
+    tolerance : float — mm
+    line_numbers, line_start, line_step : the block-numbering overrides (None: the dialect's)
+    lines : tuple of (key, line) — where each key was read (1-based program lines; empty when written)
+    """
+
+    version: str
+    machine: str
+    machine_file: str | None
+    dialect: str
+    dialect_file: str | None
+    part_name: str
+    part_sha256: str
+    units: str
+    up: str
+    face: int | None
+    face_index: int
+    setup: Setup
+    work: HoleJob | ProfileJob
+    at_uv: FloatArray
+    at_xyz: FloatArray
+    cutting: Cutting
+    tolerance: float
+    line_numbers: bool | None = None
+    line_start: int | None = None
+    line_step: int | None = None
+    lines: tuple[tuple[str, int], ...] = ()
+
+    def line(self, key: str) -> int | None:
+        """The program line the ``key`` entry was read from (None when not read from a file)."""
+        return dict(self.lines).get(key)
+
+
+def file_sha256(path: str) -> str:
+    """Lower-case hex SHA-256 of a file's bytes.
+
+    Raises
+    ------
+    InputError
+        The file cannot be read.
+    """
+    return hashlib.sha256(read_input(path, "a file")).hexdigest()
+
+
+# ============================================================================ numbers
+
+
+def _fixed(value: float, decimals: int) -> str:
+    text = f"{value:.{decimals}f}"
+    return text[1:] if text.startswith("-") and float(text) == 0 else text
+
+
+def exact_text(value: float, decimals: int) -> str:
+    """``value`` in fixed decimals, at least ``decimals`` and as many more as reading it back exactly takes.
+
+    >>> exact_text(6.0, 3), exact_text(2.00001, 3), exact_text(-0.0, 4), exact_text(0.1 + 0.2, 1)
+    ('6.000', '2.00001', '0.0000', '0.30000000000000004')
+    """
+    for places in range(decimals, 25):
+        text = _fixed(value, places)
+        if float(text) == value:
+            return text
+    return repr(float(value))                           # not reached for finite values
+
+
+def degrees_text(radians: float, decimals: int) -> str:
+    """An angle kept in radians, in degrees such that ``math.radians(float(text)) == radians``.
+
+    >>> degrees_text(math.radians(15.0), 3), degrees_text(math.radians(3.0), 3)
+    ('15.000', '3.000')
+    """
+    degrees = math.degrees(radians)
+    candidate = degrees
+    for _ in range(64):                                # radians() may not invert degrees(): nudge
+        if math.radians(candidate) == radians:
+            break
+        candidate = float(np.nextafter(candidate, math.inf if math.radians(candidate) < radians else -math.inf))
+    else:
+        candidate = degrees
+    for places in range(decimals, 25):
+        text = _fixed(candidate, places)
+        if math.radians(float(text)) == radians:
+            return text
+    return repr(candidate)
+
+
+def _numbers(values: Iterable[float], decimals: int) -> str:
+    """``[a, b, c]``, each exact (read back as the same float)."""
+    return "[" + ", ".join(exact_text(float(v), decimals) for v in values) + "]"
+
+
+def _shown(values: Iterable[float], decimals: int) -> str:
+    """``[a, b, c]`` in fixed decimals, for people (not read back)."""
+    return "[" + ", ".join(_fixed(float(v), decimals) for v in values) + "]"
+
+
+# ============================================================================ writing
+
+
+_HOLE_ITEMS = (("depth", "mm"), ("peck", "mm"), ("dwell", "s"), ("clearance", "mm"), ("retract", "mm"),
+               ("reapproach gap", "mm"))
+_SQUARE_ITEMS = (("size", "mm"), ("corner radius", "mm"), ("rotation", "deg"))
+_ROUND_ITEMS = (("diameter", "mm"),)
+_PROFILE_ITEMS = (("side", ""), ("depth", "mm"), ("step-down", "mm"), ("direction", ""), ("entry", ""),
+                  ("ramp angle", "deg"), ("clearance", "mm"), ("retract", "mm"))
+_TOOL_ITEMS = (("diameter", "mm"), ("feed", "mm/min"), ("plunge", "mm/min"), ("spindle", "rpm"), ("coolant", ""))
+
+
+def _item_values(work: HoleJob | ProfileJob) -> list[str]:
+    if isinstance(work, HoleJob):
+        h = work.params
+        return [exact_text(v, 3) for v in (h.depth, h.peck, h.dwell, h.clearance, h.retract, h.reapproach_gap)]
+    s, p = work.shape, work.params
+    if isinstance(s, SquareShape):
+        shape = [exact_text(s.size, 3), exact_text(s.corner_radius, 3), degrees_text(s.rotation, 3)]
+    else:
+        shape = [exact_text(s.diameter, 3)]
+    return [*shape, p.side.value, exact_text(p.depth, 3), exact_text(p.step_down, 3), p.direction.value,
+            p.entry.value, degrees_text(p.ramp_angle, 3), exact_text(p.clearance, 3), exact_text(p.retract, 3)]
+
+
+def _items_of(work: HoleJob | ProfileJob) -> tuple[tuple[str, str], ...]:
+    if isinstance(work, HoleJob):
+        return _HOLE_ITEMS
+    return (*(_SQUARE_ITEMS if isinstance(work.shape, SquareShape) else _ROUND_ITEMS), *_PROFILE_ITEMS)
+
+
+def _join(items: tuple[tuple[str, str], ...], values: list[str]) -> str:
+    return ", ".join(f"{name} {value}" + (f" {unit}" if unit else "")
+                     for (name, unit), value in zip(items, values, strict=True))
+
+
+def _positions(at_uv: FloatArray, at_xyz: FloatArray) -> str:
+    parts = []
+    if len(at_uv):
+        parts.append("at face [u, v] " + ", ".join(_numbers(p, 4) for p in at_uv) + " mm")
+    if len(at_xyz):
+        parts.append("at part [x, y, z] " + ", ".join(_numbers(p, 4) for p in at_xyz) + " mm")
+    return " and ".join(parts) if parts else "at the face origin"
+
+
+def header_entries(header: ProgramHeader, face: Face, *, description: str = "") -> tuple[tuple[str, str], ...]:
+    """The ``(key, value)`` comment entries of ``header`` (the module docstring shows them).
+
+    Parameters
+    ----------
+    header : ProgramHeader
+    face : Face — the face worked on (its inclination, normal and origin are stated for people)
+    description : str — the machine's one-line description
+    """
+    cut = header.cutting
+    how = "chosen automatically" if header.face is None else "as given"
+    numbering = []
+    if header.line_numbers is not None:
+        numbering.append(f"line numbers {'on' if header.line_numbers else 'off'}")
+    if header.line_start is not None:
+        numbering.append(f"first line number {header.line_start}")
+    if header.line_step is not None:
+        numbering.append(f"line number step {header.line_step}")
+    entries = [
+        (PROGRAM_KEY, header.version),
+        ("machine", f"{header.machine} [{description}]" if description else header.machine),
+    ]
+    if header.machine_file is not None:
+        entries.append(("machine file", header.machine_file))
+    entries.append(("dialect", ", ".join([header.dialect, *numbering])))
+    if header.dialect_file is not None:
+        entries.append(("dialect file", header.dialect_file))
+    entries += [
+        ("part", f"{header.part_name}, units {header.units}, up {header.up}, sha256 {header.part_sha256}"),
+        ("face", f"{face.index}, {how}: inclination {_fixed(math.degrees(face.inclination), 4)} deg, "
+                 f"normal {_shown(face.normal, 6)}, origin {_shown(face.origin, 4)} mm"),
+        ("setup", _setup_text(header.setup)),
+        ("operation", f"{header.work.operation.value} {_positions(header.at_uv, header.at_xyz)}"),
+        ("parameters", _join(_items_of(header.work), _item_values(header.work))),
+        ("tool", f"T{cut.tool_number} " + _join(_TOOL_ITEMS, [
+            exact_text(cut.tool_diameter, 3), exact_text(cut.feed, 1), exact_text(cut.plunge_feed, 1),
+            exact_text(cut.spindle_rpm, 0), cut.coolant.value])),
+        ("tolerance", f"{exact_text(header.tolerance, 3)} mm"),
+        ("units", "mm, G93 inverse time: F = 1/minutes of each move"),
+    ]
+    return tuple(entries)
+
+
+def _setup_text(setup: Setup) -> str:
+    return (f"part origin at machine {_numbers(setup.origin, 4)} mm, "
+            f"rotation {exact_text(setup.rotation_deg, 4)} deg about z")
+
+
+# ============================================================================ reading
+
+
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?"
+_VECTOR = rf"\[\s*{_NUMBER}(?:\s*,\s*{_NUMBER})*\s*\]"
+_ENTRY = re.compile(r"^\s*([a-z][a-z ]*?)\s*:\s?(.*?)\s*$", re.IGNORECASE)
+_KEYS = ("program", "machine", "machine file", "dialect", "dialect file", "part", "face", "setup", "operation",
+         "parameters", "tool", "tolerance", "units")
+_REQUIRED = tuple(k for k in _KEYS if not k.endswith(" file"))
+
+
+class _Bad(Exception):
+    """One entry's value is not in the header's form (turned into an InputError with the line)."""
+
+
+def _vector(text: str, count: int) -> tuple[float, ...]:
+    values = tuple(float(v) for v in re.findall(_NUMBER, text, re.IGNORECASE))
+    if len(values) != count:
+        raise _Bad(f"expected [{count} numbers], got {text!r}")
+    return values
+
+
+def _match(pattern: str, text: str) -> re.Match[str]:
+    found = re.fullmatch(pattern, text, re.IGNORECASE)
+    if found is None:
+        raise _Bad(f"expected {_FORMS.get(pattern, 'the header form')}, got {text!r}")
+    return found
+
+
+_SETUP = rf"part origin at machine ({_VECTOR}) mm, rotation ({_NUMBER}) deg about z"
+_PART = r"(.*), units (mm|inch), up (-?[xyz]), sha256 ([0-9a-f]{64})"
+_FACE = r"(\d+), (chosen automatically|as given): .*"
+_OPERATION = (rf"(hole|square|round) (?:at the face origin|(?:at face \[u, v\] ((?:{_VECTOR}(?:, )?)+) mm)?"
+              rf"(?: and )?(?:at part \[x, y, z\] ((?:{_VECTOR}(?:, )?)+) mm)?)")
+_TOOL = r"T(\d+) (.*)"
+_TOLERANCE = rf"({_NUMBER}) mm"
+_FORMS = {
+    _SETUP: "'part origin at machine [x, y, z] mm, rotation θ deg about z'",
+    _PART: "'NAME, units mm|inch, up [-]x|y|z, sha256 HEX'",
+    _FACE: "'N, chosen automatically|as given: ...'",
+    _OPERATION: "'hole|square|round at face [u, v] [..] mm and/or at part [x, y, z] [..] mm, or at the face origin'",
+    _TOOL: "'TN diameter .. mm, feed .. mm/min, ...'",
+    _TOLERANCE: "'T mm'",
+}
+
+
+def _items(text: str, items: tuple[tuple[str, str], ...]) -> list[str]:
+    """The values of ``name value [unit]`` items, in the fixed order."""
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) != len(items):
+        raise _Bad(f"expected {len(items)} items ({', '.join(n for n, _ in items)}), got {len(parts)}")
+    values = []
+    for part, (name, unit) in zip(parts, items, strict=True):
+        found = re.fullmatch(rf"{re.escape(name)} (\S+)" + (rf" {re.escape(unit)}" if unit else ""), part,
+                             re.IGNORECASE)
+        if found is None:
+            raise _Bad(f"expected '{name} VALUE{' ' + unit if unit else ''}', got {part!r}")
+        values.append(found.group(1))
+    return values
+
+
+def _float(text: str) -> float:
+    if not re.fullmatch(_NUMBER, text, re.IGNORECASE):
+        raise _Bad(f"expected a number, got {text!r}")
+    return float(text)
+
+
+def _radians(text: str) -> float:
+    return math.radians(_float(text))
+
+
+def _work(operation: str, text: str) -> HoleJob | ProfileJob:
+    op = operation.lower()
+    try:
+        if op == "hole":
+            v = _items(text, _HOLE_ITEMS)
+            return HoleJob(HoleParams(depth=_float(v[0]), peck=_float(v[1]), dwell=_float(v[2]),
+                                      clearance=_float(v[3]), retract=_float(v[4]), reapproach_gap=_float(v[5])))
+        shape: SquareShape | RoundShape
+        if op == "square":
+            v = _items(text, _SQUARE_ITEMS + _PROFILE_ITEMS)
+            shape = SquareShape(size=_float(v[0]), corner_radius=_float(v[1]), rotation=_radians(v[2]))
+            v = v[3:]
+        else:
+            v = _items(text, _ROUND_ITEMS + _PROFILE_ITEMS)
+            shape = RoundShape(diameter=_float(v[0]))
+            v = v[1:]
+        return ProfileJob(shape, ProfileParams(
+            side=Side(v[0].lower()), depth=_float(v[1]), step_down=_float(v[2]), direction=Direction(v[3].lower()),
+            entry=Entry(v[4].lower()), ramp_angle=_radians(v[5]), clearance=_float(v[6]), retract=_float(v[7])))
+    except (ValueError, Prs3Error) as error:           # an enum word or a value its class refuses
+        raise _Bad(str(error)) from error
+
+
+def _cutting(text: str) -> Cutting:
+    found = _match(_TOOL, text)
+    v = _items(found.group(2), _TOOL_ITEMS)
+    try:
+        return Cutting(tool_diameter=_float(v[0]), feed=_float(v[1]), plunge_feed=_float(v[2]),
+                       spindle_rpm=_float(v[3]), coolant=Coolant(v[4].lower()), tool_number=int(found.group(1)))
+    except (ValueError, Prs3Error) as error:
+        raise _Bad(str(error)) from error
+
+
+def _dialect(text: str) -> tuple[str, bool | None, int | None, int | None]:
+    name, *rest = [p.strip() for p in text.split(",")]
+    numbers: bool | None = None
+    start = step = None
+    for item in rest:
+        if found := re.fullmatch(r"line numbers (on|off)", item, re.IGNORECASE):
+            numbers = found.group(1).lower() == "on"
+        elif found := re.fullmatch(r"first line number (\d+)", item, re.IGNORECASE):
+            start = int(found.group(1))
+        elif found := re.fullmatch(r"line number step (\d+)", item, re.IGNORECASE):
+            step = int(found.group(1))
+        else:
+            raise _Bad(f"expected 'NAME[, line numbers on|off][, first line number N][, line number step N]', "
+                       f"got {text!r}")
+    return name, numbers, start, step
+
+
+def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHeader | None:
+    """Read a header from a program's comment texts.
+
+    Parameters
+    ----------
+    comments : iterable of (line, text) — the comments at the top of the program, without their
+        delimiters, in order (1-based line numbers)
+    path : str — the program, for messages
+
+    Returns
+    -------
+    ProgramHeader, or None when there is no ``program: prs3-post ...`` entry (not a prs3-post header).
+
+    Raises
+    ------
+    InputError
+        With the line: a header entry that is missing, repeated or not in its form.
+    """
+    found: dict[str, tuple[int, str]] = {}
+    last = 0
+    for number, text in comments:
+        entry = _ENTRY.match(text)
+        if entry is None:
+            continue
+        key = entry.group(1).lower()
+        if key not in _KEYS:
+            continue
+        if key in found:
+            raise InputError(f"header: '{key}' appears twice (first on line {found[key][0]})", path=path, line=number)
+        found[key] = (number, entry.group(2))
+        last = number
+    if PROGRAM_KEY not in found or not found[PROGRAM_KEY][1].lower().startswith("prs3-post"):
+        return None
+    missing = [k for k in _REQUIRED if k not in found]
+    if missing:
+        raise InputError(f"header: no {', '.join(repr(k) for k in missing)} entry (a prs3-post header has "
+                         f"{', '.join(_REQUIRED)})", path=path, line=last)
+    key = PROGRAM_KEY
+    try:
+        key = "machine"
+        machine = re.sub(r"\s*\[.*\]$", "", found["machine"][1]).strip()
+        if not machine:
+            raise _Bad("no machine name")
+        key = "dialect"
+        dialect, numbers, start, step = _dialect(found["dialect"][1])
+        key = "part"
+        part = _match(_PART, found["part"][1])
+        key = "face"
+        face = _match(_FACE, found["face"][1])
+        key = "setup"
+        setup_match = _match(_SETUP, found["setup"][1])
+        try:
+            setup = Setup(_vector(setup_match.group(1), 3), float(setup_match.group(2)))  # type: ignore[arg-type]
+        except Prs3Error as error:
+            raise _Bad(str(error)) from error
+        key = "operation"
+        operation = _match(_OPERATION, found["operation"][1])
+        at_uv = np.array([_vector(v, 2) for v in re.findall(_VECTOR, operation.group(2) or "")],
+                         dtype=np.float64).reshape(-1, 2)
+        at_xyz = np.array([_vector(v, 3) for v in re.findall(_VECTOR, operation.group(3) or "")],
+                          dtype=np.float64).reshape(-1, 3)
+        key = "parameters"
+        work = _work(operation.group(1), found["parameters"][1])
+        key = "tool"
+        cutting = _cutting(found["tool"][1])
+        key = "tolerance"
+        tolerance = float(_match(_TOLERANCE, found["tolerance"][1]).group(1))
+    except _Bad as bad:
+        raise InputError(f"header: {key}: {bad}", path=path, line=found[key][0]) from bad
+    return ProgramHeader(
+        version=found[PROGRAM_KEY][1], machine=machine,
+        machine_file=found["machine file"][1] if "machine file" in found else None,
+        dialect=dialect, dialect_file=found["dialect file"][1] if "dialect file" in found else None,
+        part_name=part.group(1), part_sha256=part.group(4).lower(), units=part.group(2).lower(),
+        up=part.group(3).lower(),
+        face=None if face.group(2).lower() == "chosen automatically" else int(face.group(1)),
+        face_index=int(face.group(1)), setup=setup, work=work, at_uv=at_uv, at_xyz=at_xyz, cutting=cutting,
+        tolerance=tolerance, line_numbers=numbers, line_start=start, line_step=step,
+        lines=tuple((k, v[0]) for k, v in found.items()),
+    )
+
+
+def header_comments(text: str, *, open_: str = "(", close: str = ")") -> list[tuple[int, str]]:
+    """The comment texts of the lines at the top of a program, before its first line with code.
+
+    Lines that are only ``%``, an ``O`` number (with a comment) or blank are passed over. A comment
+    the emitter wrapped over several lines (continuation lines start with two spaces) comes back
+    as one text, with the line number of its first line.
+    """
+    out: list[tuple[int, str]] = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped or stripped == "%":
+            continue
+        if stripped.startswith(open_) and stripped.endswith(close) and stripped.count(open_) == 1:
+            comment = stripped[len(open_):len(stripped) - len(close)]
+            if comment.startswith(_CONTINUATION) and out:
+                out[-1] = (out[-1][0], f"{out[-1][1]} {comment.strip()}")
+            else:
+                out.append((number, comment))
+            continue
+        if re.fullmatch(r"O\d+\s*(\(.*\))?", stripped, re.IGNORECASE):
+            continue
+        break
+    return out
+
+
+def read_header(path: str, *, open_: str = "(", close: str = ")") -> ProgramHeader | None:
+    """The header of the program file at ``path``, or None when it has none (see :func:`parse_header`).
+
+    Only the first :data:`HEAD_BYTES` bytes are looked at.
+
+    Raises
+    ------
+    InputError
+        The file cannot be read, or its header is malformed.
+    """
+    head = _read_head(path)
+    text = head.decode("utf-8", errors="replace")
+    if len(head) == HEAD_BYTES:                         # the last line may be cut: leave it out
+        text = text[:text.rfind("\n") + 1]
+    return parse_header(header_comments(text, open_=open_, close=close), path=path)
+
+
+def _read_head(path: str) -> bytes:
+    if not os.path.isfile(path):                       # missing, a folder, a FIFO, a device: its clear message
+        return read_input(path, "a program")
+    try:
+        with open(path, "rb") as stream:
+            return stream.read(HEAD_BYTES)
+    except OSError:
+        return read_input(path, "a program")            # its clear message
