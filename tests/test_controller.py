@@ -9,12 +9,25 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
 
-from prs3_post.cli import main
+from prs3_post.cli import _job_spec, demo, demo_part, main
+from prs3_post.config import Dialect, load_dialect, load_machine
+from prs3_post.emit.gcode import format_word
+from prs3_post.errors import FeatureError, Prs3Error
+from prs3_post.job import JobResult, run_job
+from prs3_post.ops.common import pass_depths
+from prs3_post.readers.program import read_program
+from prs3_post.resolution import visible_moves
+from prs3_post.toolpath import MoveKind
+from prs3_post.verify import Intended, verify_program
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -68,3 +81,185 @@ def test_the_largest_tool_number_passes_linuxcnc(tmp_path, rs274_check):
     table.write_text("T99999 P1 D6 ;\n", encoding="ascii")
     code, report = rs274_check(out, "--tool-table", str(table))
     assert code == 0, report
+
+
+# ----------------------------------------------------------------------------- every G1 moves
+
+
+def _g1_lines_that_move_nothing(text: str, dialect: Dialect) -> list[str]:
+    """The G1 blocks whose axis words all repeat the axes' last values (or that have none).
+
+    Tracks the modal G0/G1 (Fanuc-style dialects write it only where it changes) and the last
+    value written for each axis letter; comments and block numbers are left out.
+    """
+    ax = dialect.axes
+    letters = {ax.x, ax.y, ax.t1, ax.t2, ax.t3}
+    last: dict[str, float] = {}
+    mode = ""
+    idle = []
+    for line in text.splitlines():
+        words = [w for w in re.sub(r"\([^)]*\)", " ", line).split() if not w.startswith("N")]
+        mode = next((w for w in reversed(words) if w in ("G0", "G1")), mode)
+        axes = {w[0]: float(w[1:]) for w in words if w[0] in letters}
+        motion = bool(axes) or "G0" in words or "G1" in words
+        if motion and mode == "G1" and all(last.get(letter) == value for letter, value in axes.items()):
+            idle.append(line)
+        last.update(axes)
+    return idle
+
+
+def test_the_idle_g1_finder_finds_them() -> None:
+    dialect = load_dialect("fanuc")
+    text = "N10 G0 X1.000 U2.000\nN20 G1 U2.001 F3.0\nN30 U2.001 F4.0\nN40 G1 F5.0\nN50 G0 X1.000\nN60 W1.000 F1\n"
+    assert _g1_lines_that_move_nothing(text, dialect) == ["N30 U2.001 F4.0", "N40 G1 F5.0"]
+
+
+def _job(args: list[str]) -> tuple[JobResult, Dialect]:
+    """Run the main job on the demo part with these options, in process (as `prs3-post demo` does)."""
+    opts = demo.make_context("demo", [*args]).params
+    spec = _job_spec(str(demo_part()), opts)
+    return run_job(spec), spec.dialect
+
+
+def _feed_problems(result: JobResult, dialect: Dialect, machine_name: str = "patel2020") -> list[str]:
+    """What `verify --against` says about the feeds: each G1's implied tip feed (the chord between
+    its printed end points × F) against the feed the job asked for, within what the rounding allows."""
+    program = read_program(result.text, dialect, path="<program>")
+    path = result.post.path
+    intended = Intended(tip=path.tip, axis=path.axis, feed=np.where(path.kind == MoveKind.FEED, path.feed, np.nan),
+                        kind=path.kind, label="job")
+    report = verify_program(load_machine(machine_name), program.moves, setup=result.setup, intended=intended,
+                            length_decimals=dialect.decimals.length, feed_decimals=dialect.decimals.inverse_time)
+    return [p.message for p in (*report.problems, *report.warnings) if p.kind == "feed"]
+
+
+#: Found by an independent sweep of random jobs: each wrote a G1 that moves nothing the program shows.
+REPROS = {
+    "round-ramp-vertex": ["--profile", "round", "--diameter", "30", "--depth", "1", "--step-down", "1",
+                          "--ramp-angle", "2.9308158971662404"],
+    "square-duplicate-lap": ["--profile", "square", "--depth", "2.00001", "--step-down", "1", "--entry", "plunge"],
+    "hole-sideways-plunge": ["--profile", "hole", "--depth", "2.00001", "--peck", "1", "--reapproach-gap", "0"],
+}
+
+
+@pytest.mark.parametrize("args", REPROS.values(), ids=REPROS.keys())
+def test_sub_resolution_moves_are_merged(tmp_path, rs274_check, args):
+    result, dialect = _job(args)
+    assert _g1_lines_that_move_nothing(result.text, dialect) == []
+    assert _feed_problems(result, dialect) == []
+    out = tmp_path / "p.ngc"
+    out.write_text(result.text, encoding="ascii")
+    code, report = rs274_check(out)
+    assert code == 0, report
+
+
+def test_a_depth_pass_closer_than_the_resolution_merges_into_the_last() -> None:
+    square, _ = _job(REPROS["square-duplicate-lap"])
+    passes = [e.text for e in square.path_part.events if e.text.startswith("square pass")]
+    assert passes == ["square pass 1/2 at depth 1.000 mm", "square pass 2/2 at depth 2.000 mm"]
+    hole, _ = _job(REPROS["hole-sideways-plunge"])
+    assert hole.path_part.source_labels[1:-1] == (
+        "hole 1 peck 1 feed", "hole 1 peck 1 clear", "hole 1 peck 2 reapproach", "hole 1 peck 2 feed")
+
+
+def test_the_pipeline_drops_rows_that_print_no_move() -> None:
+    # A clearance below the resolution: the feed down to the face would print no word at all.
+    result, dialect = _job(["--profile", "round", "--clearance", "0.00003", "--retract", "0.00003"])
+    labels = [result.post.path.describe(r) for r in range(len(result.post.path))]
+    assert labels[:3] == ["round approach", "round pass 1/2 ramp", "round pass 1/2 ramp"]
+    assert _g1_lines_that_move_nothing(result.text, dialect) == []
+
+
+def _tiny_or(low: float, high: float) -> st.SearchStrategy[float]:
+    """Values in [low, high], and ones just past a whole multiple (the slivers a sweep finds)."""
+    return st.one_of(st.floats(low, high), st.integers(1, 4).map(lambda k: k + 1e-5), st.just(1e-5))
+
+
+@st.composite
+def _job_args(draw: st.DrawFn) -> list[str]:
+    """Random valid main-job options for the demo part (sizes that fit its face)."""
+    profile = draw(st.sampled_from(["hole", "square", "round"]))
+    clearance = draw(st.one_of(st.floats(1e-5, 5.0), st.just(3e-5)))
+    retract = clearance + draw(st.one_of(st.just(0.0), st.floats(0.0, 10.0)))
+    args = ["--profile", profile, "--depth", repr(draw(_tiny_or(1e-5, 6.0))),
+            "--clearance", repr(clearance), "--retract", repr(retract),
+            "--feed", repr(draw(st.floats(1.0, 5000.0))), "--plunge-feed", repr(draw(st.floats(1.0, 2000.0))),
+            "--dialect", draw(st.sampled_from(["linuxcnc", "fanuc"]))]
+    if profile == "hole":
+        peck = draw(st.one_of(st.just(0.0), st.floats(0.5, 3.0), st.just(1.0)))
+        gap = draw(st.one_of(st.just(0.0), st.floats(0.0, 0.999 * peck))) if peck else 0.5
+        return [*args, "--peck", repr(peck), "--reapproach-gap", repr(gap)]
+    args += ["--step-down", repr(draw(st.one_of(st.floats(0.3, 3.0), st.just(1.0)))),
+             "--entry", draw(st.sampled_from(["ramp", "plunge"])), "--ramp-angle", repr(draw(st.floats(0.5, 30.0))),
+             "--direction", draw(st.sampled_from(["climb", "conventional"])), "--side", draw(st.sampled_from(["on", "outside"]))]
+    if profile == "square":
+        size = draw(st.floats(8.0, 40.0))
+        corner = draw(st.one_of(st.just(0.0), st.just(1e-5), st.floats(0.0, size / 2)))
+        return [*args, "--size", repr(size), "--corner-radius", repr(corner), "--rotation", repr(draw(st.floats(-90, 90)))]
+    return [*args, "--diameter", repr(draw(st.floats(1e-3, 40.0)))]
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(args=_job_args())
+@example(args=REPROS["round-ramp-vertex"])
+@example(args=["--profile", "round", "--clearance", "0.00003", "--retract", "0.00003", "--dialect", "fanuc"])
+def test_every_g1_moves_a_word_and_keeps_its_feed(args: list[str]) -> None:
+    try:
+        result, dialect = _job(args)
+    except Prs3Error:                   # refused (a tool too large for the round, ...): nothing written
+        return
+    assert _g1_lines_that_move_nothing(result.text, dialect) == []
+    assert _feed_problems(result, dialect) == []
+
+
+def _visible_moves_oracle(joints: np.ndarray, decimals: int, tip: np.ndarray, axis: np.ndarray) -> list[bool]:
+    """Every row formatted and compared with the last kept one, in a plain loop."""
+    keep, last = [True], 0
+    for row in range(1, len(joints)):
+        same_words = [format_word("", v, decimals) for v in joints[row]] == [
+            format_word("", v, decimals) for v in joints[last]]
+        same_place = (axis[row] == axis[last]).all() and np.linalg.norm(tip[row] - tip[last]) < 0.5 * 10.0 ** -decimals
+        keep.append(not (same_words or same_place))
+        if keep[-1]:
+            last = row
+    return keep
+
+
+@settings(max_examples=60, deadline=None)
+@given(steps=st.lists(st.tuples(st.floats(-3e-4, 3e-4), st.floats(-3e-4, 3e-4), st.booleans()), max_size=40),
+       decimals=st.sampled_from([3, 4]))
+def test_visible_moves_equals_a_plain_loop(steps, decimals):
+    walk = np.cumsum(np.array([(0.0, 0.0, False), *steps], dtype=np.float64), axis=0)
+    joints = np.column_stack([walk[:, 0], 2.0 * walk[:, 1] - walk[:, 0], np.full(len(walk), 7.0)])
+    tip = np.column_stack([walk[:, 0], walk[:, 1], np.zeros(len(walk))])
+    axis = np.column_stack([np.zeros(len(walk)), 1e-3 * walk[:, 2], np.ones(len(walk))])   # turns where True
+    keep = visible_moves(joints, decimals, tip=tip, axis=axis)
+    assert keep.tolist() == _visible_moves_oracle(joints, decimals, tip, axis)
+    assert visible_moves(joints, decimals).tolist() == _visible_moves_oracle(joints, decimals, tip, np.nan * axis)
+
+
+def test_a_row_after_a_dropped_one_is_compared_with_the_last_kept_row():
+    # Row 1 is dropped (its tip moved 0.00004 mm) though its word rounds up; row 2 steps more than one
+    # unit from row 1, yet prints what row 0 printed: it must go too, or it would be a G1 moving nothing.
+    joints = np.array([[0.0], [0.00006], [-0.000045]])
+    tip = np.array([[0.0, 0, 0], [0.00004, 0, 0], [0.0001, 0, 0]])
+    keep = visible_moves(joints, 4, tip=tip, axis=np.tile([0.0, 0, 1], (3, 1)))
+    assert keep.tolist() == [True, False, False]
+
+
+def test_a_step_finer_than_the_resolution_is_refused():
+    with pytest.raises(FeatureError) as caught:
+        pass_depths(0.5, 5e-5)
+    assert str(caught.value) == "--step-down must be ≥ 0.0001 mm, the resolution of the program (got 5e-05)"
+    with pytest.raises(FeatureError) as caught:
+        pass_depths(3.0, 0.0005, resolution=0.001, option="--peck")
+    assert str(caught.value) == "--peck must be ≥ 0.001 mm, the resolution of the program (got 0.0005)"
+    assert pass_depths(3e-5, 5e-5).tolist() == [3e-5]             # one pass: the step does not matter
+
+
+def test_contour_points_closer_than_the_resolution_merge():
+    # Corners of radius 0.00001 mm: each corner arc is one step the program cannot show.
+    result, dialect = _job(["--profile", "square", "--corner-radius", "0.00001", "--depth", "1"])
+    lap = [r for r in range(len(result.path_part)) if result.path_part.describe(r) == "square pass 1/1 lap"]
+    assert len(lap) == 4 + 1 + 1        # a point per corner (not 2), the contour's start, back to the ramp's end
+    assert _g1_lines_that_move_nothing(result.text, dialect) == []

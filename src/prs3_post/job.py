@@ -25,6 +25,7 @@ from prs3_post.ops.work import HoleJob, Operation, ProfileJob
 from prs3_post.pipeline import PostResult, post_process
 from prs3_post.readers.header import ProgramHeader, file_sha256, header_entries
 from prs3_post.readers.stl import load_part
+from prs3_post.resolution import length_resolution
 from prs3_post.setup import Setup
 from prs3_post.toolpath import Toolpath
 from prs3_post.types import FloatArray
@@ -113,12 +114,14 @@ def plan(spec: JobSpec, face: Face) -> Toolpath:
     """The operation's toolpath in part coordinates."""
     centres = positions(face, spec.at_uv, spec.at_xyz)
     work = spec.work
+    resolution = length_resolution(spec.dialect.decimals.length)   # what the program can show, mm
     if isinstance(work, HoleJob):
-        return plan_holes(face, centres, work.params, spec.cutting)
+        return plan_holes(face, centres, work.params, spec.cutting, resolution=resolution)
     if len(centres) > 1:
         raise FeatureError(f"--profile {spec.operation.value} cuts one feature: give one --at or --at-xyz "
                            f"(got {len(centres)})")
-    return plan_profile(face, centres[0], work.shape, work.params, spec.cutting, tolerance=spec.tolerance)
+    return plan_profile(face, centres[0], work.shape, work.params, spec.cutting, tolerance=spec.tolerance,
+                        resolution=resolution)
 
 
 def run_job(spec: JobSpec) -> JobResult:
@@ -136,7 +139,8 @@ def run_job(spec: JobSpec) -> JobResult:
     except FeatureError as error:                     # about this file's faces: say which file
         raise InputError(str(error), path=spec.part) from error
     path_part = plan(spec, face)
-    post = post_process(spec.machine, path_part, spec.setup, tolerance=spec.tolerance)
+    post = post_process(spec.machine, path_part, spec.setup, tolerance=spec.tolerance,
+                        length_decimals=spec.dialect.decimals.length)
     entries = header_entries(header_of(spec, file_sha256(spec.part)), face, description=spec.machine.description)
     text = emit_program(post.program, spec.dialect, header=entries,
                         stage=spec.machine.stage.present, line_numbers=spec.line_numbers,

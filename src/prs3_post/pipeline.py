@@ -1,7 +1,7 @@
 """From a part-frame toolpath to a checked actuator-space program.
 
-    part toolpath ──► setup (part → machine) ──► subdivide axis changes ──► IK ──► reach + limits
-                  ──► inverse-time feeds ──► JointProgram
+    part toolpath ──► setup (part → machine) ──► subdivide axis changes ──► IK ──► reach
+                  ──► drop moves the output cannot show ──► limits ──► G93 feeds ──► JointProgram
 
 Pure: no files. The first failure is raised with the operation step (or source line) it came
 from; nothing is emitted for a program that has one.
@@ -18,6 +18,7 @@ from prs3_post.errors import LimitError, ReachError
 from prs3_post.kinematics import IKModel, IKResult, PoseError, inverse, unit_axes
 from prs3_post.limits import LimitReport, check_limits, raise_first_violation
 from prs3_post.linearize import subdivide_axis_changes
+from prs3_post.resolution import visible_moves
 from prs3_post.setup import Setup
 from prs3_post.toolpath import JointProgram, MoveKind, Toolpath
 from prs3_post.types import FloatArray
@@ -54,7 +55,8 @@ def model_for(machine: Machine) -> IKModel:
     return IKModel.EXACT if machine.stage.present else IKModel.HEAD
 
 
-def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float = 0.002) -> PostResult:
+def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float = 0.002,
+                 length_decimals: int | None = None) -> PostResult:
     """Turn a part-frame toolpath into a checked joint-space program.
 
     Parameters
@@ -63,6 +65,8 @@ def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, toleran
     path_part : Toolpath — part coordinates
     setup : Setup — part → machine transform
     tolerance : float — mm, tip deviation allowed on moves whose axis changes
+    length_decimals : int, optional — digits after the point of the program's axis words: rows
+        that would print no changed axis word are dropped (None: keep every row)
 
     Returns
     -------
@@ -86,9 +90,15 @@ def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, toleran
     model = model_for(machine)
     ik = inverse(machine.geometry, path.tip, path.axis, model=model)
     _raise_unreachable(machine, path, ik, model)
+    stage = ik.stage if model is IKModel.EXACT else np.zeros_like(ik.stage)
+    if length_decimals is not None:                   # no move the program cannot show (a G1 without a word)
+        keep = visible_moves(np.column_stack([stage, ik.strokes]), length_decimals, tip=path.tip, axis=path.axis)
+        if not keep.all():
+            path, stage = path.take(keep), stage[keep]
+            ik = IKResult(stage=ik.stage[keep], strokes=ik.strokes[keep], link_angle=ik.link_angle[keep],
+                          condition=ik.condition[keep], reachable=ik.reachable[keep])
     report = check_limits(machine, ik, path.axis)
     raise_first_violation(report, path.describe)
-    stage = ik.stage if model is IKModel.EXACT else np.zeros_like(ik.stage)
     return PostResult(
         program=JointProgram(
             kind=path.kind, stage=stage, strokes=ik.strokes, inverse_time=inverse_time(path),

@@ -12,11 +12,11 @@ an error can say ``hole 2, peck 3`` instead of ``step 17``.
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from prs3_post.types import FloatArray, IntArray
+from prs3_post.types import BoolArray, FloatArray, IntArray
 
 
 class MoveKind(enum.IntEnum):
@@ -120,6 +120,21 @@ class Toolpath:
     def describe(self, row: int) -> str:
         """Human name of the line/step row ``row`` came from (``line 12`` or the step label)."""
         return describe_source(self.source, self.source_labels, row)
+
+    def take(self, keep: BoolArray) -> Toolpath:
+        """The rows where ``keep`` (N,) is True; an event before a dropped row moves to the next kept one.
+
+        >>> path = Toolpath(kind=[0, 1, 1], tip=np.zeros((3, 3)), axis=np.tile([0.0, 0, 1], (3, 1)),
+        ...                 feed=[0, 9, 9], source=[0, 1, 2], events=(Event(2, EventKind.DWELL, 1.0),))
+        >>> taken = path.take(np.array([True, False, True]))
+        >>> len(taken), taken.source.tolist(), taken.events[0].before
+        (2, [0, 2], 1)
+        """
+        keep = np.asarray(keep, dtype=bool)
+        kept_before = np.concatenate([[0], np.cumsum(keep)])       # kept rows before each row index
+        events = tuple(replace(e, before=int(kept_before[e.before])) for e in self.events)
+        return Toolpath(kind=self.kind[keep], tip=self.tip[keep], axis=self.axis[keep], feed=self.feed[keep],
+                        source=self.source[keep], events=events, source_labels=self.source_labels)
 
 
 @dataclass(frozen=True, slots=True)

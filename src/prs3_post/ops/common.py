@@ -135,33 +135,37 @@ def require_tolerance(tolerance: float) -> None:
         )
 
 
-def pass_depths(depth: float, step: float, *, rel_tol: float = 1e-9, option: str = "--step-down") -> FloatArray:
+def pass_depths(depth: float, step: float, *, resolution: float = MIN_TOLERANCE, rel_tol: float = 1e-9,
+                option: str = "--step-down") -> FloatArray:
     """Depths of successive passes (pecks, step-downs): ``d_k = min(k·step, depth)``.
 
-    ``k = 1 .. ceil(depth/step)``; a ratio that is an integer up to floating error (0.9/0.3 =
-    3.0000000000000004) does not make an extra pass thinner than ``rel_tol·step``: that sliver
-    goes into the last pass. The last depth is ``depth`` exactly.
+    ``k = 1 .. ceil(depth/step)``; a last pass less than ``resolution`` below the one before it
+    (what the program cannot show: 2.00001 mm in 1 mm steps) is merged into it, and so is one thinner
+    than ``rel_tol·step`` (0.9/0.3 = 3.0000000000000004). The last depth is ``depth`` exactly.
 
     Parameters
     ----------
     depth : float — mm, > 0, final depth
     step : float — mm, > 0, depth per pass
+    resolution : float — mm, > 0, the program's length resolution (one unit of its last digit)
     rel_tol : float — fraction of a step below which a last pass is merged into the previous one
     option : str — the option that sets ``step`` (``--step-down``, ``--peck``), for the message
 
     Returns
     -------
-    depths : (K,) float — mm, increasing, ``depths[-1] == depth``, K ≥ 1
+    depths : (K,) float — mm, increasing by at least ``resolution``, ``depths[-1] == depth``, K ≥ 1
 
     Raises
     ------
     FeatureError
-        When it would take more than MAX_PASSES passes.
+        When it would take more than MAX_PASSES passes, or the step is finer than ``resolution``.
 
     >>> pass_depths(10.0, 3.0).tolist()
     [3.0, 6.0, 9.0, 10.0]
     >>> pass_depths(0.9, 0.3).tolist()
     [0.3, 0.6, 0.9]
+    >>> pass_depths(2.00001, 1.0).tolist()
+    [1.0, 2.00001]
     """
     passes = depth / step - rel_tol
     if passes > MAX_PASSES:
@@ -169,9 +173,13 @@ def pass_depths(depth: float, step: float, *, rel_tol: float = 1e-9, option: str
             f"--depth {depth:g} mm in {option} {step:g} mm steps would take {math.ceil(passes):g} passes "
             f"(at most {MAX_PASSES}): use a larger {option}"
         )
+    if step < resolution and passes > 1:
+        raise FeatureError(f"{option} must be ≥ {resolution:g} mm, the resolution of the program (got {step:g})")
     count = max(1, math.ceil(passes))
     depths = np.minimum(np.arange(1, count + 1, dtype=np.float64) * step, depth)
     depths[-1] = depth
+    if count > 1 and depth - depths[-2] < resolution:      # the program would show the same depth twice
+        depths = np.delete(depths, -2)
     return depths
 
 

@@ -23,6 +23,7 @@ import numpy as np
 from prs3_post.errors import FeatureError
 from prs3_post.face import Face
 from prs3_post.ops.common import (
+    MIN_TOLERANCE,
     Cutting,
     ToolpathBuilder,
     approach,
@@ -93,7 +94,8 @@ def _hole_name(index: int, center_uv: FloatArray, cutting: Cutting) -> str:
     return f"hole {index} at {format_uv(center_uv)} with tool Ø{cutting.tool_diameter:.3f}"
 
 
-def plan_holes(face: Face, centers_uv: FloatArray, params: HoleParams, cutting: Cutting) -> Toolpath:
+def plan_holes(face: Face, centers_uv: FloatArray, params: HoleParams, cutting: Cutting, *,
+               resolution: float = MIN_TOLERANCE) -> Toolpath:
     """Drill holes normal to ``face`` at the given face points, in the order given.
 
     Parameters
@@ -102,6 +104,8 @@ def plan_holes(face: Face, centers_uv: FloatArray, params: HoleParams, cutting: 
     centers_uv : (K, 2) float — mm, hole centres in face (u, v), K ≥ 1
     params : HoleParams
     cutting : Cutting
+    resolution : float — mm, > 0, the program's length resolution: pecks closer than it are merged
+        (see :func:`~prs3_post.ops.common.pass_depths`)
 
     Returns
     -------
@@ -128,7 +132,8 @@ def plan_holes(face: Face, centers_uv: FloatArray, params: HoleParams, cutting: 
     for index, center in enumerate(centers, start=1):   # refuse before planning anything
         check_fits(face, swept_region(center, cutting.tool_radius), _hole_name(index, center, cutting))
 
-    depths = pass_depths(params.depth, params.peck, option="--peck") if params.peck > 0 else np.array([params.depth])
+    depths = (pass_depths(params.depth, params.peck, resolution=resolution, option="--peck") if params.peck > 0
+              else np.array([params.depth]))
     count = len(centers)
     builder = ToolpathBuilder(face)
     pecking = f", pecks of {params.peck:.3f} mm" if len(depths) > 1 else ""

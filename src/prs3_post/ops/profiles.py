@@ -37,6 +37,7 @@ import numpy as np
 from prs3_post.errors import FeatureError
 from prs3_post.face import Face
 from prs3_post.ops.common import (
+    MIN_TOLERANCE,
     Cutting,
     ToolpathBuilder,
     approach,
@@ -67,11 +68,6 @@ __all__ = [
     "plan_profile",
     "tool_center_contour",
 ]
-
-# Arc-length slack (mm) below which a contour vertex counts as the start or end point of a walk
-# along the contour: keeps a ramp or lap from ending with a zero-length move.
-_SAME_POINT = 1e-9
-
 
 class Side(enum.Enum):
     """Where the tool runs relative to the outline."""
@@ -340,16 +336,27 @@ def tool_center_contour(
 # --------------------------------------------------------------------------------------------
 @dataclass(frozen=True, slots=True)
 class _Lap:
-    """A closed contour, unrolled twice so that walks may wrap past its start."""
+    """A closed contour, unrolled twice so that walks may wrap past its start.
+
+    No two neighbouring vertices are closer than ``resolution`` (the program could not show the
+    move between them), and a walk's vertices stay that far from where it starts and ends.
+    """
 
     points: FloatArray        # (M + 1, 2) mm, closed
     arc_length: FloatArray    # (M + 1,) mm, cumulative along points, 0 … length
     unrolled: FloatArray      # (2M + 1, 2) mm, points of two laps
     unrolled_s: FloatArray    # (2M + 1,) mm, 0 … 2·length
     length: float             # mm, one lap
+    resolution: float         # mm, the program's length resolution
 
     @staticmethod
-    def of(points: FloatArray) -> _Lap:
+    def of(points: FloatArray, resolution: float) -> _Lap:
+        step = np.linalg.norm(np.diff(points, axis=0), axis=1)
+        # a vertex reached by a step shorter than the resolution goes (and so does the last one
+        # before the closing point when that step is short); the contour moves by less than that
+        short = np.concatenate([[False], step[:-1] < resolution, [False]])
+        short[-2] |= len(points) > 2 and step[-1] < resolution
+        points = points[~short]
         s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
         length = float(s[-1])
         return _Lap(
@@ -358,6 +365,7 @@ class _Lap:
             unrolled=np.concatenate([points[:-1], points]),
             unrolled_s=np.concatenate([s[:-1], length + s]),
             length=length,
+            resolution=resolution,
         )
 
     def point_at(self, s: float) -> FloatArray:
@@ -369,7 +377,9 @@ class _Lap:
 
         Returns (points (n, 2) mm, their arc length (n,) mm on the unrolled contour).
         """
-        inside = (self.unrolled_s > s_from + _SAME_POINT) & (self.unrolled_s < s_to - _SAME_POINT)
+        # a vertex closer than the resolution to either end would make a move the program cannot show
+        near = self.resolution
+        inside = (self.unrolled_s > s_from + near) & (self.unrolled_s < s_to - near)
         return self.unrolled[inside], self.unrolled_s[inside]
 
 
@@ -381,6 +391,7 @@ def plan_profile(
     cutting: Cutting,
     *,
     tolerance: float = 0.002,
+    resolution: float = MIN_TOLERANCE,
 ) -> Toolpath:
     """Mill a square or round profile into ``face`` in depth passes (see the module docstring).
 
@@ -392,6 +403,8 @@ def plan_profile(
     params : ProfileParams
     cutting : Cutting
     tolerance : float — mm, > 0, largest chordal error of the arcs
+    resolution : float — mm, > 0, the program's length resolution: depth passes and contour points
+        closer than it are merged (see :func:`~prs3_post.ops.common.pass_depths`)
 
     Returns
     -------
@@ -417,8 +430,11 @@ def plan_profile(
     check_fits(face, swept_region(contour, cutting.tool_radius), what)
 
     name = "square" if isinstance(shape, SquareShape) else "round"
-    lap = _Lap.of(contour)
-    depths = pass_depths(params.depth, params.step_down)
+    lap = _Lap.of(contour, resolution)
+    if len(lap.points) < 4:                           # fewer than 3 corners the program can tell apart
+        raise FeatureError(f"{what}: the tool centre goes {lap.length:.4f} mm around, too little for the "
+                           f"program's resolution of {resolution:g} mm")
+    depths = pass_depths(params.depth, params.step_down, resolution=resolution)
     passes = len(depths)
     clockwise = float(np.sum(contour[:-1, 0] * contour[1:, 1] - contour[1:, 0] * contour[:-1, 1])) < 0
     builder = ToolpathBuilder(face)
