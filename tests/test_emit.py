@@ -16,15 +16,19 @@ import os
 import subprocess
 import sys
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pygcode
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from prs3_post.config import Dialect, load_dialect
-from prs3_post.emit import emit_program, format_word, sanitize_comment
+from prs3_post.emit import emit_program, format_word, gcode, sanitize_comment
+from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.errors import ConfigError, LimitError
 from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind
 
@@ -673,3 +677,105 @@ def test_comments_the_controller_would_act_on_stay_plain_comments(tmp_path):
                            capture_output=True, text=True, check=False)
     assert canon.returncode == 0, canon.stdout + canon.stderr
     assert "MESSAGE" not in canon.stdout
+
+
+# ----------------------------------------------------------------------------- chunks and the column formatter
+
+
+def _chunks(program: JointProgram, size: int) -> list[JointProgram]:
+    """``program`` cut into chunks of ``size`` rows; an event goes with the row it comes before
+    (events after the last row with the last chunk)."""
+    n = len(program)
+    out = []
+    for lo in range(0, max(n, 1), size):
+        hi = min(n, lo + size)
+        last = hi == n
+        out.append(JointProgram(
+            kind=program.kind[lo:hi], stage=program.stage[lo:hi], strokes=program.strokes[lo:hi],
+            inverse_time=program.inverse_time[lo:hi], source=program.source[lo:hi],
+            events=tuple(replace(e, before=e.before - lo) for e in program.events
+                         if lo <= e.before < hi or (last and e.before == n)),
+            source_labels=program.source_labels,
+        ))
+    return out
+
+
+def _random_program(seed: int, n: int = 200) -> JointProgram:
+    """Rows that repeat values (so that words are left out), change kind, stop and change tools."""
+    rng = np.random.default_rng(seed)
+    kind = rng.integers(0, 2, n)
+    values = np.round(rng.uniform(-300, 300, (n, 5)), rng.integers(2, 6))
+    values[rng.random((n, 5)) < 0.4] = 0.0
+    repeat = rng.random(n) < 0.3
+    for row in np.flatnonzero(repeat[1:]) + 1:
+        values[row] = values[row - 1]
+    events = [Event(int(b), EventKind(k), 2.0, "x") for b, k in zip(
+        rng.integers(0, n + 1, 12), rng.choice(["stop", "tool_change", "comment", "dwell", "coolant_off"], 12),
+        strict=True)]
+    return _program(kind, values[:, :2], values[:, 2:], rng.uniform(0.5, 50.0, n), events=events)
+
+
+@pytest.mark.parametrize("size", [1, 2, 7, 10_000])
+@pytest.mark.parametrize("dialect_name", ["linuxcnc", "fanuc"])
+def test_emitter_in_chunks_is_byte_identical(size: int, dialect_name: str) -> None:
+    dialect = load_dialect(dialect_name)
+    for program, stage in [(_drill(), True), (_random_program(1), True), (_random_program(2), True),
+                           (_program([R, F, F], [[0, 0]] * 3, [[1, 2, 3], [1, 2, 3], [1, 2, 4]], [0, 1, 1]), False)]:
+        whole = emit_program(program, dialect, header=HEADER, stage=stage, line_numbers=True, line_start=99990)
+        emitter = ProgramEmitter(dialect, stage=stage, line_numbers=True, line_start=99990)
+        pieces = [emitter.begin(HEADER), *(emitter.rows(chunk) for chunk in _chunks(program, size)), emitter.end()]
+        assert "".join(pieces) == whole
+
+
+def test_emitter_blocks_within_a_chunk(monkeypatch, linuxcnc: Dialect) -> None:
+    """Long chunks are formatted CHUNK_ROWS rows at a time: the text is the same."""
+    program = _random_program(3, 500)
+    whole = emit_program(program, linuxcnc)
+    monkeypatch.setattr(gcode, "CHUNK_ROWS", 3)
+    assert emit_program(program, linuxcnc) == whole
+
+
+def _reference_motion(program: JointProgram, dialect: Dialect, numbered: bool) -> list[str]:
+    """The motion lines, one row at a time with format_word (a program without events)."""
+    ax = dialect.axes
+    columns = [[format_word(letter, v, dialect.decimals.length) for v in values.tolist()]
+               for letter, values in [(ax.x, program.stage[:, 0]), (ax.y, program.stage[:, 1]),
+                                      (ax.t1, program.strokes[:, 0]), (ax.t2, program.strokes[:, 1]),
+                                      (ax.t3, program.strokes[:, 2])]]
+    lines, last, last_kind, number, g93 = [], [None] * 5, None, dialect.line_numbers.start, False
+    for row, kind in enumerate(program.kind.tolist()):
+        parts = []
+        if kind == MoveKind.FEED and not g93:
+            lines.append("G93")
+            g93 = True
+        words = [column[row] for j, column in enumerate(columns) if column[row] != last[j]]
+        last = [column[row] for column in columns]
+        if not dialect.modal_motion or kind != last_kind or not words:
+            parts.append("G1" if kind == MoveKind.FEED else "G0")
+        parts += words
+        if kind == MoveKind.FEED:
+            parts.append(format_word("F", float(program.inverse_time[row]), dialect.decimals.inverse_time))
+        last_kind = kind
+        lines.append(" ".join(parts))
+    if numbered:
+        for i, line in enumerate(lines):
+            lines[i] = f"N{number} {line}"
+            number = number + dialect.line_numbers.step
+    return lines
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), decimals=st.integers(1, 6), modal=st.booleans(), numbered=st.booleans())
+def test_motion_lines_match_a_row_by_row_reference(seed: int, decimals: int, modal: bool, numbered: bool) -> None:
+    base = load_dialect("linuxcnc")
+    dialect = replace(base, decimals=replace(base.decimals, length=decimals), modal_motion=modal)
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(0, 60))
+    # values on and near the rounding ties of the chosen decimals, repeated often
+    ties = (rng.integers(-10**6, 10**6, (n, 5)) + 0.5) / 10**decimals
+    values = np.where(rng.random((n, 5)) < 0.5, ties, np.round(rng.uniform(-400, 400, (n, 5)), decimals + 1))
+    values[rng.random((n, 5)) < 0.3] = -0.0
+    program = _program(rng.integers(0, 2, n), values[:, :2], values[:, 2:], rng.uniform(0.01, 99.0, n))
+    emitter = ProgramEmitter(dialect, line_numbers=numbered)
+    got = emitter.rows(program).splitlines()
+    assert got == _reference_motion(program, dialect, numbered)

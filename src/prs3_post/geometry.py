@@ -48,6 +48,7 @@ import numpy as np
 
 from prs3_post.errors import FeatureError
 from prs3_post.face import Face, frame_from_normal
+from prs3_post.fixed import fixed
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
 if TYPE_CHECKING:  # trimesh (200 ms) and shapely (60 ms) load only where a part is read
@@ -340,8 +341,8 @@ def candidate_reason(face: Face, *, min_width: float = MIN_FACE_WIDTH_MM) -> tup
     if face.curved:
         return False, "strip of a curved surface"
     if face.width < min_width:
-        return False, f"too narrow: {_fixed(face.width, 2)} mm < {min_width:g} mm"
-    return True, f"inclined up, {_fixed(face.width, 2)} mm wide"
+        return False, f"too narrow: {fixed(face.width, 2)} mm < {min_width:g} mm"
+    return True, f"inclined up, {fixed(face.width, 2)} mm wide"
 
 
 def select_face(
@@ -382,8 +383,8 @@ def select_face(
         face = faces[choice]
         if face.normal[2] <= UP_MIN_NORMAL_Z:
             raise FeatureError(
-                f"face {face.index} does not face up (normal z = {_fixed(face.normal[2], 4)}, "
-                f"inclination {_fixed(_degrees(face), 1)}°): the tool cannot reach it from above"
+                f"face {face.index} does not face up (normal z = {fixed(face.normal[2], 4)}, "
+                f"inclination {fixed(_degrees(face), 1)}°): the tool cannot reach it from above"
             )
         return face, f"face {face.index} as requested ({_describe(face)})"
 
@@ -397,7 +398,7 @@ def select_face(
     if len(tied) > 1:
         names = ", ".join(str(i) for i in tied[:-1]) + f" and {tied[-1]}"
         note += (
-            f"; faces {names} have equal area {_fixed(face.area, 1)} mm²; picked {face.index} (lower index)"
+            f"; faces {names} have equal area {fixed(face.area, 1)} mm²; picked {face.index} (lower index)"
         )
     skipped = [f for f in faces[: face.index] if face_kind(f) == "inclined up"]
     if skipped:
@@ -410,7 +411,7 @@ def select_face(
 
 
 def _describe(face: Face) -> str:
-    return f"inclination {_fixed(_degrees(face), 4)}°, area {_fixed(face.area, 1)} mm²"
+    return f"inclination {fixed(_degrees(face), 4)}°, area {fixed(face.area, 1)} mm²"
 
 
 def _no_candidate(faces: tuple[Face, ...], min_width: float) -> str:
@@ -422,8 +423,8 @@ def _no_candidate(faces: tuple[Face, ...], min_width: float) -> str:
         if len(down) == 1:
             f = down[0]
             head = (
-                f"the only inclined planar face, face {f.index} ({_fixed(180.0 - _degrees(f), 1)}° from horizontal, "
-                f"area {_fixed(f.area, 1)} mm²), faces down (normal z = {_fixed(f.normal[2], 4)}): "
+                f"the only inclined planar face, face {f.index} ({fixed(180.0 - _degrees(f), 1)}° from horizontal, "
+                f"area {fixed(f.area, 1)} mm²), faces down (normal z = {fixed(f.normal[2], 4)}): "
                 "the tool cannot reach it from above"
             )
         else:
@@ -458,7 +459,7 @@ def _count_faces(faces: tuple[Face, ...], *, min_width: float, down_said: bool =
     ]
     # Facing down: report the slope from horizontal (180° - inclination), grouped by its rounded text.
     slopes = sorted(
-        (_fixed(180.0 - _degrees(f), 1) for f, k in zip(planar, kinds, strict=True) if k == "inclined down"), key=float
+        (fixed(180.0 - _degrees(f), 1) for f, k in zip(planar, kinds, strict=True) if k == "inclined down"), key=float
     )
     for slope in dict.fromkeys(slopes):
         parts.append(f"{slopes.count(slope)} inclined {slope}° facing down")
@@ -500,10 +501,10 @@ def project_onto_face(face: Face, xyz_part: FloatArray, *, max_offset: float | N
         if len(far):
             i = int(far[0])
             which = "point" if len(xyz) == 1 else f"point {i + 1} of {len(xyz)}"
-            coords = ", ".join(_fixed(c, 4) for c in xyz[i])
+            coords = ", ".join(fixed(c, 4) for c in xyz[i])
             raise FeatureError(
-                f"{which} ({coords}) is {_fixed(off[i], 4)} mm off the plane of face {face.index} "
-                f"(allowed: {_fixed(max_offset, 4)} mm)"
+                f"{which} ({coords}) is {fixed(off[i], 4)} mm off the plane of face {face.index} "
+                f"(allowed: {fixed(max_offset, 4)} mm)"
             )
     return np.array(uvw[:, :2])
 
@@ -554,9 +555,9 @@ def format_face_table(faces: tuple[Face, ...], *, min_width: float = MIN_FACE_WI
     for f in faces:
         candidate, reason = candidate_reason(f, min_width=min_width)
         rows.append(
-            [str(f.index), _fixed(f.area, 3), _fixed(f.width, 2), _fixed(_degrees(f), 4)]
-            + [_fixed(c, 6) for c in f.normal]
-            + [_fixed(c, 4) for c in f.origin]
+            [str(f.index), fixed(f.area, 3), fixed(f.width, 2), fixed(_degrees(f), 4)]
+            + [fixed(c, 6) for c in f.normal]
+            + [fixed(c, 4) for c in f.origin]
             + [face_kind(f), "yes" if candidate else "no", reason]
         )
     widths = [max(len(row[c]) for row in rows) for c in range(len(_TABLE_COLUMNS))]
@@ -567,9 +568,3 @@ def format_face_table(faces: tuple[Face, ...], *, min_width: float = MIN_FACE_WI
         for row in rows
     ]
     return "\n".join(lines) + "\n"
-
-
-def _fixed(value: float, decimals: int) -> str:
-    """Fixed-point text, never '-0.000'."""
-    text = f"{float(value):.{decimals}f}"
-    return text[1:] if text.startswith("-") and float(text) == 0 else text

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from prs3_post.fixed import fixed as fixed_text
 from prs3_post.kinematics import FKResult, IKResult
 from prs3_post.limits import LimitReport
 from prs3_post.readers.poses import POSE_COLUMNS
@@ -108,15 +109,12 @@ def fk_records(fk: FKResult) -> list[dict[str, Any]]:
 
 
 def fixed(value: float | None, decimals: int = 4) -> str:
-    """Fixed decimals, ``n/a`` for a missing value, never ``-0.0000``.
+    """:func:`prs3_post.fixed.fixed`, and ``n/a`` for a missing value (NaN in a record).
 
     >>> fixed(-0.00001), fixed(1.23456, 2), fixed(None)
     ('0.0000', '1.23', 'n/a')
     """
-    if value is None:
-        return "n/a"
-    text = f"{value:.{decimals}f}"
-    return text[1:] if text.startswith("-") and float(text) == 0 else text
+    return "n/a" if value is None else fixed_text(value, decimals)
 
 
 def fk_text(record: dict[str, Any]) -> str:

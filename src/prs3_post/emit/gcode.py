@@ -2,7 +2,11 @@
 
 Pure: :func:`emit_program` returns the program as a string and never opens a file; the CLI writes it.
 The output is a function of its inputs only (no time stamps, host names or paths unless the caller
-puts them in ``header``).
+puts them in ``header``). :class:`ProgramEmitter` makes the same text in pieces — :meth:`~ProgramEmitter.begin`,
+:meth:`~ProgramEmitter.rows` for each chunk of rows (the modal state crosses chunk boundaries), then
+:meth:`~ProgramEmitter.end` — so that a program can be streamed; ``emit_program`` is the one-chunk case.
+The motion rows are formatted a whole column at a time (:mod:`prs3_post.fixed`): the words' integers
+decide which words a line repeats, and the lines are written as bytes for all rows together.
 
 What is written, in order::
 
@@ -30,15 +34,17 @@ from __future__ import annotations
 
 import math
 import textwrap
-from collections.abc import Iterable
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from prs3_post.config import CommentStyle, Dialect
 from prs3_post.errors import LimitError
+from prs3_post.fixed import ChoiceColumn, ScaledColumn, fixed, render_rows, scale_column
 from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind
+from prs3_post.types import BoolArray, IntArray
 
-__all__ = ["emit_program", "format_word", "inert", "sanitize_comment"]
+__all__ = ["ProgramEmitter", "emit_program", "format_word", "inert", "sanitize_comment"]
 
 #: Indent of the continuation lines of a comment too long for one line.
 _CONTINUATION = "  "
@@ -73,8 +79,7 @@ def format_word(letter: str, value: float, decimals: int) -> str:
     """
     if not math.isfinite(value):
         raise ValueError(f"{letter}: {value!r} is not a finite number")
-    text = f"{value:.{decimals}f}"
-    return f"{letter}{text[1:] if text.startswith('-') and float(text) == 0 else text}"
+    return f"{letter}{fixed(value, decimals)}"
 
 
 def sanitize_comment(text: str, style: CommentStyle) -> str:
@@ -136,8 +141,13 @@ def inert(text: str, style: CommentStyle) -> str:
     return text
 
 
-class _Lines:
-    """The program's lines: block numbers, comment wrapping and the line-length limit in one place."""
+
+#: Rows formatted together when a chunk is long: bounds the scratch memory (about 100 bytes a row).
+CHUNK_ROWS = 65536
+
+
+class _Blocks:
+    """Lines of text: block numbers, comment wrapping and the line-length limit in one place."""
 
     def __init__(self, dialect: Dialect, numbered: bool, start: int, step: int):
         self.dialect = dialect
@@ -154,14 +164,25 @@ class _Lines:
         """A block, numbered when numbering is on; a line over the limit is a LimitError at ``where``."""
         if self.numbered:
             text = f"{self.dialect.line_numbers.letter}{self.number} {text}"
-            self.number += self.step
-            if self.number > self.dialect.line_numbers.wrap_after:
-                self.number = self.start  # the first number of this program (the CLI may override it)
+            self.number = int(self.numbers_after(1)[0])
+        self.check_length(text, where)
+        self.lines.append(text)
+
+    def check_length(self, text: str, where: str) -> None:
         if len(text) > self.limit:
             raise LimitError(
                 f"{where}: the block is {len(text)} characters, the dialect allows {self.limit}: {text[:60]}..."
             )
-        self.lines.append(text)
+
+    def numbers_after(self, count: IntArray | int) -> IntArray:
+        """The block number ``count`` blocks after the current one: ``step`` apart, back to the
+        program's first number after ``line_numbers.wrap_after``."""
+        count = np.asarray(count, dtype=np.int64).reshape(-1)
+        wrap = self.dialect.line_numbers.wrap_after
+        first_lap = (wrap - self.number) // self.step + 1           # numbers left before the first wrap
+        lap = (wrap - self.start) // self.step + 1                  # numbers in every later lap
+        later = self.start + ((count - first_lap) % lap) * self.step
+        return np.where(count < first_lap, self.number + count * self.step, later)
 
     def comment(self, text: str) -> None:
         """A comment, sanitized, split over as many unnumbered lines as it needs."""
@@ -177,54 +198,16 @@ class _Lines:
         # a continuation line could start with an active word again: guard every line
         self.lines.extend(f"{style.open}{inert(part, style)}{style.close}" for part in parts)
 
-    def text(self) -> str:
+    def take(self) -> str:
+        """The lines so far, each ended by the dialect's line ending; the list starts over."""
         ending = self.dialect.line_ending
-        return ending.join(self.lines) + ending
+        text = "".join(line + ending for line in self.lines)
+        self.lines.clear()
+        return text
 
 
-def _row(program: JointProgram, row: int) -> str:
-    return f"row {row} from {program.describe(row)}"
-
-
-def _event_where(program: JointProgram, event: Event) -> str:
-    if event.before == len(program):
-        return f"{event.kind.value} event after the last row"
-    return f"{event.kind.value} event before {_row(program, event.before)}"
-
-
-def _column(program: JointProgram, values: np.ndarray, letter: str, decimals: int, name: str) -> list[str]:
-    """Format one axis column; the first non-finite value is a LimitError naming its row."""
-    bad = np.flatnonzero(~np.isfinite(values))
-    if bad.size:
-        row = int(bad[0])
-        raise LimitError(f"{_row(program, row)}: {name} ({letter}) is {float(values[row])!r}, not a finite number")
-    return [format_word(letter, v, decimals) for v in values.tolist()]
-
-
-def _feed_words(program: JointProgram, decimals: int) -> dict[int, str]:
-    """The F word of every FEED row; one that is not > 0 once printed is a LimitError naming its row."""
-    feed_rows = np.flatnonzero(program.kind == MoveKind.FEED)
-    words: dict[int, str] = {}
-    for row in feed_rows.tolist():
-        value = float(program.inverse_time[row])
-        if not (math.isfinite(value) and value > 0):
-            raise LimitError(
-                f"{_row(program, row)}: inverse-time feed must be a finite number > 0 /min, got {value!r}"
-            )
-        word = format_word("F", value, decimals)
-        if float(word[1:]) == 0:
-            raise LimitError(
-                f"{_row(program, row)}: inverse-time feed {value:.6g} /min formats to {word} with "
-                f"decimals.inverse_time = {decimals} (the move would take {1 / value:.6g} min); "
-                "LinuxCNC would raise F0 to 0.1 and run the move at another feed"
-            )
-        words[row] = word
-    return words
-
-
-def _event_blocks(program: JointProgram, event: Event, dialect: Dialect) -> tuple[str | None, str]:
-    """``(comment or None, block)`` for a non-COMMENT event; bad values are a LimitError naming it."""
-    where = _event_where(program, event)
+def _event_blocks(where: str, event: Event, dialect: Dialect) -> tuple[str | None, str]:
+    """``(comment or None, block)`` for a non-COMMENT event; bad values are a LimitError at ``where``."""
     value = float(event.value)
     dec = dialect.decimals
     if event.kind is EventKind.SPINDLE_ON:
@@ -263,6 +246,317 @@ def _axis_line(dialect: Dialect, stage: bool) -> str:
     if stage:
         return f"axes: {ax.x} {ax.y} = stage X Y mm, {strokes}"
     return f"axes: {strokes}, no stage"
+
+
+#: Events after which the axes are stated again: the tool-change macro or the operator may move them.
+_RESTATE = (EventKind.TOOL_CHANGE, EventKind.STOP)
+
+
+@dataclass(slots=True)
+class _Modal:
+    """What the controller remembers between lines, as far as the emitter relies on it."""
+
+    words: list[str | None]
+    """Text of the last word written for each axis column (None: unknown, write it)."""
+    motion: int | None = None
+    """MoveKind of the last motion line (None: unknown, write G0/G1)."""
+    inverse_time: bool = False
+    """G93 is in effect (written before the first feed row)."""
+    rows: int = 0
+    """Rows emitted so far (messages count rows across chunks)."""
+
+    def restate(self) -> None:
+        self.words = [None] * len(self.words)
+        self.motion = None
+
+
+@dataclass(frozen=True, slots=True)
+class _Chunk:
+    """One chunk's rows, checked and formatted as integers; lines not made yet."""
+
+    program: JointProgram
+    axes: list[tuple[bytes, ScaledColumn]]   # word letter and column, in word order
+    feed: ScaledColumn                       # F of every row (0 on rapids)
+    events: dict[int, list[Event]] = field(default_factory=dict)
+
+
+class ProgramEmitter:
+    """A program in ``dialect``, made in pieces: ``begin(header)``, ``rows(chunk)`` ..., ``end()``.
+
+    Each call returns the text of its lines (joined and terminated by ``dialect.line_ending``); the
+    concatenation is the program :func:`emit_program` writes for all rows in one chunk, whatever
+    the chunking. Parameters and errors: see :func:`emit_program`. Rows are named ``row K from ...``
+    with K counted over all chunks.
+    """
+
+    def __init__(self, dialect: Dialect, *, stage: bool = True, line_numbers: bool | None = None,
+                 line_start: int | None = None, line_step: int | None = None):
+        numbering = dialect.line_numbers
+        start = numbering.start if line_start is None else line_start
+        step = numbering.step if line_step is None else line_step
+        if not 0 <= start <= numbering.wrap_after:
+            raise ValueError(f"line_start must be 0..{numbering.wrap_after}, got {start}")
+        if step < 1:
+            raise ValueError(f"line_step must be ≥ 1, got {step}")
+        self.dialect, self.stage = dialect, stage
+        self._out = _Blocks(dialect, numbering.enabled if line_numbers is None else line_numbers, start, step)
+        self._modal = _Modal(words=[None] * (5 if stage else 3))
+
+    # ------------------------------------------------------------------ begin and end
+    def begin(self, header: tuple[tuple[str, str], ...] = ()) -> str:
+        """``%``, the O line, the header comments, the safe start and the preamble."""
+        dialect, out = self.dialect, self._out
+        if dialect.percent:
+            out.raw("%")
+        if dialect.program_number:
+            o_line = f"O{dialect.program_number}"
+            if dialect.program_name:
+                style = dialect.comments
+                o_line += f" {style.open}{sanitize_comment(dialect.program_name, style)}{style.close}"
+            out.raw(o_line)
+        for key, value in header:
+            out.comment(f"{key}: {value}")
+        out.comment(_axis_line(dialect, self.stage))
+        out.comment("motion: joint space, G1 feed in G93 inverse time, F = 1 / move time in min")
+        for line in dialect.safe_start:
+            out.block(line, "blocks.safe_start")
+        for line in dialect.preamble:
+            out.block(line, "blocks.preamble")
+        return out.take()
+
+    def end(self) -> str:
+        """Back to G94 (if G93 was written), the postamble, the end code and ``%``."""
+        dialect, out = self.dialect, self._out
+        if self._modal.inverse_time:
+            out.block("G94", "the end of inverse time")
+        for line in dialect.postamble:
+            out.block(line, "blocks.postamble")
+        out.block(dialect.end_code, "program.end_code")
+        if dialect.percent:
+            out.raw("%")
+        return out.take()
+
+    # ------------------------------------------------------------------ rows
+    def rows(self, program: JointProgram) -> str:
+        """The motion lines of ``program``'s rows and the events between them (``before == N``:
+        after its last row), continuing from the rows before."""
+        pieces = []
+        n = len(program)
+        _check_rows(program)
+        chunk = self._prepare(program)
+        for lo in range(0, max(n, 1), CHUNK_ROWS):
+            pieces.append(self._emit_rows(chunk, lo, min(n, lo + CHUNK_ROWS)))
+        self._modal.rows += n
+        return "".join(pieces)
+
+    def _where(self, program: JointProgram, row: int) -> str:
+        return f"row {self._modal.rows + row} from {program.describe(row)}"
+
+    def _event_where(self, program: JointProgram, event: Event) -> str:
+        if event.before == len(program):
+            return f"{event.kind.value} event after the last row"
+        return f"{event.kind.value} event before {self._where(program, event.before)}"
+
+    def _prepare(self, program: JointProgram) -> _Chunk:
+        """Every column checked and scaled to the integers it prints as; errors name the first bad row."""
+        ax, dec = self.dialect.axes, self.dialect.decimals
+        named = [(ax.x, program.stage[:, 0], "stage X"), (ax.y, program.stage[:, 1], "stage Y"),
+                 (ax.t1, program.strokes[:, 0], "actuator stroke T1"),
+                 (ax.t2, program.strokes[:, 1], "actuator stroke T2"),
+                 (ax.t3, program.strokes[:, 2], "actuator stroke T3")]
+        scaled = [self._axis_column(program, letter, values, name, dec.length) for letter, values, name in named]
+        if not self.stage:
+            for (_, _, name), column in zip(named[:2], scaled[:2], strict=True):
+                moved = np.flatnonzero(column.scaled)
+                if moved.size:
+                    raise LimitError(f"{self._where(program, int(moved[0]))}: {name} is "
+                                     f"{column.text(int(moved[0]))} mm on a machine without a stage")
+            named, scaled = named[2:], scaled[2:]
+        events: dict[int, list[Event]] = {}
+        for event in program.events:
+            events.setdefault(event.before, []).append(event)
+        return _Chunk(program=program, axes=[(letter.encode("ascii"), column) for (letter, _, _), column
+                                             in zip(named, scaled, strict=True)],
+                      feed=self._feed_column(program, dec.inverse_time), events=events)
+
+    def _axis_column(self, program: JointProgram, letter: str, values: np.ndarray, name: str,
+                     decimals: int) -> ScaledColumn:
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            row = int(bad[0])
+            raise LimitError(f"{self._where(program, row)}: {name} ({letter}) is {float(values[row])!r}, "
+                             "not a finite number")
+        return scale_column(values, decimals)
+
+    def _feed_column(self, program: JointProgram, decimals: int) -> ScaledColumn:
+        """The F word of every FEED row (rapids: 0, never written); one that is not > 0 once
+        printed is a LimitError naming its row."""
+        feed = program.kind == MoveKind.FEED
+        values = np.where(feed, program.inverse_time, 1.0)
+        with np.errstate(invalid="ignore"):
+            bad = np.flatnonzero(~(np.isfinite(values) & (values > 0)))
+        if bad.size:
+            row = int(bad[0])
+            raise LimitError(f"{self._where(program, row)}: inverse-time feed must be a finite number > 0 /min, "
+                             f"got {float(values[row])!r}")
+        column = scale_column(np.where(feed, values, 0.0), decimals)
+        zero = np.flatnonzero(feed & (column.scaled == 0))
+        if zero.size:
+            row = int(zero[0])
+            value = float(values[row])
+            raise LimitError(
+                f"{self._where(program, row)}: inverse-time feed {value:.6g} /min formats to "
+                f"F{column.text(row)} with decimals.inverse_time = {decimals} (the move would take "
+                f"{1 / value:.6g} min); LinuxCNC would raise F0 to 0.1 and run the move at another feed"
+            )
+        return column
+
+    def _emit_rows(self, chunk: _Chunk, lo: int, hi: int) -> str:
+        """Rows ``lo:hi`` of the chunk with the events before them (and those after the last row)."""
+        program, out, modal = chunk.program, self._out, self._modal
+        n = len(program)
+        kind = program.kind[lo:hi]
+        breaks = sorted({b for b in chunk.events if lo <= b < hi} | ({n} if hi == n else set()))
+        g93 = _first_feed(kind, lo) if not modal.inverse_time else None
+        if g93 is not None and g93 not in breaks:
+            breaks = sorted({*breaks, g93})
+        restate = np.array([b - lo for b in breaks if b < hi and b in chunk.events
+                            and any(e.kind in _RESTATE for e in chunk.events[b])], dtype=np.int64)
+        present, motion = self._words_present(chunk, lo, hi, restate)
+        # the block number of every row: the rows and the numbered blocks between them, in order
+        blocks_before = np.zeros(hi - lo, dtype=np.int64)
+        for b in breaks:
+            if b < hi:
+                count = sum(e.kind is not EventKind.COMMENT for e in chunk.events.get(b, ()))
+                blocks_before[b - lo:] += count + (b == g93)
+        lines = self._render(chunk, lo, hi, present, motion, np.arange(hi - lo) + blocks_before)
+        pieces = []
+        previous = lo                                # the first row not yet written
+        for b in breaks:
+            if b > previous:                         # the rows up to this break, as one piece
+                pieces += [out.take(), self._rows_text(chunk, lines, lo, previous - lo, b - lo)]
+                previous = b
+            for event in chunk.events.get(b, ()):
+                self._event(program, event)
+            if b == g93:
+                out.block("G93", self._where(program, b))
+                modal.inverse_time = True
+        if hi > previous:
+            pieces += [out.take(), self._rows_text(chunk, lines, lo, previous - lo, hi - lo)]
+        pieces.append(out.take())
+        self._remember(chunk, hi, kind)
+        return "".join(pieces)
+
+    def _event(self, program: JointProgram, event: Event) -> None:
+        out = self._out
+        if event.kind is EventKind.COMMENT:
+            out.comment(event.text)
+            return
+        where = self._event_where(program, event)
+        comment, block = _event_blocks(where, event, self.dialect)
+        if comment is not None:
+            out.comment(comment)
+        out.block(block, where)
+        if event.kind in _RESTATE:
+            self._modal.restate()
+
+    def _words_present(self, chunk: _Chunk, lo: int, hi: int, restate: IntArray) -> tuple[BoolArray, IntArray]:
+        """(rows, columns) — which axis words each line writes, and each line's motion word
+        (0 G0, 1 G1, 2 none). A word is left out when its text is the one last written for its
+        axis; everything is written again on the first line and after a tool change or a stop."""
+        modal, dialect = self._modal, self.dialect
+        m = hi - lo
+        kind = chunk.program.kind[lo:hi]
+        present = np.ones((m, len(chunk.axes)), dtype=bool)
+        for j, (_, column) in enumerate(chunk.axes):
+            if m:
+                same = _rows_of(column, lo, hi).same_as_previous()
+                same[0] = column.text(lo) == modal.words[j]
+                present[:, j] = ~same
+        present[restate] = True
+        previous = np.empty(m, dtype=np.int64)
+        previous[1:] = kind[:-1]
+        previous[:1] = -1 if modal.motion is None else modal.motion
+        previous[restate] = -1
+        motion = np.where(kind == MoveKind.FEED, 1, 0)
+        if dialect.modal_motion:
+            motion = np.where((kind != previous) | ~present.any(axis=1), motion, 2)
+        return present, motion
+
+    def _render(self, chunk: _Chunk, lo: int, hi: int, present: BoolArray, motion: IntArray,
+                block_index: IntArray) -> tuple[np.ndarray, IntArray]:
+        """Every row's line as bytes (see :func:`prs3_post.fixed.render_rows`); over-long ones are
+        found here and reported when their turn comes."""
+        out = self._out
+        m = hi - lo
+        columns: list = []
+        shown = []
+        if out.numbered:
+            numbers = out.numbers_after(block_index)
+            columns.append((self.dialect.line_numbers.letter.encode("ascii"),
+                            ScaledColumn(numbers, 0, np.zeros(0, dtype=np.int64), ())))
+            shown.append(np.ones(m, dtype=bool))
+        columns.append(ChoiceColumn(np.minimum(motion, 1), (b"G0", b"G1")))
+        shown.append(motion < 2)
+        for letter, column in chunk.axes:
+            columns.append((letter, _rows_of(column, lo, hi)))
+        shown.extend(present.T)
+        columns.append((b"F", _rows_of(chunk.feed, lo, hi)))
+        shown.append(chunk.program.kind[lo:hi] == MoveKind.FEED)
+        return render_rows(columns, np.column_stack(shown) if m else np.zeros((0, len(columns)), dtype=bool),
+                           ending=self.dialect.line_ending.encode("ascii"))
+
+    def _rows_text(self, chunk: _Chunk, lines: tuple[np.ndarray, IntArray], lo: int, a: int, b: int) -> str:
+        """Lines ``a:b`` of those rendered for the rows from ``lo`` on, as text; the first over-long
+        one is a LimitError naming its row."""
+        buffer, ends = lines
+        out = self._out
+        ending = len(self.dialect.line_ending)
+        lengths = np.diff(ends[a:b + 1]) - ending
+        long = np.flatnonzero(lengths > out.limit)
+        text = buffer[ends[a]:ends[b]].tobytes().decode("ascii")
+        if long.size:
+            row = a + int(long[0])
+            line = buffer[ends[row]:ends[row + 1] - ending].tobytes().decode("ascii")
+            out.check_length(line, self._where(chunk.program, lo + row))
+        if out.numbered:
+            out.number = int(out.numbers_after(b - a)[0])
+        return text
+
+    def _remember(self, chunk: _Chunk, hi: int, kind: IntArray) -> None:
+        """The modal state after the rows up to ``hi`` (and the events after the last row)."""
+        modal = self._modal
+        if len(kind):
+            for j, (_, column) in enumerate(chunk.axes):
+                modal.words[j] = column.text(hi - 1)
+            modal.motion = int(kind[-1])
+        if hi == len(chunk.program) and any(e.kind in _RESTATE for e in chunk.events.get(hi, ())):
+            modal.restate()
+
+
+def _first_feed(kind: IntArray, lo: int) -> int | None:
+    feeds = np.flatnonzero(kind == MoveKind.FEED)
+    return lo + int(feeds[0]) if feeds.size else None
+
+
+def _rows_of(column: ScaledColumn, lo: int, hi: int) -> ScaledColumn:
+    """Rows ``lo:hi`` of a column."""
+    if (lo, hi) == (0, len(column)):
+        return column
+    first, last = np.searchsorted(column.odd, [lo, hi])
+    return ScaledColumn(column.scaled[lo:hi], column.decimals, column.odd[first:last] - lo,
+                        column.odd_text[first:last])
+
+
+def _check_rows(program: JointProgram) -> None:
+    """Mistakes no caller should make: a kind that is not a MoveKind, an event outside ``0 ..= N``."""
+    n = len(program)
+    unknown = np.flatnonzero(~np.isin(program.kind, [MoveKind.RAPID, MoveKind.FEED]))
+    if unknown.size:
+        raise ValueError(f"row {int(unknown[0])}: kind {int(program.kind[unknown[0]])} is not a MoveKind")
+    for event in program.events:
+        if not 0 <= event.before <= n:
+            raise ValueError(f"{event.kind.value} event: before = {event.before} is outside 0..{n}")
 
 
 def emit_program(
@@ -318,114 +612,7 @@ def emit_program(
     ``words.modal_motion`` G0/G1 is also written only when it changes (and always on those lines,
     and on a line that would otherwise carry no axis word).
     """
-    n = len(program)
-    numbering = dialect.line_numbers
-    start = numbering.start if line_start is None else line_start
-    step = numbering.step if line_step is None else line_step
-    if not 0 <= start <= numbering.wrap_after:
-        raise ValueError(f"line_start must be 0..{numbering.wrap_after}, got {start}")
-    if step < 1:
-        raise ValueError(f"line_step must be ≥ 1, got {step}")
-    unknown = np.flatnonzero(~np.isin(program.kind, [MoveKind.RAPID, MoveKind.FEED]))
-    if unknown.size:
-        raise ValueError(f"row {int(unknown[0])}: kind {int(program.kind[unknown[0]])} is not a MoveKind")
-    for event in program.events:
-        if not 0 <= event.before <= n:
-            raise ValueError(f"{event.kind.value} event: before = {event.before} is outside 0..{n}")
-
-    out = _Lines(dialect, numbering.enabled if line_numbers is None else line_numbers, start, step)
-    ax, dec = dialect.axes, dialect.decimals
-
-    # ---- columns, formatted once; errors name the first bad row
-    axes: list[tuple[str, np.ndarray, str]] = [
-        (ax.t1, program.strokes[:, 0], "actuator stroke T1"),
-        (ax.t2, program.strokes[:, 1], "actuator stroke T2"),
-        (ax.t3, program.strokes[:, 2], "actuator stroke T3"),
-    ]
-    stage_axes = [(ax.x, program.stage[:, 0], "stage X"), (ax.y, program.stage[:, 1], "stage Y")]
-    if stage:
-        axes = stage_axes + axes
-    else:
-        zero = format_word("", 0.0, dec.length)
-        for letter, values, name in stage_axes:
-            text = _column(program, values, letter, dec.length, name)
-            moved = [row for row, word in enumerate(text) if word[1:] != zero]
-            if moved:
-                raise LimitError(
-                    f"{_row(program, moved[0])}: {name} is {text[moved[0]][1:]} mm on a machine without a stage"
-                )
-    columns = [_column(program, values, letter, dec.length, name) for letter, values, name in axes]
-    feeds = _feed_words(program, dec.inverse_time)
-    events_before: dict[int, list[Event]] = {}
-    for event in program.events:
-        events_before.setdefault(event.before, []).append(event)
-
-    # ---- program start and header
-    if dialect.percent:
-        out.raw("%")
-    if dialect.program_number:
-        o_line = f"O{dialect.program_number}"
-        if dialect.program_name:
-            style = dialect.comments
-            o_line += f" {style.open}{sanitize_comment(dialect.program_name, style)}{style.close}"
-        out.raw(o_line)
-    for key, value in header:
-        out.comment(f"{key}: {value}")
-    out.comment(_axis_line(dialect, stage))
-    out.comment("motion: joint space, G1 feed in G93 inverse time, F = 1 / move time in min")
-    for line in dialect.safe_start:
-        out.block(line, "blocks.safe_start")
-    for line in dialect.preamble:
-        out.block(line, "blocks.preamble")
-
-    # ---- motion
-    last_words: list[str | None] = [None] * len(columns)
-    last_kind: int | None = None
-    inverse_time = False
-
-    def emit_events(events: Iterable[Event]) -> None:
-        nonlocal last_kind
-        for event in events:
-            if event.kind is EventKind.COMMENT:
-                out.comment(event.text)
-                continue
-            comment, block = _event_blocks(program, event, dialect)
-            if comment is not None:
-                out.comment(comment)
-            out.block(block, _event_where(program, event))
-            if event.kind in (EventKind.TOOL_CHANGE, EventKind.STOP):
-                # The tool-change macro or the operator may move the axes: state everything again.
-                last_words[:] = [None] * len(columns)
-                last_kind = None
-
-    kinds = program.kind.tolist()
-    for row in range(n):
-        emit_events(events_before.get(row, ()))
-        kind = kinds[row]
-        if kind == MoveKind.FEED and not inverse_time:
-            out.block("G93", _row(program, row))
-            inverse_time = True
-        words = []
-        for j, column in enumerate(columns):
-            if column[row] != last_words[j]:
-                words.append(column[row])
-                last_words[j] = column[row]
-        parts = []
-        if not dialect.modal_motion or kind != last_kind or not words:
-            parts.append("G1" if kind == MoveKind.FEED else "G0")
-        parts.extend(words)
-        if kind == MoveKind.FEED:
-            parts.append(feeds[row])
-        last_kind = kind
-        out.block(" ".join(parts), _row(program, row))
-    emit_events(events_before.get(n, ()))
-
-    # ---- program end
-    if inverse_time:
-        out.block("G94", "the end of inverse time")
-    for line in dialect.postamble:
-        out.block(line, "blocks.postamble")
-    out.block(dialect.end_code, "program.end_code")
-    if dialect.percent:
-        out.raw("%")
-    return out.text()
+    emitter = ProgramEmitter(dialect, stage=stage, line_numbers=line_numbers, line_start=line_start,
+                             line_step=line_step)
+    _check_rows(program)
+    return emitter.begin(header) + emitter.rows(program) + emitter.end()

@@ -28,6 +28,7 @@ import numpy as np
 
 from prs3_post.errors import FeatureError
 from prs3_post.face import Face
+from prs3_post.fixed import fixed
 from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
 from prs3_post.types import FloatArray
 
@@ -185,8 +186,7 @@ def pass_depths(depth: float, step: float, *, resolution: float = MIN_TOLERANCE,
 
 def format_mm(value: float) -> str:
     """``12.345``: 3 decimals, never ``-0.000``."""
-    text = f"{value:.3f}"
-    return text[1:] if text == "-0.000" else text
+    return fixed(value, 3)
 
 
 def format_uv(uv: FloatArray) -> str:
