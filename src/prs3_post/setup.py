@@ -18,6 +18,7 @@ import numpy as np
 
 from prs3_post.config import Machine
 from prs3_post.errors import Prs3Error
+from prs3_post.fixed import fixed as _fixed
 from prs3_post.types import FloatArray
 
 #: Largest |origin| component accepted, mm (100 m: no machine of this kind is larger).
@@ -142,11 +143,6 @@ class Setup:
         """``part origin at machine [x, y, z] mm, rotation θ deg about z`` (the header's form)."""
         return (f"part origin at machine [{', '.join(_fixed(v, 4) for v in self.origin)}] mm, "
                 f"rotation {_fixed(self.rotation_deg, 4)} deg about z")
-
-
-def _fixed(value: float, decimals: int) -> str:
-    text = f"{value:.{decimals}f}"
-    return text[1:] if text.startswith("-") and float(text) == 0 else text
 
 
 def _short(value: float) -> str:

@@ -42,6 +42,7 @@ import numpy as np
 from prs3_post.emit.gcode import _CONTINUATION  # the indent of a wrapped comment's continuation lines
 from prs3_post.errors import InputError, Prs3Error
 from prs3_post.face import Face
+from prs3_post.fixed import fixed as _fixed
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
 from prs3_post.ops.work import HoleJob, ProfileJob
 from prs3_post.readers.files import read_input
@@ -120,11 +121,6 @@ def file_sha256(path: str) -> str:
 
 
 # ============================================================================ numbers
-
-
-def _fixed(value: float, decimals: int) -> str:
-    text = f"{value:.{decimals}f}"
-    return text[1:] if text.startswith("-") and float(text) == 0 else text
 
 
 def exact_text(value: float, decimals: int) -> str:
