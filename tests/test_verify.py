@@ -350,12 +350,13 @@ def test_verify_against_part_needs_the_operation():
     result = run("verify", VERIFY / "small.ngc", "--against", WEDGE)
     assert result.exit_code == 2
     assert result.output.splitlines()[-1] == ("Error: --against PART.stl needs --profile and the other operation "
-                                              "options the program was made with")
+                                              "options the program was made with (it has no prs3-post header that "
+                                              "records them)")
 
 
 def test_verify_help_has_an_example():
     text = run("verify", "--help").output
-    assert "  prs3-post verify sq.ngc --against postproc/parts/patel2020-wedge.stl --profile square --json" in text
+    assert "  prs3-post verify sq.ngc --against postproc/parts/patel2020-wedge.stl --json" in text
     assert "not supported yet" in text
 
 

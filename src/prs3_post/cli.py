@@ -20,25 +20,35 @@ import click
 import numpy as np
 
 from prs3_post import __version__
-from prs3_post.config import Dialect, Machine, load_dialect, load_machine, postproc_dir, shipped_names
+from prs3_post.config import Machine, load_dialect, load_machine, postproc_dir, shipped_names
 from prs3_post.errors import FeatureError, InputError, Prs3Error, Prs3Warning, ReachError
-from prs3_post.face import Face
 from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
 from prs3_post.job import HoleJob, JobSpec, Operation, ProfileJob, run_job
-from prs3_post.ops.common import require_tolerance
+from prs3_post.kinematics import IKModel, PoseError, forward, inverse, unit_axes
+from prs3_post.limits import check_limits
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
+from prs3_post.ops.common import require_tolerance
+from prs3_post.output import is_stdout, refuse_overwriting, stdout_error, write_atomic, write_outputs
+from prs3_post.readers.poses import read_poses
+from prs3_post.readers.program import read_program
 from prs3_post.readers.stl import UP_ROTATION, load_part
 from prs3_post.setup import Setup, SetupError
-from prs3_post.kinematics import IKModel, PoseError, forward, inverse, unit_axes
-from prs3_post.output import is_stdout, refuse_overwriting, stdout_error, write_atomic, write_outputs
-from prs3_post.limits import check_limits
-from prs3_post.readers.poses import read_poses
-from prs3_post.readers.program import ProgramFile, load_program, read_program
-from prs3_post.toolpath import MoveKind
-from prs3_post.verify import Intended, VerifyReport, verify_program
-from prs3_post.verify_format import report_record, report_text
 from prs3_post.tables import fk_records, fk_text, ik_csv, ik_records, ik_text
-
+from prs3_post.verify import Intended
+from prs3_post.verify_format import report_record, report_text
+from prs3_post.verify_job import (
+    DEFAULT_DIALECT,
+    DEFAULT_MACHINE,
+    HeaderConflict,
+    ProgramContext,
+    check_part,
+    header_job,
+    intended_from_job,
+    intended_from_poses,
+    open_program,
+    preview_bytes,
+    verify_loaded,
+)
 
 # ----------------------------------------------------------------------------- helpers
 
@@ -224,7 +234,7 @@ def resolve_setup(machine: Machine, origin: tuple[float, ...] | None, rotation_d
 
 
 machine_option = click.option(
-    "--machine", "machine_name", default="patel2020", show_default=True, metavar="NAME|PATH",
+    "--machine", "machine_name", default=DEFAULT_MACHINE, show_default=True, metavar="NAME|PATH",
     help="Shipped machine name (see `prs3-post machines`) or path to a machine TOML file.",
 )
 
@@ -445,7 +455,7 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
         machine_option,
         part_origin_option,
         part_rotation_option,
-        click.option("--dialect", "dialect_name", default="linuxcnc", show_default=True, metavar="NAME|PATH",
+        click.option("--dialect", "dialect_name", default=DEFAULT_DIALECT, show_default=True, metavar="NAME|PATH",
                      help="G-code dialect: linuxcnc, fanuc, or a dialect TOML file."),
         click.option("--line-numbers/--no-line-numbers", default=None,
                      help="Number the blocks (N words).  [default: as the dialect says]"),
@@ -473,7 +483,7 @@ def _run_job(part: str, **opts: Any) -> int:
     if fmt is not None:                                # draw before writing anything: no half results
         program = read_program(result.text, spec.dialect, path=opts["out_path"] or "<program>",
                                stage=spec.machine.stage.present)
-        image = _preview_bytes(program, spec.machine, result.setup, fmt, tolerance=spec.tolerance,
+        image = preview_bytes(program, spec.machine, result.setup, fmt, tolerance=spec.tolerance,
                                mesh=result.triangles, face=result.face, title=Path(part).name, dialect=spec.dialect)
     write_outputs([(opts["out_path"], result.text)] + ([] if image is None else [(opts["preview_path"], image)]))
     if not is_stdout(opts["out_path"]):
@@ -651,61 +661,119 @@ def _image_format(path: str) -> str:
     return suffix[1:]
 
 
-def _verify_loaded(program: ProgramFile, machine: Machine, setup: Setup, dialect: Dialect, *,
-                   tolerance: float, axis_tolerance_deg: float = 0.01,
-                   intended: Intended | None = None) -> VerifyReport:
-    """verify_program on a read program, with the dialect's decimals; no moves is an input error."""
-    if not len(program.moves):
-        raise InputError("no moves (G0/G1 lines) in the program", path=program.path)
-    return verify_program(
-        machine, program.moves, setup=setup, tolerance=tolerance,
-        axis_tolerance=math.radians(axis_tolerance_deg), intended=intended,
-        length_decimals=dialect.decimals.length, feed_decimals=dialect.decimals.inverse_time,
-        blending_lines=program.blending_lines,
-    )
+def _given(ctx: click.Context, name: str) -> bool:
+    """Whether the user gave the option (not its default)."""
+    return ctx.get_parameter_source(name) is not click.core.ParameterSource.DEFAULT
 
 
-def _preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str, *,
-                   dialect: Dialect, tolerance: float = 0.002, mesh: np.ndarray | None = None,
-                   face: Face | None = None, title: str = "", rapid_rate: float = 5000.0) -> bytes:
-    """Replay a read program and draw it (prs3_post.preview imports matplotlib lazily)."""
-    from prs3_post.preview import figure_bytes, render_preview
-
-    report = _verify_loaded(program, machine, setup, dialect, tolerance=tolerance)
-    label = "face" if face is None else f"face {face.index} ({math.degrees(face.inclination):.2f}°)"
-    heading = f"{title}: " if title else ""
-    fig = render_preview(
-        report, machine, mesh=mesh, face_triangles=None if face is None else face.triangles, face_label=label,
-        title=f"{heading}{Path(program.path).name}, machine {machine.name}, {len(program.moves)} moves "
-              f"({'ok' if report.ok else f'{len(report.problems)} problems'})",
-        rapid_rate=rapid_rate,
-    )
-    return figure_bytes(fig, fmt)
+#: The flag of each value a program header records, for messages about a contradiction.
+_HEADER_FLAGS = {"machine": "--machine", "dialect": "--dialect", "part origin": "--part-origin",
+                 "part rotation": "--part-rotation", "part": "--against"}
 
 
-def _intended(against: str, program: ProgramFile, opts: dict[str, Any]) -> Intended:
-    """The intended path of `verify --against`: rebuilt from PART.stl and the options, or POSES.csv."""
+def _open_program(ctx: click.Context, path: str, machine_name: str, dialect_name: str,
+                  part_origin: tuple[float, ...] | None, part_rotation: float | None) -> ProgramContext:
+    """The program with the machine, dialect and setup of its header, or those given."""
+    try:
+        return open_program(path, machine=machine_name if _given(ctx, "machine_name") else None,
+                            dialect=dialect_name if _given(ctx, "dialect_name") else None,
+                            origin=part_origin, rotation_deg=part_rotation)
+    except SetupError as error:
+        raise click.BadParameter(str(error), param_hint=_SETUP_HINTS[error.field]) from error
+    except HeaderConflict as error:
+        raise InputError(f"{_HEADER_FLAGS[error.what]}: {error.args[0]}", path=error.path, line=error.line) from error
+
+
+_SETUP_HINTS = {"origin": "'--part-origin'", "rotation": "'--part-rotation'"}
+#: Options given in degrees whose JobSpec value is in radians.
+_DEGREE_OPTIONS = ("rotation", "ramp_angle")
+
+
+def _operation_values(spec: JobSpec) -> dict[str, Any]:
+    """The operation options of the main job that ``spec`` answers, in JobSpec units (angles in
+    radians, positions as arrays, the face as an index or None)."""
+    cut = spec.cutting
+    values: dict[str, Any] = {
+        "profile": spec.operation.value, "face_choice": spec.face, "at_uv": spec.at_uv, "at_xyz": spec.at_xyz,
+        "units": spec.units, "up": spec.up, "tool_diameter": cut.tool_diameter, "tool_number": cut.tool_number,
+        "feed": cut.feed, "plunge_feed": cut.plunge_feed, "spindle": cut.spindle_rpm, "coolant": cut.coolant.value,
+    }
+    work = spec.work
+    if isinstance(work, HoleJob):
+        h = work.params
+        values |= {"depth": h.depth, "peck": h.peck, "reapproach_gap": h.reapproach_gap, "dwell": h.dwell,
+                   "clearance": h.clearance, "retract": h.retract}
+        return values
+    p, shape = work.params, work.shape
+    if isinstance(shape, SquareShape):
+        values |= {"size": shape.size, "corner_radius": shape.corner_radius, "rotation": shape.rotation}
+    else:
+        values |= {"diameter": shape.diameter}
+    values |= {"side": p.side.value, "depth": p.depth, "step_down": p.step_down, "direction": p.direction.value,
+               "entry": p.entry.value, "ramp_angle": p.ramp_angle, "clearance": p.clearance, "retract": p.retract}
+    return values
+
+
+def _as_spec_value(name: str, value: Any) -> Any:
+    """An option's value in JobSpec units (see _operation_values)."""
+    if name in _DEGREE_OPTIONS:
+        return math.radians(value)
+    if name == "face_choice":
+        return _face_index(value)
+    if name in ("at_uv", "at_xyz"):
+        return np.array(value, dtype=np.float64).reshape(-1, 2 if name == "at_uv" else 3)
+    return value
+
+
+def _check_operation_options(ctx: click.Context, spec: JobSpec, opts: dict[str, Any]) -> None:
+    """Operation options given with a program that has a header must say what the header says."""
+    recorded = _operation_values(spec)
+    wrong = []
+    for name in _OPERATION_OPTIONS:
+        if not _given(ctx, name) or name not in recorded:
+            continue
+        given, header = _as_spec_value(name, opts[name]), recorded[name]
+        same = np.array_equal(given, header) if isinstance(header, np.ndarray) else given == header
+        if not same:
+            shown = header
+            if name in _DEGREE_OPTIONS:
+                shown = math.degrees(header)
+            elif isinstance(header, np.ndarray):
+                shown = " ".join(",".join(f"{v:g}" for v in row) for row in header) or "none"
+            elif header is None:
+                shown = "auto"
+            wrong.append(f"{_option_flags(ctx, [f'--{name.replace(chr(95), chr(45))}'])[0]} (header: {shown})")
+    _refuse_contradictions(wrong)
+
+
+def _refuse_contradictions(wrong: list[str]) -> None:
+    """A usage error for options that say otherwise than the program's header (``--depth (header: 5)``)."""
+    if len(wrong) == 1:
+        raise click.UsageError(f"{wrong[0]}: contradicts the program's header; leave it out to use the header's value")
+    if wrong:
+        raise click.UsageError(f"{', '.join(wrong)}: contradict the program's header; leave them out to use the "
+                               "header's values")
+
+
+def _intended(ctx: click.Context, against: str, context: ProgramContext, opts: dict[str, Any]) -> Intended:
+    """The intended path of `verify --against`: the job rebuilt from PART.stl and the program's header
+    (or, without a header, the options), or POSES.csv."""
     suffix = Path(against).suffix.lower()
     if suffix == ".stl":
-        if not opts["profile"]:
+        if context.header is not None:
+            try:
+                spec = header_job(context, against)
+            except HeaderConflict as error:
+                raise InputError(f"--against: {error.args[0]}", path=error.path, line=error.line) from error
+            _check_operation_options(ctx, spec, opts)
+        elif not opts["profile"]:
             raise click.UsageError("--against PART.stl needs --profile and the other operation options the "
-                                   "program was made with")
-        result = run_job(_job_spec(against, opts))
-        path = result.post.path
-        feed = np.where(path.kind == MoveKind.FEED, path.feed, np.nan)
-        return Intended(tip=path.tip, axis=path.axis, feed=feed, kind=path.kind,
-                        label=f"{Path(against).name} ({opts['profile']})")
+                                   "program was made with (it has no prs3-post header that records them)")
+        else:
+            spec = _job_spec(against, opts)
+        return intended_from_job(spec)
     if suffix == ".csv":
-        table = read_poses(against)
-        try:
-            unit = unit_axes(table.tip, table.axis, row_name="line", row_numbers=table.line)
-        except PoseError as error:
-            raise InputError(str(error), path=against) from error
-        if len(unit) != len(program.moves):
-            raise InputError(f"{len(unit)} poses for the {len(program.moves)} motion lines of {program.path}: "
-                             "give one pose per G0/G1 line, in order", path=against)
-        return Intended(tip=table.tip, axis=unit, feed=np.full(len(unit), np.nan),
-                        kind=np.full(len(unit), -1, dtype=np.int64), label=Path(against).name)
+        return intended_from_poses(against, context.program)
     raise InputError("--against takes PART.stl (with the operation options the program was made with) or "
                      "POSES.csv (one pose per motion line); verifying against CAM input (APT CL, G-code) is "
                      "not supported yet", path=against)
@@ -714,8 +782,8 @@ def _intended(against: str, program: ProgramFile, opts: dict[str, Any]) -> Inten
 @main.command()
 @click.argument("program_path", type=click.Path(dir_okay=False), metavar="PROGRAM.ngc")
 @click.option("--against", "against_path", type=click.Path(dir_okay=False), metavar="PART.stl|POSES.csv",
-              help="The intended path: PART.stl plus the operation options the program was made with "
-                   "(--profile, --at, --depth, ... as for the main job), or POSES.csv (the `ik --batch` format, "
+              help="The intended path: PART.stl (the operation is rebuilt from the program's header; a program "
+                   "without one needs the options it was made with: --profile, --at, --depth, ...), or POSES.csv (the `ik --batch` format, "
                    "machine frame, one pose per G0/G1 line). CAM input (APT CL, G-code) is not supported yet.")
 @click.option("--axis-tolerance", "axis_tolerance_deg", type=Decimal(ANGLE), default=0.01, show_default=True,
               help="Allowed tool-axis deviation from the --against path, degrees.")
@@ -741,42 +809,47 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
     - with --against: tip and axis deviation from the intended path (max, mean, line); allowed:
       --tolerance plus what the output rounding moves the tip, and --axis-tolerance.
 
-    --tolerance (mm, default 0.002) is the allowed tip deviation (and, with --against PART.stl,
-    the tolerance the job is rebuilt with). The operation options (--profile ... --retract) are
-    used only with --against PART.stl. Exit status: 0 within every limit and tolerance, 1 if not,
+    A program made by prs3-post states in its header the machine, dialect, setup and operation it
+    was made with: they are used, and an option that says otherwise is an error (leave it out).
+    A program without that header is read with the options given (or their defaults).
+
+    --tolerance (mm; default: the program's, else 0.002) is the allowed tip deviation. The
+    operation options (--profile ... --retract) are used only with --against PART.stl, and only
+    for a program without a header. Exit status: 0 within every limit and tolerance, 1 if not,
     2 for a program or option it cannot read.
 
     \b
     Examples:
       prs3-post demo --profile square -o sq.ngc
       prs3-post verify sq.ngc
-      prs3-post verify sq.ngc --against postproc/parts/patel2020-wedge.stl --profile square --json
+      prs3-post verify sq.ngc --against postproc/parts/patel2020-wedge.stl --json
       prs3-post verify paper_2a_2b.ngc --against paper_2a_2b.csv
     """
 
     def body() -> int:
-        machine = load_machine(opts["machine_name"])
-        dialect = load_dialect(opts["dialect_name"])
-        program = load_program(program_path, dialect, stage=machine.stage.present)
-        setup = resolve_setup(machine, opts["part_origin"], opts["part_rotation"])
+        ctx = click.get_current_context()
         require_tolerance(opts["tolerance"])
         if not (math.isfinite(axis_tolerance_deg) and axis_tolerance_deg >= 0):
             raise click.BadParameter(f"must be a number ≥ 0 degrees, got {axis_tolerance_deg:g}",
                                      param_hint="'--axis-tolerance'")
         if not (against_path and Path(against_path).suffix.lower() == ".stl"):
-            ctx = click.get_current_context()
-            given = [f"--{name.replace('_', '-')}" for name in _OPERATION_OPTIONS
-                     if ctx.get_parameter_source(name) is not click.core.ParameterSource.DEFAULT]
+            given = [f"--{name.replace('_', '-')}" for name in _OPERATION_OPTIONS if _given(ctx, name)]
             if given:
                 raise click.UsageError(f"{', '.join(_option_flags(ctx, given))}: the operation options are only "
                                        "used with --against PART.stl")
-        intended = _intended(against_path, program, opts) if against_path else None
-        report = _verify_loaded(program, machine, setup, dialect, tolerance=opts["tolerance"],
-                                axis_tolerance_deg=axis_tolerance_deg, intended=intended)
+        context = _open_program(ctx, program_path, opts["machine_name"], opts["dialect_name"], opts["part_origin"],
+                                opts["part_rotation"])
+        # the check's tolerance: as given, else the one the program was made with
+        tolerance = (context.header.tolerance if context.header is not None and not _given(ctx, "tolerance")
+                     else opts["tolerance"])
+        intended = _intended(ctx, against_path, context, opts) if against_path else None
+        report = verify_loaded(context.program, context.machine, context.setup, context.dialect,
+                               tolerance=tolerance, axis_tolerance_deg=axis_tolerance_deg, intended=intended)
+        dialect = context.dialect.name
         if as_json:
-            click.echo(json.dumps(report_record(report, path=program_path, dialect=dialect.name), allow_nan=False))
+            click.echo(json.dumps(report_record(report, path=program_path, dialect=dialect), allow_nan=False))
         else:
-            click.echo(report_text(report, path=program_path, dialect=dialect.name), nl=False)
+            click.echo(report_text(report, path=program_path, dialect=dialect), nl=False)
         return 0 if report.ok else 1
 
     run_reported(body)
@@ -793,7 +866,7 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
 @click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True, help="Length unit of the STL.")
 @up_option
 @machine_option
-@click.option("--dialect", "dialect_name", default="linuxcnc", show_default=True, metavar="NAME|PATH",
+@click.option("--dialect", "dialect_name", default=DEFAULT_DIALECT, show_default=True, metavar="NAME|PATH",
               help="G-code dialect of the program: linuxcnc, fanuc, or a dialect TOML file.")
 @part_origin_option
 @part_rotation_option
@@ -809,6 +882,8 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
     axis at a few points; (b) the strokes T1..T3 and stage X, Y over program time (G1: 1/F min,
     G0: the longest joint travel at --rapid-rate), the machine's limits shaded; (c) the worst margin
     of every limit as a fraction of its range. Needs matplotlib: pip install 'prs3-post[plot]'.
+    The machine, dialect and setup (and the part's units, up axis and face) come from the program's
+    header when it has one; an option that says otherwise is an error.
     `prs3-post PART.stl ... --preview OUT.png` makes a program and its picture in one step.
 
     \b
@@ -819,19 +894,31 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
     """
 
     def body() -> int:
+        ctx = click.get_current_context()
         fmt = _image_format(out_path)
-        machine = load_machine(machine_name)
-        dialect = load_dialect(dialect_name)
-        program = load_program(program_path, dialect, stage=machine.stage.present)
-        setup = resolve_setup(machine, part_origin, part_rotation)
+        context = _open_program(ctx, program_path, machine_name, dialect_name, part_origin, part_rotation)
         mesh = face = None
         if part_path is not None:
-            choice = _face_index(face_choice)
-            loaded = load_part(part_path, units=units, up=up)
+            choice, part_units, part_up = _face_index(face_choice), units, up
+            header = context.header
+            if header is not None:                     # the part as the program was made from it
+                try:
+                    check_part(header, part_path)
+                except HeaderConflict as error:
+                    raise InputError(f"--part: {error.args[0]}", path=error.path, line=error.line) from error
+                recorded = {"face_choice": header.face, "units": header.units, "up": header.up}
+                wrong = [f"{flag} (header: {'auto' if recorded[name] is None else recorded[name]})"
+                         for name, flag in (("face_choice", "--face"), ("units", "--units"), ("up", "--up"))
+                         if _given(ctx, name) and _as_spec_value(name, {"face_choice": face_choice, "units": units,
+                                                                         "up": up}[name]) != recorded[name]]
+                _refuse_contradictions(wrong)
+                choice, part_units, part_up = header.face, header.units, header.up
+            loaded = load_part(part_path, units=part_units, up=part_up)
             face, _ = select_face(find_faces(loaded), choice)
             mesh = loaded.triangles
-        image = _preview_bytes(program, machine, setup, fmt, dialect=dialect, mesh=mesh, face=face,
-                               rapid_rate=rapid_rate, title=Path(part_path).name if part_path else "")
+        image = preview_bytes(context.program, context.machine, context.setup, fmt, dialect=context.dialect,
+                              mesh=mesh, face=face, rapid_rate=rapid_rate,
+                              title=Path(part_path).name if part_path else "")
         write_atomic(out_path, image)
         click.echo(f"prs3-post: wrote {out_path}", err=True)
         return 0

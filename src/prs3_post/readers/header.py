@@ -80,6 +80,7 @@ class ProgramHeader:
     tolerance : float — mm
     line_numbers, line_start, line_step : the block-numbering overrides (None: the dialect's)
     lines : tuple of (key, line) — where each key was read (1-based program lines; empty when written)
+    path : str — the program it was read from (empty when written)
     """
 
     version: str
@@ -103,6 +104,7 @@ class ProgramHeader:
     line_start: int | None = None
     line_step: int | None = None
     lines: tuple[tuple[str, int], ...] = ()
+    path: str = ""
 
     def line(self, key: str) -> int | None:
         """The program line the ``key`` entry was read from (None when not read from a file)."""
@@ -459,7 +461,7 @@ def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHe
         face=None if face.group(2).lower() == "chosen automatically" else int(face.group(1)),
         face_index=int(face.group(1)), setup=setup, work=work, at_uv=at_uv, at_xyz=at_xyz, cutting=cutting,
         tolerance=tolerance, line_numbers=numbers, line_start=start, line_step=step,
-        lines=tuple((k, v[0]) for k, v in found.items()),
+        lines=tuple((k, v[0]) for k, v in found.items()), path=path,
     )
 
 
@@ -507,9 +509,9 @@ def read_header(path: str, *, open_: str = "(", close: str = ")") -> ProgramHead
 
 def _read_head(path: str) -> bytes:
     if not os.path.isfile(path):                       # missing, a folder, a FIFO, a device: its clear message
-        return read_input(path, "a program")
+        return read_input(path, "a G-code program")
     try:
         with open(path, "rb") as stream:
             return stream.read(HEAD_BYTES)
     except OSError:
-        return read_input(path, "a program")            # its clear message
+        return read_input(path, "a G-code program")            # its clear message

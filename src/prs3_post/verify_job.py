@@ -1,0 +1,261 @@
+"""The `verify` and `preview` jobs: a program, the machine, dialect and setup it was made for, and
+what it should do.
+
+    PROGRAM ──► header (machine, dialect, setup, the operation) ──► read ──► replay ──► report / picture
+                                                         └── PART.stl (its SHA-256) ──► rebuilt job ──► intended path
+
+A program made by the main job says in its header what it was made from
+(:mod:`prs3_post.readers.header`). Its machine, dialect and setup are then the defaults; a value
+given explicitly that contradicts the header is an error (:class:`HeaderConflict`), not a silent
+or warned override: verifying a program against something it was not made for answers another
+question than the one asked, and a warning above a pass is easily missed. A program without a
+header is read with the values given (or the defaults).
+
+No I/O beyond the readers; messages do not name command-line flags (the CLI adds them).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TypeVar
+
+import numpy as np
+
+from prs3_post.config import Dialect, Machine, load_dialect, load_machine
+from prs3_post.errors import ConfigError, InputError
+from prs3_post.face import Face
+from prs3_post.job import JobSpec, run_job, spec_from_header
+from prs3_post.kinematics import PoseError, unit_axes
+from prs3_post.readers.header import ProgramHeader, file_sha256, read_header
+from prs3_post.readers.poses import read_poses
+from prs3_post.readers.program import ProgramFile, load_program
+from prs3_post.setup import Setup
+from prs3_post.toolpath import MoveKind
+from prs3_post.types import FloatArray
+from prs3_post.verify import Intended, VerifyReport, verify_program
+
+_Config = TypeVar("_Config", Machine, Dialect)
+
+#: The machine a program without a header is read for when none is given.
+DEFAULT_MACHINE = "patel2020"
+#: The dialect a program without a header is read in when none is given.
+DEFAULT_DIALECT = "linuxcnc"
+
+
+class HeaderConflict(InputError):
+    """A value given explicitly contradicts the program's header.
+
+    Attributes
+    ----------
+    what : str — ``machine``, ``dialect``, ``part origin``, ``part rotation``, ``part`` (what the header records)
+    """
+
+    def __init__(self, message: str, *, path: str, line: int | None, what: str):
+        super().__init__(message, path=path, line=line)
+        self.what = what
+
+
+@dataclass(frozen=True, slots=True)
+class ProgramContext:
+    """A program read with the machine, dialect and setup it was made for.
+
+    Attributes
+    ----------
+    program : ProgramFile
+    header : ProgramHeader | None — None for a program without a prs3-post header
+    machine : Machine
+    dialect : Dialect
+    setup : Setup
+    """
+
+    program: ProgramFile
+    header: ProgramHeader | None
+    machine: Machine
+    dialect: Dialect
+    setup: Setup
+
+
+def _conflict(header: ProgramHeader, key: str, what: str, recorded: str, given: str) -> HeaderConflict:
+    return HeaderConflict(f"the program's header says {what} {recorded}, but {what} {given} was given (leave it "
+                          "out to use the header's)", path=header.path, line=header.line(key), what=what)
+
+
+def _load_recorded(header: ProgramHeader, kind: str, load: Callable[[str], _Config]) -> _Config:
+    """The machine or dialect a header names: its file when given by path, else the shipped name (a
+    dialect may have upper-cased the comment: its lower-case spelling is tried too)."""
+    name, file = (header.machine, header.machine_file) if kind == "machine" else (header.dialect, header.dialect_file)
+    tries = [file] if file is not None else list(dict.fromkeys([name, name.lower()]))
+    problem: ConfigError | None = None
+    for ref in tries:
+        try:
+            return load(ref)
+        except ConfigError as error:
+            problem = error
+    raise InputError(f"header: the {kind} it names ({tries[0]}) cannot be loaded here ({problem}): give the "
+                     f"{kind} explicitly", path=header.path, line=header.line(f"{kind} file" if file else kind))
+
+
+def _same(a: Machine | Dialect, b: Machine | Dialect) -> bool:
+    """The same machine (or dialect), wherever its file was loaded from."""
+    return dataclasses.replace(a, source="") == dataclasses.replace(b, source="")
+
+
+def open_program(path: str, *, machine: str | None = None, dialect: str | None = None,
+                 origin: tuple[float, ...] | None = None, rotation_deg: float | None = None) -> ProgramContext:
+    """Read a program with the machine, dialect and setup its header names, or those given.
+
+    Parameters
+    ----------
+    path : str — the program file
+    machine, dialect : str | None — a shipped name or a TOML path given explicitly (None: the header's,
+        or :data:`DEFAULT_MACHINE` / :data:`DEFAULT_DIALECT` for a program without a header)
+    origin : (3,) mm | None, rotation_deg : float | None — the setup given explicitly (None: the header's,
+        or the machine's default setup)
+
+    Raises
+    ------
+    HeaderConflict
+        A given value that is not the header's.
+    InputError, ConfigError
+        An unreadable program, header, machine or dialect.
+    """
+    given_dialect = load_dialect(dialect) if dialect is not None else None
+    style = (given_dialect or load_dialect(DEFAULT_DIALECT)).comments
+    header = read_header(path, open_=style.open, close=style.close)
+    if header is None:
+        chosen_machine = load_machine(machine if machine is not None else DEFAULT_MACHINE)
+        chosen_dialect = given_dialect or load_dialect(DEFAULT_DIALECT)
+        setup = Setup.resolve(chosen_machine, origin, rotation_deg)
+    else:
+        chosen_machine = _recorded_or_given(header, "machine", load_machine,
+                                            load_machine(machine) if machine is not None else None)
+        chosen_dialect = _recorded_or_given(header, "dialect", load_dialect, given_dialect)
+        setup = header.setup
+        if origin is not None and tuple(float(v) for v in origin) != setup.origin:
+            raise _conflict(header, "setup", "part origin", _vector(setup.origin), _vector(origin))
+        if rotation_deg is not None and float(rotation_deg) != setup.rotation_deg:
+            raise _conflict(header, "setup", "part rotation", f"{setup.rotation_deg:g} deg", f"{rotation_deg:g} deg")
+    program = load_program(path, chosen_dialect, stage=chosen_machine.stage.present)
+    return ProgramContext(program=program, header=header, machine=chosen_machine, dialect=chosen_dialect,
+                          setup=setup)
+
+
+def _recorded_or_given(header: ProgramHeader, kind: str, load: Callable[[str], _Config],
+                       given: _Config | None) -> _Config:
+    if given is None:
+        return _load_recorded(header, kind, load)
+    try:
+        recorded = _load_recorded(header, kind, load)
+    except InputError:                                 # cannot compare: the given one is all there is
+        return given
+    if not _same(recorded, given):
+        shown = f"{given.name} ({given.source})" if given.name == recorded.name else given.name
+        raise _conflict(header, f"{kind} file" if header.line(f"{kind} file") else kind, kind, recorded.name, shown)
+    return given
+
+
+def _vector(values: tuple[float, ...] | FloatArray) -> str:
+    return "[" + ", ".join(f"{float(v):g}" for v in values) + "]"
+
+
+def check_part(header: ProgramHeader, part: str) -> None:
+    """Refuse a part file that is not the one the program was made from (by SHA-256).
+
+    Raises
+    ------
+    HeaderConflict
+        Naming both files and both hashes.
+    """
+    digest = file_sha256(part)
+    if digest != header.part_sha256:
+        raise HeaderConflict(
+            f"{part} (SHA-256 {digest}) is not the part the program was made from: its header names "
+            f"{header.part_name} (SHA-256 {header.part_sha256})", path=header.path, line=header.line("part"),
+            what="part")
+
+
+def header_job(context: ProgramContext, part: str) -> JobSpec:
+    """The job a program's header records, on ``part`` (checked by SHA-256), with the context's
+    machine and dialect.
+
+    Raises
+    ------
+    InputError
+        No header (the operation must then be given), or not the recorded part.
+    """
+    header = context.header
+    if header is None:
+        raise InputError("the program has no prs3-post header: the operation it was made with must be given",
+                         path=context.program.path)
+    check_part(header, part)
+    return spec_from_header(header, part, context.machine, context.dialect)
+
+
+def intended_from_job(spec: JobSpec) -> Intended:
+    """The path a job makes (machine frame), as what a program should do."""
+    path = run_job(spec).post.path
+    feed = np.where(path.kind == MoveKind.FEED, path.feed, np.nan)
+    return Intended(tip=path.tip, axis=path.axis, feed=feed, kind=path.kind,
+                    label=f"{Path(spec.part).name} ({spec.operation.value})")
+
+
+def intended_from_poses(path: str, program: ProgramFile) -> Intended:
+    """One pose per motion line of ``program`` from a poses CSV (the ``ik --batch`` format).
+
+    Raises
+    ------
+    InputError
+        An unreadable table, a bad axis, or another number of poses than motion lines.
+    """
+    table = read_poses(path)
+    try:
+        unit = unit_axes(table.tip, table.axis, row_name="line", row_numbers=table.line)
+    except PoseError as error:
+        raise InputError(str(error), path=path) from error
+    if len(unit) != len(program.moves):
+        raise InputError(f"{len(unit)} poses for the {len(program.moves)} motion lines of {program.path}: "
+                         "give one pose per G0/G1 line, in order", path=path)
+    return Intended(tip=table.tip, axis=unit, feed=np.full(len(unit), np.nan),
+                    kind=np.full(len(unit), -1, dtype=np.int64), label=Path(path).name)
+
+
+def verify_loaded(program: ProgramFile, machine: Machine, setup: Setup, dialect: Dialect, *,
+                  tolerance: float, axis_tolerance_deg: float = 0.01,
+                  intended: Intended | None = None) -> VerifyReport:
+    """verify_program on a read program, with the dialect's decimals.
+
+    Raises
+    ------
+    InputError
+        A program without moves.
+    """
+    if not len(program.moves):
+        raise InputError("no moves (G0/G1 lines) in the program", path=program.path)
+    return verify_program(
+        machine, program.moves, setup=setup, tolerance=tolerance,
+        axis_tolerance=math.radians(axis_tolerance_deg), intended=intended,
+        length_decimals=dialect.decimals.length, feed_decimals=dialect.decimals.inverse_time,
+        blending_lines=program.blending_lines,
+    )
+
+
+def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str, *,
+                  dialect: Dialect, tolerance: float = 0.002, mesh: FloatArray | None = None,
+                  face: Face | None = None, title: str = "", rapid_rate: float = 5000.0) -> bytes:
+    """Replay a read program and draw it as ``png`` or ``svg`` bytes (matplotlib is imported here)."""
+    from prs3_post.preview import figure_bytes, render_preview
+
+    report = verify_loaded(program, machine, setup, dialect, tolerance=tolerance)
+    label = "face" if face is None else f"face {face.index} ({math.degrees(face.inclination):.2f}°)"
+    heading = f"{title}: " if title else ""
+    fig = render_preview(
+        report, machine, mesh=mesh, face_triangles=None if face is None else face.triangles, face_label=label,
+        title=f"{heading}{Path(program.path).name}, machine {machine.name}, {len(program.moves)} moves "
+              f"({'ok' if report.ok else f'{len(report.problems)} problems'})",
+        rapid_rate=rapid_rate,
+    )
+    return figure_bytes(fig, fmt)
