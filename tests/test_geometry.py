@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import shapely
 import trimesh
-from numpy.testing import assert_allclose, assert_array_equal
+from numpy.testing import assert_allclose
 
 from prs3_post.errors import FeatureError, InputError, Prs3Warning
 from prs3_post.face import frame_from_normal
@@ -315,7 +315,8 @@ def test_bad_fixture_load_errors(name, message):
             "downward.stl",
             "the only inclined planar face, face 6 (45.0° from horizontal, area 707.1 mm²), faces down "
             "(normal z = -0.7071): the tool cannot reach it from above; "
-            "found 7 faces: 1 horizontal up, 1 horizontal down, 4 vertical, 1 inclined 45.0° facing down",
+            "found 7 faces: 1 horizontal up, 1 horizontal down, 4 vertical, 1 inclined 45.0° facing down; "
+            "if the part's -x axis (as read) points up, face 6 (inclination 45.0°, area 707.1 mm²) is a candidate",
         ),
     ],
 )
@@ -412,7 +413,8 @@ def test_inside_out_and_ascii_wedge_load_like_the_binary_one(tmp_path):
 FEATURETYPE_CHAMFER_DOWN = (
     "the only inclined planar face, face 6 (45.0° from horizontal, area 1140.5 mm²), faces down "
     "(normal z = -0.7071): the tool cannot reach it from above; found 844 faces: 17 horizontal up, "
-    "1 horizontal down, 32 vertical, 1 inclined 45.0° facing down, 793 strips of curved surfaces"
+    "1 horizontal down, 32 vertical, 1 inclined 45.0° facing down, 793 strips of curved surfaces; "
+    "if the part's x axis (as read) points up, face 6 (inclination 45.0°, area 1140.5 mm²) is a candidate"
 )
 
 
@@ -437,7 +439,8 @@ def test_angle_block_y_up_inch_15_degree_face():
     assert str(caught.value) == (
         "no upward-facing inclined planar face at least 3 mm wide: found 210 faces: 1 horizontal up, "
         "2 inclined up narrower than 3 mm, 11 vertical, 2 inclined 15.0° facing down, 3 inclined 75.0° facing down "
-        "(cannot be reached from above), 191 strips of curved surfaces"
+        "(cannot be reached from above), 191 strips of curved surfaces; "
+        "if the part's y axis (as read) points up, face 1 (inclination 15.0°, area 750.6 mm²) is a candidate"
     )
     # Turned Y-up (+90° about x), the same face is the 15° face automatic selection takes.
     turned = faces_of(CORPUS / "trimesh_angle_block.STL", units="inch", up="y")
@@ -623,5 +626,6 @@ def test_two_chamfers_facing_down_are_named():
         select_face(faces, None)
     assert str(caught.value) == (
         "all 2 inclined planar faces (faces 4 and 5) face down: the tool cannot reach them from above; "
-        "found 8 faces: 1 horizontal up, 1 horizontal down, 4 vertical, 2 inclined 45.0° facing down"
+        "found 8 faces: 1 horizontal up, 1 horizontal down, 4 vertical, 2 inclined 45.0° facing down; "
+        "if the part's x axis (as read) points up, face 4 (inclination 45.0°, area 1414.2 mm²) is a candidate"
     )

@@ -33,7 +33,8 @@ SQ_IN = 25.4**2
 CHAMFER_FACES_DOWN = (
     "the only inclined planar face, face 6 (45.0° from horizontal, area 1140.5 mm²), faces down "
     "(normal z = -0.7071): the tool cannot reach it from above; found 844 faces: 17 horizontal up, "
-    "1 horizontal down, 32 vertical, 1 inclined 45.0° facing down, 793 strips of curved surfaces"
+    "1 horizontal down, 32 vertical, 1 inclined 45.0° facing down, 793 strips of curved surfaces; "
+    "if the part's x axis (as read) points up, face 6 (inclination 45.0°, area 1140.5 mm²) is a candidate"
 )
 
 

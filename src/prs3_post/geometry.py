@@ -433,7 +433,7 @@ def _no_candidate(faces: tuple[Face, ...], min_width: float) -> str:
                 f"all {len(down)} inclined planar faces (faces {names}) face down: "
                 "the tool cannot reach them from above"
             )
-        return f"{head}; found {_count_faces(faces, min_width=min_width, down_said=True)}"
+        return f"{head}; found {_count_faces(faces, min_width=min_width, down_said=True)}" + _other_up(faces, min_width)
     if up:
         head = f"no upward-facing inclined planar face at least {min_width:g} mm wide"
     else:
@@ -441,7 +441,40 @@ def _no_candidate(faces: tuple[Face, ...], min_width: float) -> str:
             f"no upward-facing inclined face ({INCLINED_MIN_DEG:g}° < inclination < {INCLINED_MAX_DEG:g}°, "
             "normal z > 0)"
         )
-    return f"{head}: found {_count_faces(faces, min_width=min_width)}"
+    return f"{head}: found {_count_faces(faces, min_width=min_width)}" + _other_up(faces, min_width)
+
+
+def _other_up(faces: tuple[Face, ...], min_width: float) -> str:
+    """The largest face that would be a candidate with another of the part's axes up, as a hint (or '').
+
+    Turning the part changes only which way its faces point, not their widths or whether they are
+    curved strips: the candidate test runs on each face's normal component along that axis.
+    """
+    from prs3_post.readers.stl import UP_ROTATION, up_rotation
+
+    usable = [f for f in faces if not f.curved and f.width >= min_width]
+    if not usable:
+        return ""
+    normal = np.array([f.normal for f in usable])  # (K, 3)
+    area = np.array([f.area for f in usable])  # (K,)
+    low, high = (math.cos(math.radians(d)) for d in (INCLINED_MAX_DEG, INCLINED_MIN_DEG))
+    best: tuple[float, str, int, float] | None = None  # area, axis, face, inclination in degrees
+    for axis in UP_ROTATION:
+        if axis == "z":
+            continue
+        up_z = normal @ up_rotation(axis)[2]  # (K,) normal z once `axis` points up (row 2 of the turn)
+        fits = np.flatnonzero((up_z > low) & (up_z < high))
+        if len(fits):
+            k = int(fits[np.argmax(area[fits])])
+            if best is None or area[k] > best[0]:
+                best = (float(area[k]), axis, usable[k].index, math.degrees(math.acos(float(up_z[k]))))
+    if best is None:
+        return ""
+    found_area, axis, index, inclination = best
+    return (
+        f"; if the part's {axis} axis (as read) points up, face {index} (inclination {fixed(inclination, 1)}°, "
+        f"area {fixed(found_area, 1)} mm²) is a candidate"
+    )
 
 
 def _count_faces(faces: tuple[Face, ...], *, min_width: float, down_said: bool = False) -> str:
