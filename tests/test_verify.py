@@ -291,8 +291,16 @@ def test_sampling_rule_refines_curved_moves_and_keeps_straight_ones():
     assert rep.intervals[0] == 1 and rep.intervals[1] > 100
     assert rep.bound[1] <= 0.002 * EPSILON_FRACTION
     square = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc")).moves
+    # the square's moves keep the tool axis (equal stroke changes, up to the rounding): the head
+    # translates, the tip path is straight and the link angles constant: end points only, within ε
     flat = replay(MACHINE, square, tolerance=0.002)
-    assert flat.intervals.tolist() == [1] + [PROBE_INTERVALS] * (len(square) - 1)
+    assert flat.intervals.tolist() == [1] * len(square)
+    assert np.all(flat.bound <= 0.002 * EPSILON_FRACTION) and flat.bound[1:].max() > 0.0
+    probed = replay(MACHINE, square, tolerance=0.002, translations=False)
+    assert probed.intervals.tolist() == [1] + [PROBE_INTERVALS] * (len(square) - 1)
+    assert_allclose(probed.tip[probed.end], flat.tip, atol=1e-9)
+    # the closest approach to every limit is the same (strokes and stage are linear: at the ends)
+    assert_allclose(np.nanmin(probed.limits.margin, axis=0), np.nanmin(flat.limits.margin, axis=0), atol=1e-9)
     # N = 1 works: one sample, no move
     one = replay(MACHINE, type(square)(kind=square.kind[:1], stage=square.stage[:1], strokes=square.strokes[:1],
                                          inverse_time=square.inverse_time[:1], source=square.source[:1]))

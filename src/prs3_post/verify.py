@@ -85,6 +85,9 @@ EPSILON_FRACTION = 0.05
 REFINE_ROUNDS = 4
 #: Factor on the curvature estimated from second differences.
 SAFETY = 2.0
+#: mm: a move whose three stroke changes differ from their mean by at most this is a translation of
+#: the head along z plus a small rest, sampled at its end point only when its bound allows.
+TRANSLATION_SPREAD = 0.01
 #: mm/min: the rapid rate used for program time: the longest joint travel of a G0 at this rate
 #: (a nominal value: the real one depends on the machine's axis settings).
 NOMINAL_RAPID_RATE = 5000.0
@@ -135,6 +138,60 @@ def joints_of(program: JointProgram) -> FloatArray:
     return np.column_stack([program.stage, program.strokes]).reshape(-1, 5)
 
 
+@dataclass(frozen=True, slots=True)
+class _Poses:
+    """FK (and the condition number) of N joint settings; NaN where the head does not assemble."""
+
+    tip: FloatArray            # (N, 3) mm, machine frame, stage included
+    axis: FloatArray           # (N, 3)
+    link_angle: FloatArray     # (N, 3) rad
+    converged: BoolArray       # (N,)
+    condition: FloatArray      # (N,) exact IK of the FK pose
+
+
+def _shift_keys(strokes: FloatArray) -> tuple[FloatArray, IntArray]:
+    """The distinct head poses of ``strokes`` up to a common shift: (U, 3) strokes with T1 = 0 and,
+    for each of the N rows, its index in them.
+
+    The guides are parallel (z_i = −T_i − U sin θ_i, DESIGN.md): adding s to every stroke moves the
+    whole head by −s along z and changes nothing else (link angles, axis, condition number, the FK
+    Jacobian). So FK, the exact IK's condition number and the rounding allowance are computed once
+    per distinct (T2 − T1, T3 − T1): on a constant-axis stretch of a program, a handful of poses.
+    """
+    strokes = np.asarray(strokes, dtype=np.float64).reshape(-1, 3)
+    key = (strokes[:, 1] - strokes[:, 0]) + 1j * (strokes[:, 2] - strokes[:, 0])
+    distinct, inverse_index = np.unique(key, return_inverse=True)
+    canonical = np.column_stack([np.zeros(len(distinct)), distinct.real, distinct.imag])
+    return canonical, inverse_index.reshape(-1)
+
+
+def _poses(machine: Machine, joints: FloatArray) -> _Poses:
+    """FK and condition number of (N, 5) joints (X, Y, T1..T3), once per distinct head pose."""
+    geometry = machine.geometry
+    canonical, index = _shift_keys(joints[:, 2:])
+    fk = forward(geometry, canonical)
+    condition = inverse(geometry, fk.tip, fk.axis, model=IKModel.EXACT).condition
+    tip = fk.tip[index]
+    tip[:, :2] += joints[:, :2]
+    tip[:, 2] -= joints[:, 2]                            # the common shift T1: the head moves by −T1 along z
+    converged = fk.converged[index] & np.isfinite(tip).all(axis=1)
+    tip[~converged] = np.nan
+    return _Poses(tip=tip, axis=fk.axis[index], link_angle=fk.link_angle[index], converged=converged,
+                  condition=condition[index])
+
+
+def _interleave(at_end: BoolArray, ends: _Poses, inner: _Poses) -> _Poses:
+    """The poses of all samples: the end points' where ``at_end`` (in order), the others' elsewhere."""
+    def merged(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        out = np.zeros((len(at_end),) + a.shape[1:], dtype=a.dtype)
+        out[at_end], out[~at_end] = a, b
+        return out
+
+    return _Poses(tip=merged(ends.tip, inner.tip), axis=merged(ends.axis, inner.axis),
+                  link_angle=merged(ends.link_angle, inner.link_angle),
+                  converged=merged(ends.converged, inner.converged), condition=merged(ends.condition, inner.condition))
+
+
 def _sample_moves(joints: FloatArray, intervals: IntArray) -> tuple[IntArray, FloatArray, FloatArray, IntArray]:
     """Samples of every move: row (S,), fraction (S,), joints (S, 5), first sample of each row (N,)."""
     n = len(joints)
@@ -161,7 +218,45 @@ def _curvature(row: IntArray, intervals: IntArray, tip: FloatArray, link_angle: 
     return SAFETY * out
 
 
-def replay(machine: Machine, program: JointProgram, *, tolerance: float = 0.002) -> Replay:
+def _translation_bound(machine: Machine, joints: FloatArray, ends: _Poses) -> FloatArray:
+    """(N,) mm — the sampling bound of each move whose strokes change alike (within TRANSLATION_SPREAD)
+    when it is sampled at its end point only; NaN for the other moves, row 0, and where the head
+    does not assemble.
+
+    Move k: q(t) = q_{k-1} + t (c·(1, 1, 1) + d), c the mean stroke change, |d_i| ≤ TRANSLATION_SPREAD.
+    The common part only shifts the head along z (linear in t), so the tip's deviation from its
+    chord and the link angles' from theirs are those of g(t) = FK(q_{k-1} + t d), whose curvature
+    is estimated from the second difference g(1) − 2 g(0) + g(−1) (h = 1; g(1) is the end pose
+    shifted back by c, g(−1) one more FK) and taken ×SAFETY as for sampled moves: bound M/8.
+    """
+    n = len(joints)
+    bound = np.full(n, np.nan)
+    if n < 2:
+        return bound
+    delta = np.diff(joints[:, 2:], axis=0)
+    common = delta.mean(axis=1)
+    spread = delta - common[:, None]
+    rows = np.flatnonzero(np.abs(spread).max(axis=1) <= TRANSLATION_SPREAD) + 1
+    if not len(rows):
+        return bound
+    back = joints[rows - 1].copy()
+    back[:, 2:] -= spread[rows - 1]
+    mirror = _poses(machine, back)
+    head_end = ends.tip[rows].copy()
+    head_end[:, :2] -= joints[rows, :2]
+    head_end[:, 2] += common[rows - 1]                   # g(1) = FK(q_{k-1} + d) = FK(q_k) + c e_z
+    head_start = ends.tip[rows - 1].copy()
+    head_start[:, :2] -= joints[rows - 1, :2]
+    head_back = mirror.tip.copy()
+    head_back[:, :2] -= back[:, :2]
+    tip2 = np.linalg.norm(head_end - 2.0 * head_start + head_back, axis=1)
+    angle2 = machine.geometry.link_length * np.max(np.abs(ends.link_angle[rows] - 2.0 * ends.link_angle[rows - 1]
+                                                          + mirror.link_angle), axis=1)
+    bound[rows] = SAFETY * np.maximum(tip2, angle2) / 8.0     # NaN stays NaN: no assembly, sample it
+    return bound
+
+
+def replay(machine: Machine, program: JointProgram, *, tolerance: float = 0.002, translations: bool = True) -> Replay:
     """Sample every move of ``program`` in joint space and run FK (and exact IK) on the samples.
 
     Parameters
@@ -169,60 +264,74 @@ def replay(machine: Machine, program: JointProgram, *, tolerance: float = 0.002)
     machine : Machine
     program : JointProgram — N ≥ 1 rows; ``stage`` zeros on a machine without a stage
     tolerance : float — mm; the sampling aims at a bound of ε = tolerance × EPSILON_FRACTION (1/20)
+    translations : bool — sample the moves that translate the head (module docstring) at their end
+        points only; False: probe every move (to compare it along its length with an intended path)
 
     Returns
     -------
     Replay
     """
+    return _replay_joints(machine, joints_of(program), tolerance=tolerance, translations=translations)
+
+
+def _replay_joints(machine: Machine, joints: FloatArray, *, tolerance: float, translations: bool) -> Replay:
+    """:func:`replay` of (N, 5) joints; row 0 is sampled at its end only (its start is unknown, or it is
+    the previous chunk's last row, replayed again to start the next move from)."""
     geometry = machine.geometry
-    joints = joints_of(program)
     n = len(joints)
     epsilon = tolerance * EPSILON_FRACTION
-    intervals = np.full(n, PROBE_INTERVALS, dtype=np.int64)
+    ends = _poses(machine, joints)
+    flat_bound = _translation_bound(machine, joints, ends) if translations else np.full(n, np.nan)
+    flat = flat_bound <= epsilon                        # NaN: False
+    intervals = np.where(flat, 1, PROBE_INTERVALS).astype(np.int64)
     if n:
         intervals[0] = 1
-    def run() -> tuple[IntArray, FloatArray, FloatArray, IntArray, Any, FloatArray]:
-        row, fraction, sampled, first = _sample_moves(joints, intervals)
-        fk = forward(geometry, sampled[:, 2:], sampled[:, :2])
-        return row, fraction, sampled, first, fk, _curvature(row, intervals, fk.tip, fk.link_angle,
-                                                             geometry.link_length, n)
 
-    row, fraction, sampled, first, fk, curvature = run()
+    def run() -> tuple[IntArray, FloatArray, FloatArray, IntArray, _Poses, FloatArray]:
+        row, fraction, sampled, first = _sample_moves(joints, intervals)
+        at_end = np.zeros(len(row), dtype=bool)
+        at_end[first + intervals - 1] = True
+        poses = _interleave(at_end, ends, _poses(machine, sampled[~at_end]))
+        return row, fraction, sampled, first, poses, _curvature(row, intervals, poses.tip, poses.link_angle,
+                                                               geometry.link_length, n)
+
+    row, fraction, sampled, first, poses, curvature = run()
     for _ in range(REFINE_ROUNDS):                     # refine until the bound holds (never coarsen)
         needed = np.ceil(np.sqrt(curvature / (8.0 * epsilon)))
         wanted = np.maximum(np.clip(needed, PROBE_INTERVALS, MAX_INTERVALS).astype(np.int64), intervals)
+        wanted[flat] = 1
         wanted[:1] = 1
         if np.array_equal(wanted, intervals):
             break
         intervals = wanted
-        row, fraction, sampled, first, fk, curvature = run()
-    bound = curvature / (8.0 * intervals.astype(np.float64) ** 2)
+        row, fraction, sampled, first, poses, curvature = run()
+    bound = np.where(flat, flat_bound, curvature / (8.0 * intervals.astype(np.float64) ** 2))
     if n:
         bound[0] = 0.0
-    ik = inverse(geometry, fk.tip, fk.axis, model=IKModel.EXACT)
-    like = IKResult(stage=sampled[:, :2], strokes=sampled[:, 2:], link_angle=fk.link_angle,
-                    condition=ik.condition, reachable=fk.converged)
-    limits = check_limits(machine, like, fk.axis)
+    like = IKResult(stage=sampled[:, :2], strokes=sampled[:, 2:], link_angle=poses.link_angle,
+                    condition=poses.condition, reachable=poses.converged)
+    limits = check_limits(machine, like, poses.axis)
     return Replay(
-        row=row, fraction=fraction, joints=sampled, tip=fk.tip, axis=fk.axis, converged=fk.converged,
-        link_angle=fk.link_angle, condition=ik.condition, limits=limits, first=first,
+        row=row, fraction=fraction, joints=sampled, tip=poses.tip, axis=poses.axis, converged=poses.converged,
+        link_angle=poses.link_angle, condition=poses.condition, limits=limits, first=first,
         end=first + intervals - 1, intervals=intervals, bound=bound, epsilon=epsilon,
     )
 
 
 def rounding_allowance(machine: Machine, program: JointProgram, decimals: int, *, step: float = 1e-3) -> FloatArray:
     """(N,) float — mm, the most the tip of each row can move when every axis word is off by half a
-    unit of its last decimal: ½·10^-decimals · Σ_j |∂tip/∂q_j| (FK Jacobian by central differences)."""
+    unit of its last decimal: ½·10^-decimals · Σ_j |∂tip/∂q_j| (FK Jacobian by central differences,
+    once per distinct head pose: it does not change with a common stroke shift)."""
     half = 0.5 * 10.0 ** (-decimals)
-    strokes = np.asarray(program.strokes)
-    total = np.full(len(strokes), 2.0 if machine.stage.present else 0.0)   # ∂tip/∂X, ∂tip/∂Y: unit vectors
+    canonical, index = _shift_keys(np.asarray(program.strokes))
+    total = np.full(len(canonical), 2.0 if machine.stage.present else 0.0)   # ∂tip/∂X, ∂tip/∂Y: unit vectors
     for leg in range(3):
         delta = np.zeros(3)
         delta[leg] = step
-        plus = forward(machine.geometry, strokes + delta).tip
-        minus = forward(machine.geometry, strokes - delta).tip
+        plus = forward(machine.geometry, canonical + delta).tip
+        minus = forward(machine.geometry, canonical - delta).tip
         total += np.linalg.norm(plus - minus, axis=1) / (2.0 * step)
-    return half * total
+    return half * total[index]
 
 
 def row_times(program: JointProgram, *, rapid_rate: float = NOMINAL_RAPID_RATE) -> tuple[FloatArray, FloatArray]:
@@ -440,7 +549,7 @@ def verify_program(
     if intended is not None and len(intended.tip) != n:
         raise Prs3Error(f"the program has {n} moves, {intended.label} has {len(intended.tip)}: they do not "
                         "describe the same path (check the options it was made with)")
-    rep = replay(machine, program, tolerance=tolerance)
+    rep = replay(machine, program, tolerance=tolerance, translations=intended is None)
     lines = program.source
     problems: list[Problem] = []
     warnings: list[Problem] = []

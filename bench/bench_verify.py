@@ -1,0 +1,150 @@
+"""Throughput and peak memory of `prs3-post verify` on a long program (a script, not a test).
+
+    python bench/bench_verify.py [--lines 1000000] [--repeat 3] [--pygcode-lines 50000] [--keep DIR]
+
+Generates a program of the emitter's shape in a temporary directory (the header and footer of the
+golden wedge-round.ngc around ``--lines`` G1 lines: laps of a circle on the stage at the golden's
+tool axis, stepping down by equal strokes, and every tenth lap a slow sweep of the tool axis), then
+runs ``prs3-post verify`` on it in a fresh process ``--repeat`` times, measuring wall time (lines/s)
+and the peak resident memory of that process (``wait4`` rusage). In the same run, the reference:
+a loop that only parses the same file's first ``--pygcode-lines`` lines with ``pygcode.Line``
+(lines/s; it is far too slow for the whole file). Prints the median and the range over the
+repeats, with the machine's load average.
+
+Targets (issue 7): ≥ 200,000 lines/s on a 1,000,000-line program, peak memory < 300 MB, and
+≥ 10× (aim 20×) the pygcode loop.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from prs3_post.config import load_machine
+from prs3_post.kinematics import forward
+
+REPO = Path(__file__).resolve().parents[1]
+GOLDEN = REPO / "fixtures" / "golden" / "wedge-round.ngc"
+
+
+def _words(letter: str, values: np.ndarray) -> list[str]:
+    """Fixed 4-decimal words of a column, no ``-0.0000``."""
+    text = [f"{v:.4f}" for v in values.tolist()]
+    return [f"{letter}{t[1:] if t == '-0.0000' else t}" for t in text]
+
+
+def make_program(path: Path, lines: int) -> int:
+    """Write a program with about ``lines`` lines; returns its line count."""
+    golden = GOLDEN.read_text().split("\n")
+    first_g1 = next(i for i, ln in enumerate(golden) if ln.startswith("G1 "))
+    head = golden[:first_g1]
+    tail = golden[next(i for i, ln in enumerate(golden) if ln == "M9") - 2:]
+    start = np.array([float(w[1:]) for w in golden[first_g1 - 3].split()[1:]])      # the G0 before G93
+    n = max(lines - len(head) - len(tail), 10)
+    per_lap = 200
+    t = np.arange(1, n + 1)
+    angle = 2 * np.pi * t / per_lap
+    lap = t // per_lap
+    joints = np.zeros((n, 5))
+    joints[:, 0] = start[0] + 10.0 * (np.cos(angle) - 1.0)
+    joints[:, 1] = start[1] + 10.0 * np.sin(angle)
+    joints[:, 2:] = start[2:] + (0.002 * t / per_lap)[:, None]                         # step down: equal strokes
+    sweep = (lap % 10) == 9                                                           # every tenth lap: tilt sweep
+    joints[sweep, 2] += 0.5 * np.sin(angle[sweep] / 2) ** 2
+    joints = np.round(joints, 4)
+    machine = load_machine("patel2020")
+    fk = forward(machine.geometry, joints[:, 2:], joints[:, :2])
+    previous = np.vstack([start, joints[:-1]])
+    fk_prev = forward(machine.geometry, previous[:, 2:], previous[:, :2])
+    chord = np.linalg.norm(fk.tip - fk_prev.tip, axis=1)
+    feed = np.round(300.0 / np.maximum(chord, 1e-6), 4)
+    columns = [_words(letter, joints[:, i]) for i, letter in enumerate("XYUVW")] + [_words("F", feed)]
+    body = []
+    last = [""] * 5
+    for row in zip(*columns, strict=True):
+        words = ["G1"] + [w for i, w in enumerate(row[:5]) if w != last[i]] + [row[5]]
+        last = list(row[:5])
+        body.append(" ".join(words))
+    text = "\n".join(head + body + tail)
+    path.write_text(text if text.endswith("\n") else text + "\n")
+    return len(head) + len(body) + len(tail) - (1 if text.endswith("\n") else 0)
+
+
+#: Runs the CLI in a child process and reports its own peak resident memory on standard error.
+_CHILD = """import resource, sys
+from prs3_post.cli import main
+try:
+    main(sys.argv[1:])
+finally:
+    sys.stderr.write(f"\\nMAXRSS_KB {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}\\n")
+"""
+
+
+def run_verify(path: Path) -> tuple[float, float, int, str]:
+    """Wall time (s), peak RSS (MB), exit status and the last output line of one `verify` process."""
+    env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, "-c", _CHILD, "verify", str(path)], capture_output=True, env=env,
+                          text=True, check=False)
+    wall = time.perf_counter() - start
+    rss = next(float(ln.split()[1]) / 1024 for ln in done.stderr.splitlines() if ln.startswith("MAXRSS_KB "))
+    last = (done.stdout.strip().splitlines() or [ln for ln in done.stderr.splitlines() if ln.strip()] or [""])[-1]
+    return wall, rss, done.returncode, last
+
+
+def pygcode_rate(path: Path, lines: int) -> float:
+    """Lines/s of a loop that only parses the file's first ``lines`` lines with pygcode.Line."""
+    import pygcode
+
+    with open(path, encoding="utf-8") as stream:
+        text = [next(stream) for _ in range(lines)]
+    start = time.perf_counter()
+    for line in text:
+        pygcode.Line(line)
+    return len(text) / (time.perf_counter() - start)
+
+
+def _spread(values: list[float], fmt: str) -> str:
+    return f"{format(statistics.median(values), fmt)} (range {format(min(values), fmt)}..{format(max(values), fmt)})"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--lines", type=int, default=1_000_000)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--pygcode-lines", type=int, default=50_000)
+    parser.add_argument("--keep", type=Path, help="write the program here and keep it")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = args.keep or Path(tmp)
+        folder.mkdir(parents=True, exist_ok=True)
+        program = folder / "bench.ngc"
+        count = make_program(program, args.lines)
+        size = program.stat().st_size / 1e6
+        print(f"program: {count} lines, {size:.1f} MB; load average {os.getloadavg()[0]:.2f}; "
+              f"{os.cpu_count()} cores")
+        walls, peaks, refs = [], [], []
+        for _ in range(args.repeat):
+            wall, rss, code, last = run_verify(program)
+            walls.append(wall)
+            peaks.append(rss)
+            refs.append(pygcode_rate(program, min(args.pygcode_lines, count)))
+            print(f"  verify: {wall:.2f} s, {count / wall:,.0f} lines/s, peak RSS {rss:.0f} MB, exit {code}: {last}")
+        rates = [count / w for w in walls]
+        ratios = [r / p for r, p in zip(rates, refs, strict=True)]
+        print(f"verify lines/s: {_spread(rates, ',.0f')}  (target ≥ 200,000)")
+        print(f"verify peak RSS MB: {_spread(peaks, '.0f')}  (target < 300)")
+        print(f"pygcode.Line loop lines/s: {_spread(refs, ',.0f')}")
+        print(f"verify / pygcode: {_spread(ratios, '.1f')}×  (target ≥ 10×, aim 20×)")
+
+
+if __name__ == "__main__":
+    main()
