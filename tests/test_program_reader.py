@@ -12,11 +12,11 @@ from prs3_post.errors import InputError
 from prs3_post.readers import program as reader_module
 from prs3_post.readers.program import (
     ProgramStream,
-    join_chunks,
+    join_programs,
     load_program,
     read_program,
 )
-from prs3_post.toolpath import JointProgram, MoveKind
+from prs3_post.toolpath import JointProgram, MoveKind, join_programs
 
 REPO = Path(__file__).resolve().parents[1]
 VERIFY = REPO / "fixtures" / "verify"
@@ -72,7 +72,7 @@ def test_stream_chunks_join_to_the_whole_program(path, chunk_lines, piece_bytes)
     stream = ProgramStream(str(path), dialect, chunk_lines=chunk_lines, piece_bytes=piece_bytes)
     chunks = list(stream)
     assert all(len(c) <= chunk_lines for c in chunks)
-    assert _rows(join_chunks(chunks)) == _rows(whole.moves)
+    assert _rows(join_programs(chunks)) == _rows(whole.moves)
     assert (stream.end_line, stream.blending_lines, stream.line_count) == (whole.end_line, whole.blending_lines,
                                                                            len(whole.lines))
 

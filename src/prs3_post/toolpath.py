@@ -170,3 +170,20 @@ class JointProgram:
     def describe(self, row: int) -> str:
         """Human name of the line/step row ``row`` came from (``line 12`` or the step label)."""
         return describe_source(self.source, self.source_labels, row)
+
+
+def join_programs(parts: list[JointProgram]) -> JointProgram:
+    """One program of consecutive pieces, each piece's events counting rows from its own start."""
+    events: list[Event] = []
+    offset = 0
+    for part in parts:
+        events += [Event(before=e.before + offset, kind=e.kind, value=e.value, text=e.text) for e in part.events]
+        offset += len(part)
+    if not parts:
+        return JointProgram(kind=np.zeros(0, dtype=np.int64), stage=np.zeros((0, 2)), strokes=np.zeros((0, 3)),
+                            inverse_time=np.zeros(0), source=np.zeros(0, dtype=np.int64))
+    return JointProgram(
+        kind=np.concatenate([p.kind for p in parts]), stage=np.concatenate([p.stage for p in parts]),
+        strokes=np.concatenate([p.strokes for p in parts]),
+        inverse_time=np.concatenate([p.inverse_time for p in parts]),
+        source=np.concatenate([p.source for p in parts]), events=tuple(events))

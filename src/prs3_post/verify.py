@@ -72,7 +72,7 @@ from prs3_post.kinematics import IKModel, IKResult, forward, inverse
 from prs3_post.limits import LimitReport, check_limits
 from prs3_post.linearize import slerp
 from prs3_post.setup import Setup
-from prs3_post.toolpath import EventKind, JointProgram, MoveKind
+from prs3_post.toolpath import EventKind, JointProgram, MoveKind, join_programs
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
 #: Intervals every move is probed with (and its minimum).
@@ -88,6 +88,8 @@ SAFETY = 2.0
 #: mm: a move whose three stroke changes differ from their mean by at most this is a translation of
 #: the head along z plus a small rest, sampled at its end point only when its bound allows.
 TRANSLATION_SPREAD = 0.01
+#: Rows replayed at a time (memory: a few kB per row at most; the report does not depend on it).
+CHUNK_ROWS = 16384
 #: mm/min: the rapid rate used for program time: the longest joint travel of a G0 at this rate
 #: (a nominal value: the real one depends on the machine's axis settings).
 NOMINAL_RAPID_RATE = 5000.0
@@ -456,16 +458,21 @@ class VerifyReport:
     Attributes
     ----------
     program : JointProgram — the rows as read (``source`` = line numbers)
-    replay : Replay
+    replay : Replay | None — every sample (None when verified without keeping them: the text report
+        needs only the per-move values below)
     machine : str
     setup : Setup — the part → machine transform the program was made for
     tolerance : float — mm
     axis_tolerance : float — rad
     rounding : (N,) float — mm, tip allowance for the output rounding of each row
-    straightness : (S,) float — mm, |tip − straight chord| on G1 samples, NaN elsewhere
+    straightness : (N,) float — mm, the largest |tip − straight chord| over each G1's samples, NaN elsewhere
     chord : (N,) float — mm, tip chord length of each move (NaN for row 0)
     implied_feed : (N,) float — mm/min, chord × F of G1 rows, NaN elsewhere
     feed_slack : (N,) float — mm/min, what the rounding of F and of the end points allows
+    intervals : (N,) int — n_k, the intervals each move was sampled with (row 0: 1)
+    bound : (N,) float — mm, the sampling error bound of each move
+    samples : int — FK samples in all
+    epsilon : float — mm, the bound the sampling aims for
     feed_groups : tuple of FeedGroup
     closest : tuple of Closest — one per limit
     against : Against | None
@@ -473,7 +480,7 @@ class VerifyReport:
     """
 
     program: JointProgram
-    replay: Replay
+    replay: Replay | None
     machine: str
     setup: Setup
     tolerance: float
@@ -483,6 +490,10 @@ class VerifyReport:
     chord: FloatArray
     implied_feed: FloatArray
     feed_slack: FloatArray
+    intervals: IntArray
+    bound: FloatArray
+    samples: int
+    epsilon: float
     feed_groups: tuple[FeedGroup, ...]
     closest: tuple[Closest, ...]
     against: Against | None
@@ -495,19 +506,26 @@ class VerifyReport:
         return not self.problems
 
     @property
+    def samples_kept(self) -> Replay:
+        """The replay's samples; raises ValueError where they were not kept."""
+        if self.replay is None:
+            raise ValueError("the samples were not kept (verify with keep_samples=True)")
+        return self.replay
+
+    @property
     def line(self) -> IntArray:
         """(S,) int — the program line of every sample."""
-        return self.program.source[self.replay.row]
+        return self.program.source[self.samples_kept.row]
 
     @property
     def tip_part(self) -> FloatArray:
         """(S, 3) float — mm, FK tool tip in part coordinates."""
-        return self.setup.points_to_part(self.replay.tip)
+        return self.setup.points_to_part(self.samples_kept.tip)
 
     @property
     def axis_part(self) -> FloatArray:
         """(S, 3) float — unit, FK tool axis in part coordinates."""
-        return self.setup.axes_to_part(self.replay.axis)
+        return self.setup.axes_to_part(self.samples_kept.axis)
 
 
 def verify_program(
@@ -521,8 +539,10 @@ def verify_program(
     feed_decimals: int = 4,
     intended: Intended | None = None,
     blending_lines: tuple[int, ...] = (),
+    keep_samples: bool = True,
+    chunk_rows: int = CHUNK_ROWS,
 ) -> VerifyReport:
-    """Replay and check a program (module docstring).
+    """Replay and check a program (module docstring), ``chunk_rows`` rows at a time (:class:`Verifier`).
 
     Parameters
     ----------
@@ -535,6 +555,9 @@ def verify_program(
     intended : Intended, optional — one pose per row
     blending_lines : tuple of int — lines that switch on G64 path blending (each gets a warning: the
         replay assumes exact stops at every row, as G61 asks)
+    keep_samples : bool — keep every sample in ``report.replay`` (the JSON report and the preview
+        need them; the text report does not)
+    chunk_rows : int — rows replayed at a time (the report does not depend on it)
 
     Returns
     -------
@@ -549,125 +572,318 @@ def verify_program(
     if intended is not None and len(intended.tip) != n:
         raise Prs3Error(f"the program has {n} moves, {intended.label} has {len(intended.tip)}: they do not "
                         "describe the same path (check the options it was made with)")
-    rep = replay(machine, program, tolerance=tolerance, translations=intended is None)
-    lines = program.source
-    problems: list[Problem] = []
-    warnings: list[Problem] = []
-    feed_row = program.kind == MoveKind.FEED
-    rounding = rounding_allowance(machine, program, length_decimals)
+    verifier = Verifier(machine, setup=setup, tolerance=tolerance, axis_tolerance=axis_tolerance,
+                        length_decimals=length_decimals, feed_decimals=feed_decimals, intended=intended,
+                        keep_samples=keep_samples)
+    step = max(1, int(chunk_rows))
+    for first in range(0, n, step):
+        verifier.add(_rows_of(program, first, min(first + step, n)))
+    return verifier.report(blending_lines=blending_lines, program=program)
 
-    # ---- assembly and limits
-    bad_rows = np.unique(rep.row[~rep.converged])
-    for r in bad_rows.tolist():
-        i = int(rep.first[r] + np.flatnonzero(~rep.converged[rep.first[r]:rep.end[r] + 1])[0])
-        strokes = ", ".join(f"{v:.4f}" for v in rep.joints[i, 2:])
-        problems.append(Problem(int(lines[r]), "reach", f"line {lines[r]}: the head does not assemble at "
-                                f"{_at(rep.fraction[i])} (strokes {strokes} mm)"))
-    limits = rep.limits
-    with np.errstate(invalid="ignore"):
-        outside = limits.margin < 0.0
-    for col in range(len(limits.names)):
-        rows = np.unique(rep.row[outside[:, col]])
-        for r in rows.tolist():
-            i = int(rep.first[r] + np.nanargmin(limits.margin[rep.first[r]:rep.end[r] + 1, col]))
-            problems.append(Problem(int(lines[r]), "limit",
-                                    f"line {lines[r]}: {limits.describe(i, col)} at {_at(rep.fraction[i])}"))
-    closest = tuple(_closest(rep, lines, col) for col in range(len(limits.names)))
 
-    # ---- straightness of G1 moves
-    end = rep.end
-    start_tip = rep.tip[end[np.maximum(rep.row - 1, 0)]]
-    chord_point = start_tip + rep.fraction[:, None] * (rep.tip[end[rep.row]] - start_tip)
-    on_feed = feed_row[rep.row] & (rep.row > 0)
-    straightness = np.where(on_feed, np.linalg.norm(rep.tip - chord_point, axis=1), np.nan)
-    unassembled = set(bad_rows.tolist())
-    for r in np.flatnonzero(feed_row).tolist():
+def _rows_of(program: JointProgram, start: int, stop: int) -> JointProgram:
+    """Rows ``start:stop`` of a program (without its events: the report takes them from the whole)."""
+    return JointProgram(kind=program.kind[start:stop], stage=program.stage[start:stop],
+                        strokes=program.strokes[start:stop], inverse_time=program.inverse_time[start:stop],
+                        source=program.source[start:stop])
+
+
+class Verifier:
+    """Verify a program chunk by chunk (consecutive rows, in order), in memory that does not grow with
+    the samples: each chunk is replayed from the previous chunk's last row (replayed again as the
+    start of the next move), checked, and reduced to a few numbers per move and the running closest
+    approach to each limit. The report is the same for any chunking (tests/test_verify.py).
+
+    Use: ``v = Verifier(machine, setup=...); for chunk in chunks: v.add(chunk); v.report()``.
+    Parameters as :func:`verify_program`.
+    """
+
+    def __init__(self, machine: Machine, *, setup: Setup, tolerance: float = 0.002,
+                 axis_tolerance: float = math.radians(0.01), length_decimals: int = 4, feed_decimals: int = 4,
+                 intended: Intended | None = None, keep_samples: bool = False):
+        self.machine, self.setup, self.tolerance, self.axis_tolerance = machine, setup, tolerance, axis_tolerance
+        self.length_decimals, self.feed_decimals, self.intended = length_decimals, feed_decimals, intended
+        self.keep_samples = keep_samples or intended is not None
+        self.rows = 0                                        # rows added so far
+        self.chunks: list[JointProgram] = []
+        self.per_move: dict[str, list[np.ndarray]] = {name: [] for name in _PER_MOVE}
+        self.samples = 0
+        self.kept: list[tuple[Replay, FloatArray, Against | None]] = []
+        self.best: list[tuple[float, float, int, float] | None] = []       # per limit: margin, value, line, at
+        self.limit_table: LimitReport | None = None
+        self.problems: list[Problem] = []
+        self.warnings: list[Problem] = []
+        self.last: JointProgram | None = None                # the previous chunk's last row
+
+    def add(self, chunk: JointProgram) -> None:
+        """Replay and check the next rows (events are ignored here: :meth:`report` takes the program's)."""
+        self.chunks.append(chunk)
+        if not len(chunk):
+            return
+        carried = self.last is not None
+        rows = _rows_of(chunk, 0, len(chunk)) if self.last is None else _join_rows(self.last, chunk)
+        skip = 1 if carried else 0
+        offset = self.rows - skip                              # global row of local row 0
+        rep = _replay_joints(self.machine, joints_of(rows), tolerance=self.tolerance,
+                             translations=self.intended is None)
+        self.last = _rows_of(chunk, len(chunk) - 1, len(chunk))
+        self.rows += len(chunk)
+        self._check(rows, rep, skip, offset)
+
+    def _check(self, rows: JointProgram, rep: Replay, skip: int, offset: int) -> None:
+        """The checks of the module docstring on one replayed chunk; local rows ≥ ``skip`` are its own."""
+        tolerance, problems, warnings = self.tolerance, self.problems, self.warnings
+        n = len(rows)
+        lines = rows.source
+        feed_row = rows.kind == MoveKind.FEED
+        own = slice(int(rep.first[skip]), len(rep.row))       # the chunk's own samples
+        rounding = rounding_allowance(self.machine, rows, self.length_decimals)
+
+        # ---- assembly and limits
+        bad_rows = np.unique(rep.row[~rep.converged])
+        for r in bad_rows[bad_rows >= skip].tolist():
+            i = int(rep.first[r] + np.flatnonzero(~rep.converged[rep.first[r]:rep.end[r] + 1])[0])
+            strokes = ", ".join(f"{v:.4f}" for v in rep.joints[i, 2:])
+            problems.append(Problem(int(lines[r]), "reach", f"line {lines[r]}: the head does not assemble at "
+                                    f"{_at(rep.fraction[i])} (strokes {strokes} mm)"))
+        limits = rep.limits
+        with np.errstate(invalid="ignore"):
+            outside = limits.margin < 0.0
+        for col in range(len(limits.names)):
+            bad = np.unique(rep.row[outside[:, col]])
+            for r in bad[bad >= skip].tolist():
+                i = int(rep.first[r] + np.nanargmin(limits.margin[rep.first[r]:rep.end[r] + 1, col]))
+                problems.append(Problem(int(lines[r]), "limit",
+                                        f"line {lines[r]}: {limits.describe(i, col)} at {_at(rep.fraction[i])}"))
+        self._closest_in(rep, lines, own)
+
+        # ---- straightness of G1 moves
+        end = rep.end
+        start_tip = rep.tip[end[np.maximum(rep.row - 1, 0)]]
+        chord_point = start_tip + rep.fraction[:, None] * (rep.tip[end[rep.row]] - start_tip)
+        on_feed = feed_row[rep.row] & (rep.row > 0)
+        straightness = np.where(on_feed, np.linalg.norm(rep.tip - chord_point, axis=1), np.nan)
+        worst, worst_at = _row_max(straightness, rep.first)
         # No tip where the head does not assemble, so no chord to measure from (NaN): the reach
         # problem of this line, or of the previous one (the move's start point), already says so.
-        if r == 0 or r in unassembled or not rep.converged[end[r - 1]]:
-            continue
-        span = slice(rep.first[r], end[r] + 1)
-        worst = int(np.argmax(np.nan_to_num(straightness[span], nan=np.inf))) + rep.first[r]
-        if not straightness[worst] <= tolerance:
+        checked = feed_row.copy()
+        checked[:max(skip, 1)] = False
+        checked[bad_rows] = False
+        checked[1:] &= rep.converged[end[:-1]]
+        for r in np.flatnonzero(checked & ~(worst <= tolerance)).tolist():
+            i = int(worst_at[r])
             problems.append(Problem(int(lines[r]), "straightness",
                                     f"line {lines[r]}: the tip leaves the straight line between the move's end "
-                                    f"points by {straightness[worst]:.6f} mm at {_at(rep.fraction[worst])} "
+                                    f"points by {straightness[i]:.6f} mm at {_at(rep.fraction[i])} "
                                     f"(tolerance {tolerance:g} mm)"))
 
-    # ---- feeds
-    chord = np.full(n, np.nan)
-    if n > 1:
-        chord[1:] = np.linalg.norm(rep.tip[end[1:]] - rep.tip[end[:-1]], axis=1)
-    inverse_time = np.asarray(program.inverse_time)
-    implied = np.where(feed_row, chord * inverse_time, np.nan)
-    half_f = 0.5 * 10.0 ** (-feed_decimals)
-    ends_rounding = np.full(n, np.nan)
-    if n > 1:
-        ends_rounding[1:] = rounding[1:] + rounding[:-1]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        slack = np.where(feed_row, implied * half_f / inverse_time + inverse_time * ends_rounding, np.nan) + 1e-9
-    if n and feed_row[0]:
-        warnings.append(Problem(int(lines[0]), "feed", f"line {lines[0]}: the program starts with a G1: its start "
-                                "point, and so its tip feed, is unknown"))
-    for r in np.flatnonzero(feed_row[1:] & (chord[1:] < 1e-9)).tolist():
-        warnings.append(Problem(int(lines[r + 1]), "feed", f"line {lines[r + 1]}: G1 of zero length (it only "
-                                "waits 1/F min)"))
-    if intended is not None:
-        want = np.asarray(intended.feed)
-        check = feed_row & np.isfinite(want) & np.isfinite(implied)
-        for r in np.flatnonzero(check & ~(np.abs(implied - want) <= slack)).tolist():
-            problems.append(Problem(int(lines[r]), "feed",
-                                    f"line {lines[r]}: implied tip feed {implied[r]:.3f} mm/min (chord "
-                                    f"{chord[r]:.4f} mm × F {inverse_time[r]:g}) is not the intended "
-                                    f"{want[r]:.3f} mm/min (allowed ± {slack[r]:.3f} for the rounding)"))
-    groups = _feed_groups(implied, slack, lines)
-    known = intended is not None and bool(np.isfinite(intended.feed[feed_row]).any())
-    if not known and int(feed_row[1:].sum()) >= 3 and len(groups) > 1:
-        shown = ", ".join(f"{g.feed:.1f} ×{len(g.lines)}" for g in groups if len(g.lines) > 1) or "none repeat"
-        for g in groups:
-            if len(g.lines) == 1:
-                warnings.append(Problem(g.lines[0], "feed", f"line {g.lines[0]}: implied tip feed {g.feed:.3f} "
-                                        f"mm/min matches no other G1 (feeds: {shown}): a hand-edited F or point?"))
+        # ---- feeds
+        chord = np.full(n, np.nan)
+        if n > 1:
+            chord[1:] = np.linalg.norm(rep.tip[end[1:]] - rep.tip[end[:-1]], axis=1)
+        inverse_time = np.asarray(rows.inverse_time)
+        implied = np.where(feed_row, chord * inverse_time, np.nan)
+        half_f = 0.5 * 10.0 ** (-self.feed_decimals)
+        ends_rounding = np.full(n, np.nan)
+        if n > 1:
+            ends_rounding[1:] = rounding[1:] + rounding[:-1]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            slack = np.where(feed_row, implied * half_f / inverse_time + inverse_time * ends_rounding, np.nan) + 1e-9
+        if offset == 0 and n and feed_row[0]:
+            warnings.append(Problem(int(lines[0]), "feed", f"line {lines[0]}: the program starts with a G1: its "
+                                    "start point, and so its tip feed, is unknown"))
+        for r in np.flatnonzero(feed_row[1:] & (chord[1:] < 1e-9)).tolist():   # local row 0: not a move here
+            warnings.append(Problem(int(lines[r + 1]), "feed", f"line {lines[r + 1]}: G1 of zero length (it only "
+                                    "waits 1/F min)"))
+        intended = self.intended
+        local_intended = None
+        if intended is not None:
+            local_intended = _intended_rows(intended, offset, offset + n)
+            want = np.asarray(local_intended.feed)
+            check = feed_row & np.isfinite(want) & np.isfinite(implied)
+            check[:skip] = False
+            for r in np.flatnonzero(check & ~(np.abs(implied - want) <= slack)).tolist():
+                problems.append(Problem(int(lines[r]), "feed",
+                                        f"line {lines[r]}: implied tip feed {implied[r]:.3f} mm/min (chord "
+                                        f"{chord[r]:.4f} mm × F {inverse_time[r]:g}) is not the intended "
+                                        f"{want[r]:.3f} mm/min (allowed ± {slack[r]:.3f} for the rounding)"))
 
-    # ---- against an intended path
-    against = None
-    if intended is not None:
-        against = _against(rep, program, intended, rounding, tolerance)
-        _against_problems(against, rep, program, intended, axis_tolerance, problems)
+        # ---- against an intended path
+        against = None
+        if local_intended is not None:
+            against = _against(rep, rows, local_intended, rounding, tolerance)
+            _against_problems(against, rep, rows, local_intended, self.axis_tolerance, problems, skip)
 
-    for number in blending_lines:
-        warnings.append(Problem(number, "blending", f"line {number}: G64 path blending: the control may round "
-                                "corners in joint space (a curve at the tip); the replay assumes exact stops (G61)"))
-    problems.sort(key=lambda p: p.line)
-    warnings.sort(key=lambda p: p.line)
-    return VerifyReport(
-        program=program, replay=rep, machine=machine.name, setup=setup,
-        tolerance=tolerance, axis_tolerance=axis_tolerance, rounding=rounding, straightness=straightness,
-        chord=chord, implied_feed=implied, feed_slack=slack, feed_groups=groups, closest=closest,
-        against=against, problems=tuple(problems), warnings=tuple(warnings),
+        for name, values in zip(_PER_MOVE, (rounding, chord, implied, slack, worst, rep.intervals, rep.bound),
+                                strict=True):
+            self.per_move[name].append(values[skip:])
+        self.samples += len(rep.row) - own.start
+        if self.keep_samples:
+            self.kept.append((_replay_from(rep, own, skip, offset), straightness[own],
+                              None if against is None else _against_from(against, own)))
+
+    def _closest_in(self, rep: Replay, lines: IntArray, own: slice) -> None:
+        """Fold the chunk's closest approach to each limit into the running one (the first on ties)."""
+        limits = rep.limits
+        if self.limit_table is None:
+            self.limit_table = limits
+            self.best = [None] * len(limits.names)
+        margin = limits.margin[own]
+        for col in range(len(limits.names)):
+            if not np.isfinite(margin[:, col]).any():
+                if self.best[col] is None and len(margin):
+                    i = own.start
+                    self.best[col] = (math.nan, math.nan, int(lines[rep.row[i]]), float(rep.fraction[i]))
+                continue
+            i = int(np.nanargmin(margin[:, col])) + own.start
+            held = self.best[col]
+            if held is None or not math.isfinite(held[0]) or limits.margin[i, col] < held[0]:
+                self.best[col] = (float(limits.margin[i, col]), float(limits.value[i, col]),
+                                  int(lines[rep.row[i]]), float(rep.fraction[i]))
+
+    def report(self, *, blending_lines: tuple[int, ...] = (), program: JointProgram | None = None) -> VerifyReport:
+        """The report of every row added (``program``: the whole program, if at hand; else the chunks joined).
+
+        Raises
+        ------
+        Prs3Error
+            When an intended path has another number of rows than the program.
+        """
+        program = join_programs(self.chunks) if program is None else program
+        n = len(program)
+        if self.intended is not None and len(self.intended.tip) != n:
+            raise Prs3Error(f"the program has {n} moves, {self.intended.label} has {len(self.intended.tip)}: they do "
+                            "not describe the same path (check the options it was made with)")
+        per_move = {name: np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64 if name == "intervals"
+                                                                          else np.float64)
+                    for name, parts in self.per_move.items()}
+        lines = program.source
+        problems, warnings = list(self.problems), list(self.warnings)
+        feed_row = program.kind == MoveKind.FEED
+        implied, slack = per_move["implied"], per_move["slack"]
+        groups = _feed_groups(implied, slack, lines)
+        intended = self.intended
+        known = intended is not None and bool(np.isfinite(intended.feed[feed_row]).any())
+        if not known and int(feed_row[1:].sum()) >= 3 and len(groups) > 1:
+            shown = ", ".join(f"{g.feed:.1f} ×{len(g.lines)}" for g in groups if len(g.lines) > 1) or "none repeat"
+            for g in groups:
+                if len(g.lines) == 1:
+                    warnings.append(Problem(g.lines[0], "feed", f"line {g.lines[0]}: implied tip feed {g.feed:.3f} "
+                                            f"mm/min matches no other G1 (feeds: {shown}): a hand-edited F or point?"))
+        for number in blending_lines:
+            warnings.append(Problem(number, "blending", f"line {number}: G64 path blending: the control may round "
+                                    "corners in joint space (a curve at the tip); the replay assumes exact stops (G61)"))
+        problems.sort(key=lambda p: p.line)
+        warnings.sort(key=lambda p: p.line)
+        replay_all, against = self._joined_samples()
+        return VerifyReport(
+            program=program, replay=replay_all, machine=self.machine.name, setup=self.setup,
+            tolerance=self.tolerance, axis_tolerance=self.axis_tolerance, rounding=per_move["rounding"],
+            straightness=per_move["straightness"], chord=per_move["chord"], implied_feed=implied, feed_slack=slack,
+            intervals=per_move["intervals"], bound=per_move["bound"], samples=self.samples,
+            epsilon=self.tolerance * EPSILON_FRACTION, feed_groups=groups, closest=self._closest_table(),
+            against=against, problems=tuple(problems), warnings=tuple(warnings),
+        )
+
+    def _closest_table(self) -> tuple[Closest, ...]:
+        limits = self.limit_table
+        if limits is None:
+            return ()
+        spread = margin_fraction(limits)
+        out = []
+        for col, held in enumerate(self.best):
+            margin, value, line, at = held if held is not None else (math.nan, math.nan, 0, 0.0)
+            scale = math.degrees(1.0) if limits.units[col] == "deg" else 1.0
+            out.append(Closest(name=limits.names[col], unit=limits.units[col], low=float(limits.low[col]) * scale,
+                               high=float(limits.high[col]) * scale, value=value * scale, margin=margin * scale,
+                               fraction_of_range=margin / float(spread[col]), line=line, at=at))
+        return tuple(out)
+
+    def _joined_samples(self) -> tuple[Replay | None, Against | None]:
+        if not self.kept:
+            return None, None
+        reps, base = [], 0
+        for kept, _, _ in self.kept:                         # sample indices counted from the program's start
+            reps.append(Replay(row=kept.row, fraction=kept.fraction, joints=kept.joints, tip=kept.tip, axis=kept.axis,
+                               converged=kept.converged, link_angle=kept.link_angle, condition=kept.condition,
+                               limits=kept.limits, first=kept.first + base, end=kept.end + base,
+                               intervals=kept.intervals, bound=kept.bound, epsilon=kept.epsilon))
+            base += len(kept.row)
+        limits = reps[0].limits
+        joined = Replay(
+            row=np.concatenate([r.row for r in reps]), fraction=np.concatenate([r.fraction for r in reps]),
+            joints=np.concatenate([r.joints for r in reps]), tip=np.concatenate([r.tip for r in reps]),
+            axis=np.concatenate([r.axis for r in reps]), converged=np.concatenate([r.converged for r in reps]),
+            link_angle=np.concatenate([r.link_angle for r in reps]),
+            condition=np.concatenate([r.condition for r in reps]),
+            limits=LimitReport(names=limits.names, units=limits.units, low=limits.low, high=limits.high,
+                               value=np.concatenate([r.limits.value for r in reps]),
+                               margin=np.concatenate([r.limits.margin for r in reps]),
+                               ok=np.concatenate([r.limits.ok for r in reps])),
+            first=np.concatenate([r.first for r in reps]), end=np.concatenate([r.end for r in reps]),
+            intervals=np.concatenate([r.intervals for r in reps]), bound=np.concatenate([r.bound for r in reps]),
+            epsilon=reps[0].epsilon,
+        )
+        parts = [k[2] for k in self.kept]
+        against = None
+        if all(a is not None for a in parts):
+            done = [a for a in parts if a is not None]
+            against = Against(label=done[0].label, compared=np.concatenate([a.compared for a in done]),
+                              tip_deviation=np.concatenate([a.tip_deviation for a in done]),
+                              axis_deviation=np.concatenate([a.axis_deviation for a in done]),
+                              allowed=np.concatenate([a.allowed for a in done]))
+        return joined, against
+
+
+#: The per-move values a Verifier keeps, in the order _check hands them over.
+_PER_MOVE = ("rounding", "chord", "implied", "slack", "straightness", "intervals", "bound")
+
+
+def _row_max(values: FloatArray, first: IntArray) -> tuple[FloatArray, IntArray]:
+    """Per row (samples ``first[r]:first[r + 1]``): the largest value, NaN ignored (NaN: none), and the
+    first sample that has it."""
+    if not len(first):
+        return np.zeros(0), np.zeros(0, dtype=np.int64)
+    top = np.fmax.reduceat(values, first)
+    row = np.repeat(np.arange(len(first)), np.diff(np.append(first, len(values))))
+    at = np.minimum.reduceat(np.where(values == top[row], np.arange(len(values)), len(values)), first)
+    return top, np.minimum(at, len(values) - 1)
+
+
+def _join_rows(head: JointProgram, chunk: JointProgram) -> JointProgram:
+    return JointProgram(kind=np.concatenate([head.kind, chunk.kind]), stage=np.concatenate([head.stage, chunk.stage]),
+                        strokes=np.concatenate([head.strokes, chunk.strokes]),
+                        inverse_time=np.concatenate([head.inverse_time, chunk.inverse_time]),
+                        source=np.concatenate([head.source, chunk.source]))
+
+
+def _intended_rows(intended: Intended, start: int, stop: int) -> Intended:
+    return Intended(tip=intended.tip[start:stop], axis=intended.axis[start:stop], feed=intended.feed[start:stop],
+                    kind=intended.kind[start:stop], label=intended.label)
+
+
+def _replay_from(rep: Replay, own: slice, skip: int, offset: int) -> Replay:
+    """The chunk's own samples, with rows and sample indices counted from the program's start."""
+    first_sample = own.start
+    return Replay(
+        row=rep.row[own] + offset, fraction=rep.fraction[own], joints=rep.joints[own], tip=rep.tip[own],
+        axis=rep.axis[own], converged=rep.converged[own], link_angle=rep.link_angle[own],
+        condition=rep.condition[own],
+        limits=LimitReport(names=rep.limits.names, units=rep.limits.units, low=rep.limits.low, high=rep.limits.high,
+                           value=rep.limits.value[own], margin=rep.limits.margin[own], ok=rep.limits.ok[own]),
+        first=rep.first[skip:] - first_sample, end=rep.end[skip:] - first_sample, intervals=rep.intervals[skip:],
+        bound=rep.bound[skip:], epsilon=rep.epsilon,
     )
+
+
+def _against_from(against: Against, own: slice) -> Against:
+    return Against(label=against.label, compared=against.compared[own], tip_deviation=against.tip_deviation[own],
+                   axis_deviation=against.axis_deviation[own], allowed=against.allowed[own])
 
 
 def _at(fraction: float) -> str:
     """Where on a move a sample is: ``the end point`` or ``37.5 % of the move``."""
     return "the end point" if fraction >= 1.0 else f"{100.0 * fraction:.1f} % of the move"
-
-
-def _closest(rep: Replay, lines: IntArray, col: int) -> Closest:
-    limits = rep.limits
-    margin = limits.margin[:, col]
-    spread = float(margin_fraction(limits)[col])
-    scale = math.degrees(1.0) if limits.units[col] == "deg" else 1.0
-    if not np.isfinite(margin).any():
-        i, value, worst = 0, math.nan, math.nan
-    else:
-        i = int(np.nanargmin(margin))
-        value, worst = float(limits.value[i, col]), float(margin[i])
-    return Closest(
-        name=limits.names[col], unit=limits.units[col], low=float(limits.low[col]) * scale,
-        high=float(limits.high[col]) * scale, value=value * scale, margin=worst * scale,
-        fraction_of_range=worst / spread, line=int(lines[rep.row[i]]), at=float(rep.fraction[i]),
-    )
 
 
 def _feed_groups(implied: FloatArray, slack: FloatArray, lines: IntArray) -> tuple[FeedGroup, ...]:
@@ -705,9 +921,11 @@ def _against(rep: Replay, program: JointProgram, intended: Intended, rounding: F
 
 
 def _against_problems(against: Against, rep: Replay, program: JointProgram, intended: Intended,
-                      axis_tolerance: float, problems: list[Problem]) -> None:
+                      axis_tolerance: float, problems: list[Problem], skip: int = 0) -> None:
+    """Problems of the rows from ``skip`` on (the rows before are the previous chunk's)."""
     lines = program.source
-    for r in np.flatnonzero((intended.kind >= 0) & (intended.kind != program.kind)).tolist():
+    differ = np.flatnonzero((intended.kind >= 0) & (intended.kind != program.kind))
+    for r in differ[differ >= skip].tolist():
         want = "G1" if intended.kind[r] == MoveKind.FEED else "G0"
         problems.append(Problem(int(lines[r]), "move", f"line {lines[r]}: {want} intended, the program has "
                                 f"{'G1' if program.kind[r] == MoveKind.FEED else 'G0'}"))
@@ -715,13 +933,13 @@ def _against_problems(against: Against, rep: Replay, program: JointProgram, inte
     with np.errstate(invalid="ignore"):
         tip_over = tip > against.allowed
         axis_over = against.axis_deviation > axis_tolerance
-    for r in np.unique(rep.row[tip_over]).tolist():
+    for r in (rows := np.unique(rep.row[tip_over]))[rows >= skip].tolist():
         i = int(rep.first[r] + np.nanargmax(tip[rep.first[r]:rep.end[r] + 1]))
         problems.append(Problem(int(lines[r]), "deviation",
                                 f"line {lines[r]}: the tip is {tip[i]:.6f} mm from the intended path at "
                                 f"{_at(rep.fraction[i])} (allowed {against.allowed[i]:.6f} mm: tolerance + "
                                 "output rounding)"))
-    for r in np.unique(rep.row[axis_over]).tolist():
+    for r in (rows := np.unique(rep.row[axis_over]))[rows >= skip].tolist():
         i = int(rep.first[r] + np.nanargmax(against.axis_deviation[rep.first[r]:rep.end[r] + 1]))
         problems.append(Problem(int(lines[r]), "axis",
                                 f"line {lines[r]}: the tool axis is {math.degrees(against.axis_deviation[i]):.4f}° "

@@ -54,20 +54,20 @@ def _worst(values: FloatArray, rows: IntArray, lines: IntArray) -> tuple[float |
 
 
 def summary(report: VerifyReport, *, rapid_rate: float = NOMINAL_RAPID_RATE) -> dict[str, Any]:
-    """Headline numbers shared by the text and JSON reports."""
-    program, rep = report.program, report.replay
+    """Headline numbers shared by the text and JSON reports (from the per-move values: no samples needed)."""
+    program = report.program
     feed_row = program.kind == MoveKind.FEED
     start, end = row_times(program, rapid_rate=rapid_rate)
     durations = end - start
     dwell = sum(e.value for e in program.events if e.kind is EventKind.DWELL) / 60.0
-    straight, straight_line, _ = _worst(report.straightness, rep.row, program.source)
+    straight, straight_line, _ = _worst(report.straightness, np.arange(len(program)), program.source)
     implied = report.implied_feed[np.isfinite(report.implied_feed)]
     return {
         "moves": len(program), "feed_moves": int(feed_row.sum()), "rapid_moves": int((~feed_row).sum()),
-        "samples": len(rep.row),
-        "intervals_min": int(rep.intervals[1:].min()) if len(program) > 1 else 0,
-        "intervals_max": int(rep.intervals[1:].max()) if len(program) > 1 else 0,
-        "sampling_bound_mm": float(rep.bound.max()) if len(program) else 0.0,
+        "samples": report.samples,
+        "intervals_min": int(report.intervals[1:].min()) if len(program) > 1 else 0,
+        "intervals_max": int(report.intervals[1:].max()) if len(program) > 1 else 0,
+        "sampling_bound_mm": float(report.bound.max()) if len(program) else 0.0,
         "straightness_mm": straight, "straightness_line": straight_line,
         "implied_feed_min": float(implied.min()) if len(implied) else None,
         "implied_feed_max": float(implied.max()) if len(implied) else None,
@@ -86,7 +86,7 @@ def against_summary(report: VerifyReport) -> dict[str, Any] | None:
     a = report.against
     if a is None:
         return None
-    rep, lines = report.replay, report.program.source
+    rep, lines = report.samples_kept, report.program.source
     tip = np.linalg.norm(a.tip_deviation, axis=1)
     tip_max, tip_line, tip_i = _worst(tip, rep.row, lines)
     axis_max, axis_line, _ = _worst(a.axis_deviation, rep.row, lines)
@@ -105,7 +105,7 @@ def against_summary(report: VerifyReport) -> dict[str, Any] | None:
 def report_record(report: VerifyReport, *, path: str = "", dialect: str = "",
                   rapid_rate: float = NOMINAL_RAPID_RATE) -> dict[str, Any]:
     """The complete report as JSON-ready data (angles in degrees where the key says ``_deg``)."""
-    program, rep = report.program, report.replay
+    program, rep = report.program, report.samples_kept
     head = summary(report, rapid_rate=rapid_rate)
     lines = program.source
     tip_part = report.tip_part
@@ -113,16 +113,14 @@ def report_record(report: VerifyReport, *, path: str = "", dialect: str = "",
     joints = joints_of(program)
     for r in range(len(program)):
         e = int(rep.end[r])
-        span = slice(int(rep.first[r]), e + 1)
         record: dict[str, Any] = {
             "line": int(lines[r]), "kind": _kind_name(int(program.kind[r])),
             "X": _num(joints[r, 0]), "Y": _num(joints[r, 1]), "T1": _num(joints[r, 2]), "T2": _num(joints[r, 3]),
             "T3": _num(joints[r, 4]), "F": _num(program.inverse_time[r]) if program.kind[r] == MoveKind.FEED else None,
             "tip_part": _nums(tip_part[e]), "axis": _nums(rep.axis[e]),
-            "intervals": int(rep.intervals[r]), "sampling_bound_mm": _num(rep.bound[r]),
+            "intervals": int(report.intervals[r]), "sampling_bound_mm": _num(report.bound[r]),
             "rounding_mm": _num(report.rounding[r]), "chord_mm": _num(report.chord[r]),
-            "straightness_mm": _num(np.nanmax(report.straightness[span]))
-            if np.isfinite(report.straightness[span]).any() else None,
+            "straightness_mm": _num(report.straightness[r]),
             "implied_feed_mm_per_min": _num(report.implied_feed[r]),
         }
         if report.against is not None:
@@ -141,7 +139,7 @@ def report_record(report: VerifyReport, *, path: str = "", dialect: str = "",
             "rule": "n = max(8, ceil(sqrt(M / (8 eps)))) intervals per move, M = 2 max|f''| from second "
                     "differences of the tip and of link length x link angle, eps = tolerance / 20; "
                     "bound = M / (8 n^2)",
-            "epsilon_mm": rep.epsilon, "probe_intervals": PROBE_INTERVALS, "max_intervals": MAX_INTERVALS,
+            "epsilon_mm": report.epsilon, "probe_intervals": PROBE_INTERVALS, "max_intervals": MAX_INTERVALS,
         },
         "rapid_rate_mm_per_min": rapid_rate,
         "limits": [

@@ -59,7 +59,7 @@ from prs3_post.readers.lexer import (
     quote,
     split_comments,
 )
-from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind
+from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind, join_programs
 from prs3_post.types import FloatArray, IntArray
 
 __all__ = ["ALLOWED_G", "ALLOWED_M", "CHUNK_LINES", "ProgramFile", "ProgramStream", "load_program", "read_program"]
@@ -170,25 +170,9 @@ def read_program(text: str, dialect: Dialect, *, path: str, stage: bool = True,
         reader.lines(first + 1, lines[first:first + chunk_lines], crlf[first:first + chunk_lines])
         parts.append(reader.take())
     reader.finish(len(lines))
-    moves = join_chunks(parts)
+    moves = join_programs(parts)
     return ProgramFile(path=path, dialect=dialect.name, moves=moves, lines=tuple(lines),
                        end_line=reader.end_line or 0, blending_lines=tuple(reader.blending))
-
-
-def join_chunks(parts: list[JointProgram]) -> JointProgram:
-    """One program of consecutive chunks (each chunk's events count rows from its own start)."""
-    events: list[Event] = []
-    offset = 0
-    for part in parts:
-        events += [Event(before=e.before + offset, kind=e.kind, value=e.value, text=e.text) for e in part.events]
-        offset += len(part)
-    if not parts:
-        return _rows([], np.zeros((0, 5)), [], [], [])
-    return JointProgram(
-        kind=np.concatenate([p.kind for p in parts]), stage=np.concatenate([p.stage for p in parts]),
-        strokes=np.concatenate([p.strokes for p in parts]),
-        inverse_time=np.concatenate([p.inverse_time for p in parts]),
-        source=np.concatenate([p.source for p in parts]), events=tuple(events))
 
 
 def _rows(kind: list[int] | IntArray, joints: FloatArray, feed: list[float] | FloatArray,
@@ -392,7 +376,7 @@ class _Reader:
         self.flush()
         parts, events = self.parts, self.events
         self.parts, self.events, self.rows = [], [], 0
-        chunk = join_chunks(parts)
+        chunk = join_programs(parts)
         return JointProgram(kind=chunk.kind, stage=chunk.stage, strokes=chunk.strokes,
                             inverse_time=chunk.inverse_time, source=chunk.source, events=tuple(events))
 
