@@ -185,7 +185,7 @@ def _poses(machine: Machine, joints: FloatArray) -> _Poses:
 def _interleave(at_end: BoolArray, ends: _Poses, inner: _Poses) -> _Poses:
     """The poses of all samples: the end points' where ``at_end`` (in order), the others' elsewhere."""
     def merged(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        out = np.zeros((len(at_end),) + a.shape[1:], dtype=a.dtype)
+        out = np.zeros((len(at_end), *a.shape[1:]), dtype=a.dtype)
         out[at_end], out[~at_end] = a, b
         return out
 
@@ -754,9 +754,9 @@ class Verifier:
         if self.intended is not None and len(self.intended.tip) != n:
             raise Prs3Error(f"the program has {n} moves, {self.intended.label} has {len(self.intended.tip)}: they do "
                             "not describe the same path (check the options it was made with)")
-        per_move = {name: np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64 if name == "intervals"
-                                                                          else np.float64)
-                    for name, parts in self.per_move.items()}
+        per_move: dict[str, Any] = {
+            name: np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64 if name == "intervals" else np.float64)
+            for name, parts in self.per_move.items()}
         lines = program.source
         problems, warnings = list(self.problems), list(self.warnings)
         feed_row = program.kind == MoveKind.FEED
@@ -771,8 +771,9 @@ class Verifier:
                     warnings.append(Problem(g.lines[0], "feed", f"line {g.lines[0]}: implied tip feed {g.feed:.3f} "
                                             f"mm/min matches no other G1 (feeds: {shown}): a hand-edited F or point?"))
         for number in blending_lines:
-            warnings.append(Problem(number, "blending", f"line {number}: G64 path blending: the control may round "
-                                    "corners in joint space (a curve at the tip); the replay assumes exact stops (G61)"))
+            warnings.append(Problem(number, "blending", f"line {number}: G64 path blending: the control may "
+                                    "round corners in joint space (a curve at the tip); the replay assumes exact stops "
+                                    "(G61)"))
         problems.sort(key=lambda p: p.line)
         warnings.sort(key=lambda p: p.line)
         replay_all, against = self._joined_samples()
