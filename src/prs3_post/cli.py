@@ -594,11 +594,17 @@ def demo(**opts: Any) -> None:
 @up_option
 @click.option("--json", "as_json", is_flag=True, help="Print the table as JSON.")
 def faces(part: str, units: str, up: str, as_json: bool) -> None:
-    """List a part's planar faces: index, area, normal, inclination, origin; and the automatic choice.
+    """List a part's faces: index, area, width, inclination, normal, origin, kind; and the automatic choice.
+
+    Each face says whether automatic selection may take it and why not: it must face up, be inclined
+    between 1° and 89°, be a planar face of the design (not a strip of a tessellated curved surface:
+    a fillet, a hole wall) and be at least 3 mm wide (the main job: as wide as its tool). A Y-up export needs
+    --up y; a part that loads with a size warning probably needs --units inch.
 
     \b
-    Example:
+    Examples:
       prs3-post faces part.stl --json
+      prs3-post faces angle_block.STL --units inch --up y
     """
 
     def body() -> int:
