@@ -163,3 +163,21 @@ def test_numbers_are_plain_decimals_of_meaningful_size(tmp_path: Path, monkeypat
 def test_plain_decimals_are_accepted(value: str) -> None:
     result = invoke(*DEMO_ARGS, "--rotation", value, "--dwell", "0.5")
     assert result.exit_code == 0, result.stderr
+
+
+def test_every_program_reader_refuses_a_fifo(tmp_path: Path) -> None:
+    """The streaming reader, the header reader and the source hash open files through open_input too."""
+    from prs3_post.config import load_dialect
+    from prs3_post.errors import InputError
+    from prs3_post.readers.header import file_sha256, read_header
+    from prs3_post.readers.program import ProgramStream
+
+    fifo = tmp_path / "prog.ngc"
+    os.mkfifo(fifo)
+    message = f"{fifo}: is a FIFO (named pipe), not a regular file: give "
+    for read, what in ((lambda: list(ProgramStream(str(fifo), load_dialect("linuxcnc"))), "a G-code program"),
+                       (lambda: read_header(str(fifo)), "a G-code program"),
+                       (lambda: file_sha256(str(fifo)), "a file")):
+        with pytest.raises(InputError) as caught:
+            read()
+        assert str(caught.value) == message + what

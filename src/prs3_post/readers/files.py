@@ -19,11 +19,12 @@ SIZE_LIMITS: dict[str, int] = {
     "an STL file": 500 * MB,          # ~10 million triangles in binary STL
     "a G-code program": 1000 * MB,    # ~25 million lines
     "a CSV file": 1000 * MB,          # ~15 million poses
+    "a CL file": 1000 * MB,           # APT CL data, some 20 million records
     "a TOML file": 1 * MB,            # a machine or dialect description is a few kB
 }
 """Bytes, the largest file read for each kind of input (keyed by the ``what`` of :func:`read_input`)."""
-DEFAULT_SIZE_LIMIT = 100 * MB
-"""Bytes, the limit for a kind of input not in :data:`SIZE_LIMITS`."""
+DEFAULT_SIZE_LIMIT = 1000 * MB
+"""Bytes, the limit for a kind of input not in :data:`SIZE_LIMITS` (``a file``: any of them)."""
 
 _NOT_REGULAR = (
     (stat.S_ISFIFO, "a FIFO (named pipe)"),

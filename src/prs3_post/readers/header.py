@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import hashlib
 import math
-import os
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -45,7 +44,7 @@ from prs3_post.face import Face
 from prs3_post.fixed import fixed as _fixed
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
 from prs3_post.ops.work import HoleJob, ProfileJob
-from prs3_post.readers.files import read_input
+from prs3_post.readers.files import open_input
 from prs3_post.setup import Setup
 from prs3_post.types import FloatArray
 
@@ -119,7 +118,11 @@ def file_sha256(path: str) -> str:
     InputError
         The file cannot be read.
     """
-    return hashlib.sha256(read_input(path, "a file")).hexdigest()
+    with open_input(path, "a file") as stream:          # read in pieces: a part may be large
+        try:
+            return hashlib.file_digest(stream, "sha256").hexdigest()
+        except OSError as exc:
+            raise InputError(f"cannot read the file: {exc.strerror or exc}", path=path) from exc
 
 
 # ============================================================================ numbers
@@ -508,10 +511,8 @@ def read_header(path: str, *, open_: str = "(", close: str = ")") -> ProgramHead
 
 
 def _read_head(path: str) -> bytes:
-    if not os.path.isfile(path):                       # missing, a folder, a FIFO, a device: its clear message
-        return read_input(path, "a G-code program")
-    try:
-        with open(path, "rb") as stream:
+    with open_input(path, "a G-code program") as stream:   # missing, a folder, a FIFO, a device: its clear message
+        try:
             return stream.read(HEAD_BYTES)
-    except OSError:
-        return read_input(path, "a G-code program")            # its clear message
+        except OSError as exc:
+            raise InputError(f"cannot read the file: {exc.strerror or exc}", path=path) from exc
