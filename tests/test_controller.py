@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -20,8 +21,9 @@ from hypothesis import strategies as st
 
 from prs3_post.cli import _job_spec, demo, demo_part, main
 from prs3_post.config import Dialect, load_dialect, load_machine
+from prs3_post.controller import block_problem
 from prs3_post.emit.gcode import format_word
-from prs3_post.errors import FeatureError, Prs3Error
+from prs3_post.errors import ConfigError, FeatureError, Prs3Error
 from prs3_post.job import JobResult, run_job
 from prs3_post.ops.common import pass_depths
 from prs3_post.readers.program import read_program
@@ -191,11 +193,13 @@ def _job_args(draw: st.DrawFn) -> list[str]:
         return [*args, "--peck", repr(peck), "--reapproach-gap", repr(gap)]
     args += ["--step-down", repr(draw(st.one_of(st.floats(0.3, 3.0), st.just(1.0)))),
              "--entry", draw(st.sampled_from(["ramp", "plunge"])), "--ramp-angle", repr(draw(st.floats(0.5, 30.0))),
-             "--direction", draw(st.sampled_from(["climb", "conventional"])), "--side", draw(st.sampled_from(["on", "outside"]))]
+             "--direction", draw(st.sampled_from(["climb", "conventional"])),
+             "--side", draw(st.sampled_from(["on", "outside"]))]
     if profile == "square":
         size = draw(st.floats(8.0, 40.0))
         corner = draw(st.one_of(st.just(0.0), st.just(1e-5), st.floats(0.0, size / 2)))
-        return [*args, "--size", repr(size), "--corner-radius", repr(corner), "--rotation", repr(draw(st.floats(-90, 90)))]
+        return [*args, "--size", repr(size), "--corner-radius", repr(corner),
+                "--rotation", repr(draw(st.floats(-90, 90)))]
     return [*args, "--diameter", repr(draw(st.floats(1e-3, 40.0)))]
 
 
@@ -263,3 +267,72 @@ def test_contour_points_closer_than_the_resolution_merge():
     lap = [r for r in range(len(result.path_part)) if result.path_part.describe(r) == "square pass 1/1 lap"]
     assert len(lap) == 4 + 1 + 1        # a point per corner (not 2), the contour's start, back to the ramp's end
     assert _g1_lines_that_move_nothing(result.text, dialect) == []
+
+
+# ----------------------------------------------------------------------------- dialect blocks
+
+#: Blocks the loader accepts, one of each kind a safe start, preamble or postamble may need.
+GOOD_BLOCKS = ["G17 G21 G40 G49 G54 G80 G90 G94", "G61", "G43 H1 (tool length)", "G43.2 H2", "G92.1", "G4 P0.5",
+               "T1", "M61 Q1", "S1000 M3", "G96 S100 D3000", "G97", "M19 R90 Q1", "M5 M9", "M48", "M50 P1",
+               "M62 P0", "M67 E0.5 Q0", "M66 P0 L0 Q1", "F100", "(MSG, tool 1 in)", "G59.3", "G93", "G95", "M1",
+               "M70", "M100 P1 Q2", "G61.1", "G90.1", "G98", "G8"]
+#: Blocks LinuxCNC itself rejects, with what the loader says (after ``blocks.preamble[0]: ``).
+LINUXCNC_REJECTS = {
+    "G12": "G12 is not an RS-274/NGC G code LinuxCNC knows",
+    "M7 M8": "M7 and M8 are in the same modal group (coolant): one per block",
+    "G17 G18": "G17 and G18 are in the same modal group (plane): one per block",
+    "M1 M3 M8 M48 M5": "M3 and M5 are in the same modal group (spindle): one per block",
+    "M0 M3 M6 M8 M48": "has more than 4 M codes (LinuxCNC: too many M codes on a line)",
+    "H1": "H1: H needs a code that uses it on the same block (G43, G43.2)",
+    "G4": "G4 needs P on the same block",
+    "S-100 M3": "S-100: S must not be negative",
+    "S1 S2": "has two S words (LinuxCNC takes one per block)",
+    "T1.5": "T1.5: T must be a whole number",
+    "G0 Z100": "G0 moves the machine (a dialect block must not: the program's moves carry their own checks)",
+    "M2": "M2 ends the program (program.end_code does, after the postamble)",
+    "(unclosed": "comment opened with '(' at column 1 is not closed with ')'",
+    "M5 (a (b))": "comment at column 4 contains another '(' (LinuxCNC rejects nested comments)",
+}
+
+
+def _dialect_with(tmp_path: Path, key: str, blocks: list[str]) -> Path:
+    text = (REPO / "postproc" / "dialects" / "linuxcnc.toml").read_text(encoding="utf-8")
+    line = next(ln for ln in text.splitlines() if ln.startswith(f"{key} = "))
+    path = tmp_path / f"{key}.toml"
+    path.write_text(text.replace(line, f"{key} = {json.dumps(blocks)}"), encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("name", ["linuxcnc", "fanuc"])
+def test_shipped_dialect_blocks_pass_the_check(name):
+    dialect = load_dialect(name)
+    for block in (*dialect.safe_start, *dialect.preamble, *dialect.postamble):
+        assert block_problem(block, (dialect.comments.open, dialect.comments.close), tool_number_max=99999) is None
+
+
+def test_accepted_blocks_run_on_linuxcnc(tmp_path, rs274_check):
+    """Every kind of block the loader takes, in the preamble and the postamble of a real job."""
+    dialect = _dialect_with(tmp_path, "preamble", GOOD_BLOCKS)
+    dialect.write_text(dialect.read_text().replace("postamble = []", f"postamble = {json.dumps(GOOD_BLOCKS)}"))
+    out = tmp_path / "p.ngc"
+    result = invoke("demo", "--profile", "hole", "--dialect", str(dialect), "-o", str(out))
+    assert result.exit_code == 0, result.stderr
+    lines = out.read_text().splitlines()
+    assert lines.count("G43 H1 (tool length)") == 2
+    code, report = rs274_check(out)
+    assert code == 0, report
+
+
+def test_blocks_linuxcnc_rejects_are_refused_when_the_dialect_loads(tmp_path, rs274_check):
+    programs = []
+    for i, (block, message) in enumerate(LINUXCNC_REJECTS.items()):
+        with pytest.raises(ConfigError) as caught:
+            load_dialect(str(_dialect_with(tmp_path, "preamble", [block])))
+        assert caught.value.args[0] == f"blocks.preamble[0]: {message}, got {block!r}"
+        programs.append(tmp_path / f"{i}.ngc")
+        programs[-1].write_text(f"G17 G21 G40 G49 G54 G80 G90 G94\nG61\n{block}\nG0 X0 Y0 U0 V0 W0\nM2\n")
+    code, report = rs274_check(*programs)
+    assert code == 1
+    rejected = {int(line.split(".ngc:")[0].rsplit("/", 1)[1]) for line in report.splitlines() if ".ngc:" in line
+                and ": OK" not in line}
+    assert rejected == set(range(len(programs))), report

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from prs3_post.controller import block_problem
 from prs3_post.errors import ConfigError, InputError
 from prs3_post.readers.files import read_text
 
@@ -515,8 +516,10 @@ def _letter(table: _Table, key: str) -> str:
     return value
 
 
-def _blocks(table: _Table, key: str, room: int) -> tuple[str, ...]:
-    """A list of literal blocks: each one line of printable ASCII, no ``%``, short enough to number."""
+def _blocks(table: _Table, key: str, room: int, comment: tuple[str, str], tool_number_max: int) -> tuple[str, ...]:
+    """A list of literal blocks: each one line of printable ASCII, no ``%``, short enough to number,
+    and nothing the controller rejects or that would change what the moves mean (see
+    :func:`~prs3_post.controller.block_problem`: no motion, no program end, closed comments)."""
     lines = table.strings(key)
     for i, line in enumerate(lines):
         problem = ""
@@ -530,6 +533,8 @@ def _blocks(table: _Table, key: str, room: int) -> tuple[str, ...]:
             problem = f"has leading or trailing spaces, got {line!r}"
         elif len(line) > room:
             problem = f"is {len(line)} characters, at most {room} fit on a numbered line"
+        elif (wrong := block_problem(line, comment, tool_number_max=tool_number_max)) is not None:
+            problem = f"{wrong}, got {line!r}"
         if problem:
             raise table._error(f"{key}[{i}]", problem)
     return lines
@@ -669,13 +674,8 @@ def load_dialect(name_or_path: str) -> Dialect:
     o_line = f"O{program_number} {c_open}{program_name}{c_close}" if program_name else f"O{program_number}"
     if program_number and len(o_line) > room:
         raise ConfigError(f"program.name: the O line would be {len(o_line)} characters, at most {room} fit", path=shown)
-    blk = top.table("blocks")
-    safe_start = _blocks(blk, "safe_start", room)
-    preamble = _blocks(blk, "preamble", room)
-    postamble = _blocks(blk, "postamble", room)
-    blk.finish()
 
-    words = top.table("words")
+    words = top.table("words")                         # before the blocks: their T words need tool_number_max
     modal_motion = words.boolean("modal_motion")
     dwell_unit = words.text("dwell_unit")
     if dwell_unit not in _DWELL_UNITS:
@@ -684,6 +684,12 @@ def load_dialect(name_or_path: str) -> Dialect:
     if tool_number_max > TOOL_NUMBER_LIMIT:
         raise words._error("tool_number_max", f"must be 1..{TOOL_NUMBER_LIMIT}, got {tool_number_max}")
     words.finish()
+
+    blk = top.table("blocks")
+    safe_start = _blocks(blk, "safe_start", room, (c_open, c_close), tool_number_max)
+    preamble = _blocks(blk, "preamble", room, (c_open, c_close), tool_number_max)
+    postamble = _blocks(blk, "postamble", room, (c_open, c_close), tool_number_max)
+    blk.finish()
     top.finish()
 
     return Dialect(
