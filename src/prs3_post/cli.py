@@ -14,7 +14,7 @@ import sys
 import warnings
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import click
 import numpy as np
@@ -41,14 +41,20 @@ from prs3_post.verify_job import (
     DEFAULT_MACHINE,
     HeaderConflict,
     ProgramContext,
+    ProgramSetting,
     check_part,
     header_job,
     intended_from_job,
     intended_from_poses,
     open_program,
+    open_setting,
     preview_bytes,
+    verify_file,
     verify_loaded,
 )
+
+#: What _open_program opens: the whole program, or only what it was made for.
+_Opened = TypeVar("_Opened", ProgramContext, ProgramSetting)
 
 # ----------------------------------------------------------------------------- helpers
 
@@ -678,12 +684,14 @@ _HEADER_FLAGS = {"machine": "--machine", "dialect": "--dialect", "part origin": 
 
 
 def _open_program(ctx: click.Context, path: str, machine_name: str, dialect_name: str,
-                  part_origin: tuple[float, ...] | None, part_rotation: float | None) -> ProgramContext:
-    """The program with the machine, dialect and setup of its header, or those given."""
+                  part_origin: tuple[float, ...] | None, part_rotation: float | None,
+                  opener: Callable[..., _Opened]) -> _Opened:
+    """The program (``open_program``), or its setting only (``open_setting``), with the machine, dialect and setup of its header,
+    or those given."""
     try:
-        return open_program(path, machine=machine_name if _given(ctx, "machine_name") else None,
-                            dialect=dialect_name if _given(ctx, "dialect_name") else None,
-                            origin=part_origin, rotation_deg=part_rotation)
+        return opener(path, machine=machine_name if _given(ctx, "machine_name") else None,
+                      dialect=dialect_name if _given(ctx, "dialect_name") else None,
+                      origin=part_origin, rotation_deg=part_rotation)
     except SetupError as error:
         raise click.BadParameter(str(error), param_hint=_SETUP_HINTS[error.field]) from error
     except HeaderConflict as error:
@@ -843,15 +851,21 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
             if given:
                 raise click.UsageError(f"{', '.join(_option_flags(ctx, given))}: the operation options are only "
                                        "used with --against PART.stl")
-        context = _open_program(ctx, program_path, opts["machine_name"], opts["dialect_name"], opts["part_origin"],
-                                opts["part_rotation"])
+        where = (ctx, program_path, opts["machine_name"], opts["dialect_name"], opts["part_origin"],
+                 opts["part_rotation"])
+        # the text report without an intended path needs no samples: the program streams through
+        setting = _open_program(*where, open_setting)
         # the check's tolerance: as given, else the one the program was made with
-        tolerance = (context.header.tolerance if context.header is not None and not _given(ctx, "tolerance")
+        tolerance = (setting.header.tolerance if setting.header is not None and not _given(ctx, "tolerance")
                      else opts["tolerance"])
-        intended = _intended(ctx, against_path, context, opts) if against_path else None
-        report = verify_loaded(context.program, context.machine, context.setup, context.dialect,
-                               tolerance=tolerance, axis_tolerance_deg=axis_tolerance_deg, intended=intended)
-        dialect = context.dialect.name
+        if as_json or against_path:
+            context = _open_program(*where, open_program)
+            intended = _intended(ctx, against_path, context, opts) if against_path else None
+            report = verify_loaded(context.program, context.machine, context.setup, context.dialect,
+                                   tolerance=tolerance, axis_tolerance_deg=axis_tolerance_deg, intended=intended)
+        else:
+            report = verify_file(setting, tolerance=tolerance, axis_tolerance_deg=axis_tolerance_deg)
+        dialect = setting.dialect.name
         if as_json:
             click.echo(json.dumps(report_record(report, path=program_path, dialect=dialect), allow_nan=False))
         else:
@@ -902,7 +916,8 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
     def body() -> int:
         ctx = click.get_current_context()
         fmt = _image_format(out_path)
-        context = _open_program(ctx, program_path, machine_name, dialect_name, part_origin, part_rotation)
+        context = _open_program(ctx, program_path, machine_name, dialect_name, part_origin, part_rotation,
+                                open_program)
         mesh = face = None
         if part_path is not None:
             choice, part_units, part_up = _face_index(face_choice), units, up

@@ -32,11 +32,11 @@ from prs3_post.job import JobSpec, run_job, spec_from_header
 from prs3_post.kinematics import PoseError, unit_axes
 from prs3_post.readers.header import ProgramHeader, file_sha256, read_header
 from prs3_post.readers.poses import read_poses
-from prs3_post.readers.program import ProgramFile, load_program
+from prs3_post.readers.program import CHUNK_LINES, ProgramFile, ProgramStream, load_program
 from prs3_post.setup import Setup
 from prs3_post.toolpath import MoveKind
 from prs3_post.types import FloatArray
-from prs3_post.verify import Intended, VerifyReport, verify_program
+from prs3_post.verify import Intended, Verifier, VerifyReport, verify_program
 
 _Config = TypeVar("_Config", Machine, Dialect)
 
@@ -104,9 +104,37 @@ def _same(a: Machine | Dialect, b: Machine | Dialect) -> bool:
     return dataclasses.replace(a, source="") == dataclasses.replace(b, source="")
 
 
+@dataclass(frozen=True, slots=True)
+class ProgramSetting:
+    """What a program was made for, before its moves are read: header, machine, dialect, setup
+    (attributes as :class:`ProgramContext`)."""
+
+    path: str
+    header: ProgramHeader | None
+    machine: Machine
+    dialect: Dialect
+    setup: Setup
+
+
 def open_program(path: str, *, machine: str | None = None, dialect: str | None = None,
                  origin: tuple[float, ...] | None = None, rotation_deg: float | None = None) -> ProgramContext:
-    """Read a program with the machine, dialect and setup its header names, or those given.
+    """Read a program with the machine, dialect and setup its header names, or those given
+    (:func:`open_setting`, then the whole program).
+
+    Raises
+    ------
+    HeaderConflict, InputError, ConfigError
+        As :func:`open_setting`, and an unreadable program.
+    """
+    setting = open_setting(path, machine=machine, dialect=dialect, origin=origin, rotation_deg=rotation_deg)
+    program = load_program(path, setting.dialect, stage=setting.machine.stage.present)
+    return ProgramContext(program=program, header=setting.header, machine=setting.machine, dialect=setting.dialect,
+                          setup=setting.setup)
+
+
+def open_setting(path: str, *, machine: str | None = None, dialect: str | None = None,
+                 origin: tuple[float, ...] | None = None, rotation_deg: float | None = None) -> ProgramSetting:
+    """The machine, dialect and setup a program's header names, or those given (its moves unread).
 
     Parameters
     ----------
@@ -121,8 +149,9 @@ def open_program(path: str, *, machine: str | None = None, dialect: str | None =
     HeaderConflict
         A given value that is not the header's.
     InputError, ConfigError
-        An unreadable program, header, machine or dialect.
+        An unreadable header, machine or dialect.
     """
+
     given_dialect = load_dialect(dialect) if dialect is not None else None
     style = (given_dialect or load_dialect(DEFAULT_DIALECT)).comments
     header = read_header(path, open_=style.open, close=style.close)
@@ -139,9 +168,7 @@ def open_program(path: str, *, machine: str | None = None, dialect: str | None =
             raise _conflict(header, "setup", "part origin", _vector(setup.origin), _vector(origin))
         if rotation_deg is not None and float(rotation_deg) != setup.rotation_deg:
             raise _conflict(header, "setup", "part rotation", f"{setup.rotation_deg:g} deg", f"{rotation_deg:g} deg")
-    program = load_program(path, chosen_dialect, stage=chosen_machine.stage.present)
-    return ProgramContext(program=program, header=header, machine=chosen_machine, dialect=chosen_dialect,
-                          setup=setup)
+    return ProgramSetting(path=path, header=header, machine=chosen_machine, dialect=chosen_dialect, setup=setup)
 
 
 def _recorded_or_given(header: ProgramHeader, kind: str, load: Callable[[str], _Config],
@@ -241,6 +268,29 @@ def verify_loaded(program: ProgramFile, machine: Machine, setup: Setup, dialect:
         length_decimals=dialect.decimals.length, feed_decimals=dialect.decimals.inverse_time,
         blending_lines=program.blending_lines,
     )
+
+
+def verify_file(setting: ProgramSetting, *, tolerance: float, axis_tolerance_deg: float = 0.01,
+                chunk_lines: int = CHUNK_LINES) -> VerifyReport:
+    """Read and verify a program a chunk of lines at a time (:class:`~prs3_post.readers.program.ProgramStream`
+    into a :class:`~prs3_post.verify.Verifier`): memory does not grow with the samples, only by a few
+    numbers per move. The report keeps no samples (the text report needs none); it is the report
+    :func:`verify_loaded` gives for any ``chunk_lines``.
+
+    Raises
+    ------
+    InputError
+        An unreadable program, or one without moves.
+    """
+    stream = ProgramStream(setting.path, setting.dialect, stage=setting.machine.stage.present, chunk_lines=chunk_lines)
+    verifier = Verifier(setting.machine, setup=setting.setup, tolerance=tolerance,
+                        axis_tolerance=math.radians(axis_tolerance_deg), length_decimals=setting.dialect.decimals.length,
+                        feed_decimals=setting.dialect.decimals.inverse_time)
+    for chunk in stream:
+        verifier.add(chunk)
+    if not verifier.rows:
+        raise InputError("no moves (G0/G1 lines) in the program", path=setting.path)
+    return verifier.report(blending_lines=stream.blending_lines)
 
 
 def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str, *,
