@@ -629,3 +629,26 @@ def test_two_chamfers_facing_down_are_named():
         "found 8 faces: 1 horizontal up, 1 horizontal down, 4 vertical, 2 inclined 45.0° facing down; "
         "if the part's x axis (as read) points up, face 4 (inclination 45.0°, area 1414.2 mm²) is a candidate"
     )
+
+
+def test_auto_note_counts_the_larger_faces_it_skipped():
+    # one mesh, three bodies: a cylinder lying along x (24 strips, 15° apart, 2611 mm² each), a roof
+    # squashed to 10 mm along its ridge (two 30° faces of 577 mm², 10 mm wide) and a roof at 0.3 scale
+    # (two 30° faces of 520 mm², 17.3 mm wide)
+    cylinder = trimesh.creation.cylinder(radius=50, height=200, sections=24)
+    cylinder.apply_transform(trimesh.transformations.rotation_matrix(math.pi / 2, [0, 1, 0]))
+    narrow = _gable_roof()
+    narrow.apply_scale([1.0, 0.1, 1.0])
+    narrow.apply_translation([0, 200, 0])
+    small = _gable_roof()
+    small.apply_scale(0.3)
+    small.apply_translation([0, -200, 0])
+    faces = find_faces(trimesh.util.concatenate([cylinder, narrow, small]))
+    face, note = select_face(faces, None, min_width=15)
+    assert_allclose([face.area, face.width], [5773.502691896258 * 0.09, 50 / math.cos(math.radians(30)) * 0.3],
+                    rtol=1e-9)
+    assert note == (
+        f"auto: face {face.index} is the largest upward-facing inclined face (inclination 30.0000°, area 519.6 mm²); "
+        f"faces {face.index} and {face.index + 1} have equal area 519.6 mm²; picked {face.index} (lower index); "
+        "skipped larger inclined faces: 12 strips of curved surfaces, 2 narrower than 15 mm"
+    )
