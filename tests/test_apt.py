@@ -12,7 +12,7 @@ from numpy.testing import assert_allclose
 from prs3_post.arcs import arc_segment_count
 from prs3_post.cycles import DrillCycle, Pecking, drill_rows
 from prs3_post.errors import InputError
-from prs3_post.readers.apt import ClFile, parse_cl, read_cl
+from prs3_post.readers.apt import ClFile, ClStream, parse_cl, read_cl
 from prs3_post.toolpath import EventKind, MoveKind
 
 REPO = Path(__file__).resolve().parents[1]
@@ -307,3 +307,49 @@ def test_deep_cycle_without_step_drills_in_one_feed() -> None:
     (cycle,) = _read("humman_deep_drill.clsf").cycles
     assert cycle.words == ("DRILL", "DEEP", "RAPTO", "3.0000", "FEDTO", "0.0000", "MMPM", "250.0000")
     assert cycle.cycle.pecking is Pecking.NONE
+
+
+# --------------------------------------------------------------------------------------------
+# Streaming and the bulk path
+# --------------------------------------------------------------------------------------------
+def _same(a: ClFile, b: ClFile) -> None:
+    for name in ("kind", "tip", "axis", "feed", "source"):
+        assert np.array_equal(getattr(a.toolpath, name), getattr(b.toolpath, name)), name
+    assert a.toolpath.events == b.toolpath.events
+    assert (a.counts, a.units, a.end_lines, a.cycles) == (b.counts, b.units, b.end_lines, b.cycles)
+
+
+@pytest.mark.parametrize("name", sorted(CORPUS_COUNTS))
+def test_chunks_of_1_7_and_10000_lines_read_the_same_rows(name: str) -> None:
+    text = (CORPUS / name).read_text()
+    whole = _read(name)
+    for lines in (1, 7, 10_000):
+        _same(parse_cl(text, path=str(CORPUS / name), tolerance=TOL, chunk_lines=lines), whole)
+
+
+@pytest.mark.parametrize("name", ["mech491_APT_Variable_Axis.cls", "humman_ust_a_variable_contour.cls",
+                                  "humman_1_KONTUR_NAR_40_N2.cls", "humman_4_SVERL_63_N2.cls"])
+def test_the_bulk_path_reads_exactly_what_the_record_path_reads(name: str) -> None:
+    """A space after GOTO/ sends every GOTO through the record-by-record path."""
+    text = (CORPUS / name).read_text()
+    slow = parse_cl(text.replace("GOTO/", "GOTO/ "), path=name, tolerance=TOL)
+    _same(slow, parse_cl(text, path=name, tolerance=TOL))
+
+
+def test_stream_chunks_count_events_from_their_own_start(tmp_path: Path) -> None:
+    path = tmp_path / "s.cls"
+    path.write_text("FEDRAT/MMPM,100\nGOTO/0,0,0\nPPRINT/A\nGOTO/1,0,0\nGOTO/2,0,0\nPPRINT/B\nGOTO/3,0,0\n")
+    stream = ClStream(str(path), tolerance=TOL, chunk_lines=3, piece_bytes=5)
+    chunks = list(stream)
+    assert [c.source.tolist() for c in chunks] == [[2], [4, 5], [7]]
+    assert [[(e.before, e.text) for e in c.events] for c in chunks] == [[(1, "A")], [(2, "B")], []]
+    assert stream.summary is not None and stream.summary.counts.rows == 4
+
+
+def test_the_unit_is_found_in_a_feed_record_continued_across_pieces(tmp_path: Path) -> None:
+    path = tmp_path / "u.cls"
+    path.write_text("RAPID\nGOTO/1,0,0\nFEDRAT/$\nIPM,$\n10\nGOTO/2,0,0\n")
+    for piece_bytes in (3, 16, 1 << 20):
+        cl = ClStream(str(path), tolerance=TOL, piece_bytes=piece_bytes).whole()
+        assert (cl.units, cl.toolpath.tip[:, 0].tolist(), cl.toolpath.feed.tolist()) == ("inch", [25.4, 50.8],
+                                                                                        [0.0, 254.0])

@@ -78,7 +78,7 @@ import numpy as np
 from prs3_post.arcs import arc_points_3d
 from prs3_post.cycles import DrillCycle, Pecking, drill_rows
 from prs3_post.errors import InputError
-from prs3_post.readers.files import read_input
+from prs3_post.readers.files import iter_pieces
 from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
 from prs3_post.types import FloatArray
 
@@ -115,6 +115,11 @@ _TRAILER = re.compile(r"Tool Path Listing has \d+ lines\.\Z")
 _FEED_UNITS = {"MMPM": (1.0, False), "IPM": (MM_PER_INCH, False), "MMPR": (1.0, True), "IPR": (MM_PER_INCH, True)}
 _UNIT_WORDS = {"MM": "mm", "INCHES": "inch", "INCH": "inch"}
 _RAPID, _FEED = int(MoveKind.RAPID), int(MoveKind.FEED)
+#: A GOTO as CAM systems write nearly all of them: plain decimals, no spaces, no comment. Such lines,
+#: one after another, are read in bulk (:meth:`_Reader.goto_run`); every other line record by record.
+_DECIMAL = r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)"
+_PLAIN_GOTO = re.compile(
+    rf"GOTO/({_DECIMAL}),({_DECIMAL}),({_DECIMAL})(?:,({_DECIMAL}),({_DECIMAL}),({_DECIMAL}))?\r?\Z")
 _CYCLE_KINDS = {"DRILL": Pecking.NONE, "DEEP": Pecking.FULL_RETRACT, "BRKCHP": Pecking.CHIP_BREAK}
 
 
@@ -236,9 +241,14 @@ class ClFile:
 # --------------------------------------------------------------------------------------------
 # Entry points
 # --------------------------------------------------------------------------------------------
+#: Lines read per chunk by :class:`ClStream` (a chunk's rows are handed out together).
+CHUNK_LINES = 10_000
+_PIECE_BYTES = 1 << 20
+
+
 def read_cl(path: str, *, tolerance: float, units: str | None = None, ignore: frozenset[str] = frozenset(),
             circle_tolerance: float = 0.01) -> ClFile:
-    """Read a CL file (see the module docstring for what is understood).
+    """Read a whole CL file (see the module docstring for what is understood).
 
     Parameters
     ----------
@@ -258,31 +268,117 @@ def read_cl(path: str, *, tolerance: float, units: str | None = None, ignore: fr
     InputError
         ``path:line: message`` naming what was found and what would be valid.
     """
-    return parse_cl(_text(read_input(path, "a CL file"), path), path=path, tolerance=tolerance, units=units,
-                    ignore=ignore, circle_tolerance=circle_tolerance)
+    stream = ClStream(path, tolerance=tolerance, units=units, ignore=ignore, circle_tolerance=circle_tolerance)
+    return stream.whole()
 
 
 def parse_cl(text: str, *, path: str, tolerance: float, units: str | None = None,
-             ignore: frozenset[str] = frozenset(), circle_tolerance: float = 0.01) -> ClFile:
+             ignore: frozenset[str] = frozenset(), circle_tolerance: float = 0.01,
+             chunk_lines: int = CHUNK_LINES) -> ClFile:
     """Read CL text; ``path`` is only used in messages. Parameters as :func:`read_cl`."""
-    if units not in (None, "mm", "inch"):
-        raise ValueError(f"parse_cl: units must be 'mm', 'inch' or None, got {units!r}")
-    if not (math.isfinite(tolerance) and tolerance > 0):
-        raise ValueError(f"parse_cl: tolerance must be > 0 mm, got {tolerance!r}")
-    ignore = frozenset(word.upper() for word in ignore)
-    understood = sorted(ignore & {*_KNOWN_WORDS, *DISPLAY_WORDS})
-    if understood:
-        raise InputError(f"cannot ignore {', '.join(understood)}: the reader understands "
-                         f"{'it' if len(understood) == 1 else 'them'} (only unknown major words can be ignored)",
-                         path=path)
-    records = list(_records(text, path))
-    if not records:
-        raise InputError("not a CL file: no records (the file is empty)", path=path)
-    file_units = _file_units(records, path, units)
-    reader = _Reader(path, MM_PER_INCH if file_units == "inch" else 1.0, ignore, tolerance, circle_tolerance)
-    for record in records:
-        reader.record(record)
-    return reader.finish(file_units)
+    return ClStream(path, tolerance=tolerance, units=units, ignore=ignore, circle_tolerance=circle_tolerance,
+                    chunk_lines=chunk_lines, text=text).whole()
+
+
+class ClStream:
+    """A CL file read in chunks of lines, for a conversion whose memory does not grow with the file.
+
+    Iterate it for one :class:`~prs3_post.toolpath.Toolpath` (part frame, mm) per chunk of
+    ``chunk_lines`` lines that has rows or events (events count rows from the chunk's start;
+    ``source`` holds the file's line numbers). The modal state, the position and a pending arc or
+    cycle carry across chunks, so the chunks are exactly the rows of :func:`read_cl`, cut in pieces.
+    Before the first chunk the whole file is read once, cheaply, to check that it is text and to
+    find its length unit (``UNITS/`` and the feed units, which may come after the first point).
+    After the iteration :attr:`summary` holds everything else (:class:`ClFile` with an empty toolpath).
+    ``text`` reads that text instead of the file (``path`` then only names it in messages).
+
+    Raises (during the iteration)
+    -----------------------------
+    InputError
+        As :func:`read_cl`.
+    """
+
+    def __init__(self, path: str, *, tolerance: float, units: str | None = None,
+                 ignore: frozenset[str] = frozenset(), circle_tolerance: float = 0.01,
+                 chunk_lines: int = CHUNK_LINES, piece_bytes: int = _PIECE_BYTES, text: str | None = None):
+        if units not in (None, "mm", "inch"):
+            raise ValueError(f"ClStream: units must be 'mm', 'inch' or None, got {units!r}")
+        if not (math.isfinite(tolerance) and tolerance > 0):
+            raise ValueError(f"ClStream: tolerance must be > 0 mm, got {tolerance!r}")
+        self.path, self.tolerance, self.units, self.circle_tolerance = path, tolerance, units, circle_tolerance
+        self.ignore = frozenset(word.upper() for word in ignore)
+        understood = sorted(self.ignore & {*_KNOWN_WORDS, *DISPLAY_WORDS})
+        if understood:
+            raise InputError(f"cannot ignore {', '.join(understood)}: the reader understands "
+                             f"{'it' if len(understood) == 1 else 'them'} (only unknown major words can be ignored)",
+                             path=path)
+        self.chunk_lines, self.piece_bytes = max(1, int(chunk_lines)), max(1, int(piece_bytes))
+        self._text = text                             # parse_cl: the text instead of the file
+        self.summary: ClFile | None = None
+
+    def _pieces(self) -> Iterator[str]:
+        """The file's text in pieces that end at line ends (a leading byte-order mark removed)."""
+        if self._text is not None:
+            yield self._text.removeprefix("\ufeff")
+            return
+        for offset, piece in iter_pieces(self.path, "a CL file", self.piece_bytes):
+            if offset == 0 and piece.startswith(b"\xef\xbb\xbf"):
+                piece, offset = piece[3:], 3
+            yield _text(piece, self.path, offset)
+
+    def _lines(self) -> Iterator[list[str]]:
+        """The file's lines (without line ends), ``chunk_lines`` at a time."""
+        pending: list[str] = []
+        for text in self._pieces():
+            lines = text.split("\n")
+            if lines[-1] == "":
+                lines.pop()                              # the piece's final line end
+            pending += lines
+            while len(pending) >= self.chunk_lines:
+                yield pending[:self.chunk_lines]
+                del pending[:self.chunk_lines]
+        if pending:
+            yield pending
+
+    def __iter__(self) -> Iterator[Toolpath]:
+        file_units = _file_units(_unit_records(self._pieces(), self.path), self.path, self.units)
+        reader = _Reader(self.path, MM_PER_INCH if file_units == "inch" else 1.0, self.ignore, self.tolerance,
+                         self.circle_tolerance)
+        number = 1
+        for lines in self._lines():
+            reader.lines(number, lines)
+            number += len(lines)
+            chunk = reader.take()
+            if len(chunk) or chunk.events:
+                yield chunk
+        reader.close()
+        chunk = reader.take()
+        if len(chunk) or chunk.events:
+            yield chunk
+        self.summary = reader.summary(file_units)
+
+    def whole(self) -> ClFile:
+        """All chunks joined: the whole file's :class:`ClFile`."""
+        chunks = list(self)
+        assert self.summary is not None  # set by the iteration
+        return ClFile(path=self.path, units=self.summary.units, toolpath=join_toolpaths(chunks),
+                      counts=self.summary.counts, frames=self.summary.frames, cycles=self.summary.cycles,
+                      tool_data=self.summary.tool_data, end_lines=self.summary.end_lines)
+
+
+def join_toolpaths(parts: list[Toolpath]) -> Toolpath:
+    """One toolpath of consecutive chunks (each chunk's events count rows from its own start)."""
+    events: list[Event] = []
+    rows = 0
+    for part in parts:
+        events += [Event(before=e.before + rows, kind=e.kind, value=e.value, text=e.text) for e in part.events]
+        rows += len(part)
+    if not parts:
+        return Toolpath(kind=np.zeros(0, dtype=np.int64), tip=np.zeros((0, 3)), axis=np.zeros((0, 3)),
+                        feed=np.zeros(0), source=np.zeros(0, dtype=np.int64))
+    return Toolpath(kind=np.concatenate([p.kind for p in parts]), tip=np.concatenate([p.tip for p in parts]),
+                    axis=np.concatenate([p.axis for p in parts]), feed=np.concatenate([p.feed for p in parts]),
+                    source=np.concatenate([p.source for p in parts]), events=tuple(events))
 
 
 # --------------------------------------------------------------------------------------------
@@ -301,17 +397,18 @@ class _Record(NamedTuple):
         return () if self.rest is None else tuple(arg.strip() for arg in self.rest.split(","))
 
 
-def _text(data: bytes, path: str) -> str:
+def _text(data: bytes, path: str, offset: int = 0) -> str:
+    """The text of (a piece of) a file; binary data and non-UTF-8 are refused (``offset``: of the piece)."""
     codes = np.frombuffer(data, dtype=np.uint8)
-    control = np.flatnonzero(((codes < 32) & ~np.isin(codes, (9, 10, 13))) | (codes == 127))
+    control = np.flatnonzero(((codes < 32) & (codes != 9) & (codes != 10) & (codes != 13)) | (codes == 127))
     if len(control):
         at = int(control[0])
-        raise InputError(f"not a CL file: binary data (byte 0x{codes[at]:02x} at offset {at})", path=path)
+        raise InputError(f"not a CL file: binary data (byte 0x{codes[at]:02x} at offset {offset + at})", path=path)
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise InputError(f"not a CL file: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start})",
-                         path=path) from exc
+        raise InputError(f"not a CL file: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset "
+                         f"{offset + exc.start})", path=path) from exc
 
 
 def _split_comment(line: str) -> tuple[str, str | None]:
@@ -321,33 +418,44 @@ def _split_comment(line: str) -> tuple[str, str | None]:
     return line[:at], line[at + 2:].strip()
 
 
-def _records(text: str, path: str) -> Iterator[_Record]:
-    """Each record with its first line number; continuations joined, comments split off."""
-    pending: list[str] = []
-    start = 0
-    line_no = 0
-    for line_no, raw in enumerate(text.splitlines(), start=1):
+class _Assembler:
+    """Lines → records: continuations (a trailing single ``$``) joined, ``$$`` comments split off."""
+
+    __slots__ = ("comment", "path", "pending", "start")
+
+    def __init__(self, path: str):
+        self.path = path
+        self.pending: list[str] = []
+        self.start = 0
+        self.comment: str | None = None
+
+    def push(self, number: int, raw: str) -> _Record | None:
+        """The record that line ``number`` completes, or None (blank line, or continued)."""
         code, comment = _split_comment(raw)
         code = code.strip()
-        if not pending:
-            start = line_no
+        if not self.pending:
+            self.start = number
             if not code:
-                if comment is not None:
-                    yield _Record(line_no, "$$", None, raw.strip(), comment)
-                continue
+                return None if comment is None else _Record(number, "$$", None, raw.strip(), comment)
+        if comment is not None:
+            self.comment = comment if self.comment is None else f"{self.comment} {comment}"
         if code.endswith("$"):
-            pending.append(code[:-1])
-            continue
-        pending.append(code)
-        joined = "".join(pending)
-        pending = []
-        yield _split(start, joined, comment, path)
-    if pending:
-        raise InputError(f"truncated record: {_quote(''.join(pending))} continues with '$' but the file ends "
-                         "(a continued record needs its next line)", path=path, line=start)
+            self.pending.append(code[:-1])
+            return None
+        self.pending.append(code)
+        joined = "".join(self.pending)
+        comment, self.comment = self.comment, None
+        self.pending = []
+        return _split(self.start, joined, comment)
+
+    def close(self) -> None:
+        """The end of the file: a continued record there is truncated."""
+        if self.pending:
+            raise InputError(f"truncated record: {_quote(''.join(self.pending))} continues with '$' but the file "
+                             "ends (a continued record needs its next line)", path=self.path, line=self.start)
 
 
-def _split(line: int, code: str, comment: str | None, path: str) -> _Record:
+def _split(line: int, code: str, comment: str | None) -> _Record:
     word, slash, rest = code.partition("/")
     word = word.strip().upper()
     if word == "PPRINT" or (not slash and code.upper().startswith("PPRINT ")):
@@ -359,6 +467,38 @@ def _split(line: int, code: str, comment: str | None, path: str) -> _Record:
 def _quote(text: str, limit: int = 60) -> str:
     text = text.strip()
     return f"'{text[:limit]}...'" if len(text) > limit else f"'{text}'"
+
+
+#: A line that may start a UNITS/ or FEDRAT/ record (the records that set the file's length unit).
+_UNIT_LINE = re.compile(r"^[ \t]*(?:UNITS|FEDRAT)[ \t]*/", re.MULTILINE | re.IGNORECASE)
+
+
+def _unit_records(pieces: Iterator[str], path: str) -> list[_Record]:
+    """The UNITS/ and FEDRAT/ records of the whole file, found without reading every record."""
+    found: list[_Record] = []
+    first_line = 1
+    carry, carry_line = "", 0                        # a continued record cut by a piece's end
+    for piece in pieces:
+        text = carry + piece
+        if carry:
+            first_line, carry = carry_line, ""
+        for match in _UNIT_LINE.finditer(text):
+            number = first_line + text.count("\n", 0, match.start())
+            assembler = _Assembler(path)
+            lines = text[match.start():].split("\n")
+            if lines[-1] == "":
+                lines.pop()                              # the piece's final line end, not a blank line
+            for offset, raw in enumerate(lines):
+                record = assembler.push(number + offset, raw)
+                if record is not None:
+                    found.append(record)
+                    break
+            else:
+                carry, carry_line = text[match.start():], number
+                break
+        if not carry:
+            first_line += text.count("\n")
+    return found
 
 
 def _file_units(records: list[_Record], path: str, caller: str | None) -> str:
@@ -437,8 +577,10 @@ class _Reader:
         self.feed = array("d")
         self.source = array("q")
         self.frame_of = array("q")                    # index into self.frames
-        self.rows = 0
-        self.events: list[Event] = []
+        self.rows = 0                                 # rows so far (all chunks)
+        self.chunk_start = 0                          # row index of the current chunk's first row
+        self.events: list[Event] = []                 # this chunk's, ``before`` counted from the file's start
+        self.assembler = _Assembler(path)
         self.frames: list[ClFrame] = [ClFrame(0, np.zeros(3), np.eye(3))]
         self.position: tuple[float, float, float] | None = None    # mm, local frame of the current MSYS
         self.tool_axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
@@ -508,12 +650,12 @@ class _Reader:
         self.rows += 1
         self.position = point
 
-    def add_rows(self, tip: FloatArray, axis: tuple[float, float, float], kind: int | np.ndarray,
+    def add_rows(self, tip: FloatArray, axis: tuple[float, float, float] | FloatArray, kind: int | np.ndarray,
                  feed: float | np.ndarray, source: int | np.ndarray) -> None:
         tip = np.asarray(tip, dtype=np.float64).reshape(-1, 3)
         n = len(tip)
         self.tip.frombytes(tip.tobytes())
-        self.axis.frombytes(np.tile(np.asarray(axis, dtype=np.float64), n).tobytes())
+        self.axis.frombytes(np.broadcast_to(np.asarray(axis, dtype=np.float64), (n, 3)).tobytes())
         self.kind.frombytes(np.broadcast_to(np.asarray(kind, dtype=np.int64), (n,)).tobytes())
         self.feed.frombytes(np.broadcast_to(np.asarray(feed, dtype=np.float64), (n,)).tobytes())
         self.source.frombytes(np.broadcast_to(np.asarray(source, dtype=np.int64), (n,)).tobytes())
@@ -885,13 +1027,96 @@ class _Reader:
         self.finished = record.word == "FINI"
 
     # ---- result
-    def finish(self, units: str) -> ClFile:
+    # ---- lines, chunks, the end
+    def lines(self, first: int, lines: list[str]) -> None:
+        """Read ``lines`` (without line ends), the first of which is line ``first`` of the file.
+
+        Runs of plain GOTO lines (:data:`_PLAIN_GOTO`) are read in bulk; plain ``PAINT/`` lines
+        between them (display only, no comment, no continuation) are counted without ending the run.
+        """
+        assembler = self.assembler
+        plain = _PLAIN_GOTO.match
+        run: list[tuple[str | None, ...]] = []
+        run_index: list[int] = []
+        paints = 0
+        bulk = self.arc is None and self.cycle is None and not self.finished
+        for index, raw in enumerate(lines):
+            if bulk:
+                match = plain(raw)
+                if match is not None:
+                    run.append(match.groups())
+                    run_index.append(index)
+                    continue
+                if raw.startswith("PAINT/") and "$" not in raw:
+                    paints += 1
+                    continue
+            if run:
+                self.goto_run(first, lines, run, run_index)
+                run, run_index = [], []
+            record = assembler.push(first + index, raw)
+            if record is not None:
+                self.record(record)
+            bulk = self.arc is None and self.cycle is None and not self.finished and not assembler.pending
+        if run:
+            self.goto_run(first, lines, run, run_index)
+        if paints:
+            self.records += paints
+            self.by_word["PAINT"] += paints
+            self.skipped["PAINT"] += paints
+
+    def goto_run(self, first: int, lines: list[str], run: list[tuple[str | None, ...]], run_index: list[int]) -> None:
+        """Plain GOTO lines ``lines[run_index]`` in bulk: the same rows, counts and errors as one by one."""
+        with_axis = np.array([groups[3] is not None for groups in run])
+        tip = np.array([groups[:3] for groups in run], dtype=np.float64) * self.scale
+        given = np.array([groups[3:] for groups in run if groups[3] is not None], dtype=np.float64).reshape(-1, 3)
+        i, j, k = given[:, 0], given[:, 1], given[:, 2]
+        length = np.sqrt(i * i + j * j + k * k)
+        if (not np.isfinite(tip).all() or (with_axis.any() and self.multax_on is False)
+                or np.any(np.abs(length - 1.0) > AXIS_LENGTH_TOLERANCE) or np.any(length == 0.0)):
+            for index in run_index:                                  # one by one, for the exact error
+                record = self.assembler.push(first + index, lines[index])
+                assert record is not None  # a plain GOTO line is a whole record
+                self.record(record)
+            return
+        given = np.where((length == 1.0)[:, None], given, given / length[:, None])
+        axes = np.zeros((len(run), 3))
+        axes[with_axis] = given
+        last = np.maximum.accumulate(np.where(with_axis, np.arange(len(run)), -1))
+        axes[last < 0] = self.tool_axis
+        axes[last >= 0] = axes[last[last >= 0]]
+        kind = np.full(len(run), _FEED, dtype=np.int64)
+        if self.rapid_next:
+            kind[0] = _RAPID
+            self.rapid_next = False
+        feed = np.zeros(len(run))
+        if len(run) > 1 or kind[0] == _FEED:
+            self.line = first + run_index[1 if kind[0] == _RAPID else 0]
+            feed[kind == _FEED] = self.current_feed()
+        count = len(run)
+        self.records += count
+        self.by_word["GOTO"] += count
+        self.gotos += count
+        self.gotos_with_axis += int(with_axis.sum())
+        self.moves += count
+        self.after_end = False
+        self.add_rows(tip, axes, kind, feed, np.array(run_index, dtype=np.int64) + first)
+        x, y, z = axes[-1].tolist()
+        self.tool_axis = (x, y, z)
+
+    def close(self) -> None:
+        """The end of the file: nothing may be left open."""
+        self.assembler.close()
+        if self.records == 0:
+            raise InputError("not a CL file: no records (the file is empty)", path=self.path)
         if self.arc is not None:
             self.line = self.arc.line
             raise self.error("CIRCLE/ at the end of the file: its end GOTO/ is missing")
         if self.cycle is not None:
             self.line = self.cycle.line
             raise self.error("CYCLE/ is not closed with CYCLE/OFF before the end of the file")
+
+    def take(self) -> Toolpath:
+        """The rows and events since the last take, in the PART frame (events count from the chunk's start)."""
         local = np.frombuffer(self.tip, dtype=np.float64).reshape(-1, 3)
         axis_local = np.frombuffer(self.axis, dtype=np.float64).reshape(-1, 3)
         frame = np.frombuffer(self.frame_of, dtype=np.int64)
@@ -901,17 +1126,27 @@ class _Reader:
             rows = frame == index
             tip[rows] = self.frames[index].to_part(local[rows])
             axis[rows] = axis_local[rows] @ self.frames[index].rotation.T
-        kind = np.frombuffer(self.kind, dtype=np.int64)
-        feed = np.frombuffer(self.feed, dtype=np.float64)
-        source = np.frombuffer(self.source, dtype=np.int64)
-        toolpath = Toolpath(kind=kind, tip=tip, axis=axis, feed=feed, source=source, events=tuple(self.events))
+        events = tuple(Event(before=e.before - self.chunk_start, kind=e.kind, value=e.value, text=e.text)
+                       for e in self.events)
+        chunk = Toolpath(kind=np.frombuffer(self.kind, dtype=np.int64), tip=tip, axis=axis,
+                         feed=np.frombuffer(self.feed, dtype=np.float64),
+                         source=np.frombuffer(self.source, dtype=np.int64), events=events)
+        self.tip, self.axis, self.kind = array("d"), array("d"), array("q")
+        self.feed, self.source, self.frame_of = array("d"), array("q"), array("q")
+        self.events = []
+        self.chunk_start = self.rows
+        return chunk
+
+    def summary(self, units: str) -> ClFile:
+        """Everything but the rows (an empty toolpath): units, counts, frames, cycles, tool data, ends."""
         counts = ClCounts(
             records=self.records, gotos=self.gotos, gotos_with_axis=self.gotos_with_axis, moves=self.moves,
             arcs=self.arcs, arc_segments=self.arc_segments, cycles=len(self.cycles), cycle_holes=self.cycle_holes,
             cycle_rows=self.cycle_rows, comments=self.comments, skipped=tuple(sorted(self.skipped.items())),
-            by_word=tuple(sorted(self.by_word.items())), rows=len(toolpath))
-        return ClFile(path=self.path, units=units, toolpath=toolpath, counts=counts, frames=tuple(self.frames[1:]),
-                      cycles=tuple(self.cycles), tool_data=tuple(self.tool_data), end_lines=tuple(self.end_lines))
+            by_word=tuple(sorted(self.by_word.items())), rows=self.rows)
+        return ClFile(path=self.path, units=units, toolpath=join_toolpaths([]), counts=counts,
+                      frames=tuple(self.frames[1:]), cycles=tuple(self.cycles), tool_data=tuple(self.tool_data),
+                      end_lines=tuple(self.end_lines))
 
 
 _HANDLERS = {

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import stat
+from collections.abc import Iterator
 from typing import BinaryIO
 
 from prs3_post.errors import InputError
@@ -18,6 +19,7 @@ MB = 1_000_000
 SIZE_LIMITS: dict[str, int] = {
     "an STL file": 500 * MB,          # ~10 million triangles in binary STL
     "a G-code program": 1000 * MB,    # ~25 million lines
+    "a CL file": 1000 * MB,           # ~25 million records (read in pieces: iter_pieces)
     "a CSV file": 1000 * MB,          # ~15 million poses
     "a CL file": 1000 * MB,           # APT CL data, some 20 million records
     "a TOML file": 1 * MB,            # a machine or dialect description is a few kB
@@ -128,3 +130,29 @@ def format_bytes(size: int) -> str:
             value = size / scale
             return f"{value:.2g} {unit}" if value < 10 else f"{value:.0f} {unit}"
     return f"{size} bytes"
+
+
+def iter_pieces(path: str, what: str, piece_bytes: int = 1 << 20) -> Iterator[tuple[int, bytes]]:
+    """``(offset, bytes)`` pieces of the regular file at ``path``, each ending at a line end (or the file's end).
+
+    For readers that stream a file: memory holds one piece, not the file. Checked and opened as
+    :func:`open_input` does (``what`` as there); errors are raised when the iteration reaches them.
+    """
+    with open_input(path, what) as stream:
+        offset, rest = 0, b""
+        while True:
+            try:
+                block = stream.read(piece_bytes)
+            except OSError as exc:
+                raise InputError(f"cannot read the file: {exc.strerror or exc}", path=path) from exc
+            if not block:
+                break
+            block = rest + block
+            cut = block.rfind(b"\n") + 1
+            if cut == 0:
+                rest = block
+                continue
+            yield offset, block[:cut]
+            offset, rest = offset + cut, block[cut:]
+        if rest:
+            yield offset, rest
