@@ -116,13 +116,20 @@ BAD = [
     # reach and limits: the message names the step, the limit, the value and the margin
     ("stroke-limit", ["run", WEDGE, "--profile", "hole", "--part-origin", "0,0,0"],
      "prs3-post: error: hole 1 approach: T1 stroke -952.2064 mm is below the minimum -100.0000 mm by 852.2064 mm "
-     "(5 points outside limits in all)\n", 1),
+     "(5 points outside limits in all); setup: part origin at machine [0.0000, 0.0000, 0.0000] mm, rotation 0.0000 "
+     "deg about z; a part origin at machine [-79.4, -190.9, -1028.4] mm puts every point inside the machine's "
+     "limits: --part-origin=-79.4,-190.9,-1028.4\n", 1),
     ("stage-limit", ["run", WEDGE, "--profile", "hole", "--part-origin", "500,0,-970"],
      "prs3-post: error: hole 1 approach: stage X 582.7345 mm is above the maximum 300.0000 mm by 282.7345 mm "
-     "(5 points outside limits in all)\n", 1),
+     "(5 points outside limits in all); setup: part origin at machine [500.0000, 0.0000, -970.0000] mm, rotation "
+     "0.0000 deg about z; a part origin at machine [-79.4, -190.9, -1028.4] mm puts every point inside the "
+     "machine's limits: --part-origin=-79.4,-190.9,-1028.4\n", 1),
     ("head-without-stage", ["run", WEDGE, "--profile", "hole", "--machine", "patel2020-head"],
      "prs3-post: error: hole 1 approach: machine patel2020-head has no stage and its head alone misses the tip "
-     "(-95.5279, -0.0000, -661.0557) by 19.5369 mm (x -17.2655, y -9.1429) (5 points unreachable in all)\n", 1),
+     "(-95.5279, -0.0000, -661.0557) by 19.5369 mm (x -17.2655, y -9.1429) (5 points unreachable in all); setup: "
+     "part origin at machine [-100.0000, -200.0000, -970.0000] mm, rotation 0.0000 deg about z; no translation of "
+     "the part puts every point inside the machine's limits: set by --part-origin X,Y,Z and --part-rotation DEG\n",
+     1),
 ]
 
 

@@ -29,6 +29,7 @@ from prs3_post.limits import check_limits
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
 from prs3_post.ops.common import require_tolerance
 from prs3_post.output import is_stdout, refuse_overwriting, stdout_error, write_atomic, write_outputs
+from prs3_post.placement import Placement
 from prs3_post.readers.poses import read_poses
 from prs3_post.readers.program import read_program
 from prs3_post.readers.stl import UP_ROTATION, load_part
@@ -484,7 +485,13 @@ def _run_job(part: str, **opts: Any) -> int:
     """Build the JobSpec from the options, run it, write the program (and its preview)."""
     spec = _job_spec(part, opts)
     fmt = _image_format(opts["preview_path"]) if opts["preview_path"] else None
-    result = run_job(spec)
+    try:
+        result = run_job(spec)
+    except Placement as error:                         # the library's suggestion, as the option to give
+        origin = error.suggested_origin
+        hint = ("set by --part-origin X,Y,Z and --part-rotation DEG" if origin is None
+                else f"--part-origin={','.join(origin)}")
+        raise type(error)(f"{error}: {hint}", setup=error.setup, suggested_origin=origin) from error
     image = None
     if fmt is not None:                                # draw before writing anything: no half results
         program = read_program(result.text, spec.dialect, path=opts["out_path"] or "<program>",

@@ -16,13 +16,14 @@ import numpy as np
 from prs3_post import __version__
 from prs3_post.config import Dialect, Machine
 from prs3_post.emit.gcode import emit_program
-from prs3_post.errors import FeatureError, InputError
+from prs3_post.errors import FeatureError, InputError, LimitError, ReachError
 from prs3_post.face import Face
 from prs3_post.geometry import MIN_FACE_WIDTH_MM, find_faces, project_onto_face, select_face
 from prs3_post.ops import Cutting, plan_holes, plan_profile
 from prs3_post.ops.common import require_tolerance
 from prs3_post.ops.work import HoleJob, Operation, ProfileJob
 from prs3_post.pipeline import PostResult, post_process
+from prs3_post.placement import placement_error
 from prs3_post.readers.header import ProgramHeader, file_sha256, header_entries
 from prs3_post.readers.stl import load_part
 from prs3_post.resolution import length_resolution
@@ -129,7 +130,10 @@ def run_job(spec: JobSpec) -> JobResult:
 
     Raises
     ------
-    InputError, FeatureError, ReachError, LimitError
+    InputError, FeatureError
+    PlacementLimitError, PlacementReachError
+        The path breaks a limit or cannot be reached with this setup: the message says the setup and,
+        where a translation of the part fits, that part origin (``suggested_origin``).
     """
     require_tolerance(spec.tolerance)
     mesh = load_part(spec.part, units=spec.units, up=spec.up)
@@ -139,8 +143,12 @@ def run_job(spec: JobSpec) -> JobResult:
     except FeatureError as error:                     # about this file's faces: say which file
         raise InputError(str(error), path=spec.part) from error
     path_part = plan(spec, face)
-    post = post_process(spec.machine, path_part, spec.setup, tolerance=spec.tolerance,
-                        length_decimals=spec.dialect.decimals.length)
+    try:
+        post = post_process(spec.machine, path_part, spec.setup, tolerance=spec.tolerance,
+                            length_decimals=spec.dialect.decimals.length)
+    except (LimitError, ReachError) as error:          # say the setup, and one that fits if there is one
+        raise placement_error(error, spec.machine, path_part, spec.setup, tolerance=spec.tolerance,
+                              length_decimals=spec.dialect.decimals.length) from error
     entries = header_entries(header_of(spec, file_sha256(spec.part)), face, description=spec.machine.description)
     text = emit_program(post.program, spec.dialect, header=entries,
                         stage=spec.machine.stage.present, line_numbers=spec.line_numbers,

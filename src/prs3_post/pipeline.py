@@ -55,6 +55,24 @@ def model_for(machine: Machine) -> IKModel:
     return IKModel.EXACT if machine.stage.present else IKModel.HEAD
 
 
+def machine_path(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float = 0.002) -> Toolpath:
+    """The part-frame toolpath placed on the machine, with unit axes, its axis-changing moves subdivided.
+
+    Raises
+    ------
+    ReachError
+        A zero or downward tool axis.
+    """
+    path = place_toolpath(path_part, setup)
+    try:
+        unit = unit_axes(path.tip, path.axis)
+    except PoseError as error:
+        raise ReachError(f"toolpath: {error}") from error
+    path = Toolpath(kind=path.kind, tip=path.tip, axis=unit, feed=path.feed, source=path.source,
+                    events=path.events, source_labels=path.source_labels)
+    return subdivide_axis_changes(machine.geometry, path, tolerance=tolerance)
+
+
 def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float = 0.002,
                  length_decimals: int | None = None) -> PostResult:
     """Turn a part-frame toolpath into a checked joint-space program.
@@ -79,14 +97,7 @@ def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, toleran
     LimitError
         A point outside a machine limit, or a feed move with zero length.
     """
-    path = place_toolpath(path_part, setup)
-    try:
-        unit = unit_axes(path.tip, path.axis)
-    except PoseError as error:
-        raise ReachError(f"toolpath: {error}") from error
-    path = Toolpath(kind=path.kind, tip=path.tip, axis=unit, feed=path.feed, source=path.source,
-                    events=path.events, source_labels=path.source_labels)
-    path = subdivide_axis_changes(machine.geometry, path, tolerance=tolerance)
+    path = machine_path(machine, path_part, setup, tolerance=tolerance)
     model = model_for(machine)
     ik = inverse(machine.geometry, path.tip, path.axis, model=model)
     _raise_unreachable(machine, path, ik, model)
