@@ -181,3 +181,18 @@ def test_every_program_reader_refuses_a_fifo(tmp_path: Path) -> None:
         with pytest.raises(InputError) as caught:
             read()
         assert str(caught.value) == message + what
+
+
+@pytest.mark.parametrize("command", ["verify", "preview"])
+def test_a_program_value_no_machine_means_is_refused(tmp_path: Path, command: str) -> None:
+    """verify used to print it in full: 150-digit stage positions, margins and times."""
+    program = invoke(*DEMO_ARGS).stdout.splitlines()
+    line = next(i for i, text in enumerate(program) if text.startswith("G0 X"))
+    program[line] = "G0 X" + "9" * 150 + ".0" + program[line][program[line].index(" Y"):]
+    path = tmp_path / "big.ngc"
+    path.write_text("\n".join(program) + "\n")
+    result = invoke(command, str(path), *(["-o", str(tmp_path / "big.png")] if command == "preview" else []))
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == (f"prs3-post: error: {path}:{line + 1}: X 1e+150 mm is out of range "
+                             "(allowed: within ±1e+06 mm)\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["big.ngc"]

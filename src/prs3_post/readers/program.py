@@ -76,6 +76,8 @@ ALLOWED_M: dict[int, str] = {0: "stop", 2: "stop", 30: "stop", 3: "spindle", 5: 
 #: Word letters other than axes: what each is for.
 _OTHER_LETTERS = "GMNFSTPO"
 _AXIS_NAMES = ("stage X", "stage Y", "actuator T1", "actuator T2", "actuator T3")
+#: mm, the largest axis value a program may give (a kilometre).
+MAX_AXIS_MM = 1e6
 #: Lines handed out per chunk by :class:`ProgramStream` (and read in bulk at a time).
 CHUNK_LINES = 65536
 #: Bytes read from the file at a time.
@@ -371,8 +373,19 @@ class _Reader:
         parts, events = self.parts, self.events
         self.parts, self.events, self.rows = [], [], 0
         chunk = join_programs(parts)
+        self.check_magnitudes(chunk)
         return JointProgram(kind=chunk.kind, stage=chunk.stage, strokes=chunk.strokes,
                             inverse_time=chunk.inverse_time, source=chunk.source, events=tuple(events))
+
+    def check_magnitudes(self, chunk: JointProgram) -> None:
+        """Every axis value within ±MAX_AXIS_MM: a far larger one is a typo, and the reports would print it
+        digit by digit."""
+        joints = np.column_stack([chunk.stage, chunk.strokes])      # (N, 5) mm
+        beyond = np.abs(joints) > MAX_AXIS_MM
+        if beyond.any():
+            row, column = np.argwhere(beyond)[0]
+            raise InputError(f"{self.letters[column]} {joints[row, column]:.6g} mm is out of range (allowed: within "
+                             f"±{MAX_AXIS_MM:g} mm)", path=self.path, line=int(chunk.source[row]))
 
     # ------------------------------------------------------------------ one line
     def line(self, number: int, line: str, *, crlf: bool = False) -> None:
