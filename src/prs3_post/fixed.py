@@ -220,32 +220,35 @@ def _render_block(columns: Sequence[Column], present: BoolArray, lo: int, hi: in
                   ending: bytes) -> tuple[np.ndarray, IntArray]:
     """Rows ``lo:hi`` of :func:`render_rows`: (their bytes, each line's length with its ending).
 
-    Each word goes right-aligned, with one separator byte before it, into a field of a NUL-filled
-    (rows, line width) matrix at a fixed column; absent words stay NUL; dropping every NUL then
-    leaves the lines back to back. Fixed columns make every digit position one strided write.
+    Each word goes right-aligned, with one separator byte before it, into its own field of a
+    NUL-filled grid with a fixed byte column per character position; absent words stay NUL;
+    dropping every NUL then leaves the lines back to back. The grid is held transposed
+    (``grid[column, row]``), so that writing one digit position of every row is one contiguous write.
     """
     m = hi - lo
     on_all = present[lo:hi]
     fields = [_Field.of(column, lo, hi) for column in columns]
     offsets = np.cumsum([0] + [f.width for f in fields])
     stride = int(offsets[-1]) + len(ending)
-    matrix = np.zeros((m, stride), dtype=np.uint8)
-    flat = matrix.reshape(-1)
-    row_base = np.arange(m, dtype=np.int64) * stride
+    grid = np.zeros((stride, m), dtype=np.uint8)
+    flat = grid.reshape(-1)                                  # grid[c, r] is flat[c·m + r]
+    rows = np.arange(m, dtype=np.int64)
     words = np.zeros((m, len(fields)), dtype=np.int64)      # width of each word with its separator
     for j, field in enumerate(fields):
         on = on_all[:, j]
-        field.write(matrix, flat, row_base, int(offsets[j]), separator[0])
+        field.write(grid, flat, rows, int(offsets[j]), separator[0])
         words[:, j] = np.where(on, field.lengths + 1, 0)
-        matrix[~on, offsets[j]:offsets[j + 1]] = 0
+        if not on.all():
+            grid[offsets[j]:offsets[j + 1]] *= on            # absent words: NUL
     for k, byte in enumerate(ending):
-        matrix[:, stride - len(ending) + k] = byte
+        grid[stride - len(ending) + k] = byte
     # the first word of a line has no separator before it
     first = np.argmax(on_all, axis=1)
     right = offsets[1:][first]                               # end of that word's field
-    flat[row_base + right - words[np.arange(m), first]] = 0
+    flat[(right - words[rows, first]) * m + rows] = 0
     lengths = words.sum(axis=1) - 1 + len(ending)
-    return flat[flat != 0], lengths
+    lines = np.ascontiguousarray(grid.T).reshape(-1)
+    return lines[lines != 0], lengths
 
 
 def _narrow(values: IntArray) -> np.ndarray:
@@ -253,17 +256,17 @@ def _narrow(values: IntArray) -> np.ndarray:
     return values.astype(np.int32) if values.max(initial=0) < 2**31 else values
 
 
-def _write_digits(matrix: np.ndarray, values: np.ndarray, last: int, places: int, digits: IntArray | None) -> None:
-    """The decimal digits of ``values`` (M,) ≥ 0, units digit in column ``last``, ``places`` digits to the left;
-    with ``digits`` given, a row's digits beyond its own count stay NUL (no leading zeros)."""
+def _write_digits(grid: np.ndarray, values: np.ndarray, last: int, places: int, digits: IntArray | None) -> None:
+    """The decimal digits of ``values`` (M,) ≥ 0, units digit in grid column ``last``, ``places`` digits
+    to the left; with ``digits`` given, a row's digits beyond its own count stay NUL (no leading zeros)."""
     remaining = values
     for place in range(places):
         quotient = remaining // 10                           # // is fast; % is not
-        char = (remaining - quotient * 10).astype(np.uint8)
+        char = grid[last - place]
+        np.subtract(remaining, quotient * 10, out=char, casting="unsafe")
         char += ord("0")
         if digits is not None and place:
             char[digits <= place] = 0
-        matrix[:, last - place] = char
         remaining = quotient
 
 
@@ -288,7 +291,8 @@ class _Field:
         scaled = numbers.scaled[lo:hi]
         magnitude = np.abs(scaled)
         unit = 10**numbers.decimals
-        whole, fraction = magnitude // unit, magnitude % unit
+        whole = magnitude // unit
+        fraction = magnitude - whole * unit
         digits = _digit_count(whole)
         negative = scaled < 0
         lengths = len(prefix) + negative + digits + (numbers.decimals + 1 if numbers.decimals else 0)
@@ -302,35 +306,37 @@ class _Field:
         width = max(width, 1 + int(lengths.max(initial=0)))
         return cls(column, lengths, width, (whole, fraction, digits, negative), None, odd)
 
-    def write(self, matrix: np.ndarray, flat: np.ndarray, row_base: IntArray, offset: int, separator: int) -> None:
-        """Every row's word and the separator before it into ``matrix[:, offset : offset + width]``."""
+    def write(self, grid: np.ndarray, flat: np.ndarray, rows: IntArray, offset: int, separator: int) -> None:
+        """Every row's word and the separator before it into ``grid[offset : offset + width]``."""
         end = offset + self.width                            # one past the field's last byte
+        m = len(rows)
         column = self.column
         if isinstance(column, ChoiceColumn):
             for index, text in enumerate(column.texts):
-                chosen = row_base[self.choice == index] + end - len(text)
+                chosen = rows[self.choice == index]
                 for k, byte in enumerate(text):
-                    flat[chosen + k] = byte
+                    flat[(end - len(text) + k) * m + chosen] = byte
         else:
             assert self.parts is not None
-            self._write_number(matrix, flat, row_base, offset, end, *column, self.parts)
-        flat[row_base + end - self.lengths - 1] = separator
+            self._write_number(grid, flat, rows, offset, end, *column, self.parts)
+        flat[(end - self.lengths - 1) * m + rows] = separator
 
-    def _write_number(self, matrix: np.ndarray, flat: np.ndarray, row_base: IntArray, offset: int, end: int,
+    def _write_number(self, grid: np.ndarray, flat: np.ndarray, rows: IntArray, offset: int, end: int,
                       prefix: bytes, numbers: ScaledColumn,
                       parts: tuple[IntArray, IntArray, IntArray, BoolArray]) -> None:
         whole, fraction, digits, negative = parts
+        m = len(rows)
         decimals = numbers.decimals
-        units = end - 1 - (decimals + 1 if decimals else 0)  # the column of the units digit
+        units = end - 1 - (decimals + 1 if decimals else 0)  # the grid column of the units digit
         if decimals:
-            _write_digits(matrix, _narrow(fraction), end - 1, decimals, None)
-            matrix[:, units + 1] = ord(".")
-        _write_digits(matrix, _narrow(whole), units, int(digits.max(initial=0)), digits)
-        head = row_base + units - digits                    # where the sign goes (or the prefix ends)
-        flat[head[negative]] = ord("-")
+            _write_digits(grid, _narrow(fraction), end - 1, decimals, None)
+            grid[units + 1] = ord(".")
+        _write_digits(grid, _narrow(whole), units, int(digits.max(initial=0)), digits)
+        head = units - digits                                # where the sign goes (or the prefix ends)
+        flat[head[negative] * m + rows[negative]] = ord("-")
         head = head - negative
         for k, byte in enumerate(reversed(prefix)):
-            flat[head - k] = byte
+            flat[(head - k) * m + rows] = byte
         for row, text in self.odd:
-            matrix[row, offset:end] = 0
-            matrix[row, end - len(text):end] = np.frombuffer(text, dtype=np.uint8)
+            grid[offset:end, row] = 0
+            grid[end - len(text):end, row] = np.frombuffer(text, dtype=np.uint8)
