@@ -13,6 +13,7 @@ from click.testing import CliRunner
 from numpy.testing import assert_allclose
 
 from prs3_post.cli import main
+from prs3_post.kinematics import inverse
 
 POSES = Path(__file__).resolve().parents[1] / "fixtures" / "poses" / "cases_2a_2b.csv"
 TIP_2A, AXIS_2A = "-81.0264,21.2132,-679.4865", "0.447214,0,0.894427"
@@ -57,7 +58,7 @@ def test_ik_batch_round_trip(tmp_path):
     assert list(rows[0]) == ["tip_x", "tip_y", "tip_z", "axis_x", "axis_y", "axis_z", "X", "Y", "T1", "T2", "T3",
                              "theta1_deg", "theta2_deg", "theta3_deg", "cond", "ok"]
     assert [r["ok"] for r in rows] == ["true", "true", "false"]
-    # full precision: the strokes read back reproduce the tips through FK exactly
+    # 9 decimals (1 nm): the strokes read back reproduce the tips through FK to 1e-9 mm
     for row in rows[:2]:
         fk = json.loads(run("fk", "--strokes", f"{row['T1']},{row['T2']},{row['T3']}",
                             "--xy", f"{row['X']},{row['Y']}", "--json").output)
@@ -149,3 +150,55 @@ def test_pose_reader_fast_and_careful_paths_agree(tmp_path):
     with pytest.raises(Exception) as caught:
         read_poses(str(commented))
     assert str(caught.value) == f"{commented}:2: not a number: '#1'"
+
+
+def _pose_file(tmp_path: Path, rows: int, *, bad_line: int | None = None) -> Path:
+    rng = np.random.default_rng(7)
+    tilt, azimuth = np.radians(rng.uniform(0, 60, rows)), rng.uniform(0, 2 * np.pi, rows)   # some beyond limits
+    axis = np.column_stack([np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)])
+    tip = np.column_stack([rng.uniform(-150, 150, (rows, 2)), rng.uniform(-750, -600, rows)])
+    lines = ["tip_x,tip_y,tip_z,axis_x,axis_y,axis_z"]
+    lines += [",".join(map(repr, r)) for r in np.hstack([tip, axis]).tolist()]
+    lines.insert(5, "")                                              # a blank line: numbering goes on
+    if bad_line is not None:
+        lines[bad_line - 1] = "1,2,3,0,0"
+    path = tmp_path / "poses.csv"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_ik_batch_streams_in_chunks(tmp_path):
+    """Chunks of 3 lines give the bytes of one chunk; every value is its 9-decimal text."""
+    from prs3_post.config import load_machine
+    from prs3_post.ik_batch import IKBatch
+    from prs3_post.readers.poses import read_poses
+
+    path, machine = _pose_file(tmp_path, 40), load_machine("patel2020")
+    small, large = IKBatch(machine, str(path), chunk_lines=3), IKBatch(machine, str(path))
+    text = b"".join(small.chunks())
+    assert text == b"".join(large.chunks())
+    assert small.summary() == large.summary() is not None and small.poses == 40
+    table = read_poses(str(path))
+    unit = table.axis / np.linalg.norm(table.axis, axis=1)[:, None]
+    ik = inverse(machine.geometry, table.tip, unit)
+    values = np.column_stack([table.tip, unit, ik.stage, ik.strokes, np.degrees(ik.link_angle), ik.condition])
+    rows = text.decode().splitlines()[1:]
+    expected = [",".join("nan" if np.isnan(v) else f"{v:.9f}".replace("-0.000000000", "0.000000000") for v in row)
+                for row in values.tolist()]
+    assert [r.rsplit(",", 1)[0] for r in rows] == expected
+    assert small.outside_lines == [int(table.line[i]) for i in np.flatnonzero(
+        [r.endswith("false") for r in rows])][:10]
+
+
+def test_ik_batch_bad_line_in_a_later_chunk_writes_nothing(tmp_path):
+    from prs3_post.config import load_machine
+    from prs3_post.errors import InputError
+    from prs3_post.ik_batch import IKBatch
+    from prs3_post.output import write_atomic
+
+    path = _pose_file(tmp_path, 40, bad_line=31)
+    out = tmp_path / "out.csv"
+    with pytest.raises(InputError) as caught:
+        write_atomic(str(out), IKBatch(load_machine("patel2020"), str(path), chunk_lines=4).chunks())
+    assert str(caught.value) == f"{path}:31: expected 6 values (tip_x,tip_y,tip_z,axis_x,axis_y,axis_z), got 5"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["poses.csv"]

@@ -34,7 +34,7 @@ from prs3_post.readers.poses import read_poses
 from prs3_post.readers.program import read_program
 from prs3_post.readers.stl import UP_ROTATION, load_part
 from prs3_post.setup import Setup, SetupError
-from prs3_post.tables import fk_records, fk_text, ik_csv, ik_records, ik_text
+from prs3_post.tables import fk_records, fk_text, ik_records, ik_text
 from prs3_post.verify import Intended
 from prs3_post.verify_format import report_record, report_text
 from prs3_post.verify_job import (
@@ -310,19 +310,12 @@ def ik(tip: tuple[float, ...] | None, axis: tuple[float, ...] | None, batch_path
         if batch_path is not None:
             if tip is not None or axis is not None:
                 raise click.UsageError("--batch cannot be combined with --tip/--axis")
-            table = read_poses(batch_path)
-            try:
-                unit = unit_axes(table.tip, table.axis, row_name="line", row_numbers=table.line)
-            except PoseError as error:
-                raise InputError(str(error), path=batch_path) from error
-            result = inverse(machine.geometry, table.tip, unit, model=IKModel(model))
-            report = check_limits(machine, result, unit)
-            output(ik_csv(table.tip, unit, result, report), out_path)
-            bad = np.flatnonzero(~report.ok)
-            if len(bad):
-                shown = ", ".join(str(table.line[i]) for i in bad[:10]) + (", ..." if len(bad) > 10 else "")
-                click.echo(f"prs3-post: {len(bad)} of {len(report.ok)} poses unreachable or outside limits "
-                           f"(lines {shown}); see the ok column", err=True)
+            from prs3_post.ik_batch import IKBatch
+
+            batch = IKBatch(machine, batch_path, model=IKModel(model))
+            write_outputs([(out_path, batch.chunks())])
+            if batch.summary():
+                click.echo(f"prs3-post: {batch.summary()}", err=True)
                 return 1
             return 0
         if tip is None or axis is None:

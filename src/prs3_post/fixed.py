@@ -28,7 +28,7 @@ import numpy as np
 
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
-__all__ = ["ChoiceColumn", "ScaledColumn", "fixed", "fixed_column", "render_rows", "scale_column"]
+__all__ = ["ChoiceColumn", "Column", "ScaledColumn", "fixed", "fixed_column", "render_rows", "scale_column"]
 
 #: |value·10^d| below this is written from exact integers; at or above it (and nan/inf) one by one.
 _EXACT_LIMIT = 2.0**52

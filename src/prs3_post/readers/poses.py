@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import csv
+import itertools
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
 from prs3_post.errors import InputError
-from prs3_post.readers.files import read_input
+from prs3_post.readers.files import open_input
 from prs3_post.types import FloatArray, IntArray
 
 POSE_COLUMNS = ("tip_x", "tip_y", "tip_z", "axis_x", "axis_y", "axis_z")
@@ -34,28 +36,60 @@ def read_poses(path: str) -> PoseTable:
     """Read a CSV with the header ``tip_x,tip_y,tip_z,axis_x,axis_y,axis_z`` (that order, mm).
 
     Blank lines are ignored; anything else that is not six numbers is an error naming the line.
+    The whole table at once (:func:`iter_poses` reads it in chunks).
 
     Raises
     ------
     InputError
     """
-    try:
-        text = read_input(path, "a CSV file").decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise InputError(f"not UTF-8 text: {exc.reason} at byte {exc.start}", path=path) from exc
-    lines = text.splitlines()
-    fast = _parse_fast(lines)
-    if fast is not None:
-        return fast
-    rows = csv.reader(lines)
-    header = next(rows, None)
+    chunks = list(iter_poses(path))
+    if not chunks:
+        return PoseTable(tip=np.zeros((0, 3)), axis=np.zeros((0, 3)), line=np.zeros(0, dtype=np.int64))
+    return PoseTable(tip=np.concatenate([c.tip for c in chunks]), axis=np.concatenate([c.axis for c in chunks]),
+                     line=np.concatenate([c.line for c in chunks]))
+
+
+def iter_poses(path: str, *, chunk_lines: int = 65536) -> Iterator[PoseTable]:
+    """The poses of a CSV (as :func:`read_poses` reads it), ``chunk_lines`` lines of the file at a
+    time, so that a table of any length is read in bounded memory.
+
+    A problem is raised when its chunk is read: the chunks before it have been yielded.
+
+    Raises
+    ------
+    InputError
+    """
     expected = ",".join(POSE_COLUMNS)
-    if header is None or [h.strip() for h in header] != list(POSE_COLUMNS):
-        got = "an empty file" if header is None else repr(",".join(header))
-        raise InputError(f"expected the header {expected}, got {got}", path=path, line=1)
+    with open_input(path, "a CSV file") as stream:
+        offset, number = 0, 0                            # bytes and lines read so far
+        while True:
+            raw = list(itertools.islice(stream, chunk_lines))
+            if not raw:
+                break
+            data = b"".join(raw)
+            try:
+                lines = data.decode("utf-8").splitlines()
+            except UnicodeDecodeError as exc:
+                raise InputError(f"not UTF-8 text: {exc.reason} at byte {offset + exc.start}", path=path) from exc
+            if number == 0:
+                header = next(csv.reader(lines[:1]), [])
+                if [h.strip() for h in header] != list(POSE_COLUMNS):
+                    raise InputError(f"expected the header {expected}, got {','.join(header)!r}", path=path, line=1)
+                lines, number = lines[1:], 1
+            fast = _parse_fast(lines, number)
+            yield fast if fast is not None else _parse_careful(lines, number, path)
+            offset, number = offset + len(data), number + len(lines)
+        if number == 0:
+            raise InputError(f"expected the header {expected}, got an empty file", path=path, line=1)
+
+
+def _parse_careful(lines: list[str], before: int, path: str) -> PoseTable:
+    """Line by line with the csv module: finds the first problem and names its line (``before``
+    lines of the file come before ``lines``)."""
+    expected = ",".join(POSE_COLUMNS)
     values: list[list[float]] = []
     line_numbers: list[int] = []
-    for number, row in enumerate(rows, start=2):
+    for number, row in enumerate(csv.reader(lines), start=before + 1):
         if not row or all(not cell.strip() for cell in row):
             continue
         if len(row) != len(POSE_COLUMNS):
@@ -63,19 +97,18 @@ def read_poses(path: str) -> PoseTable:
         try:
             values.append([float(cell) for cell in row])
         except ValueError as exc:
-            raise InputError(f"not a number: {exc}".replace("could not convert string to float: ", ""), path=path, line=number) from exc
+            message = f"not a number: {exc}".replace("could not convert string to float: ", "")
+            raise InputError(message, path=path, line=number) from exc
         line_numbers.append(number)
     table = np.array(values, dtype=np.float64).reshape(-1, 6)
     return PoseTable(tip=table[:, :3], axis=table[:, 3:], line=np.array(line_numbers, dtype=np.int64))
 
 
-def _parse_fast(lines: list[str]) -> PoseTable | None:
-    """numpy's C parser for a well-formed table; None whenever anything is off (the careful
+def _parse_fast(lines: list[str], before: int) -> PoseTable | None:
+    """numpy's C parser for well-formed lines; None whenever anything is off (the careful
     line-by-line reader then finds the first problem and names its line)."""
-    if not lines or lines[0].replace(" ", "") != ",".join(POSE_COLUMNS):
-        return None
-    numbers = [i + 1 for i, line in enumerate(lines) if line.strip()][1:]       # 1-based, header dropped
-    body = [lines[n - 1] for n in numbers]
+    numbers = [before + i + 1 for i, line in enumerate(lines) if line.strip()]
+    body = [lines[n - before - 1] for n in numbers] if len(numbers) < len(lines) else lines
     try:
         table = np.loadtxt(body, delimiter=",", dtype=np.float64, ndmin=2, comments=None) if body else np.zeros((0, 6))
     except ValueError:
