@@ -24,13 +24,12 @@ from prs3_post.config import Machine, load_dialect, load_machine, postproc_dir, 
 from prs3_post.errors import FeatureError, InputError, Prs3Error, Prs3Warning, ReachError
 from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
 from prs3_post.job import HoleJob, JobSpec, Operation, ProfileJob, run_job
-from prs3_post.kinematics import IKModel, PoseError, forward, inverse, unit_axes
+from prs3_post.kinematics import IKModel, forward, inverse, unit_axes
 from prs3_post.limits import check_limits
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
 from prs3_post.ops.common import require_tolerance
 from prs3_post.output import is_stdout, refuse_overwriting, stdout_error, write_atomic, write_outputs
 from prs3_post.placement import Placement
-from prs3_post.readers.poses import read_poses
 from prs3_post.readers.program import read_program
 from prs3_post.readers.stl import UP_ROTATION, load_part
 from prs3_post.setup import Setup, SetupError
