@@ -216,30 +216,37 @@ def test_every_g1_moves_a_word_and_keeps_its_feed(args: list[str]) -> None:
     assert _feed_problems(result, dialect) == []
 
 
-def _visible_moves_oracle(joints: np.ndarray, decimals: int, tip: np.ndarray, axis: np.ndarray) -> list[bool]:
+def _words_oracle(joints: np.ndarray, decimals: int) -> list[bool]:
     """Every row formatted and compared with the last kept one, in a plain loop."""
-    keep, last = [True], 0
-    for row in range(1, len(joints)):
-        same_words = [format_word("", v, decimals) for v in joints[row]] == [
-            format_word("", v, decimals) for v in joints[last]]
-        same_place = (axis[row] == axis[last]).all() and np.linalg.norm(tip[row] - tip[last]) < 0.5 * 10.0 ** -decimals
-        keep.append(not (same_words or same_place))
-        if keep[-1]:
-            last = row
+    keep, last = [True], [format_word("", v, decimals) for v in joints[0]]
+    for row in joints[1:]:
+        words = [format_word("", v, decimals) for v in row]
+        keep.append(words != last)
+        last = words
     return keep
 
 
 @settings(max_examples=60, deadline=None)
-@given(steps=st.lists(st.tuples(st.floats(-3e-4, 3e-4), st.floats(-3e-4, 3e-4), st.booleans()), max_size=40),
+@given(steps=st.lists(st.one_of(st.tuples(st.floats(-3e-4, 3e-4), st.floats(-3e-4, 3e-4), st.booleans()),
+                                st.tuples(st.floats(-3e-5, 3e-5), st.floats(-3e-5, 3e-5), st.just(False))),
+                      max_size=40),
        decimals=st.sampled_from([3, 4]))
-def test_visible_moves_equals_a_plain_loop(steps, decimals):
+def test_visible_moves_keeps_exactly_the_rows_that_print_a_move(steps, decimals):
     walk = np.cumsum(np.array([(0.0, 0.0, False), *steps], dtype=np.float64), axis=0)
     joints = np.column_stack([walk[:, 0], 2.0 * walk[:, 1] - walk[:, 0], np.full(len(walk), 7.0)])
+    assert visible_moves(joints, decimals).tolist() == _words_oracle(joints, decimals)
+    # with the tips: first the rows whose tip is within half a unit of the last kept one's (a run of
+    # short steps with one axis), then, of the others, those that print no move
     tip = np.column_stack([walk[:, 0], walk[:, 1], np.zeros(len(walk))])
     axis = np.column_stack([np.zeros(len(walk)), 1e-3 * walk[:, 2], np.ones(len(walk))])   # turns where True
-    keep = visible_moves(joints, decimals, tip=tip, axis=axis)
-    assert keep.tolist() == _visible_moves_oracle(joints, decimals, tip, axis)
-    assert visible_moves(joints, decimals).tolist() == _visible_moves_oracle(joints, decimals, tip, np.nan * axis)
+    near, away, last = 0.5 * 10.0 ** -decimals, [True], 0
+    for row in range(1, len(walk)):
+        short = np.linalg.norm(tip[row] - tip[row - 1]) < near and (axis[row] == axis[row - 1]).all()
+        away.append(not (short and np.linalg.norm(tip[row] - tip[last]) < near))
+        last = row if away[-1] else last
+    expected = np.array(away)
+    expected[np.flatnonzero(away)] = _words_oracle(joints[np.array(away)], decimals)
+    assert visible_moves(joints, decimals, tip=tip, axis=axis).tolist() == expected.tolist()
 
 
 def test_a_row_after_a_dropped_one_is_compared_with_the_last_kept_row():

@@ -16,7 +16,7 @@ import numpy as np
 from prs3_post.emit.gcode import format_word
 from prs3_post.types import BoolArray, FloatArray
 
-__all__ = ["length_resolution", "visible_moves"]
+__all__ = ["length_resolution", "printed_units", "visible_moves"]
 
 
 def length_resolution(decimals: int) -> float:
@@ -30,23 +30,20 @@ def length_resolution(decimals: int) -> float:
 
 def visible_moves(joints: FloatArray, decimals: int, *, tip: FloatArray | None = None,
                   axis: FloatArray | None = None) -> BoolArray:
-    """Which rows make a move the program can show, measured from the last row that is kept.
+    """Which rows make a move the program can show.
 
-    Row 0 is always kept. Row i is dropped when its axis words, formatted as the emitter formats
-    them (:func:`~prs3_post.emit.gcode.format_word`: fixed decimals, ``-0`` as ``0``), all equal
-    those of the last kept row (it would print as no move), or, given ``tip`` and ``axis``, when
-    its tip is less than half an output unit from that row's with the same tool axis (a move
-    smaller than the program can show, which would print as a one-unit step of whichever word
-    happens to round the other way). Every kept row after row 0 changes at least one word.
-
-    Only rows that move no joint by more than one output unit from the row before, or the tip by
-    less than half a unit, or that follow a dropped row, are compared one by one: a row that
-    moves a joint by more than one unit from a kept row prints a new word (two values that print
-    the same lie within one unit of each other).
+    Row 0 is always kept. Given ``tip`` and ``axis``, a row first goes when its tip is less than half
+    an output unit from the last row kept so far, with the same tool axis (a move smaller than the
+    program can show, which would print as a one-unit step of whichever word happens to round the
+    other way). Then, of the rows left, a row goes when its axis words, formatted as the emitter
+    formats them (:func:`~prs3_post.emit.gcode.format_word`: fixed decimals, ``-0`` as ``0``), all
+    equal those of the row left before it: it would print as no move. As such a row prints the same
+    as the last kept one, comparing with the row before is comparing with the last kept row. Every
+    kept row after row 0 changes at least one word.
 
     Parameters
     ----------
-    joints : (N, K) float — the printed axes of each row (stage X, Y and strokes: mm)
+    joints : (N, K) float — the printed axes of each row (stage X, Y and strokes: mm), finite
     decimals : int — digits after the point of those words
     tip : (N, 3) float, optional — mm, the tool tip of each row
     axis : (N, 3) float, optional — the unit tool axis of each row (needed with ``tip``)
@@ -64,43 +61,61 @@ def visible_moves(joints: FloatArray, decimals: int, *, tip: FloatArray | None =
     [True, False, True]
     """
     joints = np.asarray(joints, dtype=np.float64)
-    n = len(joints)
-    keep = np.ones(n, dtype=bool)
-    if n < 2:
+    keep = np.ones(len(joints), dtype=bool)
+    if len(joints) < 2:
         return keep
-    unit = length_resolution(decimals)
-    candidate = np.all(np.abs(np.diff(joints, axis=0)) <= unit * (1.0 + 1e-6), axis=1)  # a little more:
-    if tip is not None and axis is not None:                                          # the exact test decides
-        close = (np.linalg.norm(np.diff(tip, axis=0), axis=1) < 0.5 * unit) & np.all(np.diff(axis, axis=0) == 0, axis=1)
-        candidate |= close
-
-    def words(row: int) -> list[str]:
-        return [format_word("", float(v), decimals) for v in joints[row]]
-
-    def same_place(row: int, other: int) -> bool:
-        return (tip is not None and axis is not None and bool(np.all(axis[row] == axis[other]))
-                and float(np.linalg.norm(tip[row] - tip[other])) < 0.5 * unit)
-
-    rows = (np.flatnonzero(candidate) + 1).tolist()
-    last, last_words = 0, words(0)
-    index, after_drop = 0, -1
-    while True:
-        if after_drop >= 0 and (index == len(rows) or after_drop < rows[index]):
-            row, after_drop = after_drop, -1                # the row after a dropped one: always compared
-        elif index < len(rows):
-            row = rows[index]
-            index += 1
-            if row == after_drop:
-                after_drop = -1
-        else:
-            break
-        if keep[row - 1] and row - 1 != last:              # the row before was kept: it is the reference
-            last, last_words = row - 1, words(row - 1)
-        here = words(row)
-        if here == last_words or same_place(row, last):
-            keep[row] = False
-            if row + 1 < n:
-                after_drop = row + 1
-        else:
-            last, last_words = row, here
+    if tip is not None and axis is not None:
+        keep = _away_from_the_last_kept(np.asarray(tip, dtype=np.float64), np.asarray(axis, dtype=np.float64),
+                                        0.5 * length_resolution(decimals))
+    rows = np.flatnonzero(keep)
+    printed = printed_units(joints[rows], decimals)
+    changed = np.any(printed[1:] != printed[:-1], axis=1)
+    keep[rows[1:][~changed]] = False
     return keep
+
+
+def _away_from_the_last_kept(tip: FloatArray, axis: FloatArray, near: float) -> BoolArray:
+    """(N,) bool: False where the tip is within ``near`` mm of the last kept row's, axis unchanged.
+
+    Only rows that step less than ``near`` from the row before (with the same axis) are looked at
+    one by one; a longer step keeps its row (leaving the last kept row's neighbourhood by going
+    back and forth is not looked for: that is not a sub-resolution move of one row).
+    """
+    keep = np.ones(len(tip), dtype=bool)
+    short = (np.linalg.norm(np.diff(tip, axis=0), axis=1) < near) & np.all(np.diff(axis, axis=0) == 0, axis=1)
+    rows = (np.flatnonzero(short) + 1).tolist()
+    if not rows:
+        return keep
+    points = tip.tolist()
+    last = -1
+    for row in rows:
+        if row - 1 != last and keep[row - 1]:            # the row before was kept: it is the reference
+            last = row - 1
+        (x, y, z), (lx, ly, lz) = points[row], points[last]
+        if (x - lx) ** 2 + (y - ly) ** 2 + (z - lz) ** 2 < near * near:
+            keep[row] = False                            # same axis: a short step keeps it along a run
+        else:
+            last = row
+    return keep
+
+
+def printed_units(values: FloatArray, decimals: int) -> FloatArray:
+    """The values as the emitter prints them, in units of the last digit (whole numbers, as floats).
+
+    Equal where :func:`~prs3_post.emit.gcode.format_word` writes the same text (``-0.00004`` and
+    ``0.00004`` are both 0). Scaling rounds, so values within a millionth of a unit of a tie (and
+    huge ones) are rounded from their exact decimal text instead.
+
+    >>> printed_units(np.array([0.00015, -0.00004, 1.23456]), 4).tolist()   # 0.00015 is 0.000149999... in binary
+    [1.0, 0.0, 12346.0]
+    """
+    values = np.asarray(values, dtype=np.float64)
+    scaled = values * 10.0 ** decimals
+    units = np.rint(scaled)
+    doubtful = np.abs(scaled - units) > 0.5 - 1e-6
+    if scaled.size and np.max(np.abs(scaled)) > 2.0 ** 40:     # the scaling's error grows with the value
+        doubtful |= np.abs(scaled) > 2.0 ** 40
+    for index in zip(*np.nonzero(doubtful), strict=True):
+        text = format_word("", float(values[index]), decimals)
+        units[index] = float(text.replace(".", ""))
+    return units + 0.0                                   # -0.0 → 0.0
