@@ -147,6 +147,12 @@ TOO_LONG = "1" + "0" * 300
      "Invalid value for '--rapid-rate': 0 mm/min is out of range (allowed: > 0 and ≤ 1e+06 mm/min)"),
     (["ik", "--tip", "0,200,-680", "--axis", "0,0,1e400"],
      "Invalid value for '--axis': K = inf is out of range (allowed: within ±1e+06)"),
+    ([*DEMO_ARGS, "--tool-number", "1_0"],
+     "Invalid value for '--tool-number': expected a whole number (like 12), got '1_0'"),
+    ([*DEMO_ARGS, "--tool-number", TOO_LONG],
+     "Invalid value for '--tool-number': 1e+300 is out of range (allowed: at most 30 digits)"),
+    ([*DEMO_ARGS, "--line-numbers", "--line-step", "5000"],
+     "Invalid value for '--line-step': 5000 is out of range (allowed: 1 to 1000)"),
     (["fk", "--strokes", " 1,2,3"], "Invalid value for '--strokes': expected 3 plain decimal numbers T1,T2,T3, "
                                     "got ' 1,2,3'"),
 ])

@@ -28,7 +28,7 @@ from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from prs3_post.cli import Decimal, Numbers, OutputPath, main
+from prs3_post.cli import Decimal, Integer, Numbers, OutputPath, main
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -156,7 +156,7 @@ def value_for(param: click.Parameter, command: str) -> st.SearchStrategy[Any]:
         return numbers_text(kind.count)
     if isinstance(kind, (Decimal, click.types.FloatParamType)):
         return number_text()
-    if isinstance(kind, (click.types.IntParamType, click.IntRange)):
+    if isinstance(kind, (Integer, click.types.IntParamType, click.IntRange)):
         return st.one_of(st.integers(-5, 100_000).map(str), st.integers(0, 20).map(str),
                          st.sampled_from(("1e20", "10" * 20, "1_0", "x", "")))
     return st.text(max_size=12)

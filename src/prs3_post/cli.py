@@ -112,6 +112,37 @@ class Decimal(click.ParamType):
         return number
 
 
+class Integer(click.ParamType):
+    """A plain whole number (``12``, ``-3``; not ``1_0``, ``1e3``, ``٣`` or ``+ 1``) within ``[low, high]``.
+
+    Without bounds only a count of digits no controller takes is refused (more than 30), so that no
+    message prints a 300-digit number; what the value means is checked where it is used."""
+
+    name = "integer"
+
+    def __init__(self, low: int | None = None, high: int | None = None):
+        self.low, self.high = low, high
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> int:
+        if isinstance(value, int):
+            number = value
+        elif _PLAIN_INTEGER.fullmatch(str(value)):
+            number = int(str(value))
+        else:
+            self.fail(f"expected a whole number (like 12), got {_shown(str(value))}", param, ctx)
+        low = -_INTEGER_LIMIT if self.low is None else self.low
+        high = _INTEGER_LIMIT if self.high is None else self.high
+        if not low <= number <= high:
+            shown = str(number) if abs(number) < 10**12 else compact(float(number))
+            allowed = f"{low} to {high}" if self.low is not None or self.high is not None else "at most 30 digits"
+            self.fail(f"{shown} is out of range (allowed: {allowed})", param, ctx)
+        return number
+
+
+_PLAIN_INTEGER = re.compile(r"[+-]?[0-9]+")
+_INTEGER_LIMIT = 10**30 - 1
+
+
 class Numbers(click.ParamType):
     """``X,Y,Z``-style option values: a fixed count of comma-separated plain decimal numbers, each
     within ``±magnitude``."""
@@ -440,7 +471,7 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
         # tool and cutting data
         click.option("--tool-diameter", type=Decimal(LENGTH), default=6.0, show_default=True,
                      help="Tool diameter, mm."),
-        click.option("--tool-number", type=int, default=1, show_default=True,
+        click.option("--tool-number", type=Integer(), default=1, show_default=True,
                      help="Tool number (T word), 1 up to the dialect's words.tool_number_max (both shipped: 99999)."),
         click.option("--feed", type=Decimal(FEED), default=300.0, show_default=True,
                      help="Cutting feed at the tool tip, mm/min."),
@@ -458,8 +489,8 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="G-code dialect: linuxcnc, fanuc, or a dialect TOML file."),
         click.option("--line-numbers/--no-line-numbers", default=None,
                      help="Number the blocks (N words).  [default: as the dialect says]"),
-        click.option("--line-start", type=click.IntRange(0, 99999), default=None, help="First block number."),
-        click.option("--line-step", type=click.IntRange(1, 1000), default=None, help="Block number increment."),
+        click.option("--line-start", type=Integer(0, 99999), default=None, help="First block number."),
+        click.option("--line-step", type=Integer(1, 1000), default=None, help="Block number increment."),
         click.option("--tolerance", type=Decimal(LENGTH), default=0.002, show_default=True,
                      help="Chordal tolerance of arcs (and of moves that turn the tool axis), mm."),
         click.option("-o", "--output", "out_path", type=OutputPath(),
