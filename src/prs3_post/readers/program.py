@@ -47,7 +47,7 @@ import numpy as np
 
 from prs3_post.config import AXIS_LETTERS, Dialect
 from prs3_post.errors import InputError, LexError
-from prs3_post.readers.files import open_input, read_input
+from prs3_post.readers.files import iter_pieces, read_input
 from prs3_post.readers.lexer import (
     BYTE_ORDER_MARK,
     EMPTY,
@@ -211,21 +211,7 @@ class ProgramStream:
 
     def _pieces(self) -> Iterator[tuple[int, bytes]]:
         """(offset, bytes) pieces of the file, each ending at a line end (or the file's end)."""
-        with open_input(self.path, "a G-code program") as stream:  # a regular file within the size limit
-            try:
-                offset, rest = 0, b""
-                while block := stream.read(self.piece_bytes):
-                    block = rest + block
-                    cut = block.rfind(b"\n") + 1
-                    if cut == 0:
-                        rest = block
-                        continue
-                    yield offset, block[:cut]
-                    offset, rest = offset + cut, block[cut:]
-                if rest:
-                    yield offset, rest
-            except OSError as exc:
-                raise InputError(f"cannot read the file: {exc.strerror or exc}", path=self.path) from exc
+        return iter_pieces(self.path, "a G-code program", self.piece_bytes)
 
     def _check_text(self) -> None:
         """The whole file is text, with :func:`~prs3_post.readers.lexer.decode`'s errors in its order."""
