@@ -343,3 +343,13 @@ def test_blocks_linuxcnc_rejects_are_refused_when_the_dialect_loads(tmp_path, rs
     rejected = {int(line.split(".ngc:")[0].rsplit("/", 1)[1]) for line in report.splitlines() if ".ngc:" in line
                 and ": OK" not in line}
     assert rejected == set(range(len(programs))), report
+
+
+def test_a_contour_the_program_cannot_show_is_refused():
+    with pytest.raises(FeatureError) as caught:
+        _job(["--profile", "round", "--diameter", "0.001", "--dialect", "fanuc"])
+    assert str(caught.value) == (
+        "round Ø0.001 mm at (u 0.000, v 0.000) with tool Ø6.000: the tool centre goes 0.0028 mm around, too little "
+        "for the program's resolution of 0.001 mm (a larger shape, or a hole?)")
+    result, dialect = _job(["--profile", "round", "--diameter", "0.001"])      # 4 decimals show it
+    assert _g1_lines_that_move_nothing(result.text, dialect) == []

@@ -432,8 +432,9 @@ def plan_profile(
     name = "square" if isinstance(shape, SquareShape) else "round"
     lap = _Lap.of(contour, resolution)
     if len(lap.points) < 4:                           # fewer than 3 corners the program can tell apart
-        raise FeatureError(f"{what}: the tool centre goes {lap.length:.4f} mm around, too little for the "
-                           f"program's resolution of {resolution:g} mm")
+        around = float(np.sum(np.linalg.norm(np.diff(contour, axis=0), axis=1)))
+        raise FeatureError(f"{what}: the tool centre goes {around:.4f} mm around, too little for the "
+                           f"program's resolution of {resolution:g} mm (a larger shape, or a hole?)")
     depths = pass_depths(params.depth, params.step_down, resolution=resolution)
     passes = len(depths)
     clockwise = float(np.sum(contour[:-1, 0] * contour[1:, 1] - contour[1:, 0] * contour[:-1, 1])) < 0
