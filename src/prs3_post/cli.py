@@ -663,11 +663,13 @@ def faces(part: str, units: str, up: str, as_json: bool) -> None:
 
 def _against_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """The main job's options, for `verify --against PART.stl` to rebuild the intended path with:
-    the same options and defaults, but --profile not required and without the output-only ones."""
+    the same options and defaults, but --profile not required and without the output-only ones (a
+    program with a prs3-post header needs none of them: they may only repeat what it says)."""
     probe = _job_options(lambda **_: None)
     skip = {"out_path", "preview_path", "line_numbers", "line_start", "line_step"}
     params = getattr(func, "__click_params__", [])
-    for param in probe.__click_params__:             # in click's stored (reversed) order
+    borrowed: list[click.Parameter] = probe.__click_params__  # type: ignore[attr-defined]  # click stores them here
+    for param in borrowed:                           # in click's stored (reversed) order
         if param.name in skip:
             continue
         if param.name == "profile":

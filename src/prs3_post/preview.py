@@ -70,7 +70,7 @@ def path_segments(report: VerifyReport, kind: MoveKind) -> FloatArray:
     -------
     (P, 3) float — mm, part coordinates, NaN rows between moves
     """
-    rep = report.replay
+    rep = report.samples_kept
     rows = np.flatnonzero(report.program.kind == kind)
     rows = rows[rows > 0]
     tip = report.tip_part
@@ -87,7 +87,7 @@ def _axis_marks(report: VerifyReport, count: int, length: float) -> tuple[FloatA
     if not len(feed_rows):
         feed_rows = np.arange(len(report.program))
     chosen = feed_rows[np.unique(np.linspace(0, len(feed_rows) - 1, min(count, len(feed_rows))).round().astype(int))]
-    ends = report.replay.end[chosen]
+    ends = report.samples_kept.end[chosen]
     tip, axis = report.tip_part[ends], report.axis_part[ends]
     segments = np.stack([tip, tip + length * axis, np.full_like(tip, np.nan)], axis=1).reshape(-1, 3)
     return segments, chosen
@@ -133,8 +133,8 @@ def feature_edges(triangles: FloatArray, *, angle: float = math.radians(1.0)) ->
     _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     inverse = inverse.ravel()
     keep = counts[inverse] != 2                        # open or non-manifold edges
-    pairs = np.flatnonzero(counts[inverse] == 2)
-    pairs = pairs[np.argsort(inverse[pairs], kind="stable")].reshape(-1, 2)   # both halves of each edge
+    halves = np.flatnonzero(counts[inverse] == 2)
+    pairs = halves[np.argsort(inverse[halves], kind="stable")].reshape(-1, 2)   # both halves of each edge
     cos = np.sum(normal[owner[pairs[:, 0]]] * normal[owner[pairs[:, 1]]], axis=1)
     keep[pairs[cos < math.cos(angle), 0]] = True       # one half of each sharp edge
     return ends[keep]
@@ -245,7 +245,7 @@ def render_preview(
     if len(rapid):
         ax3d.plot(rapid[:, 0], rapid[:, 1], rapid[:, 2], color=_RAPID_COLOUR, linewidth=1.0, linestyle="--",
                   label="G0 (rapid)", zorder=5)
-    start = report.tip_part[report.replay.end[0]] if len(report.program) else np.zeros(3)
+    start = report.tip_part[report.samples_kept.end[0]] if len(report.program) else np.zeros(3)
     ax3d.scatter([start[0]], [start[1]], [start[2]], color="black", s=18, label="start", depthshade=False, zorder=6)
     ax3d.plot(marks[:, 0], marks[:, 1], marks[:, 2], color=_AXIS_COLOUR, linewidth=1.6, alpha=0.8, label="tool axis",
               zorder=3)
@@ -253,7 +253,7 @@ def render_preview(
     ax3d.set_ylabel("y (mm)")
     ax3d.set_zlabel("z (mm)")
     ax3d.set_title("(a) tool path on the part (FK replay, part coordinates)", fontsize=10)
-    normal = np.nanmean(report.axis_part, axis=0) if len(report.replay.axis) else np.array([0.0, 0.0, 1.0])
+    normal = np.nanmean(report.axis_part, axis=0) if len(report.samples_kept.axis) else np.array([0.0, 0.0, 1.0])
     azimuth = math.degrees(math.atan2(normal[1], normal[0])) if np.hypot(normal[0], normal[1]) > 1e-6 else -60.0
     ax3d.view_init(elev=28.0, azim=azimuth - 55.0)
     ax3d.legend(loc="upper left", fontsize=8)

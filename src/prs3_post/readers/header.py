@@ -119,10 +119,13 @@ def file_sha256(path: str) -> str:
         The file cannot be read.
     """
     with open_input(path, "a file") as stream:          # read in pieces: a part may be large
+        digest = hashlib.sha256()
         try:
-            return hashlib.file_digest(stream, "sha256").hexdigest()
+            for piece in iter(lambda: stream.read(1 << 20), b""):
+                digest.update(piece)
         except OSError as exc:
             raise InputError(f"cannot read the file: {exc.strerror or exc}", path=path) from exc
+    return digest.hexdigest()
 
 
 # ============================================================================ numbers
