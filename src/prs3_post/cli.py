@@ -176,11 +176,6 @@ class OutputPath(click.Path):
         super().__init__(dir_okay=False)
 
 
-def output(text: str, path: str | None) -> None:
-    """``text`` to ``path`` (atomically) or, without a path, to standard output."""
-    write_outputs([(path, text)])
-
-
 def _refuse_overwriting_inputs(ctx: click.Context) -> None:
     """No output may be one of the command's input files (PART.stl, POSES.csv, a machine TOML ...)."""
     outputs: dict[str, str | None] = {}
