@@ -16,7 +16,7 @@ import pytest
 from click.testing import CliRunner
 
 from prs3_post import output as output_module
-from prs3_post.cli import main
+from prs3_post.cli import demo_part, main
 from prs3_post.errors import InputError
 from prs3_post.output import write_atomic, write_outputs
 
@@ -42,6 +42,7 @@ def folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     (tmp_path / "link.stl").symlink_to("part.stl")
     (tmp_path / "sub").mkdir()
     (tmp_path / "p.csv").write_text(POSES)
+    (tmp_path / "bundled.stl").symlink_to(demo_part())
     return tmp_path
 
 
@@ -61,6 +62,8 @@ def folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
      _error("link.stl", "is also the input PROGRAM.ngc: writing --output would destroy it (choose another file)")),
     (["demo", "--profile", "hole", "--machine", "./m.toml", "-o", "m.toml"],
      _error("m.toml", "is also the input --machine: writing --output would destroy it (choose another file)")),
+    (["demo", "--profile", "hole", "-o", "bundled.stl"],
+     _error("bundled.stl", "is also the input the demo part: writing --output would destroy it (choose another file)")),
 ])
 def test_output_onto_an_input_is_refused_before_any_work(folder: Path, args: list[str], message: str) -> None:
     before = {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()}

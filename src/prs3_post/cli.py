@@ -189,6 +189,8 @@ def _refuse_overwriting_inputs(ctx: click.Context) -> None:
             outputs[name] = value
         elif isinstance(param.type, click.Path) or param.name in ("machine_name", "dialect_name"):
             inputs[name] = value
+    if ctx.command.name == "demo":
+        inputs["the demo part"] = str(demo_part())
     refuse_overwriting(outputs, inputs)
 
 
