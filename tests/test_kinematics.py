@@ -17,7 +17,7 @@ from numpy.testing import assert_allclose
 from prs3_post.config import load_machine
 from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, forward, inverse, unit_axes
 from prs3_post.kinematics.exact import inverse_exact, platform_centre_xy, spherical_joints
-from prs3_post.kinematics.paper import paper_joints
+from prs3_post.kinematics.paper import inverse_paper, paper_joints
 from prs3_post.limits import check_limits, raise_first_violation
 from prs3_post.errors import LimitError
 
@@ -201,6 +201,48 @@ def test_vectorized_ik_equals_scalar_reference(n):
         assert_allclose(result.link_angle[i], angles, atol=1e-12)
     for i in range(min(n, 200)):
         assert_allclose(result.condition[i], scalar_condition(tip[i], axis[i]), rtol=1e-5)
+
+
+def scalar_paper_ik(tip, axis):
+    """The paper's method for one pose, as it reads: circle ∩ leg plane, with cross products."""
+    rp, k, u = GEO.platform_radius, GEO.guide_radius, GEO.link_length
+    centre = np.asarray(tip) + GEO.tool_length * np.asarray(axis)
+    strokes, angles = [], []
+    for alpha in GEO.leg_azimuth:
+        e = np.array([math.cos(alpha), math.sin(alpha), 0.0])
+        t = np.array([-math.sin(alpha), math.cos(alpha), 0.0])
+        normal = t - (t @ axis) * axis
+        foot = centre - (centre @ t) / (normal @ normal) * normal
+        along = np.cross(axis, t)
+        along /= np.linalg.norm(along)
+        s = foot + math.copysign(1.0, along @ e) * math.sqrt(rp * rp - (foot - centre) @ (foot - centre)) * along
+        theta = math.acos((k - s @ e) / u)
+        strokes.append(-s[2] - u * math.sin(theta))
+        angles.append(theta)
+    return strokes, angles
+
+
+@pytest.mark.parametrize("n", [0, 1, 5000])
+def test_vectorized_paper_ik_equals_scalar_reference(n):
+    rng = np.random.default_rng(n)
+    tip, axis = poses_from(rng.uniform(0, 40, n), rng.uniform(0, 360, n),
+                           np.column_stack([rng.uniform(-100, 100, n), rng.uniform(-100, 100, n),
+                                            rng.uniform(-720, -640, n)]))
+    result = inverse_paper(GEO, tip, axis, block_rows=777)     # odd block size: blocks must not matter
+    assert result.strokes.shape == (n, 3) and result.stage.shape == (n, 2) and result.condition.shape == (n,)
+    assert_allclose(result.condition, inverse_exact(GEO, tip, axis).condition, atol=0.0)
+    exact_reach = inverse_exact(GEO, tip, axis).reachable
+    for i in range(n):
+        try:
+            strokes, angles = scalar_paper_ik(tip[i], axis[i])
+        except ValueError:                                  # sqrt or acos out of its domain: no joint
+            assert not result.reachable[i] and np.isnan(result.strokes[i]).all()
+            continue
+        assert result.reachable[i] == exact_reach[i]
+        if result.reachable[i]:
+            assert_allclose(result.strokes[i], strokes, atol=1e-9)
+            assert_allclose(result.link_angle[i], angles, atol=1e-12)
+    assert result.reachable.sum() >= 0.9 * n
 
 
 def scalar_fk(strokes, guess):

@@ -18,8 +18,34 @@ from __future__ import annotations
 import numpy as np
 
 from prs3_post.config import Geometry
+from prs3_post.kinematics.blocks import BLOCK_ROWS, run_blocks
 from prs3_post.kinematics.exact import IKResult, inverse_exact
 from prs3_post.types import FloatArray
+
+
+def _joint(geometry: Geometry, tip: FloatArray, axis: FloatArray, leg: int) -> tuple[FloatArray, ...]:
+    """S_i of one leg as columns (x, y, z), each (N,) mm; NaN where the circle misses the leg's plane.
+
+    Written out per component (e = (cos α, sin α, 0), t = (−sin α, cos α, 0), g = a·e, τ = a·t):
+    n = t − τa has |n|² = 1 − τ², a × t = g·z − a_z·e has the same length, and e·(a × t) = −a_z,
+    so the branch sign is −1 for every axis with a_z > 0.
+    """
+    alpha = geometry.leg_azimuth[leg]
+    ca, sa = np.cos(alpha), np.sin(alpha)
+    ax, ay, az = axis[:, 0], axis[:, 1], axis[:, 2]
+    tool = geometry.tool_length
+    mx, my, mz = tip[:, 0] + tool * ax, tip[:, 1] + tool * ay, tip[:, 2] + tool * az   # M = tip + TL·a
+    tau = ay * ca - ax * sa                                   # t·a
+    g = ax * ca + ay * sa                                     # a·e
+    s2 = 1.0 - tau * tau                                      # |n|² = |a × t|²
+    tm = my * ca - mx * sa                                    # t·M
+    k = tm / s2                                               # foot X0 = M − k·n
+    with np.errstate(invalid="ignore"):
+        half_chord = np.sqrt(geometry.platform_radius**2 - tm * k)   # |X0 − M|² = tm²/s2
+    step = np.where(-az >= 0.0, 1.0, -1.0) * half_chord / np.sqrt(s2)  # farther out along e_i
+    return (mx + k * (sa + tau * ax) - step * az * ca,
+            my - k * (ca - tau * ay) - step * az * sa,
+            mz + k * tau * az + step * g)
 
 
 def paper_joints(geometry: Geometry, tip: FloatArray, axis: FloatArray) -> FloatArray:
@@ -36,50 +62,56 @@ def paper_joints(geometry: Geometry, tip: FloatArray, axis: FloatArray) -> Float
     """
     tip = np.asarray(tip, dtype=np.float64).reshape(-1, 3)
     axis = np.asarray(axis, dtype=np.float64).reshape(-1, 3)
-    centre = tip + geometry.tool_length * axis
-    joints = np.zeros((len(tip), 3, 3))
-    for leg, alpha in enumerate(geometry.leg_azimuth):
-        radial = np.array([np.cos(alpha), np.sin(alpha), 0.0])
-        tangential = np.array([-np.sin(alpha), np.cos(alpha), 0.0])
-        t_dot_a = axis @ tangential
-        normal = tangential - t_dot_a[:, None] * axis                  # in platform plane, ⊥ line
-        foot = centre - ((centre @ tangential) / (1.0 - t_dot_a**2))[:, None] * normal
-        along = np.cross(axis, tangential)
-        along /= np.linalg.norm(along, axis=1, keepdims=True)
+    return np.stack([np.column_stack(_joint(geometry, tip, axis, leg)) for leg in range(3)], axis=1)
+
+
+def _paper_block(geometry: Geometry, tip: FloatArray, axis: FloatArray, out: dict[str, FloatArray]) -> None:
+    """Strokes, link angles and reachability of one block (see :func:`inverse_paper`)."""
+    reach = np.ones(len(tip), dtype=bool)
+    for leg in range(3):
+        sx, sy, sz = _joint(geometry, tip, axis, leg)
+        alpha = geometry.leg_azimuth[leg]
+        radial = sx * np.cos(alpha) + sy * np.sin(alpha)
         with np.errstate(invalid="ignore"):
-            half_chord = np.sqrt(geometry.platform_radius**2 - np.sum((foot - centre) ** 2, axis=1))
-        sign = np.where(along @ radial >= 0.0, 1.0, -1.0)                # farther out along e_i
-        joints[:, leg] = foot + (sign * half_chord)[:, None] * along
-    return joints
+            cos_t = (geometry.guide_radius - radial) / geometry.link_length
+            reach &= np.abs(cos_t) <= 1.0                 # False for NaN too
+            cos_t = np.clip(cos_t, -1.0, 1.0)              # clip: flagged above
+        out["link_angle"][:, leg] = np.arccos(cos_t)
+        out["strokes"][:, leg] = -sz - geometry.link_length * np.sqrt(1.0 - cos_t * cos_t)
+    out["reachable"][:] = reach
 
 
-def inverse_paper(geometry: Geometry, tip: FloatArray, axis: FloatArray) -> IKResult:
+def inverse_paper(geometry: Geometry, tip: FloatArray, axis: FloatArray, *, block_rows: int = BLOCK_ROWS,
+                  workers: int | None = None) -> IKResult:
     """The paper's IK: strokes and link angles from independently placed joints; stage X, Y = 0.
 
-    ``condition`` is the exact model's at the same tip and axis (the paper's pose is not rigid).
+    ``condition`` is the exact model's at the same tip and axis (the paper's pose is not rigid), and
+    a pose is reachable only where the exact model's is too. Cache-sized blocks on up to two
+    threads, as :func:`~prs3_post.kinematics.exact.inverse_exact`.
 
     Parameters
     ----------
     tip : (N, 3) float — mm, tool tip, machine frame
     axis : (N, 3) float — unit tool axes
+    block_rows, workers : int — rows per block and threads (no effect on the result)
 
     Returns
     -------
     IKResult
     """
-    joints = paper_joints(geometry, tip, axis)
-    alpha = np.asarray(geometry.leg_azimuth)
-    radial = joints[:, :, 0] * np.cos(alpha) + joints[:, :, 1] * np.sin(alpha)     # (N, 3)
-    with np.errstate(invalid="ignore"):
-        cos_t = (geometry.guide_radius - radial) / geometry.link_length
-        reachable = np.all(np.abs(cos_t) <= 1.0, axis=1)
-        link_angle = np.arccos(np.clip(cos_t, -1.0, 1.0))                      # clip: flagged above
-        strokes = -joints[:, :, 2] - geometry.link_length * np.sin(link_angle)
-    exact = inverse_exact(geometry, tip, axis)
-    reachable &= exact.reachable
-    stage = np.zeros((len(strokes), 2))
-    for values in (stage, strokes, link_angle):
+    tip = np.asarray(tip, dtype=np.float64).reshape(-1, 3)
+    axis = np.asarray(axis, dtype=np.float64).reshape(-1, 3)
+    n = len(tip)
+    out = {"strokes": np.zeros((n, 3)), "link_angle": np.zeros((n, 3)), "reachable": np.zeros(n, dtype=bool)}
+
+    def kernel(rows: slice) -> None:
+        _paper_block(geometry, tip[rows], axis[rows], {k: v[rows] for k, v in out.items()})
+
+    run_blocks(kernel, n, block_rows=block_rows, workers=workers)
+    exact = inverse_exact(geometry, tip, axis, block_rows=block_rows, workers=workers)
+    reachable = out["reachable"] & exact.reachable
+    stage = np.zeros((n, 2))
+    for values in (stage, out["strokes"], out["link_angle"]):
         values[~reachable] = np.nan
-    return IKResult(
-        stage=stage, strokes=strokes, link_angle=link_angle, condition=exact.condition, reachable=reachable
-    )
+    return IKResult(stage=stage, strokes=out["strokes"], link_angle=out["link_angle"], condition=exact.condition,
+                    reachable=reachable)
