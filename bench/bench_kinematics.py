@@ -1,25 +1,31 @@
 """Throughput and peak memory of exact IK, paper IK and FK (a script, not a test).
 
-    python bench/bench_kinematics.py [--n 1000000] [--repeat 3]
+    python bench/bench_kinematics.py [--n 1000000] [--repeat 7]
 
 Each kernel runs as shipped (cache-sized blocks on up to two threads) and, as the baseline in the
-same run, as one whole-array pass on one thread (``block_rows = N``, ``workers = 1``); the ratio
-is what the blocking and threading buy on this machine. Peak memory is traced with tracemalloc
-(NumPy reports its buffers to it) per call, and given per pose so that an (N, N) temporary would
-show at once. Targets on the 2-core CI machine: exact IK ≥ 5 M poses/s, FK ≥ 1 M poses/s.
+same run, as one whole-array pass on one thread (``block_rows = N``, ``workers = 1``), alternately,
+``--repeat`` times each; the ratio of the medians is what the blocking and threading buy on this
+machine. Rates are printed as the median and the range (min..max) over the runs, with the load
+average before and after: on a shared machine one number means little. Peak memory is traced with
+tracemalloc (NumPy reports its buffers to it) on one more call, and given per pose so that an
+(N, N) temporary would show at once. Targets on the 2-core CI machine: exact IK ≥ 5 M poses/s,
+FK ≥ 1 M poses/s.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import statistics
 import time
 import tracemalloc
 
 import numpy as np
 
 from prs3_post.config import load_machine
-from prs3_post.kinematics import IKModel, forward, inverse
+from prs3_post.kinematics import forward, inverse
 from prs3_post.kinematics.exact import inverse_exact
+from prs3_post.kinematics.paper import inverse_paper
 
 
 def workspace(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -31,15 +37,13 @@ def workspace(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     return tip, axis
 
 
-def measure(call, repeat: int) -> tuple[float, int]:
-    """Best wall time of ``repeat`` calls (s) and the peak traced memory of one call (bytes)."""
-    call()                                             # warm up: page in, thread pool
-    best = min(_timed(call) for _ in range(repeat))
+def peak_memory(call) -> int:
+    """The peak traced memory of one call (bytes)."""
     tracemalloc.start()
     call()
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
-    return best, peak
+    return peak
 
 
 def _timed(call) -> float:
@@ -48,32 +52,46 @@ def _timed(call) -> float:
     return time.perf_counter() - start
 
 
+def _load() -> str:
+    one, five, _ = os.getloadavg()
+    return f"load average {one:.2f} (5 min {five:.2f}), {os.cpu_count()} cores"
+
+
+def _spread(values: list[float]) -> str:
+    return f"{statistics.median(values):6.2f} ({min(values):5.2f}..{max(values):5.2f})"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=1_000_000)
-    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--repeat", type=int, default=7)
     args = parser.parse_args()
     geo = load_machine("patel2020").geometry
     n = args.n
     tip, axis = workspace(n)
     ik = inverse(geo, tip, axis)
     cases = [
-        ("exact IK", lambda: inverse_exact(geo, tip, axis), lambda: inverse_exact(geo, tip, axis, block_rows=n, workers=1)),
-        ("paper IK", lambda: inverse(geo, tip, axis, model=IKModel.PAPER), None),
+        ("exact IK", lambda: inverse_exact(geo, tip, axis),
+         lambda: inverse_exact(geo, tip, axis, block_rows=n, workers=1)),
+        ("paper IK", lambda: inverse_paper(geo, tip, axis),
+         lambda: inverse_paper(geo, tip, axis, block_rows=n, workers=1)),
         ("FK", lambda: forward(geo, ik.strokes, ik.stage),
          lambda: forward(geo, ik.strokes, ik.stage, block_rows=n, workers=1)),
     ]
-    print(f"N = {n:,} poses, best of {args.repeat}")
-    print(f"{'kernel':<10} {'M poses/s':>10} {'baseline':>10} {'ratio':>7} {'peak MB':>9} {'bytes/pose':>11}")
+    print(f"N = {n:,} poses, {args.repeat} runs each; before: {_load()}")
+    print(f"{'kernel':<10} {'M poses/s: median (min..max)':>30} {'baseline':>22} {'ratio':>6} {'peak MB':>8} "
+          f"{'bytes/pose':>10}")
     for name, shipped, baseline in cases:
-        seconds, peak = measure(shipped, args.repeat)
-        rate = n / seconds / 1e6
-        if baseline is not None:
-            base_rate = n / measure(baseline, 1)[0] / 1e6
-            base_text, ratio_text = f"{base_rate:10.2f}", f"{rate / base_rate:7.2f}"
-        else:
-            base_text, ratio_text = f"{'-':>10}", f"{'-':>7}"
-        print(f"{name:<10} {rate:10.2f} {base_text} {ratio_text} {peak / 1e6:9.1f} {peak / n:11.0f}")
+        shipped(), baseline()                          # warm up: page in, thread pool
+        rates, base_rates = [], []
+        for _ in range(args.repeat):                   # alternately, so that a load change hits both
+            rates.append(n / _timed(shipped) / 1e6)
+            base_rates.append(n / _timed(baseline) / 1e6)
+        peak = peak_memory(shipped)
+        ratio = statistics.median(rates) / statistics.median(base_rates)
+        print(f"{name:<10} {_spread(rates):>30} {_spread(base_rates):>22} {ratio:6.2f} {peak / 1e6:8.1f} "
+              f"{peak / n:10.0f}")
+    print(f"after: {_load()}")
 
 
 if __name__ == "__main__":

@@ -1,0 +1,124 @@
+"""Throughput and peak memory of the main job and of `ik --batch` at a million rows (a script, not a test).
+
+    python bench/bench_main.py [--repeat 5] [--poses 1000000] [--only main|ik] [--keep DIR]
+
+Each command runs in a fresh process ``--repeat`` times (whole process: start-up included), and
+the script prints each run, then the median and the range (min..max) over the runs, with the
+machine's load average before and after (the numbers mean little on a loaded machine):
+
+* main job: ``prs3-post demo --profile round --diameter 36 --depth 10 --step-down 0.01
+  --tolerance 0.0001`` — 1,000 passes of a 3,000-segment circle, about 950,000 lines; lines/s of
+  the written program. Target ≥ 250,000 lines/s within 300 MB.
+* ``prs3-post ik --batch`` on ``--poses`` random workspace poses (tilt ≤ 45°, written with full
+  precision, 120 MB for a million): rows/s. Target ≥ 500,000 rows/s within 300 MB at any size.
+
+Peak memory is the child's own peak resident set (``ru_maxrss``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+
+#: Runs the CLI in a child process and reports its own peak resident memory on standard error.
+_CHILD = """import resource, sys
+from prs3_post.cli import main
+try:
+    main(sys.argv[1:])
+finally:
+    sys.stderr.write(f"\\nMAXRSS_KB {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}\\n")
+"""
+
+MAIN_JOB = ["demo", "--profile", "round", "--diameter", "36", "--depth", "10", "--step-down", "0.01",
+            "--tolerance", "0.0001"]
+
+
+def run_cli(args: list[str]) -> tuple[float, float, int, str]:
+    """Wall time (s), peak RSS (MB), exit status and the last line of standard error of one run."""
+    env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, "-c", _CHILD, *args], capture_output=True, env=env, text=True,
+                          check=False)
+    wall = time.perf_counter() - start
+    rss = next(float(ln.split()[1]) / 1024 for ln in done.stderr.splitlines() if ln.startswith("MAXRSS_KB "))
+    said = [ln for ln in done.stderr.splitlines() if ln.strip() and not ln.startswith("MAXRSS_KB ")]
+    return wall, rss, done.returncode, (said or [""])[-1][:100]
+
+
+def write_poses(path: Path, n: int, seed: int = 0) -> None:
+    """``n`` poses: tilt ≤ 45°, any azimuth, tip x, y ∈ [−150, 150], z ∈ [−750, −600] mm, 17 digits."""
+    rng = np.random.default_rng(seed)
+    with open(path, "w", encoding="ascii") as stream:
+        stream.write("tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n")
+        for lo in range(0, n, 100_000):
+            m = min(n, lo + 100_000) - lo
+            tilt, azimuth = np.radians(rng.uniform(0, 45, m)), rng.uniform(0, 2 * np.pi, m)
+            axis = np.column_stack([np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)])
+            tip = np.column_stack([rng.uniform(-150, 150, (m, 2)), rng.uniform(-750, -600, m)])
+            np.savetxt(stream, np.hstack([tip, axis]), fmt="%.17g", delimiter=",")
+
+
+def _spread(values: list[float], fmt: str) -> str:
+    return f"{format(statistics.median(values), fmt)} (range {format(min(values), fmt)}..{format(max(values), fmt)})"
+
+
+def _load() -> str:
+    one, five, _ = os.getloadavg()
+    return f"load average {one:.2f} (5 min {five:.2f}), {os.cpu_count()} cores"
+
+
+def bench(name: str, args: list[str], out: Path, count_rows, repeat: int, target_rate: float, unit: str) -> None:
+    """Run ``args`` ``repeat`` times; rows per second from ``count_rows(out)``; print each run and the spread."""
+    rates, peaks = [], []
+    for _ in range(repeat):
+        out.unlink(missing_ok=True)
+        wall, rss, code, said = run_cli([*args, "-o", str(out)])
+        rows = count_rows(out) if out.exists() else 0
+        rates.append(rows / wall)
+        peaks.append(rss)
+        print(f"  {name}: {wall:.2f} s, {rows:,} {unit}, {rows / wall:,.0f} {unit}/s, peak RSS {rss:.0f} MB, "
+              f"exit {code}: {said}")
+    print(f"{name} {unit}/s: {_spread(rates, ',.0f')}  (target ≥ {target_rate:,.0f})")
+    print(f"{name} peak RSS MB: {_spread(peaks, '.0f')}  (target < 300)")
+
+
+def _lines(path: Path) -> int:
+    with open(path, "rb") as stream:
+        return sum(block.count(b"\n") for block in iter(lambda: stream.read(1 << 20), b""))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--poses", type=int, default=1_000_000)
+    parser.add_argument("--only", choices=["main", "ik"])
+    parser.add_argument("--keep", type=Path, help="write the inputs and outputs here and keep them")
+    args = parser.parse_args()
+    print(f"before: {_load()}")
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = args.keep or Path(tmp)
+        folder.mkdir(parents=True, exist_ok=True)
+        if args.only in (None, "main"):
+            print(f"main job: prs3-post {' '.join(MAIN_JOB)}")
+            bench("main job", MAIN_JOB, folder / "main.ngc", _lines, args.repeat, 250_000, "lines")
+        if args.only in (None, "ik"):
+            poses = folder / "poses.csv"
+            write_poses(poses, args.poses)
+            print(f"ik --batch: {args.poses:,} poses, {poses.stat().st_size / 1e6:.0f} MB")
+            bench("ik --batch", ["ik", "--batch", str(poses)], folder / "ik.csv", lambda p: _lines(p) - 1,
+                  args.repeat, 500_000, "rows")
+    print(f"after: {_load()}")
+
+
+if __name__ == "__main__":
+    main()
