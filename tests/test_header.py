@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
 from prs3_post.config import load_dialect, load_machine
@@ -153,3 +155,19 @@ def test_a_program_without_a_header_has_none(tmp_path):
     later = tmp_path / "later.ngc"
     later.write_text("G0 X0 Y0 U100 V100 W100\n" + (GOLDEN / "wedge-round.ngc").read_text(), encoding="utf-8")
     assert read_header(str(later)) is None
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_a_mutated_header_is_read_or_refused_never_a_traceback(tmp_path, data):
+    """Any one-character change to a header: a header, None, or an InputError with a line."""
+    text = (GOLDEN / "tilt35-square.ngc").read_text(encoding="utf-8")
+    end = text.index("G17 ")
+    where = data.draw(st.integers(0, end - 1))
+    char = data.draw(st.sampled_from(list("0123456789.-+e,[]():x ") + ["1e999", "nan", "", "99999999999"]))
+    mutated = tmp_path / "m.ngc"
+    mutated.write_text(text[:where] + char + text[where + 1:], encoding="utf-8")
+    try:
+        read_header(str(mutated))
+    except InputError as error:
+        assert error.line is not None and str(error).startswith(f"{mutated}:")

@@ -152,3 +152,19 @@ def test_a_program_without_header_works_with_explicit_options(slope_round, tmp_p
     assert result.stdout.splitlines()[-1] == "OK: within every limit and tolerance"
     needs_profile = invoke("verify", bare, "--against", SLOPE)
     assert needs_profile.exit_code == 2
+
+
+GOLDEN = REPO / "fixtures" / "golden"
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in GOLDEN.iterdir()))
+def test_every_golden_program_verifies_against_its_part_with_no_options(name):
+    """Machine, dialect, setup, operation and tolerance (0.01 mm for some) all come from the header."""
+    golden = GOLDEN / name
+    part_line = next(ln for ln in golden.read_text().splitlines() if ln.lower().startswith("(part: "))
+    part_name = part_line[len("(part: "):].split(",")[0].lower()
+    part = REPO / "postproc" / "parts" / part_name if part_name == "patel2020-wedge.stl" else \
+        REPO / "fixtures" / "parts" / part_name
+    result = invoke("verify", golden, "--against", part)
+    assert (result.exit_code, result.stdout.splitlines()[-1]) == (0, "OK: within every limit and tolerance"), \
+        result.stdout + result.stderr

@@ -50,6 +50,8 @@ from prs3_post.types import FloatArray
 
 #: The header's first key; a program without it has no header.
 PROGRAM_KEY = "program"
+#: Largest |coordinate| of a recorded position, mm (as the setup's origin).
+MAX_POSITION_MM = 1e5
 #: How many bytes of a program's start :func:`read_header` looks at (a header is about 1 KB).
 HEAD_BYTES = 64 * 1024
 
@@ -454,8 +456,13 @@ def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHe
         work = _work(operation.group(1), found["parameters"][1])
         key = "tool"
         cutting = _cutting(found["tool"][1])
+        every = np.concatenate([at_uv.ravel(), at_xyz.ravel()])
+        if not (np.isfinite(every).all() and np.abs(every).max(initial=0.0) <= MAX_POSITION_MM):
+            raise _Bad(f"positions must be finite and within ±{MAX_POSITION_MM:g} mm")
         key = "tolerance"
         tolerance = float(_match(_TOLERANCE, found["tolerance"][1]).group(1))
+        if not (math.isfinite(tolerance) and 0.0 < tolerance <= MAX_POSITION_MM):
+            raise _Bad(f"expected a tolerance > 0 mm, got {found['tolerance'][1]!r}")
     except _Bad as bad:
         raise InputError(f"header: {key}: {bad}", path=path, line=found[key][0]) from bad
     return ProgramHeader(
