@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from prs3_post.config import load_machine
+from prs3_post.fixed import fixed_column
 from prs3_post.kinematics import forward
 
 REPO = Path(__file__).resolve().parents[1]
@@ -36,9 +37,8 @@ GOLDEN = REPO / "fixtures" / "golden" / "wedge-round.ngc"
 
 
 def _words(letter: str, values: np.ndarray) -> list[str]:
-    """Fixed 4-decimal words of a column, no ``-0.0000``."""
-    text = [f"{v:.4f}" for v in values.tolist()]
-    return [f"{letter}{t[1:] if t == '-0.0000' else t}" for t in text]
+    """Fixed 4-decimal words of a column, no ``-0.0000`` (the emitter's formatter)."""
+    return [letter + text for text in fixed_column(values, 4)]
 
 
 def make_program(path: Path, lines: int) -> int:

@@ -370,14 +370,12 @@ class ToolpathBuilder:
     face : Face — gives the frame; every row's axis is ``face.normal``
     """
 
-    __slots__ = ("_face", "_uvw", "_kind", "_feed", "_source", "_labels", "_events", "_rows")
+    __slots__ = ("_events", "_face", "_labels", "_points", "_rows", "_runs")
 
     def __init__(self, face: Face) -> None:
         self._face = face
-        self._uvw: list[FloatArray] = []
-        self._kind: list[np.ndarray] = []
-        self._feed: list[FloatArray] = []
-        self._source: list[np.ndarray] = []
+        self._points: list[FloatArray] = []           # (n, 3) face points of each call
+        self._runs: list[tuple[int, int, float, int]] = []   # (n, kind, feed, step) of each call
         self._labels: list[str] = []
         self._events: list[Event] = []
         self._rows = 0
@@ -385,24 +383,23 @@ class ToolpathBuilder:
     @property
     def position(self) -> FloatArray:
         """(3,) float — mm, face (u, v, w) of the last row added."""
-        if not self._uvw:
+        if not self._points:
             raise ValueError("ToolpathBuilder.position: no rows yet")
-        return self._uvw[-1][-1].copy()
+        return self._points[-1][-1].copy()
 
     def step(self, label: str) -> None:
         """Start a new step: rows added from now on have ``source`` = this step's index."""
         self._labels.append(label)
 
     def _add(self, kind: MoveKind, uvw: FloatArray, feed: float) -> None:
+        # Only the points are kept as an array; kind, feed and step are one tuple per call, spread
+        # over the rows once in build() (per-call arrays of one row cost more than the planning).
         if not self._labels:
             raise ValueError("ToolpathBuilder: call step() before adding rows")
         uvw = np.asarray(uvw, dtype=np.float64).reshape(-1, 3)
-        n = len(uvw)
-        self._uvw.append(uvw)
-        self._kind.append(np.full(n, int(kind), dtype=np.int64))
-        self._feed.append(np.full(n, feed, dtype=np.float64))
-        self._source.append(np.full(n, len(self._labels) - 1, dtype=np.int64))
-        self._rows += n
+        self._points.append(uvw)
+        self._runs.append((len(uvw), int(kind), float(feed), len(self._labels) - 1))
+        self._rows += len(uvw)
 
     def rapid(self, uvw: FloatArray) -> None:
         """Add RAPID rows to face points ``uvw`` : (n, 3) or (3,) float — mm."""
@@ -428,16 +425,12 @@ class ToolpathBuilder:
         Toolpath — tip (N, 3) mm part frame, axis (N, 3) = ``face.normal``, feed (N,) mm/min
         (0 on rapids), source (N,) step indices into ``source_labels``.
         """
-        if self._uvw:
-            uvw = np.concatenate(self._uvw)
-            kind = np.concatenate(self._kind)
-            feed = np.concatenate(self._feed)
-            source = np.concatenate(self._source)
-        else:
-            uvw = np.zeros((0, 3))
-            kind = np.zeros(0, dtype=np.int64)
-            feed = np.zeros(0)
-            source = np.zeros(0, dtype=np.int64)
+        uvw = np.concatenate(self._points) if self._points else np.zeros((0, 3))
+        runs = np.array(self._runs, dtype=np.float64).reshape(-1, 4)        # n, kind, feed, step
+        counts = runs[:, 0].astype(np.int64)
+        kind = np.repeat(runs[:, 1].astype(np.int64), counts)
+        feed = np.repeat(runs[:, 2], counts)
+        source = np.repeat(runs[:, 3].astype(np.int64), counts)
         tip = self._face.to_part(uvw).reshape(-1, 3)
         axis = np.tile(np.asarray(self._face.normal, dtype=np.float64), (len(uvw), 1))
         return Toolpath(
