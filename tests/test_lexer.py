@@ -146,6 +146,7 @@ _number = st.builds(lambda sign, whole, frac, form: sign + (whole + "." + frac i
                 max_size=8))
 @example([("X", "1", " "), ("X", "2", "")])
 @example([("X", "1", " "), ("Y", ".5", "")])
+@example([("x", "0.", "")])
 def test_columns_agree_with_the_careful_lexer(words):
     line = "".join(f"{letter}{number}{space}" for letter, number, space in words)
     values, read = lex_columns([line], _LETTERS)
@@ -156,6 +157,30 @@ def test_columns_agree_with_the_careful_lexer(words):
             expected[_LETTERS.index(letter)] = value
         assert_array_equal(values[0], expected)
         assert [w[0] for w in careful] == sorted((w[0] for w in careful), key=_LETTERS.index)
+
+
+_chunk_line = st.one_of(
+    st.text(alphabet="NGXYUVWFx0123456789.- (", max_size=30),
+    st.lists(st.tuples(st.sampled_from(_LETTERS), _number), max_size=8).map(
+        lambda ws: " ".join(f"{letter}{number}" for letter, number in ws)))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(_chunk_line, max_size=12))
+@example(["X1", "5", "X2 3"])
+@example(["", "N10 G1 X-12.5 Y.5 U5. V0 W-0.000 F100.4746"])
+def test_column_chunks_agree_line_by_line(lines):
+    """A chunk reads as its lines one at a time (no line leaks into another), and as the careful lexer."""
+    values, read = lex_columns(lines, _LETTERS)
+    for i, line in enumerate(lines):
+        alone, alone_read = lex_columns([line], _LETTERS)
+        assert read[i] == alone_read[0]
+        assert_array_equal(values[i], alone[0])
+        if read[i]:
+            expected = np.full(len(_LETTERS), np.nan)
+            for letter, value, _ in lex_words(line):
+                expected[_LETTERS.index(letter)] = value
+            assert_array_equal(values[i], expected)
 
 
 # ----------------------------------------------------------------------------- pygcode as the reference

@@ -46,6 +46,7 @@ from collections.abc import Sequence
 from functools import lru_cache
 
 import numpy as np
+import numpy.typing as npt
 
 from prs3_post.errors import LexError
 from prs3_post.types import BoolArray, FloatArray
@@ -264,12 +265,85 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
     >>> values, read = lex_columns(["G1 X1.5 F2.", "G1 X1 X2", "(note)"], "GXF")
     >>> values[0].tolist(), read.tolist()
     ([1.0, 1.5, 2.0], [True, False, False])
+
+    How: the chunk's bytes are classified at once (numpy): letters of ``letters``, digits, ``.``,
+    ``-``, space, line end; any other byte (lower case, tab, ``(``, non-ASCII, ...) leaves its line
+    unread. A word is a letter and the bytes up to the next space, letter or line end; it is a
+    number when it has 1 to 15 digits, at most one ``.`` and at most a leading ``-`` (exactly
+    :data:`NUMBER`), and its value is the integer of its digits divided by 10^(digits after the
+    point): both exact in float64, so the quotient is the correctly rounded ``float`` of the text.
     """
-    pattern = column_pattern(letters)
-    width = len(letters)
-    matches = list(map(pattern.fullmatch, lines))
-    read = np.fromiter((m is not None for m in matches), dtype=bool, count=len(lines))
-    flat = [g or "nan" for m in matches if m is not None for g in m.groups()]
-    values = np.full((len(lines), width), np.nan)
-    values[read] = np.array(flat, dtype=np.float64).reshape(-1, width)
+    column_pattern(letters)                              # checks the letters
+    n, width = len(lines), len(letters)
+    values = np.full((n, width), np.nan)
+    if not n:
+        return values, np.zeros(0, dtype=bool)
+    data = np.frombuffer(("\n".join(lines) + "\n").encode("ascii", errors="replace"), dtype=np.uint8)
+    kind = _byte_classes(letters)[data]                  # int8: letters > 0, then SPACE, NEWLINE, DIGIT, ...
+    line_ends = np.flatnonzero(kind == _NEWLINE)
+    lines_before = np.cumsum(kind == _NEWLINE, dtype=np.int32)      # at a byte: line ends up to it
+    letter = kind > 0
+    words_before = np.cumsum(letter, dtype=np.int32)
+    digit = kind == _DIGIT
+    digits_before = np.cumsum(digit, dtype=np.int32)
+    number_bytes = np.cumsum((kind <= _DIGIT) & (kind >= _MINUS), dtype=np.int32)[line_ends]
+    start = np.flatnonzero(letter)                       # one word per letter
+    delimiters = np.flatnonzero(kind >= _NEWLINE)        # letters, spaces, line ends
+    stop = delimiters[np.searchsorted(delimiters, start + 1)]            # the word's end (exclusive)
+    last = stop - 1
+    word_line = lines_before[start]
+    rank = kind[start]
+    bad = np.zeros(n, dtype=bool)
+    bad[lines_before[np.flatnonzero(kind == _OTHER)]] = True
+    # every number byte is in a word (none after a space): a line's number bytes = its words' lengths
+    in_words = np.bincount(word_line, weights=stop - start - 1, minlength=n)
+    bad |= in_words != np.diff(number_bytes, prepend=0)
+    digits = digits_before[last] - digits_before[start]
+
+    def in_word(at: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int32]]:
+        """The bytes at ``at`` that are inside a word, and their words (a stray byte's line is bad above)."""
+        word = words_before[at] - 1
+        if not len(start):
+            return at[:0], word[:0]
+        inside = (word >= 0) & (at < stop[np.maximum(word, 0)])
+        return at[inside], word[inside]
+
+    dot_at, dot_word = in_word(np.flatnonzero(kind == _DOT))
+    minus_at, minus_word = in_word(np.flatnonzero(kind == _MINUS))
+    dots = np.bincount(dot_word, minlength=len(start))
+    minus = np.bincount(minus_word, minlength=len(start))
+    leading_minus = kind[np.minimum(start + 1, len(data) - 1)] == _MINUS
+    ordered = np.ones(len(start), dtype=bool)
+    ordered[1:] = (word_line[1:] != word_line[:-1]) | (rank[1:] > rank[:-1])
+    good = (digits >= 1) & (digits <= 15) & (dots <= 1) & ((minus == 0) | ((minus == 1) & leading_minus)) & ordered
+    bad[word_line[~good]] = True
+    read = ~bad
+    keep = read[word_line]
+    # the value: the digits as an integer (exact in float64 below 2^53), over 10^(digits after the point)
+    digit_at, word = in_word(np.flatnonzero(digit))
+    power = np.minimum(digits_before[last[word]] - digits_before[digit_at], len(_POWERS) - 1)
+    mantissa = np.bincount(word, weights=(data[digit_at] - 48) * _POWERS[power], minlength=len(start))
+    after_dot = np.zeros(len(start), dtype=np.int64)
+    after_dot[dot_word] = np.minimum(digits_before[last[dot_word]] - digits_before[dot_at], len(_POWERS) - 1)
+    number = mantissa / _POWERS[after_dot]
+    number[leading_minus] *= -1.0
+    values[word_line[keep], rank[keep] - 1] = number[keep]
     return values, read
+
+
+#: Byte classes of lex_columns: a letter of the columns is its column + 1; delimiters ≥ NEWLINE;
+#: number bytes MINUS..DIGIT.
+_SPACE, _NEWLINE, _DIGIT, _DOT, _MINUS, _OTHER = 0, -1, -2, -3, -4, -5
+#: 10^k, k = 0 … 22: exact in float64.
+_POWERS = 10.0 ** np.arange(23)
+
+
+@lru_cache(maxsize=32)
+def _byte_classes(letters: str) -> npt.NDArray[np.int8]:
+    table = np.full(256, _OTHER, dtype=np.int8)
+    table[ord("0"):ord("9") + 1] = _DIGIT
+    table[ord(".")], table[ord("-")], table[ord(" ")], table[ord("\n")] = _DOT, _MINUS, _SPACE, _NEWLINE
+    for column, letter in enumerate(letters):
+        table[ord(letter)] = column + 1
+    table.flags.writeable = False
+    return table
