@@ -173,17 +173,48 @@ class JointProgram:
 
 
 def join_programs(parts: list[JointProgram]) -> JointProgram:
-    """One program of consecutive pieces, each piece's events counting rows from its own start."""
+    """One program of consecutive pieces, each piece's events counting rows from its own start.
+
+    Takes the pieces out of ``parts`` (which is left empty) so that each column's pieces are freed
+    as soon as it is joined: a long program is held about twice, not three times.
+    """
     events: list[Event] = []
     offset = 0
     for part in parts:
         events += [Event(before=e.before + offset, kind=e.kind, value=e.value, text=e.text) for e in part.events]
         offset += len(part)
-    if not parts:
-        return JointProgram(kind=np.zeros(0, dtype=np.int64), stage=np.zeros((0, 2)), strokes=np.zeros((0, 3)),
-                            inverse_time=np.zeros(0), source=np.zeros(0, dtype=np.int64))
-    return JointProgram(
-        kind=np.concatenate([p.kind for p in parts]), stage=np.concatenate([p.stage for p in parts]),
-        strokes=np.concatenate([p.strokes for p in parts]),
-        inverse_time=np.concatenate([p.inverse_time for p in parts]),
-        source=np.concatenate([p.source for p in parts]), events=tuple(events))
+    shapes = {"kind": (np.int64, ()), "stage": (np.float64, (2,)), "strokes": (np.float64, (3,)),
+              "inverse_time": (np.float64, ()), "source": (np.int64, ())}
+    pieces = {name: [getattr(p, name) for p in parts] for name in shapes}
+    parts.clear()
+    columns = {}
+    for name, (dtype, tail) in shapes.items():
+        columns[name] = (np.concatenate(pieces.pop(name)).astype(dtype, copy=False) if offset
+                         else np.zeros((0, *tail), dtype=dtype))
+    return program_from_columns(columns, events)
+
+
+def program_from_columns(columns: dict[str, np.ndarray], events: list[Event] | tuple[Event, ...] = ()) -> JointProgram:
+    """A JointProgram of columns made for it (``kind``, ``stage``, ``strokes``, ``inverse_time``,
+    ``source``, of its dtypes and row shapes), frozen in place instead of copied: the caller gives
+    them up (a long program is then held once). Checks as the constructor does.
+
+    Raises
+    ------
+    ValueError
+        A column of another dtype, row shape or row count.
+    """
+    program = object.__new__(JointProgram)
+    fields = (("kind", np.int64, ()), ("stage", np.float64, (2,)), ("strokes", np.float64, (3,)),
+              ("inverse_time", np.float64, ()), ("source", np.int64, ()))
+    rows = len(columns["kind"])
+    for name, dtype, tail in fields:
+        column = columns[name]
+        if column.dtype != dtype or column.shape != (rows, *tail):
+            raise ValueError(f"{name}: expected {np.dtype(dtype).name} of shape {(rows, *tail)}, got "
+                             f"{column.dtype.name} of shape {column.shape}")
+        column.flags.writeable = False
+        object.__setattr__(program, name, column)
+    object.__setattr__(program, "events", tuple(sorted(events, key=lambda e: e.before)))
+    object.__setattr__(program, "source_labels", ())
+    return program

@@ -72,7 +72,7 @@ from prs3_post.kinematics import IKModel, IKResult, forward, inverse
 from prs3_post.limits import LimitReport, check_limits
 from prs3_post.linearize import slerp
 from prs3_post.setup import Setup
-from prs3_post.toolpath import EventKind, JointProgram, MoveKind, join_programs
+from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind, program_from_columns
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
 #: Intervals every move is probed with (and its minimum).
@@ -344,19 +344,22 @@ def row_times(program: JointProgram, *, rapid_rate: float = NOMINAL_RAPID_RATE) 
     -------
     start, end : (N,) float — min
     """
-    joints = joints_of(program)
-    n = len(joints)
+    n = len(program)
     duration = np.zeros(n)
-    if n > 1:
-        travel = np.max(np.abs(np.diff(joints, axis=0)), axis=1)
-        feed = program.kind[1:] == MoveKind.FEED
+    if n > 1:                                          # in place, column by column: a long program's rows
+        travel = duration[1:]                          # G0: the longest joint travel / rapid_rate
+        for columns in (program.stage, program.strokes):
+            for j in range(columns.shape[1]):
+                np.maximum(travel, np.abs(np.diff(columns[:, j])), out=travel)
+        travel /= rapid_rate
+        feed = np.flatnonzero(program.kind[1:] == MoveKind.FEED) + 1
         with np.errstate(divide="ignore"):
-            duration[1:] = np.where(feed, 1.0 / np.where(feed, program.inverse_time[1:], 1.0), travel / rapid_rate)
-    dwell = np.zeros(n + 1)
-    for event in program.events:
-        if event.kind is EventKind.DWELL:
-            dwell[event.before] += event.value / 60.0
-    end = np.cumsum(dwell[:n] + duration)
+            duration[feed] = 1.0 / program.inverse_time[feed]      # G1: 1/F
+    end = duration.copy()
+    for event in program.events:                       # a dwell before a row delays it (after the last: nothing)
+        if event.kind is EventKind.DWELL and event.before < n:
+            end[event.before] += event.value / 60.0
+    np.cumsum(end, out=end)
     return end - duration, end
 
 
@@ -425,10 +428,16 @@ class Closest:
 
 @dataclass(frozen=True, slots=True)
 class FeedGroup:
-    """G1 moves whose implied tip feeds are equal within the output rounding."""
+    """G1 moves whose implied tip feeds are equal within the output rounding.
+
+    Attributes
+    ----------
+    feed : float — mm/min, their mean implied tip feed
+    lines : (M,) int — their program lines, ascending (an array: a group may hold every G1 of a long program)
+    """
 
     feed: float
-    lines: tuple[int, ...]
+    lines: IntArray
 
 
 @dataclass(frozen=True, slots=True)
@@ -574,7 +583,7 @@ def verify_program(
                         "describe the same path (check the options it was made with)")
     verifier = Verifier(machine, setup=setup, tolerance=tolerance, axis_tolerance=axis_tolerance,
                         length_decimals=length_decimals, feed_decimals=feed_decimals, intended=intended,
-                        keep_samples=keep_samples)
+                        keep_samples=keep_samples, keep_rows=False, capacity=n)
     step = max(1, int(chunk_rows))
     for first in range(0, n, step):
         verifier.add(_rows_of(program, first, min(first + step, n)))
@@ -595,18 +604,22 @@ class Verifier:
     approach to each limit. The report is the same for any chunking (tests/test_verify.py).
 
     Use: ``v = Verifier(machine, setup=...); for chunk in chunks: v.add(chunk); v.report()``.
-    Parameters as :func:`verify_program`.
+    Parameters as :func:`verify_program`, and ``keep_rows`` (False: :meth:`report` is given the whole
+    program), ``capacity`` (rows to reserve room for: an upper bound saves growing the arrays).
     """
 
     def __init__(self, machine: Machine, *, setup: Setup, tolerance: float = 0.002,
                  axis_tolerance: float = math.radians(0.01), length_decimals: int = 4, feed_decimals: int = 4,
-                 intended: Intended | None = None, keep_samples: bool = False):
+                 intended: Intended | None = None, keep_samples: bool = False, keep_rows: bool = True,
+                 capacity: int = 0):
         self.machine, self.setup, self.tolerance, self.axis_tolerance = machine, setup, tolerance, axis_tolerance
         self.length_decimals, self.feed_decimals, self.intended = length_decimals, feed_decimals, intended
         self.keep_samples = keep_samples or intended is not None
         self.rows = 0                                        # rows added so far
-        self.chunks: list[JointProgram] = []
-        self.per_move: dict[str, list[np.ndarray]] = {name: [] for name in _PER_MOVE}
+        # the program's rows (unless the caller has them) and the per-move values, each in one array
+        self.program_rows = _Columns(_ROW_COLUMNS, capacity) if keep_rows else None
+        self.events: list[Event] = []
+        self.per_move = _Columns(_PER_MOVE, capacity)
         self.samples = 0
         self.kept: list[tuple[Replay, FloatArray, Against | None]] = []
         self.best: list[tuple[float, float, int, float] | None] = []       # per limit: margin, value, line, at
@@ -616,8 +629,12 @@ class Verifier:
         self.last: JointProgram | None = None                # the previous chunk's last row
 
     def add(self, chunk: JointProgram) -> None:
-        """Replay and check the next rows (events are ignored here: :meth:`report` takes the program's)."""
-        self.chunks.append(chunk)
+        """Replay and check the next rows (their events count rows from the chunk's start)."""
+        if self.program_rows is not None:
+            self.events += [Event(before=e.before + self.rows, kind=e.kind, value=e.value, text=e.text)
+                            for e in chunk.events]
+            self.program_rows.append({"kind": chunk.kind, "stage": chunk.stage, "strokes": chunk.strokes,
+                                      "inverse_time": chunk.inverse_time, "source": chunk.source})
         if not len(chunk):
             return
         carried = self.last is not None
@@ -714,9 +731,8 @@ class Verifier:
             against = _against(rep, rows, local_intended, rounding, tolerance)
             _against_problems(against, rep, rows, local_intended, self.axis_tolerance, problems, skip)
 
-        for name, values in zip(_PER_MOVE, (rounding, chord, implied, slack, worst, rep.intervals, rep.bound),
-                                strict=True):
-            self.per_move[name].append(values[skip:])
+        self.per_move.append({name: values[skip:] for name, values in zip(
+            _PER_MOVE, (rounding, chord, implied, slack, worst, rep.intervals, rep.bound), strict=True)})
         self.samples += len(rep.row) - own.start
         if self.keep_samples:
             self.kept.append((_replay_from(rep, own, skip, offset), straightness[own],
@@ -749,14 +765,15 @@ class Verifier:
         Prs3Error
             When an intended path has another number of rows than the program.
         """
-        program = join_programs(self.chunks) if program is None else program
+        if program is None:
+            if self.program_rows is None:
+                raise ValueError("a Verifier made with keep_rows=False needs the program")
+            program = program_from_columns(self.program_rows.take(), self.events)
         n = len(program)
         if self.intended is not None and len(self.intended.tip) != n:
             raise Prs3Error(f"the program has {n} moves, {self.intended.label} has {len(self.intended.tip)}: they do "
                             "not describe the same path (check the options it was made with)")
-        per_move: dict[str, Any] = {
-            name: np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64 if name == "intervals" else np.float64)
-            for name, parts in self.per_move.items()}
+        per_move: dict[str, Any] = self.per_move.take()
         lines = program.source
         problems, warnings = list(self.problems), list(self.warnings)
         feed_row = program.kind == MoveKind.FEED
@@ -768,7 +785,7 @@ class Verifier:
             shown = ", ".join(f"{g.feed:.1f} ×{len(g.lines)}" for g in groups if len(g.lines) > 1) or "none repeat"
             for g in groups:
                 if len(g.lines) == 1:
-                    warnings.append(Problem(g.lines[0], "feed", f"line {g.lines[0]}: implied tip feed {g.feed:.3f} "
+                    warnings.append(Problem(int(g.lines[0]), "feed", f"line {g.lines[0]}: implied tip feed {g.feed:.3f} "
                                             f"mm/min matches no other G1 (feeds: {shown}): a hand-edited F or point?"))
         for number in blending_lines:
             warnings.append(Problem(number, "blending", f"line {number}: G64 path blending: the control may "
@@ -836,8 +853,38 @@ class Verifier:
         return joined, against
 
 
-#: The per-move values a Verifier keeps, in the order _check hands them over.
-_PER_MOVE = ("rounding", "chord", "implied", "slack", "straightness", "intervals", "bound")
+#: The per-move values a Verifier keeps (dtype, row shape).
+_PER_MOVE: dict[str, tuple[type, tuple[int, ...]]] = {
+    "rounding": (np.float64, ()), "chord": (np.float64, ()), "implied": (np.float64, ()), "slack": (np.float64, ()),
+    "straightness": (np.float64, ()), "intervals": (np.int64, ()), "bound": (np.float64, ())}
+#: A program's rows as a Verifier keeps them.
+_ROW_COLUMNS: dict[str, tuple[type, tuple[int, ...]]] = {
+    "kind": (np.int64, ()), "stage": (np.float64, (2,)), "strokes": (np.float64, (3,)),
+    "inverse_time": (np.float64, ()), "source": (np.int64, ())}
+
+
+class _Columns:
+    """Columns that grow by rows, one array each (room reserved, or grown by half): a long program's
+    values without a piece per chunk, which would leave the heap fragmented once joined."""
+
+    def __init__(self, layout: dict[str, tuple[type, tuple[int, ...]]], capacity: int = 0):
+        self.size = 0
+        self.arrays: dict[str, np.ndarray] = {name: np.zeros((max(capacity, 0), *tail), dtype=dtype)
+                                              for name, (dtype, tail) in layout.items()}
+
+    def append(self, values: dict[str, np.ndarray]) -> None:
+        need = self.size + len(next(iter(values.values())))
+        for name, array in self.arrays.items():
+            if need > len(array):
+                grown = np.zeros((max(need, len(array) * 3 // 2 + 1024), *array.shape[1:]), dtype=array.dtype)
+                grown[:self.size] = array[:self.size]
+                self.arrays[name] = array = grown
+            array[self.size:need] = values[name]
+        self.size = need
+
+    def take(self) -> dict[str, np.ndarray]:
+        """The filled rows of each column (views)."""
+        return {name: array[:self.size] for name, array in self.arrays.items()}
 
 
 def _row_max(values: FloatArray, first: IntArray) -> tuple[FloatArray, IntArray]:
@@ -897,7 +944,7 @@ def _feed_groups(implied: FloatArray, slack: FloatArray, lines: IntArray) -> tup
     groups = []
     for part in np.split(rows, split):
         members = np.sort(part)
-        groups.append(FeedGroup(feed=float(np.mean(implied[members])), lines=tuple(int(lines[r]) for r in members)))
+        groups.append(FeedGroup(feed=float(np.mean(implied[members])), lines=np.asarray(lines[members], dtype=np.int64)))
     return tuple(groups)
 
 

@@ -149,7 +149,7 @@ def report_record(report: VerifyReport, *, path: str = "", dialect: str = "",
         ],
         "feeds": {
             "mode": "G93 inverse time: F = 1/min of each G1; implied tip feed = chord x F",
-            "groups": [{"feed_mm_per_min": g.feed, "moves": len(g.lines), "lines": list(g.lines)}
+            "groups": [{"feed_mm_per_min": g.feed, "moves": len(g.lines), "lines": g.lines.tolist()}
                        for g in report.feed_groups],
         },
         "against": against_summary(report),

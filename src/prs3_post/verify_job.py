@@ -285,7 +285,7 @@ def verify_file(setting: ProgramSetting, *, tolerance: float, axis_tolerance_deg
     stream = ProgramStream(setting.path, setting.dialect, stage=setting.machine.stage.present, chunk_lines=chunk_lines)
     verifier = Verifier(setting.machine, setup=setting.setup, tolerance=tolerance,
                         axis_tolerance=math.radians(axis_tolerance_deg), length_decimals=setting.dialect.decimals.length,
-                        feed_decimals=setting.dialect.decimals.inverse_time)
+                        feed_decimals=setting.dialect.decimals.inverse_time, capacity=stream.check())
     for chunk in stream:
         verifier.add(chunk)
     if not verifier.rows:

@@ -280,13 +280,11 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
         return values, np.zeros(0, dtype=bool)
     data = np.frombuffer(("\n".join(lines) + "\n").encode("ascii", errors="replace"), dtype=np.uint8)
     kind = _byte_classes(letters)[data]                  # int8: letters > 0, then SPACE, NEWLINE, DIGIT, ...
-    line_ends = np.flatnonzero(kind == _NEWLINE)
     lines_before = np.cumsum(kind == _NEWLINE, dtype=np.int32)      # at a byte: line ends up to it
     letter = kind > 0
     words_before = np.cumsum(letter, dtype=np.int32)
     digit = kind == _DIGIT
     digits_before = np.cumsum(digit, dtype=np.int32)
-    number_bytes = np.cumsum((kind <= _DIGIT) & (kind >= _MINUS), dtype=np.int32)[line_ends]
     start = np.flatnonzero(letter)                       # one word per letter
     delimiters = np.flatnonzero(kind >= _NEWLINE)        # letters, spaces, line ends
     stop = delimiters[np.searchsorted(delimiters, start + 1)]            # the word's end (exclusive)
@@ -295,9 +293,11 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
     rank = kind[start]
     bad = np.zeros(n, dtype=bool)
     bad[lines_before[np.flatnonzero(kind == _OTHER)]] = True
-    # every number byte is in a word (none after a space): a line's number bytes = its words' lengths
-    in_words = np.bincount(word_line, weights=stop - start - 1, minlength=n)
-    bad |= in_words != np.diff(number_bytes, prepend=0)
+    # every number byte is in a word: none right after a space, a line end or the start
+    number = (kind <= _DIGIT) & (kind >= _MINUS)
+    after_gap = np.flatnonzero(number[1:] & ((kind[:-1] == _SPACE) | (kind[:-1] == _NEWLINE))) + 1
+    bad[lines_before[after_gap]] = True
+    bad[0] |= bool(number[0])
     digits = digits_before[last] - digits_before[start]
 
     def in_word(at: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int32]]:
@@ -309,7 +309,7 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
         return at[inside], word[inside]
 
     dot_at, dot_word = in_word(np.flatnonzero(kind == _DOT))
-    minus_at, minus_word = in_word(np.flatnonzero(kind == _MINUS))
+    _, minus_word = in_word(np.flatnonzero(kind == _MINUS))
     dots = np.bincount(dot_word, minlength=len(start))
     minus = np.bincount(minus_word, minlength=len(start))
     leading_minus = kind[np.minimum(start + 1, len(data) - 1)] == _MINUS
@@ -325,9 +325,9 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
     mantissa = np.bincount(word, weights=(data[digit_at] - 48) * _POWERS[power], minlength=len(start))
     after_dot = np.zeros(len(start), dtype=np.int64)
     after_dot[dot_word] = np.minimum(digits_before[last[dot_word]] - digits_before[dot_at], len(_POWERS) - 1)
-    number = mantissa / _POWERS[after_dot]
-    number[leading_minus] *= -1.0
-    values[word_line[keep], rank[keep] - 1] = number[keep]
+    value = mantissa / _POWERS[after_dot]
+    value[leading_minus] *= -1.0
+    values[word_line[keep], rank[keep] - 1] = value[keep]
     return values, read
 
 

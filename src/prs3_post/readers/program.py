@@ -79,9 +79,9 @@ _AXIS_NAMES = ("stage X", "stage Y", "actuator T1", "actuator T2", "actuator T3"
 #: mm, the largest axis value a program may give (a kilometre).
 MAX_AXIS_MM = 1e6
 #: Lines handed out per chunk by :class:`ProgramStream` (and read in bulk at a time).
-CHUNK_LINES = 65536
+CHUNK_LINES = 16384
 #: Bytes read from the file at a time.
-_PIECE_BYTES = 1 << 22
+_PIECE_BYTES = 1 << 20
 
 
 @dataclass(frozen=True, slots=True)
@@ -208,15 +208,29 @@ class ProgramStream:
         self.end_line = 0
         self.blending_lines: tuple[int, ...] = ()
         self.line_count = 0
+        self.checked_lines: int | None = None
 
     def _pieces(self) -> Iterator[tuple[int, bytes]]:
         """(offset, bytes) pieces of the file, each ending at a line end (or the file's end)."""
         return iter_pieces(self.path, "a G-code program", self.piece_bytes)
 
-    def _check_text(self) -> None:
-        """The whole file is text, with :func:`~prs3_post.readers.lexer.decode`'s errors in its order."""
-        blank, mark, first_error = True, False, None
+    def check(self) -> int:
+        """Check that the whole file is text, with :func:`~prs3_post.readers.lexer.decode`'s errors in its
+        order (iterating does it first, once); returns its number of lines (an upper bound on its moves).
+
+        Raises
+        ------
+        InputError
+        """
+        if self.checked_lines is None:
+            self.checked_lines = self._check_text()
+        return self.checked_lines
+
+    def _check_text(self) -> int:
+        blank, mark, first_error, lines, ended = True, False, None, 0, True
         for offset, piece in self._pieces():
+            lines += piece.count(b"\n")
+            ended = piece.endswith(b"\n")
             blank = blank and not piece.strip()
             mark = mark or (offset == 0 and piece.startswith(b"\xef\xbb\xbf"))
             if first_error is None:
@@ -229,9 +243,10 @@ class ProgramStream:
                 raise InputError(problem, path=self.path)
         if first_error is not None:
             raise InputError(str(first_error), path=self.path) from first_error
+        return lines + (0 if ended else 1)
 
     def __iter__(self) -> Iterator[JointProgram]:
-        self._check_text()
+        self.check()
         reader = _Reader(self.dialect, self.path, self.stage)
         number = 1
         pending: list[str] = []
