@@ -202,3 +202,18 @@ def test_a_program_value_no_machine_means_is_refused(tmp_path: Path, command: st
     assert result.stderr == (f"prs3-post: error: {path}:{line + 1}: X 1e+150 mm is out of range "
                              "(allowed: within ±1e+06 mm)\n")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["big.ngc"]
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["demo", "--profile", "square", "--step-down", "1e-320"],
+     "--depth 2 mm in --step-down 9.99989e-321 mm steps would take infinitely many passes (at most 10000): "
+     "use a larger --step-down"),
+    (["demo", "--profile", "hole", "--peck", "1e-320", "--reapproach-gap", "0"],
+     "--depth 5 mm in --peck 9.99989e-321 mm steps would take infinitely many passes (at most 10000): "
+     "use a larger --peck"),
+])
+def test_a_subnormal_step_is_refused(tmp_path: Path, args: list[str], message: str) -> None:
+    """Found by the fuzz test: depth / 1e-320 is infinite, and counting its passes was an OverflowError."""
+    result = invoke(*args, "-o", str(tmp_path / "out.ngc"))
+    assert (result.exit_code, result.stderr) == (2, f"prs3-post: error: {message}\n")
+    assert list(tmp_path.iterdir()) == []

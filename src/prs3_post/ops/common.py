@@ -170,8 +170,9 @@ def pass_depths(depth: float, step: float, *, resolution: float = MIN_TOLERANCE,
     """
     passes = depth / step - rel_tol
     if passes > MAX_PASSES:
+        count = f"{math.ceil(passes):g}" if math.isfinite(passes) else "infinitely many"  # a subnormal step
         raise FeatureError(
-            f"--depth {depth:g} mm in {option} {step:g} mm steps would take {math.ceil(passes):g} passes "
+            f"--depth {depth:g} mm in {option} {step:g} mm steps would take {count} passes "
             f"(at most {MAX_PASSES}): use a larger {option}"
         )
     if step < resolution and passes > 1:
