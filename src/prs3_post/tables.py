@@ -1,6 +1,6 @@
 """IK and FK results as records, CSV and text: pure formatting for the ``ik`` and ``fk`` commands.
 
-CSV columns and JSON keys are the same names; the CSV writes CSV_DECIMALS fixed decimals (1 nm),
+CSV columns and JSON keys are the same names; the CSV writes CSV_DECIMALS fixed decimals (1e-9 mm),
 JSON full float precision.
 """
 
@@ -63,8 +63,9 @@ def _shown(report: LimitReport, row: int, col: int, table: FloatArray) -> float:
     return math.degrees(value) if report.units[col] == "deg" else value
 
 
-#: Digits after the point in the batch CSV: 1 nm for lengths, 1e-9 for the unit axes, 1e-9° for angles. Fixed
-#: decimals, not ``repr``: a whole column is written at once (:mod:`prs3_post.fixed`), 10 times faster.
+#: Digits after the point in the batch CSV: 1e-9 mm for lengths (far below any machine's resolution),
+#: 1e-9 for the unit axes and the condition number, 1e-9° for angles. Fixed decimals, not ``repr``:
+#: a whole column is written at once (:mod:`prs3_post.fixed`), several times faster.
 CSV_DECIMALS = 9
 
 

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 import textwrap
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -340,14 +341,17 @@ class ProgramEmitter:
     def rows(self, program: JointProgram) -> str:
         """The motion lines of ``program``'s rows and the events between them (``before == N``:
         after its last row), continuing from the rows before."""
-        pieces = []
+        return "".join(self.row_pieces(program))
+
+    def row_pieces(self, program: JointProgram) -> Iterator[str]:
+        """:meth:`rows` as consecutive pieces of text (a few ten thousand lines each), for a
+        writer that streams them. The rows are checked before the first piece."""
         n = len(program)
         _check_rows(program)
         chunk = self._prepare(program)
         for lo in range(0, max(n, 1), CHUNK_ROWS):
-            pieces.append(self._emit_rows(chunk, lo, min(n, lo + CHUNK_ROWS)))
+            yield from self._emit_rows(chunk, lo, min(n, lo + CHUNK_ROWS))
         self._modal.rows += n
-        return "".join(pieces)
 
     def _where(self, program: JointProgram, row: int) -> str:
         return f"row {self._modal.rows + row} from {program.describe(row)}"
@@ -411,7 +415,7 @@ class ProgramEmitter:
             )
         return column
 
-    def _emit_rows(self, chunk: _Chunk, lo: int, hi: int) -> str:
+    def _emit_rows(self, chunk: _Chunk, lo: int, hi: int) -> list[str]:
         """Rows ``lo:hi`` of the chunk with the events before them (and those after the last row)."""
         program, out, modal = chunk.program, self._out, self._modal
         n = len(program)
@@ -445,7 +449,7 @@ class ProgramEmitter:
             pieces += [out.take(), self._rows_text(chunk, lines, lo, previous - lo, hi - lo)]
         pieces.append(out.take())
         self._remember(chunk, hi, kind)
-        return "".join(pieces)
+        return pieces
 
     def _event(self, program: JointProgram, event: Event) -> None:
         out = self._out
@@ -514,7 +518,7 @@ class ProgramEmitter:
         ending = len(self.dialect.line_ending)
         lengths = np.diff(ends[a:b + 1]) - ending
         long = np.flatnonzero(lengths > out.limit)
-        text = buffer[ends[a]:ends[b]].tobytes().decode("ascii")
+        text = str(buffer[ends[a]:ends[b]].data, "ascii")
         if long.size:
             row = a + int(long[0])
             line = buffer[ends[row]:ends[row + 1] - ending].tobytes().decode("ascii")
@@ -615,4 +619,4 @@ def emit_program(
     emitter = ProgramEmitter(dialect, stage=stage, line_numbers=line_numbers, line_start=line_start,
                              line_step=line_step)
     _check_rows(program)
-    return emitter.begin(header) + emitter.rows(program) + emitter.end()
+    return "".join([emitter.begin(header), *emitter.row_pieces(program), emitter.end()])

@@ -107,12 +107,15 @@ def _parse_careful(lines: list[str], before: int, path: str) -> PoseTable:
 def _parse_fast(lines: list[str], before: int) -> PoseTable | None:
     """numpy's C parser for well-formed lines; None whenever anything is off (the careful
     line-by-line reader then finds the first problem and names its line)."""
-    numbers = [before + i + 1 for i, line in enumerate(lines) if line.strip()]
-    body = [lines[n - before - 1] for n in numbers] if len(numbers) < len(lines) else lines
+    if any(not line or line.isspace() for line in lines):     # blank lines: skipped, the numbers go on
+        numbers = np.array([before + i + 1 for i, line in enumerate(lines) if line.strip()], dtype=np.int64)
+        body = [lines[n - before - 1] for n in numbers.tolist()]
+    else:
+        numbers, body = np.arange(before + 1, before + 1 + len(lines), dtype=np.int64), lines
     try:
         table = np.loadtxt(body, delimiter=",", dtype=np.float64, ndmin=2, comments=None) if body else np.zeros((0, 6))
     except ValueError:
         return None
     if table.shape[1] != 6:
         return None
-    return PoseTable(tip=table[:, :3], axis=table[:, 3:], line=np.array(numbers, dtype=np.int64))
+    return PoseTable(tip=table[:, :3], axis=table[:, 3:], line=numbers)
