@@ -141,3 +141,21 @@ def test_readme_placement_and_exit_code_examples_do_what_it_says(tmp_path, monke
     for code, command, begins in rows:
         result = invoke(*command.split())
         assert (result.exit_code, result.stderr[: len(begins)]) == (int(code), begins)
+
+
+@pytest.mark.parametrize(("part", "options"), [
+    (SLOPE, ["--profile", "hole"]),
+    (ANGLE_BLOCK, ["--units", "inch", "--up", "y", "--profile", "hole", "--at", "5,0"]),
+])
+def test_corpus_part_works_with_the_part_origin_its_limit_error_suggests(tmp_path, part, options):
+    """Issue 7's done-when: the main job works with --units/--up where the part needs them and the
+    --part-origin the error suggested; the program then verifies with no options."""
+    out = tmp_path / "p.ngc"
+    first = invoke(part, *options, "-o", str(out))
+    assert first.exit_code == 1 and not out.exists()
+    suggested = re.search(r": (--part-origin=\S+)$", first.stderr.rstrip("\n"))
+    assert suggested is not None, first.stderr
+    second = invoke(part, *options, suggested.group(1), "-o", str(out))
+    assert second.exit_code == 0, second.stderr
+    checked = invoke("verify", str(out), "--against", part)
+    assert (checked.exit_code, checked.stdout.splitlines()[-1]) == (0, "OK: within every limit and tolerance")
