@@ -353,3 +353,15 @@ def test_the_unit_is_found_in_a_feed_record_continued_across_pieces(tmp_path: Pa
         cl = ClStream(str(path), tolerance=TOL, piece_bytes=piece_bytes).whole()
         assert (cl.units, cl.toolpath.tip[:, 0].tolist(), cl.toolpath.feed.tolist()) == ("inch", [25.4, 50.8],
                                                                                         [0.0, 254.0])
+
+
+def test_without_msys_the_points_stay_as_written() -> None:
+    """humman_4 drills along local +z, which the flipped MSYS turns into part -z (from below): read as
+    written, it is a plain drilling program from above."""
+    cl = read_cl(str(CORPUS / "humman_4_SVERL_63_N2.cls"), tolerance=TOL, apply_msys=False)
+    tp = cl.toolpath
+    assert cl.frames[0].line == 3                                    # still recorded
+    assert_allclose(tp.tip[1], [1558.4057, -837.0281, 418.0], atol=0)
+    assert np.array_equal(tp.axis, np.tile([0.0, 0.0, 1.0], (len(tp), 1)))
+    applied = _read("humman_4_SVERL_63_N2.cls").toolpath
+    assert_allclose(cl.frames[0].to_part(tp.tip), applied.tip, atol=1e-9)

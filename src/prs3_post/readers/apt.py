@@ -1,8 +1,11 @@
 """Read APT / CL data (text CLSF, as NX, Creo, CATIA and ISO-4343-style posts write it) into a Toolpath.
 
-The result is a :class:`~prs3_post.toolpath.Toolpath` in the PART frame (every ``MSYS/`` applied)
-in mm, plus an accounting of every record (:class:`ClCounts`), so that nothing in the file is lost
-without a trace. Every row and event keeps the line of the record it came from.
+The result is a :class:`~prs3_post.toolpath.Toolpath` in the PART frame (every ``MSYS/`` applied;
+or, asked for, in the CAM system's machine frame, as written) in mm, plus an accounting of every
+record (:class:`ClCounts`), so that nothing in the file is lost without a trace. Every row and
+event keeps the line of the record it came from. :func:`read_cl` reads a whole file;
+:class:`ClStream` hands out the same rows a chunk of lines at a time, with memory that does not
+grow with the file (runs of plain GOTO lines are read in bulk there: same rows, same errors).
 
 Records
 -------
@@ -247,7 +250,7 @@ _PIECE_BYTES = 1 << 20
 
 
 def read_cl(path: str, *, tolerance: float, units: str | None = None, ignore: frozenset[str] = frozenset(),
-            circle_tolerance: float = 0.01) -> ClFile:
+            circle_tolerance: float = 0.01, apply_msys: bool = True) -> ClFile:
     """Read a whole CL file (see the module docstring for what is understood).
 
     Parameters
@@ -258,6 +261,11 @@ def read_cl(path: str, *, tolerance: float, units: str | None = None, ignore: fr
         record (None: inches if its feeds are IPM/IPR, else mm)
     ignore : frozenset of str — major words to skip (and count) instead of refusing
     circle_tolerance : float — mm, how far an arc's start and end may be from its circle
+    apply_msys : bool — True: points and axes in the part frame (every ``MSYS/`` applied); False:
+        as written, in the CAM system's machine coordinate system (the MSYS frames are only recorded).
+        NX writes GOTOs in its MCS and MSYS places the MCS in the model's absolute frame; a part
+        machined from below in that frame (humman_4: MCS z = absolute −z) can only be set up on
+        this machine in the MCS.
 
     Returns
     -------
@@ -268,16 +276,17 @@ def read_cl(path: str, *, tolerance: float, units: str | None = None, ignore: fr
     InputError
         ``path:line: message`` naming what was found and what would be valid.
     """
-    stream = ClStream(path, tolerance=tolerance, units=units, ignore=ignore, circle_tolerance=circle_tolerance)
+    stream = ClStream(path, tolerance=tolerance, units=units, ignore=ignore, circle_tolerance=circle_tolerance,
+                      apply_msys=apply_msys)
     return stream.whole()
 
 
 def parse_cl(text: str, *, path: str, tolerance: float, units: str | None = None,
              ignore: frozenset[str] = frozenset(), circle_tolerance: float = 0.01,
-             chunk_lines: int = CHUNK_LINES) -> ClFile:
+             chunk_lines: int = CHUNK_LINES, apply_msys: bool = True) -> ClFile:
     """Read CL text; ``path`` is only used in messages. Parameters as :func:`read_cl`."""
     return ClStream(path, tolerance=tolerance, units=units, ignore=ignore, circle_tolerance=circle_tolerance,
-                    chunk_lines=chunk_lines, text=text).whole()
+                    chunk_lines=chunk_lines, text=text, apply_msys=apply_msys).whole()
 
 
 class ClStream:
@@ -290,7 +299,8 @@ class ClStream:
     Before the first chunk the whole file is read once, cheaply, to check that it is text and to
     find its length unit (``UNITS/`` and the feed units, which may come after the first point).
     After the iteration :attr:`summary` holds everything else (:class:`ClFile` with an empty toolpath).
-    ``text`` reads that text instead of the file (``path`` then only names it in messages).
+    ``text`` reads that text instead of the file (``path`` then only names it in messages);
+    ``apply_msys`` as in :func:`read_cl`.
 
     Raises (during the iteration)
     -----------------------------
@@ -300,7 +310,8 @@ class ClStream:
 
     def __init__(self, path: str, *, tolerance: float, units: str | None = None,
                  ignore: frozenset[str] = frozenset(), circle_tolerance: float = 0.01,
-                 chunk_lines: int = CHUNK_LINES, piece_bytes: int = _PIECE_BYTES, text: str | None = None):
+                 chunk_lines: int = CHUNK_LINES, piece_bytes: int = _PIECE_BYTES, text: str | None = None,
+                 apply_msys: bool = True):
         if units not in (None, "mm", "inch"):
             raise ValueError(f"ClStream: units must be 'mm', 'inch' or None, got {units!r}")
         if not (math.isfinite(tolerance) and tolerance > 0):
@@ -314,6 +325,7 @@ class ClStream:
                              path=path)
         self.chunk_lines, self.piece_bytes = max(1, int(chunk_lines)), max(1, int(piece_bytes))
         self._text = text                             # parse_cl: the text instead of the file
+        self.apply_msys = apply_msys
         self.summary: ClFile | None = None
 
     def _pieces(self) -> Iterator[str]:
@@ -343,7 +355,7 @@ class ClStream:
     def __iter__(self) -> Iterator[Toolpath]:
         file_units = _file_units(_unit_records(self._pieces(), self.path), self.path, self.units)
         reader = _Reader(self.path, MM_PER_INCH if file_units == "inch" else 1.0, self.ignore, self.tolerance,
-                         self.circle_tolerance)
+                         self.circle_tolerance, self.apply_msys)
         number = 1
         for lines in self._lines():
             reader.lines(number, lines)
@@ -566,8 +578,9 @@ class _ActiveCycle:
 class _Reader:
     """The modal state of a CL file as the records go by; rows in the LOCAL frame (mm) with their frame."""
 
-    def __init__(self, path: str, scale: float, ignore: frozenset[str], tolerance: float, circle_tolerance: float):
-        self.path, self.scale, self.ignore = path, scale, ignore
+    def __init__(self, path: str, scale: float, ignore: frozenset[str], tolerance: float, circle_tolerance: float,
+                 apply_msys: bool = True):
+        self.path, self.scale, self.ignore, self.apply_msys = path, scale, ignore, apply_msys
         self.tolerance, self.circle_tolerance = tolerance, circle_tolerance
         self.line = 0
         # rows, flat (x, y, z per row): stdlib arrays append a row far faster than numpy blocks
@@ -871,6 +884,8 @@ class _Reader:
         y_axis = y_axis / np.linalg.norm(y_axis)
         rotation = np.column_stack([x_axis, y_axis, np.cross(x_axis, y_axis)])
         self.frames.append(ClFrame(record.line, np.array(values[:3]) * self.scale, rotation))
+        if not self.apply_msys:             # points stay as written: the frame is only recorded
+            return
         previous = self.frames[-2]
         if self.position is not None:       # the same place, now seen from the new frame
             x, y, z = self.frames[-1].to_local(previous.to_part(np.array(self.position)))[0].tolist()
@@ -1120,9 +1135,8 @@ class _Reader:
         local = np.frombuffer(self.tip, dtype=np.float64).reshape(-1, 3)
         axis_local = np.frombuffer(self.axis, dtype=np.float64).reshape(-1, 3)
         frame = np.frombuffer(self.frame_of, dtype=np.int64)
-        tip = np.zeros_like(local)
-        axis = np.zeros_like(axis_local)
-        for index in np.unique(frame):              # one transform per MSYS, all its rows at once
+        tip, axis = local.copy(), axis_local.copy()
+        for index in np.unique(frame) if self.apply_msys else ():   # one transform per MSYS, all its rows at once
             rows = frame == index
             tip[rows] = self.frames[index].to_part(local[rows])
             axis[rows] = axis_local[rows] @ self.frames[index].rotation.T
