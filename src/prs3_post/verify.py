@@ -28,10 +28,24 @@ then use
 with ε = tolerance / 20, recomputing M_k on the denser samples and repeating (never coarsening,
 at most REFINE_ROUNDS times) until n_k no longer grows; so the reported bound SAFETY · M_k h² / 8
 (per move, from the final samples) is ≤ ε: the worst deviation between samples exceeds the worst sampled one by
-less than 5 % of the tolerance. Moves whose tool axis does not change are straight at the tip and
-their link angles are constant (M_k ≈ 0): they keep 8 intervals. The estimate is exact for a
-constant f'' and is good when the probe resolves the curvature (h·max|f'''| ≪ max|f''|), which
-holds for moves a machine can make: the curvature of FK varies on the scale of the link length.
+less than 5 % of the tolerance. The estimate is exact for a constant f'' and is good when the
+probe resolves the curvature (h·max|f'''| ≪ max|f''|), which holds for moves a machine can make:
+the curvature of FK varies on the scale of the link length.
+
+Moves that translate the head: the guides are parallel, so adding s to all three strokes moves the
+whole head by −s along z and changes nothing else. A move whose three stroke changes are equal up
+to d (|d_i| ≤ TRANSLATION_SPREAD: the output rounding leaves a few units) is a translation (linear:
+the stage and the common stroke change) plus g(t) = FK(q_{k-1} + t d), so its tip path and link
+angles curve only as g does. Such a move is sampled at its end point only (n_k = 1) when the bound
+from g's second difference g(1) − 2 g(0) + g(−1) (one more FK, at q_{k-1} − d), ×SAFETY / 8, is ≤ ε
+(that bound is its reported bound); else it is probed as above. A limit broken at its start point
+is the previous move's end point and is reported there. Against an intended path every move is
+probed (the deviation along a move is compared with the intended line). FK, the condition number
+and the rounding allowance are computed once per distinct head pose up to a common stroke shift.
+
+Memory: :class:`Verifier` replays and checks a program a chunk of rows at a time, carrying the
+last row, and keeps a few numbers per move (the samples only when asked: the JSON report, the
+preview, ``--against``); the report does not depend on the chunking.
 
 Reports
 -------
@@ -785,8 +799,9 @@ class Verifier:
             shown = ", ".join(f"{g.feed:.1f} ×{len(g.lines)}" for g in groups if len(g.lines) > 1) or "none repeat"
             for g in groups:
                 if len(g.lines) == 1:
-                    warnings.append(Problem(int(g.lines[0]), "feed", f"line {g.lines[0]}: implied tip feed {g.feed:.3f} "
-                                            f"mm/min matches no other G1 (feeds: {shown}): a hand-edited F or point?"))
+                    line = int(g.lines[0])
+                    warnings.append(Problem(line, "feed", f"line {line}: implied tip feed {g.feed:.3f} mm/min "
+                                            f"matches no other G1 (feeds: {shown}): a hand-edited F or point?"))
         for number in blending_lines:
             warnings.append(Problem(number, "blending", f"line {number}: G64 path blending: the control may "
                                     "round corners in joint space (a curve at the tip); the replay assumes exact stops "
@@ -944,7 +959,8 @@ def _feed_groups(implied: FloatArray, slack: FloatArray, lines: IntArray) -> tup
     groups = []
     for part in np.split(rows, split):
         members = np.sort(part)
-        groups.append(FeedGroup(feed=float(np.mean(implied[members])), lines=np.asarray(lines[members], dtype=np.int64)))
+        groups.append(FeedGroup(feed=float(np.mean(implied[members])),
+                                lines=np.asarray(lines[members], dtype=np.int64)))
     return tuple(groups)
 
 

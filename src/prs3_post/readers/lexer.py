@@ -281,14 +281,11 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
     data = np.frombuffer(("\n".join(lines) + "\n").encode("ascii", errors="replace"), dtype=np.uint8)
     kind = _byte_classes(letters)[data]                  # int8: letters > 0, then SPACE, NEWLINE, DIGIT, ...
     lines_before = np.cumsum(kind == _NEWLINE, dtype=np.int32)      # at a byte: line ends up to it
-    letter = kind > 0
-    words_before = np.cumsum(letter, dtype=np.int32)
-    digit = kind == _DIGIT
-    digits_before = np.cumsum(digit, dtype=np.int32)
-    start = np.flatnonzero(letter)                       # one word per letter
-    delimiters = np.flatnonzero(kind >= _NEWLINE)        # letters, spaces, line ends
-    stop = delimiters[np.searchsorted(delimiters, start + 1)]            # the word's end (exclusive)
+    delimiters = np.flatnonzero(kind >= _NEWLINE)        # letters, spaces, line ends (the last byte is one)
+    at = np.flatnonzero(kind[delimiters] > 0)            # the words' letters among the delimiters
+    start, stop = delimiters[at], delimiters[at + 1]     # a word: its letter up to the next delimiter
     last = stop - 1
+    words = len(start)
     word_line = lines_before[start]
     rank = kind[start]
     bad = np.zeros(n, dtype=bool)
@@ -298,33 +295,45 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
     after_gap = np.flatnonzero(number[1:] & ((kind[:-1] == _SPACE) | (kind[:-1] == _NEWLINE))) + 1
     bad[lines_before[after_gap]] = True
     bad[0] |= bool(number[0])
-    digits = digits_before[last] - digits_before[start]
+    words_before = np.cumsum(kind > 0, dtype=np.int32)   # at a byte: the words begun up to it
 
-    def in_word(at: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int32]]:
-        """The bytes at ``at`` that are inside a word, and their words (a stray byte's line is bad above)."""
-        word = words_before[at] - 1
-        if not len(start):
-            return at[:0], word[:0]
-        inside = (word >= 0) & (at < stop[np.maximum(word, 0)])
-        return at[inside], word[inside]
+    def in_word(found: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int32]]:
+        """The bytes at ``found`` that are inside a word, and their words (a stray byte's line is bad above)."""
+        word = words_before[found] - 1
+        if not words:
+            return found[:0], word[:0]
+        inside = (word >= 0) & (found < stop[np.maximum(word, 0)])
+        return found[inside], word[inside]
 
+    # digits: each is given to the word begun last before it; those of a word are consecutive, and the
+    # word is right when its last one is inside it (a stray digit after it would be given to it too)
+    digit_at = np.flatnonzero(kind == _DIGIT)
+    digit_word = words_before[digit_at] - 1
+    counted = np.bincount(digit_word + 1, minlength=words + 1)
+    ends_all = np.cumsum(counted)                        # where the digits given to each word end in digit_at
+    ends = ends_all[1:]
+    digits = counted[1:]
+    last_digit = digit_at[np.maximum(ends - 1, 0)] if len(digit_at) else np.zeros(words, dtype=np.int64)
+    inside = (digits == 0) | (last_digit < stop)
     dot_at, dot_word = in_word(np.flatnonzero(kind == _DOT))
     _, minus_word = in_word(np.flatnonzero(kind == _MINUS))
-    dots = np.bincount(dot_word, minlength=len(start))
-    minus = np.bincount(minus_word, minlength=len(start))
+    dots = np.bincount(dot_word, minlength=words)
+    minus = np.bincount(minus_word, minlength=words)
     leading_minus = kind[np.minimum(start + 1, len(data) - 1)] == _MINUS
-    ordered = np.ones(len(start), dtype=bool)
+    ordered = np.ones(words, dtype=bool)
     ordered[1:] = (word_line[1:] != word_line[:-1]) | (rank[1:] > rank[:-1])
-    good = (digits >= 1) & (digits <= 15) & (dots <= 1) & ((minus == 0) | ((minus == 1) & leading_minus)) & ordered
+    good = ((digits >= 1) & (digits <= 15) & inside & (dots <= 1) & ((minus == 0) | ((minus == 1) & leading_minus))
+            & ordered)
     bad[word_line[~good]] = True
     read = ~bad
     keep = read[word_line]
     # the value: the digits as an integer (exact in float64 below 2^53), over 10^(digits after the point)
-    digit_at, word = in_word(np.flatnonzero(digit))
-    power = np.minimum(digits_before[last[word]] - digits_before[digit_at], len(_POWERS) - 1)
-    mantissa = np.bincount(word, weights=(data[digit_at] - 48) * _POWERS[power], minlength=len(start))
-    after_dot = np.zeros(len(start), dtype=np.int64)
-    after_dot[dot_word] = np.minimum(digits_before[last[dot_word]] - digits_before[dot_at], len(_POWERS) - 1)
+    ordinal = np.arange(1, len(digit_at) + 1, dtype=np.int64)
+    power = np.clip(np.repeat(ends_all, counted) - ordinal, 0, len(_POWERS) - 1)
+    mantissa = np.bincount(digit_word + 1, weights=(data[digit_at] - 48) * _POWERS[power], minlength=words + 1)[1:]
+    digits_before_dot = np.searchsorted(digit_at, dot_at)            # the digits before each dot, in all
+    after_dot = np.zeros(words, dtype=np.int64)
+    after_dot[dot_word] = np.clip(ends[dot_word] - digits_before_dot, 0, len(_POWERS) - 1)
     value = mantissa / _POWERS[after_dot]
     value[leading_minus] *= -1.0
     values[word_line[keep], rank[keep] - 1] = value[keep]

@@ -151,9 +151,10 @@ def _split_lines(text: str) -> tuple[list[str], list[bool]]:
     lines = text.split("\n")
     if lines and lines[-1] == "":
         lines.pop()                                    # the final line ending
+    if "\r" not in text:
+        return lines, [False] * len(lines)
     crlf = [ln.endswith("\r") for ln in lines]
-    if any(crlf):
-        lines = [ln[:-1] if cr else ln for ln, cr in zip(lines, crlf, strict=True)]
+    lines = [ln[:-1] if cr else ln for ln, cr in zip(lines, crlf, strict=True)]
     return lines, crlf
 
 
