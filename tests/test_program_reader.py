@@ -10,12 +10,7 @@ import pytest
 from prs3_post.config import load_dialect
 from prs3_post.errors import InputError
 from prs3_post.readers import program as reader_module
-from prs3_post.readers.program import (
-    ProgramStream,
-    join_programs,
-    load_program,
-    read_program,
-)
+from prs3_post.readers.program import ProgramStream, load_program, read_program
 from prs3_post.toolpath import JointProgram, MoveKind, join_programs
 
 REPO = Path(__file__).resolve().parents[1]

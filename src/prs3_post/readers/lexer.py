@@ -284,7 +284,6 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
     delimiters = np.flatnonzero(kind >= _NEWLINE)        # letters, spaces, line ends (the last byte is one)
     at = np.flatnonzero(kind[delimiters] > 0)            # the words' letters among the delimiters
     start, stop = delimiters[at], delimiters[at + 1]     # a word: its letter up to the next delimiter
-    last = stop - 1
     words = len(start)
     word_line = lines_before[start]
     rank = kind[start]
