@@ -28,7 +28,8 @@ from prs3_post.readers.lexer import (
 
 REPO = Path(__file__).resolve().parents[1]
 CORPUS = REPO.parent / "shared" / "corpus" / "gcode"
-PROGRAMS = sorted((REPO / "fixtures" / "golden").iterdir()) + sorted((REPO / "fixtures" / "verify").glob("*.ngc"))
+PROGRAMS = (sorted((REPO / "fixtures" / "golden").iterdir()) + sorted((REPO / "fixtures" / "verify").glob("*.ngc"))
+            + sorted((REPO / "fixtures" / "gcode").glob("*.ngc")))     # the 3+2 reader's CAM programs
 CORPUS_FILES = sorted(CORPUS.glob("*")) if CORPUS.is_dir() else []
 
 

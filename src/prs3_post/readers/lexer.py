@@ -53,7 +53,7 @@ from prs3_post.types import BoolArray, FloatArray
 
 __all__ = [
     "BYTE_ORDER_MARK", "EMPTY", "LINUXCNC_COMMENTS", "NUMBER", "Word", "code_name", "column_pattern", "decode",
-    "lex_columns", "lex_line",
+    "forward_fill", "lex_columns", "lex_line",
     "lex_words", "quote", "split_comments",
 ]
 
@@ -355,3 +355,16 @@ def _byte_classes(letters: str) -> npt.NDArray[np.int8]:
         table[ord(letter)] = column + 1
     table.flags.writeable = False
     return table
+
+
+def forward_fill(values: FloatArray) -> FloatArray:
+    """Each NaN replaced by the last non-NaN value above it in its column (NaN where there is none): the
+    modal value of each row of a :func:`lex_columns` column (prepend the state before the chunk as row 0).
+
+    >>> forward_fill(np.array([np.nan, 1.0, np.nan, 2.0])).tolist()
+    [nan, 1.0, 1.0, 2.0]
+    """
+    rows = np.arange(len(values)).reshape((-1,) + (1,) * (values.ndim - 1))
+    last = np.where(np.isnan(values), 0, rows)
+    np.maximum.accumulate(last, axis=0, out=last)
+    return np.take_along_axis(values, last, axis=0)

@@ -54,6 +54,7 @@ from prs3_post.readers.lexer import (
     Word,
     code_name,
     decode,
+    forward_fill,
     lex_columns,
     lex_words,
     quote,
@@ -344,10 +345,10 @@ class _Reader:
         absent), in bulk: True if done; False (state untouched) where any line would be an error."""
         g, axes, feed = values[:, 1], values[:, 2:7], values[:, 7]
         start = -1.0 if self.motion is None else float(self.motion)
-        motion = _forward_fill(np.concatenate([[start], g]))[1:]
+        motion = forward_fill(np.concatenate([[start], g]))[1:]
         has_f = ~np.isnan(feed)
         feeding = motion == 1.0
-        position = _forward_fill(np.vstack([self.position, axes]))[1:]
+        position = forward_fill(np.vstack([self.position, axes]))[1:]
         if ((motion < 0).any() or (has_f & ~feeding).any() or not (feed[has_f] > 0).all()
                 or (feeding.any() and (not self.inverse_time or (feeding & ~has_f).any()))
                 or (not self.stage and not np.isnan(axes[:, :2]).all()) or np.isnan(position).any()):
@@ -606,10 +607,3 @@ class _Reader:
             raise InputError(f"the program never ends: no M2 or M30 in its {line_count} lines (truncated file?)",
                              path=self.path)
 
-
-def _forward_fill(values: FloatArray) -> FloatArray:
-    """Each NaN replaced by the last non-NaN value above it in its column (NaN where there is none)."""
-    rows = np.arange(len(values)).reshape((-1,) + (1,) * (values.ndim - 1))
-    last = np.where(np.isnan(values), 0, rows)
-    np.maximum.accumulate(last, axis=0, out=last)
-    return np.take_along_axis(values, last, axis=0)
