@@ -245,10 +245,13 @@ def test_events_spindle_coolant_tools_comments_stops() -> None:
     ]
 
 
-def test_continuation_lines_and_exponents() -> None:
-    cl = _parse("FEDRAT/$\nMMPM,$\n1.5E+02\nGOTO/1.0E+01,$\n-2,3\n")
+@pytest.mark.parametrize("chunk_lines", [1, 2, 10_000])
+def test_continuation_lines_and_exponents(chunk_lines: int) -> None:
+    text = "FEDRAT/$\nMMPM,$\n1.5E+02\nGOTO/1.0E+01,$\n-2,3\nPPRINT/NEXT: $\nGOTO/0,0,0\n"
+    cl = _parse(text, chunk_lines=chunk_lines)
     assert cl.toolpath.tip.tolist() == [[10.0, -2.0, 3.0]] and cl.toolpath.feed.tolist() == [150.0]
-    assert cl.toolpath.source.tolist() == [4] and cl.counts.records == 2
+    assert cl.toolpath.source.tolist() == [4] and cl.counts.records == 3
+    assert [e.text for e in cl.toolpath.events] == ["NEXT: GOTO/0,0,0"]      # a continued comment, not a move
 
 
 def test_feed_unit_after_the_value_and_per_revolution() -> None:

@@ -1054,7 +1054,7 @@ class _Reader:
         run: list[tuple[str | None, ...]] = []
         run_index: list[int] = []
         paints = 0
-        bulk = self.arc is None and self.cycle is None and not self.finished
+        bulk = self.arc is None and self.cycle is None and not self.finished and not assembler.pending
         for index, raw in enumerate(lines):
             if bulk:
                 match = plain(raw)
