@@ -118,12 +118,17 @@ def scale_column(values: FloatArray, decimals: int) -> ScaledColumn:
     with np.errstate(invalid="ignore", over="ignore"):
         y = values * 10.0**decimals             # one rounding: relative error ≤ 2⁻⁵³
         nearest = np.rint(y)                    # half to even, as Python's formatting on a true tie
-        wide = ~(np.abs(y) < _EXACT_LIMIT)      # also nan, inf
+        size = np.abs(y)
+        wide = ~(size < _EXACT_LIMIT)           # also nan, inf
         # A half-integer within the rounding error of y: rint(y) may differ from the rounding of
         # the exact value·10^d; let Python's correctly rounded formatting decide.
-        near_tie = ~wide & (0.5 - np.abs(y - nearest) <= np.abs(y) * 2.0**-50)
-    nearest[wide] = 0.0
-    scaled = nearest.astype(np.int64) + 0       # rint(-0.3) is -0.0: the int is 0 either way
+        size *= 2.0**-50
+        size += np.abs(y - nearest)
+        near_tie = size >= 0.5                  # 0.5 − |y − rint(y)| ≤ |y|·2⁻⁵⁰
+    if wide.any():
+        near_tie &= ~wide
+        nearest[wide] = 0.0
+    scaled = nearest.astype(np.int64)           # rint(-0.3) is -0.0: the int is 0 either way
     for row in np.flatnonzero(near_tie).tolist():
         scaled[row] = int(fixed(float(values[row]), decimals).replace(".", ""))
     odd = np.flatnonzero(wide).astype(np.int64)
