@@ -253,7 +253,7 @@ def _render_block(columns: Sequence[Column], present: BoolArray, lo: int, hi: in
     flat[(right - words[rows, first]) * m + rows] = 0
     lengths = words.sum(axis=1) - 1 + len(ending)
     lines = np.ascontiguousarray(grid.T).reshape(-1)
-    return lines[lines != 0], lengths
+    return np.compress(lines != 0, lines), lengths     # compress: several times faster than a mask index
 
 
 def _narrow(values: IntArray) -> np.ndarray:
