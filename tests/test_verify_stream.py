@@ -12,7 +12,7 @@ from prs3_post.config import load_machine
 from prs3_post.readers.poses import read_poses
 from prs3_post.verify import Intended, verify_program
 from prs3_post.verify_format import report_record, report_text
-from prs3_post.verify_job import open_program, open_setting, verify_file, verify_loaded
+from prs3_post.verify_job import open_program, open_setting, read_ahead, verify_file, verify_loaded
 
 REPO = Path(__file__).resolve().parents[1]
 VERIFY = REPO / "fixtures" / "verify"
@@ -82,3 +82,34 @@ def test_against_report_is_the_same_in_chunks():
                for rows in (1, 7, 10_000)]
     assert records[0] == records[1] == records[2]
     assert json.loads(records[0])["problems"]                 # the rigid head's axis errors, as before
+
+
+def test_read_ahead_keeps_the_order_and_raises_where_the_error_was():
+    assert list(read_ahead(iter(range(50)), depth=3)) == list(range(50))
+
+    def failing():
+        yield from (1, 2, 3)
+        raise ValueError("line 4")
+
+    seen = []
+    with pytest.raises(ValueError, match="line 4"):
+        for item in read_ahead(failing()):
+            seen.append(item)
+    assert seen == [1, 2, 3]
+
+
+def test_read_ahead_stops_its_producer_when_the_consumer_stops():
+    produced = []
+
+    def endless():
+        n = 0
+        while True:
+            produced.append(n)
+            yield n
+            n += 1
+
+    for item in read_ahead(endless(), depth=2):
+        if item == 5:
+            break
+    count = len(produced)
+    assert 6 <= count <= 9                                # at most depth + 2 ahead, and then no more

@@ -18,10 +18,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TypeVar
+from queue import Full, Queue
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -283,14 +285,61 @@ def verify_file(setting: ProgramSetting, *, tolerance: float, axis_tolerance_deg
         An unreadable program, or one without moves.
     """
     stream = ProgramStream(setting.path, setting.dialect, stage=setting.machine.stage.present, chunk_lines=chunk_lines)
+    decimals = setting.dialect.decimals
     verifier = Verifier(setting.machine, setup=setting.setup, tolerance=tolerance,
-                        axis_tolerance=math.radians(axis_tolerance_deg), length_decimals=setting.dialect.decimals.length,
-                        feed_decimals=setting.dialect.decimals.inverse_time, capacity=stream.check())
-    for chunk in stream:
+                        axis_tolerance=math.radians(axis_tolerance_deg), length_decimals=decimals.length,
+                        feed_decimals=decimals.inverse_time, capacity=stream.check())
+    for chunk in read_ahead(stream):
         verifier.add(chunk)
     if not verifier.rows:
         raise InputError("no moves (G0/G1 lines) in the program", path=setting.path)
     return verifier.report(blending_lines=stream.blending_lines)
+
+
+_Item = TypeVar("_Item")
+
+
+def read_ahead(items: Iterable[_Item], depth: int = 2) -> Iterator[_Item]:
+    """The items of ``items`` in order, produced by a thread up to ``depth`` ahead of the consumer:
+    reading and lexing the next chunk of a program overlaps the replay of this one (numpy releases
+    the interpreter lock in both). An exception of the producer is raised here, where its item
+    would have come; a consumer that stops early stops the producer.
+    """
+    queue: Queue[tuple[str, Any]] = Queue(maxsize=max(1, depth))
+    stop = threading.Event()
+
+    def put(entry: tuple[str, Any]) -> bool:
+        while not stop.is_set():
+            try:
+                queue.put(entry, timeout=0.05)
+                return True
+            except Full:
+                continue
+        return False
+
+    def produce() -> None:
+        try:
+            for item in items:
+                if not put(("item", item)):
+                    return
+            put(("end", None))
+        except Exception as exc:
+            put(("error", exc))
+
+    thread = threading.Thread(target=produce, name="read-ahead", daemon=True)
+    thread.start()
+    try:
+        while True:
+            kind, value = queue.get()
+            if kind == "item":
+                yield value
+            elif kind == "error":
+                raise value
+            else:
+                return
+    finally:
+        stop.set()
+        thread.join()
 
 
 def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str, *,
