@@ -133,6 +133,13 @@ def test_columns_read_the_regular_lines_only():
         lex_columns(["X1"], "XX")
 
 
+def test_digits_of_an_unread_line_leave_the_line_before_read():
+    """A comment with digits (CAM writes one every few moves) is not read in bulk; the move before it is."""
+    values, read = lex_columns(["G1 X1.5", "(pass 12)", "G1 X2", "7", "X3", " 8", "G1 X-.5"], "GX")
+    assert read.tolist() == [True, False, True, False, True, False, True]
+    assert_array_equal(values[[0, 2, 4, 6]], [[1, 1.5], [1, 2], [np.nan, 3], [1, -0.5]])
+
+
 # ----------------------------------------------------------------------------- the fast path = the careful path
 
 _LETTERS = "NGXYUVWF"

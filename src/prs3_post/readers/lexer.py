@@ -308,6 +308,11 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
     # word is right when its last one is inside it (a stray digit after it would be given to it too)
     digit_at = np.flatnonzero(kind == _DIGIT)
     digit_word = words_before[digit_at] - 1
+    # a digit on another line than that word (a comment line's "(pass 1)") is on a line that is bad
+    # already (no letter starts it): it is not the word's, and must not make the line before unread
+    own = digit_word >= 0
+    own[own] = word_line[digit_word[own]] == lines_before[digit_at[own]]
+    digit_at, digit_word = digit_at[own], digit_word[own]
     counted = np.bincount(digit_word + 1, minlength=words + 1)
     ends_all = np.cumsum(counted)                        # where the digits given to each word end in digit_at
     ends = ends_all[1:]

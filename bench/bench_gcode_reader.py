@@ -1,0 +1,99 @@
+"""Throughput and peak memory of the 3+2 G-code reader, against pygcode's parse loop (a script, not a test).
+
+    python bench/bench_gcode_reader.py [--lines 1000000] [--repeat 3] [--pygcode-lines 100000]
+
+Writes a synthetic 3-axis program in a G68.2 tilted plane (``G1 X.. Y.. Z..`` lines, an F every
+100 moves, a comment every 50) to a temporary directory and reads it (a) whole with ``read_gcode``
+and (b) streamed with ``GcodeStream`` (chunks dropped as they come, as a streaming conversion
+would). The reference in the same run, (c), is a loop that only parses the program's first
+``--pygcode-lines`` lines with ``pygcode.Line`` (its rate is per line, so a shorter run measures
+it fairly). Peak memory is traced with tracemalloc per call. The issue's end-to-end targets for
+``convert``: ≥ 300,000 input moves/s for one file on the 2-core machine, ≥ 30 times pygcode's
+parse-only loop, a 10-million-line input under 500 MB; the reader alone must be well inside them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import os
+import random
+import tempfile
+import time
+import tracemalloc
+from collections.abc import Callable
+
+from prs3_post.readers.gcode import GcodeStream, read_gcode
+
+
+def write_program(path: str, lines: int, seed: int = 0) -> int:
+    """A 3+2 program of about ``lines`` lines; returns the number of moves."""
+    rng = random.Random(seed)
+    moves = 0
+    with open(path, "w") as out:
+        out.write("%\nG21 G90 G94 G17\nT1 M6\nS8000 M3\nG0 X0 Y0 Z50\nG68.2 X10 Y20 Z0 I30 J25 K0\nG53.1\n"
+                  "G0 X0 Y0 Z5\nG1 Z0 F600\n")
+        written = 9
+        while written < lines - 3:
+            x, y, z = rng.uniform(-50, 50), rng.uniform(-50, 50), rng.uniform(-3, 0)
+            feed = f" F{rng.choice((400, 500, 600))}" if moves % 100 == 0 else ""
+            out.write(f"G1 X{x:.4f} Y{y:.4f} Z{z:.4f}{feed}\n")
+            moves += 1
+            written += 1
+            if moves % 50 == 0:
+                out.write(f"(pass {moves // 50})\n")
+                written += 1
+        out.write("G69\nM30\n%\n")
+    return moves + 3
+
+
+def pygcode_loop(path: str, lines: int) -> None:
+    import pygcode                                       # the reference only: not a dependency of the reader
+    with open(path) as stream:
+        for line in itertools.islice(stream, lines):
+            pygcode.Line(line)
+
+
+def streamed(path: str) -> None:
+    for _ in GcodeStream(path, tolerance=0.002):
+        pass
+
+
+def measure(call: Callable[[], object], repeat: int) -> tuple[float, int]:
+    """Best wall time of ``repeat`` calls (s) and the peak traced memory of one call (bytes)."""
+    best = float("inf")
+    for _ in range(repeat):
+        start = time.perf_counter()
+        call()
+        best = min(best, time.perf_counter() - start)
+    tracemalloc.start()
+    call()
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return best, peak
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--lines", type=int, default=1_000_000)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--pygcode-lines", type=int, default=100_000)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "bench.ngc")
+        moves = write_program(path, args.lines)
+        size = os.path.getsize(path)
+        print(f"{args.lines:,} lines, {moves:,} moves, {size / 1e6:.1f} MB")
+        reference_lines = min(args.pygcode_lines, args.lines)
+        seconds, _ = measure(lambda: pygcode_loop(path, reference_lines), 1)
+        reference = reference_lines / seconds                                 # lines/s
+        print(f"{'pygcode.Line (parse only)':28s} {reference:12,.0f} lines/s  (first {reference_lines:,} lines)")
+        for name, call in (("read_gcode (whole)", lambda: read_gcode(path, tolerance=0.002)),
+                           ("GcodeStream (chunks dropped)", lambda: streamed(path))):
+            seconds, peak = measure(call, args.repeat)
+            print(f"{name:28s} {moves / seconds:12,.0f} moves/s  {args.lines / seconds / reference:6.1f} x pygcode's "
+                  f"lines/s  peak {peak / 1e6:8.1f} MB")
+
+
+if __name__ == "__main__":
+    main()
