@@ -170,9 +170,9 @@ def pass_depths(depth: float, step: float, *, resolution: float = MIN_TOLERANCE,
     """
     passes = depth / step - rel_tol
     if passes > MAX_PASSES:
-        count = f"{math.ceil(passes):g}" if math.isfinite(passes) else "infinitely many"  # a subnormal step
+        shown = f"{math.ceil(passes):g}" if math.isfinite(passes) else "infinitely many"  # a subnormal step
         raise FeatureError(
-            f"--depth {depth:g} mm in {option} {step:g} mm steps would take {count} passes "
+            f"--depth {depth:g} mm in {option} {step:g} mm steps would take {shown} passes "
             f"(at most {MAX_PASSES}): use a larger {option}"
         )
     if step < resolution and passes > 1:
@@ -190,7 +190,7 @@ def format_mm(value: float) -> str:
     return fixed(value, 3)
 
 
-def format_uv(uv: FloatArray) -> str:
+def format_uv(uv: FloatArray | tuple[float, float]) -> str:
     """``(u 10.000, v 0.000)`` for a face point (2,) mm, as messages and comments write it."""
     return f"(u {format_mm(uv[0])}, v {format_mm(uv[1])})"
 
