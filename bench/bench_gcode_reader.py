@@ -48,7 +48,7 @@ def write_program(path: str, lines: int, seed: int = 0) -> int:
 
 
 def pygcode_loop(path: str, lines: int) -> None:
-    import pygcode                                       # the reference only: not a dependency of the reader
+    import pygcode  # the reference only: not a dependency of the reader
     with open(path) as stream:
         for line in itertools.islice(stream, lines):
             pygcode.Line(line)

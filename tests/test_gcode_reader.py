@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import random
 import shutil
 import subprocess
 from pathlib import Path
@@ -405,36 +406,106 @@ def test_detect_format_on_the_corpus() -> None:
 # --------------------------------------------------------------------------------------------
 # LinuxCNC's interpreter as the reference of the 3-axis reading (no G68.2: LinuxCNC has none)
 # --------------------------------------------------------------------------------------------
-@pytest.mark.skipif(not RS274_CHECK.exists() or shutil.which("python3") is None, reason="rs274-check missing")
-def test_move_end_points_agree_with_linuxcnc(tmp_path: Path) -> None:
-    """Every end point LinuxCNC's interpreter reports (straight moves, arc ends) is a row of ours, in order."""
-    text = (PROGRAMS / "wedge-face-3axis.ngc").read_text().replace("G81 X10 Y10", "G99 G83 X10 Y10 Q1.5").replace(
-        "G80", "X0 Y5\nG98 G73 X4 Z-2 R2 Q1\nG80\nG18 G2 X-10 Z10 I-7 K0\nG17 G91 G3 X4 Y4 R-4\nG90")
-    program = tmp_path / "p.ngc"
-    program.write_text(text)
-    canon = tmp_path / "p.canon"
-    done = subprocess.run([str(RS274_CHECK), "-a", "XYZ", "--canon", str(canon), str(program)],
-                          capture_output=True, text=True, timeout=60, check=False)
+def _linuxcnc_moves(programs: list[Path]) -> dict[str, list[tuple[int, str, list[float], float]]]:
+    """LinuxCNC's canonical moves of each program (one rs274-check run for all): line, call, end point (mm),
+    feed (mm/min; 0 for rapids); moves that go nowhere left out, as the reader leaves them out of cycles."""
+    canon = programs[0].parent / "all.canon"
+    done = subprocess.run([str(RS274_CHECK), "-a", "XYZ", "--canon", str(canon), *map(str, programs)],
+                          capture_output=True, text=True, timeout=120, check=False)
     if "not installed" in done.stdout + done.stderr:
         pytest.skip("linuxcnc-uspace is not installed")
     assert done.returncode == 0, done.stdout + done.stderr
-    theirs = []
+    moves: dict[str, list[tuple[int, str, list[float], float]]] = {}
+    current: list[tuple[int, str, list[float], float]] = []
     for row in canon.read_text().splitlines():
         fields = row.split()
-        if len(fields) > 2 and fields[1] in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED"):
+        if row.startswith("# FILE "):
+            current = moves.setdefault(fields[2], [])
+        elif len(fields) > 2 and fields[1] in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED"):
             values = dict(f.split("=") for f in fields[2:] if "=" in f)
             point = [float(values[a]) for a in "XYZ"]
-            if not theirs or point != theirs[-1][1]:          # we leave out moves that go nowhere
-                theirs.append((int(fields[0]), point))
-    arc_lines = {int(row.split()[0]) for row in canon.read_text().splitlines() if " ARC_FEED " in row}
-    assert len(arc_lines) == 3
+            if not current or point != current[-1][2]:
+                current.append((int(fields[0]), fields[1], point, float(values.get("F", 0.0))))
+    return moves
+
+
+def _assert_same_moves(text: str, theirs: list[tuple[int, str, list[float], float]]) -> None:
+    """Every LinuxCNC end point is a row of ours, in order, with its feed; between an arc's start and end,
+    only that arc's rows (an arc is one call there and many rows here)."""
     ours = _parse(text).toolpath
     position = 0
-    for line, point in theirs:             # an arc is one call there and many rows here: its end is ours too
-        while line in arc_lines and ours.source[position] == line and position + 1 < len(ours) \
-                and ours.source[position + 1] == line:
-            position += 1
-        assert ours.source[position] == line, (line, point)
-        assert_allclose(ours.tip[position], point, atol=1e-6, err_msg=f"line {line}")
+    for line, call, point, feed in theirs:
+        if call == "ARC_FEED":
+            while position + 1 < len(ours) and ours.source[position + 1] == line:
+                position += 1
+        assert ours.source[position] == line, (line, point, ours.source[position])
+        assert_allclose(ours.tip[position], point, atol=1e-5, err_msg=f"line {line}")
+        assert_allclose(ours.feed[position], feed if call != "STRAIGHT_TRAVERSE" else 0.0, atol=1e-5,
+                        err_msg=f"line {line}")
+        assert ours.kind[position] == (R if call == "STRAIGHT_TRAVERSE" else F), line
         position += 1
     assert position == len(ours)
+
+
+def _random_program(seed: int) -> str:
+    """A 3-axis program of every kind of move the reader and LinuxCNC both read, with random numbers."""
+    rng = random.Random(seed)
+    inch = rng.random() < 0.3
+    unit = 1 / 25.4 if inch else 1.0
+
+    def num(low: float, high: float) -> str:
+        return f"{rng.uniform(low, high) * unit:.4f}"
+
+    lines = ["G20" if inch else "G21", "G90 G94 G17 G99", f"G0 X{num(-50, 50)} Y{num(-50, 50)} Z{num(5, 20)}",
+             f"F{num(50, 500)}"]
+    for _ in range(25):
+        choice = rng.randrange(6)
+        if choice <= 1:
+            words = [f"{a}{num(-50, 50)}" for a in "XYZ" if rng.random() < 0.7] or ["X1"]
+            lines.append(f"{rng.choice(['G0', 'G1', ''])} {' '.join(words)}".strip() if lines[-1][:2] in ("G0", "G1")
+                         else f"{rng.choice(['G0', 'G1'])} {' '.join(words)}")
+        elif choice == 2:
+            lines.append(f"G91 G{rng.choice([0, 1])} X{num(-10, 10)} Y{num(-10, 10)} Z{num(-3, 3)}")
+            lines.append("G90")
+        elif choice == 3:                                  # an arc, in any plane, I J K or R, sometimes a helix
+            plane = rng.choice([17, 18, 19])
+            first, second = {17: "XY", 18: "ZX", 19: "YZ"}[plane]
+            offsets = {"X": "I", "Y": "J", "Z": "K"}
+            radius, start, turn = rng.uniform(2, 20), rng.uniform(0, 2 * math.pi), rng.uniform(0.3, 6.0)
+            a, b = -radius * math.cos(start), -radius * math.sin(start)       # centre from the start
+            end_angle = start + rng.choice([turn, -turn])
+            da, db = a + radius * math.cos(end_angle), b + radius * math.sin(end_angle)
+            code = rng.choice(["G2", "G3"])
+            lift = f" {({17: 'Z', 18: 'Y', 19: 'X'})[plane]}{num(-3, 3)}" if rng.random() < 0.3 else ""
+            end = f"{first}{da * unit:.4f} {second}{db * unit:.4f}"
+            if rng.random() < 0.5:
+                centre = f"{offsets[first]}{a * unit:.4f} {offsets[second]}{b * unit:.4f}"
+            else:
+                centre = f"R{radius * unit * rng.choice([1, -1]):.4f}"
+            lines.append(f"G{plane} G91 {code} {end}{lift} {centre}")
+            lines.append("G90 G17")
+        elif choice == 4:                                  # a cycle, two holes, either return level
+            code = rng.choice(["G81", "G82 P0.2", "G83 Q" + num(0.5, 3), "G73 Q" + num(0.5, 3)])
+            lines.append(f"{rng.choice(['G98', 'G99'])} {code} X{num(-40, 40)} Y{num(-40, 40)} Z{num(-8, -1)} "
+                         f"R{num(0.5, 3)}")
+            lines.append(f"X{num(-40, 40)}")
+            lines.append("G80")
+        else:
+            lines.append(f"F{num(50, 500)}")
+    return "\n".join([*lines, "M2", ""])
+
+
+@pytest.mark.skipif(not RS274_CHECK.exists() or shutil.which("python3") is None, reason="rs274-check missing")
+def test_move_end_points_agree_with_linuxcnc(tmp_path: Path) -> None:
+    """The wedge program with more cycles and arcs, and random programs: every end point and feed LinuxCNC's
+    interpreter reports is a row of ours, in order."""
+    texts = [(PROGRAMS / "wedge-face-3axis.ngc").read_text().replace("G81 X10 Y10", "G99 G83 X10 Y10 Q1.5").replace(
+        "G80", "X0 Y5\nG98 G73 X4 Z-2 R2 Q1\nG80\nG18 G2 X-10 Z10 I-7 K0\nG17 G91 G3 X4 Y4 R-4\nG90")]
+    texts += [_random_program(seed) for seed in range(8)]
+    paths = []
+    for index, text in enumerate(texts):
+        paths.append(tmp_path / f"p{index}.ngc")
+        paths[-1].write_text(text)
+    theirs = _linuxcnc_moves(paths)
+    for path, text in zip(paths, texts, strict=True):
+        _assert_same_moves(text, theirs[str(path)])
