@@ -11,7 +11,7 @@ from numpy.testing import assert_allclose
 from prs3_post.config import load_machine
 from prs3_post.errors import LimitError, ReachError
 from prs3_post.kinematics import forward, inverse
-from prs3_post.linearize import CHECK_FRACTIONS, joint_path_deviation, slerp, subdivide_axis_changes
+from prs3_post.linearize import CHECK_FRACTIONS, joint_path_deviation, joint_path_deviations, slerp, subdivide_axis_changes
 from prs3_post.pipeline import inverse_time, post_process
 from prs3_post.setup import Setup
 from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
@@ -150,3 +150,23 @@ def test_machine_without_stage_refuses_a_feed_along_a_tilted_axis():
     p = path([tip_part + 10 * A, tip_part], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100])
     with pytest.raises(ReachError):
         post_process(head, p, ORIGIN)
+
+
+def test_the_angle_tolerance_bounds_the_tool_axis_of_subdivided_moves():
+    """With the tip bound out of the way (1 m), only the angle bound subdivides: every piece's FK axis
+    stays within 0.01° of the great circle; without either bound the move stays one line, 0.97° off."""
+    start_axis = np.array([0.0, 0.0, 1.0])
+    tips = np.array([[-80.0, 20.0, -690.0], [-80.0, 20.0, -680.0], [-40.0, 20.0, -680.0]])
+    p = path(tips, [start_axis, start_axis, A], [MoveKind.RAPID, MoveKind.FEED, MoveKind.FEED], [0, 100, 100])
+    loose = subdivide_axis_changes(MACHINE.geometry, p, tolerance=1e3, angle_tolerance=np.inf)
+    assert len(loose) == 3
+    _, angle = joint_path_deviations(MACHINE.geometry, loose.tip, loose.axis, np.array([1]))
+    assert_allclose(np.degrees(angle), [0.9713], atol=1e-4)
+    out = subdivide_axis_changes(MACHINE.geometry, p, tolerance=1e3, angle_tolerance=np.radians(0.01))
+    assert len(out) == 18
+    tip_gap, angle = joint_path_deviations(MACHINE.geometry, out.tip, out.axis, np.arange(1, len(out) - 1))
+    assert np.degrees(angle.max()) <= 0.01
+    assert tip_gap.max() > 0.002                                  # the tip alone would have asked for more
+    # the defaults bound both: here the tip bound (0.002 mm) is the tighter one
+    both = subdivide_axis_changes(MACHINE.geometry, p)
+    assert len(both) == len(subdivide_axis_changes(MACHINE.geometry, p, angle_tolerance=np.inf)) == 66

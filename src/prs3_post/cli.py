@@ -34,6 +34,7 @@ from prs3_post.readers.program import read_program
 from prs3_post.readers.stl import UP_ROTATION, load_part
 from prs3_post.setup import Setup, SetupError
 from prs3_post.tables import fk_records, fk_text, ik_records, ik_text
+from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_TOLERANCE
 from prs3_post.verify import Intended
 from prs3_post.verify_format import report_record, report_text
 from prs3_post.verify_job import (
@@ -488,7 +489,7 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="Number the blocks (N words).  [default: as the dialect says]"),
         click.option("--line-start", type=Integer(0, 99999), default=None, help="First block number."),
         click.option("--line-step", type=Integer(1, 1000), default=None, help="Block number increment."),
-        click.option("--tolerance", type=Decimal(LENGTH), default=0.002, show_default=True,
+        click.option("--tolerance", type=Decimal(LENGTH), default=DEFAULT_TOLERANCE, show_default=True,
                      help="Chordal tolerance of arcs (and of moves that turn the tool axis), mm."),
         click.option("-o", "--output", "out_path", type=OutputPath(),
                      help="Program file (written to a temp file, then renamed). Default: standard output."),
@@ -828,7 +829,7 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext, opts: d
               help="The intended path: PART.stl (the operation is rebuilt from the program's header; a program "
                    "without one needs the options it was made with: --profile, --at, --depth, ...), or POSES.csv (the `ik --batch` format, "
                    "machine frame, one pose per G0/G1 line). CAM input (APT CL, G-code) is not supported yet.")
-@click.option("--axis-tolerance", "axis_tolerance_deg", type=Decimal(ANGLE), default=0.01, show_default=True,
+@click.option("--axis-tolerance", "axis_tolerance_deg", type=Decimal(ANGLE), default=DEFAULT_ANGLE_TOLERANCE_DEG, show_default=True,
               help="Allowed tool-axis deviation from the --against path, degrees.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print the complete report as JSON: every move, the FK tool-tip path in part coordinates, "

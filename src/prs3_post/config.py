@@ -1,4 +1,8 @@
-"""Machine and dialect definitions: the only code that parses TOML.
+"""Machine and dialect files: the only code that parses TOML.
+
+The types they load into are defined in :mod:`prs3_post.machine` and :mod:`prs3_post.dialect`
+(re-exported here), so that code that only uses them (the kinematics, the emitter) does not
+depend on the TOML reader.
 
 Loading is strict: an unknown or missing key, a wrong type or an out-of-range value is a
 :class:`ConfigError` that names the file and the dotted key, e.g.
@@ -13,13 +17,44 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from prs3_post.controller import block_problem
+from prs3_post.dialect import (
+    _DWELL_UNITS,
+    _END_CODES,
+    _LINE_ENDINGS,
+    AXIS_LETTERS,
+    TOOL_NUMBER_LIMIT,
+    AxisLetters,
+    CommentStyle,
+    Decimals,
+    Dialect,
+    LineNumbers,
+)
 from prs3_post.errors import ConfigError, InputError
+from prs3_post.machine import Geometry, Limits, Machine, Stage
 from prs3_post.readers.files import read_text
+
+__all__ = [
+    "AXIS_LETTERS",
+    "TOOL_NUMBER_LIMIT",
+    "AxisLetters",
+    "CommentStyle",
+    "Decimals",
+    "Dialect",
+    "Geometry",
+    "Limits",
+    "LineNumbers",
+    "Machine",
+    "Stage",
+    "load_dialect",
+    "load_machine",
+    "postproc_dir",
+    "resolve",
+    "shipped_names",
+]
 
 # ----------------------------------------------------------------------------- shipped files
 
@@ -167,91 +202,6 @@ def _display(path: Path) -> str:
 # ----------------------------------------------------------------------------- machines
 
 
-@dataclass(frozen=True, slots=True)
-class Geometry:
-    """The head's dimensions (mm, rad). Symbols from the paper in quotes.
-
-    Attributes
-    ----------
-    leg_azimuth : (3,) tuple — rad, azimuth α of legs 1, 2, 3, 120° apart, counter-clockwise
-    guide_radius : float — mm, "K": horizontal distance from the base centre to each revolute axis
-    link_length : float — mm, "U": revolute-to-spherical link length
-    platform_radius : float — mm, "r_p = q/√3": circumradius of the spherical-joint triangle
-    tool_length : float — mm, "TL": platform centre to tool tip along the tool axis
-    """
-
-    leg_azimuth: tuple[float, float, float]
-    guide_radius: float
-    link_length: float
-    platform_radius: float
-    tool_length: float
-
-    def __post_init__(self) -> None:
-        for name in ("guide_radius", "link_length", "platform_radius", "tool_length"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0")
-
-    @property
-    def layout_offset(self) -> float:
-        """rad, how far the leg layout is turned from the reference 210°/330°/90° (legs 1, 2, 3)."""
-        return self.leg_azimuth[0] - math.radians(210.0)
-
-
-@dataclass(frozen=True, slots=True)
-class Limits:
-    """Per-point limits, checked on every emitted point (mm, rad).
-
-    Attributes
-    ----------
-    stroke : (min, max) mm — each actuator stroke T_i
-    link_angle : (min, max) rad — each link's angle θ_i from horizontal
-    max_tilt : float — rad, tool-axis angle from vertical
-    max_condition : float — actuator-Jacobian 2-norm condition number (distance to singularity)
-    """
-
-    stroke: tuple[float, float]
-    link_angle: tuple[float, float]
-    max_tilt: float
-    max_condition: float
-
-
-@dataclass(frozen=True, slots=True)
-class Stage:
-    """The XY stage under the part (absent on a pure head).
-
-    Attributes
-    ----------
-    present : bool — the machine has an XY stage
-    travel_x, travel_y : (min, max) mm — stage travel (only when present)
-    """
-
-    present: bool
-    travel_x: tuple[float, float] = (0.0, 0.0)
-    travel_y: tuple[float, float] = (0.0, 0.0)
-
-
-@dataclass(frozen=True, slots=True)
-class Machine:
-    """A whole machine file: head geometry, limits, stage and default setup.
-
-    Attributes
-    ----------
-    name : str — the file's stem (``patel2020``)
-    description : str — one line for ``prs3-post machines``
-    source : str — where it was loaded from, as shown in messages
-    geometry, limits, stage : see their classes
-    part_origin : (3,) tuple — mm, machine coordinates of the part origin in the default setup
-    """
-
-    name: str
-    description: str
-    source: str
-    geometry: Geometry
-    limits: Limits
-    stage: Stage
-    part_origin: tuple[float, float, float]
-
-
 def load_machine(name_or_path: str) -> Machine:
     """Load a shipped machine by name or a machine TOML file by path, strictly.
 
@@ -341,161 +291,6 @@ def load_machine(name_or_path: str) -> Machine:
 # ----------------------------------------------------------------------------- dialects
 # (G-code dialects for the emitter. Owned separately from the machine part above; it only reuses
 # the strict-reading helpers `_Table`, `_read_toml`, `resolve` and `_display`.)
-
-#: RS-274 axis letters a dialect may map a machine axis to. Every other letter already means
-#: something in a motion block (G, M, F, S, T, P, N, O, and the arc/cycle words D E H I J K L Q R).
-AXIS_LETTERS = "ABCUVWXYZ"
-#: Program end codes the emitter may write (both end the program and rewind).
-_END_CODES = ("M2", "M30")
-#: Line endings a dialect may choose (LinuxCNC counts the CR of CRLF towards the line length).
-_LINE_ENDINGS = {"\n": "LF", "\r\n": "CRLF"}
-#: Units of the G4 P word: LinuxCNC reads seconds, Fanuc (P without a decimal point) milliseconds.
-_DWELL_UNITS = ("s", "ms")
-#: The largest ``words.tool_number_max`` (8 digits, as program.number): far beyond it a tool
-#: number no longer survives the float of an event value (and LinuxCNC reads T2147483648 as negative).
-TOOL_NUMBER_LIMIT = 99_999_999
-
-
-@dataclass(frozen=True, slots=True)
-class AxisLetters:
-    """Which word letter each machine axis is written with (all distinct, from :data:`AXIS_LETTERS`).
-
-    Attributes
-    ----------
-    x, y : str — stage X, Y (not written on a machine without a stage)
-    t1, t2, t3 : str — actuator strokes T1, T2, T3
-    """
-
-    x: str
-    y: str
-    t1: str
-    t2: str
-    t3: str
-
-    def __post_init__(self) -> None:
-        letters = (self.x, self.y, self.t1, self.t2, self.t3)
-        if any(len(a) != 1 or a not in AXIS_LETTERS for a in letters) or len(set(letters)) != 5:
-            raise ValueError(f"axis letters must be 5 distinct letters from {AXIS_LETTERS}, got {letters}")
-
-
-@dataclass(frozen=True, slots=True)
-class Decimals:
-    """Digits after the decimal point of each kind of number word.
-
-    Attributes
-    ----------
-    length : int — 1..8, X Y and actuator words (mm)
-    inverse_time : int — 1..8, the G93 F word (1/min)
-    spindle : int — 0..8, the S word (rpm)
-    dwell : int — 0..8, the G4 P word (in the dialect's dwell unit)
-    """
-
-    length: int
-    inverse_time: int
-    spindle: int
-    dwell: int
-
-
-@dataclass(frozen=True, slots=True)
-class LineNumbers:
-    """Block numbers (``N10``) in front of every block except ``%``, the ``O`` line and comment lines.
-
-    Attributes
-    ----------
-    enabled : bool — write them at all (the CLI may override)
-    letter : str — the word letter, normally ``N``
-    start : int — ≥ 0, the first number (the CLI may override)
-    step : int — ≥ 1, the increment (the CLI may override)
-    wrap_after : int — ≥ start, the largest number the control accepts; the next one is ``start`` again
-    """
-
-    enabled: bool
-    letter: str
-    start: int
-    step: int
-    wrap_after: int
-
-
-@dataclass(frozen=True, slots=True)
-class CommentStyle:
-    """How a comment is written and how its text is made safe.
-
-    Attributes
-    ----------
-    open, close : str — what surrounds the text (``(`` and ``)``)
-    uppercase : bool — upper-case the text (old Fanuc controls reject lower case)
-    replace : tuple of (str, str) — single characters and their replacements, applied first; covers
-        every character of ``open`` and ``close`` so that a text can never end its comment early
-    control : str — replacement for control characters (newline, tab, CR, ...) not in ``replace``
-    non_ascii : str — replacement for any other character outside printable ASCII not in ``replace``
-    active_words : tuple of str — words the controller acts on when a comment starts with
-        ``WORD,`` (LinuxCNC: ``(MSG, ...)`` pops up a message); in such a text that comma becomes a period
-    """
-
-    open: str
-    close: str
-    uppercase: bool
-    replace: tuple[tuple[str, str], ...]
-    control: str
-    non_ascii: str
-    active_words: tuple[str, ...] = ()
-
-
-@dataclass(frozen=True, slots=True)
-class Dialect:
-    """A G-code dialect: everything the emitter writes that is not motion data.
-
-    Attributes
-    ----------
-    name : str — the file's stem (``linuxcnc``)
-    description : str — one line for listings
-    source : str — where it was loaded from, as shown in messages
-    axes : AxisLetters — word letter of each machine axis
-    decimals : Decimals — fixed decimals of each kind of number
-    line_numbers : LineNumbers — block numbering
-    comments : CommentStyle — comment delimiters and sanitizing
-    percent : bool — a ``%`` line opens and closes the program
-    program_number : int — 0: no ``O`` line; else ``O<n>`` right after the opening ``%``
-    program_name : str — comment on the ``O`` line (empty: none)
-    end_code : str — ``M2`` or ``M30``
-    line_ending : str — ``"\\n"`` or ``"\\r\\n"``
-    max_line_length : int — characters per line without the line ending (LinuxCNC: 252)
-    safe_start : tuple of str — blocks that put the control in a known state
-    preamble : tuple of str — blocks after the safe start, before the first move
-    postamble : tuple of str — blocks after the last move, before the end code
-    modal_motion : bool — write G0/G1 only when it changes (False: on every motion line)
-    dwell_unit : str — unit of the G4 P word, ``s`` or ``ms``
-    tool_number_max : int — the largest tool number (T word) the controller takes (1 is the smallest)
-    """
-
-    name: str
-    description: str
-    source: str
-    axes: AxisLetters
-    decimals: Decimals
-    line_numbers: LineNumbers
-    comments: CommentStyle
-    percent: bool
-    program_number: int
-    program_name: str
-    end_code: str
-    line_ending: str
-    max_line_length: int
-    safe_start: tuple[str, ...]
-    preamble: tuple[str, ...]
-    postamble: tuple[str, ...]
-    modal_motion: bool
-    dwell_unit: str
-    tool_number_max: int
-
-    def __post_init__(self) -> None:
-        if self.end_code not in _END_CODES:
-            raise ValueError(f"end_code must be one of {_END_CODES}, got {self.end_code!r}")
-        if self.line_ending not in _LINE_ENDINGS:
-            raise ValueError(f"line_ending must be LF or CRLF, got {self.line_ending!r}")
-        if self.dwell_unit not in _DWELL_UNITS:
-            raise ValueError(f"dwell_unit must be one of {_DWELL_UNITS}, got {self.dwell_unit!r}")
-
 
 def _printable(text: str) -> bool:
     """Only printable ASCII (space to ``~``)."""

@@ -39,6 +39,12 @@ class ReachError(Prs3Error):
     """A pose is outside the workspace (cannot assemble, or needs a stage the machine lacks)."""
 
 
+class PoseError(Prs3Error):
+    """Tool poses that are not numbers, or whose axis is zero or points away from the spindle."""
+
+    exit_code = 2
+
+
 class FeatureError(Prs3Error):
     """An operation cannot be placed as asked (does not fit the face, tool too big, bad size)."""
 

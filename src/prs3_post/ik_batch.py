@@ -14,8 +14,8 @@ from collections.abc import Iterator
 import numpy as np
 
 from prs3_post.config import Machine
-from prs3_post.errors import InputError
-from prs3_post.kinematics import IKModel, PoseError, inverse, unit_axes
+from prs3_post.errors import InputError, PoseError
+from prs3_post.kinematics import IKModel, inverse, unit_axes
 from prs3_post.limits import check_limits
 from prs3_post.readers.poses import PoseTable, iter_poses
 from prs3_post.tables import ik_csv_header, ik_csv_rows

@@ -28,6 +28,7 @@ from prs3_post.readers.header import ProgramHeader, file_sha256, header_entries
 from prs3_post.readers.stl import load_part
 from prs3_post.resolution import length_resolution
 from prs3_post.setup import Setup
+from prs3_post.tolerances import DEFAULT_TOLERANCE
 from prs3_post.toolpath import Toolpath
 from prs3_post.types import FloatArray
 
@@ -63,7 +64,7 @@ class JobSpec:
     machine: Machine
     dialect: Dialect
     setup: Setup
-    tolerance: float = 0.002
+    tolerance: float = DEFAULT_TOLERANCE
     line_numbers: bool | None = None
     line_start: int | None = None
     line_step: int | None = None

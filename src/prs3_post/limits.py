@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prs3_post.config import Machine
 from prs3_post.errors import LimitError
 from prs3_post.kinematics import IKResult
+from prs3_post.machine import Machine
 from prs3_post.types import BoolArray, FloatArray
 
 
@@ -97,18 +97,19 @@ def check_limits(machine: Machine, ik: IKResult, axis: FloatArray) -> LimitRepor
     )
 
 
-def raise_first_violation(report: LimitReport, describe_row: Callable[[int], str]) -> None:
+def raise_first_violation(report: LimitReport, describe_row: Callable[[int], str], *, scope: str = "in all") -> None:
     """Raise :class:`LimitError` for the first point outside a limit (its first broken limit), if any.
 
     Parameters
     ----------
     report : LimitReport
-    describe_row : row index → where it came from (``hole 1 feed``, ``line 12``)
+    describe_row : row index → where it came from (``hole 1 feed``, ``part.cl:12``)
+    scope : str — what the count of bad points counts (``in all``: the whole path)
     """
     bad = np.flatnonzero(~report.ok)
     if not len(bad):
         return
     row = int(bad[0])
     column = int(np.flatnonzero(~(report.margin[row] >= 0.0))[0])   # first limit broken (or NaN)
-    count = f" ({len(bad)} points outside limits in all)" if len(bad) > 1 else ""
+    count = f" ({len(bad)} points outside limits {scope})" if len(bad) > 1 else ""
     raise LimitError(f"{describe_row(row)}: {report.describe(row, column)}{count}")

@@ -5,8 +5,12 @@ along a move, X, Y and T are affine in the tip (the parasitic shift is constant)
 on the straight line exactly. Where the axis changes, the joint-space line is a curve at the tip:
 each such move is bisected, inserting the intended pose at the midpoint (tip on the straight
 line, axis on the great circle), until forward kinematics of the joint-space interpolation stays
-within ``tolerance`` of the intended move at the checked fractions. Every round treats all moves
-that still need it at once.
+within ``tolerance`` (mm) of the intended tip and within ``angle_tolerance`` (rad) of the intended
+axis at the checked fractions. Every round treats all moves that still need it at once.
+
+Each move is bisected on its own end points alone, so a path cut into chunks gets the same rows:
+:func:`subdivide_axis_changes` takes the pose the machine is at before a chunk's first row
+(``start``), as the streaming pipeline carries it from the chunk before.
 """
 
 from __future__ import annotations
@@ -15,10 +19,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from prs3_post.config import Geometry
 from prs3_post.kinematics import IKModel, forward, inverse
+from prs3_post.machine import Geometry
+from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.toolpath import MoveKind, Toolpath
-from prs3_post.types import FloatArray
+from prs3_post.types import FloatArray, IntArray
 
 #: Fractions of a move where the joint-space interpolation is compared with the intended move.
 CHECK_FRACTIONS = np.array([0.25, 0.5, 0.75])
@@ -37,9 +42,19 @@ def slerp(a: FloatArray, b: FloatArray, t: FloatArray) -> FloatArray:
 
 
 def joint_path_deviation(
-    geometry: Geometry, tip: FloatArray, axis: FloatArray, starts: FloatArray, model: IKModel = IKModel.EXACT
+    geometry: Geometry, tip: FloatArray, axis: FloatArray, starts: IntArray, model: IKModel = IKModel.EXACT
 ) -> FloatArray:
-    """Worst tip deviation (mm) of the joint-space line between consecutive poses, per move.
+    """(K,) float — mm, the worst tip deviation of each move: the first half of :func:`joint_path_deviations`."""
+    return joint_path_deviations(geometry, tip, axis, starts, model)[0]
+
+
+def joint_path_deviations(
+    geometry: Geometry, tip: FloatArray, axis: FloatArray, starts: IntArray, model: IKModel = IKModel.EXACT
+) -> tuple[FloatArray, FloatArray]:
+    """Worst tip deviation (mm) and worst axis deviation (rad) of the joint-space line, per move.
+
+    The intended pose at fraction t of move k: the tip on the straight line, the axis on the great
+    circle (:func:`slerp`) between the move's end poses.
 
     Parameters
     ----------
@@ -48,38 +63,60 @@ def joint_path_deviation(
 
     Returns
     -------
-    (K,) float — mm, max over CHECK_FRACTIONS of |FK(joint interpolation) − intended tip|
+    tip_deviation : (K,) float — mm, max over CHECK_FRACTIONS of |FK tip − intended tip|
+    angle_deviation : (K,) float — rad, max over CHECK_FRACTIONS of the angle from the intended axis
+        to the FK axis (inf where FK does not converge)
     """
+    starts = np.asarray(starts, dtype=np.int64)
     ik = inverse(geometry, tip, axis, model=model)
     joints = np.column_stack([ik.stage, ik.strokes])                     # (M + 1, 5)
     worst = np.zeros(len(starts))
+    worst_angle = np.zeros(len(starts))
     for t in CHECK_FRACTIONS:
         mixed = (1.0 - t) * joints[starts] + t * joints[starts + 1]
         fk = forward(geometry, mixed[:, 2:], mixed[:, :2])
         intended = (1.0 - t) * tip[starts] + t * tip[starts + 1]
         gap = np.linalg.norm(fk.tip - intended, axis=1)
         worst = np.maximum(worst, np.where(fk.converged, gap, np.inf))
-    return worst
+        intended_axis = slerp(axis[starts], axis[starts + 1], np.full(len(starts), t))
+        # the angle from the chord's length: exact for small angles, unlike arccos of the dot product
+        chord = np.linalg.norm(fk.axis - intended_axis, axis=1)
+        angle = 2.0 * np.arcsin(np.clip(0.5 * chord, 0.0, 1.0))          # clip: rounding past 1
+        worst_angle = np.maximum(worst_angle, np.where(fk.converged, angle, np.inf))
+    return worst, worst_angle
 
 
 def subdivide_axis_changes(
-    geometry: Geometry, path: Toolpath, *, tolerance: float = 0.002, max_rounds: int = 20
+    geometry: Geometry, path: Toolpath, *, tolerance: float = DEFAULT_TOLERANCE,
+    angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, max_rounds: int = 20, start: Toolpath | None = None,
 ) -> Toolpath:
-    """Insert intended poses into FEED moves whose axis changes until they stay within ``tolerance``.
+    """Insert intended poses into FEED moves whose axis changes until they stay within the tolerances.
 
     Parameters
     ----------
     geometry : Geometry
     path : Toolpath — machine frame, unit axes
     tolerance : float — mm, allowed tip deviation of the joint-space interpolation
+    angle_tolerance : float — rad, allowed angle between its tool axis and the intended one
     max_rounds : int — bisection rounds (each halves the moves that still deviate)
+    start : Toolpath, optional — one row, machine frame, unit axis: the pose before ``path``'s first
+        row (the last row of the chunk before), so that the move to row 0 is subdivided too
 
     Returns
     -------
     Toolpath — the same rows plus inserted ones (same kind, feed and source as the move's end row)
     """
-    kind, tip, axis = path.kind.copy(), path.tip.copy(), path.axis.copy()
-    feed, source = path.feed.copy(), path.source.copy()
+    head = 0 if start is None else 1
+    if start is not None:
+        if len(start) != 1:
+            raise ValueError(f"subdivide_axis_changes: start must be one row, got {len(start)}")
+        joined = [start, path]
+        kind = np.concatenate([p.kind for p in joined])
+        tip, axis = np.concatenate([p.tip for p in joined]), np.concatenate([p.axis for p in joined])
+        feed, source = np.concatenate([p.feed for p in joined]), np.concatenate([p.source for p in joined])
+    else:
+        kind, tip, axis = path.kind.copy(), path.tip.copy(), path.axis.copy()
+        feed, source = path.feed.copy(), path.source.copy()
     # event positions move with the rows they precede: track original row ids
     origin = np.arange(len(kind))
     for _ in range(max_rounds):
@@ -89,8 +126,8 @@ def subdivide_axis_changes(
         starts = np.flatnonzero(turning)
         if not len(starts):
             break
-        deviation = joint_path_deviation(geometry, tip, axis, starts)
-        starts = starts[deviation > tolerance]
+        deviation, angle = joint_path_deviations(geometry, tip, axis, starts)
+        starts = starts[(deviation > tolerance) | (angle > angle_tolerance)]
         if not len(starts):
             break
         mid_tip = 0.5 * (tip[starts] + tip[starts + 1])
@@ -103,11 +140,12 @@ def subdivide_axis_changes(
         tip = np.insert(tip, at, mid_tip, axis=0)
         axis = np.insert(axis, at, mid_axis, axis=0)
     # an event before original row r happens before the move to r, i.e. right after row r - 1
-    # (and before any row inserted into that move)
-    new_index = np.zeros(len(path), dtype=np.int64)
+    # (and before any row inserted into that move); with a start row, path row r is row r + 1 here
+    new_index = np.zeros(len(path) + head, dtype=np.int64)
     new_index[origin[origin >= 0]] = np.flatnonzero(origin >= 0)
     events = tuple(
-        replace(e, before=0 if e.before == 0 else int(new_index[e.before - 1]) + 1) for e in path.events
+        replace(e, before=0 if e.before + head == 0 else int(new_index[e.before + head - 1]) + 1 - head)
+        for e in path.events
     )
-    return Toolpath(kind=kind, tip=tip, axis=axis, feed=feed, source=source, events=events,
-                    source_labels=path.source_labels)
+    return Toolpath(kind=kind[head:], tip=tip[head:], axis=axis[head:], feed=feed[head:], source=source[head:],
+                    events=events, source_labels=path.source_labels, source_file=path.source_file)

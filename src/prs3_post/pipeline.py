@@ -1,40 +1,51 @@
-"""From a part-frame toolpath to a checked actuator-space program.
+"""From a part-frame toolpath to a checked actuator-space program, whole or in chunks.
 
     part toolpath ──► setup (part → machine) ──► subdivide axis changes ──► IK ──► reach
                   ──► drop moves the output cannot show ──► limits ──► G93 feeds ──► JointProgram
 
-Pure: no files. The first failure is raised with the operation step (or source line) it came
-from; nothing is emitted for a program that has one.
+Pure: no files. The first failure is raised with the operation step (or input file and line) it
+came from; nothing is emitted for a program that has one.
+
+:class:`PostStream` takes the toolpath in consecutive chunks and carries what a row depends on
+from the rows before it (the last pose, for the subdivision of the move to the next row and for
+its inverse-time feed; the last row kept, for the resolution guard), so that the rows it makes are
+those of :func:`post_process` on the whole toolpath, cut in the same places. :func:`program_text`
+adds the emitter: an iterator of toolpath chunks becomes an iterator of G-code text chunks, ready
+for :func:`prs3_post.output.write_atomic`, whose bytes do not depend on the chunking.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from prs3_post.config import Machine
-from prs3_post.errors import LimitError, ReachError
-from prs3_post.kinematics import IKModel, IKResult, PoseError, inverse, unit_axes
+from prs3_post.dialect import Dialect
+from prs3_post.emit.gcode import ProgramEmitter
+from prs3_post.errors import LimitError, PoseError, ReachError
+from prs3_post.kinematics import IKModel, IKResult, inverse, unit_axes
 from prs3_post.limits import LimitReport, check_limits, raise_first_violation
 from prs3_post.linearize import subdivide_axis_changes
-from prs3_post.resolution import visible_moves
+from prs3_post.machine import Machine
+from prs3_post.resolution import VisibleMoves
 from prs3_post.setup import Setup
+from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.toolpath import JointProgram, MoveKind, Toolpath
 from prs3_post.types import FloatArray
+
+__all__ = ["PostCounts", "PostResult", "PostStream", "inverse_time", "machine_path", "model_for",
+           "place_toolpath", "post_process", "program_text"]
 
 
 def place_toolpath(path: Toolpath, setup: Setup) -> Toolpath:
     """The part-frame toolpath in the machine frame: tips and axes carried through the setup."""
-    return Toolpath(
-        kind=path.kind, tip=setup.points_to_machine(path.tip), axis=setup.axes_to_machine(path.axis), feed=path.feed,
-        source=path.source, events=path.events, source_labels=path.source_labels,
-    )
+    return replace(path, tip=setup.points_to_machine(path.tip), axis=setup.axes_to_machine(path.axis))
 
 
 @dataclass(frozen=True, slots=True)
 class PostResult:
-    """A checked program and what it was made from.
+    """A checked program (or one chunk of it) and what it was made from.
 
     Attributes
     ----------
@@ -50,12 +61,40 @@ class PostResult:
     limits: LimitReport
 
 
+@dataclass(frozen=True, slots=True)
+class PostCounts:
+    """What a :class:`PostStream` did, in rows.
+
+    Attributes
+    ----------
+    input_rows : int — toolpath rows fed in
+    inserted : int — rows the subdivision of axis-changing moves added
+    dropped : int — rows dropped because the program could not show their move
+    program_rows : int — rows of the program (input_rows + inserted − dropped)
+    """
+
+    input_rows: int
+    inserted: int
+    dropped: int
+    program_rows: int
+
+
 def model_for(machine: Machine) -> IKModel:
     """The IK model a machine runs: exact with a stage, head alone without one."""
     return IKModel.EXACT if machine.stage.present else IKModel.HEAD
 
 
-def machine_path(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float = 0.002) -> Toolpath:
+def _unit_path(path: Toolpath, first_row: int) -> Toolpath:
+    """``path`` with its axes scaled to unit length; a zero or downward axis is a ReachError."""
+    try:
+        unit = unit_axes(path.tip, path.axis, row_numbers=first_row + np.arange(len(path)))
+    except PoseError as error:
+        raise ReachError(f"toolpath: {error}") from error
+    return replace(path, axis=unit)
+
+
+def machine_path(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float = DEFAULT_TOLERANCE,
+                 angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE) -> Toolpath:
     """The part-frame toolpath placed on the machine, with unit axes, its axis-changing moves subdivided.
 
     Raises
@@ -63,18 +102,100 @@ def machine_path(machine: Machine, path_part: Toolpath, setup: Setup, *, toleran
     ReachError
         A zero or downward tool axis.
     """
-    path = place_toolpath(path_part, setup)
-    try:
-        unit = unit_axes(path.tip, path.axis)
-    except PoseError as error:
-        raise ReachError(f"toolpath: {error}") from error
-    path = Toolpath(kind=path.kind, tip=path.tip, axis=unit, feed=path.feed, source=path.source,
-                    events=path.events, source_labels=path.source_labels)
-    return subdivide_axis_changes(machine.geometry, path, tolerance=tolerance)
+    path = _unit_path(place_toolpath(path_part, setup), 0)
+    return subdivide_axis_changes(machine.geometry, path, tolerance=tolerance, angle_tolerance=angle_tolerance)
 
 
-def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float = 0.002,
-                 length_decimals: int | None = None) -> PostResult:
+class PostStream:
+    """:func:`post_process` over a toolpath given in consecutive chunks.
+
+    ``feed(chunk)`` returns the chunk's :class:`PostResult` (its program's events count rows from
+    the chunk's start; ``before == len``: after its last row); the programs of all chunks, emitted
+    one after the other (:class:`~prs3_post.emit.gcode.ProgramEmitter`), are the program of the
+    whole toolpath. A chunk may have any number of rows, including none. The first error stops
+    the stream: a chunk that raises leaves it unusable. ``finish()`` returns the counts.
+
+    Parameters
+    ----------
+    machine, setup, tolerance, angle_tolerance, length_decimals : as :func:`post_process`
+    """
+
+    def __init__(self, machine: Machine, setup: Setup, *, tolerance: float = DEFAULT_TOLERANCE,
+                 angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, length_decimals: int | None = None):
+        self.machine, self.setup = machine, setup
+        self.tolerance, self.angle_tolerance = tolerance, angle_tolerance
+        self.model = model_for(machine)
+        self._visible = None if length_decimals is None else VisibleMoves(length_decimals)
+        self._last_pose: Toolpath | None = None       # the last row fed (machine frame, unit axis)
+        self._last_tip: FloatArray | None = None      # (3,) the tip of the last program row
+        self._input_rows = self._inserted = self._dropped = self._program_rows = 0
+        self._failed = False
+
+    def feed(self, chunk: Toolpath) -> PostResult:
+        """The next chunk of the part-frame toolpath, post-processed (see :func:`post_process`).
+
+        Raises
+        ------
+        ReachError, LimitError
+            As :func:`post_process`; a count of the bad points is of the rows fed so far.
+        """
+        if self._failed:
+            raise RuntimeError("PostStream: an earlier chunk failed; start a new stream")
+        self._failed = True                           # until this chunk is through
+        result = self._post(chunk, scope="so far")
+        self._failed = False
+        return result
+
+    def finish(self) -> PostCounts:
+        """The counts of the rows fed, added and dropped (the stream needs nothing else to end)."""
+        return PostCounts(input_rows=self._input_rows, inserted=self._inserted, dropped=self._dropped,
+                          program_rows=self._program_rows)
+
+    def _post(self, chunk: Toolpath, *, scope: str) -> PostResult:
+        machine, model = self.machine, self.model
+        path = _unit_path(place_toolpath(chunk, self.setup), self._input_rows)
+        path = subdivide_axis_changes(machine.geometry, path, tolerance=self.tolerance,
+                                      angle_tolerance=self.angle_tolerance, start=self._last_pose)
+        subdivided = len(path)
+        ik = inverse(machine.geometry, path.tip, path.axis, model=model)
+        _raise_unreachable(machine, path, ik, model, self._counted(scope, len(path)))
+        stage = ik.stage if model is IKModel.EXACT else np.zeros_like(ik.stage)
+        last_pose = path.take(np.arange(len(path)) == len(path) - 1) if len(path) else self._last_pose
+        if self._visible is not None:                  # no move the program cannot show (a G1 without a word)
+            keep = self._visible.keep(np.column_stack([stage, ik.strokes]), tip=path.tip, axis=path.axis)
+            if not keep.all():
+                path, stage = path.take(keep), stage[keep]
+                ik = IKResult(stage=ik.stage[keep], strokes=ik.strokes[keep], link_angle=ik.link_angle[keep],
+                              condition=ik.condition[keep], reachable=ik.reachable[keep])
+        report = check_limits(machine, ik, path.axis)
+        raise_first_violation(report, path.describe, scope=self._counted(scope, len(path)))
+        feeds = inverse_time(path, start=self._last_tip)
+        self._input_rows += len(chunk)
+        self._inserted += subdivided - len(chunk)
+        self._dropped += subdivided - len(path)
+        self._program_rows += len(path)
+        self._last_pose = last_pose
+        if len(path):
+            self._last_tip = path.tip[-1].copy()
+        return PostResult(
+            program=JointProgram(
+                kind=path.kind, stage=stage, strokes=ik.strokes, inverse_time=feeds, source=path.source,
+                events=path.events, source_labels=path.source_labels, source_file=path.source_file,
+            ),
+            path=path,
+            ik=ik,
+            limits=report,
+        )
+
+    def _counted(self, scope: str, rows: int) -> str:
+        """How a count of bad points is qualified: ``in all`` (the whole path) or of the rows so far."""
+        if scope == "in all":
+            return scope
+        return f"among the {self._program_rows + rows} checked so far"
+
+
+def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float = DEFAULT_TOLERANCE,
+                 angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, length_decimals: int | None = None) -> PostResult:
     """Turn a part-frame toolpath into a checked joint-space program.
 
     Parameters
@@ -83,6 +204,7 @@ def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, toleran
     path_part : Toolpath — part coordinates
     setup : Setup — part → machine transform
     tolerance : float — mm, tip deviation allowed on moves whose axis changes
+    angle_tolerance : float — rad, tool-axis deviation allowed on moves whose axis changes
     length_decimals : int, optional — digits after the point of the program's axis words: rows
         that would print no changed axis word are dropped (None: keep every row)
 
@@ -97,38 +219,57 @@ def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, toleran
     LimitError
         A point outside a machine limit, or a feed move with zero length.
     """
-    path = machine_path(machine, path_part, setup, tolerance=tolerance)
-    model = model_for(machine)
-    ik = inverse(machine.geometry, path.tip, path.axis, model=model)
-    _raise_unreachable(machine, path, ik, model)
-    stage = ik.stage if model is IKModel.EXACT else np.zeros_like(ik.stage)
-    if length_decimals is not None:                   # no move the program cannot show (a G1 without a word)
-        keep = visible_moves(np.column_stack([stage, ik.strokes]), length_decimals, tip=path.tip, axis=path.axis)
-        if not keep.all():
-            path, stage = path.take(keep), stage[keep]
-            ik = IKResult(stage=ik.stage[keep], strokes=ik.strokes[keep], link_angle=ik.link_angle[keep],
-                          condition=ik.condition[keep], reachable=ik.reachable[keep])
-    report = check_limits(machine, ik, path.axis)
-    raise_first_violation(report, path.describe)
-    return PostResult(
-        program=JointProgram(
-            kind=path.kind, stage=stage, strokes=ik.strokes, inverse_time=inverse_time(path),
-            source=path.source, events=path.events, source_labels=path.source_labels,
-        ),
-        path=path,
-        ik=ik,
-        limits=report,
-    )
+    stream = PostStream(machine, setup, tolerance=tolerance, angle_tolerance=angle_tolerance,
+                        length_decimals=length_decimals)
+    return stream._post(path_part, scope="in all")
 
 
-def _raise_unreachable(machine: Machine, path: Toolpath, ik: IKResult, model: IKModel) -> None:
+def program_text(machine: Machine, chunks: Iterable[Toolpath], setup: Setup, dialect: Dialect, *,
+                 header: tuple[tuple[str, str], ...] = (), tolerance: float = DEFAULT_TOLERANCE,
+                 angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, line_numbers: bool | None = None,
+                 line_start: int | None = None, line_step: int | None = None,
+                 stream: PostStream | None = None) -> Iterator[str]:
+    """The program of a toolpath given in chunks, as chunks of G-code text (begin, one per chunk, end).
+
+    The concatenation is byte for byte the program of the whole toolpath post-processed in one piece
+    (:func:`post_process` with ``length_decimals`` = the dialect's) and emitted with
+    :func:`~prs3_post.emit.gcode.emit_program`. Lazy: a chunk is read, checked and formatted when
+    its text is asked for, so ``write_atomic(path, program_text(...))`` holds one chunk at a time
+    and leaves no file when a chunk raises.
+
+    Parameters
+    ----------
+    machine, setup, tolerance, angle_tolerance : as :func:`post_process`
+    chunks : iterable of Toolpath — the part-frame toolpath, in order
+    dialect, header, line_numbers, line_start, line_step : as :func:`~prs3_post.emit.gcode.emit_program`
+    stream : PostStream, optional — the stream to feed (made here when None); pass one to read its
+        :meth:`~PostStream.finish` counts afterwards (it must use the dialect's length decimals)
+
+    Raises
+    ------
+    ReachError, LimitError
+        As :meth:`PostStream.feed` and :func:`~prs3_post.emit.gcode.emit_program`, when the text
+        of the chunk concerned is asked for.
+    """
+    if stream is None:
+        stream = PostStream(machine, setup, tolerance=tolerance, angle_tolerance=angle_tolerance,
+                            length_decimals=dialect.decimals.length)
+    emitter = ProgramEmitter(dialect, stage=machine.stage.present, line_numbers=line_numbers,
+                             line_start=line_start, line_step=line_step)
+    yield emitter.begin(header)
+    for chunk in chunks:
+        yield emitter.rows(stream.feed(chunk).program)
+    yield emitter.end()
+
+
+def _raise_unreachable(machine: Machine, path: Toolpath, ik: IKResult, model: IKModel, scope: str) -> None:
     bad = np.flatnonzero(~ik.reachable)
     if not len(bad):
         return
     row = int(bad[0])
     where = path.describe(row)
     tip = ", ".join(f"{v:.4f}" for v in path.tip[row])
-    count = f" ({len(bad)} points unreachable in all)" if len(bad) > 1 else ""
+    count = f" ({len(bad)} points unreachable {scope})" if len(bad) > 1 else ""
     if model is IKModel.HEAD and np.isfinite(ik.stage[row]).all():
         dx, dy = ik.stage[row]
         raise ReachError(
@@ -139,24 +280,32 @@ def _raise_unreachable(machine: Machine, path: Toolpath, ik: IKResult, model: IK
                      f"its joint (check --part-origin){count}")
 
 
-def inverse_time(path: Toolpath) -> FloatArray:
+def inverse_time(path: Toolpath, *, start: FloatArray | None = None) -> FloatArray:
     """G93 F words: tip feed / tip path length of each FEED row (1/min); 0 for RAPID rows.
 
     Every move's tip path is the straight line between its end points (moves whose axis changes
     were subdivided until the joint-space line stays within tolerance of it).
 
+    Parameters
+    ----------
+    path : Toolpath
+    start : (3,) float, optional — mm, the tip before row 0 (the last row of the chunk before);
+        None: row 0 is the first row of the program
+
     Raises
     ------
     LimitError
-        A FEED row as the first row (no start point) or with zero length (no time to give it).
+        A FEED row as the first row of the program (no start point) or with zero length (no time to give it).
     """
     feed_rows = np.flatnonzero(path.kind == MoveKind.FEED)
     out = np.zeros(len(path))
     if not len(feed_rows):
         return out
-    if feed_rows[0] == 0:
+    if feed_rows[0] == 0 and start is None:
         raise LimitError(f"{path.describe(0)}: the program starts with a feed move; its start point is unknown")
-    length = np.linalg.norm(path.tip[feed_rows] - path.tip[feed_rows - 1], axis=1)
+    before = path.tip if start is None else np.concatenate([np.asarray(start, dtype=np.float64)[None, :], path.tip])
+    offset = 0 if start is None else 1
+    length = np.linalg.norm(path.tip[feed_rows] - before[feed_rows - 1 + offset], axis=1)
     zero = np.flatnonzero(length < 1e-9)
     if len(zero):
         raise LimitError(f"{path.describe(int(feed_rows[zero[0]]))}: feed move of zero length")

@@ -16,7 +16,7 @@ import numpy as np
 from prs3_post.emit.gcode import format_word
 from prs3_post.types import BoolArray, FloatArray
 
-__all__ = ["length_resolution", "printed_units", "visible_moves"]
+__all__ = ["VisibleMoves", "length_resolution", "printed_units", "visible_moves"]
 
 
 def length_resolution(decimals: int) -> float:
@@ -39,7 +39,8 @@ def visible_moves(joints: FloatArray, decimals: int, *, tip: FloatArray | None =
     formats them (:func:`~prs3_post.emit.gcode.format_word`: fixed decimals, ``-0`` as ``0``), all
     equal those of the row left before it: it would print as no move. As such a row prints the same
     as the last kept one, comparing with the row before is comparing with the last kept row. Every
-    kept row after row 0 changes at least one word.
+    kept row after row 0 changes at least one word. :class:`VisibleMoves` makes the same choice
+    over a program given in chunks.
 
     Parameters
     ----------
@@ -60,34 +61,98 @@ def visible_moves(joints: FloatArray, decimals: int, *, tip: FloatArray | None =
     >>> visible_moves(np.array([[0.0], [0.0001], [0.0003]]), 4, tip=tip, axis=np.tile([0.0, 0, 1], (3, 1))).tolist()
     [True, False, True]
     """
-    joints = np.asarray(joints, dtype=np.float64)
-    keep = np.ones(len(joints), dtype=bool)
-    if len(joints) < 2:
-        return keep
-    if tip is not None and axis is not None:
-        keep = _away_from_the_last_kept(np.asarray(tip, dtype=np.float64), np.asarray(axis, dtype=np.float64),
-                                        0.5 * length_resolution(decimals))
-    rows = np.flatnonzero(keep)
-    printed = printed_units(joints[rows], decimals)
-    changed = np.any(printed[1:] != printed[:-1], axis=1)
-    keep[rows[1:][~changed]] = False
-    return keep
+    return VisibleMoves(decimals).keep(joints, tip=tip, axis=axis)
 
 
-def _away_from_the_last_kept(tip: FloatArray, axis: FloatArray, near: float) -> BoolArray:
+class VisibleMoves:
+    """:func:`visible_moves` over a program given in chunks: the same rows kept, whatever the chunking.
+
+    Between chunks it remembers the last row (its tip and axis: the short-step test looks at the
+    row before) and the last row the distance test kept (its tip and axis: the reference for the
+    distance; its printed words: the reference for "prints as no move"). Only the very first row
+    of all is always kept.
+
+    >>> joints = np.array([[0.0, 1.0], [0.00004, 1.0], [0.00006, 1.0], [0.00011, 1.0]])
+    >>> guard = VisibleMoves(4)
+    >>> [guard.keep(joints[i:i + 1]).tolist() for i in range(4)]
+    [[True], [False], [True], [False]]
+    """
+
+    def __init__(self, decimals: int):
+        self.decimals = decimals
+        self._previous: tuple[FloatArray, FloatArray] | None = None          # last row's tip, axis
+        self._previous_kept = False                                          # ... kept by the distance test
+        self._kept: tuple[FloatArray, FloatArray, FloatArray] | None = None  # last row it kept: tip, axis, joints
+
+    def keep(self, joints: FloatArray, *, tip: FloatArray | None = None,
+             axis: FloatArray | None = None) -> BoolArray:
+        """(N,) bool — which rows of this chunk to keep (parameters as :func:`visible_moves`)."""
+        joints = np.asarray(joints, dtype=np.float64)
+        n = len(joints)
+        distance = tip is not None and axis is not None
+        if distance:
+            tip = np.asarray(tip, dtype=np.float64).reshape(-1, 3)
+            axis = np.asarray(axis, dtype=np.float64).reshape(-1, 3)
+        if n == 0:
+            return np.ones(0, dtype=bool)
+        # the rows before this chunk that the choice depends on, put in front of it
+        head_joints: list[FloatArray] = []
+        head_tip: list[FloatArray] = []
+        head_axis: list[FloatArray] = []
+        if self._kept is not None:
+            kept_tip, kept_axis, kept_joints = self._kept
+            head_joints.append(kept_joints[None, :])
+            head_tip.append(kept_tip[None, :])
+            head_axis.append(kept_axis[None, :])
+            if distance and not self._previous_kept and self._previous is not None:
+                head_joints.append(kept_joints[None, :])            # never compared: it is not kept
+                head_tip.append(self._previous[0][None, :])
+                head_axis.append(self._previous[1][None, :])
+        head = len(head_joints)
+        all_joints = np.concatenate([*head_joints, joints]) if head else joints
+        keep = np.ones(head + n, dtype=bool)
+        all_tip = all_axis = np.zeros((head + n, 3))
+        if distance:
+            assert tip is not None and axis is not None   # distance
+            all_tip = np.concatenate([*head_tip, tip]) if head else tip
+            all_axis = np.concatenate([*head_axis, axis]) if head else axis
+            if head + n >= 2:
+                keep = _away_from_the_last_kept(all_tip, all_axis, 0.5 * length_resolution(self.decimals),
+                                                head=head)
+        near_kept = keep.copy()
+        rows = np.flatnonzero(keep)
+        if len(rows) >= 2:
+            printed = printed_units(all_joints[rows], self.decimals)
+            changed = np.any(printed[1:] != printed[:-1], axis=1)
+            keep[rows[1:][~changed]] = False
+        # remember for the next chunk
+        last_near = int(np.flatnonzero(near_kept)[-1])
+        self._previous = (all_tip[-1].copy(), all_axis[-1].copy())
+        self._previous_kept = bool(near_kept[-1])
+        self._kept = (all_tip[last_near].copy(), all_axis[last_near].copy(), all_joints[last_near].copy())
+        return keep[head:]
+
+
+def _away_from_the_last_kept(tip: FloatArray, axis: FloatArray, near: float, *, head: int = 0) -> BoolArray:
     """(N,) bool: False where the tip is within ``near`` mm of the last kept row's, axis unchanged.
 
     Only rows that step less than ``near`` from the row before (with the same axis) are looked at
     one by one; a longer step keeps its row (leaving the last kept row's neighbourhood by going
     back and forth is not looked for: that is not a sub-resolution move of one row).
+
+    ``head`` rows from the chunk before come first and are not decided again: row 0 is the last
+    row kept, row 1 (when ``head`` is 2) the last row, which was not kept.
     """
     keep = np.ones(len(tip), dtype=bool)
+    if head == 2:
+        keep[1] = False
     short = (np.linalg.norm(np.diff(tip, axis=0), axis=1) < near) & np.all(np.diff(axis, axis=0) == 0, axis=1)
     rows = (np.flatnonzero(short) + 1).tolist()
+    rows = [row for row in rows if row >= head]
     if not rows:
         return keep
     points = tip.tolist()
-    last = -1
+    last = 0 if head else -1
     for row in rows:
         if row - 1 != last and keep[row - 1]:            # the row before was kept: it is the reference
             last = row - 1

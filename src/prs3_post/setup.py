@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prs3_post.config import Machine
 from prs3_post.errors import Prs3Error
 from prs3_post.fixed import fixed as _fixed
+from prs3_post.machine import Machine
 from prs3_post.types import FloatArray
 
 #: Largest |origin| component accepted, mm (100 m: no machine of this kind is larger).

@@ -6,7 +6,8 @@ the same rows become a :class:`JointProgram` (actuator space), which the emitter
 Rows are motion *end points*. The start of row 0 is wherever the machine is (the emitter's safe
 start puts it at a known place). ``source[i]`` is the line number (readers) or the operation step
 (operations) that row ``i`` came from; ``source_labels`` (when not empty) names each step, so that
-an error can say ``hole 2, peck 3`` instead of ``step 17``.
+an error can say ``hole 2, peck 3`` instead of ``step 17``; ``source_file`` (readers) names the
+input file, so that an error says ``part.cl:12`` instead of ``line 12``.
 """
 
 from __future__ import annotations
@@ -81,10 +82,17 @@ def _freeze_rows(table: object, fields: tuple[tuple[str, type, tuple[int, ...]],
     object.__setattr__(table, "events", tuple(sorted(table.events, key=lambda e: e.before)))  # type: ignore[attr-defined]
 
 
-def describe_source(source: IntArray, labels: tuple[str, ...], row: int) -> str:
-    """``line 12`` (readers: source is a line number) or the step label (operations)."""
+def describe_source(source: IntArray, labels: tuple[str, ...], row: int, file: str = "") -> str:
+    """``part.cl:12`` or ``line 12`` (readers: source is a line number, of ``file`` when it is given)
+    or the step label (operations).
+
+    >>> describe_source(np.array([12]), (), 0, "part.cl"), describe_source(np.array([12]), (), 0)
+    ('part.cl:12', 'line 12')
+    """
     step = int(source[row])
-    return labels[step] if labels else f"line {step}"
+    if labels:
+        return labels[step]
+    return f"{file}:{step}" if file else f"line {step}"
 
 
 @dataclass(frozen=True, slots=True)
@@ -100,6 +108,7 @@ class Toolpath:
     source : (N,) int — input line number or operation step of each row
     events : tuple of Event — non-motion events, ordered by ``before``
     source_labels : tuple of str — names of the steps ``source`` indexes (empty: source is a line number)
+    source_file : str — the input file whose line numbers ``source`` holds (readers; "" for operations)
     """
 
     kind: IntArray
@@ -109,6 +118,7 @@ class Toolpath:
     source: IntArray
     events: tuple[Event, ...] = ()
     source_labels: tuple[str, ...] = field(default=())
+    source_file: str = ""
 
     def __post_init__(self) -> None:
         _freeze_rows(self, (("kind", np.int64, ()), ("tip", np.float64, (3,)), ("axis", np.float64, (3,)),
@@ -119,7 +129,7 @@ class Toolpath:
 
     def describe(self, row: int) -> str:
         """Human name of the line/step row ``row`` came from (``line 12`` or the step label)."""
-        return describe_source(self.source, self.source_labels, row)
+        return describe_source(self.source, self.source_labels, row, self.source_file)
 
     def take(self, keep: BoolArray) -> Toolpath:
         """The rows where ``keep`` (N,) is True; an event before a dropped row moves to the next kept one.
@@ -134,7 +144,8 @@ class Toolpath:
         kept_before = np.concatenate([[0], np.cumsum(keep)])       # kept rows before each row index
         events = tuple(replace(e, before=int(kept_before[e.before])) for e in self.events)
         return Toolpath(kind=self.kind[keep], tip=self.tip[keep], axis=self.axis[keep], feed=self.feed[keep],
-                        source=self.source[keep], events=events, source_labels=self.source_labels)
+                        source=self.source[keep], events=events, source_labels=self.source_labels,
+                        source_file=self.source_file)
 
 
 @dataclass(frozen=True, slots=True)
@@ -150,6 +161,7 @@ class JointProgram:
     source : (N,) int — as in :class:`Toolpath`
     events : tuple of Event — as in :class:`Toolpath`
     source_labels : tuple of str — as in :class:`Toolpath`
+    source_file : str — as in :class:`Toolpath`
     """
 
     kind: IntArray
@@ -159,6 +171,7 @@ class JointProgram:
     source: IntArray
     events: tuple[Event, ...] = ()
     source_labels: tuple[str, ...] = field(default=())
+    source_file: str = ""
 
     def __post_init__(self) -> None:
         _freeze_rows(self, (("kind", np.int64, ()), ("stage", np.float64, (2,)), ("strokes", np.float64, (3,)),
@@ -169,7 +182,7 @@ class JointProgram:
 
     def describe(self, row: int) -> str:
         """Human name of the line/step row ``row`` came from (``line 12`` or the step label)."""
-        return describe_source(self.source, self.source_labels, row)
+        return describe_source(self.source, self.source_labels, row, self.source_file)
 
 
 def join_programs(parts: list[JointProgram]) -> JointProgram:
@@ -217,4 +230,5 @@ def program_from_columns(columns: dict[str, np.ndarray], events: list[Event] | t
         object.__setattr__(program, name, column)
     object.__setattr__(program, "events", tuple(sorted(events, key=lambda e: e.before)))
     object.__setattr__(program, "source_labels", ())
+    object.__setattr__(program, "source_file", "")
     return program

@@ -86,6 +86,7 @@ from prs3_post.kinematics import IKModel, IKResult, forward, inverse
 from prs3_post.limits import LimitReport, check_limits
 from prs3_post.linearize import slerp
 from prs3_post.setup import Setup
+from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind, program_from_columns
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
@@ -272,7 +273,8 @@ def _translation_bound(machine: Machine, joints: FloatArray, ends: _Poses) -> Fl
     return bound
 
 
-def replay(machine: Machine, program: JointProgram, *, tolerance: float = 0.002, translations: bool = True) -> Replay:
+def replay(machine: Machine, program: JointProgram, *, tolerance: float = DEFAULT_TOLERANCE,
+           translations: bool = True) -> Replay:
     """Sample every move of ``program`` in joint space and run FK (and exact IK) on the samples.
 
     Parameters
@@ -556,8 +558,8 @@ def verify_program(
     program: JointProgram,
     *,
     setup: Setup,
-    tolerance: float = 0.002,
-    axis_tolerance: float = math.radians(0.01),
+    tolerance: float = DEFAULT_TOLERANCE,
+    axis_tolerance: float = DEFAULT_ANGLE_TOLERANCE,
     length_decimals: int = 4,
     feed_decimals: int = 4,
     intended: Intended | None = None,
@@ -622,8 +624,8 @@ class Verifier:
     program), ``capacity`` (rows to reserve room for: an upper bound saves growing the arrays).
     """
 
-    def __init__(self, machine: Machine, *, setup: Setup, tolerance: float = 0.002,
-                 axis_tolerance: float = math.radians(0.01), length_decimals: int = 4, feed_decimals: int = 4,
+    def __init__(self, machine: Machine, *, setup: Setup, tolerance: float = DEFAULT_TOLERANCE,
+                 axis_tolerance: float = DEFAULT_ANGLE_TOLERANCE, length_decimals: int = 4, feed_decimals: int = 4,
                  intended: Intended | None = None, keep_samples: bool = False, keep_rows: bool = True,
                  capacity: int = 0):
         self.machine, self.setup, self.tolerance, self.axis_tolerance = machine, setup, tolerance, axis_tolerance

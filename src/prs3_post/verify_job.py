@@ -28,14 +28,15 @@ from typing import Any, TypeVar
 import numpy as np
 
 from prs3_post.config import Dialect, Machine, load_dialect, load_machine
-from prs3_post.errors import ConfigError, InputError
+from prs3_post.errors import ConfigError, InputError, PoseError
 from prs3_post.face import Face
 from prs3_post.job import JobSpec, run_job, spec_from_header
-from prs3_post.kinematics import PoseError, unit_axes
+from prs3_post.kinematics import unit_axes
 from prs3_post.readers.header import ProgramHeader, file_sha256, read_header
 from prs3_post.readers.poses import read_poses
 from prs3_post.readers.program import CHUNK_LINES, ProgramFile, ProgramStream, load_program
 from prs3_post.setup import Setup
+from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_TOLERANCE
 from prs3_post.toolpath import MoveKind
 from prs3_post.types import FloatArray
 from prs3_post.verify import Intended, Verifier, VerifyReport, verify_program
@@ -253,7 +254,7 @@ def intended_from_poses(path: str, program: ProgramFile) -> Intended:
 
 
 def verify_loaded(program: ProgramFile, machine: Machine, setup: Setup, dialect: Dialect, *,
-                  tolerance: float, axis_tolerance_deg: float = 0.01,
+                  tolerance: float, axis_tolerance_deg: float = DEFAULT_ANGLE_TOLERANCE_DEG,
                   intended: Intended | None = None) -> VerifyReport:
     """verify_program on a read program, with the dialect's decimals.
 
@@ -272,7 +273,7 @@ def verify_loaded(program: ProgramFile, machine: Machine, setup: Setup, dialect:
     )
 
 
-def verify_file(setting: ProgramSetting, *, tolerance: float, axis_tolerance_deg: float = 0.01,
+def verify_file(setting: ProgramSetting, *, tolerance: float, axis_tolerance_deg: float = DEFAULT_ANGLE_TOLERANCE_DEG,
                 chunk_lines: int = CHUNK_LINES) -> VerifyReport:
     """Read and verify a program a chunk of lines at a time (:class:`~prs3_post.readers.program.ProgramStream`
     into a :class:`~prs3_post.verify.Verifier`): memory does not grow with the samples, only by a few
@@ -343,7 +344,7 @@ def read_ahead(items: Iterable[_Item], depth: int = 2) -> Iterator[_Item]:
 
 
 def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str, *,
-                  dialect: Dialect, tolerance: float = 0.002, mesh: FloatArray | None = None,
+                  dialect: Dialect, tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None,
                   face: Face | None = None, title: str = "", rapid_rate: float = 5000.0) -> bytes:
     """Replay a read program and draw it as ``png`` or ``svg`` bytes (matplotlib is imported here)."""
     from prs3_post.preview import figure_bytes, render_preview

@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from prs3_post.config import CommentStyle, Dialect
+from prs3_post.dialect import CommentStyle, Dialect
 from prs3_post.errors import LimitError
 from prs3_post.fixed import ChoiceColumn, ScaledColumn, fixed, render_rows, scale_column
 from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind

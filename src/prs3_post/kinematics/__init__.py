@@ -10,11 +10,11 @@ import enum
 
 import numpy as np
 
-from prs3_post.config import Geometry
-from prs3_post.errors import Prs3Error
+from prs3_post.errors import PoseError
 from prs3_post.kinematics.exact import IKResult, inverse_exact
 from prs3_post.kinematics.forward import FKResult, forward
 from prs3_post.kinematics.paper import inverse_paper
+from prs3_post.machine import Geometry
 from prs3_post.types import FloatArray, IntArray
 
 __all__ = ["FKResult", "IKModel", "IKResult", "PoseError", "forward", "inverse", "unit_axes"]
@@ -29,12 +29,6 @@ class IKModel(enum.Enum):
     """Rigid platform, no stage: only poses whose parasitic x, y equal the target are reachable."""
     PAPER = "paper"
     """The paper's per-leg method (not rigid): for validation against its tables only."""
-
-
-class PoseError(Prs3Error):
-    """Tool poses that are not numbers, or whose axis is zero or points away from the spindle."""
-
-    exit_code = 2
 
 
 #: mm: how far the head's own tip may miss the target on a machine without a stage.

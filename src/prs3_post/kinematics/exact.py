@@ -51,9 +51,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prs3_post.config import Geometry
 from prs3_post.kinematics.blocks import BLOCK_ROWS, run_blocks
+from prs3_post.machine import Geometry
 from prs3_post.types import BoolArray, FloatArray
+
 
 @dataclass(frozen=True, slots=True)
 class IKResult:

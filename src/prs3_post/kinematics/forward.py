@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prs3_post.config import Geometry
 from prs3_post.kinematics.blocks import run_blocks
+from prs3_post.machine import Geometry
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
 

@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from prs3_post.config import Geometry
 from prs3_post.kinematics.blocks import BLOCK_ROWS, run_blocks
 from prs3_post.kinematics.exact import IKResult, inverse_exact
+from prs3_post.machine import Geometry
 from prs3_post.types import FloatArray
 
 

@@ -53,6 +53,7 @@ from prs3_post.ops.common import (
     start_program,
     swept_region,
 )
+from prs3_post.tolerances import DEFAULT_TOLERANCE
 from prs3_post.toolpath import Toolpath
 from prs3_post.types import FloatArray
 
@@ -268,7 +269,7 @@ def tool_center_contour(
     direction: Direction,
     tool_diameter: float,
     *,
-    tolerance: float = 0.002,
+    tolerance: float = DEFAULT_TOLERANCE,
 ) -> FloatArray:
     """The closed path of the tool centre in face (u, v), in cutting order.
 
@@ -390,7 +391,7 @@ def plan_profile(
     params: ProfileParams,
     cutting: Cutting,
     *,
-    tolerance: float = 0.002,
+    tolerance: float = DEFAULT_TOLERANCE,
     resolution: float = MIN_TOLERANCE,
 ) -> Toolpath:
     """Mill a square or round profile into ``face`` in depth passes (see the module docstring).

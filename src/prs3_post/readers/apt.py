@@ -390,7 +390,8 @@ def join_toolpaths(parts: list[Toolpath]) -> Toolpath:
                         feed=np.zeros(0), source=np.zeros(0, dtype=np.int64))
     return Toolpath(kind=np.concatenate([p.kind for p in parts]), tip=np.concatenate([p.tip for p in parts]),
                     axis=np.concatenate([p.axis for p in parts]), feed=np.concatenate([p.feed for p in parts]),
-                    source=np.concatenate([p.source for p in parts]), events=tuple(events))
+                    source=np.concatenate([p.source for p in parts]), events=tuple(events),
+                    source_file=parts[0].source_file)
 
 
 # --------------------------------------------------------------------------------------------
@@ -1144,7 +1145,8 @@ class _Reader:
                        for e in self.events)
         chunk = Toolpath(kind=np.frombuffer(self.kind, dtype=np.int64), tip=tip, axis=axis,
                          feed=np.frombuffer(self.feed, dtype=np.float64),
-                         source=np.frombuffer(self.source, dtype=np.int64), events=events)
+                         source=np.frombuffer(self.source, dtype=np.int64), events=events,
+                         source_file=self.path)
         self.tip, self.axis, self.kind = array("d"), array("d"), array("q")
         self.feed, self.source, self.frame_of = array("d"), array("q"), array("q")
         self.events = []

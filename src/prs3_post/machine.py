@@ -1,0 +1,93 @@
+"""The machine types: head geometry, limits, stage (frozen; loaded from TOML by :mod:`prs3_post.config`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["Geometry", "Limits", "Machine", "Stage"]
+
+
+@dataclass(frozen=True, slots=True)
+class Geometry:
+    """The head's dimensions (mm, rad). Symbols from the paper in quotes.
+
+    Attributes
+    ----------
+    leg_azimuth : (3,) tuple — rad, azimuth α of legs 1, 2, 3, 120° apart, counter-clockwise
+    guide_radius : float — mm, "K": horizontal distance from the base centre to each revolute axis
+    link_length : float — mm, "U": revolute-to-spherical link length
+    platform_radius : float — mm, "r_p = q/√3": circumradius of the spherical-joint triangle
+    tool_length : float — mm, "TL": platform centre to tool tip along the tool axis
+    """
+
+    leg_azimuth: tuple[float, float, float]
+    guide_radius: float
+    link_length: float
+    platform_radius: float
+    tool_length: float
+
+    def __post_init__(self) -> None:
+        for name in ("guide_radius", "link_length", "platform_radius", "tool_length"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0")
+
+    @property
+    def layout_offset(self) -> float:
+        """rad, how far the leg layout is turned from the reference 210°/330°/90° (legs 1, 2, 3)."""
+        return self.leg_azimuth[0] - math.radians(210.0)
+
+
+@dataclass(frozen=True, slots=True)
+class Limits:
+    """Per-point limits, checked on every emitted point (mm, rad).
+
+    Attributes
+    ----------
+    stroke : (min, max) mm — each actuator stroke T_i
+    link_angle : (min, max) rad — each link's angle θ_i from horizontal
+    max_tilt : float — rad, tool-axis angle from vertical
+    max_condition : float — actuator-Jacobian 2-norm condition number (distance to singularity)
+    """
+
+    stroke: tuple[float, float]
+    link_angle: tuple[float, float]
+    max_tilt: float
+    max_condition: float
+
+
+@dataclass(frozen=True, slots=True)
+class Stage:
+    """The XY stage under the part (absent on a pure head).
+
+    Attributes
+    ----------
+    present : bool — the machine has an XY stage
+    travel_x, travel_y : (min, max) mm — stage travel (only when present)
+    """
+
+    present: bool
+    travel_x: tuple[float, float] = (0.0, 0.0)
+    travel_y: tuple[float, float] = (0.0, 0.0)
+
+
+@dataclass(frozen=True, slots=True)
+class Machine:
+    """A whole machine file: head geometry, limits, stage and default setup.
+
+    Attributes
+    ----------
+    name : str — the file's stem (``patel2020``)
+    description : str — one line for ``prs3-post machines``
+    source : str — where it was loaded from, as shown in messages
+    geometry, limits, stage : see their classes
+    part_origin : (3,) tuple — mm, machine coordinates of the part origin in the default setup
+    """
+
+    name: str
+    description: str
+    source: str
+    geometry: Geometry
+    limits: Limits
+    stage: Stage
+    part_origin: tuple[float, float, float]
