@@ -90,7 +90,7 @@ from prs3_post.readers.lexer import (
     split_comments,
 )
 from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
-from prs3_post.types import FloatArray
+from prs3_post.types import BoolArray, FloatArray
 from prs3_post.workplane import WorkPlane, euler_zxz_deg
 
 __all__ = [
@@ -128,6 +128,8 @@ _WORDS_READ = "G M N X Y Z I J K R P Q F S T H; O alone on its line"
 _CYCLES = {81.0: Pecking.NONE, 82.0: Pecking.NONE, 83.0: Pecking.FULL_RETRACT, 73.0: Pecking.CHIP_BREAK}
 #: The letters of the bulk path, in the order a regular motion line writes them.
 _BULK_LETTERS = "NGXYZF"
+#: A blank line, or one with only comments (closed, not nested), which the bulk path passes as events.
+_QUIET = re.compile(r"[ \t]*(?:\([^()]*\)[ \t]*)*(?:;.*)?")
 #: A rotary word (A, B, C and a number) somewhere in a line: a 5-axis program (checked on the code
 #: without comments).
 _ROTARY = re.compile(r"(?<![A-Za-z_<\[#])([ABCabc])[ \t]*(-?[ \t]*[0-9.][0-9. \t]*)")
@@ -504,8 +506,9 @@ class _Reader:
     def lines(self, first: int, lines: list[str]) -> None:
         """Read ``lines`` (without line ends), the first of which is line ``first`` of the file.
 
-        Runs of regular motion lines (``N.. G0/G1 X.. Y.. Z.. F..``, :func:`~prs3_post.readers.lexer.lex_columns`)
-        go to :meth:`bulk`; the others, and a run the bulk step refuses, to :meth:`line` one at a time.
+        Runs of regular motion lines (``N.. G0/G1 X.. Y.. Z.. F..``, :func:`~prs3_post.readers.lexer.lex_columns`),
+        with the blank and comment-only lines between them, go to :meth:`bulk`; the others, and a run
+        the bulk step refuses, to :meth:`line` one at a time.
         """
         if not lines:
             return
@@ -513,18 +516,24 @@ class _Reader:
         g = values[:, 1]
         fast &= np.isnan(g) | (g == 0.0) | (g == 1.0)
         fast &= ~np.isnan(values[:, 2:5]).all(axis=1)     # a move: an axis word
-        edges = np.flatnonzero(np.diff(fast.astype(np.int8))) + 1
+        quiet = np.zeros(len(lines), dtype=bool)          # blank or only comments: nothing but events
+        quiet[~fast] = [_QUIET.fullmatch(lines[i]) is not None for i in np.flatnonzero(~fast).tolist()]
+        span = fast | quiet
+        edges = np.flatnonzero(np.diff(span.astype(np.int8))) + 1
         for a, b in itertools.pairwise([0, *edges.tolist(), len(lines)]):
-            if not (fast[a] and self.bulk(first + a, values[a:b])):
+            if not (span[a] and fast[a:b].any() and self.bulk(first + a, values[a:b], fast[a:b], lines[a:b])):
                 for i in range(a, b):
                     self.line(first + i, lines[i])
 
-    def bulk(self, first: int, values: FloatArray) -> bool:
-        """Lines ``first``... of the regular motion shape (``values`` (k, 6): N G X Y Z F, NaN where absent),
-        in bulk: True if done; False (state untouched) where any line would need the careful reader."""
+    def bulk(self, first: int, values: FloatArray, moves: BoolArray, lines: list[str]) -> bool:
+        """Lines ``first``... in bulk: where ``moves``, of the regular motion shape (``values`` (k, 6): N G X Y Z
+        F, NaN where absent), elsewhere blank or comments only. True if done; False (state untouched)
+        where any line would need the careful reader."""
         if (self.end_line is not None or self.percent >= 2 or self.cycle is not None or not self.absolute
                 or self.inverse_time or not self.tilt_ready or self.pending_p3 is not None or self.start_pending):
             return False
+        others = np.flatnonzero(~moves)
+        values = values[moves]
         g, axes, feed = values[:, 1], values[:, 2:5] * self.scale, values[:, 5]
         start = math.nan if self.motion is None else self.motion
         motion = forward_fill(np.concatenate([[start], g]))[1:]
@@ -537,8 +546,14 @@ class _Reader:
                 or np.isnan(given_feed[feeding]).any() or not np.isfinite(position).all()):
             return False
         k = len(values)
+        if len(others):                                  # the comments, each before the next move's row
+            before = self.rows + np.cumsum(moves)[others]
+            for index, row in zip(others.tolist(), before.tolist(), strict=True):
+                for text in split_comments(lines[index])[1]:
+                    self.comments += 1
+                    self.events.append(Event(before=row, kind=EventKind.COMMENT, text=text.strip()))
         self.add_rows(position, np.where(feeding, _FEED, _RAPID), np.where(feeding, given_feed * self.scale, 0.0),
-                      np.arange(first, first + k))
+                      first + np.flatnonzero(moves))
         self.motion = float(motion[-1])
         self.feed_word = None if np.isnan(given_feed[-1]) else float(given_feed[-1])
         self.moves += k
