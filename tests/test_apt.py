@@ -368,3 +368,17 @@ def test_without_msys_the_points_stay_as_written() -> None:
     assert np.array_equal(tp.axis, np.tile([0.0, 0.0, 1.0], (len(tp), 1)))
     applied = _read("humman_4_SVERL_63_N2.cls").toolpath
     assert_allclose(cl.frames[0].to_part(tp.tip), applied.tip, atol=1e-9)
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("FEDRAT/100\nGOTO/0,0,0\nCIRCLE/0,0,0,0,0,1,0.005\nGOTO/0.005,0,0\n",
+     "t.cls:4: arc start point lies on the axis of CIRCLE/ at line 3, where an arc has no direction; start and end "
+     "must lie on the circle"),
+    ("FEDRAT/100\nGOTO/1e9,0,0\nCIRCLE/0,0,0,0,0,1,1e9\nGOTO/0,1e9,0\n",
+     "t.cls:4: the arc of CIRCLE/ at line 3 (radius 1e+09) needs 1,178,098 segments within 0.002 mm, more than "
+     "100,000: the circle is far larger than any part"),
+])
+def test_degenerate_arcs_are_input_errors(text: str, message: str) -> None:
+    with pytest.raises(InputError) as info:
+        _parse(text)
+    assert str(info.value) == message

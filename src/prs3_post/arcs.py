@@ -89,9 +89,10 @@ def arc_segment_count(radius: float, sweep: float, *, tolerance: float) -> int:
     """
     if not (radius > 0.0 and tolerance > 0.0 and sweep > 0.0):
         raise ValueError(f"arc_segment_count: need radius, sweep, tolerance > 0, got {radius}, {sweep}, {tolerance}")
-    # clip: a tolerance of more than the diameter allows any step; a quarter turn at most, so that
-    # the direction of the arc stays clear from its points
-    max_step = min(2.0 * math.acos(float(np.clip(1.0 - tolerance / radius, -1.0, 1.0))), 0.5 * math.pi)
+    # sagitta r·(1 − cos(Δ/2)) = 2r·sin²(Δ/4) ≤ tolerance; asin stays accurate where acos(1 − tiny)
+    # loses digits (large radius, small tolerance). A quarter turn at most, so that the direction of
+    # the arc stays clear from its points (this also covers a tolerance of more than the diameter).
+    max_step = min(4.0 * math.asin(min(1.0, math.sqrt(tolerance / (2.0 * radius)))), 0.5 * math.pi)
     return max(1, math.ceil(sweep / max_step - 1e-12))
 
 

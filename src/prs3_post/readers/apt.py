@@ -78,7 +78,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from prs3_post.arcs import arc_points_3d
+from prs3_post.arcs import arc_points_3d, arc_segment_count, arc_sweep
 from prs3_post.cycles import DrillCycle, Pecking, drill_rows
 from prs3_post.errors import InputError
 from prs3_post.readers.files import iter_pieces
@@ -106,6 +106,8 @@ FRAME_TOLERANCE = 1e-5
 #: A tool vector must have length 1 within this (it is then normalized).
 AXIS_LENGTH_TOLERANCE = 1e-3
 MM_PER_INCH = 25.4
+#: The most segments one arc may become (a radius of about 4 km at 0.002 mm: a typo, not a part).
+MAX_ARC_SEGMENTS = 100_000
 
 _MOTION_WORDS = ("GOTO", "FROM", "GOHOME")
 _KNOWN_WORDS = ("GOTO", "FROM", "GOHOME", "RAPID", "FEDRAT", "MULTAX", "TLAXIS", "MSYS", "UNITS", "LOADTL",
@@ -796,7 +798,11 @@ class _Reader:
         for name, point in (("start", start), ("end", end)):
             offset = point - arc.centre
             height = float(offset @ arc.axis)
-            off_circle = float(np.linalg.norm(offset - height * arc.axis)) - arc.radius
+            radial = float(np.linalg.norm(offset - height * arc.axis))
+            off_circle = radial - arc.radius
+            if radial == 0.0:
+                raise self.error(f"arc {name} point lies on the axis of CIRCLE/ at line {arc.line}, where an arc has "
+                                 "no direction; start and end must lie on the circle")
             if abs(off_circle) > self.circle_tolerance:
                 shown = ", ".join(f"{v / self.scale:.4f}" for v in point)
                 raise self.error(
@@ -811,6 +817,13 @@ class _Reader:
                     f"arc end point is {abs(height - start_height):.4f} mm off the plane of the arc's start, along "
                     f"the axis of CIRCLE/ at line {arc.line}; start and end must lie on one circle within "
                     f"{self.circle_tolerance:g} mm")
+        sweep = arc_sweep(arc.centre, -arc.axis, start, end)
+        count = arc_segment_count(float(max(np.linalg.norm(start - arc.centre), arc.radius)), sweep,
+                                  tolerance=self.tolerance)
+        if count > MAX_ARC_SEGMENTS:
+            raise self.error(f"the arc of CIRCLE/ at line {arc.line} (radius {arc.radius / self.scale:g}) needs "
+                             f"{count:,} segments within {self.tolerance:g} mm, more than {MAX_ARC_SEGMENTS:,}: "
+                             "the circle is far larger than any part")
         # The corpus convention: the tool moves clockwise about (i, j, k), i.e. counter-clockwise about −(i, j, k).
         points = arc_points_3d(arc.centre, -arc.axis, start, end, tolerance=self.tolerance)[1:]
         source = np.full(len(points), arc.line, dtype=np.int64)
