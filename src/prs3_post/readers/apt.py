@@ -818,7 +818,7 @@ class _Reader:
                     f"the axis of CIRCLE/ at line {arc.line}; start and end must lie on one circle within "
                     f"{self.circle_tolerance:g} mm")
         sweep = arc_sweep(arc.centre, -arc.axis, start, end)
-        count = arc_segment_count(float(max(np.linalg.norm(start - arc.centre), arc.radius)), sweep,
+        count = arc_segment_count(max(float(np.linalg.norm(start - arc.centre)), arc.radius), sweep,
                                   tolerance=self.tolerance)
         if count > MAX_ARC_SEGMENTS:
             raise self.error(f"the arc of CIRCLE/ at line {arc.line} (radius {arc.radius / self.scale:g}) needs "
