@@ -230,7 +230,8 @@ def test_g93_inverse_time_feeds_become_mm_per_minute() -> None:
 # Streaming: chunks of any size, bulk and careful paths give the same rows
 # --------------------------------------------------------------------------------------------
 def _program(lines: int) -> str:
-    rows = [f"G1 X{i % 97 * 0.5:.3f} Y{i % 89 * 0.25:.3f} Z{-(i % 7):d}" for i in range(lines)]
+    rows = [f"G1 X{i % 97 * 0.5:.3f} Y{i % 89 * 0.25:.3f} Z{-(i % 7):d}" + ("\n(pass 1)  ; pass" * (i % 50 == 7))
+            + "\n" * (i % 61 == 0) for i in range(lines)]
     head = "%\nG21 G90 G94\nG0 X0 Y0 Z10\nG68.2 X5 Y5 Z0 I15 J20 K-10\nG53.1\nG1 Z5 F500\n"
     middle = "\n(half way)\nG0 X1 Y0 Z0\nG18 G3 X-1 Z0 I-1 K0 F200\nG17 G0 Z5\n"
     return head + "\n".join(rows[:lines // 2]) + middle + "\n".join(rows[lines // 2:]) + "\nG69\nM30\n%\n"
