@@ -182,19 +182,25 @@ def _shift_keys(strokes: FloatArray) -> tuple[FloatArray, IntArray]:
     return canonical, inverse_index.reshape(-1)
 
 
-def _poses(machine: Machine, joints: FloatArray) -> _Poses:
-    """FK and condition number of (N, 5) joints (X, Y, T1..T3), once per distinct head pose."""
+def _poses(machine: Machine, joints: FloatArray, *, keys: tuple[FloatArray, IntArray] | None = None,
+           condition: bool = True) -> _Poses:
+    """FK and condition number of (N, 5) joints (X, Y, T1..T3), once per distinct head pose.
+
+    ``keys``: :func:`_shift_keys` of the strokes, if at hand; ``condition``: False skips the exact IK
+    (the condition numbers are NaN).
+    """
     geometry = machine.geometry
-    canonical, index = _shift_keys(joints[:, 2:])
+    canonical, index = _shift_keys(joints[:, 2:]) if keys is None else keys
     fk = forward(geometry, canonical)
-    condition = inverse(geometry, fk.tip, fk.axis, model=IKModel.EXACT).condition
+    cond = (inverse(geometry, fk.tip, fk.axis, model=IKModel.EXACT).condition if condition
+            else np.full(len(canonical), np.nan))
     tip = fk.tip[index]
     tip[:, :2] += joints[:, :2]
     tip[:, 2] -= joints[:, 2]                            # the common shift T1: the head moves by −T1 along z
     converged = fk.converged[index] & np.isfinite(tip).all(axis=1)
     tip[~converged] = np.nan
     return _Poses(tip=tip, axis=fk.axis[index], link_angle=fk.link_angle[index], converged=converged,
-                  condition=condition[index])
+                  condition=cond[index])
 
 
 def _interleave(at_end: BoolArray, ends: _Poses, inner: _Poses) -> _Poses:
@@ -258,7 +264,7 @@ def _translation_bound(machine: Machine, joints: FloatArray, ends: _Poses) -> Fl
         return bound
     back = joints[rows - 1].copy()
     back[:, 2:] -= spread[rows - 1]
-    mirror = _poses(machine, back)
+    mirror = _poses(machine, back, condition=False)      # the shape of the move only: no limits here
     head_end = ends.tip[rows].copy()
     head_end[:, :2] -= joints[rows, :2]
     head_end[:, 2] += common[rows - 1]                   # g(1) = FK(q_{k-1} + d) = FK(q_k) + c e_z
@@ -292,13 +298,15 @@ def replay(machine: Machine, program: JointProgram, *, tolerance: float = DEFAUL
     return _replay_joints(machine, joints_of(program), tolerance=tolerance, translations=translations)
 
 
-def _replay_joints(machine: Machine, joints: FloatArray, *, tolerance: float, translations: bool) -> Replay:
+def _replay_joints(machine: Machine, joints: FloatArray, *, tolerance: float, translations: bool,
+                   ends: _Poses | None = None) -> Replay:
     """:func:`replay` of (N, 5) joints; row 0 is sampled at its end only (its start is unknown, or it is
-    the previous chunk's last row, replayed again to start the next move from)."""
+    the previous chunk's last row, replayed again to start the next move from). ``ends``: the poses
+    of the rows, if at hand."""
     geometry = machine.geometry
     n = len(joints)
     epsilon = tolerance * EPSILON_FRACTION
-    ends = _poses(machine, joints)
+    ends = _poses(machine, joints) if ends is None else ends
     flat_bound = _translation_bound(machine, joints, ends) if translations else np.full(n, np.nan)
     flat = flat_bound <= epsilon                        # NaN: False
     intervals = np.where(flat, 1, PROBE_INTERVALS).astype(np.int64)
@@ -340,8 +348,13 @@ def rounding_allowance(machine: Machine, program: JointProgram, decimals: int, *
     """(N,) float — mm, the most the tip of each row can move when every axis word is off by half a
     unit of its last decimal: ½·10^-decimals · Σ_j |∂tip/∂q_j| (FK Jacobian by central differences,
     once per distinct head pose: it does not change with a common stroke shift)."""
-    half = 0.5 * 10.0 ** (-decimals)
     canonical, index = _shift_keys(np.asarray(program.strokes))
+    return _rounding_of_keys(machine, canonical, decimals, step=step)[index]
+
+
+def _rounding_of_keys(machine: Machine, canonical: FloatArray, decimals: int, *, step: float = 1e-3) -> FloatArray:
+    """:func:`rounding_allowance` of the distinct head poses of :func:`_shift_keys`."""
+    half = 0.5 * 10.0 ** (-decimals)
     total = np.full(len(canonical), 2.0 if machine.stage.present else 0.0)   # ∂tip/∂X, ∂tip/∂Y: unit vectors
     for leg in range(3):
         delta = np.zeros(3)
@@ -349,7 +362,7 @@ def rounding_allowance(machine: Machine, program: JointProgram, decimals: int, *
         plus = forward(machine.geometry, canonical + delta).tip
         minus = forward(machine.geometry, canonical - delta).tip
         total += np.linalg.norm(plus - minus, axis=1) / (2.0 * step)
-    return half * total[index]
+    return half * total
 
 
 def row_times(program: JointProgram, *, rapid_rate: float = NOMINAL_RAPID_RATE) -> tuple[FloatArray, FloatArray]:
@@ -657,20 +670,22 @@ class Verifier:
         rows = _rows_of(chunk, 0, len(chunk)) if self.last is None else _join_rows(self.last, chunk)
         skip = 1 if carried else 0
         offset = self.rows - skip                              # global row of local row 0
-        rep = _replay_joints(self.machine, joints_of(rows), tolerance=self.tolerance,
-                             translations=self.intended is None)
+        joints = joints_of(rows)
+        canonical, index = keys = _shift_keys(joints[:, 2:])         # shared by the poses and the rounding
+        rep = _replay_joints(self.machine, joints, tolerance=self.tolerance, translations=self.intended is None,
+                             ends=_poses(self.machine, joints, keys=keys))
+        rounding = _rounding_of_keys(self.machine, canonical, self.length_decimals)[index]
         self.last = _rows_of(chunk, len(chunk) - 1, len(chunk))
         self.rows += len(chunk)
-        self._check(rows, rep, skip, offset)
+        self._check(rows, rep, rounding, skip, offset)
 
-    def _check(self, rows: JointProgram, rep: Replay, skip: int, offset: int) -> None:
+    def _check(self, rows: JointProgram, rep: Replay, rounding: FloatArray, skip: int, offset: int) -> None:
         """The checks of the module docstring on one replayed chunk; local rows ≥ ``skip`` are its own."""
         tolerance, problems, warnings = self.tolerance, self.problems, self.warnings
         n = len(rows)
         lines = rows.source
         feed_row = rows.kind == MoveKind.FEED
         own = slice(int(rep.first[skip]), len(rep.row))       # the chunk's own samples
-        rounding = rounding_allowance(self.machine, rows, self.length_decimals)
 
         # ---- assembly and limits
         bad_rows = np.unique(rep.row[~rep.converged])
