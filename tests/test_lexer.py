@@ -18,6 +18,7 @@ from prs3_post.errors import LexError
 from prs3_post.readers.lexer import (
     LINUXCNC_COMMENTS,
     code_name,
+    column_pattern,
     decode,
     lex_columns,
     lex_line,
@@ -159,6 +160,7 @@ def test_columns_agree_with_the_careful_lexer(words):
     line = "".join(f"{letter}{number}{space}" for letter, number, space in words)
     values, read = lex_columns([line], _LETTERS)
     careful = lex_words(line)
+    assert read[0] == (column_pattern(_LETTERS).fullmatch(line) is not None)
     if read[0]:
         expected = np.full(len(_LETTERS), np.nan)
         for letter, value, _ in careful:

@@ -240,7 +240,9 @@ def quote(text: str, limit: int = 40) -> str:
 
 @lru_cache(maxsize=32)
 def column_pattern(letters: str) -> re.Pattern[str]:
-    """The regular line shape of :func:`lex_columns`: one optional group per letter, in order."""
+    """The regular line shape of :func:`lex_columns` as a regular expression (its specification: the
+    tests check that a line is read in bulk exactly when it matches, words of at most 15 digits),
+    one optional group per letter, in order."""
     if len(set(letters)) != len(letters) or not letters.isascii() or not letters.isupper():
         raise ValueError(f"letters must be distinct upper-case ASCII letters, not {letters!r}")
     words = " *".join(f"(?:{letter}({NUMBER}))?" for letter in letters)
