@@ -580,7 +580,8 @@ class _Reader:
                        for e in self.events)
         chunk = Toolpath(kind=np.frombuffer(self.kind, dtype=np.int64), tip=tip, axis=axis,
                          feed=np.frombuffer(self.feed, dtype=np.float64),
-                         source=np.frombuffer(self.source, dtype=np.int64), events=events)
+                         source=np.frombuffer(self.source, dtype=np.int64), events=events,
+                         source_file=self.path)
         self.tip, self.kind, self.feed = array("d"), array("q"), array("d")
         self.source, self.plane_of = array("q"), array("q")
         self.events = []
