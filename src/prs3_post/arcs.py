@@ -22,8 +22,8 @@ Segment count: a chord of an arc of radius r spanning the angle Δ is off the ar
 r·(1 − cos(Δ/2)); the count is the smallest that keeps it ≤ ``tolerance`` at the larger radius.
 The height change is linear in the angle, so it adds no chordal error.
 
-Note: :func:`prs3_post.ops.profiles.arc_points` is the 2D special case (normal = +z, start given by
-an angle); it can become a call to :func:`arc_points_3d` with ``[:, :2]``.
+:func:`prs3_post.ops.profiles.arc_points` (the round corners and circles of the operations) is the
+2D case: a call to :func:`arc_points_3d` with normal +w, its ``[:, :2]``.
 """
 
 from __future__ import annotations

@@ -92,8 +92,15 @@ def _peck_depths(cycle: DrillCycle) -> list[float]:
     return [min(cycle.peck * i, cycle.depth) for i in range(1, count + 1)]
 
 
-def drill_pattern(cycle: DrillCycle) -> tuple[FloatArray, IntArray, int]:
+def drill_pattern(cycle: DrillCycle, *, depths: FloatArray | None = None) -> tuple[FloatArray, IntArray, int]:
     """The heights and move kinds of one hole.
+
+    Parameters
+    ----------
+    cycle : DrillCycle
+    depths : (K,) float, optional — mm, the depth of each peck (increasing, the last = ``cycle.depth``)
+        when the caller has chosen them (the operations merge a last peck the program cannot show);
+        None: ``min(k·peck, depth)``, k = 1, 2, …
 
     Returns
     -------
@@ -105,7 +112,7 @@ def drill_pattern(cycle: DrillCycle) -> tuple[FloatArray, IntArray, int]:
     heights: list[float] = [cycle.clearance]
     kinds: list[int] = [rapid]
     previous = 0.0
-    for number, depth in enumerate(_peck_depths(cycle)):
+    for number, depth in enumerate(_peck_depths(cycle) if depths is None else [float(d) for d in depths]):
         if number:
             if cycle.pecking is Pecking.FULL_RETRACT:
                 heights += [cycle.clearance, -previous + cycle.gap]

@@ -11,7 +11,9 @@ explicit moves along the tool axis, which is the face normal w. Per hole, in fac
 4. DWELL ``dwell`` s at the bottom (when > 0);
 5. RAPID out to (c, clearance), then to (c, retract).
 
-Holes are drilled in the order given; the move between two holes is at the retract height.
+Holes are drilled in the order given; the move between two holes is at the retract height. The
+pecks (steps 2 and 3) are the shared drilling cycle's (:func:`prs3_post.cycles.drill_pattern`, full
+retract), with the peck depths chosen here (:func:`~prs3_post.ops.common.pass_depths`).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from prs3_post.cycles import DrillCycle, Pecking, drill_pattern
 from prs3_post.errors import FeatureError
 from prs3_post.face import Face
 from prs3_post.ops.common import (
@@ -38,7 +41,7 @@ from prs3_post.ops.common import (
     start_program,
     swept_region,
 )
-from prs3_post.toolpath import EventKind, Toolpath
+from prs3_post.toolpath import EventKind, MoveKind, Toolpath
 from prs3_post.types import FloatArray
 
 __all__ = ["HoleParams", "plan_holes"]
@@ -144,18 +147,27 @@ def plan_holes(face: Face, centers_uv: FloatArray, params: HoleParams, cutting: 
         f"drill {count} hole{'s' if count > 1 else ''} Ø{cutting.tool_diameter:.3f} on face {face.index}: "
         f"depth {params.depth:.3f} mm{pecking}{dwelling}",
     )
+    # the pecks between the approach and the retract: the shared drilling cycle's heights and moves
+    cycle = DrillCycle(depth=params.depth, clearance=params.clearance, retract=params.retract,
+                       feed=cutting.plunge_feed, pecking=Pecking.FULL_RETRACT if len(depths) > 1 else Pecking.NONE,
+                       peck=params.peck, gap=params.reapproach_gap, dwell=params.dwell)
+    heights, kinds, bottom = drill_pattern(cycle, depths=depths)
     for index, center in enumerate(centers, start=1):
         builder.comment(f"hole {index}/{count} at {format_uv(center)}")
         approach(builder, center, params.clearance, params.retract, f"hole {index} approach")
-        for peck, depth in enumerate(depths, start=1):
-            if peck > 1:                               # out to clear the chips, back to just above the bottom
-                previous = float(depths[peck - 2])
-                builder.step(f"hole {index} peck {peck - 1} clear")
-                builder.rapid(_on_axis(center, params.clearance))
-                builder.step(f"hole {index} peck {peck} reapproach")
-                builder.rapid(_on_axis(center, -(previous - params.reapproach_gap)))
-            builder.step(f"hole {index} peck {peck} feed" if len(depths) > 1 else f"hole {index} feed")
-            builder.feed(_on_axis(center, -float(depth)), cutting.plunge_feed)
+        peck, previous = 0, MoveKind.RAPID
+        for height, kind in zip(heights[1:bottom + 1].tolist(), kinds[1:bottom + 1].tolist(), strict=True):
+            if kind == MoveKind.FEED:
+                peck += 1
+                builder.step(f"hole {index} peck {peck} feed" if len(depths) > 1 else f"hole {index} feed")
+                builder.feed(_on_axis(center, height), cutting.plunge_feed)
+            elif previous == MoveKind.FEED:            # out to clear the chips
+                builder.step(f"hole {index} peck {peck} clear")
+                builder.rapid(_on_axis(center, height))
+            else:                                      # back to just above the bottom
+                builder.step(f"hole {index} peck {peck + 1} reapproach")
+                builder.rapid(_on_axis(center, height))
+            previous = kind
         if params.dwell > 0:
             builder.event(EventKind.DWELL, value=float(params.dwell))
         depart(builder, center, params.clearance, params.retract, f"hole {index} retract")

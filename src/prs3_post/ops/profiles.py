@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from prs3_post.arcs import arc_points_3d
 from prs3_post.errors import FeatureError
 from prs3_post.face import Face
 from prs3_post.ops.common import (
@@ -205,17 +206,17 @@ class ProfileParams:
 # Contours
 # --------------------------------------------------------------------------------------------
 def arc_points(center_uv: FloatArray, radius: float, start: float, sweep: float, *, tolerance: float) -> FloatArray:
-    """Evenly spaced points on a circular arc, fine enough that every chord's sagitta ≤ ``tolerance``.
+    """Points on a circular arc in the (u, v) plane, fine enough that every chord's sagitta ≤ ``tolerance``.
 
-    With the step Δ = sweep/n, the sagitta is radius·(1 − cos(Δ/2)); n is the smallest count that
-    keeps it ≤ tolerance (at least 1; at least 4 for a full circle).
+    The 2D case of :func:`prs3_post.arcs.arc_points_3d` (normal +w, counter-clockwise), which
+    chooses the points: the fewest equal steps with sagitta ≤ tolerance, at least 4 for a full circle.
 
     Parameters
     ----------
     center_uv : (2,) float — mm
     radius : float — mm, > 0
     start : float — rad, angle of the first point from +u
-    sweep : float — rad, > 0 counter-clockwise
+    sweep : float — rad, > 0 counter-clockwise, at most 2π (2π: a full circle)
     tolerance : float — mm, > 0, largest chordal error
 
     Returns
@@ -225,13 +226,15 @@ def arc_points(center_uv: FloatArray, radius: float, start: float, sweep: float,
     >>> arc_points(np.zeros(2), 1.0, 0.0, math.pi / 2, tolerance=0.1).round(6).tolist()
     [[1.0, 0.0], [0.707107, 0.707107], [0.0, 1.0]]
     """
-    # clip: a tolerance of more than the diameter allows any step
-    max_step = 2.0 * math.acos(float(np.clip(1.0 - tolerance / radius, -1.0, 1.0)))
-    count = max(1, math.ceil(sweep / max_step))
-    if sweep >= 2.0 * math.pi - 1e-12:
-        count = max(4, count)
-    angle = start + np.linspace(0.0, sweep, count + 1)
-    return np.asarray(center_uv, dtype=np.float64) + radius * np.column_stack([np.cos(angle), np.sin(angle)])
+    centre = np.array([center_uv[0], center_uv[1], 0.0], dtype=np.float64)
+    first = centre + radius * np.array([math.cos(start), math.sin(start), 0.0])
+    last = first if sweep >= 2.0 * math.pi - 1e-12 else (
+        centre + radius * np.array([math.cos(start + sweep), math.sin(start + sweep), 0.0]))
+    return arc_points_3d(centre, _W, first, last, tolerance=tolerance)[:, :2]
+
+
+#: The face normal in face coordinates (u, v, w): the axis the contour's arcs turn about.
+_W = np.array([0.0, 0.0, 1.0])
 
 
 def _drop_repeats(points: FloatArray) -> FloatArray:
