@@ -238,25 +238,18 @@ def test_a_long_step_from_a_dropped_row_is_kept_across_chunks():
         [True], [False], [True]]
 
 
-def test_a_cl_file_streamed_names_its_line_in_a_limit_error():
-    """CL rows keep their file and line through the stream: the error names ``job.cls:5``."""
+@pytest.mark.parametrize(("name", "text"), [
+    ("job.cls", "RAPID\nGOTO/0,200,300,0,0,1\nFEDRAT/MMPM,100\nGOTO/0,200,290\nGOTO/0,200,890\nFINI\n"),
+    ("job.nc", "G21 G90\nG0 X0 Y200 Z300\nG1 Z290 F100\nM0\nG1 Z890\nM2\n"),
+])
+def test_a_cam_file_streamed_names_its_line_in_a_limit_error(name: str, text: str):
+    """CL and 3+2 G-code rows keep their file and line through the stream: the error names line 5."""
     from prs3_post.readers.apt import ClStream
-
-    text = "RAPID\nGOTO/0,200,300,0,0,1\nFEDRAT/MMPM,100\nGOTO/0,200,290\nGOTO/0,200,890\nFINI\n"
-    stream = PostStream(MACHINE, SETUP, length_decimals=4)
-    with pytest.raises(LimitError) as caught:
-        for chunk in ClStream("job.cls", tolerance=0.002, text=text, chunk_lines=1):
-            stream.feed(chunk)
-    assert str(caught.value) == "job.cls:5: T1 stroke -524.4730 mm is below the minimum -100.0000 mm by 424.4730 mm"
-
-
-def test_a_gcode_file_streamed_names_its_line_in_a_limit_error():
-    """3+2 G-code rows keep their file and line too: the error names ``job.nc:4``."""
     from prs3_post.readers.gcode import GcodeStream
 
-    text = "G21 G90\nG0 X0 Y200 Z300\nG1 Z290 F100\nG1 Z890\nM2\n"
+    reader = ClStream if name.endswith(".cls") else GcodeStream
     stream = PostStream(MACHINE, SETUP, length_decimals=4)
     with pytest.raises(LimitError) as caught:
-        for chunk in GcodeStream("job.nc", tolerance=0.002, text=text, chunk_lines=1):
+        for chunk in reader(name, tolerance=0.002, text=text, chunk_lines=1):
             stream.feed(chunk)
-    assert str(caught.value) == "job.nc:4: T1 stroke -524.4730 mm is below the minimum -100.0000 mm by 424.4730 mm"
+    assert str(caught.value) == f"{name}:5: T1 stroke -524.4730 mm is below the minimum -100.0000 mm by 424.4730 mm"
