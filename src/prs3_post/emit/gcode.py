@@ -43,7 +43,7 @@ from prs3_post.dialect import CommentStyle, Dialect
 from prs3_post.errors import LimitError
 from prs3_post.fixed import ChoiceColumn, ScaledColumn, fixed, render_rows, scale_column
 from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind
-from prs3_post.types import BoolArray, IntArray
+from prs3_post.types import BoolArray, FloatArray, IntArray
 
 __all__ = ["ProgramEmitter", "emit_program", "format_word", "inert", "sanitize_comment"]
 
@@ -276,7 +276,7 @@ class _Chunk:
     """One chunk's rows, checked and formatted as integers; lines not made yet."""
 
     program: JointProgram
-    axes: list[tuple[bytes, ScaledColumn]]   # word letter and column, in word order
+    axes: list[tuple[bytes, FloatArray]]     # word letter and values (checked finite), in word order
     feed: ScaledColumn                       # F of every row (0 on rapids)
     events: dict[int, list[Event]] = field(default_factory=dict)
 
@@ -362,35 +362,32 @@ class ProgramEmitter:
         return f"{event.kind.value} event before {self._where(program, event.before)}"
 
     def _prepare(self, program: JointProgram) -> _Chunk:
-        """Every column checked and scaled to the integers it prints as; errors name the first bad row."""
+        """Every column checked, the F words scaled to the integers they print as (the axis words
+        are scaled CHUNK_ROWS rows at a time, when written); errors name the first bad row."""
         ax, dec = self.dialect.axes, self.dialect.decimals
         named = [(ax.x, program.stage[:, 0], "stage X"), (ax.y, program.stage[:, 1], "stage Y"),
                  (ax.t1, program.strokes[:, 0], "actuator stroke T1"),
                  (ax.t2, program.strokes[:, 1], "actuator stroke T2"),
                  (ax.t3, program.strokes[:, 2], "actuator stroke T3")]
-        scaled = [self._axis_column(program, letter, values, name, dec.length) for letter, values, name in named]
+        for letter, values, name in named:
+            bad = np.flatnonzero(~np.isfinite(values))
+            if bad.size:
+                row = int(bad[0])
+                raise LimitError(f"{self._where(program, row)}: {name} ({letter}) is {float(values[row])!r}, "
+                                 "not a finite number")
         if not self.stage:
-            for (_, _, name), column in zip(named[:2], scaled[:2], strict=True):
+            for _, values, name in named[:2]:
+                column = scale_column(values, dec.length)
                 moved = np.flatnonzero(column.scaled)
                 if moved.size:
                     raise LimitError(f"{self._where(program, int(moved[0]))}: {name} is "
                                      f"{column.text(int(moved[0]))} mm on a machine without a stage")
-            named, scaled = named[2:], scaled[2:]
+            named = named[2:]
         events: dict[int, list[Event]] = {}
         for event in program.events:
             events.setdefault(event.before, []).append(event)
-        return _Chunk(program=program, axes=[(letter.encode("ascii"), column) for (letter, _, _), column
-                                             in zip(named, scaled, strict=True)],
+        return _Chunk(program=program, axes=[(letter.encode("ascii"), values) for letter, values, _ in named],
                       feed=self._feed_column(program, dec.inverse_time), events=events)
-
-    def _axis_column(self, program: JointProgram, letter: str, values: np.ndarray, name: str,
-                     decimals: int) -> ScaledColumn:
-        bad = np.flatnonzero(~np.isfinite(values))
-        if bad.size:
-            row = int(bad[0])
-            raise LimitError(f"{self._where(program, row)}: {name} ({letter}) is {float(values[row])!r}, "
-                             "not a finite number")
-        return scale_column(values, decimals)
 
     def _feed_column(self, program: JointProgram, decimals: int) -> ScaledColumn:
         """The F word of every FEED row (rapids: 0, never written); one that is not > 0 once
@@ -426,14 +423,15 @@ class ProgramEmitter:
             breaks = sorted({*breaks, g93})
         restate = np.array([b - lo for b in breaks if b < hi and b in chunk.events
                             and any(e.kind in _RESTATE for e in chunk.events[b])], dtype=np.int64)
-        present, motion = self._words_present(chunk, lo, hi, restate)
+        axes = [(letter, scale_column(values[lo:hi], self.dialect.decimals.length)) for letter, values in chunk.axes]
+        present, motion = self._words_present(chunk, axes, lo, hi, restate)
         # the block number of every row: the rows and the numbered blocks between them, in order
         blocks_before = np.zeros(hi - lo, dtype=np.int64)
         for b in breaks:
             if b < hi:
                 count = sum(e.kind is not EventKind.COMMENT for e in chunk.events.get(b, ()))
                 blocks_before[b - lo:] += count + (b == g93)
-        lines = self._render(chunk, lo, hi, present, motion, np.arange(hi - lo) + blocks_before)
+        lines = self._render(chunk, axes, lo, hi, present, motion, np.arange(hi - lo) + blocks_before)
         pieces = []
         previous = lo                                # the first row not yet written
         for b in breaks:
@@ -448,7 +446,7 @@ class ProgramEmitter:
         if hi > previous:
             pieces += [out.take(), self._rows_text(chunk, lines, lo, previous - lo, hi - lo)]
         pieces.append(out.take())
-        self._remember(chunk, hi, kind)
+        self._remember(chunk, axes, hi, kind)
         return pieces
 
     def _event(self, program: JointProgram, event: Event) -> None:
@@ -464,18 +462,20 @@ class ProgramEmitter:
         if event.kind in _RESTATE:
             self._modal.restate()
 
-    def _words_present(self, chunk: _Chunk, lo: int, hi: int, restate: IntArray) -> tuple[BoolArray, IntArray]:
-        """(rows, columns) — which axis words each line writes, and each line's motion word
-        (0 G0, 1 G1, 2 none). A word is left out when its text is the one last written for its
-        axis; everything is written again on the first line and after a tool change or a stop."""
+    def _words_present(self, chunk: _Chunk, axes: list[tuple[bytes, ScaledColumn]], lo: int, hi: int,
+                       restate: IntArray) -> tuple[BoolArray, IntArray]:
+        """(rows, columns) — which axis words each of the rows ``lo:hi`` (``axes``: theirs) writes,
+        and each line's motion word (0 G0, 1 G1, 2 none). A word is left out when its text is the
+        one last written for its axis; everything is written again on the first line and after a
+        tool change or a stop."""
         modal, dialect = self._modal, self.dialect
         m = hi - lo
         kind = chunk.program.kind[lo:hi]
-        present = np.ones((m, len(chunk.axes)), dtype=bool)
-        for j, (_, column) in enumerate(chunk.axes):
+        present = np.ones((m, len(axes)), dtype=bool)
+        for j, (_, column) in enumerate(axes):
             if m:
-                same = _rows_of(column, lo, hi).same_as_previous()
-                same[0] = column.text(lo) == modal.words[j]
+                same = column.same_as_previous()
+                same[0] = column.text(0) == modal.words[j]
                 present[:, j] = ~same
         present[restate] = True
         previous = np.empty(m, dtype=np.int64)
@@ -487,8 +487,8 @@ class ProgramEmitter:
             motion = np.where((kind != previous) | ~present.any(axis=1), motion, 2)
         return present, motion
 
-    def _render(self, chunk: _Chunk, lo: int, hi: int, present: BoolArray, motion: IntArray,
-                block_index: IntArray) -> tuple[np.ndarray, IntArray]:
+    def _render(self, chunk: _Chunk, axes: list[tuple[bytes, ScaledColumn]], lo: int, hi: int,
+                present: BoolArray, motion: IntArray, block_index: IntArray) -> tuple[np.ndarray, IntArray]:
         """Every row's line as bytes (see :func:`prs3_post.fixed.render_rows`); over-long ones are
         found here and reported when their turn comes."""
         out = self._out
@@ -502,8 +502,7 @@ class ProgramEmitter:
             shown.append(np.ones(m, dtype=bool))
         columns.append(ChoiceColumn(np.minimum(motion, 1), (b"G0", b"G1")))
         shown.append(motion < 2)
-        for letter, column in chunk.axes:
-            columns.append((letter, _rows_of(column, lo, hi)))
+        columns.extend(axes)
         shown.extend(present.T)
         columns.append((b"F", _rows_of(chunk.feed, lo, hi)))
         shown.append(chunk.program.kind[lo:hi] == MoveKind.FEED)
@@ -527,12 +526,13 @@ class ProgramEmitter:
             out.number = int(out.numbers_after(b - a)[0])
         return text
 
-    def _remember(self, chunk: _Chunk, hi: int, kind: IntArray) -> None:
-        """The modal state after the rows up to ``hi`` (and the events after the last row)."""
+    def _remember(self, chunk: _Chunk, axes: list[tuple[bytes, ScaledColumn]], hi: int, kind: IntArray) -> None:
+        """The modal state after the rows up to ``hi`` (``axes``, ``kind``: the last rows') and the
+        events after the last row."""
         modal = self._modal
         if len(kind):
-            for j, (_, column) in enumerate(chunk.axes):
-                modal.words[j] = column.text(hi - 1)
+            for j, (_, column) in enumerate(axes):
+                modal.words[j] = column.text(len(column) - 1)
             modal.motion = int(kind[-1])
         if hi == len(chunk.program) and any(e.kind in _RESTATE for e in chunk.events.get(hi, ())):
             modal.restate()
