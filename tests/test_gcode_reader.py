@@ -326,6 +326,8 @@ BAD = [
     ("G0 X0 Y0 Z0\nG93 G81 X1 Y1 Z-1 R1 F1\n", 2, "G81 under G93 (inverse time): canned cycles need a feed per minute "
      "(G94)"),
     ("G1 F0\n", 1, "F must be > 0, got F0"),
+    ("G0 X0 Y0 Z9\nG18 G81 X1 Y1 Z-1 R1 F100\n", 2, "G81 in G18: canned cycles are read in G17 only, where the hole "
+     "goes along Z, the tool axis (in G18/G19 it would go sideways)"),
 ]
 
 

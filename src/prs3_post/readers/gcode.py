@@ -40,6 +40,7 @@ Words and codes
   Under G91, R is measured from the Z where the cycle starts and Z from R, as LinuxCNC does. The
   holes are drilled along the plane's normal (in a tilted plane: along the tilted normal).
   Pecks retract 0.254 mm (0.010 inch, LinuxCNC's G83/G73 ``delta``) above the previous depth.
+  Cycles are read in G17 only: the hole goes along the plane's Z, the tool axis.
 - ``G20 G21`` (inch, mm), ``G90 G91``, ``G93 G94`` (under G93 every feed move needs its own F,
   1/minute), ``F S T``, ``M6`` (T), ``M3 M4 M5``, ``M7 M8 M9``, ``M0 M1``, ``M2 M30`` (only comments,
   blank lines and ``%`` may follow), ``G4 P`` (dwell, s), comments (``(...)`` and ``;``, kept as
@@ -1037,6 +1038,9 @@ class _Reader:
         code = code_name("G", cycle.code)
         if self.inverse_time:
             raise self.error(f"{code} under G93 (inverse time): canned cycles need a feed per minute (G94)")
+        if self.plane != 17:
+            raise self.error(f"{code} in G{self.plane}: canned cycles are read in G17 only, where the hole goes "
+                             "along Z, the tool axis (in G18/G19 it would go sideways)")
         for letter in "ZRQP":
             value = block.take(letter)
             if value is not None:
