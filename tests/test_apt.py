@@ -382,3 +382,29 @@ def test_degenerate_arcs_are_input_errors(text: str, message: str) -> None:
     with pytest.raises(InputError) as info:
         _parse(text)
     assert str(info.value) == message
+
+
+@pytest.mark.parametrize(("name", "origin", "rows"), [
+    ("mech491_APT_Zig_Zag_Smoothed.cls", (-76.5, -80.8, -683.0), 729),
+    ("mech491_APT_Variable_Axis.cls", (-68.5, -76.1, -716.2), 1338),     # 348 GOTOs, axis changes subdivided
+    ("humman_standart_drill.clsf", (94.5, 0.0, -883.0), 6),
+])
+def test_corpus_toolpaths_post_process_and_replay_onto_the_cl_points(name: str, origin: tuple[float, float, float],
+                                                                   rows: int) -> None:
+    """The reader's rows go through the main pipeline as they are: every CL row is a program row, and
+    FK of the program's joints lands on the intended tips and axes (before output rounding)."""
+    from prs3_post.config import load_machine
+    from prs3_post.kinematics import forward
+    from prs3_post.pipeline import post_process
+    from prs3_post.setup import Setup
+
+    machine, setup = load_machine("patel2020"), Setup(origin)
+    cl = _read(name)
+    post = post_process(machine, cl.toolpath, setup, tolerance=TOL)
+    assert len(post.program) == rows
+    fk = forward(machine.geometry, post.program.strokes, post.program.stage)
+    assert_allclose(fk.tip, post.path.tip, atol=1e-9)
+    assert_allclose(fk.axis, post.path.axis, atol=1e-12)
+    want = setup.points_to_machine(cl.toolpath.tip)
+    gap = np.linalg.norm(post.path.tip[:, None, :] - want[None, :, :], axis=2).min(axis=0)
+    assert gap.max() == 0.0                                              # every CL row is there, exactly
