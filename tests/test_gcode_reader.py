@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from prs3_post.errors import InputError
+from prs3_post.errors import FeatureError, InputError
 from prs3_post.geometry import find_faces, select_face
 from prs3_post.readers.detect import detect_format
 from prs3_post.readers.gcode import PECK_GAP_MM, GcodeFile, GcodeStream, parse_gcode, read_gcode
 from prs3_post.readers.stl import load_part
 from prs3_post.toolpath import EventKind, MoveKind
-from prs3_post.workplane import WorkPlane, WorkPlaneError, euler_zxz_deg
+from prs3_post.workplane import WorkPlane, WorkPlaneError, euler_zxz_deg, work_plane_from_text
 
 REPO = Path(__file__).resolve().parents[1]
 PROGRAMS = REPO / "fixtures" / "gcode"
@@ -146,6 +146,25 @@ def test_work_plane_from_numbers() -> None:
     assert_allclose(tilted.rotation, [[1, 0, 0], [0, s, -s], [0, s, s]], atol=1e-15)
     # without an x direction, the face frame's: u down the slope
     assert_allclose(WorkPlane.from_values([0, 0, 0, 3, 0, 4]).rotation[:, 0], [0.8, 0, -0.6], atol=1e-15)
+
+
+def test_work_plane_from_text_a_part_and_face_or_numbers() -> None:
+    wedge = str(REPO / "fixtures" / "parts" / "wedge.stl")
+    auto, note = work_plane_from_text(wedge)
+    chosen, _ = work_plane_from_text(f"{wedge}:4")
+    sb, cb = 1 / math.sqrt(5), 2 / math.sqrt(5)
+    for plane in (auto, chosen):
+        assert_allclose(plane.rotation, [[cb, 0, sb], [0, 1, 0], [-sb, 0, cb]], atol=1e-12)
+        assert_allclose(plane.origin, [0, 200, 300], atol=1e-9)
+        assert plane.name == "face 4 of wedge.stl"
+    assert note.startswith("auto: face 4 is the largest upward-facing inclined face")
+    numbers, said = work_plane_from_text("1,2,3,0,0,1,0,1,0")
+    assert_allclose(numbers.rotation, [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=0)
+    assert said == "work plane 1,2,3,0,0,1,0,1,0: origin (1, 2, 3) mm, normal (0, 0, 1)"
+    with pytest.raises(FeatureError, match="face 5 does not face up"):
+        work_plane_from_text(f"{wedge}:5")
+    with pytest.raises(InputError, match="file not found"):
+        work_plane_from_text("nowhere.stl:2")
 
 
 @pytest.mark.parametrize(("values", "message"), [

@@ -14,6 +14,8 @@ The plane's z axis (``normal``) is the tool axis of every move in it: unit, tool
 from __future__ import annotations
 
 import math
+import os
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -23,7 +25,8 @@ from prs3_post.errors import Prs3Error
 from prs3_post.face import Face, frame_from_normal
 from prs3_post.types import FloatArray
 
-__all__ = ["PERPENDICULAR_TOLERANCE", "WorkPlane", "WorkPlaneError", "euler_zxz_deg"]
+__all__ = ["PERPENDICULAR_TOLERANCE", "WorkPlane", "WorkPlaneError", "euler_zxz_deg", "work_plane_from_part",
+           "work_plane_from_text"]
 
 #: |cos| of the angle between a given x direction and the normal, above which they are not
 #: perpendicular (1e-3: 0.06°, the rounding of vectors written with 4 decimals).
@@ -186,3 +189,61 @@ class WorkPlane:
 
 def _shown(vector: FloatArray) -> str:
     return "(" + ", ".join(f"{v:g}" for v in np.asarray(vector).tolist()) + ")"
+
+
+def work_plane_from_part(path: str | os.PathLike[str], face: int | None = None, *, units: str = "mm",
+                         up: str = "z") -> tuple[WorkPlane, str]:
+    """The work plane on a face of an STL part: program X, Y, Z = the face frame u, v, w of the main job.
+
+    Parameters
+    ----------
+    path : the STL file; units, up : as :func:`prs3_post.readers.stl.load_part`
+    face : int or None — the face's index (it must face up), or None: the face the main job picks
+        automatically (the largest upward-facing inclined face)
+
+    Returns
+    -------
+    plane : WorkPlane — named ``face N of NAME``
+    note : str — how the face was picked (:func:`prs3_post.geometry.select_face`'s note)
+
+    Raises
+    ------
+    InputError, FeatureError
+        From loading the part and selecting the face.
+    """
+    from prs3_post.geometry import find_faces, select_face  # trimesh and shapely load only when needed
+    from prs3_post.readers.stl import load_part
+
+    chosen, note = select_face(find_faces(load_part(path, units=units, up=up)), face)
+    return WorkPlane.from_face(chosen, name=f"face {chosen.index} of {os.path.basename(os.fspath(path))}"), note
+
+
+_NUMBERS = re.compile(r"\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*(?:,\s*[-+]?(?:\d+\.?\d*|\.\d+)"
+                      r"(?:[eE][-+]?\d+)?\s*)*")
+
+
+def work_plane_from_text(text: str, *, units: str = "mm", up: str = "z") -> tuple[WorkPlane, str]:
+    """A work plane as a user writes it: ``PART.stl[:FACE]`` or ``OX,OY,OZ,NX,NY,NZ[,XX,XY,XZ]`` (mm).
+
+    Returns
+    -------
+    plane : WorkPlane
+    note : str — how it was made (the face selection's note, or the numbers read)
+
+    Raises
+    ------
+    WorkPlaneError
+        Numbers that make no plane (:meth:`WorkPlane.from_values`).
+    InputError, FeatureError
+        As :func:`work_plane_from_part`.
+
+    >>> work_plane_from_text("0,0,5,0,0,1")[0].origin.tolist()
+    [0.0, 0.0, 5.0]
+    """
+    if _NUMBERS.fullmatch(text):
+        plane = WorkPlane.from_values([float(v) for v in text.split(",")])
+        return plane, f"{plane.name}: origin {_shown(plane.origin)} mm, normal {_shown(plane.normal)}"
+    path, colon, index = text.rpartition(":")
+    if colon and index.strip().isdigit() and index.strip().isascii():
+        return work_plane_from_part(path, int(index), units=units, up=up)
+    return work_plane_from_part(text, None, units=units, up=up)
