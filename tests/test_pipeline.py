@@ -11,7 +11,14 @@ from numpy.testing import assert_allclose
 from prs3_post.config import load_machine
 from prs3_post.errors import LimitError, ReachError
 from prs3_post.kinematics import forward, inverse
-from prs3_post.linearize import CHECK_FRACTIONS, joint_path_deviation, joint_path_deviations, slerp, subdivide_axis_changes
+from prs3_post.linearize import (
+    CHECK_FRACTIONS,
+    joint_path_deviation,
+    joint_path_deviations,
+    linearize,
+    slerp,
+    subdivide_axis_changes,
+)
 from prs3_post.pipeline import inverse_time, post_process
 from prs3_post.setup import Setup
 from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
@@ -170,3 +177,19 @@ def test_the_angle_tolerance_bounds_the_tool_axis_of_subdivided_moves():
     # the defaults bound both: here the tip bound (0.002 mm) is the tighter one
     both = subdivide_axis_changes(MACHINE.geometry, p)
     assert len(both) == len(subdivide_axis_changes(MACHINE.geometry, p, angle_tolerance=np.inf)) == 66
+
+
+def test_a_move_that_bisection_cannot_bring_within_tolerance_is_an_error():
+    """Here after one round (max_rounds=1); in practice a move whose FK does not converge (a singularity)."""
+    start_axis = np.array([0.0, 0.0, 1.0])
+    tips = np.array([[-80.0, 20.0, -690.0], [-80.0, 20.0, -680.0], [-40.0, 20.0, -680.0]])
+    p = path(tips, [start_axis, start_axis, A], [MoveKind.RAPID, MoveKind.FEED, MoveKind.FEED], [0, 100, 100],
+             labels=("approach", "down", "turn"))
+    with pytest.raises(LimitError) as caught:
+        subdivide_axis_changes(MACHINE.geometry, p, max_rounds=1)
+    assert str(caught.value) == ("turn: the joint-space move still strays 1.708 mm / 0.3002 deg from the intended one "
+                                 "after 1 rounds of bisection (allowed: 0.002 mm, 0.01 deg); the tool axis may pass "
+                                 "a singularity")
+    done = linearize(MACHINE.geometry, p)
+    assert_allclose([done.tip_before, np.degrees(done.angle_before)], [6.2503, 0.9713], atol=1e-4)
+    assert 0.0 < done.tip_after <= 0.002 and len(done.path) == 66

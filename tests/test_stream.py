@@ -114,6 +114,8 @@ def test_the_synthetic_path_exercises_every_carried_state(path: Toolpath, whole:
     assert counts.inserted > 100                         # axis-changing feeds were subdivided
     assert counts.dropped > 100                          # sub-resolution steps were dropped
     assert counts.program_rows == 2000 + counts.inserted - counts.dropped
+    assert counts.tip_before > 0.01 and 0.0 < counts.tip_after <= 0.002      # the default tolerances
+    assert counts.angle_before > counts.angle_after and counts.angle_after <= np.radians(0.01)
     lines = whole.splitlines()
     assert lines.count("G93") == 1 and lines.count("M0") == 8 and lines.count("T3 M6") == 1
 

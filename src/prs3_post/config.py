@@ -97,7 +97,8 @@ class _Table:
     """A TOML table read strictly: every key must be taken once, and unknown keys are errors."""
 
     def __init__(self, data: dict[str, Any], path: str, prefix: str = ""):
-        self._data, self._path, self._prefix, self._taken = data, path, prefix, set()
+        self._data, self._path, self._prefix = data, path, prefix
+        self._taken: set[str] = set()
 
     def _error(self, key: str, problem: str) -> ConfigError:
         return ConfigError(f"{self._prefix}{key}: {problem}", path=self._path)

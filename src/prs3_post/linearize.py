@@ -15,14 +15,16 @@ Each move is bisected on its own end points alone, so a path cut into chunks get
 
 from __future__ import annotations
 
-from dataclasses import replace
+import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from prs3_post.errors import LimitError
 from prs3_post.kinematics import IKModel, forward, inverse
 from prs3_post.machine import Geometry
 from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
-from prs3_post.toolpath import MoveKind, Toolpath
+from prs3_post.toolpath import MoveKind, Toolpath, describe_source
 from prs3_post.types import FloatArray, IntArray
 
 #: Fractions of a move where the joint-space interpolation is compared with the intended move.
@@ -86,10 +88,41 @@ def joint_path_deviations(
     return worst, worst_angle
 
 
+@dataclass(frozen=True, slots=True)
+class Linearized:
+    """A toolpath with its axis-changing moves subdivided, and how far they strayed before and after.
+
+    Attributes
+    ----------
+    path : Toolpath — the rows, with the inserted ones
+    tip_before, angle_before : float — mm, rad: the worst deviation of the joint-space line of an
+        axis-changing feed move as given (0 when there is none)
+    tip_after, angle_after : float — mm, rad: the same after the subdivision (within the tolerances)
+    """
+
+    path: Toolpath
+    tip_before: float
+    angle_before: float
+    tip_after: float
+    angle_after: float
+
+
 def subdivide_axis_changes(
     geometry: Geometry, path: Toolpath, *, tolerance: float = DEFAULT_TOLERANCE,
     angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, max_rounds: int = 20, start: Toolpath | None = None,
 ) -> Toolpath:
+    """Insert intended poses into FEED moves whose axis changes until they stay within the tolerances.
+
+    Parameters and errors as :func:`linearize`; returns its ``path``.
+    """
+    return linearize(geometry, path, tolerance=tolerance, angle_tolerance=angle_tolerance, max_rounds=max_rounds,
+                     start=start).path
+
+
+def linearize(
+    geometry: Geometry, path: Toolpath, *, tolerance: float = DEFAULT_TOLERANCE,
+    angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, max_rounds: int = 20, start: Toolpath | None = None,
+) -> Linearized:
     """Insert intended poses into FEED moves whose axis changes until they stay within the tolerances.
 
     Parameters
@@ -104,7 +137,14 @@ def subdivide_axis_changes(
 
     Returns
     -------
-    Toolpath — the same rows plus inserted ones (same kind, feed and source as the move's end row)
+    Linearized — ``path``: the same rows plus inserted ones (same kind, feed and source as the
+    move's end row), and the worst deviations before and after
+
+    Raises
+    ------
+    LimitError
+        A move still out of tolerance after ``max_rounds`` bisections (forward kinematics does not
+        converge along it: it passes a singularity), naming its source.
     """
     head = 0 if start is None else 1
     if start is not None:
@@ -119,17 +159,24 @@ def subdivide_axis_changes(
         feed, source = path.feed.copy(), path.source.copy()
     # event positions move with the rows they precede: track original row ids
     origin = np.arange(len(kind))
-    for _ in range(max_rounds):
-        if len(kind) < 2:
-            break
+    worst: list[tuple[float, float]] = []                  # (tip, angle) of each round's moves
+    for round_ in range(max_rounds + 1):
         turning = (kind[1:] == MoveKind.FEED) & (np.abs(axis[1:] - axis[:-1]).max(axis=1) > 1e-12)
         starts = np.flatnonzero(turning)
         if not len(starts):
             break
         deviation, angle = joint_path_deviations(geometry, tip, axis, starts)
+        worst.append((float(deviation.max()), float(angle.max())))
         starts = starts[(deviation > tolerance) | (angle > angle_tolerance)]
         if not len(starts):
             break
+        if round_ == max_rounds:
+            row = int(starts[0]) + 1 - head
+            where = describe_source(source[head:], path.source_labels, row, path.source_file)
+            raise LimitError(f"{where}: the joint-space move still strays {float(deviation.max()):.4g} mm / "
+                             f"{math.degrees(float(angle.max())):.4g} deg from the intended one after {max_rounds} "
+                             f"rounds of bisection (allowed: {tolerance:g} mm, {math.degrees(angle_tolerance):g} deg); "
+                             "the tool axis may pass a singularity")
         mid_tip = 0.5 * (tip[starts] + tip[starts + 1])
         mid_axis = slerp(axis[starts], axis[starts + 1], np.full(len(starts), 0.5))
         at = starts + 1                                    # insert before the move's end row
@@ -147,5 +194,8 @@ def subdivide_axis_changes(
         replace(e, before=0 if e.before + head == 0 else int(new_index[e.before + head - 1]) + 1 - head)
         for e in path.events
     )
-    return Toolpath(kind=kind[head:], tip=tip[head:], axis=axis[head:], feed=feed[head:], source=source[head:],
-                    events=events, source_labels=path.source_labels, source_file=path.source_file)
+    out = Toolpath(kind=kind[head:], tip=tip[head:], axis=axis[head:], feed=feed[head:], source=source[head:],
+                   events=events, source_labels=path.source_labels, source_file=path.source_file)
+    before, after = (worst[0], worst[-1]) if worst else ((0.0, 0.0), (0.0, 0.0))
+    return Linearized(path=out, tip_before=before[0], angle_before=before[1], tip_after=after[0],
+                      angle_after=after[1])

@@ -26,7 +26,7 @@ from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.errors import LimitError, PoseError, ReachError
 from prs3_post.kinematics import IKModel, IKResult, inverse, unit_axes
 from prs3_post.limits import LimitReport, check_limits, raise_first_violation
-from prs3_post.linearize import subdivide_axis_changes
+from prs3_post.linearize import linearize, subdivide_axis_changes
 from prs3_post.machine import Machine
 from prs3_post.resolution import VisibleMoves
 from prs3_post.setup import Setup
@@ -71,12 +71,19 @@ class PostCounts:
     inserted : int — rows the subdivision of axis-changing moves added
     dropped : int — rows dropped because the program could not show their move
     program_rows : int — rows of the program (input_rows + inserted − dropped)
+    tip_before, angle_before : float — mm, rad: the worst deviation of an axis-changing feed move's
+        joint-space line from its intended path, as given (0: no such move)
+    tip_after, angle_after : float — mm, rad: the same after the subdivision (within the tolerances)
     """
 
     input_rows: int
     inserted: int
     dropped: int
     program_rows: int
+    tip_before: float = 0.0
+    angle_before: float = 0.0
+    tip_after: float = 0.0
+    angle_after: float = 0.0
 
 
 def model_for(machine: Machine) -> IKModel:
@@ -129,6 +136,7 @@ class PostStream:
         self._last_pose: Toolpath | None = None       # the last row fed (machine frame, unit axis)
         self._last_tip: FloatArray | None = None      # (3,) the tip of the last program row
         self._input_rows = self._inserted = self._dropped = self._program_rows = 0
+        self._worst = np.zeros(4)                     # tip, angle before; tip, angle after
         self._failed = False
 
     def feed(self, chunk: Toolpath) -> PostResult:
@@ -148,14 +156,17 @@ class PostStream:
 
     def finish(self) -> PostCounts:
         """The counts of the rows fed, added and dropped (the stream needs nothing else to end)."""
+        tip_before, angle_before, tip_after, angle_after = self._worst.tolist()
         return PostCounts(input_rows=self._input_rows, inserted=self._inserted, dropped=self._dropped,
-                          program_rows=self._program_rows)
+                          program_rows=self._program_rows, tip_before=tip_before, angle_before=angle_before,
+                          tip_after=tip_after, angle_after=angle_after)
 
     def _post(self, chunk: Toolpath, *, scope: str) -> PostResult:
         machine, model = self.machine, self.model
         path = _unit_path(place_toolpath(chunk, self.setup), self._input_rows)
-        path = subdivide_axis_changes(machine.geometry, path, tolerance=self.tolerance,
-                                      angle_tolerance=self.angle_tolerance, start=self._last_pose)
+        linear = linearize(machine.geometry, path, tolerance=self.tolerance, angle_tolerance=self.angle_tolerance,
+                           start=self._last_pose)
+        path = linear.path
         subdivided = len(path)
         ik = inverse(machine.geometry, path.tip, path.axis, model=model)
         _raise_unreachable(machine, path, ik, model, self._counted(scope, len(path)))
@@ -174,6 +185,8 @@ class PostStream:
         self._inserted += subdivided - len(chunk)
         self._dropped += subdivided - len(path)
         self._program_rows += len(path)
+        self._worst = np.maximum(self._worst, [linear.tip_before, linear.angle_before, linear.tip_after,
+                                               linear.angle_after])
         self._last_pose = last_pose
         if len(path):
             self._last_tip = path.tip[-1].copy()

@@ -61,7 +61,7 @@ class Event:
 
 
 def _frozen(array: np.ndarray, dtype: type, shape_tail: tuple[int, ...], name: str) -> np.ndarray:
-    out = np.array(array, dtype=dtype, copy=True)
+    out: np.ndarray = np.array(array, dtype=dtype, copy=True)
     if out.ndim == 1 and shape_tail and out.size == 0:
         out = out.reshape((0, *shape_tail))
     if out.shape[1:] != shape_tail:
