@@ -188,7 +188,7 @@ def test_work_plane_errors(values: list[float], message: str) -> None:
 # Motion, arcs, cycles, units, events
 # --------------------------------------------------------------------------------------------
 def test_arcs_r_forms_full_circle_helix_turns_and_planes() -> None:
-    f = _parse("G0 X10 Y0 Z0\nG1 F60\nG2 X-10 Y0 R-10\nG3 X-10 Y0 I10 J0 Z-2\nG19 G3 Y0 Z-2 J0 K2 P2\nM30\n")
+    f = _parse("G0 X10 Y0 Z0\nG1 G91.1 F60\nG2 X-10 Y0 R-10\nG3 X-10 Y0 I10 J0 Z-2\nG19 G3 Y0 Z-2 J0 K2 P2\nM30\n")
     tp = f.toolpath
     lines = tp.source
     half = tp.tip[lines == 3]                          # G2 R−10 over a diameter: a half turn, clockwise through −y
@@ -295,8 +295,8 @@ BAD = [
     ("G0 X0 Y0 Z0\nG1 X1 U2 F1\n", 2, "word 'U2' is not read by the 3+2 G-code reader (words read: G M N X Y Z I J K R "
      "P Q F S T H; O alone on its line)"),
     ("G0 X0 Y0 Z0\nG43.4 H1\n", 2, "code G43.4 is not read by the 3+2 G-code reader (codes read: G0 G1 G2 G3 G4 G17 "
-     "G18 G19 G20 G21 G40 G43 G49 G53.1 G54 G68.2 G69 G73 G80 G81 G82 G83 G90 G91 G93 G94 G98 G99; M0 M1 M2 M3 M4 "
-     "M5 M6 M7 M8 M9 M30)"),
+     "G18 G19 G20 G21 G40 G43 G49 G53.1 G54 G68.2 G69 G73 G80 G81 G82 G83 G90 G91 G91.1 G93 G94 G98 G99; M0 M1 M2 M3 "
+     "M4 M5 M6 M7 M8 M9 M30)"),
     ("G0 X0 Y0 Z0\nG93\nG1 X5\n", 3, "G1 under G93 (inverse time) without F: every feed move under G93 needs its own "
      "F (1/minute)"),
     ("G0 X0 Y0 Z0\nG1 X1e-05 F100\n", 2, "word 'E-05' is not G-code: E is not read here, and a number with an "
@@ -345,6 +345,9 @@ BAD = [
     ("G0 X0 Y0 Z0\nG93 G81 X1 Y1 Z-1 R1 F1\n", 2, "G81 under G93 (inverse time): canned cycles need a feed per minute "
      "(G94)"),
     ("G1 F0\n", 1, "F must be > 0, got F0"),
+    ("G90.1\n", 1, "code G90.1 is not read by the 3+2 G-code reader (codes read: G0 G1 G2 G3 G4 G17 G18 G19 G20 G21 "
+     "G40 G43 G49 G53.1 G54 G68.2 G69 G73 G80 G81 G82 G83 G90 G91 G91.1 G93 G94 G98 G99; M0 M1 M2 M3 M4 M5 M6 M7 M8 "
+     "M9 M30)"),
     ("G0 X0 Y0 Z9\nG18 G81 X1 Y1 Z-1 R1 F100\n", 2, "G81 in G18: canned cycles are read in G17 only, where the hole "
      "goes along Z, the tool axis (in G18/G19 it would go sideways)"),
 ]

@@ -47,7 +47,8 @@ Words and codes
   COMMENT events), ``N`` (first word), ``%`` lines, ``O`` words alone on their line.
 - Codes that only state what the reader assumes anyway: ``G40`` (no cutter compensation), ``G43 H``
   / ``G49`` (the coordinates are read as the tool tip either way: the IK uses the machine's tool
-  length), ``G54`` (the program's coordinates are the work plane's), ``G94``.
+  length), ``G54`` (the program's coordinates are the work plane's), ``G94``, ``G91.1`` (arc
+  centres I J K relative to the start: the only way they are read; ``G90.1`` is refused).
 
 Anything else is an error naming the file and line and what would be valid: another word or code,
 an ``E`` word (``1e-05`` reads as ``1`` then ``E-05``), a number that is not a plain decimal
@@ -116,14 +117,14 @@ _G_GROUPS: dict[float, str] = {
     83: "motion", 73: "motion", 4: "dwell", 17: "plane", 18: "plane", 19: "plane", 20: "units", 21: "units",
     90: "distance", 91: "distance", 93: "feed mode", 94: "feed mode", 98: "return", 99: "return",
     68.2: "tilt", 69: "tilt", 53.1: "tilt", 40: "compensation", 43: "length offset", 49: "length offset",
-    54: "coordinate system",
+    54: "coordinate system", 91.1: "arc distance",
 }
 _M_GROUPS: dict[float, str] = {
     0: "stop", 1: "stop", 2: "stop", 30: "stop", 3: "spindle", 4: "spindle", 5: "spindle", 6: "tool change",
     7: "coolant", 8: "coolant", 9: "coolant",
 }
 _CODES_READ = ("G0 G1 G2 G3 G4 G17 G18 G19 G20 G21 G40 G43 G49 G53.1 G54 G68.2 G69 G73 G80 G81 G82 G83 G90 "
-               "G91 G93 G94 G98 G99; M0 M1 M2 M3 M4 M5 M6 M7 M8 M9 M30")
+               "G91 G91.1 G93 G94 G98 G99; M0 M1 M2 M3 M4 M5 M6 M7 M8 M9 M30")
 _VALUE_LETTERS = "XYZIJKRPQFSTH"
 _WORDS_READ = "G M N X Y Z I J K R P Q F S T H; O alone on its line"
 _CYCLES = {81.0: Pecking.NONE, 82.0: Pecking.NONE, 83.0: Pecking.FULL_RETRACT, 73.0: Pecking.CHIP_BREAK}
