@@ -81,7 +81,7 @@ import numpy as np
 from prs3_post.arcs import arc_points_3d, arc_segment_count, arc_sweep
 from prs3_post.cycles import DrillCycle, Pecking, drill_rows
 from prs3_post.errors import InputError
-from prs3_post.readers.files import iter_pieces
+from prs3_post.readers.files import iter_pieces, line_chunks
 from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
 from prs3_post.types import FloatArray
 
@@ -340,26 +340,12 @@ class ClStream:
                 piece, offset = piece[3:], 3
             yield _text(piece, self.path, offset)
 
-    def _lines(self) -> Iterator[list[str]]:
-        """The file's lines (without line ends), ``chunk_lines`` at a time."""
-        pending: list[str] = []
-        for text in self._pieces():
-            lines = text.split("\n")
-            if lines[-1] == "":
-                lines.pop()                              # the piece's final line end
-            pending += lines
-            while len(pending) >= self.chunk_lines:
-                yield pending[:self.chunk_lines]
-                del pending[:self.chunk_lines]
-        if pending:
-            yield pending
-
     def __iter__(self) -> Iterator[Toolpath]:
         file_units = _file_units(_unit_records(self._pieces(), self.path), self.path, self.units)
         reader = _Reader(self.path, MM_PER_INCH if file_units == "inch" else 1.0, self.ignore, self.tolerance,
                          self.circle_tolerance, self.apply_msys)
         number = 1
-        for lines in self._lines():
+        for lines in line_chunks(self._pieces(), self.chunk_lines):
             reader.lines(number, lines)
             number += len(lines)
             chunk = reader.take()

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import os
 import stat
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from typing import BinaryIO
 
 from prs3_post.errors import InputError
@@ -156,3 +156,26 @@ def iter_pieces(path: str, what: str, piece_bytes: int = 1 << 20) -> Iterator[tu
             offset, rest = offset + cut, block[cut:]
         if rest:
             yield offset, rest
+
+
+def line_chunks(texts: Iterable[str], chunk_lines: int, *, strip_cr: bool = False) -> Iterator[list[str]]:
+    """The lines of text pieces that end at line ends (as :func:`iter_pieces` cuts them, decoded), without
+    their line ends, ``chunk_lines`` at a time (the last chunk shorter); ``strip_cr``: a CR before the
+    LF is removed too.
+
+    >>> list(line_chunks(["a\\nb\\r\\n", "c\\n", "d"], 2, strip_cr=True))
+    [['a', 'b'], ['c', 'd']]
+    """
+    pending: list[str] = []
+    for text in texts:
+        lines = text.split("\n")
+        if lines[-1] == "":
+            lines.pop()                                  # the piece's final line end
+        if strip_cr and "\r" in text:
+            lines = [line.removesuffix("\r") for line in lines]
+        pending += lines
+        while len(pending) >= chunk_lines:
+            yield pending[:chunk_lines]
+            del pending[:chunk_lines]
+    if pending:
+        yield pending

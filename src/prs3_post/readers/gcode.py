@@ -78,7 +78,7 @@ from prs3_post.arcs import arc_points_3d, arc_sweep
 from prs3_post.cycles import DrillCycle, Pecking, drill_rows
 from prs3_post.errors import InputError, LexError
 from prs3_post.readers.apt import join_toolpaths
-from prs3_post.readers.files import iter_pieces
+from prs3_post.readers.files import iter_pieces, line_chunks
 from prs3_post.readers.lexer import (
     BYTE_ORDER_MARK,
     EMPTY,
@@ -339,27 +339,11 @@ class GcodeStream:
                         _refuse_rotary(line, number, self.path)
             first += text.count("\n")
 
-    def _lines(self) -> Iterator[list[str]]:
-        """The file's lines (without line ends, a CR before the LF removed), ``chunk_lines`` at a time."""
-        pending: list[str] = []
-        for text in self._texts():
-            lines = text.split("\n")
-            if lines[-1] == "":
-                lines.pop()                              # the piece's final line end
-            if "\r" in text:
-                lines = [line.removesuffix("\r") for line in lines]
-            pending += lines
-            while len(pending) >= self.chunk_lines:
-                yield pending[:self.chunk_lines]
-                del pending[:self.chunk_lines]
-        if pending:
-            yield pending
-
     def __iter__(self) -> Iterator[Toolpath]:
         self._check()
         reader = _Reader(self.path, self.work_plane, self.tolerance, self.circle_tolerance)
         number = 1
-        for lines in self._lines():
+        for lines in line_chunks(self._texts(), self.chunk_lines, strip_cr=True):
             reader.lines(number, lines)
             number += len(lines)
             chunk = reader.take()
