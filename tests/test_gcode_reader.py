@@ -18,7 +18,7 @@ from prs3_post.readers.detect import detect_format
 from prs3_post.readers.gcode import PECK_GAP_MM, GcodeFile, GcodeStream, parse_gcode, read_gcode
 from prs3_post.readers.stl import load_part
 from prs3_post.toolpath import EventKind, MoveKind
-from prs3_post.workplane import WorkPlane, WorkPlaneError, euler_zxz_deg, work_plane_from_text
+from prs3_post.workplane import WorkPlane, WorkPlaneError, euler_zxz_deg, rotate_rows, work_plane_from_text
 
 REPO = Path(__file__).resolve().parents[1]
 PROGRAMS = REPO / "fixtures" / "gcode"
@@ -146,6 +146,17 @@ def test_work_plane_from_numbers() -> None:
     assert_allclose(tilted.rotation, [[1, 0, 0], [0, s, -s], [0, s, s]], atol=1e-15)
     # without an x direction, the face frame's: u down the slope
     assert_allclose(WorkPlane.from_values([0, 0, 0, 3, 0, 4]).rotation[:, 0], [0.8, 0, -0.6], atol=1e-15)
+
+
+def test_rotated_rows_are_the_same_bits_in_any_chunk() -> None:
+    """The frames of both CAM readers turn rows element by element: a row's bits do not depend on its chunk."""
+    rng = np.random.default_rng(7)
+    rows = rng.uniform(-500, 500, (5000, 3))
+    rotation = euler_zxz_deg(37.1, 23.9, -61.3)
+    whole = rotate_rows(rows, rotation)
+    assert all(np.array_equal(rotate_rows(rows[i:i + 7], rotation), whole[i:i + 7]) for i in range(0, 5000, 7))
+    assert np.array_equal(rotate_rows(rows[1234], rotation)[0], whole[1234])
+    assert_allclose(whole, rows @ rotation.T, atol=1e-12)
 
 
 def test_work_plane_from_text_a_part_and_face_or_numbers() -> None:

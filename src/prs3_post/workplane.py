@@ -25,7 +25,8 @@ from prs3_post.errors import Prs3Error
 from prs3_post.face import Face, frame_from_normal
 from prs3_post.types import FloatArray
 
-__all__ = ["PERPENDICULAR_TOLERANCE", "WorkPlane", "WorkPlaneError", "euler_zxz_deg", "work_plane_from_part",
+__all__ = ["PERPENDICULAR_TOLERANCE", "WorkPlane", "WorkPlaneError", "euler_zxz_deg", "rotate_rows",
+           "work_plane_from_part",
            "work_plane_from_text"]
 
 #: |cos| of the angle between a given x direction and the normal, above which they are not
@@ -39,6 +40,19 @@ class WorkPlaneError(Prs3Error):
     """Numbers that do not make a work plane (zero normal, x along the normal, not finite): bad input."""
 
     exit_code = 2
+
+
+def rotate_rows(rows: FloatArray, rotation: FloatArray) -> FloatArray:
+    """``rows @ rotation.T`` for (N, 3) rows, element by element: a row's result does not depend on how many
+    rows come with it (a matrix product sums in different orders for different shapes), so that a
+    file read in chunks of any size gives the same bits.
+
+    >>> rotate_rows(np.array([[1.0, 2.0, 3.0]]), np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])).tolist()
+    [[-2.0, 1.0, 3.0]]
+    """
+    rows = np.asarray(rows, dtype=np.float64).reshape(-1, 3)
+    r = np.asarray(rotation, dtype=np.float64)
+    return (rows[:, :1] * r[:, 0] + rows[:, 1:2] * r[:, 1]) + rows[:, 2:] * r[:, 2]
 
 
 def euler_zxz_deg(i_deg: float, j_deg: float, k_deg: float) -> FloatArray:
@@ -99,15 +113,8 @@ class WorkPlane:
         return self.rotation[:, 2]
 
     def to_part(self, local: FloatArray) -> FloatArray:
-        """(N, 3) program points (mm) → (N, 3) part points (mm).
-
-        Element by element, not a matrix product: a row's result must not depend on how many rows
-        come with it (BLAS sums in different orders for different shapes), so that a file read in
-        chunks of any size gives the same bits.
-        """
-        local = np.asarray(local, dtype=np.float64).reshape(-1, 3)
-        r = self.rotation
-        return ((local[:, :1] * r[:, 0] + local[:, 1:2] * r[:, 1]) + local[:, 2:] * r[:, 2]) + self.origin
+        """(N, 3) program points (mm) → (N, 3) part points (mm) (:func:`rotate_rows`, then the origin)."""
+        return rotate_rows(local, self.rotation) + self.origin
 
     def to_local(self, part: FloatArray) -> FloatArray:
         """(N, 3) part points (mm) → (N, 3) program points (mm): the inverse of :meth:`to_part`."""

@@ -84,6 +84,7 @@ from prs3_post.errors import InputError
 from prs3_post.readers.files import iter_pieces, line_chunks
 from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
 from prs3_post.types import FloatArray
+from prs3_post.workplane import rotate_rows
 
 __all__ = [
     "DISPLAY_WORDS",
@@ -148,7 +149,7 @@ class ClFrame:
 
     def to_part(self, local: FloatArray) -> FloatArray:
         """(N, 3) local points (mm) → (N, 3) part points (mm)."""
-        return np.asarray(local, dtype=np.float64).reshape(-1, 3) @ self.rotation.T + self.origin
+        return rotate_rows(local, self.rotation) + self.origin      # the same bits in chunks of any size
 
     def to_local(self, part: FloatArray) -> FloatArray:
         """(N, 3) part points (mm) → (N, 3) local points (mm): the inverse of :meth:`to_part`."""
@@ -1139,7 +1140,7 @@ class _Reader:
         for index in np.unique(frame) if self.apply_msys else ():   # one transform per MSYS, all its rows at once
             rows = frame == index
             tip[rows] = self.frames[index].to_part(local[rows])
-            axis[rows] = axis_local[rows] @ self.frames[index].rotation.T
+            axis[rows] = rotate_rows(axis_local[rows], self.frames[index].rotation)
         events = tuple(Event(before=e.before - self.chunk_start, kind=e.kind, value=e.value, text=e.text)
                        for e in self.events)
         chunk = Toolpath(kind=np.frombuffer(self.kind, dtype=np.int64), tip=tip, axis=axis,
