@@ -83,7 +83,7 @@ def test_g68_2_program_with_a_g83_peck_cycle_and_a_g2_arc_in_g18() -> None:
     assert f.counts.arcs == 1 and f.counts.arc_segments == n == 79
     assert (f.counts.cycles, f.counts.cycle_holes, f.counts.cycle_rows, f.counts.moves) == (1, 2, 25, 5)
     assert (f.counts.records, f.counts.lines, f.counts.rows, f.counts.planes, f.counts.comments) == (20, 23, 109, 1, 1)
-    assert f.counts.skipped == (("%", 2),)
+    assert f.counts.skipped == (("%", 2),) and (f.counts.comment_lines, f.counts.blank_lines) == (1, 0)
     assert [(p.line, p.words) for p in f.planes] == [(8, "G68.2 X20 Y10 Z5 I90 J30 K0")]
     assert [(c.line, c.code, c.holes) for c in f.cycles] == [(11, "G83", 2)]
     assert [(e.before, e.kind, e.value, e.text) for e in tp.events] == [
@@ -280,7 +280,11 @@ def _same(a: GcodeFile, b: GcodeFile) -> None:
 @pytest.mark.parametrize("chunk_lines", [1, 7, 10_000])
 def test_chunks_of_any_size_give_the_same_rows(chunk_lines: int) -> None:
     text = _program(300)
-    _same(parse_gcode(text, path="t", tolerance=TOL, chunk_lines=chunk_lines), _parse(text))
+    read = parse_gcode(text, path="t", tolerance=TOL, chunk_lines=chunk_lines)
+    _same(read, _parse(text))
+    counts = read.counts                                 # every line is accounted for, once
+    assert counts.lines == counts.records + counts.comment_lines + counts.blank_lines + dict(counts.skipped)["%"]
+    assert (counts.lines, counts.comment_lines, counts.blank_lines) == (len(text.splitlines()), 7, 5)
 
 
 def test_bulk_lines_read_as_the_careful_reader_reads_them() -> None:

@@ -183,8 +183,8 @@ class GcodeCounts:
 
     Attributes
     ----------
-    records : int — lines with code (not blank, not only a comment, not ``%``)
-    lines : int — lines in the file
+    records : int — lines with code (not blank, not only a comment, not ``%``; ``O`` lines included)
+    lines : int — lines in the file: ``records + comment_lines + blank_lines`` + the ``%`` lines
     moves : int — G0/G1 lines that became one row each
     start_rapids : int — rapids merged into the first fully known position (module docstring)
     arcs : int — G2/G3 moves expanded
@@ -194,6 +194,8 @@ class GcodeCounts:
     cycle_rows : int — rows the holes became
     planes : int — G68.2 planes defined
     comments : int — comments (each one an event)
+    comment_lines : int — lines with comments and no code
+    blank_lines : int — empty lines and lines of spaces
     skipped : tuple of (str, int) — lines read but without anything to do: ``%`` and ``O`` lines
     by_word : tuple of (str, int) — every G and M code as written (``G1``, ``M3``), sorted
     rows : int — rows of the toolpath
@@ -210,6 +212,8 @@ class GcodeCounts:
     cycle_rows: int
     planes: int
     comments: int
+    comment_lines: int
+    blank_lines: int
     skipped: tuple[tuple[str, int], ...]
     by_word: tuple[tuple[str, int], ...]
     rows: int
@@ -464,7 +468,7 @@ class _Reader:
         self.by_word: Counter[str] = Counter()
         self.skipped: Counter[str] = Counter()
         self.records = self.moves = self.start_rapids = self.arcs = self.arc_segments = 0
-        self.cycle_holes = self.cycle_rows = self.comments = 0
+        self.cycle_holes = self.cycle_rows = self.comments = self.comment_lines = self.blank_lines = 0
 
     # ---- helpers
     def error(self, message: str) -> InputError:
@@ -535,7 +539,12 @@ class _Reader:
         if len(others):                                  # the comments, each before the next move's row
             before = self.rows + np.cumsum(moves)[others]
             for index, row in zip(others.tolist(), before.tolist(), strict=True):
-                for text in split_comments(lines[index])[1]:
+                texts = split_comments(lines[index])[1]
+                if texts:
+                    self.comment_lines += 1
+                else:
+                    self.blank_lines += 1
+                for text in texts:
                     self.comments += 1
                     self.events.append(Event(before=row, kind=EventKind.COMMENT, text=text.strip()))
         self.add_rows(position, np.where(feeding, _FEED, _RAPID), np.where(feeding, given_feed * self.scale, 0.0),
@@ -593,6 +602,7 @@ class _Reader:
             records=self.records, lines=self.number, moves=self.moves, start_rapids=self.start_rapids,
             arcs=self.arcs, arc_segments=self.arc_segments, cycles=len(self.cycles), cycle_holes=self.cycle_holes,
             cycle_rows=self.cycle_rows, planes=len(self.planes), comments=self.comments,
+            comment_lines=self.comment_lines, blank_lines=self.blank_lines,
             skipped=tuple(sorted(self.skipped.items())), by_word=tuple(sorted(self.by_word.items())), rows=self.rows)
         return GcodeFile(path=self.path, units=self.units_at_first_move or "mm", toolpath=join_toolpaths([]),
                          counts=counts, work_plane=self.base, planes=tuple(self.planes), cycles=tuple(self.cycles),
@@ -609,14 +619,16 @@ class _Reader:
             self.comments += 1
             self.event(EventKind.COMMENT, text=text.strip())
         code = code.strip()
-        if self.percent >= 2:
-            if code:
-                raise self.error(f"text after the closing '%': {quote(code)} (the program ends at the '%')")
+        if not code:
+            if comments:
+                self.comment_lines += 1
+            else:
+                self.blank_lines += 1
             return
+        if self.percent >= 2:
+            raise self.error(f"text after the closing '%': {quote(code)} (the program ends at the '%')")
         if code == "%":
             self.percent_line()
-            return
-        if not code:
             return
         if self.end_line is not None:
             raise self.error(f"code after the program end (M2/M30 at line {self.end_line}): {quote(code)}")
