@@ -376,6 +376,19 @@ def test_bad_input_names_the_line_and_what_is_valid(text: str, line: int, messag
     assert str(info.value) == f"t.ngc:{line}: {message}"
 
 
+@pytest.mark.parametrize("name", sorted(p.name for p in (REPO / "fixtures" / "bad" / "gcode").glob("*.ngc")))
+def test_bad_gcode_files_give_their_exact_message(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """fixtures/bad/gcode: the first line is the expected message (for convert's tests too: exit code 2)."""
+    monkeypatch.chdir(REPO)
+    path = f"fixtures/bad/gcode/{name}"
+    first = (REPO / path).read_text().splitlines()[0]
+    assert first.startswith("; expect: ")
+    with pytest.raises(InputError) as info:
+        read_gcode(path, tolerance=TOL)
+    assert str(info.value) == first.removeprefix("; expect: ")
+    assert info.value.exit_code == 2
+
+
 @pytest.mark.parametrize(("text", "message"), [
     ("", "not a G-code program: the file is empty"),
     ("(only a comment)\n%\n", "not a G-code program: no code (only comments, blank lines or '%')"),
