@@ -230,6 +230,10 @@ def load_machine(name_or_path: str) -> Machine:
     link_length = geo.number("link_length_mm", unit="mm", positive=True)
     platform_radius = geo.number("platform_circumradius_mm", unit="mm", positive=True)
     tool_length = geo.number("tool_length_mm", unit="mm", positive=True)
+    gauge_offset = geo.number("gauge_offset_mm", unit="mm", positive=True)
+    if not gauge_offset < tool_length:
+        raise ConfigError(f"geometry.gauge_offset_mm: the gauge line must be between the platform centre and the "
+                          f"tool tip: expected < tool_length_mm = {tool_length:g} mm, got {gauge_offset:g}", path=shown)
     geo.finish()
     if abs(guide_radius - platform_radius) >= link_length:
         raise ConfigError(
@@ -243,6 +247,7 @@ def load_machine(name_or_path: str) -> Machine:
         link_length=link_length,
         platform_radius=platform_radius,
         tool_length=tool_length,
+        gauge_offset=gauge_offset,
     )
 
     lim = top.table("limits")

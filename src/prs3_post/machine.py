@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 __all__ = ["Geometry", "Limits", "Machine", "Stage"]
 
@@ -18,7 +18,10 @@ class Geometry:
     guide_radius : float — mm, "K": horizontal distance from the base centre to each revolute axis
     link_length : float — mm, "U": revolute-to-spherical link length
     platform_radius : float — mm, "r_p = q/√3": circumradius of the spherical-joint triangle
-    tool_length : float — mm, "TL": platform centre to tool tip along the tool axis
+    tool_length : float — mm, "TL": platform centre to tool tip along the tool axis (with the tool
+        the machine file assumes; :meth:`with_tool` gives the geometry with another tool)
+    gauge_offset : float — mm, platform centre to the spindle's gauge line along the tool axis
+        (0 < gauge_offset < tool_length): a tool of length L (gauge line to tip) makes TL = gauge_offset + L
     """
 
     leg_azimuth: tuple[float, float, float]
@@ -26,11 +29,16 @@ class Geometry:
     link_length: float
     platform_radius: float
     tool_length: float
+    gauge_offset: float
 
     def __post_init__(self) -> None:
-        for name in ("guide_radius", "link_length", "platform_radius", "tool_length"):
+        for name in ("guide_radius", "link_length", "platform_radius", "tool_length", "gauge_offset"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0")
+
+    def with_tool(self, length: float) -> Geometry:
+        """This head with a tool ``length`` mm long from the gauge line to its tip (TL = gauge_offset + length)."""
+        return replace(self, tool_length=self.gauge_offset + length)
 
     @property
     def layout_offset(self) -> float:

@@ -23,6 +23,7 @@ SIZE_LIMITS: dict[str, int] = {
     "a CSV file": 1000 * MB,          # ~15 million poses
     "a CL file": 1000 * MB,           # APT CL data, some 20 million records
     "a TOML file": 1 * MB,            # a machine or dialect description is a few kB
+    "a tool table": 1 * MB,           # some 10,000 tools
 }
 """Bytes, the largest file read for each kind of input (keyed by the ``what`` of :func:`read_input`)."""
 DEFAULT_SIZE_LIMIT = 1000 * MB
