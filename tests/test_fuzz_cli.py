@@ -1,7 +1,7 @@
 """Fuzzing every command of the CLI: random option values and mutated input files.
 
 For each command (``run``, ``demo``, ``faces``, ``ik``, ``fk``, ``verify``, ``preview``,
-``machines``) hypothesis draws option values for the command's own click parameters (read from
+``machines``, ``job``) hypothesis draws option values for the command's own click parameters (read from
 the command, so a new option is fuzzed too): mostly sensible values, sometimes hostile ones
 (``nan``, ``1e308``, ``1_0``, empty, non-ASCII digits), and input files (STL, program, CSV,
 machine and dialect TOML) with bytes flipped, inserted, deleted or truncated. Every run must:
@@ -33,7 +33,8 @@ from prs3_post.cli import Decimal, Integer, Numbers, OutputPath, main
 REPO = Path(__file__).resolve().parents[1]
 
 #: How many examples each command gets (the whole file runs in ~15 s; preview draws a figure).
-EXAMPLES = {"run": 40, "demo": 50, "faces": 40, "ik": 50, "fk": 50, "verify": 50, "preview": 12, "machines": 5}
+EXAMPLES = {"run": 40, "demo": 50, "faces": 40, "ik": 50, "fk": 50, "verify": 50, "preview": 12, "machines": 5,
+            "job": 25}
 #: Options set in one example, besides the required ones.
 MAX_OPTIONS = 4
 
@@ -57,7 +58,17 @@ def originals() -> dict[str, tuple[bytes, ...]]:
         "machine": ((REPO / "postproc" / "machines" / "patel2020.toml").read_bytes(),),
         "dialect": ((REPO / "postproc" / "dialects" / "linuxcnc.toml").read_bytes(),
                     (REPO / "postproc" / "dialects" / "fanuc.toml").read_bytes()),
+        "tbl": ((REPO / "fixtures" / "jobs" / "tools.tbl").read_bytes(),),
+        "job": (_example_job(),),
     }
+
+
+def _example_job() -> bytes:
+    """The example job with absolute paths (the fuzzed copy is written elsewhere)."""
+    jobs = REPO / "fixtures" / "jobs"
+    text = (jobs / "example.toml").read_text(encoding="utf-8")
+    text = text.replace('"../parts/twofaces.stl"', f'"{jobs.parent / "parts" / "twofaces.stl"}"')
+    return text.replace('"tools.tbl"', f'"{jobs / "tools.tbl"}"').encode()
 
 
 def _ascii_box() -> bytes:
@@ -129,10 +140,12 @@ def input_file(kind: str, name: str) -> st.SearchStrategy[tuple[str, bytes] | st
 INPUTS = {
     "part": [("stl", "part.stl")], "part_path": [("stl", "part.stl")], "program_path": [("ngc", "prog.ngc")],
     "batch_path": [("csv", "poses.csv")], "against_path": [("stl", "against.stl"), ("csv", "against.csv")],
+    "tool_table": [("tbl", "tools.tbl")], "job_path": [("job", "job.toml")],
 }
 #: Output names: mostly good ones for the command, sometimes a folder, a missing folder or an input.
 GOOD_OUTPUTS = {"preview": ("out/o.png", "out/o.svg"), "preview_path": ("out/o.png", "out/o.svg"),
-                "ik": ("out/o.csv", "-"), "run": ("out/o.ngc", "-"), "demo": ("out/o.ngc", "-")}
+                "ik": ("out/o.csv", "-"), "run": ("out/o.ngc", "-"), "demo": ("out/o.ngc", "-"),
+                "job": ("out/o.ngc", "-")}
 BAD_OUTPUTS = ("out/", "out/missing/o.png", "in/part.stl", "in/prog.ngc", "in/poses.csv", "out/o.txt", "")
 
 
@@ -246,3 +259,4 @@ test_fuzz_fk = _fuzz("fk")
 test_fuzz_verify = _fuzz("verify")
 test_fuzz_preview = _fuzz("preview")
 test_fuzz_machines = _fuzz("machines")
+test_fuzz_job = _fuzz("job")

@@ -7,6 +7,7 @@ its exit code (2 for bad input or configuration, 1 for limits and reach); never 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import math
 import re
@@ -23,7 +24,8 @@ from prs3_post import __version__
 from prs3_post.config import Machine, load_dialect, load_machine, postproc_dir, shipped_names
 from prs3_post.errors import FeatureError, InputError, Prs3Error, Prs3Warning, ReachError
 from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
-from prs3_post.job import HoleJob, JobSpec, Operation, ProfileJob, run_job
+from prs3_post.job import HoleJob, JobSpec, Operation, ProfileJob, run_job, run_operations
+from prs3_post.jobfile import JobFile, read_job_file
 from prs3_post.kinematics import IKModel, forward, inverse, unit_axes
 from prs3_post.limits import check_limits
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
@@ -32,6 +34,7 @@ from prs3_post.output import is_stdout, refuse_overwriting, stdout_error, write_
 from prs3_post.placement import Placement
 from prs3_post.readers.program import read_program
 from prs3_post.readers.stl import UP_ROTATION, load_part
+from prs3_post.readers.tooltable import ToolTable, read_tool_table
 from prs3_post.setup import Setup, SetupError
 from prs3_post.tables import fk_records, fk_text, ik_records, ik_text
 from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_TOLERANCE
@@ -479,6 +482,10 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="Spindle speed, rpm (clockwise)."),
         click.option("--coolant", type=click.Choice([c.value for c in Coolant]), default="flood", show_default=True,
                      help="Coolant during cutting: flood (M8), mist (M7) or off."),
+        click.option("--tool-table", "tool_table", type=click.Path(dir_okay=False), metavar="TOOL.tbl",
+                     help="LinuxCNC tool table (T P D Z ;comment): the IK uses the machine's gauge offset plus the "
+                          "tool's Z length, and the tool's D must be --tool-diameter.  [default: the machine's "
+                          "tool_length_mm]"),
         # machine, setup and output
         machine_option,
         part_origin_option,
@@ -583,6 +590,7 @@ def _job_spec(part: str, opts: dict[str, Any]) -> JobSpec:
         setup=resolve_setup(machine, opts["part_origin"], opts.get("part_rotation")), tolerance=opts["tolerance"],
         line_numbers=opts.get("line_numbers"), line_start=opts.get("line_start"), line_step=opts.get("line_step"),
         up=opts.get("up", "z"),
+        tool_table=read_tool_table(opts["tool_table"]) if opts.get("tool_table") else None,
     )
 
 
@@ -620,6 +628,117 @@ def demo(**opts: Any) -> None:
       prs3-post demo --profile hole --at-xyz 18.9736,221.2132,290.5135      (the paper's case 2a)
     """
     run_reported(lambda: _run_job(str(demo_part()), **opts))
+
+
+#: Keys of a job file's ``[[operation]]`` whose main-job option has another name.
+_JOB_KEY_OPTION = {"face": "face_choice", "at": "at_uv", "tool": "tool_number"}
+#: Top-level keys of a job file and the main-job option each sets.
+_JOB_SETTING_OPTION = {"units": "units", "up": "up", "machine": "machine_name", "dialect": "dialect_name",
+                       "tolerance": "tolerance", "line_numbers": "line_numbers", "line_start": "line_start",
+                       "line_step": "line_step"}
+
+
+def _job_value(param: click.Parameter, value: Any) -> Any:
+    """A job file's value for the main job's option ``param``, checked as the option's own value is."""
+    if isinstance(value, bool) and not isinstance(param.type, click.types.BoolParamType):
+        raise click.BadParameter(f"expected {param.type.name}, got {str(value).lower()}")
+    if param.multiple:                                 # at, at_xyz: a list of points
+        if not (isinstance(value, list) and all(isinstance(v, list) for v in value)):
+            raise click.BadParameter(f"expected a list of points like [[1.0, 2.0]], got {value!r}")
+        return tuple(param.type.convert(",".join(str(x) for x in point), None, None) for point in value)
+    if param.name == "face_choice":
+        if not (isinstance(value, str) or isinstance(value, int)):
+            raise click.BadParameter(f'expected "auto" or a face index, got {value!r}')
+        return str(value)
+    if isinstance(param.type, click.Choice) and not isinstance(value, str):
+        raise click.BadParameter(f"expected one of {', '.join(map(str, param.type.choices))}, got {value!r}")
+    return param.type.convert(value, None, None)
+
+
+def _job_specs(job: JobFile) -> tuple[JobSpec, ...]:
+    """Each operation of a job file as the JobSpec its options make (the main job's defaults, then the
+    file's top-level settings, then the operation's keys)."""
+    params = {p.name: p for p in _job_options(lambda **_: None).__click_params__}  # type: ignore[attr-defined]
+    table: ToolTable | None = read_tool_table(job.settings["tool_table"]) if "tool_table" in job.settings else None
+    ctx = click.Context(main)
+    base = {name: _option_default(ctx, param) for name, param in params.items() if name is not None}
+    base |= {"part_origin": job.part_origin, "part_rotation": job.part_rotation_deg, "tool_table": None,
+             "out_path": None, "preview_path": None}
+    for key, name in _JOB_SETTING_OPTION.items():
+        if key in job.settings:
+            base[name] = _job_setting(job, key, params[name])
+    specs = []
+    for number, operation in enumerate(job.operations, start=1):
+        opts = dict(base)
+        where = f"operation[{number}]"
+        for key, value in operation.items():
+            name = _JOB_KEY_OPTION.get(key, key)
+            try:
+                opts[name] = _job_value(params[name], value)
+            except click.BadParameter as error:
+                raise InputError(f"{where}.{key}: {error.message}", path=job.path) from error
+        if table is not None and "tool_diameter" not in operation:     # the table says the diameter
+            tool = table.find(opts["tool_number"])
+            if tool is not None:
+                opts["tool_diameter"] = tool.diameter
+        try:
+            spec = _job_spec(job.part, opts)
+        except click.ClickException as error:
+            raise InputError(f"{where}: {error.format_message()}", path=job.path) from error
+        except FeatureError as error:
+            raise InputError(f"{where}: {error}", path=job.path) from error
+        specs.append(dataclasses.replace(spec, tool_table=table))
+    return tuple(specs)
+
+
+def _option_default(ctx: click.Context, param: click.Parameter) -> Any:
+    """An option's default value as the command receives it (``()`` for a repeatable option)."""
+    value = param.get_default(ctx)
+    if value is None or value is getattr(click.core, "UNSET", None):   # click ≥ 8.3 marks "no default" so
+        return () if param.multiple else None
+    return param.type_cast_value(ctx, value)
+
+
+def _job_setting(job: JobFile, key: str, param: click.Parameter) -> Any:
+    value = job.settings[key]
+    if key in ("machine", "dialect", "line_numbers"):
+        return value
+    try:
+        return _job_value(param, value)
+    except click.BadParameter as error:
+        raise InputError(f"{key}: {error.message}", path=job.path) from error
+
+
+@main.command()
+@click.argument("job_path", type=click.Path(dir_okay=False), metavar="JOB.toml")
+@click.option("-o", "--output", "out_path", type=OutputPath(),
+              help="Program file (written to a temp file, then renamed). Default: standard output.")
+def job(job_path: str, out_path: str | None) -> None:
+    """Run a job file: several operations on one part, on one or more faces, with one or more tools.
+
+    JOB.toml names the part (part, units, up), the setup ([setup] part_origin, part_rotation_deg),
+    a tool table (tool_table, LinuxCNC format) and one [[operation]] table per operation, in order:
+    profile, face, tool and the main job's options with _ for - (at, depth, step_down, side ...).
+    Paths are relative to the job file. One program: between operations the tool rises along its
+    axis to a safe height above the part, the spindle and coolant stop, the tool changes where it
+    changes, the axis turns at that height (checked like any move) and the tool goes to the next face.
+    Each operation's IK uses its tool's length (the machine's gauge offset plus the table's Z).
+
+    \b
+    Example:
+      prs3-post job fixtures/jobs/example.toml -o example.ngc
+    """
+
+    def body() -> int:
+        specs = _job_specs(read_job_file(job_path))
+        result = run_operations(specs)
+        write_outputs([(out_path, result.text)])
+        if not is_stdout(out_path):
+            click.echo(f"prs3-post: wrote {out_path}: {result.text.count(chr(10))} lines, "
+                       f"{len(result.post.program)} moves, {len(specs)} operations", err=True)
+        return 0
+
+    run_reported(body)
 
 
 @main.command()
@@ -664,7 +783,7 @@ def _against_options(func: Callable[..., Any]) -> Callable[..., Any]:
     the same options and defaults, but --profile not required and without the output-only ones (a
     program with a prs3-post header needs none of them: they may only repeat what it says)."""
     probe = _job_options(lambda **_: None)
-    skip = {"out_path", "preview_path", "line_numbers", "line_start", "line_step"}
+    skip = {"out_path", "preview_path", "line_numbers", "line_start", "line_step", "tool_table"}
     params = getattr(func, "__click_params__", [])
     borrowed: list[click.Parameter] = probe.__click_params__  # type: ignore[attr-defined]  # click stores them here
     for param in borrowed:                           # in click's stored (reversed) order
@@ -806,10 +925,12 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext, opts: d
     if suffix == ".stl":
         if context.header is not None:
             try:
-                spec = header_job(context, against)
+                specs = header_job(context, against)
             except HeaderConflict as error:
                 raise InputError(f"--against: {error.args[0]}", path=error.path, line=error.line) from error
-            _check_operation_options(ctx, spec, opts)
+            for spec in specs:                         # an option given must be what every operation says
+                _check_operation_options(ctx, spec, opts)
+            return intended_from_job(specs)
         elif not opts["profile"]:
             raise click.UsageError("--against PART.stl needs --profile and the other operation options the "
                                    "program was made with (it has no prs3-post header that records them)")

@@ -1,6 +1,15 @@
-"""The main job: an STL part, a face, one operation → a checked program in actuator space.
+"""The main job: an STL part, faces, operations → one checked program in actuator space.
 
-    STL ──► faces ──► chosen face ──► operation (hole | square | round) ──► post_process ──► emit
+    STL ──► faces ──► for each operation: its face ──► plan (hole | square | round)
+        ──► post_process with its tool's length ──► transitions between operations ──► emit
+
+The main job's command line is a job of one operation (:func:`run_job`); a job file gives several
+(:func:`run_operations`). Between two operations the tool goes up along its axis to the job's
+safe height (:func:`safe_height`), the spindle and coolant stop, the tool changes if it changes,
+the tool axis turns at that height (a joint-space move, subdivided and limit-checked like any
+other), and the tool goes over and down to the next operation. Each operation's IK uses its own
+tool length: the machine's gauge offset plus the tool table's Z (without a table, the machine's
+``tool_length_mm``).
 
 The only I/O is reading the STL (through :mod:`prs3_post.readers.stl`); the program comes back
 as text for the CLI to write.
@@ -8,7 +17,8 @@ as text for the CLI to write.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -19,17 +29,20 @@ from prs3_post.emit.gcode import emit_program
 from prs3_post.errors import FeatureError, InputError, LimitError, ReachError
 from prs3_post.face import Face
 from prs3_post.geometry import MIN_FACE_WIDTH_MM, find_faces, project_onto_face, select_face
+from prs3_post.kinematics import IKResult
+from prs3_post.linearize import slerp, subdivide_axis_changes
 from prs3_post.ops import Cutting, plan_holes, plan_profile
 from prs3_post.ops.common import require_tolerance
 from prs3_post.ops.work import HoleJob, Operation, ProfileJob
 from prs3_post.pipeline import PostResult, post_process
 from prs3_post.placement import placement_error
-from prs3_post.readers.header import ProgramHeader, file_sha256, header_entries
+from prs3_post.readers.header import OperationRecord, ProgramHeader, ToolRecord, exact_text, file_sha256, header_entries
 from prs3_post.readers.stl import load_part
+from prs3_post.readers.tooltable import Tool, ToolTable
 from prs3_post.resolution import length_resolution
 from prs3_post.setup import Setup
 from prs3_post.tolerances import DEFAULT_TOLERANCE
-from prs3_post.toolpath import Toolpath
+from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpath, join_programs
 from prs3_post.types import FloatArray
 
 
@@ -52,6 +65,7 @@ class JobSpec:
     tolerance : float — mm, chordal tolerance of arcs and of axis-changing moves
     line_numbers, line_start, line_step : optional overrides of the dialect's block numbering
     up : str — the STL's up axis, turned to +z when it is read (``z``, ``y``, ``-x``...: ``readers.stl.UP_ROTATION``)
+    tool_table : ToolTable | None — the tools' lengths (None: every tool is the machine's ``tool_length_mm``)
     """
 
     part: str
@@ -69,11 +83,32 @@ class JobSpec:
     line_start: int | None = None
     line_step: int | None = None
     up: str = "z"
+    tool_table: ToolTable | None = None
 
     @property
     def operation(self) -> Operation:
         """What is cut (from :attr:`work`)."""
         return self.work.operation
+
+
+@dataclass(frozen=True, slots=True)
+class OperationResult:
+    """One operation of a job.
+
+    Attributes
+    ----------
+    face : Face — the face worked on
+    face_note : str — how that face was chosen
+    path_part : Toolpath — the operation's toolpath in part coordinates
+    tool_length : float — mm, the tool length "TL" its IK used (platform centre to tip)
+    label : str — ``operation 2 (round on face 6)`` (empty in a job of one operation)
+    """
+
+    face: Face
+    face_note: str
+    path_part: Toolpath
+    tool_length: float
+    label: str
 
 
 @dataclass(frozen=True, slots=True)
@@ -83,12 +118,14 @@ class JobResult:
     Attributes
     ----------
     text : str — the program
-    face : Face — the face worked on
+    face : Face — the (first) operation's face
     face_note : str — how that face was chosen
-    path_part : Toolpath — the operation's toolpath in part coordinates
-    post : PostResult — the machine-frame rows, IK, limits and the joint program
+    path_part : Toolpath — the (first) operation's toolpath in part coordinates
+    post : PostResult — the whole program's machine-frame rows, IK, limits and joint program
     setup : Setup — the setup used
     triangles : (F, 3, 3) float — mm, the part's triangles in part coordinates (for pictures)
+    operations : tuple of OperationResult — every operation, in program order
+    tool_length : (N,) float — mm, the tool length "TL" the IK used for each row of ``post``
     """
 
     text: str
@@ -98,6 +135,8 @@ class JobResult:
     post: PostResult
     setup: Setup
     triangles: FloatArray
+    operations: tuple[OperationResult, ...]
+    tool_length: FloatArray
 
 
 def positions(face: Face, at_uv: FloatArray, at_xyz: FloatArray) -> FloatArray:
@@ -127,7 +166,7 @@ def plan(spec: JobSpec, face: Face) -> Toolpath:
 
 
 def run_job(spec: JobSpec) -> JobResult:
-    """Load the part, choose the face, plan, post-process and emit.
+    """Load the part, choose the face, plan, post-process and emit: a job of one operation.
 
     Raises
     ------
@@ -136,26 +175,252 @@ def run_job(spec: JobSpec) -> JobResult:
         The path breaks a limit or cannot be reached with this setup: the message says the setup and,
         where a translation of the part fits, that part origin (``suggested_origin``).
     """
-    require_tolerance(spec.tolerance)
-    mesh = load_part(spec.part, units=spec.units, up=spec.up)
+    return run_operations((spec,))
+
+
+def tool_length_of(spec: JobSpec) -> float:
+    """mm, the tool length "TL" the IK uses for ``spec``'s tool: the machine's gauge offset plus the
+    tool table's Z, or the machine's ``tool_length_mm`` without a table.
+
+    Raises
+    ------
+    InputError
+        The tool is not in the table, or the table's diameter is not the operation's.
+    """
+    geometry = spec.machine.geometry
+    table = spec.tool_table
+    if table is None:
+        return geometry.tool_length
+    cut = spec.cutting
+    tool = table.find(cut.tool_number)
+    if tool is None:
+        numbers = ", ".join(f"T{t.number}" for t in table.tools)
+        raise InputError(f"tool T{cut.tool_number} is not in the tool table (it has {numbers})", path=table.path)
+    if tool.diameter != cut.tool_diameter:
+        raise InputError(f"T{tool.number} has diameter {exact_text(tool.diameter, 3)} mm in the tool table, but the "
+                         f"operation's tool diameter is {exact_text(cut.tool_diameter, 3)} mm", path=table.path,
+                         line=tool.line or None)
+    return geometry.with_tool(tool.length).tool_length
+
+
+def operation_label(number: int, spec: JobSpec, face: Face) -> str:
+    """``operation 2 (round on face 6)``: what every step label of an operation in a job starts with."""
+    return f"operation {number} ({spec.operation.value} on face {face.index})"
+
+
+def run_operations(specs: tuple[JobSpec, ...]) -> JobResult:
+    """Several operations on one part in one program (the first spec's part, machine, dialect, setup,
+    tolerance and numbering are the job's; the others must share them).
+
+    Raises
+    ------
+    InputError, FeatureError
+    PlacementLimitError, PlacementReachError
+        An operation's path breaks a limit or cannot be reached (the step label names the operation).
+    LimitError, ReachError
+        A transition between operations breaks a limit.
+    """
+    if not specs:
+        raise ValueError("a job has at least one operation")
+    first = specs[0]
+    require_tolerance(first.tolerance)
+    mesh = load_part(first.part, units=first.units, up=first.up)
     faces = find_faces(mesh)
-    try:  # automatic selection skips faces narrower than the tool
-        face, note = select_face(faces, spec.face, min_width=max(MIN_FACE_WIDTH_MM, spec.cutting.tool_diameter))
-    except FeatureError as error:                     # about this file's faces: say which file
-        raise InputError(str(error), path=spec.part) from error
-    path_part = plan(spec, face)
-    try:
-        post = post_process(spec.machine, path_part, spec.setup, tolerance=spec.tolerance,
-                            length_decimals=spec.dialect.decimals.length)
-    except (LimitError, ReachError) as error:          # say the setup, and one that fits if there is one
-        raise placement_error(error, spec.machine, path_part, spec.setup, tolerance=spec.tolerance,
-                              length_decimals=spec.dialect.decimals.length) from error
-    entries = header_entries(header_of(spec, file_sha256(spec.part)), face, description=spec.machine.description)
-    text = emit_program(post.program, spec.dialect, header=entries,
-                        stage=spec.machine.stage.present, line_numbers=spec.line_numbers,
-                        line_start=spec.line_start, line_step=spec.line_step)
-    return JobResult(text=text, face=face, face_note=note, path_part=path_part, post=post, setup=spec.setup,
-                     triangles=np.asarray(mesh.triangles, dtype=np.float64))
+    triangles = np.asarray(mesh.triangles, dtype=np.float64)
+    several = len(specs) > 1
+    decimals = first.dialect.decimals.length
+    done: list[OperationResult] = []
+    posts: list[PostResult] = []
+    for number, spec in enumerate(specs, start=1):
+        try:  # automatic selection skips faces narrower than the tool
+            face, note = select_face(faces, spec.face, min_width=max(MIN_FACE_WIDTH_MM, spec.cutting.tool_diameter))
+        except FeatureError as error:                     # about this file's faces: say which file
+            raise InputError(str(error), path=spec.part) from error
+        path_part = plan(spec, face)
+        label = operation_label(number, spec, face) if several else ""
+        if several:
+            path_part = replace(path_part, source_labels=tuple(f"{label}, {t}" for t in path_part.source_labels))
+        length = tool_length_of(spec)
+        machine = _with_tool_length(spec.machine, length)
+        try:
+            post = post_process(machine, path_part, spec.setup, tolerance=spec.tolerance, length_decimals=decimals)
+        except (LimitError, ReachError) as error:          # say the setup, and one that fits if there is one
+            raise placement_error(error, machine, path_part, spec.setup, tolerance=spec.tolerance,
+                                  length_decimals=decimals) from error
+        done.append(OperationResult(face=face, face_note=note, path_part=path_part, tool_length=length, label=label))
+        posts.append(post)
+    if several:
+        post, row_length = _assemble(specs, done, posts, safe_height(triangles, first.setup, specs))
+    else:
+        post, row_length = posts[0], np.full(len(posts[0].path), done[0].tool_length)
+    sha = file_sha256(first.part)
+    header = header_of(first, sha, operations=specs if several else (), lengths=[o.tool_length for o in done])
+    entries = header_entries(header, done[0].face, description=first.machine.description,
+                             faces=tuple(o.face for o in done) if several else ())
+    text = emit_program(post.program, first.dialect, header=entries,
+                        stage=first.machine.stage.present, line_numbers=first.line_numbers,
+                        line_start=first.line_start, line_step=first.line_step)
+    return JobResult(text=text, face=done[0].face, face_note=done[0].face_note, path_part=done[0].path_part,
+                     post=post, setup=first.setup, triangles=triangles, operations=tuple(done),
+                     tool_length=row_length)
+
+
+def _with_tool_length(machine: Machine, length: float) -> Machine:
+    """``machine`` with the tool length "TL" ``length`` mm (itself when it is the machine's)."""
+    if length == machine.geometry.tool_length:
+        return machine
+    return replace(machine, geometry=replace(machine.geometry, tool_length=length))
+
+
+def safe_height(triangles: FloatArray, setup: Setup, specs: tuple[JobSpec, ...]) -> float:
+    """mm, machine z of the transitions between operations: the part's highest point plus the largest
+    ``retract`` of the operations (the tool tip there is above every point of the part, and so is
+    the whole tool, whose axis points up)."""
+    top = float(setup.points_to_machine(triangles.reshape(-1, 3))[:, 2].max())
+    return top + max(spec.work.params.retract for spec in specs)
+
+
+#: rad, the largest axis turn between two rows of a reorientation before subdivision checks it.
+REORIENT_STEP = math.radians(5.0)
+
+
+def transition_paths(before: Toolpath, after: Toolpath, lengths: tuple[float, float], height: float, *,
+                     labels: tuple[str, str]) -> tuple[Toolpath, Toolpath]:
+    """The rows between two operations (machine frame), as two pieces: (lift, turn and approach).
+
+    ``before``'s last row is the first operation's end (its retract height above its face), ``after``'s
+    first row the second's start (above its first feature). The lift (first tool) goes up along the
+    current axis until the tip is at ``height`` plus how much longer the next tool is, so that the
+    next tool's tip is at ``height`` after the change. The second piece (next tool) turns the axis
+    there with the tip fixed, on the great circle, as RAPID rows every :data:`REORIENT_STEP` at most
+    (its first row repeats the lift's end pose, for the subdivision to start from: drop it after
+    IK), then goes over to ``height`` above the next start; the next operation's first row goes down.
+
+    Parameters
+    ----------
+    before, after : Toolpath — machine frame, unit axes
+    lengths : (first, next) float — mm, tool lengths "TL"
+    height : float — mm, machine z of the transition
+    labels : (lift label, turn label)
+    """
+    tip_a, axis_a = before.tip[-1], before.axis[-1]
+    tip_b, axis_b = after.tip[0], after.axis[0]
+    longer = max(0.0, lengths[1] - lengths[0])
+    rise = max(0.0, (height + longer - tip_a[2]) / axis_a[2])     # axis_z > 0: a tool points up
+    lifted = tip_a + rise * axis_a
+    rows = 1 if rise > 0.0 else 0                                  # already there: no lift
+    lift = _rapids(np.tile(lifted, (rows, 1)), np.tile(axis_a, (rows, 1)), labels[0])
+    turn_at = lifted - (lengths[1] - lengths[0]) * axis_a          # the next tool's tip, same joints
+    angle = math.acos(min(1.0, max(-1.0, float(axis_a @ axis_b))))
+    steps = max(1, math.ceil(angle / REORIENT_STEP))
+    fractions = np.linspace(0.0, 1.0, steps + 1)
+    axes = slerp(np.tile(axis_a, (steps + 1, 1)), np.tile(axis_b, (steps + 1, 1)), fractions)
+    over = max(0.0, (height - tip_b[2]) / axis_b[2])
+    tips = np.vstack([np.tile(turn_at, (steps + 1, 1)), tip_b + over * axis_b])
+    turn = _rapids(tips, np.vstack([axes, axis_b]), labels[1])
+    return lift, turn
+
+
+def _rapids(tip: FloatArray, axis: FloatArray, label: str) -> Toolpath:
+    """RAPID rows at the given poses, all of step ``label``."""
+    count = len(tip)
+    return Toolpath(kind=np.full(count, MoveKind.RAPID), tip=tip, axis=axis, feed=np.zeros(count),
+                    source=np.zeros(count, dtype=np.int64), source_labels=(label,))
+
+
+def post_transition(machine: Machine, before: Toolpath, after: Toolpath, lengths: tuple[float, float],
+                    height: float, *, labels: tuple[str, str], tolerance: float = DEFAULT_TOLERANCE,
+                    length_decimals: int | None = None) -> tuple[PostResult | None, PostResult]:
+    """The transition between two operations (:func:`transition_paths`), checked: the lift with the
+    first tool (None when the tool is already high enough) and the turn and approach with the next,
+    the turn subdivided like any move whose axis changes (until the joint-space line between rows
+    stays within ``tolerance`` of the fixed tip), then IK and limits on every row.
+
+    Raises
+    ------
+    LimitError, ReachError
+        A row of the transition outside a limit (the label names it).
+    """
+    lift, turn = transition_paths(before, after, lengths, height, labels=labels)
+    lifted = None
+    if len(lift):
+        lifted = post_process(_with_tool_length(machine, lengths[0]), lift, MACHINE_FRAME,
+                              length_decimals=length_decimals)
+    next_tool = _with_tool_length(machine, lengths[1])
+    as_feed = replace(turn, kind=np.full(len(turn), MoveKind.FEED))
+    fine = subdivide_axis_changes(next_tool.geometry, as_feed, tolerance=tolerance)
+    fine = replace(fine, kind=np.full(len(fine), MoveKind.RAPID))
+    keep = np.ones(len(fine), dtype=bool)
+    keep[0] = False                                    # the lift's end again, for the subdivision to start from
+    return lifted, post_process(next_tool, fine.take(keep), MACHINE_FRAME, length_decimals=length_decimals)
+
+
+#: The identity setup: machine-frame rows (the transitions) go through the same post-processing.
+MACHINE_FRAME = Setup((0.0, 0.0, 0.0), 0.0)
+
+
+def _assemble(specs: tuple[JobSpec, ...], done: list[OperationResult], posts: list[PostResult],
+              height: float) -> tuple[PostResult, FloatArray]:
+    """One program of the operations and the transitions between them, and each row's tool length."""
+    pieces: list[PostResult] = [posts[0]]
+    lengths: list[float] = [done[0].tool_length]
+    decimals = specs[0].dialect.decimals.length
+    for k in range(1, len(specs)):
+        spec, previous = specs[k], specs[k - 1]
+        pair = (done[k - 1].tool_length, done[k].tool_length)
+        lifted, turned = post_transition(
+            spec.machine, posts[k - 1].path, posts[k].path, pair, height, tolerance=spec.tolerance,
+            length_decimals=decimals, labels=(f"{done[k - 1].label}, lift to the safe height",
+                                              f"{done[k].label}, turn the tool axis at the safe height"))
+        if lifted is not None:
+            pieces.append(lifted)
+            lengths.append(pair[0])
+        # the next operation's opening events (title, tool change, spindle, coolant) move before the turn
+        body = posts[k].program
+        opening = [e for e in body.events if e.before == 0]
+        if previous.cutting.tool_number == spec.cutting.tool_number:
+            opening = [e for e in opening if e.kind is not EventKind.TOOL_CHANGE]
+        turned = _with_events(turned, tuple(opening))
+        pieces += [turned, _with_events(posts[k], tuple(e for e in body.events if e.before != 0))]
+        lengths += [pair[1], pair[1]]
+    counts = [len(p.path) for p in pieces]
+    return _join_posts(pieces), np.repeat(np.array(lengths), counts)
+
+
+def _with_events(post: PostResult, events: tuple[Event, ...]) -> PostResult:
+    program = replace(post.program, events=events)
+    return replace(post, program=program, path=replace(post.path, events=events))
+
+
+def _join_posts(pieces: list[PostResult]) -> PostResult:
+    """The pieces one after another: rows, IK, limits; step numbers and labels renumbered."""
+    offset = 0
+    labels: list[str] = []
+    programs: list[JointProgram] = []
+    sources: list[np.ndarray] = []
+    for piece in pieces:
+        sources.append(piece.path.source + offset)
+        labels += piece.path.source_labels
+        offset += len(piece.path.source_labels)
+        programs.append(piece.program)
+    source = np.concatenate(sources)
+    events: list[Event] = []
+    rows = 0
+    for piece in pieces:
+        events += [replace(e, before=e.before + rows) for e in piece.program.events]
+        rows += len(piece.path)
+    program = replace(join_programs(programs), source=source, source_labels=tuple(labels))
+    paths = [p.path for p in pieces]
+    path = Toolpath(kind=np.concatenate([p.kind for p in paths]), tip=np.vstack([p.tip for p in paths]),
+                    axis=np.vstack([p.axis for p in paths]), feed=np.concatenate([p.feed for p in paths]),
+                    source=source, events=tuple(events), source_labels=tuple(labels))
+    iks = [p.ik for p in pieces]
+    ik = IKResult(**{name: np.concatenate([getattr(r, name) for r in iks])
+                     for name in ("stage", "strokes", "link_angle", "condition", "reachable")})
+    reports = [p.limits for p in pieces]
+    limits = replace(reports[0], value=np.concatenate([r.value for r in reports]),
+                     margin=np.concatenate([r.margin for r in reports]), ok=np.concatenate([r.ok for r in reports]))
+    return PostResult(program=program, path=path, ik=ik, limits=limits)
 
 
 def _file_given(source: str, kind: str, name: str) -> str | None:
@@ -163,8 +428,19 @@ def _file_given(source: str, kind: str, name: str) -> str | None:
     return None if source == f"{kind}/{name}.toml" else source
 
 
-def header_of(spec: JobSpec, part_sha256: str) -> ProgramHeader:
-    """What the program header records of ``spec`` (the part by its file name and SHA-256)."""
+def header_of(spec: JobSpec, part_sha256: str, *, operations: tuple[JobSpec, ...] = (),
+              lengths: list[float] | tuple[float, ...] = ()) -> ProgramHeader:
+    """What the program header records of ``spec`` (the part by its file name and SHA-256) or, with
+    ``operations`` (two or more), of the job of those operations; ``lengths`` (mm) are the tool
+    lengths "TL" each operation's IK used (the tools are stated with a tool table or several operations)."""
+    records = tuple(_record(op) for op in operations)
+    tools: dict[int, ToolRecord] = {}
+    if spec.tool_table is not None or operations:
+        for op, length in zip(operations or (spec,), lengths, strict=True):
+            table = op.tool_table.find(op.cutting.tool_number) if op.tool_table is not None else None
+            tools.setdefault(op.cutting.tool_number, ToolRecord(
+                number=op.cutting.tool_number, diameter=op.cutting.tool_diameter,
+                length=None if table is None else table.length, ik_length=length))
     return ProgramHeader(
         version=f"prs3-post {__version__}", machine=spec.machine.name,
         machine_file=_file_given(spec.machine.source, "machines", spec.machine.name),
@@ -174,16 +450,37 @@ def header_of(spec: JobSpec, part_sha256: str) -> ProgramHeader:
         at_uv=np.asarray(spec.at_uv, dtype=np.float64).reshape(-1, 2),
         at_xyz=np.asarray(spec.at_xyz, dtype=np.float64).reshape(-1, 3), cutting=spec.cutting,
         tolerance=spec.tolerance, line_numbers=spec.line_numbers, line_start=spec.line_start,
-        line_step=spec.line_step,
+        line_step=spec.line_step, operations=records, tools=tuple(tools.values()),
     )
+
+
+def _record(spec: JobSpec) -> OperationRecord:
+    return OperationRecord(face=spec.face, face_index=-1 if spec.face is None else spec.face, work=spec.work,
+                           at_uv=np.asarray(spec.at_uv, dtype=np.float64).reshape(-1, 2),
+                           at_xyz=np.asarray(spec.at_xyz, dtype=np.float64).reshape(-1, 3), cutting=spec.cutting)
 
 
 def spec_from_header(header: ProgramHeader, part: str, machine: Machine, dialect: Dialect) -> JobSpec:
     """The JobSpec a program header records, on the part file ``part`` (the caller checks that it is
-    the recorded part) with the machine and dialect the header names (loaded by the caller)."""
-    return JobSpec(
-        part=part, units=header.units, face=header.face, work=header.work, at_uv=header.at_uv,
-        at_xyz=header.at_xyz, cutting=header.cutting, machine=machine, dialect=dialect, setup=header.setup,
-        tolerance=header.tolerance, line_numbers=header.line_numbers, line_start=header.line_start,
-        line_step=header.line_step, up=header.up,
-    )
+    the recorded part) with the machine and dialect the header names (loaded by the caller): the
+    first operation of a job of several (:func:`specs_from_header` gives them all)."""
+    return specs_from_header(header, part, machine, dialect)[0]
+
+
+def specs_from_header(header: ProgramHeader, part: str, machine: Machine, dialect: Dialect) -> tuple[JobSpec, ...]:
+    """Every operation a program header records, as the JobSpecs :func:`run_operations` takes; the
+    tool lengths are the header's (a tool table rebuilt from it)."""
+    table = None
+    if header.tools and all(t.length is not None for t in header.tools):
+        line = header.line("tools") or 0
+        table = ToolTable(path=header.path, tools=tuple(
+            Tool(number=t.number, pocket=None, diameter=t.diameter, length=float(t.length or 0.0), line=line)
+            for t in header.tools))
+    records = header.operations or (OperationRecord(face=header.face, face_index=header.face_index,
+                                                    work=header.work, at_uv=header.at_uv, at_xyz=header.at_xyz,
+                                                    cutting=header.cutting),)
+    return tuple(JobSpec(
+        part=part, units=header.units, face=r.face, work=r.work, at_uv=r.at_uv, at_xyz=r.at_xyz, cutting=r.cutting,
+        machine=machine, dialect=dialect, setup=header.setup, tolerance=header.tolerance,
+        line_numbers=header.line_numbers, line_start=header.line_start, line_step=header.line_step, up=header.up,
+        tool_table=table) for r in records)

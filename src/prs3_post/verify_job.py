@@ -30,7 +30,7 @@ import numpy as np
 from prs3_post.config import Dialect, Machine, load_dialect, load_machine
 from prs3_post.errors import ConfigError, InputError, PoseError
 from prs3_post.face import Face
-from prs3_post.job import JobSpec, run_job, spec_from_header
+from prs3_post.job import JobSpec, run_operations, specs_from_header
 from prs3_post.kinematics import unit_axes
 from prs3_post.readers.header import ProgramHeader, file_sha256, read_header
 from prs3_post.readers.poses import read_poses
@@ -208,9 +208,9 @@ def check_part(header: ProgramHeader, part: str) -> None:
             what="part")
 
 
-def header_job(context: ProgramContext, part: str) -> JobSpec:
+def header_job(context: ProgramContext, part: str) -> tuple[JobSpec, ...]:
     """The job a program's header records, on ``part`` (checked by SHA-256), with the context's
-    machine and dialect.
+    machine and dialect: its operations (one for the main job).
 
     Raises
     ------
@@ -222,15 +222,25 @@ def header_job(context: ProgramContext, part: str) -> JobSpec:
         raise InputError("the program has no prs3-post header: the operation it was made with must be given",
                          path=context.program.path)
     check_part(header, part)
-    return spec_from_header(header, part, context.machine, context.dialect)
+    return specs_from_header(header, part, context.machine, context.dialect)
 
 
-def intended_from_job(spec: JobSpec) -> Intended:
-    """The path a job makes (machine frame), as what a program should do."""
-    path = run_job(spec).post.path
+def intended_from_job(specs: JobSpec | tuple[JobSpec, ...]) -> Intended:
+    """The path a job makes (machine frame), as what a program should do.
+
+    Forward kinematics replays a program with the machine's tool length; where an operation's tool
+    is another length (a tool table), its intended tips are moved along the axis to the point at
+    the machine's tool length from the platform centre: that point is what the replay shows, and it
+    is on the intended path exactly when the tool's tip is.
+    """
+    specs = specs if isinstance(specs, tuple) else (specs,)
+    result = run_operations(specs)
+    path = result.post.path
+    shift = result.tool_length - specs[0].machine.geometry.tool_length          # (N,) mm
+    tip = path.tip + shift[:, None] * path.axis
     feed = np.where(path.kind == MoveKind.FEED, path.feed, np.nan)
-    return Intended(tip=path.tip, axis=path.axis, feed=feed, kind=path.kind,
-                    label=f"{Path(spec.part).name} ({spec.operation.value})")
+    what = "+".join(dict.fromkeys(s.operation.value for s in specs))
+    return Intended(tip=tip, axis=path.axis, feed=feed, kind=path.kind, label=f"{Path(specs[0].part).name} ({what})")
 
 
 def intended_from_poses(path: str, program: ProgramFile) -> Intended:

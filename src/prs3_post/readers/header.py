@@ -18,6 +18,14 @@ appear for a machine or dialect given by path)::
     (tolerance: 0.002 mm)
     (units: mm, G93 inverse time: F = 1/minutes of each move)
 
+With a tool table, a ``(tools: ...)`` entry follows ``tool``: each tool's number, diameter, its
+table length and the length "TL" the IK used (``T1 diameter 6.000 mm, length 52.300 mm, IK length
+172.300 mm``; tools joined by ``and``). A job of several operations writes, instead of ``face``,
+``operation``, ``parameters`` and ``tool``: ``(tools: ...)`` after ``setup`` (without a tool table a
+tool has no ``length`` item: its IK length is the machine's), ``(operations: N)``, and for each
+operation K ``(operation K face: ...)``, ``(operation K: ...)``, ``(operation K parameters: ...)``,
+``(operation K tool: ...)`` in the forms above.
+
 Numbers are fixed decimals (``6.000``), with more decimals where that is what it takes to read
 back the exact value the job used: a header read back gives the same job, bit for bit. Angles kept
 in radians by the job are written in degrees such that converting them back gives the same radians.
@@ -57,6 +65,36 @@ HEAD_BYTES = 64 * 1024
 
 
 @dataclass(frozen=True, slots=True)
+class OperationRecord:
+    """One operation of a job's header (attributes as :class:`ProgramHeader`'s of the same names)."""
+
+    face: int | None
+    face_index: int
+    work: HoleJob | ProfileJob
+    at_uv: FloatArray
+    at_xyz: FloatArray
+    cutting: Cutting
+
+
+@dataclass(frozen=True, slots=True)
+class ToolRecord:
+    """A tool a program uses, as its header states it.
+
+    Attributes
+    ----------
+    number : int — the T word
+    diameter : float — mm
+    length : float | None — mm, the tool table's Z (None: no tool table, the machine's tool length)
+    ik_length : float — mm, the tool length "TL" the IK used (platform centre to tip)
+    """
+
+    number: int
+    diameter: float
+    length: float | None
+    ik_length: float
+
+
+@dataclass(frozen=True, slots=True)
 class ProgramHeader:
     """What a program says it was made from.
 
@@ -80,6 +118,9 @@ class ProgramHeader:
     cutting : Cutting
     tolerance : float — mm
     line_numbers, line_start, line_step : the block-numbering overrides (None: the dialect's)
+    operations : tuple of OperationRecord — every operation of a job of several (the fields above are
+        the first's); empty for a job of one
+    tools : tuple of ToolRecord — the tools used, with their lengths (empty: one operation, no tool table)
     lines : tuple of (key, line) — where each key was read (1-based program lines; empty when written)
     path : str — the program it was read from (empty when written)
     """
@@ -104,6 +145,8 @@ class ProgramHeader:
     line_numbers: bool | None = None
     line_start: int | None = None
     line_step: int | None = None
+    operations: tuple[OperationRecord, ...] = ()
+    tools: tuple[ToolRecord, ...] = ()
     lines: tuple[tuple[str, int], ...] = ()
     path: str = ""
 
@@ -222,7 +265,8 @@ def _positions(at_uv: FloatArray, at_xyz: FloatArray) -> str:
     return " and ".join(parts) if parts else "at the face origin"
 
 
-def header_entries(header: ProgramHeader, face: Face, *, description: str = "") -> tuple[tuple[str, str], ...]:
+def header_entries(header: ProgramHeader, face: Face, *, description: str = "",
+                   faces: tuple[Face, ...] = ()) -> tuple[tuple[str, str], ...]:
     """The ``(key, value)`` comment entries of ``header`` (the module docstring shows them).
 
     Parameters
@@ -230,9 +274,8 @@ def header_entries(header: ProgramHeader, face: Face, *, description: str = "") 
     header : ProgramHeader
     face : Face — the face worked on (its inclination, normal and origin are stated for people)
     description : str — the machine's one-line description
+    faces : tuple of Face — each operation's face, for a header with ``operations``
     """
-    cut = header.cutting
-    how = "chosen automatically" if header.face is None else "as given"
     numbering = []
     if header.line_numbers is not None:
         numbering.append(f"line numbers {'on' if header.line_numbers else 'off'}")
@@ -249,20 +292,49 @@ def header_entries(header: ProgramHeader, face: Face, *, description: str = "") 
     entries.append(("dialect", ", ".join([header.dialect, *numbering])))
     if header.dialect_file is not None:
         entries.append(("dialect file", header.dialect_file))
+    entries.append(("part", f"{header.part_name}, units {header.units}, up {header.up}, sha256 {header.part_sha256}"))
+    if header.operations:
+        entries += [("setup", _setup_text(header.setup)), ("tools", _tools_text(header.tools)),
+                    ("operations", str(len(header.operations)))]
+        for number, (record, worked) in enumerate(zip(header.operations, faces, strict=True), start=1):
+            entries += [(f"operation {number} {key}" if key else f"operation {number}", value)
+                        for key, value in _operation_entries(record, worked)]
+    else:
+        record = OperationRecord(face=header.face, face_index=header.face_index, work=header.work,
+                                 at_uv=header.at_uv, at_xyz=header.at_xyz, cutting=header.cutting)
+        face_entry, *rest = _operation_entries(record, face)
+        entries += [("face", face_entry[1]), ("setup", _setup_text(header.setup)),
+                    *((key or "operation", value) for key, value in rest)]
+        if header.tools:
+            entries.append(("tools", _tools_text(header.tools)))
     entries += [
-        ("part", f"{header.part_name}, units {header.units}, up {header.up}, sha256 {header.part_sha256}"),
-        ("face", f"{face.index}, {how}: inclination {_fixed(math.degrees(face.inclination), 4)} deg, "
-                 f"normal {_shown(face.normal, 6)}, origin {_shown(face.origin, 4)} mm"),
-        ("setup", _setup_text(header.setup)),
-        ("operation", f"{header.work.operation.value} {_positions(header.at_uv, header.at_xyz)}"),
-        ("parameters", _join(_items_of(header.work), _item_values(header.work))),
-        ("tool", f"T{cut.tool_number} " + _join(_TOOL_ITEMS, [
-            exact_text(cut.tool_diameter, 3), exact_text(cut.feed, 1), exact_text(cut.plunge_feed, 1),
-            exact_text(cut.spindle_rpm, 0), cut.coolant.value])),
         ("tolerance", f"{exact_text(header.tolerance, 3)} mm"),
         ("units", "mm, G93 inverse time: F = 1/minutes of each move"),
     ]
     return tuple(entries)
+
+
+def _operation_entries(record: OperationRecord, face: Face) -> list[tuple[str, str]]:
+    """``face``, the operation (key ``""``), ``parameters`` and ``tool`` entries of one operation."""
+    cut = record.cutting
+    how = "chosen automatically" if record.face is None else "as given"
+    return [
+        ("face", f"{face.index}, {how}: inclination {_fixed(math.degrees(face.inclination), 4)} deg, "
+                 f"normal {_shown(face.normal, 6)}, origin {_shown(face.origin, 4)} mm"),
+        ("", f"{record.work.operation.value} {_positions(record.at_uv, record.at_xyz)}"),
+        ("parameters", _join(_items_of(record.work), _item_values(record.work))),
+        ("tool", f"T{cut.tool_number} " + _join(_TOOL_ITEMS, [
+            exact_text(cut.tool_diameter, 3), exact_text(cut.feed, 1), exact_text(cut.plunge_feed, 1),
+            exact_text(cut.spindle_rpm, 0), cut.coolant.value])),
+    ]
+
+
+def _tools_text(tools: tuple[ToolRecord, ...]) -> str:
+    """``T1 diameter 6.000 mm, length 52.300 mm, IK length 172.300 mm and T2 ...`` (not ``;``: the
+    dialects turn it into a comma)."""
+    return " and ".join(f"T{t.number} diameter {exact_text(t.diameter, 3)} mm"
+                     + ("" if t.length is None else f", length {exact_text(t.length, 3)} mm")
+                     + f", IK length {exact_text(t.ik_length, 3)} mm" for t in tools)
 
 
 def _setup_text(setup: Setup) -> str:
@@ -275,10 +347,15 @@ def _setup_text(setup: Setup) -> str:
 
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?"
 _VECTOR = rf"\[\s*{_NUMBER}(?:\s*,\s*{_NUMBER})*\s*\]"
-_ENTRY = re.compile(r"^\s*([a-z][a-z ]*?)\s*:\s?(.*?)\s*$", re.IGNORECASE)
+_ENTRY = re.compile(r"^\s*([a-z][a-z0-9 ]*?)\s*:\s?(.*?)\s*$", re.IGNORECASE)
 _KEYS = ("program", "machine", "machine file", "dialect", "dialect file", "part", "face", "setup", "operation",
-         "parameters", "tool", "tolerance", "units")
-_REQUIRED = tuple(k for k in _KEYS if not k.endswith(" file"))
+         "parameters", "tool", "tools", "operations", "tolerance", "units")
+_REQUIRED = tuple(k for k in _KEYS if not k.endswith(" file") and k not in ("tools", "operations"))
+#: The keys of a job of several operations (and ``operation K ...`` for each).
+_REQUIRED_SEVERAL = ("program", "machine", "dialect", "part", "setup", "tools", "operations", "tolerance", "units")
+_OPERATION_KEY = re.compile(r"operation [1-9][0-9]{0,3}(?: face| parameters| tool)?")
+#: The largest number of operations a header may state.
+MAX_OPERATIONS = 9999
 
 
 class _Bad(Exception):
@@ -416,7 +493,7 @@ def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHe
         if entry is None:
             continue
         key = entry.group(1).lower()
-        if key not in _KEYS:
+        if key not in _KEYS and not _OPERATION_KEY.fullmatch(key):
             continue
         if key in found:
             raise InputError(f"header: '{key}' appears twice (first on line {found[key][0]})", path=path, line=number)
@@ -424,10 +501,12 @@ def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHe
         last = number
     if PROGRAM_KEY not in found or not found[PROGRAM_KEY][1].lower().startswith("prs3-post"):
         return None
-    missing = [k for k in _REQUIRED if k not in found]
+    several = "operations" in found
+    required = _REQUIRED_SEVERAL if several else _REQUIRED
+    missing = [k for k in required if k not in found]
     if missing:
         raise InputError(f"header: no {', '.join(repr(k) for k in missing)} entry (a prs3-post header has "
-                         f"{', '.join(_REQUIRED)})", path=path, line=last)
+                         f"{', '.join(required)})", path=path, line=last)
     key = PROGRAM_KEY
     try:
         key = "machine"
@@ -438,44 +517,97 @@ def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHe
         dialect, numbers, start, step = _dialect(found["dialect"][1])
         key = "part"
         part = _match(_PART, found["part"][1])
-        key = "face"
-        face = _match(_FACE, found["face"][1])
         key = "setup"
         setup_match = _match(_SETUP, found["setup"][1])
         try:
             setup = Setup(_vector(setup_match.group(1), 3), float(setup_match.group(2)))  # type: ignore[arg-type]
         except Prs3Error as error:
             raise _Bad(str(error)) from error
-        key = "operation"
-        operation = _match(_OPERATION, found["operation"][1])
-        at_uv = np.array([_vector(v, 2) for v in re.findall(_VECTOR, operation.group(2) or "")],
-                         dtype=np.float64).reshape(-1, 2)
-        at_xyz = np.array([_vector(v, 3) for v in re.findall(_VECTOR, operation.group(3) or "")],
-                          dtype=np.float64).reshape(-1, 3)
-        key = "parameters"
-        work = _work(operation.group(1), found["parameters"][1])
-        key = "tool"
-        cutting = _cutting(found["tool"][1])
-        every = np.concatenate([at_uv.ravel(), at_xyz.ravel()])
-        if not (np.isfinite(every).all() and np.abs(every).max(initial=0.0) <= MAX_POSITION_MM):
-            raise _Bad(f"positions must be finite and within ±{MAX_POSITION_MM:g} mm")
+        tools: tuple[ToolRecord, ...] = ()
+        if "tools" in found:
+            key = "tools"
+            tools = _tools(found["tools"][1])
+        operations: tuple[OperationRecord, ...] = ()
+        if several:
+            key = "operations"
+            count = _match(r"([1-9][0-9]{0,3})", found["operations"][1])
+            prefixes = [f"operation {k} " for k in range(1, int(count.group(1)) + 1)]
+            absent = [p + suffix for p in prefixes for suffix in ("face", "", "parameters", "tool")
+                      if (p + suffix).strip() not in found]
+            if absent:
+                raise _Bad(f"{count.group(1)} operations, but no {', '.join(repr(k.strip()) for k in absent)} entry")
+            records = []
+            for prefix in prefixes:
+                record, key = _operation_record(found, prefix)
+                records.append(record)
+            operations = tuple(records)
+            first = operations[0]
+        else:
+            first, key = _operation_record(found, "")
         key = "tolerance"
         tolerance = float(_match(_TOLERANCE, found["tolerance"][1]).group(1))
         if not (math.isfinite(tolerance) and 0.0 < tolerance <= MAX_POSITION_MM):
             raise _Bad(f"expected a tolerance > 0 mm, got {found['tolerance'][1]!r}")
     except _Bad as bad:
+        key = getattr(bad, "key", key)                  # the entry of an operation that failed
         raise InputError(f"header: {key}: {bad}", path=path, line=found[key][0]) from bad
     return ProgramHeader(
         version=found[PROGRAM_KEY][1], machine=machine,
         machine_file=found["machine file"][1] if "machine file" in found else None,
         dialect=dialect, dialect_file=found["dialect file"][1] if "dialect file" in found else None,
         part_name=part.group(1), part_sha256=part.group(4).lower(), units=part.group(2).lower(),
-        up=part.group(3).lower(),
-        face=None if face.group(2).lower() == "chosen automatically" else int(face.group(1)),
-        face_index=int(face.group(1)), setup=setup, work=work, at_uv=at_uv, at_xyz=at_xyz, cutting=cutting,
-        tolerance=tolerance, line_numbers=numbers, line_start=start, line_step=step,
-        lines=tuple((k, v[0]) for k, v in found.items()), path=path,
+        up=part.group(3).lower(), face=first.face, face_index=first.face_index, setup=setup, work=first.work,
+        at_uv=first.at_uv, at_xyz=first.at_xyz, cutting=first.cutting,
+        tolerance=tolerance, line_numbers=numbers, line_start=start, line_step=step, operations=operations,
+        tools=tools, lines=tuple((k, v[0]) for k, v in found.items()), path=path,
     )
+
+
+def _operation_record(found: dict[str, tuple[int, str]], prefix: str) -> tuple[OperationRecord, str]:
+    """The operation whose entries are ``{prefix}face`` ... ``{prefix}tool``, and the last key read.
+    A _Bad raised here carries the key of the entry that failed as its ``key`` attribute."""
+    key = f"{prefix}face"
+    try:
+        face = _match(_FACE, found[key][1])
+        key = prefix + "operation" if not prefix else prefix.strip()
+        operation = _match(_OPERATION, found[key][1])
+        at_uv = np.array([_vector(v, 2) for v in re.findall(_VECTOR, operation.group(2) or "")],
+                         dtype=np.float64).reshape(-1, 2)
+        at_xyz = np.array([_vector(v, 3) for v in re.findall(_VECTOR, operation.group(3) or "")],
+                          dtype=np.float64).reshape(-1, 3)
+        key = f"{prefix}parameters"
+        work = _work(operation.group(1), found[key][1])
+        key = f"{prefix}tool"
+        cutting = _cutting(found[key][1])
+        every = np.concatenate([at_uv.ravel(), at_xyz.ravel()])
+        if not (np.isfinite(every).all() and np.abs(every).max(initial=0.0) <= MAX_POSITION_MM):
+            raise _Bad(f"positions must be finite and within ±{MAX_POSITION_MM:g} mm")
+    except _Bad as bad:
+        bad.key = key                                   # type: ignore[attr-defined]
+        raise
+    record = OperationRecord(face=None if face.group(2).lower() == "chosen automatically" else int(face.group(1)),
+                             face_index=int(face.group(1)), work=work, at_uv=at_uv, at_xyz=at_xyz, cutting=cutting)
+    return record, key
+
+
+_TOOL_RECORD = re.compile(rf"T(\d+) diameter ({_NUMBER}) mm(?:, length ({_NUMBER}) mm)?, IK length ({_NUMBER}) mm",
+                          re.IGNORECASE)
+
+
+def _tools(text: str) -> tuple[ToolRecord, ...]:
+    records = []
+    for part in re.split(r"\s+and\s+", text, flags=re.IGNORECASE):
+        found = _TOOL_RECORD.fullmatch(part.strip())
+        if found is None:
+            raise _Bad(f"expected 'TN diameter D mm[, length L mm], IK length TL mm' for each tool (joined by "
+                       f"'and'), got {part.strip()!r}")
+        number, diameter, length, ik_length = found.groups()
+        values = [float(diameter), float(ik_length), *([] if length is None else [float(length)])]
+        if not all(0.0 <= v <= MAX_POSITION_MM for v in values):
+            raise _Bad(f"tool lengths and diameters must be within 0 to {MAX_POSITION_MM:g} mm, got {part.strip()!r}")
+        records.append(ToolRecord(number=int(number), diameter=float(diameter),
+                                  length=None if length is None else float(length), ik_length=float(ik_length)))
+    return tuple(records)
 
 
 def header_comments(text: str, *, open_: str = "(", close: str = ")") -> list[tuple[int, str]]:
