@@ -632,6 +632,8 @@ def demo(**opts: Any) -> None:
 
 #: Keys of a job file's ``[[operation]]`` whose main-job option has another name.
 _JOB_KEY_OPTION = {"face": "face_choice", "at": "at_uv", "tool": "tool_number"}
+#: The job file's key of a main-job flag whose name differs (``--tool-number`` → ``tool``).
+_JOB_KEY_OF = {"tool-number": "tool"}
 #: Top-level keys of a job file and the main-job option each sets.
 _JOB_SETTING_OPTION = {"units": "units", "up": "up", "machine": "machine_name", "dialect": "dialect_name",
                        "tolerance": "tolerance", "line_numbers": "line_numbers", "line_start": "line_start",
@@ -650,6 +652,8 @@ def _job_value(param: click.Parameter, value: Any) -> Any:
         if not (isinstance(value, str) or isinstance(value, int)):
             raise click.BadParameter(f'expected "auto" or a face index, got {value!r}')
         return str(value)
+    if isinstance(param.type, (Decimal, Integer)) and isinstance(value, str):
+        raise click.BadParameter(f"expected a number, got {value!r}")
     if isinstance(param.type, click.Choice) and not isinstance(value, str):
         raise click.BadParameter(f"expected one of {', '.join(map(str, param.type.choices))}, got {value!r}")
     return param.type.convert(value, None, None)
@@ -685,8 +689,10 @@ def _job_specs(job: JobFile) -> tuple[JobSpec, ...]:
             spec = _job_spec(job.part, opts)
         except click.ClickException as error:
             raise InputError(f"{where}: {error.format_message()}", path=job.path) from error
-        except FeatureError as error:
-            raise InputError(f"{where}: {error}", path=job.path) from error
+        except FeatureError as error:                  # worded for the options: say the job file's keys
+            named = re.sub(r"--([a-z-]+)", lambda m: _JOB_KEY_OF.get(m.group(1), m.group(1).replace("-", "_")),
+                           str(error))
+            raise InputError(f"{where}: {named}", path=job.path) from error
         specs.append(dataclasses.replace(spec, tool_table=table))
     return tuple(specs)
 

@@ -290,8 +290,8 @@ def transition_paths(before: Toolpath, after: Toolpath, lengths: tuple[float, fl
 
     ``before``'s last row is the first operation's end (its retract height above its face), ``after``'s
     first row the second's start (above its first feature). The lift (first tool) goes up along the
-    current axis until the tip is at ``height`` plus how much longer the next tool is, so that the
-    next tool's tip is at ``height`` after the change. The second piece (next tool) turns the axis
+    current axis until the next tool's tip would be at ``height`` (at least), so that it is there
+    after the change. The second piece (next tool) turns the axis
     there with the tip fixed, on the great circle, as RAPID rows every :data:`REORIENT_STEP` at most
     (its first row repeats the lift's end pose, for the subdivision to start from: drop it after
     IK), then goes over to ``height`` above the next start; the next operation's first row goes down.
@@ -306,7 +306,8 @@ def transition_paths(before: Toolpath, after: Toolpath, lengths: tuple[float, fl
     tip_a, axis_a = before.tip[-1], before.axis[-1]
     tip_b, axis_b = after.tip[0], after.axis[0]
     longer = max(0.0, lengths[1] - lengths[0])
-    rise = max(0.0, (height + longer - tip_a[2]) / axis_a[2])     # axis_z > 0: a tool points up
+    # the next tool's tip (at the same joints: longer·axis below) at ``height``; axis_z > 0: a tool points up
+    rise = max(0.0, (height + longer * axis_a[2] - tip_a[2]) / axis_a[2])
     lifted = tip_a + rise * axis_a
     rows = 1 if rise > 0.0 else 0                                  # already there: no lift
     lift = _rapids(np.tile(lifted, (rows, 1)), np.tile(axis_a, (rows, 1)), labels[0])
