@@ -175,7 +175,8 @@ def test_every_job_output_passes_linuxcnc(example, rs274_check, tmp_path: Path) 
     same_tool = tmp_path / "same.toml"
     same_tool.write_text(EXAMPLE.read_text(encoding="utf-8").replace("tool = 2 ", "tool = 1 ")
                          .replace('"../parts/twofaces.stl"', f'"{TWOFACES}"')
-                         .replace('"tools.tbl"', f'"{JOBS / "tools.tbl"}"').replace("diameter = 20.0", "diameter = 24.0"),
+                         .replace('"tools.tbl"', f'"{JOBS / "tools.tbl"}"')
+                         .replace("diameter = 20.0", "diameter = 24.0"),
                          encoding="utf-8")
     second = tmp_path / "same.ngc"
     made = run_cli("job", str(same_tool), "-o", str(second))
@@ -243,3 +244,18 @@ def test_job_file_reader_resolves_paths_against_the_file() -> None:
     assert [o["profile"] for o in job.operations] == ["hole", "round"]
     with pytest.raises(InputError):
         read_job_file(str(JOBS / "tools.tbl"))
+
+
+def test_a_limit_error_names_the_operation_and_a_placement_for_it_alone(tmp_path: Path) -> None:
+    job = tmp_path / "job.toml"
+    text = EXAMPLE.read_text(encoding="utf-8").replace('"../parts/twofaces.stl"', f'"{TWOFACES}"')
+    job.write_text(text.replace('"tools.tbl"', f'"{JOBS / "tools.tbl"}"').replace("feed = 400.0", "feed = 400.0\n"
+                                                                                   "retract = 300.0"), encoding="utf-8")
+    out = tmp_path / "out.ngc"
+    result = run_cli("job", str(job), "-o", str(out))
+    assert (result.exit_code, out.exists()) == (1, False)
+    assert result.stderr == (
+        "prs3-post: error: operation 2 (round on face 6), round approach: T1 stroke -230.7257 mm is below the "
+        "minimum -100.0000 mm by 130.7257 mm (2 points outside limits in all); setup: part origin at machine "
+        "[-100.0000, -200.0000, -970.0000] mm, rotation 0.0000 deg about z; a part origin at machine "
+        "[-210.1, -188.4, -1149.4] mm puts this operation (alone) inside the machine's limits\n")

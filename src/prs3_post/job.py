@@ -35,7 +35,7 @@ from prs3_post.ops import Cutting, plan_holes, plan_profile
 from prs3_post.ops.common import require_tolerance
 from prs3_post.ops.work import HoleJob, Operation, ProfileJob
 from prs3_post.pipeline import PostResult, post_process
-from prs3_post.placement import placement_error
+from prs3_post.placement import placement_error, suggest_origin
 from prs3_post.readers.header import OperationRecord, ProgramHeader, ToolRecord, exact_text, file_sha256, header_entries
 from prs3_post.readers.stl import load_part
 from prs3_post.readers.tooltable import Tool, ToolTable
@@ -245,6 +245,8 @@ def run_operations(specs: tuple[JobSpec, ...]) -> JobResult:
         try:
             post = post_process(machine, path_part, spec.setup, tolerance=spec.tolerance, length_decimals=decimals)
         except (LimitError, ReachError) as error:          # say the setup, and one that fits if there is one
+            if several:                                    # a suggestion would fit this operation alone
+                raise _operation_error(error, machine, path_part, spec, decimals) from error
             raise placement_error(error, machine, path_part, spec.setup, tolerance=spec.tolerance,
                                   length_decimals=decimals) from error
         done.append(OperationResult(face=face, face_note=note, path_part=path_part, tool_length=length, label=label))
@@ -263,6 +265,17 @@ def run_operations(specs: tuple[JobSpec, ...]) -> JobResult:
     return JobResult(text=text, face=done[0].face, face_note=done[0].face_note, path_part=done[0].path_part,
                      post=post, setup=first.setup, triangles=triangles, operations=tuple(done),
                      tool_length=row_length)
+
+
+def _operation_error(error: LimitError | ReachError, machine: Machine, path_part: Toolpath, spec: JobSpec,
+                     decimals: int) -> LimitError | ReachError:
+    """An operation's limit or reach error in a job of several: the setup, and a part origin that
+    fits this operation (only: the job's other operations may not fit there)."""
+    origin = suggest_origin(machine, path_part, spec.setup, tolerance=spec.tolerance, length_decimals=decimals)
+    advice = ("no translation of the part puts this operation inside the machine's limits" if origin is None else
+              f"a part origin at machine [{', '.join(origin)}] mm puts this operation (alone) inside the machine's "
+              "limits")
+    return type(error)(f"{error}; setup: {spec.setup.describe()}; {advice}")
 
 
 def _with_tool_length(machine: Machine, length: float) -> Machine:
