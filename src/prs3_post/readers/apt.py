@@ -31,9 +31,11 @@ Major words understood (anything else is an error naming file:line, unless it is
   A later MSYS replaces the frame (it is not composed with the previous one).
 - ``UNITS/MM|INCHES`` — the file's length unit, for the whole file. Without it, the caller's unit,
   else inches when a ``FEDRAT`` is in IPM/IPR (and none in MMPM/MMPR), else mm.
-- ``LOADTL/n``, ``LOAD/TOOL,n`` — tool change (TOOL_CHANGE event); ``SELECT/TOOL,n`` pre-selects
-  the next tool (no event: the tool in the spindle does not change); ``TLDATA/...`` describes the
-  cutter's shape (kept in :attr:`ClFile.tool_data`; it does not give the tool's gauge length).
+- ``LOADTL/n``, ``LOAD/TOOL,n`` — tool change (TOOL_CHANGE event; what follows the number, such
+  as ``ADJUST,m``, a length-offset register, is not used: the IK uses the machine's tool length);
+  ``SELECT/TOOL,n`` pre-selects the next tool (no event: the tool in the spindle does not change);
+  ``TLDATA/...`` describes the cutter's shape (kept in :attr:`ClFile.tool_data`; it does not give
+  the tool's gauge length).
 - ``SPINDL/[RPM,]s[,CLW|CCLW]``, ``SPINDL/ON``, ``SPINDL/OFF`` — SPINDLE_ON (``text = 'ccw'`` for
   CCLW) / SPINDLE_OFF events.
 - ``COOLNT/ON|FLOOD|MIST|OFF`` — COOLANT_ON (``text`` flood or mist) / COOLANT_OFF events.
@@ -110,7 +112,6 @@ MM_PER_INCH = 25.4
 #: The most segments one arc may become (a radius of about 4 km at 0.002 mm: a typo, not a part).
 MAX_ARC_SEGMENTS = 100_000
 
-_MOTION_WORDS = ("GOTO", "FROM", "GOHOME")
 _KNOWN_WORDS = ("GOTO", "FROM", "GOHOME", "RAPID", "FEDRAT", "MULTAX", "TLAXIS", "MSYS", "UNITS", "LOADTL",
                 "LOAD", "SELECT", "TLDATA", "SPINDL", "COOLNT", "CYCLE", "CIRCLE", "PPRINT", "END-OF-PATH",
                 "FINI", "STOP", "OPSTOP")
