@@ -233,6 +233,9 @@ def arc_points(center_uv: FloatArray, radius: float, start: float, sweep: float,
     return arc_points_3d(centre, _W, first, last, tolerance=tolerance)[:, :2]
 
 
+#: mm, a corner radius below this is a sharp corner: its arc would be lost in the rounding of its centre
+#: (a radius of 1e-54 mm puts the arc's start on its centre).
+MIN_CORNER_MM = 1e-9
 #: The face normal in face coordinates (u, v, w): the axis the contour's arcs turn about.
 _W = np.array([0.0, 0.0, 1.0])
 
@@ -249,6 +252,8 @@ def _square_contour(half: float, corner: float, *, tolerance: float) -> FloatArr
 
     ``half`` = half the side (mm), ``corner`` = corner radius (mm, 0 = sharp).
     """
+    if corner < MIN_CORNER_MM:                         # below float resolution at the centres: a sharp corner
+        corner = 0.0
     inner = half - corner                              # corner-arc centres at (±inner, ±inner)
     signs = np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
     pieces = [np.array([[half, 0.0]])]
