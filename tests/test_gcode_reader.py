@@ -309,7 +309,8 @@ def test_the_stream_reads_a_file_in_pieces(tmp_path: Path) -> None:
 BAD = [
     ("G0 X0 Y0 Z0\nG1 X1 U2 F1\n", 2, "word 'U2' is not read by the 3+2 G-code reader (words read: G M N X Y Z I J K R "
      "P Q F S T H; O alone on its line)"),
-    ("G0 X0 Y0 Z0\nG43.4 H1\n", 2, "code G43.4 is not read by the 3+2 G-code reader (codes read: G0 G1 G2 G3 G4 G17 "
+    ("G0 X0 Y0 Z0\nG43.4 H1\n", 2, "code G43.4 is not read by the 3+2 G-code reader: tool centre point control "
+     "belongs to 5-axis programs (codes read: G0 G1 G2 G3 G4 G17 "
      "G18 G19 G20 G21 G40 G43 G49 G53.1 G54 G68.2 G69 G73 G80 G81 G82 G83 G90 G91 G91.1 G93 G94 G98 G99; M0 M1 M2 M3 "
      "M4 M5 M6 M7 M8 M9 M30)"),
     ("G0 X0 Y0 Z0\nG93\nG1 X5\n", 3, "G1 under G93 (inverse time) without F: every feed move under G93 needs its own "
@@ -360,7 +361,15 @@ BAD = [
     ("G0 X0 Y0 Z0\nG93 G81 X1 Y1 Z-1 R1 F1\n", 2, "G81 under G93 (inverse time): canned cycles need a feed per minute "
      "(G94)"),
     ("G1 F0\n", 1, "F must be > 0, got F0"),
-    ("G90.1\n", 1, "code G90.1 is not read by the 3+2 G-code reader (codes read: G0 G1 G2 G3 G4 G17 G18 G19 G20 G21 "
+    ("G64 P0.01\n", 1, "code G64 is not read by the 3+2 G-code reader (codes read: G0 G1 G2 G3 G4 G17 G18 G19 G20 G21 "
+     "G40 G43 G49 G53.1 G54 G68.2 G69 G73 G80 G81 G82 G83 G90 G91 G91.1 G93 G94 G98 G99; M0 M1 M2 M3 M4 M5 M6 M7 M8 "
+     "M9 M30)"),
+    ("G28 G91 Z0.\n", 1, "code G28 is not read by the 3+2 G-code reader: a return to the machine's reference point "
+     "is no position on the part; leave it out (the converted program starts and ends at the machine's safe position) "
+     "(codes read: G0 G1 G2 G3 G4 G17 G18 G19 G20 G21 G40 G43 G49 G53.1 G54 G68.2 G69 G73 G80 G81 G82 G83 G90 G91 "
+     "G91.1 G93 G94 G98 G99; M0 M1 M2 M3 M4 M5 M6 M7 M8 M9 M30)"),
+    ("G90.1\n", 1, "code G90.1 is not read by the 3+2 G-code reader: absolute arc centres: have the CAM system write "
+     "I J K relative to the start (G91.1) (codes read: G0 G1 G2 G3 G4 G17 G18 G19 G20 G21 "
      "G40 G43 G49 G53.1 G54 G68.2 G69 G73 G80 G81 G82 G83 G90 G91 G91.1 G93 G94 G98 G99; M0 M1 M2 M3 M4 M5 M6 M7 M8 "
      "M9 M30)"),
     ("G0 X0 Y0 Z9\nG18 G81 X1 Y1 Z-1 R1 F100\n", 2, "G81 in G18: canned cycles are read in G17 only, where the hole "

@@ -125,6 +125,17 @@ _M_GROUPS: dict[float, str] = {
 }
 _CODES_READ = ("G0 G1 G2 G3 G4 G17 G18 G19 G20 G21 G40 G43 G49 G53.1 G54 G68.2 G69 G73 G80 G81 G82 G83 G90 "
                "G91 G91.1 G93 G94 G98 G99; M0 M1 M2 M3 M4 M5 M6 M7 M8 M9 M30")
+#: Why some codes CAM posts write are not read (the message says it before the codes that are).
+_HINTS = {
+    **dict.fromkeys(("G28", "G30"), "a return to the machine's reference point is no position on the part; "
+                    "leave it out (the converted program starts and ends at the machine's safe position)"),
+    "G53": "machine coordinates are no position on the part",
+    **dict.fromkeys(("G43.4", "G43.5", "G234", "M428"), "tool centre point control belongs to 5-axis programs"),
+    **dict.fromkeys(("G41", "G42"), "cutter compensation: have the CAM system write the tool centre path"),
+    **dict.fromkeys(("G10", "G52", "G92"), "an offset set by the program; put the coordinates in the work plane"),
+    "G95": "feed per revolution: have the CAM system write a feed per minute (G94)",
+    "G90.1": "absolute arc centres: have the CAM system write I J K relative to the start (G91.1)",
+}
 _VALUE_LETTERS = "XYZIJKRPQFSTH"
 _WORDS_READ = "G M N X Y Z I J K R P Q F S T H; O alone on its line"
 _CYCLES = {81.0: Pecking.NONE, 82.0: Pecking.NONE, 83.0: Pecking.FULL_RETRACT, 73.0: Pecking.CHIP_BREAK}
@@ -665,8 +676,10 @@ class _Reader:
                 groups = _G_GROUPS if letter == "G" else _M_GROUPS
                 group = groups.get(value)
                 if group is None:
-                    raise self.error(f"code {code_name(letter, value)} is not read by the 3+2 G-code reader "
-                                     f"(codes read: {_CODES_READ})")
+                    name = code_name(letter, value)
+                    hint = f": {_HINTS[name]}" if name in _HINTS else ""
+                    raise self.error(f"code {name} is not read by the 3+2 G-code reader{hint} (codes read: "
+                                     f"{_CODES_READ})")
                 codes = block.g if letter == "G" else block.m
                 if group in codes:
                     raise self.error(f"{codes[group][1]} and {text} on one line: both are {letter} codes of the "
