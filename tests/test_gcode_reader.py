@@ -98,7 +98,7 @@ def test_g68_2_two_vector_form_and_the_same_plane_by_euler_angles() -> None:
     """P3: Q1 origin and x direction, Q2 the normal; the x direction a hair off square is squared."""
     body = "G0 X1 Y2 Z3\nG1 X4 F100\nG69\nM30\n"
     p3 = _parse("G0 X0 Y0 Z50\nG68.2 P3 Q1 X20 Y10 Z5 I0 J1.0004 K0\nG68.2 P3 Q2 I.5 J0 K.8660254\nG53.1\n" + body)
-    p0 = _parse("G0 X0 Y0 Z50\nG68.2 X20 Y10 Z5 I90 J30 K0\nG53.1\n" + body)
+    p0 = _parse("G0 X0 Y0 Z50\nG68.2 X20 Y10 Z5 I90 J30 K0 Q313\nG53.1\n" + body)
     assert_allclose(p3.toolpath.tip, p0.toolpath.tip, atol=1e-6)
     assert_allclose(p3.toolpath.axis, p0.toolpath.axis, atol=1e-7)
     assert p3.planes[0].line == 3
@@ -361,6 +361,8 @@ BAD = [
     ("G0 X0 Y0 Z0\nG93 G81 X1 Y1 Z-1 R1 F1\n", 2, "G81 under G93 (inverse time): canned cycles need a feed per minute "
      "(G94)"),
     ("G1 F0\n", 1, "F must be > 0, got F0"),
+    ("G68.2 X0 Y0 Z0 I10 J20 K0 Q121\n", 1, "G68.2 Q121: the Euler angles are read in the order Z-X-Z only (Q313, "
+     "the default)"),
     ("G64 P0.01\n", 1, "code G64 is not read by the 3+2 G-code reader (codes read: G0 G1 G2 G3 G4 G17 G18 G19 G20 G21 "
      "G40 G43 G49 G53.1 G54 G68.2 G69 G73 G80 G81 G82 G83 G90 G91 G91.1 G93 G94 G98 G99; M0 M1 M2 M3 M4 M5 M6 M7 M8 "
      "M9 M30)"),

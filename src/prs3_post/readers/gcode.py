@@ -15,8 +15,9 @@ plane's normal. ``G68.2`` defines a tilted plane inside it:
 
 - ``G68.2 X Y Z I J K`` (``P0``, the default): origin X Y Z (absolute, even under G91) and Euler
   angles Z-X'-Z'' in degrees, ``R = Rz(I)·Rx(J)·Rz(K)`` (FANUC Series 30i Descriptions B-63942EN/02
-  §5.44; :func:`~prs3_post.workplane.euler_zxz_deg`): ``I0 J30 K0`` tilts the plane 30° about X,
-  normal (0, −sin 30°, cos 30°).
+  §5.44; LinuxCNC's G68.2 remap reads P0 the same way, its default order ``Q313``, the only one
+  read here; :func:`~prs3_post.workplane.euler_zxz_deg`): ``I0 J30 K0`` tilts the plane 30° about
+  X, normal (0, −sin 30°, cos 30°).
 - ``G68.2 P3 Q1 X Y Z I J K`` then ``G68.2 P3 Q2 I J K`` on the next line (FANUC's two-vector form):
   origin and x direction, then the normal (z). The two must be 85° to 95° apart (FANUC); x is then
   made exactly perpendicular.
@@ -813,8 +814,10 @@ class _Reader:
         origin = np.array([block.take(a) or 0.0 for a in _AXES]) * self.scale
         vector = np.array([block.take(a) or 0.0 for a in _OFFSETS])
         if form == 0.0:
-            if block.take("Q") is not None:
-                raise self.error("G68.2 P0 (Euler angles) takes no Q: Q numbers the lines of the two-vector form P3")
+            order = block.take("Q")
+            if order is not None and order != 313:
+                raise self.error(f"G68.2 Q{order:g}: the Euler angles are read in the order Z-X-Z only (Q313, "
+                                 "the default)")
             self.set_tilt(WorkPlane(origin, euler_zxz_deg(*vector.tolist())), f"G68.2 {text}")
             return
         which = block.take("Q")
