@@ -259,3 +259,24 @@ def test_a_limit_error_names_the_operation_and_a_placement_for_it_alone(tmp_path
         "minimum -100.0000 mm by 130.7257 mm (2 points outside limits in all); setup: part origin at machine "
         "[-100.0000, -200.0000, -970.0000] mm, rotation 0.0000 deg about z; a part origin at machine "
         "[-210.1, -188.4, -1149.4] mm puts this operation (alone) inside the machine's limits\n")
+
+
+def test_one_tool_number_is_one_tool(tmp_path: Path) -> None:
+    job = tmp_path / "job.toml"
+    text = EXAMPLE.read_text(encoding="utf-8").replace('"../parts/twofaces.stl"', f'"{TWOFACES}"')
+    text = text.replace('tool_table = "tools.tbl"\n', "").replace("tool = 2 ", "tool = 1 ")
+    job.write_text(text.replace("diameter = 20.0", "diameter = 20.0\ntool_diameter = 8.0"), encoding="utf-8")
+    result = run_cli("job", str(job), "-o", str(tmp_path / "out.ngc"))
+    assert (result.exit_code, result.stderr) == (2, "prs3-post: error: operation 2 uses T1 with diameter 8.000 mm, "
+                                                    "operation 1 with 6.000 mm: one tool number is one tool\n")
+
+
+def test_a_header_whose_tool_lengths_the_machine_no_longer_gives_is_refused(example) -> None:
+    out, _ = example
+    text = out.read_text(encoding="utf-8").replace("IK length 172.300 mm", "IK length 175.000 mm")
+    header = parse_header(header_comments(text), path="prog.ngc")
+    with pytest.raises(InputError) as caught:
+        specs_from_header(header, str(TWOFACES), MACHINE, load_dialect("linuxcnc"))
+    assert str(caught.value) == ("prog.ngc:6: header: tools: T1's IK length 175.000 mm is not machine patel2020's "
+                                 "gauge offset 120.000 mm + its length 52.300 mm: the machine file has changed since "
+                                 "the program was made")

@@ -203,6 +203,24 @@ def tool_length_of(spec: JobSpec) -> float:
     return geometry.with_tool(tool.length).tool_length
 
 
+def _check_tools(specs: tuple[JobSpec, ...]) -> None:
+    """One tool number, one tool: every operation that uses it gives it the same diameter.
+
+    Raises
+    ------
+    FeatureError
+        Naming both operations and diameters.
+    """
+    seen: dict[int, tuple[int, float]] = {}
+    for number, spec in enumerate(specs, start=1):
+        cut = spec.cutting
+        first = seen.setdefault(cut.tool_number, (number, cut.tool_diameter))
+        if first[1] != cut.tool_diameter:
+            raise FeatureError(f"operation {number} uses T{cut.tool_number} with diameter "
+                               f"{exact_text(cut.tool_diameter, 3)} mm, operation {first[0]} with "
+                               f"{exact_text(first[1], 3)} mm: one tool number is one tool")
+
+
 def operation_label(number: int, spec: JobSpec, face: Face) -> str:
     """``operation 2 (round on face 6)``: what every step label of an operation in a job starts with."""
     return f"operation {number} ({spec.operation.value} on face {face.index})"
@@ -224,6 +242,7 @@ def run_operations(specs: tuple[JobSpec, ...]) -> JobResult:
         raise ValueError("a job has at least one operation")
     first = specs[0]
     require_tolerance(first.tolerance)
+    _check_tools(specs)
     mesh = load_part(first.part, units=first.units, up=first.up)
     faces = find_faces(mesh)
     triangles = np.asarray(mesh.triangles, dtype=np.float64)
@@ -487,6 +506,13 @@ def specs_from_header(header: ProgramHeader, part: str, machine: Machine, dialec
     table = None
     if header.tools and all(t.length is not None for t in header.tools):
         line = header.line("tools") or 0
+        for t in header.tools:                         # the lengths must give the IK lengths it states
+            rebuilt = machine.geometry.with_tool(float(t.length or 0.0)).tool_length
+            if abs(rebuilt - t.ik_length) > 5e-4:      # the header's 3 decimals
+                raise InputError(f"header: tools: T{t.number}'s IK length {exact_text(t.ik_length, 3)} mm is not "
+                                 f"machine {machine.name}'s gauge offset {exact_text(machine.geometry.gauge_offset, 3)}"
+                                 f" mm + its length {exact_text(float(t.length or 0.0), 3)} mm: the machine file has "
+                                 "changed since the program was made", path=header.path, line=line or None)
         table = ToolTable(path=header.path, tools=tuple(
             Tool(number=t.number, pocket=None, diameter=t.diameter, length=float(t.length or 0.0), line=line)
             for t in header.tools))
