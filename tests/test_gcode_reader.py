@@ -105,6 +105,11 @@ def test_g68_2_two_vector_form_and_the_same_plane_by_euler_angles() -> None:
     assert p3.planes[0].words == "G68.2 P3 Q1 X20 Y10 Z5 I0 J1.0004 K0; G68.2 P3 Q2 I.5 J0 K.8660254"
 
 
+def test_the_g68_2_origin_is_absolute_under_g91_and_in_program_units() -> None:
+    f = _parse("G20 G91\nG68.2 X1 Y0 Z0 I0 J0 K90\nG53.1\nG90 G0 X1 Y0 Z0\nM30\n")
+    assert_allclose(f.toolpath.tip, [[25.4, 25.4, 0]], atol=1e-12)     # K90: the plane's x is the part's +y
+
+
 def test_the_position_is_kept_across_plane_changes_and_the_axis_follows_the_plane() -> None:
     f = _parse("G0 X0 Y0 Z10\nG68.2 X0 Y0 Z0 I0 J90 K0\nG53.1\nG91 G0 Z5\nG69\nG0 X1\nM30\n")
     # J90: the plane's z is (0, −1, 0): Z+5 there goes to −y; after G69 the axis is +z again
