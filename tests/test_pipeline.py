@@ -19,7 +19,7 @@ from prs3_post.linearize import (
     slerp,
     subdivide_axis_changes,
 )
-from prs3_post.pipeline import inverse_time, post_process
+from prs3_post.pipeline import inverse_time, machine_path, post_process
 from prs3_post.setup import Setup
 from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
 
@@ -193,3 +193,18 @@ def test_a_move_that_bisection_cannot_bring_within_tolerance_is_an_error():
     done = linearize(MACHINE.geometry, p)
     assert_allclose([done.tip_before, np.degrees(done.angle_before)], [6.2503, 0.9713], atol=1e-4)
     assert 0.0 < done.tip_after <= 0.002 and len(done.path) == 66
+
+
+def test_a_move_through_the_singularity_names_the_limit_its_end_breaks():
+    """A feed from a vertical axis to one tilted 70°: past the singularity (49.8°), the joint-space
+    line cannot be bisected onto the path; the error is the first limit its end pose breaks (its tilt
+    too), not the bisection."""
+    tilted = np.array([np.sin(np.radians(70.0)), 0.0, np.cos(np.radians(70.0))])
+    p = path([[20.0, 220.0, 290.0], [60.0, 220.0, 290.0]], [[0.0, 0.0, 1.0], tilted], [MoveKind.RAPID, MoveKind.FEED],
+             [0, 100], labels=("approach", "turn"))
+    with pytest.raises(LimitError) as caught:
+        machine_path(MACHINE, p, ORIGIN)
+    assert str(caught.value).startswith("turn: the joint-space move still strays ")
+    with pytest.raises(LimitError) as caught:
+        post_process(MACHINE, p, ORIGIN)
+    assert str(caught.value) == "turn: T2 stroke 412.4087 mm is above the maximum 400.0000 mm by 12.4087 mm"

@@ -27,6 +27,11 @@ from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.toolpath import MoveKind, Toolpath, describe_source
 from prs3_post.types import FloatArray, IntArray
 
+#: Bisection rounds before a move that still strays is an error. Halving a move divides its
+#: deviation by about 4, so 14 rounds take a deviation of 500 mm (more than this machine can stray)
+#: below 0.0001 mm; a move that needs more passes a singularity, and each round doubles its rows.
+MAX_ROUNDS = 14
+
 #: Fractions of a move where the joint-space interpolation is compared with the intended move.
 CHECK_FRACTIONS = np.array([0.25, 0.5, 0.75])
 
@@ -109,7 +114,7 @@ class Linearized:
 
 def subdivide_axis_changes(
     geometry: Geometry, path: Toolpath, *, tolerance: float = DEFAULT_TOLERANCE,
-    angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, max_rounds: int = 20, start: Toolpath | None = None,
+    angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, max_rounds: int = MAX_ROUNDS, start: Toolpath | None = None,
 ) -> Toolpath:
     """Insert intended poses into FEED moves whose axis changes until they stay within the tolerances.
 
@@ -121,7 +126,7 @@ def subdivide_axis_changes(
 
 def linearize(
     geometry: Geometry, path: Toolpath, *, tolerance: float = DEFAULT_TOLERANCE,
-    angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, max_rounds: int = 20, start: Toolpath | None = None,
+    angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, max_rounds: int = MAX_ROUNDS, start: Toolpath | None = None,
 ) -> Linearized:
     """Insert intended poses into FEED moves whose axis changes until they stay within the tolerances.
 

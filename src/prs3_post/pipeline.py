@@ -164,8 +164,15 @@ class PostStream:
     def _post(self, chunk: Toolpath, *, scope: str) -> PostResult:
         machine, model = self.machine, self.model
         path = _unit_path(place_toolpath(chunk, self.setup), self._input_rows)
-        linear = linearize(machine.geometry, path, tolerance=self.tolerance, angle_tolerance=self.angle_tolerance,
-                           start=self._last_pose)
+        try:
+            linear = linearize(machine.geometry, path, tolerance=self.tolerance,
+                               angle_tolerance=self.angle_tolerance, start=self._last_pose)
+        except LimitError:                            # an end pose outside the limits is the clearer cause
+            ends = inverse(machine.geometry, path.tip, path.axis, model=model)
+            _raise_unreachable(machine, path, ends, model, self._counted(scope, len(path)))
+            raise_first_violation(check_limits(machine, ends, path.axis), path.describe,
+                                  scope=self._counted(scope, len(path)))
+            raise
         path = linear.path
         subdivided = len(path)
         ik = inverse(machine.geometry, path.tip, path.axis, model=model)
