@@ -280,3 +280,25 @@ def test_a_header_whose_tool_lengths_the_machine_no_longer_gives_is_refused(exam
     assert str(caught.value) == ("prog.ngc:6: header: tools: T1's IK length 175.000 mm is not machine patel2020's "
                                  "gauge offset 120.000 mm + its length 52.300 mm: the machine file has changed since "
                                  "the program was made")
+
+
+def test_verify_replays_each_row_with_the_tool_in_the_spindle(example) -> None:
+    """The header's tool lengths make the replay put each tip where its tool's tip is: against the job's
+    own path within the rounding; with the machine's tool length for every row, off by the length
+    difference of the longer tool (16.25 mm)."""
+    from prs3_post.verify_job import intended_from_job, open_program, tool_lengths_of, verify_loaded
+
+    out, _ = example
+    context = open_program(str(out))
+    specs = specs_from_header(context.header, str(TWOFACES), context.machine, context.dialect)
+    intended = intended_from_job(specs)
+    assert tool_lengths_of(context.header) == {1: 172.3, 2: 191.25}
+    right = verify_loaded(context.program, context.machine, context.setup, context.dialect, tolerance=0.002,
+                          intended=intended, tool_lengths=tool_lengths_of(context.header))
+    wrong = verify_loaded(context.program, context.machine, context.setup, context.dialect, tolerance=0.002,
+                          intended=intended)
+    def tip_max(report) -> float:
+        return float(np.nanmax(np.linalg.norm(report.against.tip_deviation, axis=1)))
+
+    assert right.ok and tip_max(right) < 3e-4
+    assert not wrong.ok and tip_max(wrong) == pytest.approx(191.25 - 175.0, abs=3e-4)

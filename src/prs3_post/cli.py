@@ -53,6 +53,7 @@ from prs3_post.verify_job import (
     open_program,
     open_setting,
     preview_bytes,
+    tool_lengths_of,
     verify_file,
     verify_loaded,
 )
@@ -524,7 +525,8 @@ def _run_job(part: str, **opts: Any) -> int:
     if fmt is not None:                                # draw before writing anything: no half results
         program = read_program(result.text, spec.dialect, path=opts["out_path"] or "<program>",
                                stage=spec.machine.stage.present)
-        image = preview_bytes(program, spec.machine, result.setup, fmt, tolerance=spec.tolerance,
+        lengths = None if spec.tool_table is None else {spec.cutting.tool_number: result.operations[0].tool_length}
+        image = preview_bytes(program, spec.machine, result.setup, fmt, tolerance=spec.tolerance, tool_lengths=lengths,
                                mesh=result.triangles, face=result.face, title=Path(part).name, dialect=spec.dialect)
     write_outputs([(opts["out_path"], result.text)] + ([] if image is None else [(opts["preview_path"], image)]))
     if not is_stdout(opts["out_path"]):
@@ -1019,7 +1021,8 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
             context = _open_program(*where, open_program)
             intended = _intended(ctx, against_path, context, opts) if against_path else None
             report = verify_loaded(context.program, context.machine, context.setup, context.dialect,
-                                   tolerance=tolerance, axis_tolerance_deg=axis_tolerance_deg, intended=intended)
+                                   tolerance=tolerance, axis_tolerance_deg=axis_tolerance_deg, intended=intended,
+                                   tool_lengths=tool_lengths_of(context.header))
         else:
             report = verify_file(setting, tolerance=tolerance, axis_tolerance_deg=axis_tolerance_deg)
         dialect = setting.dialect.name
@@ -1095,7 +1098,7 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
             face, _ = select_face(find_faces(loaded), choice)
             mesh = loaded.triangles
         image = preview_bytes(context.program, context.machine, context.setup, fmt, dialect=context.dialect,
-                              mesh=mesh, face=face, rapid_rate=rapid_rate,
+                              mesh=mesh, face=face, rapid_rate=rapid_rate, tool_lengths=tool_lengths_of(context.header),
                               title=Path(part_path).name if part_path else "")
         write_atomic(out_path, image)
         click.echo(f"prs3-post: wrote {out_path}", err=True)

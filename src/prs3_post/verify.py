@@ -74,6 +74,7 @@ point has one) gets no straightness problem: its straightness is unknown (NaN), 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -579,6 +580,7 @@ def verify_program(
     blending_lines: tuple[int, ...] = (),
     keep_samples: bool = True,
     chunk_rows: int = CHUNK_ROWS,
+    tool_lengths: dict[int, float] | None = None,
 ) -> VerifyReport:
     """Replay and check a program (module docstring), ``chunk_rows`` rows at a time (:class:`Verifier`).
 
@@ -596,6 +598,9 @@ def verify_program(
     keep_samples : bool — keep every sample in ``report.replay`` (the JSON report and the preview
         need them; the text report does not)
     chunk_rows : int — rows replayed at a time (the report does not depend on it)
+    tool_lengths : dict, optional — mm, the tool length "TL" (platform centre to tip) of each tool
+        number: after a tool change (M6 T) the tip is that far from the platform centre (a program
+        made with a tool table states them in its header); None: the machine's for every row
 
     Returns
     -------
@@ -612,10 +617,15 @@ def verify_program(
                         "describe the same path (check the options it was made with)")
     verifier = Verifier(machine, setup=setup, tolerance=tolerance, axis_tolerance=axis_tolerance,
                         length_decimals=length_decimals, feed_decimals=feed_decimals, intended=intended,
-                        keep_samples=keep_samples, keep_rows=False, capacity=n)
+                        keep_samples=keep_samples, keep_rows=False, capacity=n, tool_lengths=tool_lengths)
     step = max(1, int(chunk_rows))
     for first in range(0, n, step):
-        verifier.add(_rows_of(program, first, min(first + step, n)))
+        rows = _rows_of(program, first, min(first + step, n))
+        if tool_lengths:                               # the tool changes in these rows, counted from the first
+            rows = dataclasses.replace(rows, events=tuple(
+                dataclasses.replace(e, before=e.before - first) for e in program.events
+                if e.kind is EventKind.TOOL_CHANGE and first <= e.before < first + step))
+        verifier.add(rows)
     return verifier.report(blending_lines=blending_lines, program=program)
 
 
@@ -634,14 +644,17 @@ class Verifier:
 
     Use: ``v = Verifier(machine, setup=...); for chunk in chunks: v.add(chunk); v.report()``.
     Parameters as :func:`verify_program`, and ``keep_rows`` (False: :meth:`report` is given the whole
-    program), ``capacity`` (rows to reserve room for: an upper bound saves growing the arrays).
+    program), ``capacity`` (rows to reserve room for: an upper bound saves growing the arrays),
+    ``tool_lengths`` (as :func:`verify_program`; the chunks' tool-change events say which tool).
     """
 
     def __init__(self, machine: Machine, *, setup: Setup, tolerance: float = DEFAULT_TOLERANCE,
                  axis_tolerance: float = DEFAULT_ANGLE_TOLERANCE, length_decimals: int = 4, feed_decimals: int = 4,
                  intended: Intended | None = None, keep_samples: bool = False, keep_rows: bool = True,
-                 capacity: int = 0):
+                 capacity: int = 0, tool_lengths: dict[int, float] | None = None):
         self.machine, self.setup, self.tolerance, self.axis_tolerance = machine, setup, tolerance, axis_tolerance
+        self.tool_lengths = tool_lengths or {}
+        self.tool_length = machine.geometry.tool_length    # mm, "TL" of the tool in the spindle (before any M6)
         self.length_decimals, self.feed_decimals, self.intended = length_decimals, feed_decimals, intended
         self.keep_samples = keep_samples or intended is not None
         self.rows = 0                                        # rows added so far
@@ -674,10 +687,29 @@ class Verifier:
         canonical, index = keys = _shift_keys(joints[:, 2:])         # shared by the poses and the rounding
         rep = _replay_joints(self.machine, joints, tolerance=self.tolerance, translations=self.intended is None,
                              ends=_poses(self.machine, joints, keys=keys))
+        if self.tool_lengths:                                  # each row's tip with the tool in the spindle
+            lengths = self._row_tool_lengths(chunk, carried)
+            shift = (self.machine.geometry.tool_length - lengths)[rep.row]
+            rep = dataclasses.replace(rep, tip=rep.tip + shift[:, None] * rep.axis)
         rounding = _rounding_of_keys(self.machine, canonical, self.length_decimals)[index]
         self.last = _rows_of(chunk, len(chunk) - 1, len(chunk))
         self.rows += len(chunk)
         self._check(rows, rep, rounding, skip, offset)
+
+    def _row_tool_lengths(self, chunk: JointProgram, carried: bool) -> FloatArray:
+        """mm, the tool length "TL" of each row of the chunk (after the carried row, when there is one):
+        a tool change (M6 T) before a row makes it and the rows after it use that tool's length
+        (``tool_lengths``; a tool not in it: the machine's)."""
+        lengths = np.zeros(len(chunk))
+        current, at = self.tool_length, 0
+        for event in sorted((e for e in chunk.events if e.kind is EventKind.TOOL_CHANGE), key=lambda e: e.before):
+            lengths[at:event.before] = current
+            current = self.tool_lengths.get(int(event.value), self.machine.geometry.tool_length)
+            at = min(event.before, len(chunk))
+        lengths[at:] = current
+        before = [self.tool_length] if carried else []
+        self.tool_length = current
+        return np.concatenate([before, lengths])
 
     def _check(self, rows: JointProgram, rep: Replay, rounding: FloatArray, skip: int, offset: int) -> None:
         """The checks of the module docstring on one replayed chunk; local rows ≥ ``skip`` are its own."""

@@ -228,19 +228,15 @@ def header_job(context: ProgramContext, part: str) -> tuple[JobSpec, ...]:
 def intended_from_job(specs: JobSpec | tuple[JobSpec, ...]) -> Intended:
     """The path a job makes (machine frame), as what a program should do.
 
-    Forward kinematics replays a program with the machine's tool length; where an operation's tool
-    is another length (a tool table), its intended tips are moved along the axis to the point at
-    the machine's tool length from the platform centre: that point is what the replay shows, and it
-    is on the intended path exactly when the tool's tip is.
+    Each row's tip is where its operation's tool tip should be (``verify`` replays each row with the
+    length of the tool in the spindle, from the program's header).
     """
     specs = specs if isinstance(specs, tuple) else (specs,)
-    result = run_operations(specs)
-    path = result.post.path
-    shift = result.tool_length - specs[0].machine.geometry.tool_length          # (N,) mm
-    tip = path.tip + shift[:, None] * path.axis
+    path = run_operations(specs).post.path
     feed = np.where(path.kind == MoveKind.FEED, path.feed, np.nan)
     what = "+".join(dict.fromkeys(s.operation.value for s in specs))
-    return Intended(tip=tip, axis=path.axis, feed=feed, kind=path.kind, label=f"{Path(specs[0].part).name} ({what})")
+    return Intended(tip=path.tip, axis=path.axis, feed=feed, kind=path.kind,
+                    label=f"{Path(specs[0].part).name} ({what})")
 
 
 def intended_from_poses(path: str, program: ProgramFile) -> Intended:
@@ -263,9 +259,17 @@ def intended_from_poses(path: str, program: ProgramFile) -> Intended:
                     kind=np.full(len(unit), -1, dtype=np.int64), label=Path(path).name)
 
 
+def tool_lengths_of(header: ProgramHeader | None) -> dict[int, float] | None:
+    """mm, the tool length "TL" the IK used for each tool a program's header states (None: no such
+    entry, every row has the machine's)."""
+    if header is None or not header.tools:
+        return None
+    return {tool.number: tool.ik_length for tool in header.tools}
+
+
 def verify_loaded(program: ProgramFile, machine: Machine, setup: Setup, dialect: Dialect, *,
                   tolerance: float, axis_tolerance_deg: float = DEFAULT_ANGLE_TOLERANCE_DEG,
-                  intended: Intended | None = None) -> VerifyReport:
+                  intended: Intended | None = None, tool_lengths: dict[int, float] | None = None) -> VerifyReport:
     """verify_program on a read program, with the dialect's decimals.
 
     Raises
@@ -279,7 +283,7 @@ def verify_loaded(program: ProgramFile, machine: Machine, setup: Setup, dialect:
         machine, program.moves, setup=setup, tolerance=tolerance,
         axis_tolerance=math.radians(axis_tolerance_deg), intended=intended,
         length_decimals=dialect.decimals.length, feed_decimals=dialect.decimals.inverse_time,
-        blending_lines=program.blending_lines,
+        blending_lines=program.blending_lines, tool_lengths=tool_lengths,
     )
 
 
@@ -299,7 +303,8 @@ def verify_file(setting: ProgramSetting, *, tolerance: float, axis_tolerance_deg
     decimals = setting.dialect.decimals
     verifier = Verifier(setting.machine, setup=setting.setup, tolerance=tolerance,
                         axis_tolerance=math.radians(axis_tolerance_deg), length_decimals=decimals.length,
-                        feed_decimals=decimals.inverse_time, capacity=stream.check())
+                        feed_decimals=decimals.inverse_time, capacity=stream.check(),
+                        tool_lengths=tool_lengths_of(setting.header))
     for chunk in read_ahead(stream):
         verifier.add(chunk)
     if not verifier.rows:
@@ -355,11 +360,13 @@ def read_ahead(items: Iterable[_Item], depth: int = 2) -> Iterator[_Item]:
 
 def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str, *,
                   dialect: Dialect, tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None,
-                  face: Face | None = None, title: str = "", rapid_rate: float = 5000.0) -> bytes:
-    """Replay a read program and draw it as ``png`` or ``svg`` bytes (matplotlib is imported here)."""
+                  face: Face | None = None, title: str = "", rapid_rate: float = 5000.0,
+                  tool_lengths: dict[int, float] | None = None) -> bytes:
+    """Replay a read program and draw it as ``png`` or ``svg`` bytes (matplotlib is imported here);
+    ``tool_lengths`` as :func:`~prs3_post.verify.verify_program`."""
     from prs3_post.preview import figure_bytes, render_preview
 
-    report = verify_loaded(program, machine, setup, dialect, tolerance=tolerance)
+    report = verify_loaded(program, machine, setup, dialect, tolerance=tolerance, tool_lengths=tool_lengths)
     label = "face" if face is None else f"face {face.index} ({math.degrees(face.inclination):.2f}°)"
     heading = f"{title}: " if title else ""
     fig = render_preview(
