@@ -22,6 +22,16 @@ import numpy as np
 
 from prs3_post import __version__
 from prs3_post.config import Machine, load_dialect, load_machine, postproc_dir, shipped_names
+from prs3_post.convert import (
+    FORMATS,
+    ConvertSettings,
+    batch_summary,
+    collect_inputs,
+    convert_batch,
+    default_jobs,
+    outcome_line,
+    work_plane_from_text,
+)
 from prs3_post.errors import FeatureError, InputError, Prs3Error, Prs3Warning, ReachError
 from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
 from prs3_post.job import HoleJob, JobSpec, Operation, ProfileJob, run_job, run_operations
@@ -57,6 +67,7 @@ from prs3_post.verify_job import (
     verify_file,
     verify_loaded,
 )
+from prs3_post.workplane import WorkPlaneError
 
 #: What _open_program opens: the whole program, or only what it was made for.
 _Opened = TypeVar("_Opened", ProgramContext, ProgramSetting)
@@ -278,6 +289,22 @@ machine_option = click.option(
 )
 
 
+dialect_option = click.option(
+    "--dialect", "dialect_name", default=DEFAULT_DIALECT, show_default=True, metavar="NAME|PATH",
+    help="G-code dialect: linuxcnc, fanuc, or a dialect TOML file.",
+)
+line_number_options = (
+    click.option("--line-numbers/--no-line-numbers", default=None,
+                 help="Number the blocks (N words).  [default: as the dialect says]"),
+    click.option("--line-start", type=Integer(0, 99999), default=None, help="First block number."),
+    click.option("--line-step", type=Integer(1, 1000), default=None, help="Block number increment."),
+)
+tolerance_option = click.option(
+    "--tolerance", type=Decimal(LENGTH), default=DEFAULT_TOLERANCE, show_default=True,
+    help="Chordal tolerance of arcs (and of moves that turn the tool axis), mm.",
+)
+
+
 # ----------------------------------------------------------------------------- commands
 
 
@@ -491,14 +518,9 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
         machine_option,
         part_origin_option,
         part_rotation_option,
-        click.option("--dialect", "dialect_name", default=DEFAULT_DIALECT, show_default=True, metavar="NAME|PATH",
-                     help="G-code dialect: linuxcnc, fanuc, or a dialect TOML file."),
-        click.option("--line-numbers/--no-line-numbers", default=None,
-                     help="Number the blocks (N words).  [default: as the dialect says]"),
-        click.option("--line-start", type=Integer(0, 99999), default=None, help="First block number."),
-        click.option("--line-step", type=Integer(1, 1000), default=None, help="Block number increment."),
-        click.option("--tolerance", type=Decimal(LENGTH), default=DEFAULT_TOLERANCE, show_default=True,
-                     help="Chordal tolerance of arcs (and of moves that turn the tool axis), mm."),
+        dialect_option,
+        *line_number_options,
+        tolerance_option,
         click.option("-o", "--output", "out_path", type=OutputPath(),
                      help="Program file (written to a temp file, then renamed). Default: standard output."),
         click.option("--preview", "preview_path", type=OutputPath(), metavar="OUT.png|OUT.svg",
@@ -1103,5 +1125,91 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
         write_atomic(out_path, image)
         click.echo(f"prs3-post: wrote {out_path}", err=True)
         return 0
+
+    run_reported(body)
+
+
+# ----------------------------------------------------------------------------- convert
+
+
+@main.command()
+@click.argument("inputs", nargs=-1, required=True, metavar="INPUT...")
+@click.option("-o", "--output-dir", "outdir", type=click.Path(file_okay=False), required=True, metavar="OUTDIR",
+              help="Folder for the programs, OUTDIR/<input stem><dialect extension> (created if missing).")
+@click.option("--jobs", type=Integer(1, 1024), default=None, help="Files converted at a time, in worker processes.  "
+              "[default: the number of cores]")
+@click.option("--fail-fast", is_flag=True, help="Stop at the first file that fails (files under way finish).")
+@click.option("--force", is_flag=True, help="Replace programs that exist already (default: keep them; that file fails).")
+@click.option("--format", "input_format", type=click.Choice(list(FORMATS)), default="auto", show_default=True,
+              help="Input format: by content (CL records or G-code words), or forced.")
+@click.option("--report", "report_path", type=OutputPath(), metavar="FILE.json",
+              help="Write every file's accounting (records by word, moves, subdivisions, deviations) as JSON.")
+@click.option("--tool-length", type=Decimal(LENGTH, low=0.0, low_open=True), default=None, metavar="MM",
+              help="Platform centre to tool tip for the IK, mm.  [default: the machine's tool_length_mm]")
+@click.option("--angle-tolerance", "angle_tolerance_deg", type=Decimal(ANGLE, low=0.0, low_open=True), default=0.01,
+              show_default=True, metavar="DEG", help="Allowed tool-axis deviation of axis-changing moves, degrees.")
+@click.option("--units", type=click.Choice(["mm", "inch"]), default=None,
+              help="Length unit of CL files without UNITS/.  [default: inch when the feeds are IPM/IPR, else mm]")
+@click.option("--work-plane", "work_plane_text", default=None, metavar="PART.stl[:FACE]|OX,OY,OZ,NX,NY,NZ[,XX,XY,XZ]",
+              help="Where a G-code program's X, Y, Z are in the part: a face frame (u, v, w) or origin, normal, x.")
+@click.option("--ignore", "ignore_words", multiple=True, metavar="WORD",
+              help="Skip (and count) this unknown CL major word instead of failing (repeatable).")
+@machine_option
+@part_origin_option
+@part_rotation_option
+@dialect_option
+@line_number_options[0]
+@line_number_options[1]
+@line_number_options[2]
+@tolerance_option
+def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: bool, force: bool, input_format: str,
+            report_path: str | None, tool_length: float | None, angle_tolerance_deg: float, units: str | None,
+            work_plane_text: str | None, ignore_words: tuple[str, ...], machine_name: str,
+            part_origin: tuple[float, ...] | None, part_rotation: float | None, dialect_name: str,
+            line_numbers: bool | None, line_start: int | None, line_step: int | None, tolerance: float) -> None:
+    """Convert CAM output (APT CL files, 3+2 G-code) into programs for this machine.
+
+    INPUT is a file, a directory (searched recursively for .cls .clsf .cl .apt .nc .ngc .gcode
+    .tap ... files) or a glob pattern. Each file goes through the main job's pipeline: setup, exact
+    IK, subdivision of axis-changing moves, every point checked against every limit; its program
+    is written whole or not at all. A failing file does not stop the others (unless --fail-fast);
+    the summary lists every failure with file:line and reason. Exit status: 0 all converted, 1 if
+    any file failed, 2 for bad options.
+
+    \b
+    Examples:
+      prs3-post convert ../shared/corpus/cl/mech491_APT_SimpleMillPlane.cls -o out --part-origin 0,-17.2,-856
+      prs3-post convert cam/ -o out --jobs 2 --report out/report.json
+    """
+
+    def body() -> int:
+        require_tolerance(tolerance)
+        machine = load_machine(machine_name)
+        dialect = load_dialect(dialect_name)
+        try:
+            plane = work_plane_from_text(work_plane_text) if work_plane_text is not None else None
+        except WorkPlaneError as error:
+            raise click.BadParameter(str(error), param_hint="'--work-plane'") from error
+        settings = ConvertSettings(
+            machine=machine, dialect=dialect, setup=resolve_setup(machine, part_origin, part_rotation),
+            tolerance=tolerance, angle_tolerance_deg=angle_tolerance_deg, tool_length=tool_length,
+            input_format=input_format, units=units, ignore=tuple(w.upper() for w in ignore_words), work_plane=plane,
+            line_numbers=line_numbers, line_start=line_start, line_step=line_step)
+        files = collect_inputs(inputs, exclude=outdir)
+        if report_path is not None:
+            refuse_overwriting({"--report": report_path}, {f"input {i + 1}": f for i, f in enumerate(files)})
+        count = jobs or default_jobs()
+        terminal = sys.stderr.isatty()
+        if terminal:
+            with click.progressbar(length=len(files), label="converting", file=sys.stderr) as bar:
+                result = convert_batch(files, outdir, settings, jobs=count, fail_fast=fail_fast, force=force,
+                                       on_done=lambda outcome: bar.update(1))
+        else:
+            result = convert_batch(files, outdir, settings, jobs=count, fail_fast=fail_fast, force=force,
+                                   on_done=lambda outcome: click.echo(outcome_line(outcome)))
+        if report_path is not None:
+            write_atomic(report_path, json.dumps(result.record(), indent=1, allow_nan=False) + "\n")
+        click.echo(batch_summary(result), err=True, nl=False)
+        return 1 if result.failures or result.not_started else 0
 
     run_reported(body)

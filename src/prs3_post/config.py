@@ -16,6 +16,7 @@ pass a path to a file of their own wherever a shipped name is accepted.
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -467,6 +468,9 @@ def load_dialect(name_or_path: str) -> Dialect:
     max_line_length = prog.integer("max_line_length", minimum=40)
     if max_line_length > 252:
         raise prog._error("max_line_length", f"must be 40..252 (LinuxCNC's limit), got {max_line_length}")
+    extension = prog.text("extension")
+    if not re.fullmatch(r"\.[A-Za-z0-9]{1,8}", extension):
+        raise prog._error("extension", f"expected a dot and 1 to 8 letters or digits (\".ngc\"), got {extension!r}")
     prog.finish()
 
     # A literal block must fit behind the longest block number, e.g. "N99999 ", whether or not
@@ -513,4 +517,5 @@ def load_dialect(name_or_path: str) -> Dialect:
         modal_motion=modal_motion,
         dwell_unit=dwell_unit,
         tool_number_max=tool_number_max,
+        extension=extension,
     )

@@ -130,6 +130,7 @@ class Dialect:
     modal_motion : bool — write G0/G1 only when it changes (False: on every motion line)
     dwell_unit : str — unit of the G4 P word, ``s`` or ``ms``
     tool_number_max : int — the largest tool number (T word) the controller takes (1 is the smallest)
+    extension : str — the file name ending of its programs (``.ngc``), for outputs named after their input
     """
 
     name: str
@@ -151,6 +152,7 @@ class Dialect:
     modal_motion: bool
     dwell_unit: str
     tool_number_max: int
+    extension: str = ".ngc"
 
     def __post_init__(self) -> None:
         if self.end_code not in _END_CODES:

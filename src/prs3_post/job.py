@@ -456,7 +456,7 @@ def _join_posts(pieces: list[PostResult]) -> PostResult:
     return PostResult(program=program, path=path, ik=ik, limits=limits)
 
 
-def _file_given(source: str, kind: str, name: str) -> str | None:
+def file_given(source: str, kind: str, name: str) -> str | None:
     """The path a machine or dialect was given by, or None for a shipped one (``machines/NAME.toml``)."""
     return None if source == f"{kind}/{name}.toml" else source
 
@@ -476,8 +476,8 @@ def header_of(spec: JobSpec, part_sha256: str, *, operations: tuple[JobSpec, ...
                 length=None if table is None else table.length, ik_length=length))
     return ProgramHeader(
         version=f"prs3-post {__version__}", machine=spec.machine.name,
-        machine_file=_file_given(spec.machine.source, "machines", spec.machine.name),
-        dialect=spec.dialect.name, dialect_file=_file_given(spec.dialect.source, "dialects", spec.dialect.name),
+        machine_file=file_given(spec.machine.source, "machines", spec.machine.name),
+        dialect=spec.dialect.name, dialect_file=file_given(spec.dialect.source, "dialects", spec.dialect.name),
         part_name=Path(spec.part).name, part_sha256=part_sha256, units=spec.units, up=spec.up, face=spec.face,
         face_index=-1 if spec.face is None else spec.face, setup=spec.setup, work=spec.work,
         at_uv=np.asarray(spec.at_uv, dtype=np.float64).reshape(-1, 2),

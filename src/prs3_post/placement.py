@@ -14,13 +14,15 @@ the whole post-processing at that origin: a suggestion is only made when it pass
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from prs3_post.config import Machine
 from prs3_post.errors import LimitError, ReachError
-from prs3_post.kinematics import HEAD_XY_TOL, IKModel, inverse
+from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, inverse, unit_axes
 from prs3_post.limits import check_limits
-from prs3_post.pipeline import machine_path, model_for, post_process
+from prs3_post.pipeline import machine_path, model_for, place_toolpath, post_process
 from prs3_post.readers.header import exact_text
 from prs3_post.setup import Setup, SetupError
 from prs3_post.toolpath import Toolpath
@@ -112,6 +114,15 @@ def suggest_origin(machine: Machine, path_part: Toolpath, setup: Setup, *, toler
     still passes; checked by running :func:`~prs3_post.pipeline.post_process` with it. Returned as
     the decimal texts (x, y, z) whose values were checked; None when no translation passes.
     """
+    try:
+        placed = place_toolpath(path_part, setup)
+        path = replace(placed, axis=unit_axes(placed.tip, placed.axis))
+    except PoseError:
+        return None
+    # The points as given first: a limit no shift can cure (a tilt past the machine's) ends it here,
+    # before subdivision, which cannot converge on moves that cross a singularity.
+    if shift_ranges(machine, path) is None:
+        return None
     try:
         path = machine_path(machine, path_part, setup, tolerance=tolerance)
     except ReachError:

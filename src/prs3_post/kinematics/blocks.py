@@ -17,8 +17,17 @@ import numpy as np
 BLOCK_ROWS = 65536
 
 
+#: Environment variable that caps the threads (a batch of conversions in N processes sets it so
+#: that processes × threads ≤ cores).
+THREADS_VARIABLE = "PRS3_POST_THREADS"
+
+
 def default_workers() -> int:
-    """Threads to use: the CPUs this process may run on, at most 2 (more gains nothing here)."""
+    """Threads to use: the CPUs this process may run on, at most 2 (more gains nothing here), at most
+    :data:`THREADS_VARIABLE` when that is set to a positive integer."""
+    cap = os.environ.get(THREADS_VARIABLE, "")
+    if cap.isdigit() and int(cap) > 0:
+        return max(1, min(2, int(cap)))
     try:
         cpus = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux

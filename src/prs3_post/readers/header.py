@@ -55,6 +55,7 @@ from prs3_post.ops.work import HoleJob, ProfileJob
 from prs3_post.readers.files import open_input
 from prs3_post.setup import Setup
 from prs3_post.types import FloatArray
+from prs3_post.workplane import WorkPlane, WorkPlaneError
 
 #: The header's first key; a program without it has no header.
 PROGRAM_KEY = "program"
@@ -147,6 +148,66 @@ class ProgramHeader:
     line_step: int | None = None
     operations: tuple[OperationRecord, ...] = ()
     tools: tuple[ToolRecord, ...] = ()
+    lines: tuple[tuple[str, int], ...] = ()
+    path: str = ""
+
+    def line(self, key: str) -> int | None:
+        """The program line the ``key`` entry was read from (None when not read from a file)."""
+        return dict(self.lines).get(key)
+
+
+@dataclass(frozen=True, slots=True)
+class SourceHeader:
+    """What a converted program (``prs3-post convert``) says it was made from: a CAM file, not a part.
+
+    Written as::
+
+        (program: prs3-post 0.1.0)
+        (machine: patel2020 [...])
+        (dialect: linuxcnc)
+        (source: drill.clsf, format cl, units mm, sha256 0f3a...)
+        (ignore: CUTCOM, THICK)                        only when words were ignored
+        (work plane: origin [x, y, z] mm, x [..], z [..])   only for G-code on a work plane
+        (setup: part origin at machine [...] mm, rotation θ deg about z)
+        (tool length: 175.000 mm, the machine's)      or "as given"
+        (tolerance: 0.002 mm, angle 0.01 deg)
+        (input: 12 records, 8 moves, ...)             the counts, for people (not read back)
+        (units: mm, G93 inverse time: F = 1/minutes of each move)
+
+    Attributes
+    ----------
+    version, machine, machine_file, dialect, dialect_file, setup, tolerance, line_numbers,
+    line_start, line_step, lines, path : as :class:`ProgramHeader`
+    source_name : str — the CAM file's name (no folder)
+    source_sha256 : str — lower-case hex SHA-256 of its bytes
+    source_format : str — ``cl`` or ``gcode``
+    source_units : str — ``mm`` or ``inch``, the length unit it was read in
+    ignore : tuple of str — CL major words skipped on purpose
+    work_plane : WorkPlane | None — where a G-code program's X, Y, Z were put in the part
+    tool_length : float — mm, the tool length the IK used
+    tool_length_given : bool — given for the conversion (False: the machine's)
+    angle_tolerance_deg : float — degrees
+    """
+
+    version: str
+    machine: str
+    machine_file: str | None
+    dialect: str
+    dialect_file: str | None
+    source_name: str
+    source_sha256: str
+    source_format: str
+    source_units: str
+    ignore: tuple[str, ...]
+    work_plane: WorkPlane | None
+    setup: Setup
+    tool_length: float
+    tool_length_given: bool
+    tolerance: float
+    angle_tolerance_deg: float
+    line_numbers: bool | None = None
+    line_start: int | None = None
+    line_step: int | None = None
     lines: tuple[tuple[str, int], ...] = ()
     path: str = ""
 
@@ -276,22 +337,11 @@ def header_entries(header: ProgramHeader, face: Face, *, description: str = "",
     description : str — the machine's one-line description
     faces : tuple of Face — each operation's face, for a header with ``operations``
     """
-    numbering = []
-    if header.line_numbers is not None:
-        numbering.append(f"line numbers {'on' if header.line_numbers else 'off'}")
-    if header.line_start is not None:
-        numbering.append(f"first line number {header.line_start}")
-    if header.line_step is not None:
-        numbering.append(f"line number step {header.line_step}")
     entries = [
         (PROGRAM_KEY, header.version),
         ("machine", f"{header.machine} [{description}]" if description else header.machine),
+        *_dialect_entries(header),
     ]
-    if header.machine_file is not None:
-        entries.append(("machine file", header.machine_file))
-    entries.append(("dialect", ", ".join([header.dialect, *numbering])))
-    if header.dialect_file is not None:
-        entries.append(("dialect file", header.dialect_file))
     entries.append(("part", f"{header.part_name}, units {header.units}, up {header.up}, sha256 {header.part_sha256}"))
     if header.operations:
         entries += [("setup", _setup_text(header.setup)), ("tools", _tools_text(header.tools)),
@@ -337,6 +387,58 @@ def _tools_text(tools: tuple[ToolRecord, ...]) -> str:
                      + f", IK length {exact_text(t.ik_length, 3)} mm" for t in tools)
 
 
+def _dialect_entries(header: ProgramHeader | SourceHeader) -> list[tuple[str, str]]:
+    """The machine and dialect entries (with their files, when given by path)."""
+    numbering = []
+    if header.line_numbers is not None:
+        numbering.append(f"line numbers {'on' if header.line_numbers else 'off'}")
+    if header.line_start is not None:
+        numbering.append(f"first line number {header.line_start}")
+    if header.line_step is not None:
+        numbering.append(f"line number step {header.line_step}")
+    entries = []
+    if header.machine_file is not None:
+        entries.append(("machine file", header.machine_file))
+    entries.append(("dialect", ", ".join([header.dialect, *numbering])))
+    if header.dialect_file is not None:
+        entries.append(("dialect file", header.dialect_file))
+    return entries
+
+
+def source_header_entries(header: SourceHeader, *, description: str = "",
+                          counts: str = "") -> tuple[tuple[str, str], ...]:
+    """The ``(key, value)`` comment entries of a converted program's header (see :class:`SourceHeader`).
+
+    Parameters
+    ----------
+    header : SourceHeader
+    description : str — the machine's one-line description
+    counts : str — what the input held and the program has, for people
+    """
+    entries = [
+        (PROGRAM_KEY, header.version),
+        ("machine", f"{header.machine} [{description}]" if description else header.machine),
+        *_dialect_entries(header),
+        ("source", f"{header.source_name}, format {header.source_format}, units {header.source_units}, "
+                   f"sha256 {header.source_sha256}"),
+    ]
+    if header.ignore:
+        entries.append(("ignore", ", ".join(header.ignore)))
+    if header.work_plane is not None:
+        plane = header.work_plane
+        entries.append(("work plane", f"origin {_numbers(plane.origin, 4)} mm, x {_numbers(plane.rotation[:, 0], 6)}, "
+                                      f"z {_numbers(plane.rotation[:, 2], 6)}"))
+    entries += [
+        ("setup", _setup_text(header.setup)),
+        ("tool length", f"{exact_text(header.tool_length, 3)} mm, "
+                        f"{'as given' if header.tool_length_given else 'the machine' + chr(39) + 's'}"),
+        ("tolerance", f"{exact_text(header.tolerance, 3)} mm, angle {exact_text(header.angle_tolerance_deg, 2)} deg"),
+        ("input", counts or "-"),
+        ("units", "mm, G93 inverse time: F = 1/minutes of each move"),
+    ]
+    return tuple(entries)
+
+
 def _setup_text(setup: Setup) -> str:
     return (f"part origin at machine {_numbers(setup.origin, 4)} mm, "
             f"rotation {exact_text(setup.rotation_deg, 4)} deg about z")
@@ -349,13 +451,17 @@ _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?"
 _VECTOR = rf"\[\s*{_NUMBER}(?:\s*,\s*{_NUMBER})*\s*\]"
 _ENTRY = re.compile(r"^\s*([a-z][a-z0-9 ]*?)\s*:\s?(.*?)\s*$", re.IGNORECASE)
 _KEYS = ("program", "machine", "machine file", "dialect", "dialect file", "part", "face", "setup", "operation",
-         "parameters", "tool", "tools", "operations", "tolerance", "units")
-_REQUIRED = tuple(k for k in _KEYS if not k.endswith(" file") and k not in ("tools", "operations"))
+         "parameters", "tool", "tools", "operations", "tolerance", "units", "source", "ignore", "work plane",
+         "tool length", "input")
+_REQUIRED = ("program", "machine", "dialect", "part", "face", "setup", "operation", "parameters", "tool", "tolerance",
+             "units")
 #: The keys of a job of several operations (and ``operation K ...`` for each).
 _REQUIRED_SEVERAL = ("program", "machine", "dialect", "part", "setup", "tools", "operations", "tolerance", "units")
 _OPERATION_KEY = re.compile(r"operation [1-9][0-9]{0,3}(?: face| parameters| tool)?")
 #: The largest number of operations a header may state.
 MAX_OPERATIONS = 9999
+#: The entries of a converted program's header (:class:`SourceHeader`); ``ignore`` and ``work plane`` are optional.
+_SOURCE_REQUIRED = ("program", "machine", "dialect", "source", "setup", "tool length", "tolerance", "input", "units")
 
 
 class _Bad(Exception):
@@ -468,7 +574,7 @@ def _dialect(text: str) -> tuple[str, bool | None, int | None, int | None]:
     return name, numbers, start, step
 
 
-def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHeader | None:
+def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHeader | SourceHeader | None:
     """Read a header from a program's comment texts.
 
     Parameters
@@ -479,7 +585,8 @@ def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHe
 
     Returns
     -------
-    ProgramHeader, or None when there is no ``program: prs3-post ...`` entry (not a prs3-post header).
+    ProgramHeader (the main job's), SourceHeader (a converted CAM file's: it has ``source`` and no
+    ``part``), or None when there is no ``program: prs3-post ...`` entry (not a prs3-post header).
 
     Raises
     ------
@@ -501,6 +608,8 @@ def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHe
         last = number
     if PROGRAM_KEY not in found or not found[PROGRAM_KEY][1].lower().startswith("prs3-post"):
         return None
+    if "source" in found and "part" not in found:
+        return _source_header(found, path)
     several = "operations" in found
     required = _REQUIRED_SEVERAL if several else _REQUIRED
     missing = [k for k in required if k not in found]
@@ -610,6 +719,80 @@ def _tools(text: str) -> tuple[ToolRecord, ...]:
     return tuple(records)
 
 
+_SOURCE = r"(.*), format (cl|gcode), units (mm|inch), sha256 ([0-9a-f]{64})"
+_WORK_PLANE = rf"origin ({_VECTOR}) mm, x ({_VECTOR}), z ({_VECTOR})"
+_TOOL_LENGTH = rf"({_NUMBER}) mm, (as given|the machine's)"
+_SOURCE_TOLERANCE = rf"({_NUMBER}) mm, angle ({_NUMBER}) deg"
+_FORMS |= {
+    _SOURCE: "'NAME, format cl|gcode, units mm|inch, sha256 HEX'",
+    _WORK_PLANE: "'origin [x, y, z] mm, x [..], z [..]'",
+    _TOOL_LENGTH: "'L mm, as given|the machine's'",
+    _SOURCE_TOLERANCE: "'T mm, angle A deg'",
+}
+
+
+def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader:
+    """A converted program's header from its entries (see :func:`parse_header`)."""
+    missing = [k for k in _SOURCE_REQUIRED if k not in found]
+    last = max(number for number, _ in found.values())
+    if missing:
+        raise InputError(f"header: no {', '.join(repr(k) for k in missing)} entry (a converted program's header "
+                         f"has {', '.join(_SOURCE_REQUIRED)})", path=path, line=last)
+    key = "machine"
+    try:
+        machine = re.sub(r"\s*\[.*\]$", "", found["machine"][1]).strip()
+        if not machine:
+            raise _Bad("no machine name")
+        key = "dialect"
+        dialect, numbers, start, step = _dialect(found["dialect"][1])
+        key = "source"
+        source = _match(_SOURCE, found["source"][1])
+        ignore: tuple[str, ...] = ()
+        if "ignore" in found:
+            key = "ignore"
+            ignore = tuple(w.strip().upper() for w in found["ignore"][1].split(","))
+            if not all(re.fullmatch(r"[A-Z][A-Z0-9 _-]*", w) for w in ignore):
+                raise _Bad(f"expected major words separated by commas, got {found['ignore'][1]!r}")
+        plane = None
+        if "work plane" in found:
+            key = "work plane"
+            planes = _match(_WORK_PLANE, found["work plane"][1])
+            try:
+                plane = WorkPlane.from_vectors(_vector(planes.group(1), 3), _vector(planes.group(3), 3),
+                                               _vector(planes.group(2), 3), name="work plane")
+            except WorkPlaneError as error:
+                raise _Bad(str(error)) from error
+        key = "setup"
+        setup_match = _match(_SETUP, found["setup"][1])
+        try:
+            setup = Setup(_vector(setup_match.group(1), 3), float(setup_match.group(2)))  # type: ignore[arg-type]
+        except Prs3Error as error:
+            raise _Bad(str(error)) from error
+        key = "tool length"
+        length = _match(_TOOL_LENGTH, found["tool length"][1])
+        tool_length = float(length.group(1))
+        if not (math.isfinite(tool_length) and 0.0 < tool_length <= MAX_POSITION_MM):
+            raise _Bad(f"expected a length > 0 mm, got {length.group(1)!r}")
+        key = "tolerance"
+        tolerances = _match(_SOURCE_TOLERANCE, found["tolerance"][1])
+        tolerance, angle = float(tolerances.group(1)), float(tolerances.group(2))
+        if not (math.isfinite(tolerance) and 0.0 < tolerance <= MAX_POSITION_MM and math.isfinite(angle)
+                and 0.0 < angle <= 90.0):
+            raise _Bad(f"expected a tolerance > 0 mm and an angle in (0, 90] deg, got {found['tolerance'][1]!r}")
+    except _Bad as bad:
+        raise InputError(f"header: {key}: {bad}", path=path, line=found[key][0]) from bad
+    return SourceHeader(
+        version=found[PROGRAM_KEY][1], machine=machine,
+        machine_file=found["machine file"][1] if "machine file" in found else None,
+        dialect=dialect, dialect_file=found["dialect file"][1] if "dialect file" in found else None,
+        source_name=source.group(1), source_sha256=source.group(4).lower(), source_format=source.group(2).lower(),
+        source_units=source.group(3).lower(), ignore=ignore, work_plane=plane, setup=setup, tool_length=tool_length,
+        tool_length_given=length.group(2).lower() == "as given", tolerance=tolerance, angle_tolerance_deg=angle,
+        line_numbers=numbers, line_start=start, line_step=step, lines=tuple((k, v[0]) for k, v in found.items()),
+        path=path,
+    )
+
+
 def header_comments(text: str, *, open_: str = "(", close: str = ")") -> list[tuple[int, str]]:
     """The comment texts of the lines at the top of a program, before its first line with code.
 
@@ -635,7 +818,7 @@ def header_comments(text: str, *, open_: str = "(", close: str = ")") -> list[tu
     return out
 
 
-def read_header(path: str, *, open_: str = "(", close: str = ")") -> ProgramHeader | None:
+def read_header(path: str, *, open_: str = "(", close: str = ")") -> ProgramHeader | SourceHeader | None:
     """The header of the program file at ``path``, or None when it has none (see :func:`parse_header`).
 
     Only the first :data:`HEAD_BYTES` bytes are looked at.
