@@ -42,6 +42,7 @@ from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, Profil
 from prs3_post.ops.common import require_tolerance
 from prs3_post.output import is_stdout, refuse_overwriting, stdout_error, write_atomic, write_outputs
 from prs3_post.placement import Placement
+from prs3_post.readers.header import ProgramHeader, SourceHeader
 from prs3_post.readers.program import read_program
 from prs3_post.readers.stl import UP_ROTATION, load_part
 from prs3_post.readers.tooltable import ToolTable, read_tool_table
@@ -60,6 +61,7 @@ from prs3_post.verify_job import (
     header_job,
     intended_from_job,
     intended_from_poses,
+    intended_from_source,
     open_program,
     open_setting,
     preview_bytes,
@@ -952,6 +954,11 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext, opts: d
     """The intended path of `verify --against`: the job rebuilt from PART.stl and the program's header
     (or, without a header, the options), or POSES.csv."""
     suffix = Path(against).suffix.lower()
+    if isinstance(context.header, SourceHeader):            # a converted program: its CAM source
+        try:
+            return intended_from_source(context, against)
+        except HeaderConflict as error:
+            raise InputError(f"--against: {error.args[0]}", path=error.path, line=error.line) from error
     if suffix == ".stl":
         if context.header is not None:
             try:
@@ -969,18 +976,20 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext, opts: d
         return intended_from_job(spec)
     if suffix == ".csv":
         return intended_from_poses(against, context.program)
-    raise InputError("--against takes PART.stl (with the operation options the program was made with) or "
-                     "POSES.csv (one pose per motion line); verifying against CAM input (APT CL, G-code) is "
-                     "not supported yet", path=against)
+    raise InputError("--against takes PART.stl (with the operation options the program was made with), "
+                     "POSES.csv (one pose per motion line), or the CAM file a program was converted from (its "
+                     "header names it)", path=against)
 
 
 @main.command()
 @click.argument("program_path", type=click.Path(dir_okay=False), metavar="PROGRAM.ngc")
-@click.option("--against", "against_path", type=click.Path(dir_okay=False), metavar="PART.stl|POSES.csv",
+@click.option("--against", "against_path", type=click.Path(dir_okay=False), metavar="PART.stl|POSES.csv|INPUT",
               help="The intended path: PART.stl (the operation is rebuilt from the program's header; a program "
                    "without one needs the options it was made with: --profile, --at, --depth, ...), or POSES.csv (the `ik --batch` format, "
-                   "machine frame, one pose per G0/G1 line). CAM input (APT CL, G-code) is not supported yet.")
-@click.option("--axis-tolerance", "axis_tolerance_deg", type=Decimal(ANGLE), default=DEFAULT_ANGLE_TOLERANCE_DEG, show_default=True,
+                   "machine frame, one pose per G0/G1 line), or for a program made by `prs3-post convert` its CAM input "
+                   "(APT CL or G-code; checked by the SHA-256 its header records).")
+@click.option("--axis-tolerance", "axis_tolerance_deg", type=Decimal(ANGLE), default=DEFAULT_ANGLE_TOLERANCE_DEG,
+              show_default=True,
               help="Allowed tool-axis deviation from the --against path, degrees.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print the complete report as JSON: every move, the FK tool-tip path in part coordinates, "
@@ -1109,6 +1118,7 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
                     check_part(header, part_path)
                 except HeaderConflict as error:
                     raise InputError(f"--part: {error.args[0]}", path=error.path, line=error.line) from error
+                assert isinstance(header, ProgramHeader)   # check_part refuses a converted program's header
                 recorded = {"face_choice": header.face, "units": header.units, "up": header.up}
                 wrong = [f"{flag} (header: {'auto' if recorded[name] is None else recorded[name]})"
                          for name, flag in (("face_choice", "--face"), ("units", "--units"), ("up", "--up"))

@@ -244,7 +244,7 @@ def _check_poses(machine: Machine, path_part: Toolpath, setup: Setup) -> None:
     try:
         axis = unit_axes(path.tip, path.axis, row_name="line", row_numbers=path.source)
     except PoseError as error:
-        raise ReachError(f"{error} (setup: {setup.describe()}; a setup turns the part about z only)") from error
+        raise ReachError(str(error)) from error
     ik = inverse(machine.geometry, path.tip, axis, model=model_for(machine))
     if not ik.reachable.all():
         return                                          # post_process names the unreachable pose

@@ -32,7 +32,7 @@ from prs3_post.errors import ConfigError, InputError, PoseError
 from prs3_post.face import Face
 from prs3_post.job import JobSpec, run_operations, specs_from_header
 from prs3_post.kinematics import unit_axes
-from prs3_post.readers.header import ProgramHeader, file_sha256, read_header
+from prs3_post.readers.header import ProgramHeader, SourceHeader, file_sha256, read_header
 from prs3_post.readers.poses import read_poses
 from prs3_post.readers.program import CHUNK_LINES, ProgramFile, ProgramStream, load_program
 from prs3_post.setup import Setup
@@ -76,18 +76,18 @@ class ProgramContext:
     """
 
     program: ProgramFile
-    header: ProgramHeader | None
+    header: ProgramHeader | SourceHeader | None
     machine: Machine
     dialect: Dialect
     setup: Setup
 
 
-def _conflict(header: ProgramHeader, key: str, what: str, recorded: str, given: str) -> HeaderConflict:
+def _conflict(header: ProgramHeader | SourceHeader, key: str, what: str, recorded: str, given: str) -> HeaderConflict:
     return HeaderConflict(f"the program's header says {what} {recorded}, but {what} {given} was given (leave it "
                           "out to use the header's)", path=header.path, line=header.line(key), what=what)
 
 
-def _load_recorded(header: ProgramHeader, kind: str, load: Callable[[str], _Config]) -> _Config:
+def _load_recorded(header: ProgramHeader | SourceHeader, kind: str, load: Callable[[str], _Config]) -> _Config:
     """The machine or dialect a header names: its file when given by path, else the shipped name (a
     dialect may have upper-cased the comment: its lower-case spelling is tried too)."""
     name, file = (header.machine, header.machine_file) if kind == "machine" else (header.dialect, header.dialect_file)
@@ -113,7 +113,7 @@ class ProgramSetting:
     (attributes as :class:`ProgramContext`)."""
 
     path: str
-    header: ProgramHeader | None
+    header: ProgramHeader | SourceHeader | None
     machine: Machine
     dialect: Dialect
     setup: Setup
@@ -171,10 +171,14 @@ def open_setting(path: str, *, machine: str | None = None, dialect: str | None =
             raise _conflict(header, "setup", "part origin", _vector(setup.origin), _vector(origin))
         if rotation_deg is not None and float(rotation_deg) != setup.rotation_deg:
             raise _conflict(header, "setup", "part rotation", f"{setup.rotation_deg:g} deg", f"{rotation_deg:g} deg")
+        if isinstance(header, SourceHeader) and header.tool_length != chosen_machine.geometry.tool_length:
+            # a converted program's IK used the tool length its header states: replay it with that one
+            chosen_machine = dataclasses.replace(chosen_machine, geometry=dataclasses.replace(
+                chosen_machine.geometry, tool_length=header.tool_length))
     return ProgramSetting(path=path, header=header, machine=chosen_machine, dialect=chosen_dialect, setup=setup)
 
 
-def _recorded_or_given(header: ProgramHeader, kind: str, load: Callable[[str], _Config],
+def _recorded_or_given(header: ProgramHeader | SourceHeader, kind: str, load: Callable[[str], _Config],
                        given: _Config | None) -> _Config:
     if given is None:
         return _load_recorded(header, kind, load)
@@ -192,7 +196,7 @@ def _vector(values: tuple[float, ...] | FloatArray) -> str:
     return "[" + ", ".join(f"{float(v):g}" for v in values) + "]"
 
 
-def check_part(header: ProgramHeader, part: str) -> None:
+def check_part(header: ProgramHeader | SourceHeader, part: str) -> None:
     """Refuse a part file that is not the one the program was made from (by SHA-256).
 
     Raises
@@ -200,6 +204,9 @@ def check_part(header: ProgramHeader, part: str) -> None:
     HeaderConflict
         Naming both files and both hashes.
     """
+    if isinstance(header, SourceHeader):
+        raise HeaderConflict(f"the program was converted from {header.source_name}, not made from a part: verify it "
+                             "against that file", path=header.path, line=header.line("source"), what="part")
     digest = file_sha256(part)
     if digest != header.part_sha256:
         raise HeaderConflict(
@@ -222,6 +229,7 @@ def header_job(context: ProgramContext, part: str) -> tuple[JobSpec, ...]:
         raise InputError("the program has no prs3-post header: the operation it was made with must be given",
                          path=context.program.path)
     check_part(header, part)
+    assert isinstance(header, ProgramHeader)  # check_part refuses a converted program's header
     return specs_from_header(header, part, context.machine, context.dialect)
 
 
@@ -237,6 +245,39 @@ def intended_from_job(specs: JobSpec | tuple[JobSpec, ...]) -> Intended:
     what = "+".join(dict.fromkeys(s.operation.value for s in specs))
     return Intended(tip=path.tip, axis=path.axis, feed=feed, kind=path.kind,
                     label=f"{Path(specs[0].part).name} ({what})")
+
+
+def intended_from_source(context: ProgramContext, source: str) -> Intended:
+    """What a converted program should do: its CAM source converted again with the settings its header
+    records (format, units, ignored words, work plane, setup, tool length, tolerances).
+
+    Raises
+    ------
+    HeaderConflict
+        The program has no converted program's header, or ``source`` is not the file it names (by SHA-256).
+    InputError, LimitError, ReachError
+        As the conversion.
+    """
+    from prs3_post.convert import ConvertSettings, convert_file   # convert imports the main job, as this does
+
+    header = context.header
+    if not isinstance(header, SourceHeader):
+        raise InputError("the program has no header of a converted CAM file (prs3-post convert writes one): "
+                         "there is nothing to rebuild the intended path from", path=context.program.path)
+    digest = file_sha256(source)
+    if digest != header.source_sha256:
+        raise HeaderConflict(
+            f"{source} (SHA-256 {digest}) is not the file the program was converted from: its header names "
+            f"{header.source_name} (SHA-256 {header.source_sha256})", path=header.path, line=header.line("source"),
+            what="part")
+    settings = ConvertSettings(
+        machine=context.machine, dialect=context.dialect, setup=header.setup, tolerance=header.tolerance,
+        angle_tolerance_deg=header.angle_tolerance_deg, input_format=header.source_format, units=header.source_units,
+        ignore=header.ignore, work_plane=header.work_plane, line_numbers=header.line_numbers,
+        line_start=header.line_start, line_step=header.line_step)
+    path = convert_file(source, settings).post.path
+    feed = np.where(path.kind == MoveKind.FEED, path.feed, np.nan)
+    return Intended(tip=path.tip, axis=path.axis, feed=feed, kind=path.kind, label=Path(source).name)
 
 
 def intended_from_poses(path: str, program: ProgramFile) -> Intended:

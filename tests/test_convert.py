@@ -1,0 +1,279 @@
+"""`prs3-post convert`: the corpus CL files, golden programs, FK replay, LinuxCNC, bad inputs, batches.
+
+The corpus files are referenced in ../shared/corpus (never copied). Each placeable file has the
+setup that puts it in the workspace (the part origin the limit error suggested); the others fail
+with their exact message.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from numpy.testing import assert_allclose
+
+from conftest import compare_golden
+from prs3_post.cli import main
+from prs3_post.config import load_dialect, load_machine
+from prs3_post.convert import ConvertSettings, collect_inputs, convert_batch, convert_file
+from prs3_post.kinematics import forward
+from prs3_post.pipeline import place_toolpath
+from prs3_post.readers.apt import read_cl
+from prs3_post.readers.program import read_program
+from prs3_post.setup import Setup
+from prs3_post.toolpath import MoveKind
+
+REPO = Path(__file__).resolve().parents[1]
+CORPUS = REPO.parent / "shared" / "corpus" / "cl"
+GOLDEN = REPO / "fixtures" / "golden"
+pytestmark = pytest.mark.skipif(not CORPUS.is_dir(), reason="the corpus (../shared/corpus) is not here")
+
+#: Corpus files that fit the machine, with the part origin that places them (rotation 0).
+PLACED = {
+    "humman_deep_drill.clsf": (94.5, 0.0, -996.0),
+    "humman_standart_drill.clsf": (94.5, 0.0, -996.0),
+    "mech491_APT_SimpleMillPlane.cls": (0.0, -17.2, -856.0),
+    "mech491_APT_Variable_Axis.cls": (-44.0, -81.3, -786.7),
+    "mech491_APT_Zig_Zag_Smoothed.cls": (-76.5, -80.8, -788.9),
+}
+_DEFAULT_SETUP = ("setup: part origin at machine [-100.0000, -200.0000, -970.0000] mm, rotation 0.0000 deg about z; "
+                  "no translation of the part puts every point inside the machine's limits")
+#: Corpus files no setup fits, and why (their MSYS turns the part upside down: the tool axis points
+#: down in the part frame, and a setup turns the part about z only; ust_a also tilts 86°, past the limit).
+UNPLACEABLE = {
+    "humman_1_KONTUR_NAR_40_N2.cls":
+        "lines 9, 12, 15, 16, 18, 19, 19, 19, 19, 19, ...: the axis points away from the spindle (axis z must be > 0); "
+        + _DEFAULT_SETUP,
+    "humman_4_SVERL_63_N2.cls":
+        "lines 8, 10, 12, 15, 18, 21, 23, 26, 29, 31, ...: the axis points away from the spindle (axis z must be > 0); "
+        + _DEFAULT_SETUP,
+    "humman_ust_a_variable_contour.cls":
+        "line 11: stage Y -1396.5000 mm is below the minimum -300.0000 mm by 1096.5000 mm (546 points outside limits "
+        "in all); " + _DEFAULT_SETUP,
+}
+GOLDEN_FILES = ("humman_deep_drill.clsf", "mech491_APT_SimpleMillPlane.cls", "mech491_APT_Variable_Axis.cls")
+
+
+def _settings(origin: tuple[float, float, float] | None = None, **kwargs: object) -> ConvertSettings:
+    machine = load_machine("patel2020")
+    return ConvertSettings(machine=machine, dialect=load_dialect("linuxcnc"), setup=Setup.resolve(machine, origin),
+                           **kwargs)  # type: ignore[arg-type]
+
+
+def _origin_option(origin: tuple[float, float, float]) -> str:
+    return "--part-origin=" + ",".join(f"{v:g}" for v in origin)
+
+
+def test_every_corpus_cl_file_is_placed_or_refused() -> None:
+    names = sorted(p.name for p in CORPUS.iterdir() if p.suffix in (".cls", ".clsf"))
+    assert names == sorted([*PLACED, *UNPLACEABLE])
+
+
+@pytest.mark.parametrize("name", sorted(PLACED))
+def test_corpus_file_replays_onto_its_cl_points(name: str) -> None:
+    """FK of every program line lands on the machine-frame path within rounding, and every CL point is on it."""
+    settings = _settings(PLACED[name])
+    path = str(CORPUS / name)
+    conversion = convert_file(path, settings)
+    program = read_program(conversion.text, settings.dialect, path=name)
+    moves = program.moves
+    fk = forward(settings.machine.geometry, moves.strokes, moves.stage)
+    assert fk.converged.all()
+    tip = fk.tip                                      # part-relative: the stage included
+    rounding = 2e-4                                   # 4 decimals on 5 joint words through the Jacobian (≤ 7.2)
+    assert_allclose(tip, conversion.post.path.tip, atol=1e-6 + rounding)
+    # the CL points (MSYS and setup applied): each read row is a row of the program, in order
+    cl = place_toolpath(read_cl(path, tolerance=settings.tolerance).toolpath, settings.setup)
+    hits = np.array([np.flatnonzero(np.linalg.norm(conversion.post.path.tip - p, axis=1) < 1e-9)[:1].size
+                     for p in cl.tip])
+    assert hits.all()
+    assert conversion.report.deviation_after <= settings.tolerance
+    assert conversion.report.emitted_moves == len(moves)
+
+
+@pytest.mark.parametrize("name", sorted(UNPLACEABLE))
+def test_unplaceable_corpus_file_fails_with_its_reason(name: str, tmp_path: Path) -> None:
+    result = CliRunner().invoke(main, ["convert", str(CORPUS / name), "-o", str(tmp_path), "--jobs", "1"])
+    assert result.exit_code == 1
+    assert result.stdout == f"failed\t{CORPUS / name}\t-\t{CORPUS / name}: {UNPLACEABLE[name]}\n"
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("name", GOLDEN_FILES)
+def test_golden_conversion(name: str, tmp_path: Path, update_golden: bool, rs274_check) -> None:  # noqa: ANN001
+    """Made through the CLI from inside the corpus folder (the header names the file, not a folder)."""
+    cwd = os.getcwd()
+    os.chdir(CORPUS)
+    try:
+        result = CliRunner().invoke(main, ["convert", name, "-o", str(tmp_path), "--jobs", "1",
+                                           _origin_option(PLACED[name])])
+    finally:
+        os.chdir(cwd)
+    assert result.exit_code == 0, result.output
+    out = tmp_path / (Path(name).stem + ".ngc")
+    compare_golden(out.read_text(), GOLDEN / f"convert-{Path(name).stem}.ngc", update_golden)
+    code, text = rs274_check(out)
+    assert code == 0, text
+    verified = CliRunner().invoke(main, ["verify", str(out), "--against", str(CORPUS / name)])
+    assert verified.exit_code == 0, verified.output
+    assert verified.output.splitlines()[-1] == "OK: within every limit and tolerance"
+
+
+def test_every_placed_output_passes_linuxcnc(tmp_path: Path, rs274_check) -> None:  # noqa: ANN001
+    for name, origin in PLACED.items():
+        result = CliRunner().invoke(main, ["convert", str(CORPUS / name), "-o", str(tmp_path), "--jobs", "1",
+                                           _origin_option(origin)])
+        assert result.exit_code == 0, result.output
+    outputs = sorted(tmp_path.glob("*.ngc"))
+    assert len(outputs) == len(PLACED)
+    code, text = rs274_check(*outputs)
+    assert code == 0, text
+
+
+def test_verify_against_another_source_is_refused(tmp_path: Path) -> None:
+    name = "mech491_APT_SimpleMillPlane.cls"
+    CliRunner().invoke(main, ["convert", str(CORPUS / name), "-o", str(tmp_path), "--jobs", "1",
+                              _origin_option(PLACED[name])])
+    out = tmp_path / "mech491_APT_SimpleMillPlane.ngc"
+    other = CORPUS / "humman_deep_drill.clsf"
+    result = CliRunner().invoke(main, ["verify", str(out), "--against", str(other)])
+    assert result.exit_code == 2
+    assert result.stderr == (
+        f"prs3-post: error: {out}:4: --against: {other} (SHA-256 efee317f7d9c2d8c2e4c2e2fc0108bd82f77b5b69a1c5371311335e482421f2c) "
+        "is not the file the program was converted from: its header names mech491_APT_SimpleMillPlane.cls (SHA-256 "
+        "50ecbbfbfac0b0abd941d807d2dadbbdbb4449ed40d1811d563f7e6f339cccfc)\n")
+
+
+# ----------------------------------------------------------------------------- bad inputs
+
+
+def _cli(tmp_path: Path, *args: str) -> tuple[int, str, str]:
+    result = CliRunner().invoke(main, ["convert", *args, "--jobs", "1"])
+    return result.exit_code, result.stdout, result.stderr
+
+
+def test_truncated_record_fails_and_writes_nothing(tmp_path: Path) -> None:
+    src = tmp_path / "truncated.cls"
+    src.write_text("RAPID\nGOTO/1,2,3\nGOTO/1,2,$\n")
+    out = tmp_path / "out"
+    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(out))
+    assert code == 1
+    reason = stdout.split("\t")[3].rstrip("\n")
+    assert reason == (f"{src}:3: truncated record: 'GOTO/1,2,' continues with '$' but the file ends (a continued record "
+                      "needs its next line)")
+    assert list(out.iterdir()) == []
+
+
+def test_unreachable_point_fails_and_writes_nothing(tmp_path: Path) -> None:
+    src = tmp_path / "far.cls"
+    src.write_text("FEDRAT/100\nRAPID\nGOTO/0,0,100\nGOTO/0,0,-500\n")
+    out = tmp_path / "out"
+    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(out))
+    assert code == 1
+    assert stdout.split("\t")[3].rstrip("\n") == (
+        f"{src}: line 4: T1 stroke 865.5270 mm is above the maximum 400.0000 mm by 465.5270 mm; setup: part origin at machine [-100.0000, -200.0000, -970.0000] mm, rotation 0.0000 deg "
+        "about z; no translation of the part puts every point inside the machine's limits")
+    assert list(out.iterdir()) == []
+
+
+def test_output_folder_that_cannot_be_made(tmp_path: Path) -> None:
+    src = tmp_path / "a.cls"
+    src.write_text("RAPID\nGOTO/0,0,0\n")
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    code, stdout, stderr = _cli(tmp_path, str(src), "-o", str(blocker / "out"))
+    assert (code, stdout) == (2, "")
+    assert stderr == f"prs3-post: error: {blocker / 'out'}: cannot create the output folder: Not a directory\n"
+
+
+def test_existing_output_is_kept_unless_forced(tmp_path: Path) -> None:
+    name = "humman_deep_drill.clsf"
+    out = tmp_path / "out"
+    out.mkdir()
+    kept = out / "humman_deep_drill.ngc"
+    kept.write_text("mine\n")
+    code, stdout, _ = _cli(tmp_path, str(CORPUS / name), "-o", str(out), _origin_option(PLACED[name]))
+    assert code == 1
+    assert stdout == (f"failed\t{CORPUS / name}\t-\t{kept}: exists already: kept (convert with force to replace "
+                      "it)\n")
+    assert kept.read_text() == "mine\n"
+    code, _, _ = _cli(tmp_path, str(CORPUS / name), "-o", str(out), _origin_option(PLACED[name]), "--force")
+    assert code == 0
+    assert kept.read_text().startswith("(program: prs3-post")
+
+
+# ----------------------------------------------------------------------------- batches
+
+
+def test_a_failing_file_does_not_stop_the_batch(tmp_path: Path) -> None:
+    bad = tmp_path / "in" / "bad.cls"
+    bad.parent.mkdir()
+    bad.write_text("GOTO/1,2\n")
+    out = tmp_path / "out"
+    settings = _settings(PLACED["humman_deep_drill.clsf"])
+    files = [str(bad), str(CORPUS / "humman_deep_drill.clsf"), str(CORPUS / "humman_standart_drill.clsf")]
+    result = convert_batch(files, str(out), settings, jobs=1)
+    assert [o.ok for o in result.outcomes] == [False, True, True]
+    assert result.failures[0].error.startswith(f"{bad}:1: ")
+    assert sorted(p.name for p in out.iterdir()) == ["humman_deep_drill.ngc", "humman_standart_drill.ngc"]
+    stopped = convert_batch(files, str(tmp_path / "out2"), settings, jobs=1, fail_fast=True)
+    assert [o.ok for o in stopped.outcomes] == [False]
+    assert stopped.not_started == tuple(files[1:])
+
+
+def test_jobs_2_gives_the_same_bytes_as_jobs_1(tmp_path: Path) -> None:
+    files = [str(CORPUS / n) for n in ("humman_deep_drill.clsf", "humman_standart_drill.clsf",
+                                       "mech491_APT_SimpleMillPlane.cls")]
+    settings = _settings(PLACED["humman_deep_drill.clsf"])
+    one = convert_batch(files, str(tmp_path / "one"), settings, jobs=1)
+    two = convert_batch(files, str(tmp_path / "two"), settings, jobs=2)
+    assert [o.ok for o in one.outcomes] == [o.ok for o in two.outcomes]
+    for name in sorted(os.listdir(tmp_path / "one")):
+        assert (tmp_path / "one" / name).read_bytes() == (tmp_path / "two" / name).read_bytes()
+    assert sorted(os.listdir(tmp_path / "one")) == sorted(os.listdir(tmp_path / "two"))
+    assert len(os.listdir(tmp_path / "one")) >= 2
+
+
+def test_same_stem_in_two_folders_fails_both(tmp_path: Path) -> None:
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / "part.cls").write_bytes((CORPUS / "humman_deep_drill.clsf").read_bytes())
+    files = collect_inputs([str(tmp_path / "a"), str(tmp_path / "b")])
+    result = convert_batch(files, str(tmp_path / "out"), _settings(PLACED["humman_deep_drill.clsf"]), jobs=1)
+    out = tmp_path / "out" / "part.ngc"
+    assert [o.error for o in result.outcomes] == [
+        f"{tmp_path / 'a' / 'part.cls'}: has the same name as {tmp_path / 'b' / 'part.cls'}: both would be written to "
+        f"{out} (convert them into different folders)",
+        f"{tmp_path / 'b' / 'part.cls'}: has the same name as {tmp_path / 'a' / 'part.cls'}: both would be written to "
+        f"{out} (convert them into different folders)"]
+    assert not out.exists()
+
+
+def test_directory_search_skips_fifos_other_files_and_the_output_folder(tmp_path: Path) -> None:
+    src = tmp_path / "cam"
+    (src / "deep").mkdir(parents=True)
+    (src / "deep" / "x.cls").write_text("GOTO/0,0,0\n")
+    (src / "notes.txt").write_text("hello\n")
+    os.mkfifo(src / "pipe.cls")
+    (src / "out").mkdir()
+    (src / "out" / "old.ngc").write_text("G0 X0\n")
+    assert collect_inputs([str(src)], exclude=str(src / "out")) == [str(src / "deep" / "x.cls")]
+
+
+def test_report_json_accounts_for_every_record(tmp_path: Path) -> None:
+    name = "mech491_APT_SimpleMillPlane.cls"
+    report = tmp_path / "report.json"
+    code, _, _ = _cli(tmp_path, str(CORPUS / name), "-o", str(tmp_path / "out"), _origin_option(PLACED[name]),
+                      "--report", str(report))
+    assert code == 0
+    data = json.loads(report.read_text())
+    file = data["files"][0]["report"]
+    assert sum(file["by_word"].values()) == file["records"]
+    assert file["skipped"] == {"PAINT": 36, "TOOL PATH": 1, "Tool Path Listing": 1}
+    assert (file["input_moves"], file["arcs"], file["arc_rows"], file["emitted_moves"]) == (33, 2, 70, 103)
+    assert data["summary"] == {"files": 1, "converted": 1, "failed": 0, "not_started": 0, "input_moves": 33,
+                               "seconds": data["summary"]["seconds"]}
