@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from conftest import compare_golden
 from numpy.testing import assert_allclose
 
-from conftest import compare_golden
 from prs3_post.cli import main
 from prs3_post.config import load_dialect, load_machine
 from prs3_post.convert import ConvertSettings, collect_inputs, convert_batch, convert_file
@@ -25,7 +25,6 @@ from prs3_post.pipeline import place_toolpath
 from prs3_post.readers.apt import read_cl
 from prs3_post.readers.program import read_program
 from prs3_post.setup import Setup
-from prs3_post.toolpath import MoveKind
 
 REPO = Path(__file__).resolve().parents[1]
 CORPUS = REPO.parent / "shared" / "corpus" / "cl"
@@ -46,10 +45,12 @@ _DEFAULT_SETUP = ("setup: part origin at machine [-100.0000, -200.0000, -970.000
 #: down in the part frame, and a setup turns the part about z only; ust_a also tilts 86°, past the limit).
 UNPLACEABLE = {
     "humman_1_KONTUR_NAR_40_N2.cls":
-        "lines 9, 12, 15, 16, 18, 19, 19, 19, 19, 19, ...: the axis points away from the spindle (axis z must be > 0); "
+        "lines 9, 12, 15, 16, 18, 19, 19, 19, 19, 19, ...: the axis points away from the spindle (axis z must be "
+        "> 0); "
         + _DEFAULT_SETUP,
     "humman_4_SVERL_63_N2.cls":
-        "lines 8, 10, 12, 15, 18, 21, 23, 26, 29, 31, ...: the axis points away from the spindle (axis z must be > 0); "
+        "lines 8, 10, 12, 15, 18, 21, 23, 26, 29, 31, ...: the axis points away from the spindle (axis z must be "
+        "> 0); "
         + _DEFAULT_SETUP,
     "humman_ust_a_variable_contour.cls":
         "line 11: stage Y -1396.5000 mm is below the minimum -300.0000 mm by 1096.5000 mm (546 points outside limits "
@@ -104,7 +105,7 @@ def test_unplaceable_corpus_file_fails_with_its_reason(name: str, tmp_path: Path
 
 
 @pytest.mark.parametrize("name", GOLDEN_FILES)
-def test_golden_conversion(name: str, tmp_path: Path, update_golden: bool, rs274_check) -> None:  # noqa: ANN001
+def test_golden_conversion(name: str, tmp_path: Path, update_golden: bool, rs274_check) -> None:
     """Made through the CLI from inside the corpus folder (the header names the file, not a folder)."""
     cwd = os.getcwd()
     os.chdir(CORPUS)
@@ -123,7 +124,7 @@ def test_golden_conversion(name: str, tmp_path: Path, update_golden: bool, rs274
     assert verified.output.splitlines()[-1] == "OK: within every limit and tolerance"
 
 
-def test_every_placed_output_passes_linuxcnc(tmp_path: Path, rs274_check) -> None:  # noqa: ANN001
+def test_every_placed_output_passes_linuxcnc(tmp_path: Path, rs274_check) -> None:
     for name, origin in PLACED.items():
         result = CliRunner().invoke(main, ["convert", str(CORPUS / name), "-o", str(tmp_path), "--jobs", "1",
                                            _origin_option(origin)])
@@ -143,8 +144,9 @@ def test_verify_against_another_source_is_refused(tmp_path: Path) -> None:
     result = CliRunner().invoke(main, ["verify", str(out), "--against", str(other)])
     assert result.exit_code == 2
     assert result.stderr == (
-        f"prs3-post: error: {out}:4: --against: {other} (SHA-256 efee317f7d9c2d8c2e4c2e2fc0108bd82f77b5b69a1c5371311335e482421f2c) "
-        "is not the file the program was converted from: its header names mech491_APT_SimpleMillPlane.cls (SHA-256 "
+        f"prs3-post: error: {out}:4: --against: {other} (SHA-256 "
+        "efee317f7d9c2d8c2e4c2e2fc0108bd82f77b5b69a1c5371311335e482421f2c) is not the file the program was converted "
+        "from: its header names mech491_APT_SimpleMillPlane.cls (SHA-256 "
         "50ecbbfbfac0b0abd941d807d2dadbbdbb4449ed40d1811d563f7e6f339cccfc)\n")
 
 
@@ -163,8 +165,8 @@ def test_truncated_record_fails_and_writes_nothing(tmp_path: Path) -> None:
     code, stdout, _ = _cli(tmp_path, str(src), "-o", str(out))
     assert code == 1
     reason = stdout.split("\t")[3].rstrip("\n")
-    assert reason == (f"{src}:3: truncated record: 'GOTO/1,2,' continues with '$' but the file ends (a continued record "
-                      "needs its next line)")
+    assert reason == (f"{src}:3: truncated record: 'GOTO/1,2,' continues with '$' but the file ends (a continued "
+                      "record needs its next line)")
     assert list(out.iterdir()) == []
 
 
@@ -175,8 +177,7 @@ def test_unreachable_point_fails_and_writes_nothing(tmp_path: Path) -> None:
     code, stdout, _ = _cli(tmp_path, str(src), "-o", str(out))
     assert code == 1
     assert stdout.split("\t")[3].rstrip("\n") == (
-        f"{src}: line 4: T1 stroke 865.5270 mm is above the maximum 400.0000 mm by 465.5270 mm; setup: part origin at machine [-100.0000, -200.0000, -970.0000] mm, rotation 0.0000 deg "
-        "about z; no translation of the part puts every point inside the machine's limits")
+        f"{src}: line 4: T1 stroke 865.5270 mm is above the maximum 400.0000 mm by 465.5270 mm; " + _DEFAULT_SETUP)
     assert list(out.iterdir()) == []
 
 

@@ -34,7 +34,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 #: How many examples each command gets (the whole file runs in ~15 s; preview draws a figure).
 EXAMPLES = {"run": 40, "demo": 50, "faces": 40, "ik": 50, "fk": 50, "verify": 50, "preview": 12, "machines": 5,
-            "job": 25}
+            "job": 25, "convert": 30}
 #: Options set in one example, besides the required ones.
 MAX_OPTIONS = 4
 
@@ -56,6 +56,8 @@ def originals() -> dict[str, tuple[bytes, ...]]:
         "csv": ((REPO / "fixtures" / "poses" / "cases_2a_2b.csv").read_bytes(),
                 b"tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n0,200,-680,0,0,1\n-81.0264,21.2132,-679.4865,0.447214,0,0.894427\n"),
         "machine": ((REPO / "postproc" / "machines" / "patel2020.toml").read_bytes(),),
+        "cl": (b"UNITS/MM\nFEDRAT/MMPM,200\n$$ a drill\nRAPID\nGOTO/0,200,20,0,0,1\nCYCLE/DRILL,RAPTO,3,FEDTO,5,MMPM,100\n"
+               b"GOTO/0,200,0\nGOTO/10,200,0\nCYCLE/OFF\nGOTO/10,200,0\nCIRCLE/0,200,0,0,0,1,10,0.01\nGOTO/-10,200,0\nFINI\n",),
         "dialect": ((REPO / "postproc" / "dialects" / "linuxcnc.toml").read_bytes(),
                     (REPO / "postproc" / "dialects" / "fanuc.toml").read_bytes()),
         "tbl": ((REPO / "fixtures" / "jobs" / "tools.tbl").read_bytes(),),
@@ -141,6 +143,7 @@ INPUTS = {
     "part": [("stl", "part.stl")], "part_path": [("stl", "part.stl")], "program_path": [("ngc", "prog.ngc")],
     "batch_path": [("csv", "poses.csv")], "against_path": [("stl", "against.stl"), ("csv", "against.csv")],
     "tool_table": [("tbl", "tools.tbl")], "job_path": [("job", "job.toml")],
+    "inputs": [("cl", "c.cls"), ("ngc", "p.nc")],
 }
 #: Output names: mostly good ones for the command, sometimes a folder, a missing folder or an input.
 GOOD_OUTPUTS = {"preview": ("out/o.png", "out/o.svg"), "preview_path": ("out/o.png", "out/o.svg"),
@@ -161,6 +164,8 @@ def value_for(param: click.Parameter, command: str) -> st.SearchStrategy[Any]:
         return st.one_of(st.sampled_from(("patel2020", "patel2020-head", "nope")), input_file("machine", "m.toml"))
     if param.name == "dialect_name":
         return st.one_of(st.sampled_from(("linuxcnc", "fanuc", "nope")), input_file("dialect", "d.toml"))
+    if param.name == "outdir":                      # convert's folder: the outputs' folder, the inputs', a file
+        return st.sampled_from(("out", "out", "out", "in", "in/c.cls"))
     if param.name == "face_choice":
         return st.sampled_from(("auto", "auto", "0", "4", "5", "6", "99", "-1", "x", "²", ""))
     if isinstance(kind, click.Choice):
@@ -226,8 +231,11 @@ def check_command(name: str, data: st.DataObject, monkeypatch: pytest.MonkeyPatc
         assert result.exit_code in (0, 1, 2), context
         written = sorted(p.name for p in (folder / "out").iterdir())
         assert not [n for n in written if n.endswith(".tmp")], context
-        if result.exit_code == 2 or (result.exit_code == 1 and name != "ik"):
+        if result.exit_code == 2 or (result.exit_code == 1 and name not in ("ik", "convert")):
             assert written == [], context
+        if result.exit_code == 1 and name == "convert":    # its one file failed: only the batch's report is written
+            report = args[args.index("--report") + 1] if "--report" in args else None
+            assert [f"out/{n}" for n in written] in ([], [report]), context
         now = _snapshot(folder)
         assert {name: now.get(name) for name in inputs} == inputs, context      # outputs may be new files
 
@@ -260,3 +268,4 @@ test_fuzz_verify = _fuzz("verify")
 test_fuzz_preview = _fuzz("preview")
 test_fuzz_machines = _fuzz("machines")
 test_fuzz_job = _fuzz("job")
+test_fuzz_convert = _fuzz("convert")

@@ -47,7 +47,7 @@ def _rebuild(text: str, part: str, path: str = "prog.ngc") -> JobSpec:
                             load_dialect(header.dialect_file or header.dialect.lower()))
 
 
-@pytest.mark.parametrize("name", sorted(p.name for p in GOLDEN.iterdir()))
+@pytest.mark.parametrize("name", sorted(p.name for p in GOLDEN.iterdir() if not p.name.startswith("convert-")))
 def test_every_golden_header_rebuilds_its_program(name):
     """Read the header of a golden program, rebuild the job from it alone: the same program, byte for byte."""
     golden = GOLDEN / name

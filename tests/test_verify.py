@@ -341,8 +341,8 @@ def test_verify_fanuc_program_against_its_part(tmp_path):
 
 @pytest.mark.parametrize(("args", "code", "message"), [
     (("--against", "{v}/x.apt"), 2, "prs3-post: error: {v}/x.apt: --against takes PART.stl (with the operation "
-     "options the program was made with) or POSES.csv (one pose per motion line); verifying against CAM input "
-     "(APT CL, G-code) is not supported yet\n"),
+     "options the program was made with), POSES.csv (one pose per motion line), or the CAM file a program was "
+     "converted from (its header names it)\n"),
     (("--against", "{v}/paper_2a_2b.csv"), 2, "prs3-post: error: {v}/paper_2a_2b.csv: 2 poses for the 5 motion "
      "lines of {v}/small.ngc: give one pose per G0/G1 line, in order\n"),
     (("--against", str(WEDGE), "--profile", "square"), 1, "prs3-post: error: the program has 5 moves, "
@@ -365,7 +365,7 @@ def test_verify_against_part_needs_the_operation():
 def test_verify_help_has_an_example():
     text = run("verify", "--help").output
     assert "  prs3-post verify sq.ngc --against postproc/parts/patel2020-wedge.stl --json" in text
-    assert "not supported yet" in text
+    assert "for a program made by `prs3-post convert` its CAM input" in " ".join(text.split())
 
 
 def test_verify_program_library_call_reports_rounding():

@@ -1149,7 +1149,8 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
 @click.option("--jobs", type=Integer(1, 1024), default=None, help="Files converted at a time, in worker processes.  "
               "[default: the number of cores]")
 @click.option("--fail-fast", is_flag=True, help="Stop at the first file that fails (files under way finish).")
-@click.option("--force", is_flag=True, help="Replace programs that exist already (default: keep them; that file fails).")
+@click.option("--force", is_flag=True,
+              help="Replace programs that exist already (default: keep them; that file fails).")
 @click.option("--format", "input_format", type=click.Choice(list(FORMATS)), default="auto", show_default=True,
               help="Input format: by content (CL records or G-code words), or forced.")
 @click.option("--report", "report_path", type=OutputPath(), metavar="FILE.json",

@@ -259,7 +259,8 @@ def _worst_turning_deviation(machine: Machine, path: Toolpath) -> float:
     starts = np.flatnonzero(turning)
     if not len(starts):
         return 0.0
-    deviation = joint_path_deviation(machine.geometry, path.tip, path.axis, starts, model=model_for(machine))
+    deviation = joint_path_deviation(machine.geometry, path.tip, path.axis, starts,  # type: ignore[arg-type]  # row indices
+                                     model=model_for(machine))
     return float(np.nanmax(deviation))
 
 
@@ -285,10 +286,10 @@ def convert_file(path: str, settings: ConvertSettings) -> Conversion:
         post = post_process(machine, path_part, settings.setup, tolerance=settings.tolerance,
                             length_decimals=settings.dialect.decimals.length)
     except (LimitError, ReachError) as error:           # say which file, the setup, and one that fits if any
-        placed = placement_error(error, machine, path_part, settings.setup, tolerance=settings.tolerance,
-                                 length_decimals=settings.dialect.decimals.length)
-        raise type(placed)(f"{path}: {placed}", setup=placed.setup,
-                           suggested_origin=placed.suggested_origin) from error
+        failure = placement_error(error, machine, path_part, settings.setup, tolerance=settings.tolerance,
+                                  length_decimals=settings.dialect.decimals.length)
+        raise type(failure)(f"{path}: {failure}", setup=failure.setup,
+                            suggested_origin=failure.suggested_origin) from error
     placed = place_toolpath(path_part, settings.setup)
     placed = dataclasses.replace(placed, axis=unit_axes(placed.tip, placed.axis))
     subdivided = machine_path(machine, path_part, settings.setup, tolerance=settings.tolerance)
@@ -297,8 +298,9 @@ def convert_file(path: str, settings: ConvertSettings) -> Conversion:
         input=path, format=fmt, units=source.units, sha256=file_sha256(path), records=counts.records,
         by_word=counts.by_word, input_moves=counts.moves, arcs=counts.arcs, arc_rows=counts.arc_segments,
         cycles=counts.cycles, cycle_holes=counts.cycle_holes, cycle_rows=counts.cycle_rows,
-        comments=counts.comments, skipped=counts.skipped, toolpath_rows=len(path_part), subdivisions=len(subdivided) - len(path_part),
-        dropped=len(subdivided) - len(post.path), emitted_moves=len(post.program),
+        comments=counts.comments, skipped=counts.skipped, toolpath_rows=len(path_part),
+        subdivisions=len(subdivided) - len(path_part), dropped=len(subdivided) - len(post.path),
+        emitted_moves=len(post.program),
         deviation_before=_worst_turning_deviation(machine, placed),
         deviation_after=_worst_turning_deviation(machine, post.path),
         tool_length=machine.geometry.tool_length,
@@ -582,6 +584,7 @@ def _run_parallel(inputs: Sequence[str], outputs: list[str], todo: list[int], se
     import multiprocessing
 
     context = multiprocessing.get_context("forkserver")
+    jobs = min(jobs, len(todo))
     with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init,
                              initargs=(threads,)) as pool:
         try:

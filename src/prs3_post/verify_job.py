@@ -258,7 +258,7 @@ def intended_from_source(context: ProgramContext, source: str) -> Intended:
     InputError, LimitError, ReachError
         As the conversion.
     """
-    from prs3_post.convert import ConvertSettings, convert_file   # convert imports the main job, as this does
+    from prs3_post.convert import ConvertSettings, convert_file  # convert imports the main job, as this does
 
     header = context.header
     if not isinstance(header, SourceHeader):
