@@ -18,38 +18,37 @@ from __future__ import annotations
 import dataclasses
 import glob
 import math
+import multiprocessing
 import os
 import re
 import stat
 import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from prs3_post import __version__
 from prs3_post.config import Dialect, Machine
-from prs3_post.emit.gcode import emit_program
-from prs3_post.errors import FeatureError, InputError, LimitError, Prs3Error, ReachError
+from prs3_post.errors import FeatureError, InputError, LimitError, PoseError, Prs3Error, ReachError
 from prs3_post.geometry import find_faces, select_face
 from prs3_post.job import file_given
-from prs3_post.kinematics import PoseError, inverse, unit_axes
+from prs3_post.kinematics import inverse, unit_axes
 from prs3_post.kinematics.blocks import THREADS_VARIABLE
 from prs3_post.limits import check_limits, raise_first_violation
-from prs3_post.linearize import joint_path_deviation
 from prs3_post.output import refuse_overwriting, write_atomic
-from prs3_post.pipeline import PostResult, machine_path, model_for, place_toolpath, post_process
+from prs3_post.pipeline import PostCounts, PostResult, PostStream, model_for, place_toolpath, program_text
 from prs3_post.placement import placement_error
-from prs3_post.readers.apt import ClFile, read_cl
+from prs3_post.readers.apt import ClStream, join_toolpaths
 from prs3_post.readers.detect import DETECT_BYTES, detect_format
 from prs3_post.readers.files import open_input
-from prs3_post.readers.gcode import GcodeFile, read_gcode
+from prs3_post.readers.gcode import GcodeStream
 from prs3_post.readers.header import SourceHeader, file_sha256, source_header_entries
 from prs3_post.readers.stl import load_part
 from prs3_post.setup import Setup
-from prs3_post.toolpath import MoveKind, Toolpath
+from prs3_post.toolpath import Event, EventKind, Toolpath
 from prs3_post.workplane import WorkPlane, WorkPlaneError
 
 #: Input formats: ``auto`` decides by content (:func:`prs3_post.readers.detect.detect_format`).
@@ -132,6 +131,7 @@ class ConvertReport:
     emitted_moves : int — motion lines of the program
     deviation_before : float — mm, worst tip deviation of the joint-space moves before subdivision
     deviation_after : float — mm, the same after subdivision (≤ the tolerance)
+    angle_before_deg, angle_after_deg : float — degrees, the same for the tool axis
     tool_length : float — mm, used by the IK
     """
 
@@ -155,6 +155,8 @@ class ConvertReport:
     emitted_moves: int
     deviation_before: float
     deviation_after: float
+    angle_before_deg: float
+    angle_after_deg: float
     tool_length: float
 
     def record(self) -> dict[str, object]:
@@ -167,12 +169,12 @@ class ConvertReport:
 
 @dataclass(frozen=True, slots=True)
 class Conversion:
-    """One converted file: the program text and its report (nothing written yet)."""
+    """One converted file held in memory: the program text, its report, and the machine-frame path
+    it follows (one row per program motion line)."""
 
     text: str
     report: ConvertReport
-    post: PostResult
-    source: ClFile | GcodeFile
+    path: Toolpath
 
 
 # ----------------------------------------------------------------------------- settings
@@ -229,100 +231,174 @@ def input_format(path: str, requested: str = "auto") -> str:
     return detect_format(head)
 
 
-def read_source(path: str, settings: ConvertSettings, fmt: str) -> ClFile | GcodeFile:
-    """The input read into a part-frame toolpath by the reader of its format."""
+def source_stream(path: str, settings: ConvertSettings, fmt: str) -> ClStream | GcodeStream:
+    """The input's reader for its format, in chunks of lines (part frame, mm)."""
     if fmt == "cl":
-        return read_cl(path, tolerance=settings.tolerance, units=settings.units,
-                       ignore=frozenset(settings.ignore))
-    return read_gcode(path, tolerance=settings.tolerance, work_plane=settings.work_plane)
+        return ClStream(path, tolerance=settings.tolerance, units=settings.units, ignore=frozenset(settings.ignore))
+    return GcodeStream(path, tolerance=settings.tolerance, work_plane=settings.work_plane)
 
 
-def _check_poses(machine: Machine, path_part: Toolpath, setup: Setup) -> None:
+def _check_poses(machine: Machine, chunk: Toolpath, setup: Setup) -> None:
     """Reach and limits of the points as read, before any subdivision: a path outside the workspace
-    is named at its first bad line at once (subdividing it first would only multiply the bad rows)."""
-    path = place_toolpath(path_part, setup)
+    is named at its first bad line at once (subdividing it first could not converge on moves that
+    cross a singularity, and would only multiply the bad rows)."""
+    path = place_toolpath(chunk, setup)
     try:
         axis = unit_axes(path.tip, path.axis, row_name="line", row_numbers=path.source)
     except PoseError as error:
-        raise ReachError(str(error)) from error
+        raise ReachError(f"{chunk.source_file}: {error}; a setup turns the part about z only, so no setup turns "
+                         "these tool axes toward the spindle") from error
     ik = inverse(machine.geometry, path.tip, axis, model=model_for(machine))
     if not ik.reachable.all():
-        return                                          # post_process names the unreachable pose
+        return                                          # the pipeline names the unreachable pose
     raise_first_violation(check_limits(machine, ik, axis), path.describe)
 
 
-def _worst_turning_deviation(machine: Machine, path: Toolpath) -> float:
-    """mm, the worst joint-space deviation over the feed moves of ``path`` (machine frame) whose axis changes."""
-    if len(path) < 2:
-        return 0.0
-    turning = (path.kind[1:] == MoveKind.FEED) & (np.abs(path.axis[1:] - path.axis[:-1]).max(axis=1) > 1e-12)
-    starts = np.flatnonzero(turning)
-    if not len(starts):
-        return 0.0
-    deviation = joint_path_deviation(machine.geometry, path.tip, path.axis, starts,  # type: ignore[arg-type]  # row indices
-                                     model=model_for(machine))
-    return float(np.nanmax(deviation))
+@dataclass(slots=True)
+class _Run:
+    """One conversion under way: the reader, the post-processing stream, and what they counted."""
+
+    path: str
+    settings: ConvertSettings
+    fmt: str
+    sha256: str
+    reader: ClStream | GcodeStream
+    post: PostStream
+    rows: int = 0
+    results: list[PostResult] = field(default_factory=list)
+    keep: bool = False                                  # keep every chunk's PostResult (convert_file)
+
+    def chunks(self) -> Iterator[Toolpath]:
+        """The reader's chunks, checked as read; then an empty chunk with the counts as a closing comment."""
+        machine = self.settings.ik_machine
+        for chunk in self.reader:
+            _check_poses(machine, chunk, self.settings.setup)
+            self.rows += len(chunk)
+            yield chunk
+        if not self.rows:
+            raise InputError("no moves in the file: nothing to convert", path=self.path)
+        report = self.report(self.post.finish())
+        yield Toolpath(kind=np.zeros(0, dtype=np.int64), tip=np.zeros((0, 3)), axis=np.zeros((0, 3)),
+                       feed=np.zeros(0), source=np.zeros(0, dtype=np.int64),
+                       events=(Event(before=0, kind=EventKind.COMMENT, text=f"counts: {_counts_text(report)}"),))
+
+    def report(self, counts: PostCounts) -> ConvertReport:
+        """The accounting, once the reader is through."""
+        summary = self.reader.summary
+        assert summary is not None  # set when the reader's iteration ends
+        c = summary.counts
+        return ConvertReport(
+            input=self.path, format=self.fmt, units=summary.units, sha256=self.sha256, records=c.records,
+            by_word=c.by_word, input_moves=c.moves, arcs=c.arcs, arc_rows=c.arc_segments, cycles=c.cycles,
+            cycle_holes=c.cycle_holes, cycle_rows=c.cycle_rows, comments=c.comments, skipped=c.skipped,
+            toolpath_rows=counts.input_rows, subdivisions=counts.inserted, dropped=counts.dropped,
+            emitted_moves=counts.program_rows, deviation_before=counts.tip_before, deviation_after=counts.tip_after,
+            angle_before_deg=math.degrees(counts.angle_before), angle_after_deg=math.degrees(counts.angle_after),
+            tool_length=self.settings.ik_machine.geometry.tool_length)
+
+
+def _start(path: str, settings: ConvertSettings) -> _Run:
+    fmt = input_format(path, settings.input_format)
+    reader = source_stream(path, settings, fmt)
+    machine = settings.ik_machine
+    post = PostStream(machine, settings.setup, tolerance=settings.tolerance,
+                      angle_tolerance=math.radians(settings.angle_tolerance_deg),
+                      length_decimals=settings.dialect.decimals.length)
+    return _Run(path=path, settings=settings, fmt=fmt, sha256=file_sha256(path), reader=reader, post=post)
+
+
+def _header(run: _Run) -> tuple[tuple[str, str], ...]:
+    """The program header (what is known before the file is read: the counts close the program)."""
+    settings = run.settings
+    units = settings.units if run.fmt == "cl" else None
+    header = SourceHeader(
+        version=f"prs3-post {__version__}", machine=settings.machine.name,
+        machine_file=file_given(settings.machine.source, "machines", settings.machine.name),
+        dialect=settings.dialect.name,
+        dialect_file=file_given(settings.dialect.source, "dialects", settings.dialect.name),
+        source_name=Path(run.path).name, source_sha256=run.sha256, source_format=run.fmt,
+        source_units=units or "auto", ignore=tuple(settings.ignore) if run.fmt == "cl" else (),
+        work_plane=settings.work_plane if run.fmt == "gcode" else None, setup=settings.setup,
+        tool_length=settings.ik_machine.geometry.tool_length, tool_length_given=settings.tool_length is not None,
+        tolerance=settings.tolerance, angle_tolerance_deg=settings.angle_tolerance_deg,
+        line_numbers=settings.line_numbers, line_start=settings.line_start, line_step=settings.line_step,
+    )
+    return source_header_entries(header, description=settings.machine.description)
+
+
+def _placed(error: LimitError | ReachError, run: _Run) -> Exception:
+    """``error`` with the setup used and a part origin that fits, if one does (the whole file is read
+    again for that: only a failure pays for it)."""
+    settings = run.settings
+    if str(error).startswith(f"{run.path}: line"):        # a tool axis no setup can turn (about z only)
+        return error
+    try:
+        whole = source_stream(run.path, settings, run.fmt).whole()
+    except InputError:
+        return error
+    return placement_error(error, settings.ik_machine, whole.toolpath, settings.setup, tolerance=settings.tolerance,
+                           length_decimals=settings.dialect.decimals.length)
+
+
+def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) -> tuple[_Run, Iterator[str]]:
+    """The conversion of one file as chunks of program text (lazy: see
+    :func:`prs3_post.pipeline.program_text`), and the run whose :meth:`_Run.report` follows."""
+    run = _start(path, settings)
+    run.keep = keep
+    stream = run.post
+    if keep:                                            # keep each chunk's result (tests, verify --against)
+        feed = stream.feed
+
+        def kept(chunk: Toolpath) -> PostResult:
+            result = feed(chunk)
+            run.results.append(result)
+            return result
+
+        stream.feed = kept  # type: ignore[method-assign]  # a wrapper with the same signature
+    text = program_text(settings.ik_machine, run.chunks(), settings.setup, settings.dialect, header=_header(run),
+                        tolerance=settings.tolerance, angle_tolerance=math.radians(settings.angle_tolerance_deg),
+                        line_numbers=settings.line_numbers, line_start=settings.line_start,
+                        line_step=settings.line_step, stream=stream)
+    return run, _with_placement(text, run)
+
+
+def _with_placement(text: Iterator[str], run: _Run) -> Iterator[str]:
+    try:
+        yield from text
+    except (LimitError, ReachError) as error:
+        raise _placed(error, run) from error
 
 
 def convert_file(path: str, settings: ConvertSettings) -> Conversion:
-    """Convert one CAM file into a program (text only: nothing is written).
+    """Convert one CAM file into a program held in memory (nothing is written).
 
     Raises
     ------
     InputError
         An unreadable input (``path:line: message``).
     LimitError, ReachError
-        A point outside a limit or the workspace; the message starts with ``path:``, then the input
-        line (``path: line 42: stage X ...``).
+        A point outside a limit or the workspace (``path:line: ...``, the setup, and a part origin
+        that fits where there is one).
     """
-    fmt = input_format(path, settings.input_format)
-    source = read_source(path, settings, fmt)
-    machine = settings.ik_machine
-    path_part = source.toolpath
-    if not len(path_part):
-        raise InputError("no moves in the file: nothing to convert", path=path)
-    try:
-        _check_poses(machine, path_part, settings.setup)
-        post = post_process(machine, path_part, settings.setup, tolerance=settings.tolerance,
-                            length_decimals=settings.dialect.decimals.length)
-    except (LimitError, ReachError) as error:           # say which file, the setup, and one that fits if any
-        failure = placement_error(error, machine, path_part, settings.setup, tolerance=settings.tolerance,
-                                  length_decimals=settings.dialect.decimals.length)
-        raise type(failure)(f"{path}: {failure}", setup=failure.setup,
-                            suggested_origin=failure.suggested_origin) from error
-    placed = place_toolpath(path_part, settings.setup)
-    placed = dataclasses.replace(placed, axis=unit_axes(placed.tip, placed.axis))
-    subdivided = machine_path(machine, path_part, settings.setup, tolerance=settings.tolerance)
-    counts = source.counts
-    report = ConvertReport(
-        input=path, format=fmt, units=source.units, sha256=file_sha256(path), records=counts.records,
-        by_word=counts.by_word, input_moves=counts.moves, arcs=counts.arcs, arc_rows=counts.arc_segments,
-        cycles=counts.cycles, cycle_holes=counts.cycle_holes, cycle_rows=counts.cycle_rows,
-        comments=counts.comments, skipped=counts.skipped, toolpath_rows=len(path_part),
-        subdivisions=len(subdivided) - len(path_part), dropped=len(subdivided) - len(post.path),
-        emitted_moves=len(post.program),
-        deviation_before=_worst_turning_deviation(machine, placed),
-        deviation_after=_worst_turning_deviation(machine, post.path),
-        tool_length=machine.geometry.tool_length,
-    )
-    header = SourceHeader(
-        version=f"prs3-post {__version__}", machine=settings.machine.name,
-        machine_file=file_given(settings.machine.source, "machines", settings.machine.name),
-        dialect=settings.dialect.name,
-        dialect_file=file_given(settings.dialect.source, "dialects", settings.dialect.name),
-        source_name=Path(path).name, source_sha256=report.sha256, source_format=fmt, source_units=source.units,
-        ignore=tuple(settings.ignore), work_plane=settings.work_plane if fmt == "gcode" else None,
-        setup=settings.setup, tool_length=report.tool_length,
-        tool_length_given=settings.tool_length is not None, tolerance=settings.tolerance,
-        angle_tolerance_deg=settings.angle_tolerance_deg, line_numbers=settings.line_numbers,
-        line_start=settings.line_start, line_step=settings.line_step,
-    )
-    entries = source_header_entries(header, description=settings.machine.description,
-                                    counts=_counts_text(report))
-    text = emit_program(post.program, settings.dialect, header=entries, stage=machine.stage.present,
-                        line_numbers=settings.line_numbers, line_start=settings.line_start,
-                        line_step=settings.line_step)
-    return Conversion(text=text, report=report, post=post, source=source)
+    run, chunks = program_chunks(path, settings, keep=True)
+    text = "".join(chunks)
+    report = run.report(run.post.finish())
+    path_rows = [r.path for r in run.results if len(r.path)]
+    return Conversion(text=text, report=report, path=join_toolpaths(path_rows) if path_rows else run.results[0].path)
+
+
+def write_conversion(path: str, output: str, settings: ConvertSettings) -> ConvertReport:
+    """Convert one CAM file and write its program to ``output`` as it is made, atomically: a file that
+    fails leaves nothing (the temp file is removed).
+
+    Raises
+    ------
+    InputError, LimitError, ReachError
+        As :func:`convert_file`, and an output that cannot be written.
+    """
+    run, chunks = program_chunks(path, settings)
+    write_atomic(output, chunks)
+    return run.report(run.post.finish())
 
 
 def _counts_text(report: ConvertReport) -> str:
@@ -488,13 +564,12 @@ def convert_one(input_path: str, output: str, settings: ConvertSettings, *, forc
     try:
         if not force and os.path.lexists(output):
             raise InputError("exists already: kept (convert with force to replace it)", path=output)
-        conversion = convert_file(input_path, settings)
         refuse_overwriting({"the program": output}, {"the input": input_path})
-        write_atomic(output, conversion.text)
+        report = write_conversion(input_path, output, settings)
     except Prs3Error as error:
         return FileOutcome(input=input_path, output=output, ok=False, error=str(error), exit_code=error.exit_code,
                            seconds=time.perf_counter() - start)
-    return FileOutcome(input=input_path, output=output, ok=True, report=conversion.report,
+    return FileOutcome(input=input_path, output=output, ok=True, report=report,
                        seconds=time.perf_counter() - start)
 
 
@@ -581,8 +656,6 @@ def _run_parallel(inputs: Sequence[str], outputs: list[str], todo: list[int], se
     threads = max(1, _cores() // jobs)
     pending = list(todo)
     running: dict[Future[FileOutcome], int] = {}
-    import multiprocessing
-
     context = multiprocessing.get_context("forkserver")
     jobs = min(jobs, len(todo))
     with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init,

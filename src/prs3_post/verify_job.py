@@ -272,10 +272,11 @@ def intended_from_source(context: ProgramContext, source: str) -> Intended:
             what="part")
     settings = ConvertSettings(
         machine=context.machine, dialect=context.dialect, setup=header.setup, tolerance=header.tolerance,
-        angle_tolerance_deg=header.angle_tolerance_deg, input_format=header.source_format, units=header.source_units,
+        angle_tolerance_deg=header.angle_tolerance_deg, input_format=header.source_format,
+        units=None if header.source_units == "auto" else header.source_units,
         ignore=header.ignore, work_plane=header.work_plane, line_numbers=header.line_numbers,
         line_start=header.line_start, line_step=header.line_step)
-    path = convert_file(source, settings).post.path
+    path = convert_file(source, settings).path
     feed = np.where(path.kind == MoveKind.FEED, path.feed, np.nan)
     return Intended(tip=path.tip, axis=path.axis, feed=feed, kind=path.kind, label=Path(source).name)
 

@@ -171,7 +171,6 @@ class SourceHeader:
         (setup: part origin at machine [...] mm, rotation θ deg about z)
         (tool length: 175.000 mm, the machine's)      or "as given"
         (tolerance: 0.002 mm, angle 0.01 deg)
-        (input: 12 records, 8 moves, ...)             the counts, for people (not read back)
         (units: mm, G93 inverse time: F = 1/minutes of each move)
 
     Attributes
@@ -181,7 +180,8 @@ class SourceHeader:
     source_name : str — the CAM file's name (no folder)
     source_sha256 : str — lower-case hex SHA-256 of its bytes
     source_format : str — ``cl`` or ``gcode``
-    source_units : str — ``mm`` or ``inch``, the length unit it was read in
+    source_units : str — ``mm`` or ``inch``: the length unit a CL file without ``UNITS/`` was read in;
+        ``auto``: the reader's own choice (CL: inches when the feeds are IPM/IPR; G-code: G20/G21)
     ignore : tuple of str — CL major words skipped on purpose
     work_plane : WorkPlane | None — where a G-code program's X, Y, Z were put in the part
     tool_length : float — mm, the tool length the IK used
@@ -405,15 +405,16 @@ def _dialect_entries(header: ProgramHeader | SourceHeader) -> list[tuple[str, st
     return entries
 
 
-def source_header_entries(header: SourceHeader, *, description: str = "",
-                          counts: str = "") -> tuple[tuple[str, str], ...]:
+def source_header_entries(header: SourceHeader, *, description: str = "") -> tuple[tuple[str, str], ...]:
     """The ``(key, value)`` comment entries of a converted program's header (see :class:`SourceHeader`).
 
     Parameters
     ----------
     header : SourceHeader
     description : str — the machine's one-line description
-    counts : str — what the input held and the program has, for people
+
+    The counts (what the input held, what the program has) are only known at the end of a streamed
+    conversion: they close the program as a ``(counts: ...)`` comment, not in the header.
     """
     entries = [
         (PROGRAM_KEY, header.version),
@@ -433,7 +434,6 @@ def source_header_entries(header: SourceHeader, *, description: str = "",
         ("tool length", f"{exact_text(header.tool_length, 3)} mm, "
                         f"{'as given' if header.tool_length_given else 'the machine' + chr(39) + 's'}"),
         ("tolerance", f"{exact_text(header.tolerance, 3)} mm, angle {exact_text(header.angle_tolerance_deg, 2)} deg"),
-        ("input", counts or "-"),
         ("units", "mm, G93 inverse time: F = 1/minutes of each move"),
     ]
     return tuple(entries)
@@ -452,7 +452,7 @@ _VECTOR = rf"\[\s*{_NUMBER}(?:\s*,\s*{_NUMBER})*\s*\]"
 _ENTRY = re.compile(r"^\s*([a-z][a-z0-9 ]*?)\s*:\s?(.*?)\s*$", re.IGNORECASE)
 _KEYS = ("program", "machine", "machine file", "dialect", "dialect file", "part", "face", "setup", "operation",
          "parameters", "tool", "tools", "operations", "tolerance", "units", "source", "ignore", "work plane",
-         "tool length", "input")
+         "tool length")
 _REQUIRED = ("program", "machine", "dialect", "part", "face", "setup", "operation", "parameters", "tool", "tolerance",
              "units")
 #: The keys of a job of several operations (and ``operation K ...`` for each).
@@ -461,7 +461,7 @@ _OPERATION_KEY = re.compile(r"operation [1-9][0-9]{0,3}(?: face| parameters| too
 #: The largest number of operations a header may state.
 MAX_OPERATIONS = 9999
 #: The entries of a converted program's header (:class:`SourceHeader`); ``ignore`` and ``work plane`` are optional.
-_SOURCE_REQUIRED = ("program", "machine", "dialect", "source", "setup", "tool length", "tolerance", "input", "units")
+_SOURCE_REQUIRED = ("program", "machine", "dialect", "source", "setup", "tool length", "tolerance", "units")
 
 
 class _Bad(Exception):
@@ -719,12 +719,12 @@ def _tools(text: str) -> tuple[ToolRecord, ...]:
     return tuple(records)
 
 
-_SOURCE = r"(.*), format (cl|gcode), units (mm|inch), sha256 ([0-9a-f]{64})"
+_SOURCE = r"(.*), format (cl|gcode), units (mm|inch|auto), sha256 ([0-9a-f]{64})"
 _WORK_PLANE = rf"origin ({_VECTOR}) mm, x ({_VECTOR}), z ({_VECTOR})"
 _TOOL_LENGTH = rf"({_NUMBER}) mm, (as given|the machine's)"
 _SOURCE_TOLERANCE = rf"({_NUMBER}) mm, angle ({_NUMBER}) deg"
 _FORMS |= {
-    _SOURCE: "'NAME, format cl|gcode, units mm|inch, sha256 HEX'",
+    _SOURCE: "'NAME, format cl|gcode, units mm|inch|auto, sha256 HEX'",
     _WORK_PLANE: "'origin [x, y, z] mm, x [..], z [..]'",
     _TOOL_LENGTH: "'L mm, as given|the machine's'",
     _SOURCE_TOLERANCE: "'T mm, angle A deg'",
