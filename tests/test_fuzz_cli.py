@@ -56,8 +56,9 @@ def originals() -> dict[str, tuple[bytes, ...]]:
         "csv": ((REPO / "fixtures" / "poses" / "cases_2a_2b.csv").read_bytes(),
                 b"tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n0,200,-680,0,0,1\n-81.0264,21.2132,-679.4865,0.447214,0,0.894427\n"),
         "machine": ((REPO / "postproc" / "machines" / "patel2020.toml").read_bytes(),),
-        "cl": (b"UNITS/MM\nFEDRAT/MMPM,200\n$$ a drill\nRAPID\nGOTO/0,200,20,0,0,1\nCYCLE/DRILL,RAPTO,3,FEDTO,5,MMPM,100\n"
-               b"GOTO/0,200,0\nGOTO/10,200,0\nCYCLE/OFF\nGOTO/10,200,0\nCIRCLE/0,200,0,0,0,1,10,0.01\nGOTO/-10,200,0\nFINI\n",),
+        "cl": (b"UNITS/MM\nFEDRAT/MMPM,200\n$$ a drill\nRAPID\nGOTO/0,200,20,0,0,1\n"
+               b"CYCLE/DRILL,RAPTO,3,FEDTO,5,MMPM,100\nGOTO/0,200,0\nGOTO/10,200,0\nCYCLE/OFF\nGOTO/10,200,0\n"
+               b"CIRCLE/0,200,0,0,0,1,10,0.01\nGOTO/-10,200,0\nFINI\n",),
         "dialect": ((REPO / "postproc" / "dialects" / "linuxcnc.toml").read_bytes(),
                     (REPO / "postproc" / "dialects" / "fanuc.toml").read_bytes()),
         "tbl": ((REPO / "fixtures" / "jobs" / "tools.tbl").read_bytes(),),

@@ -207,12 +207,16 @@ def check_part(header: ProgramHeader | SourceHeader, part: str) -> None:
     if isinstance(header, SourceHeader):
         raise HeaderConflict(f"the program was converted from {header.source_name}, not made from a part: verify it "
                              "against that file", path=header.path, line=header.line("source"), what="part")
-    digest = file_sha256(part)
-    if digest != header.part_sha256:
-        raise HeaderConflict(
-            f"{part} (SHA-256 {digest}) is not the part the program was made from: its header names "
-            f"{header.part_name} (SHA-256 {header.part_sha256})", path=header.path, line=header.line("part"),
-            what="part")
+    _check_sha256(header, part, "the part the program was made from", header.part_name, header.part_sha256, "part")
+
+
+def _check_sha256(header: ProgramHeader | SourceHeader, path: str, what: str, name: str, sha256: str,
+                  key: str) -> None:
+    """Refuse ``path`` unless its SHA-256 is the one the header records for ``name`` (``what`` says what it is)."""
+    digest = file_sha256(path)
+    if digest != sha256:
+        raise HeaderConflict(f"{path} (SHA-256 {digest}) is not {what}: its header names {name} (SHA-256 {sha256})",
+                             path=header.path, line=header.line(key), what="part")
 
 
 def header_job(context: ProgramContext, part: str) -> tuple[JobSpec, ...]:
@@ -264,12 +268,8 @@ def intended_from_source(context: ProgramContext, source: str) -> Intended:
     if not isinstance(header, SourceHeader):
         raise InputError("the program has no header of a converted CAM file (prs3-post convert writes one): "
                          "there is nothing to rebuild the intended path from", path=context.program.path)
-    digest = file_sha256(source)
-    if digest != header.source_sha256:
-        raise HeaderConflict(
-            f"{source} (SHA-256 {digest}) is not the file the program was converted from: its header names "
-            f"{header.source_name} (SHA-256 {header.source_sha256})", path=header.path, line=header.line("source"),
-            what="part")
+    _check_sha256(header, source, "the file the program was converted from", header.source_name,
+                  header.source_sha256, "source")
     settings = ConvertSettings(
         machine=context.machine, dialect=context.dialect, setup=header.setup, tolerance=header.tolerance,
         angle_tolerance_deg=header.angle_tolerance_deg, input_format=header.source_format,
