@@ -263,6 +263,11 @@ def test_directory_search_skips_fifos_other_files_and_the_output_folder(tmp_path
     (src / "out").mkdir()
     (src / "out" / "old.ngc").write_text("G0 X0\n")
     assert collect_inputs([str(src)], exclude=str(src / "out")) == [str(src / "deep" / "x.cls")]
+    # the output folder is the folder searched: its programs are left out, its CAM files are not
+    (src / "y.ngc").write_text("G0 X0\n")
+    (src / "z.nc").write_text("G0 X0\n")
+    assert collect_inputs([str(src)], exclude=str(src), exclude_suffix=".ngc") == [
+        str(src / "z.nc"), str(src / "deep" / "x.cls"), str(src / "out" / "old.ngc")]
 
 
 def test_report_json_accounts_for_every_record(tmp_path: Path) -> None:
@@ -276,5 +281,5 @@ def test_report_json_accounts_for_every_record(tmp_path: Path) -> None:
     assert sum(file["by_word"].values()) == file["records"]
     assert file["skipped"] == {"PAINT": 36, "TOOL PATH": 1, "Tool Path Listing": 1}
     assert (file["input_moves"], file["arcs"], file["arc_rows"], file["emitted_moves"]) == (33, 2, 70, 103)
-    assert data["summary"] == {"files": 1, "converted": 1, "failed": 0, "not_started": 0, "input_moves": 33,
+    assert data["summary"] == {"files": 1, "converted": 1, "failed": 0, "not_started": 0, "motion_records": 35,
                                "seconds": data["summary"]["seconds"]}

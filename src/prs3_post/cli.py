@@ -1206,7 +1206,7 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
             tolerance=tolerance, angle_tolerance_deg=angle_tolerance_deg, tool_length=tool_length,
             input_format=input_format, units=units, ignore=tuple(w.upper() for w in ignore_words), work_plane=plane,
             line_numbers=line_numbers, line_start=line_start, line_step=line_step)
-        files = collect_inputs(inputs, exclude=outdir)
+        files = collect_inputs(inputs, exclude=outdir, exclude_suffix=dialect.extension)
         if report_path is not None:
             refuse_overwriting({"--report": report_path}, {f"input {i + 1}": f for i, f in enumerate(files)})
         count = jobs or default_jobs()

@@ -159,6 +159,11 @@ class ConvertReport:
     angle_after_deg: float
     tool_length: float
 
+    @property
+    def motion_records(self) -> int:
+        """Moves, arcs and drilled holes as the input states them (what "moves/s" counts)."""
+        return self.input_moves + self.arcs + self.cycle_holes
+
     def record(self) -> dict[str, object]:
         """The report as JSON-ready data (word counts as objects)."""
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
@@ -456,26 +461,27 @@ class BatchResult:
 
     @property
     def moves(self) -> int:
-        """Input moves of the converted files."""
-        return sum(o.report.input_moves for o in self.outcomes if o.report is not None)
+        """Motion records of the converted files: moves, arcs and drilled holes as the input states them."""
+        return sum(o.report.motion_records for o in self.outcomes if o.report is not None)
 
     def record(self) -> dict[str, object]:
         """JSON-ready data: the files and a summary."""
         return {"files": [o.record() for o in self.outcomes], "not_started": list(self.not_started),
                 "summary": {"files": len(self.outcomes) + len(self.not_started),
                             "converted": len(self.outcomes) - len(self.failures), "failed": len(self.failures),
-                            "not_started": len(self.not_started), "input_moves": self.moves,
+                            "not_started": len(self.not_started), "motion_records": self.moves,
                             "seconds": round(self.seconds, 3)}}
 
 
-def collect_inputs(items: Sequence[str], *, exclude: str | None = None) -> list[str]:
+def collect_inputs(items: Sequence[str], *, exclude: str | None = None, exclude_suffix: str = ".ngc") -> list[str]:
     """The input files named by ``items``: files as given, directories searched recursively for
     CAM files (:data:`CL_SUFFIXES`, :data:`GCODE_SUFFIXES`; regular files only, in name order),
     glob patterns expanded. Each file once, in the order found.
 
     Parameters
     ----------
-    exclude : str | None — a folder whose files are never taken from a directory search (the output folder)
+    exclude : str | None — the output folder: a directory search does not descend into it; when it is
+        itself a folder searched, its files ending in ``exclude_suffix`` (the programs) are left out
 
     Raises
     ------
@@ -494,7 +500,7 @@ def collect_inputs(items: Sequence[str], *, exclude: str | None = None) -> list[
 
     for item in items:
         if os.path.isdir(item):
-            hits = list(_search(item, skip))
+            hits = list(_search(item, skip, exclude_suffix))
             if not hits:
                 raise InputError("no CAM files in this directory (searched for "
                                  f"{', '.join(CL_SUFFIXES + GCODE_SUFFIXES)})", path=item)
@@ -508,24 +514,28 @@ def collect_inputs(items: Sequence[str], *, exclude: str | None = None) -> list[
                 raise InputError("no file matches this pattern", path=item)
             for match in matches:
                 if os.path.isdir(match):
-                    for hit in _search(match, skip):
+                    for hit in _search(match, skip, exclude_suffix):
                         add(hit)
                 else:
                     add(match)
     return found
 
 
-def _search(folder: str, skip: str | None) -> Iterator[str]:
+def _search(folder: str, skip: str | None, skip_suffix: str) -> Iterator[str]:
+    """CAM files under ``folder`` in name order: regular files only (a FIFO would block, a device never
+    ends); never inside the output folder ``skip``, except when that is a folder searched itself:
+    then only its files ending in ``skip_suffix`` (programs, maybe of an earlier run) are left out."""
     suffixes = CL_SUFFIXES + GCODE_SUFFIXES
     for root, dirs, files in os.walk(folder):
         dirs.sort()
+        here = os.path.realpath(root)
         if skip is not None:
             dirs[:] = [d for d in dirs if os.path.realpath(os.path.join(root, d)) != skip]
-            if os.path.realpath(root) == skip:
-                continue
         for name in sorted(files):
             path = os.path.join(root, name)
             if not name.lower().endswith(suffixes):
+                continue
+            if here == skip and name.lower().endswith(skip_suffix.lower()):
                 continue
             try:
                 regular = stat.S_ISREG(os.stat(path).st_mode)
@@ -692,8 +702,8 @@ def outcome_line(outcome: FileOutcome) -> str:
     ``failed<TAB>INPUT<TAB>-<TAB>path:line: reason``."""
     if outcome.ok and outcome.report is not None:
         r = outcome.report
-        return (f"ok\t{outcome.input}\t{outcome.output}\t{r.input_moves} input moves, {r.emitted_moves} program "
-                f"moves, {r.subdivisions} subdivisions, {outcome.seconds:.3f} s")
+        return (f"ok\t{outcome.input}\t{outcome.output}\t{r.input_moves} moves, {r.arcs} arcs, {r.cycle_holes} holes "
+                f"in; {r.emitted_moves} program moves, {r.subdivisions} subdivisions; {outcome.seconds:.3f} s")
     return f"failed\t{outcome.input}\t-\t{_one_line(outcome.error)}"
 
 
@@ -706,7 +716,7 @@ def batch_summary(result: BatchResult) -> str:
     converted = len(result.outcomes) - len(result.failures)
     rate = result.moves / result.seconds if result.seconds > 0 else 0.0
     lines = [f"prs3-post: converted {converted} of {len(result.outcomes) + len(result.not_started)} files, "
-             f"{result.moves} input moves in {result.seconds:.2f} s ({rate:,.0f} moves/s)"]
+             f"{result.moves} input moves, arcs and holes in {result.seconds:.2f} s ({rate:,.0f}/s)"]
     if result.failures:
         lines.append(f"prs3-post: {len(result.failures)} failed:")
         lines += [f"  {_one_line(o.error)}" for o in result.failures]

@@ -301,10 +301,11 @@ def intended_from_poses(path: str, program: ProgramFile) -> Intended:
                     kind=np.full(len(unit), -1, dtype=np.int64), label=Path(path).name)
 
 
-def tool_lengths_of(header: ProgramHeader | None) -> dict[int, float] | None:
+def tool_lengths_of(header: ProgramHeader | SourceHeader | None) -> dict[int, float] | None:
     """mm, the tool length "TL" the IK used for each tool a program's header states (None: no such
-    entry, every row has the machine's)."""
-    if header is None or not header.tools:
+    entry, every row has the machine's; a converted program's one tool length is its machine's, see
+    :func:`open_setting`)."""
+    if not isinstance(header, ProgramHeader) or not header.tools:
         return None
     return {tool.number: tool.ik_length for tool in header.tools}
 
