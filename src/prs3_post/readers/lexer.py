@@ -268,100 +268,102 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
     >>> values[0].tolist(), read.tolist()
     ([1.0, 1.5, 2.0], [True, False, False])
 
-    How: the chunk's bytes are classified at once (numpy): letters of ``letters``, digits, ``.``,
-    ``-``, space, line end; any other byte (lower case, tab, ``(``, non-ASCII, ...) leaves its line
-    unread. A word is a letter and the bytes up to the next space, letter or line end; it is a
-    number when it has 1 to 15 digits, at most one ``.`` and at most a leading ``-`` (exactly
-    :data:`NUMBER`), and its value is the integer of its digits divided by 10^(digits after the
-    point): both exact in float64, so the quotient is the correctly rounded ``float`` of the text.
+    How (a few passes over the chunk's bytes, in C): every byte must be allowed after the one before
+    it (a table of byte pairs: a letter of ``letters`` after a number, a space or a line start; a digit
+    after a letter, ``-``, ``.`` or a digit; ``.`` after a letter, ``-`` or a digit; ``-`` after a letter;
+    a space or line end after a number, a space or a line start; any other byte (lower case, tab,
+    ``(``, non-ASCII, ...) nowhere), so a line's number bytes follow its letters; then each ``.`` has a
+    digit beside it and its word no other ``.``, a word has at most 15 digits, and letters are in order:
+    exactly :data:`NUMBER` words in the order of ``letters``. The values of the lines read are parsed
+    by numpy's text reader (``float`` of the same text: correctly rounded).
     """
     column_pattern(letters)                              # checks the letters
     n, width = len(lines), len(letters)
     values = np.full((n, width), np.nan)
     if not n:
         return values, np.zeros(0, dtype=bool)
-    data = np.frombuffer(("\n".join(lines) + "\n").encode("ascii", errors="replace"), dtype=np.uint8)
-    kind = _byte_classes(letters)[data]                  # int8: letters > 0, then SPACE, NEWLINE, DIGIT, ...
-    lines_before = np.cumsum(kind == _NEWLINE, dtype=np.int32)      # at a byte: line ends up to it
-    delimiters = np.flatnonzero(kind >= _NEWLINE)        # letters, spaces, line ends (the last byte is one)
-    at = np.flatnonzero(kind[delimiters] > 0)            # the words' letters among the delimiters
-    start, stop = delimiters[at], delimiters[at + 1]     # a word: its letter up to the next delimiter
-    words = len(start)
-    word_line = lines_before[start]
-    rank = kind[start]
+    byte_class, rank_of, bad_pair, delimiter, dot, blank = _tables(letters)
+    text = ("\n" + "\n".join(lines) + "\n").encode("ascii", errors="replace")    # byte 0: the line start
+    size = len(text)
+    data = np.frombuffer(text, dtype=np.uint8)
+    delimiters = np.flatnonzero(np.frombuffer(text.translate(delimiter), dtype=np.bool_))    # letters, spaces, ends
+    kind = byte_class[data[delimiters]]
+    ends = delimiters[kind == _NEWLINE]                  # ends[k + 1] ends line k
+    at = np.flatnonzero(kind == _LETTER)
+    start = delimiters[at]                               # a word: its letter up to the next delimiter
+    stop = delimiters[np.minimum(at + 1, len(delimiters) - 1)]
+    word_line = np.searchsorted(ends, start) - 1
     bad = np.zeros(n, dtype=bool)
-    bad[lines_before[np.flatnonzero(kind == _OTHER)]] = True
-    # every number byte is in a word: none right after a space, a line end or the start
-    number = (kind <= _DIGIT) & (kind >= _MINUS)
-    after_gap = np.flatnonzero(number[1:] & ((kind[:-1] == _SPACE) | (kind[:-1] == _NEWLINE))) + 1
-    bad[lines_before[after_gap]] = True
-    bad[0] |= bool(number[0])
-    words_before = np.cumsum(kind > 0, dtype=np.int32)   # at a byte: the words begun up to it
-
-    def in_word(found: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int32]]:
-        """The bytes at ``found`` that are inside a word, and their words (a stray byte's line is bad above)."""
-        word = words_before[found] - 1
-        if not words:
-            return found[:0], word[:0]
-        inside = (word >= 0) & (found < stop[np.maximum(word, 0)])
-        return found[inside], word[inside]
-
-    # digits: each is given to the word begun last before it; those of a word are consecutive, and the
-    # word is right when its last one is inside it (a stray digit after it would be given to it too)
-    digit_at = np.flatnonzero(kind == _DIGIT)
-    digit_word = words_before[digit_at] - 1
-    # a digit on another line than that word (a comment line's "(pass 1)") is on a line that is bad
-    # already (no letter starts it): it is not the word's, and must not make the line before unread
-    own = digit_word >= 0
-    own[own] = word_line[digit_word[own]] == lines_before[digit_at[own]]
-    digit_at, digit_word = digit_at[own], digit_word[own]
-    counted = np.bincount(digit_word + 1, minlength=words + 1)
-    ends_all = np.cumsum(counted)                        # where the digits given to each word end in digit_at
-    ends = ends_all[1:]
-    digits = counted[1:]
-    last_digit = digit_at[np.maximum(ends - 1, 0)] if len(digit_at) else np.zeros(words, dtype=np.int64)
-    inside = (digits == 0) | (last_digit < stop)
-    dot_at, dot_word = in_word(np.flatnonzero(kind == _DOT))
-    _, minus_word = in_word(np.flatnonzero(kind == _MINUS))
-    dots = np.bincount(dot_word, minlength=words)
-    minus = np.bincount(minus_word, minlength=words)
-    leading_minus = kind[np.minimum(start + 1, len(data) - 1)] == _MINUS
-    ordered = np.ones(words, dtype=bool)
+    # every byte after byte 0 allowed after the one before it (a line end belongs to the line it ends)
+    even = np.flatnonzero(bad_pair[np.frombuffer(text, dtype="<u2", count=size // 2)])
+    odd = np.flatnonzero(bad_pair[np.frombuffer(text, dtype="<u2", count=(size - 1) // 2, offset=1)])
+    bad[np.searchsorted(ends, np.concatenate([2 * even + 1, 2 * odd + 2])) - 1] = True
+    # a dot has a digit beside it, and its word no other dot (a dot outside every word is on a line
+    # with a byte not allowed where it is: not read already)
+    dots = np.flatnonzero(np.frombuffer(text.translate(dot), dtype=np.bool_))
+    dot_word = np.searchsorted(start, dots) - 1
+    own = dot_word >= 0
+    own[own] = dots[own] < stop[dot_word[own]]
+    dots, dot_word = dots[own], dot_word[own]
+    lonely = (byte_class[data[dots - 1]] != _DIGIT) & (byte_class[data[dots + 1]] != _DIGIT)
+    bad[word_line[dot_word[lonely]]] = True
+    bad[word_line[dot_word[1:][dot_word[1:] == dot_word[:-1]]]] = True
+    dotted = np.zeros(len(start), dtype=np.int64)
+    dotted[dot_word] = 1
+    digits = stop - start - 1 - (data[start + 1] == _MINUS_BYTE) - dotted
+    rank = rank_of[data[start]]
+    ordered = np.ones(len(start), dtype=bool)
     ordered[1:] = (word_line[1:] != word_line[:-1]) | (rank[1:] > rank[:-1])
-    good = ((digits >= 1) & (digits <= 15) & inside & (dots <= 1) & ((minus == 0) | ((minus == 1) & leading_minus))
-            & ordered)
-    bad[word_line[~good]] = True
+    bad[word_line[(digits > 15) | ~ordered]] = True
     read = ~bad
     keep = read[word_line]
-    # the value: the digits as an integer (exact in float64 below 2^53), over 10^(digits after the point)
-    ordinal = np.arange(1, len(digit_at) + 1, dtype=np.int64)
-    power = np.clip(np.repeat(ends_all, counted) - ordinal, 0, len(_POWERS) - 1)
-    mantissa = np.bincount(digit_word + 1, weights=(data[digit_at] - 48) * _POWERS[power], minlength=words + 1)[1:]
-    digits_before_dot = np.searchsorted(digit_at, dot_at)            # the digits before each dot, in all
-    after_dot = np.zeros(words, dtype=np.int64)
-    after_dot[dot_word] = np.clip(ends[dot_word] - digits_before_dot, 0, len(_POWERS) - 1)
-    value = mantissa / _POWERS[after_dot]
-    value[leading_minus] *= -1.0
-    values[word_line[keep], rank[keep] - 1] = value[keep]
+    # the values: the letters blanked (and the lines not read), the numbers read by numpy's text reader
+    numbers = text.translate(blank)
+    if bad.any():
+        masked = np.frombuffer(numbers, dtype=np.uint8).copy()
+        masked[1:][np.repeat(bad, np.diff(ends))] = _SPACE_BYTE
+        numbers = masked.tobytes()
+    value = np.fromstring(numbers, sep=" ") if keep.any() else np.zeros(0)
+    if len(value) != int(keep.sum()):
+        raise AssertionError(f"lex_columns: {len(value)} numbers for {int(keep.sum())} words")
+    values[word_line[keep], rank[keep] - 1] = value
     return values, read
 
 
-#: Byte classes of lex_columns: a letter of the columns is its column + 1; delimiters ≥ NEWLINE;
-#: number bytes MINUS..DIGIT.
-_SPACE, _NEWLINE, _DIGIT, _DOT, _MINUS, _OTHER = 0, -1, -2, -3, -4, -5
-#: 10^k, k = 0 … 22: exact in float64.
-_POWERS = 10.0 ** np.arange(23)
+#: Byte classes of lex_columns.
+_LETTER, _DIGIT, _DOT, _MINUS, _SPACE, _NEWLINE, _OTHER = range(7)
+_MINUS_BYTE, _SPACE_BYTE = ord("-"), ord(" ")
+#: The classes each class may come right after (a line start is a line end).
+_AFTER = {_LETTER: (_DIGIT, _DOT, _SPACE, _NEWLINE), _DIGIT: (_LETTER, _MINUS, _DOT, _DIGIT),
+            _DOT: (_LETTER, _MINUS, _DIGIT), _MINUS: (_LETTER,), _SPACE: (_DIGIT, _DOT, _SPACE, _NEWLINE),
+            _NEWLINE: (_DIGIT, _DOT, _SPACE, _NEWLINE), _OTHER: ()}
 
 
 @lru_cache(maxsize=32)
-def _byte_classes(letters: str) -> npt.NDArray[np.int8]:
-    table = np.full(256, _OTHER, dtype=np.int8)
-    table[ord("0"):ord("9") + 1] = _DIGIT
-    table[ord(".")], table[ord("-")], table[ord(" ")], table[ord("\n")] = _DOT, _MINUS, _SPACE, _NEWLINE
+def _tables(letters: str) -> tuple[npt.NDArray[np.int8], npt.NDArray[np.int8], BoolArray, bytes, bytes, bytes]:
+    """lex_columns' tables: byte class, letter rank (column + 1), bad byte pairs (indexed by the pair
+    read as little-endian uint16: first byte low), and bytes.translate tables for delimiters, dots, and
+    the letters blanked."""
+    byte_class = np.full(256, _OTHER, dtype=np.int8)
+    byte_class[ord("0"):ord("9") + 1] = _DIGIT
+    byte_class[ord(".")], byte_class[ord("-")], byte_class[ord(" ")], byte_class[ord("\n")] = (
+        _DOT, _MINUS, _SPACE, _NEWLINE)
+    rank = np.zeros(256, dtype=np.int8)
     for column, letter in enumerate(letters):
-        table[ord(letter)] = column + 1
-    table.flags.writeable = False
-    return table
+        byte_class[ord(letter)] = _LETTER
+        rank[ord(letter)] = column + 1
+    allowed = np.zeros((7, 7), dtype=bool)               # allowed[before, this]
+    for this, before in _AFTER.items():
+        allowed[list(before), this] = True
+    pair = np.arange(65536)
+    bad_pair = ~allowed[byte_class[pair & 255], byte_class[pair >> 8]]
+    classes = byte_class.tolist()
+    delimiter = bytes(int(c in (_LETTER, _SPACE, _NEWLINE)) for c in classes)
+    dot = bytes(int(b == ord(".")) for b in range(256))
+    blank = bytes(_SPACE_BYTE if c == _LETTER else b for b, c in enumerate(classes))
+    for table in (byte_class, rank, bad_pair):
+        table.flags.writeable = False
+    return byte_class, rank, bad_pair, delimiter, dot, blank
 
 
 def forward_fill(values: FloatArray) -> FloatArray:
