@@ -128,7 +128,8 @@ BAD = [
      "prs3-post: error: hole 1 approach: machine patel2020-head has no stage and its head alone misses the tip "
      "(-95.5279, -0.0000, -661.0557) by 19.5369 mm (x -17.2655, y -9.1429) (5 points unreachable in all); setup: "
      "part origin at machine [-100.0000, -200.0000, -970.0000] mm, rotation 0.0000 deg about z; no translation of "
-     "the part puts every point inside the machine's limits: set by --part-origin X,Y,Z and --part-rotation DEG\n",
+     "the part puts every point inside the machine's limits: set by --part-origin X,Y,Z and --part-rotation DEG, "
+     "or let --part-origin auto --part-rotation auto search them\n",
      1),
 ]
 

@@ -41,7 +41,7 @@ from prs3_post.limits import check_limits
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
 from prs3_post.ops.common import require_tolerance
 from prs3_post.output import is_stdout, refuse_overwriting, stdout_error, write_atomic, write_outputs
-from prs3_post.placement import Placement
+from prs3_post.placement import AUTO, Placement
 from prs3_post.readers.header import ProgramHeader, SourceHeader
 from prs3_post.readers.program import read_program
 from prs3_post.readers.stl import UP_ROTATION, load_part
@@ -276,10 +276,37 @@ part_rotation_option = click.option(
 )
 
 
-def resolve_setup(machine: Machine, origin: tuple[float, ...] | None, rotation_deg: float | None) -> Setup:
-    """The job's :class:`Setup` from --part-origin / --part-rotation (None: the machine's default)."""
+class OrAuto(click.ParamType):
+    """``auto`` or a value of ``inner``: the main job's setup options."""
+
+    def __init__(self, inner: click.ParamType):
+        self.inner = inner
+        self.name = f"auto|{inner.name}"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        return AUTO if value == AUTO else self.inner.convert(value, param, ctx)
+
+
+_AUTO_HELP = ("auto: chosen so that every point of the job keeps the largest margin to every limit, as a fraction "
+              "of the limit's range (printed, and written to the program's header).")
+job_part_origin_option = click.option(
+    "--part-origin", type=OrAuto(Numbers("X,Y,Z")), default=None, metavar="auto|X,Y,Z",
+    help="Machine coordinates of the part origin, mm; " + _AUTO_HELP + "  [default: the machine file's setup]",
+)
+job_part_rotation_option = click.option(
+    "--part-rotation", "part_rotation", type=OrAuto(Decimal(ANGLE)), default=None, metavar="auto|DEG",
+    help="Rotation of the part about the machine z axis, degrees, counter-clockwise seen from above "
+         "(p_machine = Rz(DEG)·p_part + part origin); auto: chosen with the part origin (or for the one given), "
+         "searched in 0.1° steps.  [default: 0]",
+)
+
+
+def resolve_setup(machine: Machine, origin: tuple[float, ...] | str | None, rotation_deg: float | str | None) -> Setup:
+    """The job's :class:`Setup` from --part-origin / --part-rotation (None: the machine's default; ``auto``:
+    the default until the job chooses it)."""
     try:
-        return Setup.resolve(machine, origin, rotation_deg)
+        return Setup.resolve(machine, None if origin == AUTO else origin,  # type: ignore[arg-type]
+                             None if rotation_deg == AUTO else rotation_deg)  # type: ignore[arg-type]
     except SetupError as error:
         hint = "'--part-rotation'" if error.field == "rotation" else "'--part-origin'"
         raise click.BadParameter(str(error), param_hint=hint) from error
@@ -518,8 +545,8 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
                           "tool_length_mm]"),
         # machine, setup and output
         machine_option,
-        part_origin_option,
-        part_rotation_option,
+        job_part_origin_option,
+        job_part_rotation_option,
         dialect_option,
         *line_number_options,
         tolerance_option,
@@ -542,7 +569,8 @@ def _run_job(part: str, **opts: Any) -> int:
         result = run_job(spec)
     except Placement as error:                         # the library's suggestion, as the option to give
         origin = error.suggested_origin
-        hint = ("set by --part-origin X,Y,Z and --part-rotation DEG" if origin is None
+        hint = ("set by --part-origin X,Y,Z and --part-rotation DEG, or let --part-origin auto --part-rotation "
+                "auto search them" if origin is None
                 else f"--part-origin={','.join(origin)}")
         raise type(error)(f"{error}: {hint}", setup=error.setup, suggested_origin=origin) from error
     image = None
@@ -553,6 +581,8 @@ def _run_job(part: str, **opts: Any) -> int:
         image = preview_bytes(program, spec.machine, result.setup, fmt, tolerance=spec.tolerance, tool_lengths=lengths,
                                mesh=result.triangles, face=result.face, title=Path(part).name, dialect=spec.dialect)
     write_outputs([(opts["out_path"], result.text)] + ([] if image is None else [(opts["preview_path"], image)]))
+    if result.placement is not None:
+        click.echo(f"prs3-post: setup: {result.setup.describe()}; {result.placement.describe()}", err=True)
     if not is_stdout(opts["out_path"]):
         click.echo(f"prs3-post: wrote {opts['out_path']}: {result.text.count(chr(10))} lines, "
                    f"{len(result.post.program)} moves; {result.face_note}", err=True)
@@ -615,7 +645,7 @@ def _job_spec(part: str, opts: dict[str, Any]) -> JobSpec:
         cutting=cutting, machine=machine, dialect=dialect,
         setup=resolve_setup(machine, opts["part_origin"], opts.get("part_rotation")), tolerance=opts["tolerance"],
         line_numbers=opts.get("line_numbers"), line_start=opts.get("line_start"), line_step=opts.get("line_step"),
-        up=opts.get("up", "z"),
+        up=opts.get("up", "z"), auto_origin=opts["part_origin"] == AUTO, auto_rotation=opts.get("part_rotation") == AUTO,
         tool_table=read_tool_table(opts["tool_table"]) if opts.get("tool_table") else None,
     )
 
@@ -869,6 +899,10 @@ def _open_program(ctx: click.Context, path: str, machine_name: str, dialect_name
                   opener: Callable[..., _Opened]) -> _Opened:
     """The program (``open_program``), or its setting only (``open_setting``), with the machine, dialect and setup of its header,
     or those given."""
+    for value, flag in ((part_origin, "--part-origin"), (part_rotation, "--part-rotation")):
+        if value == AUTO:
+            raise click.BadParameter("auto chooses the setup when a program is made; a program is read with the "
+                                     "setup its header states (or the one given as numbers)", param_hint=f"'{flag}'")
     try:
         return opener(path, machine=machine_name if _given(ctx, "machine_name") else None,
                       dialect=dialect_name if _given(ctx, "dialect_name") else None,

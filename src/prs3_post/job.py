@@ -34,8 +34,8 @@ from prs3_post.linearize import slerp, subdivide_axis_changes
 from prs3_post.ops import Cutting, plan_holes, plan_profile
 from prs3_post.ops.common import require_tolerance
 from prs3_post.ops.work import HoleJob, Operation, ProfileJob
-from prs3_post.pipeline import PostResult, post_process
-from prs3_post.placement import placement_error, suggest_origin
+from prs3_post.pipeline import PostResult, machine_path, post_process
+from prs3_post.placement import PlacementResult, place, placement_error, suggest_origin
 from prs3_post.readers.header import OperationRecord, ProgramHeader, ToolRecord, exact_text, file_sha256, header_entries
 from prs3_post.readers.stl import load_part
 from prs3_post.readers.tooltable import Tool, ToolTable
@@ -66,6 +66,8 @@ class JobSpec:
     line_numbers, line_start, line_step : optional overrides of the dialect's block numbering
     up : str — the STL's up axis, turned to +z when it is read (``z``, ``y``, ``-x``...: ``readers.stl.UP_ROTATION``)
     tool_table : ToolTable | None — the tools' lengths (None: every tool is the machine's ``tool_length_mm``)
+    auto_origin, auto_rotation : bool — choose the part origin / the rotation (:func:`~prs3_post.placement.place`);
+        ``setup`` then holds only what was given
     """
 
     part: str
@@ -84,6 +86,8 @@ class JobSpec:
     line_step: int | None = None
     up: str = "z"
     tool_table: ToolTable | None = None
+    auto_origin: bool = False
+    auto_rotation: bool = False
 
     @property
     def operation(self) -> Operation:
@@ -126,6 +130,7 @@ class JobResult:
     triangles : (F, 3, 3) float — mm, the part's triangles in part coordinates (for pictures)
     operations : tuple of OperationResult — every operation, in program order
     tool_length : (N,) float — mm, the tool length "TL" the IK used for each row of ``post``
+    placement : PlacementResult | None — how the setup was chosen (None: as given)
     """
 
     text: str
@@ -137,6 +142,7 @@ class JobResult:
     triangles: FloatArray
     operations: tuple[OperationResult, ...]
     tool_length: FloatArray
+    placement: PlacementResult | None = None
 
 
 def positions(face: Face, at_uv: FloatArray, at_xyz: FloatArray) -> FloatArray:
@@ -249,7 +255,6 @@ def run_operations(specs: tuple[JobSpec, ...]) -> JobResult:
     several = len(specs) > 1
     decimals = first.dialect.decimals.length
     done: list[OperationResult] = []
-    posts: list[PostResult] = []
     for number, spec in enumerate(specs, start=1):
         try:  # automatic selection skips faces narrower than the tool
             face, note = select_face(faces, spec.face, min_width=max(MIN_FACE_WIDTH_MM, spec.cutting.tool_diameter))
@@ -259,8 +264,14 @@ def run_operations(specs: tuple[JobSpec, ...]) -> JobResult:
         label = operation_label(number, spec, face) if several else ""
         if several:
             path_part = replace(path_part, source_labels=tuple(f"{label}, {t}" for t in path_part.source_labels))
-        length = tool_length_of(spec)
-        machine = _with_tool_length(spec.machine, length)
+        done.append(OperationResult(face=face, face_note=note, path_part=path_part, tool_length=tool_length_of(spec),
+                                    label=label))
+    specs, placement = choose_setup(specs, done, triangles)
+    first = specs[0]
+    posts: list[PostResult] = []
+    for spec, operation in zip(specs, done, strict=True):
+        path_part = operation.path_part
+        machine = _with_tool_length(spec.machine, operation.tool_length)
         try:
             post = post_process(machine, path_part, spec.setup, tolerance=spec.tolerance, length_decimals=decimals)
         except (LimitError, ReachError) as error:          # say the setup, and one that fits if there is one
@@ -268,7 +279,6 @@ def run_operations(specs: tuple[JobSpec, ...]) -> JobResult:
                 raise _operation_error(error, machine, path_part, spec, decimals) from error
             raise placement_error(error, machine, path_part, spec.setup, tolerance=spec.tolerance,
                                   length_decimals=decimals) from error
-        done.append(OperationResult(face=face, face_note=note, path_part=path_part, tool_length=length, label=label))
         posts.append(post)
     if several:
         post, row_length = _assemble(specs, done, posts, safe_height(triangles, first.setup, specs))
@@ -276,14 +286,68 @@ def run_operations(specs: tuple[JobSpec, ...]) -> JobResult:
         post, row_length = posts[0], np.full(len(posts[0].path), done[0].tool_length)
     sha = file_sha256(first.part)
     header = header_of(first, sha, operations=specs if several else (), lengths=[o.tool_length for o in done])
-    entries = header_entries(header, done[0].face, description=first.machine.description,
-                             faces=tuple(o.face for o in done) if several else ())
+    entries = with_placement(header_entries(header, done[0].face, description=first.machine.description,
+                                            faces=tuple(o.face for o in done) if several else ()), placement)
     text = emit_program(post.program, first.dialect, header=entries,
                         stage=first.machine.stage.present, line_numbers=first.line_numbers,
                         line_start=first.line_start, line_step=first.line_step)
     return JobResult(text=text, face=done[0].face, face_note=done[0].face_note, path_part=done[0].path_part,
                      post=post, setup=first.setup, triangles=triangles, operations=tuple(done),
-                     tool_length=row_length)
+                     tool_length=row_length, placement=placement)
+
+
+def choose_setup(specs: tuple[JobSpec, ...], operations: list[OperationResult],
+                 triangles: FloatArray) -> tuple[tuple[JobSpec, ...], PlacementResult | None]:
+    """The specs with the setup :func:`~prs3_post.placement.place` chooses for the whole job (every
+    operation and the transitions between them) where the first asks for one (``auto_origin``,
+    ``auto_rotation``), and that choice; the specs and None otherwise.
+
+    Raises
+    ------
+    LimitError, ReachError
+        No setup puts every point inside the machine's limits (the message says which limit, by how much).
+    """
+    first = specs[0]
+    if not (first.auto_origin or first.auto_rotation):
+        return specs, None
+    pieces, lengths = _job_in_part_frame(specs, operations, triangles)
+    chosen = place(first.machine, pieces, origin=None if first.auto_origin else first.setup.origin,
+                   rotation_deg=None if first.auto_rotation else first.setup.rotation_deg, tool_lengths=lengths,
+                   tolerance=first.tolerance)
+    return tuple(replace(s, setup=chosen.setup, auto_origin=False, auto_rotation=False) for s in specs), chosen
+
+
+def _job_in_part_frame(specs: tuple[JobSpec, ...], operations: list[OperationResult],
+                       triangles: FloatArray) -> tuple[list[Toolpath], list[float]]:
+    """Every operation's path and the transitions between them, in part coordinates, with their tool
+    lengths: the transitions made at the identity setup are the part-frame transitions of any setup
+    (the safe height moves with the part; turning about z turns the great circles with it). The
+    turns are FEED rows here, so that placing them subdivides them as :func:`post_transition` does."""
+    pieces, lengths = [operations[0].path_part], [operations[0].tool_length]
+    height = safe_height(triangles, MACHINE_FRAME, specs)
+    for k in range(1, len(operations)):
+        before, after = operations[k - 1], operations[k]
+        pair = (before.tool_length, after.tool_length)
+        ends = [machine_path(_with_tool_length(spec.machine, op.tool_length), op.path_part, MACHINE_FRAME)
+                for spec, op in ((specs[k - 1], before), (specs[k], after))]
+        lift, turn = transition_paths(ends[0], ends[1], pair, height, labels=(
+            f"{before.label}, lift to the safe height", f"{after.label}, turn the tool axis at the safe height"))
+        for piece, length in ((lift, pair[0]), (replace(turn, kind=np.full(len(turn), MoveKind.FEED)), pair[1]),
+                              (after.path_part, pair[1])):
+            if len(piece):
+                pieces.append(piece)
+                lengths.append(length)
+    return pieces, lengths
+
+
+def with_placement(entries: tuple[tuple[str, str], ...],
+                   placement: PlacementResult | None) -> tuple[tuple[str, str], ...]:
+    """The header entries with a ``placement`` entry after the ``setup`` one when the setup was chosen
+    (the setup entry keeps its form: it is what `verify` reads)."""
+    if placement is None:
+        return entries
+    at = [key for key, _ in entries].index("setup") + 1
+    return (*entries[:at], ("placement", placement.describe()), *entries[at:])
 
 
 def _operation_error(error: LimitError | ReachError, machine: Machine, path_part: Toolpath, spec: JobSpec,

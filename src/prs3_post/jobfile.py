@@ -11,8 +11,8 @@
     tolerance = 0.002                  # optional, mm
 
     [setup]                            # optional
-    part_origin = [-100.0, -200.0, -970.0]   # machine coordinates, mm ("auto": not supported yet)
-    part_rotation_deg = 0.0                  # about the machine z axis ("auto": not supported yet)
+    part_origin = [-100.0, -200.0, -970.0]   # machine coordinates, mm, or "auto" (chosen for the largest margins)
+    part_rotation_deg = 0.0                  # about the machine z axis, or "auto" (chosen with the origin)
 
     [[operation]]                      # one table per operation, in program order
     profile = "hole"                   # hole | square | round
@@ -35,6 +35,7 @@ from typing import Any
 
 from prs3_post.config import _read_toml
 from prs3_post.errors import InputError
+from prs3_post.placement import AUTO
 
 #: The keys of an ``[[operation]]`` table: the main job's option names with ``_`` for ``-``
 #: (``face`` for ``--face``, ``tool`` for ``--tool-number``, ``at`` for ``--at``).
@@ -62,16 +63,16 @@ class JobFile:
     settings : dict — the top-level keys given other than ``part``, ``setup`` and ``operation``
         (``units``, ``up``, ``machine``, ``dialect``, ``tool_table``, ``tolerance``, ``line_*``;
         ``machine``, ``dialect`` and ``tool_table`` paths resolved)
-    part_origin : (3,) float | None — mm (None: the machine's default)
-    part_rotation_deg : float | None — degrees (None: 0)
+    part_origin : (3,) float | str | None — mm, or ``"auto"`` (None: the machine's default)
+    part_rotation_deg : float | str | None — degrees, or ``"auto"`` (None: 0)
     operations : tuple of dict — each ``[[operation]]`` table's keys and values as TOML gave them
     """
 
     path: str
     part: str
     settings: dict[str, Any]
-    part_origin: tuple[float, float, float] | None
-    part_rotation_deg: float | None
+    part_origin: tuple[float, float, float] | str | None
+    part_rotation_deg: float | str | None
     operations: tuple[dict[str, Any], ...]
 
 
@@ -139,21 +140,17 @@ def read_job_file(path: str) -> JobFile:
                    part_rotation_deg=rotation, operations=tuple(dict(t) for t in operations))
 
 
-def _setup(table: dict[str, Any], bad: Any) -> tuple[tuple[float, float, float] | None, float | None]:
-    """``[setup]``: the part origin and rotation (None where not given); "auto" is refused for now."""
+def _setup(table: dict[str, Any], bad: Any) -> tuple[tuple[float, float, float] | str | None, float | str | None]:
+    """``[setup]``: the part origin and rotation (None where not given, ``"auto"`` where asked for)."""
     for key in table:
         if key not in ("part_origin", "part_rotation_deg"):
             raise bad(f"setup.{key}", "unknown key (the setup has part_origin, part_rotation_deg)")
     origin = table.get("part_origin")
     rotation = table.get("part_rotation_deg")
-    for key, value in (("part_origin", origin), ("part_rotation_deg", rotation)):
-        if value == "auto":
-            raise bad(f"setup.{key}", '"auto" (automatic placement) is not supported yet: give the value '
-                      "(a limit error suggests a part origin that fits)")
-    if origin is not None and not (isinstance(origin, list) and len(origin) == 3
-                                   and all(_kind(v, float) and math.isfinite(v) for v in origin)):
+    if origin not in (None, AUTO) and not (isinstance(origin, list) and len(origin) == 3
+                                           and all(_kind(v, float) and math.isfinite(v) for v in origin)):
         raise bad("setup.part_origin", f'expected [x, y, z] in mm or "auto", got {origin!r}')
-    if rotation is not None and not (_kind(rotation, float) and math.isfinite(rotation)):
+    if rotation not in (None, AUTO) and not (_kind(rotation, float) and math.isfinite(rotation)):
         raise bad("setup.part_rotation_deg", f'expected a number of degrees or "auto", got {rotation!r}')
-    return (None if origin is None else (float(origin[0]), float(origin[1]), float(origin[2])),
-            None if rotation is None else float(rotation))
+    return (origin if origin in (None, AUTO) else (float(origin[0]), float(origin[1]), float(origin[2])),
+            rotation if rotation in (None, AUTO) else float(rotation))
