@@ -34,7 +34,7 @@ from prs3_post.convert import (
 )
 from prs3_post.errors import FeatureError, InputError, Prs3Error, Prs3Warning, ReachError
 from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
-from prs3_post.job import HoleJob, JobSpec, Operation, ProfileJob, run_job, run_operations
+from prs3_post.job import HoleJob, JobResult, JobSpec, Operation, ProfileJob, run_job, run_operations
 from prs3_post.jobfile import JobFile, read_job_file
 from prs3_post.kinematics import IKModel, forward, inverse, unit_axes
 from prs3_post.limits import check_limits
@@ -581,14 +581,19 @@ def _run_job(part: str, **opts: Any) -> int:
         image = preview_bytes(program, spec.machine, result.setup, fmt, tolerance=spec.tolerance, tool_lengths=lengths,
                                mesh=result.triangles, face=result.face, title=Path(part).name, dialect=spec.dialect)
     write_outputs([(opts["out_path"], result.text)] + ([] if image is None else [(opts["preview_path"], image)]))
-    if result.placement is not None:
-        click.echo(f"prs3-post: setup: {result.setup.describe()}; {result.placement.describe()}", err=True)
+    _report_placement(result)
     if not is_stdout(opts["out_path"]):
         click.echo(f"prs3-post: wrote {opts['out_path']}: {result.text.count(chr(10))} lines, "
                    f"{len(result.post.program)} moves; {result.face_note}", err=True)
     if image is not None:
         click.echo(f"prs3-post: wrote {opts['preview_path']}", err=True)
     return 0
+
+
+def _report_placement(result: JobResult) -> None:
+    """The setup automatic placement chose, and every limit's margin there, on standard error."""
+    if result.placement is not None:
+        click.echo(f"prs3-post: setup: {result.setup.describe()}; {result.placement.describe()}", err=True)
 
 
 def _face_index(choice: str) -> int | None:
@@ -795,6 +800,7 @@ def job(job_path: str, out_path: str | None) -> None:
         specs = _job_specs(read_job_file(job_path))
         result = run_operations(specs)
         write_outputs([(out_path, result.text)])
+        _report_placement(result)
         if not is_stdout(out_path):
             click.echo(f"prs3-post: wrote {out_path}: {result.text.count(chr(10))} lines, "
                        f"{len(result.post.program)} moves, {len(specs)} operations", err=True)

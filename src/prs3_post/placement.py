@@ -333,6 +333,11 @@ class _Candidate:
     score: float                      # -inf where a row does not assemble
 
 
+#: A path of no rows (the columns of a job without any).
+_EMPTY = Toolpath(kind=np.zeros(0, dtype=np.int64), tip=np.zeros((0, 3)), axis=np.zeros((0, 3)), feed=np.zeros(0),
+                  source=np.zeros(0, dtype=np.int64))
+
+
 class _Search:
     """Evaluates the job's rows at a rotation and finds the best origin there (see the module docstring)."""
 
@@ -344,28 +349,33 @@ class _Search:
         self.evaluations = 0
         self._slope: FloatArray | None = None          # (3, L): d value / d shift, per direction
         self._cache: dict[float, _Candidate] = {}
+        self._sampled: tuple[Toolpath, ...] | None = None   # part frame, unit axes, subdivided once
 
-    def rows(self, setup: Setup) -> _Rows:
-        """The job's rows at ``setup``: subdivided like the program's, with every limit's value.
+    def rows(self, setup: Setup, *, sampled: bool = False) -> _Rows:
+        """The job's rows at ``setup`` with every limit's value: subdivided as the program's are or, with
+        ``sampled``, the rows subdivided once in the part frame, turned and moved (the search's rows:
+        the same points of the path, without a subdivision per rotation).
 
         Raises
         ------
         ReachError
             A zero or downward tool axis.
         """
-        pieces, blocks, first = [], [], []
-        count = 0
-        for path, machine in zip(self.paths, self.machines, strict=True):
-            placed = machine_path(machine, path, setup, tolerance=self.tolerance,
-                                  angle_tolerance=self.angle_tolerance)
-            columns = _columns(machine, placed)
-            pieces.append(placed)
-            blocks.append(columns.value)
-            first.append(count)
-            count += len(placed)
-            names = columns
-        value = np.concatenate(blocks) if blocks else np.zeros((0, len(names.names)))
-        return _Rows(columns=replace(names, value=value), pieces=tuple(pieces), first_row=tuple(first))
+        if sampled:
+            if self._sampled is None:
+                self._sampled = tuple(machine_path(machine, path, Setup((0.0, 0.0, 0.0)), tolerance=self.tolerance,
+                                                   angle_tolerance=self.angle_tolerance)
+                                      for path, machine in zip(self.paths, self.machines, strict=True))
+            placed = tuple(place_toolpath(piece, setup) for piece in self._sampled)
+        else:
+            placed = tuple(machine_path(machine, path, setup, tolerance=self.tolerance,
+                                        angle_tolerance=self.angle_tolerance)
+                           for path, machine in zip(self.paths, self.machines, strict=True))
+        blocks = [_columns(machine, piece) for piece, machine in zip(placed, self.machines, strict=True)]
+        columns = blocks[0] if blocks else _columns(self.machine, _EMPTY)
+        first = tuple(int(n) for n in np.cumsum([0] + [len(piece) for piece in placed])[:-1])
+        value = np.concatenate([b.value for b in blocks]) if blocks else columns.value
+        return _Rows(columns=replace(columns, value=value), pieces=placed, first_row=first)
 
     def slope(self, rows: _Rows) -> FloatArray:
         """(3, L) — how each limit's value moves per mm of part shift along x, y, z (measured once:
@@ -389,7 +399,7 @@ class _Search:
         if rotation_deg in self._cache:
             return self._cache[rotation_deg]
         self.evaluations += 1
-        rows = self.rows(Setup((0.0, 0.0, 0.0), rotation_deg))
+        rows = self.rows(Setup((0.0, 0.0, 0.0), rotation_deg), sampled=True)
         columns = rows.columns
         value = columns.value
         if not len(value) or not np.isfinite(value).all():
