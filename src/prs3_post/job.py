@@ -310,14 +310,14 @@ def choose_setup(specs: tuple[JobSpec, ...], operations: list[OperationResult],
     first = specs[0]
     if not (first.auto_origin or first.auto_rotation):
         return specs, None
-    pieces, lengths = _job_in_part_frame(specs, operations, triangles)
+    pieces, lengths = job_in_part_frame(specs, operations, triangles)
     chosen = place(first.machine, pieces, origin=None if first.auto_origin else first.setup.origin,
                    rotation_deg=None if first.auto_rotation else first.setup.rotation_deg, tool_lengths=lengths,
                    tolerance=first.tolerance)
     return tuple(replace(s, setup=chosen.setup, auto_origin=False, auto_rotation=False) for s in specs), chosen
 
 
-def _job_in_part_frame(specs: tuple[JobSpec, ...], operations: list[OperationResult],
+def job_in_part_frame(specs: tuple[JobSpec, ...], operations: list[OperationResult],
                        triangles: FloatArray) -> tuple[list[Toolpath], list[float]]:
     """Every operation's path and the transitions between them, in part coordinates, with their tool
     lengths: the transitions made at the identity setup are the part-frame transitions of any setup
