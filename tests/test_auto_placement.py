@@ -19,7 +19,7 @@ from click.testing import CliRunner
 
 from prs3_post.cli import _job_specs, main
 from prs3_post.config import load_dialect, load_machine
-from prs3_post.errors import LimitError
+from prs3_post.errors import LimitError, ReachError
 from prs3_post.job import JobSpec, job_in_part_frame, run_job, run_operations
 from prs3_post.jobfile import read_job_file
 from prs3_post.kinematics import IKModel, inverse
@@ -223,6 +223,20 @@ def test_the_library_raises_a_limit_error_with_the_same_message():
         "no part origin puts every point inside the machine's limits: the tilt cannot be met, by 6.5651 deg at best "
         "(hole 1 approach: tilt 26.5651 deg is above the maximum 20.0000 deg by 6.5651 deg); the best setup found: "
         "part origin at machine [-79.3804, -190.8571, -1028.4162] mm, rotation 0.0000 deg about z")
+
+
+@pytest.mark.parametrize(("rotation", "scope"), [(0.0, "this rotation about z, at any part origin"),
+                                                  (None, "any rotation about z tried")])
+def test_an_axis_the_head_cannot_reach_at_any_setup_is_a_reach_error(rotation, scope):
+    """Links of 225 mm cannot reach a 30° tool axis (the guide radius is 392 mm), wherever the part is."""
+    short = replace(MACHINE, geometry=replace(MACHINE.geometry, link_length=225.0))
+    axis = np.array([math.sin(math.radians(30.0)), 0.0, math.cos(math.radians(30.0))])
+    path = Toolpath(kind=np.array([0, 1]), tip=np.array([2.0 * axis, np.zeros(3)]), axis=np.tile(axis, (2, 1)),
+                    feed=np.array([0.0, 100.0]), source=np.arange(2), source_labels=("clearance", "feed"))
+    with pytest.raises(ReachError) as caught:
+        place(short, path, rotation_deg=rotation)
+    assert str(caught.value) == (f"clearance: the head cannot reach this tool axis at {scope} (a link cannot reach "
+                                 "its joint; 2 points unreachable)")
 
 
 # ----------------------------------------------------------------------------- options

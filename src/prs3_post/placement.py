@@ -91,47 +91,36 @@ class PlacementReachError(Placement, ReachError):
 # ============================================================================ limit columns
 
 
-@dataclass(frozen=True, slots=True)
-class _Columns:
-    """Every limit's value on the rows of a placed path, one column per limit.
-
-    Attributes
-    ----------
-    names : (L,) str — ``T1 stroke`` … ``stage Y`` (:func:`~prs3_post.limits.check_limits`), and
-        ``head x offset``, ``head y offset`` on a machine without a stage
-    units : (L,) str — ``mm``, ``deg`` (values in rad) or ``""``
-    low, high : (L,) float — bounds (``-inf`` / ``inf`` where there is none)
-    value : (N, L) float — each row's value (NaN where the pose does not assemble)
-    """
-
-    names: tuple[str, ...]
-    units: tuple[str, ...]
-    low: FloatArray
-    high: FloatArray
-    value: FloatArray
-
-    @property
-    def span(self) -> FloatArray:
-        """(L,) float — the range each limit's margin is normalized by (tilt from 0, condition from 1)."""
-        natural = np.array([_NATURAL_LOW.get(name, -math.inf) for name in self.names])
-        return self.high - np.where(np.isfinite(self.low), self.low, natural)
+def _span(report: LimitReport) -> FloatArray:
+    """(L,) float — the range each limit's margin is normalized by (tilt from 0, condition number from 1)."""
+    natural = np.array([_NATURAL_LOW.get(name, -math.inf) for name in report.names])
+    return report.high - np.where(np.isfinite(report.low), report.low, natural)
 
 
-def _columns(machine: Machine, path: Toolpath, shift: FloatArray | None = None) -> _Columns:
+def _with_values(report: LimitReport, value: FloatArray) -> LimitReport:
+    """``report``'s limits with other values (N, L): margins and verdicts recomputed."""
+    margin = np.minimum(value - report.low, report.high - value)
+    with np.errstate(invalid="ignore"):
+        ok = np.all(margin >= 0.0, axis=1)             # NaN (unreachable) is never ok
+    return replace(report, value=value, margin=margin, ok=ok)
+
+
+def _columns(machine: Machine, path: Toolpath, shift: FloatArray | None = None) -> LimitReport:
     """Every limit's value on ``path`` (machine frame, unit axes) moved by ``shift`` (mm, (3,)).
 
-    Without a stage, the head's x, y offset (which must be 0) is added as two more limits.
+    Without a stage, the head's x, y offset (which must be 0) is added as two more limits
+    (``head x offset``, ``head y offset``).
     """
     tip = path.tip if shift is None else path.tip + shift
     ik = inverse(machine.geometry, tip, path.axis, model=IKModel.EXACT)
     report = check_limits(machine, ik, path.axis)
-    names, units, value, low, high = report.names, report.units, report.value, report.low, report.high
     if model_for(machine) is IKModel.HEAD:
         bound = HEAD_XY_TOL / 2.0                      # a box inside the round tolerance
-        names, units = (*names, "head x offset", "head y offset"), (*units, "mm", "mm")
-        value = np.column_stack([value, ik.stage])
-        low, high = np.append(low, [-bound, -bound]), np.append(high, [bound, bound])
-    return _Columns(names=names, units=units, low=low, high=high, value=value)
+        report = _with_values(replace(report, names=(*report.names, "head x offset", "head y offset"),
+                                      units=(*report.units, "mm", "mm"), low=np.append(report.low, [-bound, -bound]),
+                                      high=np.append(report.high, [bound, bound])),
+                              np.column_stack([report.value, ik.stage]))
+    return report
 
 
 def _values(machine: Machine, path: Toolpath, shift: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -315,7 +304,7 @@ def _chosen(origin: bool, rotation: bool) -> str:
 class _Rows:
     """The whole job's rows placed at one rotation (origin 0): limit columns and where each row came from."""
 
-    columns: _Columns
+    columns: LimitReport
     pieces: tuple[Toolpath, ...]      # machine frame, after subdivision
     first_row: tuple[int, ...]        # each piece's first row in ``columns.value``
 
@@ -375,7 +364,7 @@ class _Search:
         columns = blocks[0] if blocks else _columns(self.machine, _EMPTY)
         first = tuple(int(n) for n in np.cumsum([0] + [len(piece) for piece in placed])[:-1])
         value = np.concatenate([b.value for b in blocks]) if blocks else columns.value
-        return _Rows(columns=replace(columns, value=value), pieces=placed, first_row=first)
+        return _Rows(columns=_with_values(columns, value), pieces=placed, first_row=first)
 
     def slope(self, rows: _Rows) -> FloatArray:
         """(3, L) — how each limit's value moves per mm of part shift along x, y, z (measured once:
@@ -408,7 +397,7 @@ class _Search:
             return found
         slope = self.slope(rows)
         low_side, high_side = value.min(axis=0) - columns.low, columns.high - value.max(axis=0)   # (L,) at 0
-        span = columns.span
+        span = _span(columns)
         origin = self.fallback.copy() if self.origin is None else self.origin.copy()
         if self.origin is None:
             for k in range(3):
@@ -485,38 +474,30 @@ def _wrap(tenths: int) -> int:
 
 
 def _margins(rows: _Rows) -> tuple[LimitMargin, ...]:
-    """Each limit's smallest margin over the rows (legs' strokes and link angles as one limit each)."""
+    """Each limit's smallest margin over the rows (legs' strokes and link angles as one limit each; a
+    row that does not assemble has the margin -inf)."""
     columns = rows.columns
-    value = columns.value
-    margin = np.minimum(value - columns.low, columns.high - value)          # (N, L), real units
-    span = columns.span
+    normalized = np.nan_to_num(columns.margin / _span(columns), nan=-np.inf)   # (N, L)
     groups: dict[str, list[int]] = {}
     for index, name in enumerate(columns.names):
-        groups.setdefault(name.split(" ", 1)[1] if name[:1] in "Tθ" and name[1:2].isdigit() else name,
-                          []).append(index)
+        leg = name[:1] in "Tθ" and name[1:2].isdigit()
+        groups.setdefault(name.split(" ", 1)[1] if leg else name, []).append(index)
     out = []
     for name, indices in groups.items():
-        with np.errstate(invalid="ignore"):
-            worst = np.nanargmin(margin[:, indices] / span[indices], axis=None) if len(value) else 0
-        row, local = np.unravel_index(worst, (len(value), len(indices))) if len(value) else (0, 0)
-        column = indices[int(local)]
-        unit = columns.units[column]
+        unit = columns.units[indices[0]]
         scale = math.degrees(1.0) if unit == "deg" else 1.0
-        describe = _describe(columns, int(row), column) if len(value) else ""
+        span = float(_span(columns)[indices[0]]) * scale
+        if not len(normalized):                        # a job without rows keeps every limit
+            out.append(LimitMargin(name=name, column=columns.names[indices[0]], unit=unit, margin=math.inf,
+                                   span=span, where="", describe=""))
+            continue
+        row, local = np.unravel_index(int(np.argmin(normalized[:, indices])), (len(normalized), len(indices)))
+        column = indices[int(local)]
+        margin = float(columns.margin[row, column]) * scale
         out.append(LimitMargin(name=name, column=columns.names[column], unit=unit,
-                               margin=float(margin[row, column]) * scale if len(value) else math.inf,
-                               span=float(span[column]) * scale, where=rows.describe(int(row)) if len(value) else "",
-                               describe=describe))
+                               margin=margin if math.isfinite(margin) else -math.inf, span=span,
+                               where=rows.describe(int(row)), describe=columns.describe(int(row), column)))
     return tuple(out)
-
-
-def _describe(columns: _Columns, row: int, column: int) -> str:
-    """``T2 stroke 412.3456 mm is above the maximum 400.0000 mm by 12.3456 mm`` (as the limit errors say)."""
-    value = columns.value
-    margin = np.minimum(value - columns.low, columns.high - value)
-    report = LimitReport(names=columns.names, units=columns.units, low=columns.low, high=columns.high,
-                         value=value, margin=margin, ok=np.zeros(len(value), dtype=bool))
-    return report.describe(row, column)
 
 
 def place(machine: Machine, paths: Toolpath | Sequence[Toolpath], *, origin: Sequence[float] | None = None,
@@ -593,9 +574,9 @@ def _finish(search: _Search, best: _Candidate, origin_chosen: bool, rotation_cho
     unreachable = np.flatnonzero(~np.isfinite(rows.columns.value).all(axis=1))
     if len(unreachable):
         scope = "any rotation about z tried" if rotation_chosen else "this rotation about z, at any part origin"
+        count = f"; {len(unreachable)} points unreachable" if len(unreachable) > 1 else ""
         raise ReachError(f"{rows.describe(int(unreachable[0]))}: the head cannot reach this tool axis at {scope} "
-                         f"(a link cannot reach its joint; {len(unreachable)} points unreachable at the best setup "
-                         f"found: {result.setup.describe()})")
+                         f"(a link cannot reach its joint{count})")
     raise LimitError(f"no {what} puts every point inside the machine's limits: {_failures(result)}; the best setup "
                      f"found: {result.setup.describe()}")
 
