@@ -52,7 +52,8 @@ def originals() -> dict[str, tuple[bytes, ...]]:
     wedge = (REPO / "fixtures" / "parts" / "wedge.stl").read_bytes()
     return {
         "stl": (wedge, (REPO / "fixtures" / "parts" / "twofaces.stl").read_bytes(), _ascii_box()),
-        "ngc": (*programs, (REPO / "fixtures" / "verify" / "small.ngc").read_bytes()),
+        "ngc": (*programs, (REPO / "fixtures" / "verify" / "small.ngc").read_bytes(),
+                (REPO / "fixtures" / "golden" / "twofaces-job-example.ngc").read_bytes()),
         "csv": ((REPO / "fixtures" / "poses" / "cases_2a_2b.csv").read_bytes(),
                 b"tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n0,200,-680,0,0,1\n-81.0264,21.2132,-679.4865,0.447214,0,0.894427\n"),
         "machine": ((REPO / "postproc" / "machines" / "patel2020.toml").read_bytes(),),

@@ -301,3 +301,24 @@ def test_verify_replays_each_row_with_the_tool_in_the_spindle(example) -> None:
 
     assert right.ok and tip_max(right) < 3e-4
     assert not wrong.ok and tip_max(wrong) == pytest.approx(191.25 - 175.0, abs=3e-4)
+
+
+@pytest.mark.parametrize(("old", "new", "message"), [
+    ("(operations: 2)", "(operations: 3)", "p.ngc:7: header: operations: 3 operations, but no 'operation 3 face', "
+     "'operation 3', 'operation 3 parameters', 'operation 3 tool' entry"),
+    ("(operations: 2)", "(operations: 0)", "p.ngc:7: header: operations: expected 'N', the number of operations "
+     "(1 to 9999), got '0'"),
+    ("IK length 191.250 mm)", "IK length x mm)", "p.ngc:6: header: tools: expected 'TN diameter D mm[, length L mm], "
+     "IK length TL mm' for each tool (joined by 'and'), got 'T2 diameter 8.000 mm, length 71.250 mm, IK length x mm'"),
+    ("(tools: ", "(toolz: ", "p.ngc:17: header: no 'tools' entry (a prs3-post header has program, machine, dialect, "
+     "part, setup, tools, operations, tolerance, units)"),
+    ("(operation 2 tool: T2", "(operation 2 tool: X2", "p.ngc:15: header: operation 2 tool: expected 'TN diameter "
+     ".. mm, feed .. mm/min, ...', got 'X2 diameter 8.000 mm, feed 400.0 mm/min, plunge 100.0 mm/min, spindle 3000 "
+     "rpm, coolant flood'"),
+])
+def test_a_bad_job_header_names_its_line_and_entry(old: str, new: str, message: str) -> None:
+    text = GOLDEN.read_text(encoding="utf-8")
+    assert old in text
+    with pytest.raises(InputError) as caught:
+        parse_header(header_comments(text.replace(old, new)), path="p.ngc")
+    assert str(caught.value) == message

@@ -458,8 +458,6 @@ _REQUIRED = ("program", "machine", "dialect", "part", "face", "setup", "operatio
 #: The keys of a job of several operations (and ``operation K ...`` for each).
 _REQUIRED_SEVERAL = ("program", "machine", "dialect", "part", "setup", "tools", "operations", "tolerance", "units")
 _OPERATION_KEY = re.compile(r"operation [1-9][0-9]{0,3}(?: face| parameters| tool)?")
-#: The largest number of operations a header may state.
-MAX_OPERATIONS = 9999
 #: The entries of a converted program's header (:class:`SourceHeader`); ``ignore`` and ``work plane`` are optional.
 _SOURCE_REQUIRED = ("program", "machine", "dialect", "source", "setup", "tool length", "tolerance", "units")
 
@@ -489,6 +487,7 @@ _OPERATION = (rf"(hole|square|round) (?:at the face origin|(?:at face \[u, v\] (
               rf"(?: and )?(?:at part \[x, y, z\] ((?:{_VECTOR}(?:, )?)+) mm)?)")
 _TOOL = r"T(\d+) (.*)"
 _TOLERANCE = rf"({_NUMBER}) mm"
+_COUNT = r"([1-9][0-9]{0,3})"
 _FORMS = {
     _SETUP: "'part origin at machine [x, y, z] mm, rotation θ deg about z'",
     _PART: "'NAME, units mm|inch, up [-]x|y|z, sha256 HEX'",
@@ -496,6 +495,7 @@ _FORMS = {
     _OPERATION: "'hole|square|round at face [u, v] [..] mm and/or at part [x, y, z] [..] mm, or at the face origin'",
     _TOOL: "'TN diameter .. mm, feed .. mm/min, ...'",
     _TOLERANCE: "'T mm'",
+    _COUNT: "'N', the number of operations (1 to 9999)",
 }
 
 
@@ -639,7 +639,7 @@ def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHe
         operations: tuple[OperationRecord, ...] = ()
         if several:
             key = "operations"
-            count = _match(r"([1-9][0-9]{0,3})", found["operations"][1])
+            count = _match(_COUNT, found["operations"][1])
             prefixes = [f"operation {k} " for k in range(1, int(count.group(1)) + 1)]
             absent = [p + suffix for p in prefixes for suffix in ("face", "", "parameters", "tool")
                       if (p + suffix).strip() not in found]
