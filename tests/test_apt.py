@@ -408,3 +408,51 @@ def test_corpus_toolpaths_post_process_and_replay_onto_the_cl_points(name: str, 
     want = setup.points_to_machine(cl.toolpath.tip)
     gap = np.linalg.norm(post.path.tip[:, None, :] - want[None, :, :], axis=2).min(axis=0)
     assert gap.max() == 0.0                                              # every CL row is there, exactly
+
+
+def test_a_toolpath_past_the_tilt_limit_fails_at_its_first_bad_row_before_any_subdivision() -> None:
+    """humman_ust_a tilts its tool up to 86° (the machine allows 45°) and spans 800 mm in y (the stage
+    300 mm): post-processing names the first row outside a limit at once, where it used to bisect
+    the moves through the singularity for minutes first; no part origin is offered (the tilt does
+    not depend on where the part is)."""
+    from prs3_post.config import load_machine
+    from prs3_post.errors import LimitError
+    from prs3_post.pipeline import post_process
+    from prs3_post.placement import suggest_origin
+    from prs3_post.setup import Setup
+
+    name = "humman_ust_a_variable_contour.cls"
+    machine = load_machine("patel2020")
+    setup = Setup.resolve(machine)
+    path = _read(name).toolpath
+    with pytest.raises(LimitError) as caught:
+        post_process(machine, path, setup, tolerance=TOL)
+    assert str(caught.value) == (f"{CORPUS / name}:11: stage Y -1396.5000 mm is below the minimum -300.0000 mm by "
+                                 "1096.5000 mm (546 points outside limits in all)")
+    assert suggest_origin(machine, path, setup, tolerance=TOL) is None
+
+
+def test_subdividing_a_move_through_the_singularity_stops_at_the_row_cap_naming_the_move() -> None:
+    """The same file's move to line 177 turns the axis from 80.3° to 78.5° tilt, past the singularity:
+    its joint-space line never comes within tolerance, and bisection stops (after 9 rounds, where the
+    round limit alone would allow 16,000 rows per move) when the move would need more than its cap."""
+    from dataclasses import replace
+
+    from prs3_post.config import load_machine
+    from prs3_post.errors import LimitError
+    from prs3_post.linearize import MAX_INSERTED, subdivide_axis_changes
+    from prs3_post.pipeline import place_toolpath
+    from prs3_post.setup import Setup
+
+    name = "humman_ust_a_variable_contour.cls"
+    machine = load_machine("patel2020")
+    path = _read(name).toolpath
+    placed = place_toolpath(path.take(path.source <= 177), Setup.resolve(machine))
+    placed = replace(placed, axis=placed.axis / np.linalg.norm(placed.axis, axis=1, keepdims=True))
+    with pytest.raises(LimitError) as caught:
+        subdivide_axis_changes(machine.geometry, placed, tolerance=TOL)
+    assert MAX_INSERTED == 1000
+    assert str(caught.value) == (f"{CORPUS / name}:177: the joint-space move to this point would need more than 1000 "
+                                 "inserted points: it still strays 134.6 mm / 42.32 deg from the intended one after 9 "
+                                 "rounds of bisection (allowed: 0.002 mm, 0.01 deg); the tool axis may pass a "
+                                 "singularity")

@@ -193,18 +193,28 @@ def test_a_move_that_bisection_cannot_bring_within_tolerance_is_an_error():
     done = linearize(MACHINE.geometry, p)
     assert_allclose([done.tip_before, np.degrees(done.angle_before)], [6.2503, 0.9713], atol=1e-4)
     assert 0.0 < done.tip_after <= 0.002 and len(done.path) == 66
+    # the same move needs 63 inserted rows: with room for 40 the bisection stops, naming it
+    with pytest.raises(LimitError) as caught:
+        subdivide_axis_changes(MACHINE.geometry, p, max_inserted=40)
+    assert str(caught.value) == ("turn: the joint-space move to this point would need more than 40 inserted points: "
+                                 "it still strays 0.007515 mm / 0.001484 deg from the intended one after 5 rounds of "
+                                 "bisection (allowed: 0.002 mm, 0.01 deg); the tool axis may pass a singularity")
+    assert len(subdivide_axis_changes(MACHINE.geometry, p, max_inserted=63)) == 66
 
 
 def test_a_move_through_the_singularity_names_the_limit_its_end_breaks():
     """A feed from a vertical axis to one tilted 70°: past the singularity (49.8°), the joint-space
-    line cannot be bisected onto the path; the error is the first limit its end pose breaks (its tilt
-    too), not the bisection."""
+    line cannot be bisected onto the path: the bisection gives up when the move would need more than
+    its cap of rows; post-processing checks the end poses first, and the error is the first limit
+    its end pose breaks (its tilt too), not the bisection."""
     tilted = np.array([np.sin(np.radians(70.0)), 0.0, np.cos(np.radians(70.0))])
     p = path([[20.0, 220.0, 290.0], [60.0, 220.0, 290.0]], [[0.0, 0.0, 1.0], tilted], [MoveKind.RAPID, MoveKind.FEED],
              [0, 100], labels=("approach", "turn"))
     with pytest.raises(LimitError) as caught:
         machine_path(MACHINE, p, ORIGIN)
-    assert str(caught.value).startswith("turn: the joint-space move still strays ")
+    assert str(caught.value) == ("turn: the joint-space move to this point would need more than 1000 inserted "
+                                 "points: it still strays 59.85 mm / 17.97 deg from the intended one after 12 rounds "
+                                 "of bisection (allowed: 0.002 mm, 0.01 deg); the tool axis may pass a singularity")
     with pytest.raises(LimitError) as caught:
         post_process(MACHINE, p, ORIGIN)
     assert str(caught.value) == "turn: T2 stroke 412.4087 mm is above the maximum 400.0000 mm by 12.4087 mm"

@@ -24,7 +24,7 @@ from prs3_post.errors import LimitError
 from prs3_post.kinematics import IKModel, forward, inverse
 from prs3_post.machine import Geometry
 from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
-from prs3_post.toolpath import MoveKind, Toolpath, describe_source
+from prs3_post.toolpath import MoveKind, Toolpath
 from prs3_post.types import FloatArray, IntArray
 
 #: Bisection rounds before a move that still strays is an error. Halving a move divides its
@@ -34,6 +34,10 @@ MAX_ROUNDS = 14
 
 #: Fractions of a move where the joint-space interpolation is compared with the intended move.
 CHECK_FRACTIONS = np.array([0.25, 0.5, 0.75])
+
+#: Rows :func:`linearize` may insert into one move before it gives up on it (a move that keeps
+#: doubling passes near a singularity; bisecting on would only cost time and memory).
+MAX_INSERTED = 1000
 
 
 def slerp(a: FloatArray, b: FloatArray, t: FloatArray) -> FloatArray:
@@ -114,19 +118,21 @@ class Linearized:
 
 def subdivide_axis_changes(
     geometry: Geometry, path: Toolpath, *, tolerance: float = DEFAULT_TOLERANCE,
-    angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, max_rounds: int = MAX_ROUNDS, start: Toolpath | None = None,
+    angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, max_rounds: int = MAX_ROUNDS, max_inserted: int = MAX_INSERTED,
+    start: Toolpath | None = None,
 ) -> Toolpath:
     """Insert intended poses into FEED moves whose axis changes until they stay within the tolerances.
 
     Parameters and errors as :func:`linearize`; returns its ``path``.
     """
     return linearize(geometry, path, tolerance=tolerance, angle_tolerance=angle_tolerance, max_rounds=max_rounds,
-                     start=start).path
+                     max_inserted=max_inserted, start=start).path
 
 
 def linearize(
     geometry: Geometry, path: Toolpath, *, tolerance: float = DEFAULT_TOLERANCE,
-    angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, max_rounds: int = MAX_ROUNDS, start: Toolpath | None = None,
+    angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, max_rounds: int = MAX_ROUNDS, max_inserted: int = MAX_INSERTED,
+    start: Toolpath | None = None,
 ) -> Linearized:
     """Insert intended poses into FEED moves whose axis changes until they stay within the tolerances.
 
@@ -137,6 +143,7 @@ def linearize(
     tolerance : float — mm, allowed tip deviation of the joint-space interpolation
     angle_tolerance : float — rad, allowed angle between its tool axis and the intended one
     max_rounds : int — bisection rounds (each halves the moves that still deviate)
+    max_inserted : int — rows that may be inserted into one move
     start : Toolpath, optional — one row, machine frame, unit axis: the pose before ``path``'s first
         row (the last row of the chunk before), so that the move to row 0 is subdivided too
 
@@ -148,8 +155,10 @@ def linearize(
     Raises
     ------
     LimitError
-        A move still out of tolerance after ``max_rounds`` bisections (forward kinematics does not
-        converge along it: it passes a singularity), naming its source.
+        A move still out of tolerance after ``max_rounds`` bisections, or one that would need more
+        than ``max_inserted`` rows (forward kinematics does not converge along it: it passes a
+        singularity), naming its source (the move's end row). Either stops the work early: a
+        round costs as much as the rows it bisects, which double with every round on such a move.
     """
     head = 0 if start is None else 1
     if start is not None:
@@ -164,6 +173,8 @@ def linearize(
         feed, source = path.feed.copy(), path.source.copy()
     # event positions move with the rows they precede: track original row ids
     origin = np.arange(len(kind))
+    owner = np.arange(len(kind))                           # each row's move, by the original index of its end row
+    inserted = np.zeros(len(kind), dtype=np.int64)         # rows inserted so far into each (original) move
     worst: list[tuple[float, float]] = []                  # (tip, angle) of each round's moves
     for round_ in range(max_rounds + 1):
         turning = (kind[1:] == MoveKind.FEED) & (np.abs(axis[1:] - axis[:-1]).max(axis=1) > 1e-12)
@@ -172,16 +183,21 @@ def linearize(
             break
         deviation, angle = joint_path_deviations(geometry, tip, axis, starts)
         worst.append((float(deviation.max()), float(angle.max())))
+        checked = owner[starts + 1]                        # the (original) move of each piece checked
         starts = starts[(deviation > tolerance) | (angle > angle_tolerance)]
         if not len(starts):
             break
-        if round_ == max_rounds:
-            row = int(starts[0]) + 1 - head
-            where = describe_source(source[head:], path.source_labels, row, path.source_file)
-            raise LimitError(f"{where}: the joint-space move still strays {float(deviation.max()):.4g} mm / "
-                             f"{math.degrees(float(angle.max())):.4g} deg from the intended one after {max_rounds} "
-                             f"rounds of bisection (allowed: {tolerance:g} mm, {math.degrees(angle_tolerance):g} deg); "
-                             "the tool axis may pass a singularity")
+        inserted += np.bincount(owner[starts + 1], minlength=len(inserted))
+        over = np.flatnonzero(inserted > max_inserted)     # each round costs as much as the rows it bisects
+        if round_ == max_rounds or len(over):
+            move = int(over[0]) if len(over) else int(owner[starts[0] + 1])
+            piece = checked == move
+            strays = (f"still strays {float(deviation[piece].max()):.4g} mm / "
+                      f"{math.degrees(float(angle[piece].max())):.4g} deg from the intended one after {round_} rounds "
+                      f"of bisection (allowed: {tolerance:g} mm, {math.degrees(angle_tolerance):g} deg); the tool "
+                      "axis may pass a singularity")
+            need = f"to this point would need more than {max_inserted} inserted points: it " if len(over) else ""
+            raise LimitError(f"{path.describe(move - head)}: the joint-space move {need}{strays}")
         mid_tip = 0.5 * (tip[starts] + tip[starts + 1])
         mid_axis = slerp(axis[starts], axis[starts + 1], np.full(len(starts), 0.5))
         at = starts + 1                                    # insert before the move's end row
@@ -189,6 +205,7 @@ def linearize(
         feed = np.insert(feed, at, feed[at])
         source = np.insert(source, at, source[at])
         origin = np.insert(origin, at, -1)
+        owner = np.insert(owner, at, owner[at])
         tip = np.insert(tip, at, mid_tip, axis=0)
         axis = np.insert(axis, at, mid_axis, axis=0)
     # an event before original row r happens before the move to r, i.e. right after row r - 1

@@ -108,6 +108,8 @@ def machine_path(machine: Machine, path_part: Toolpath, setup: Setup, *, toleran
     ------
     ReachError
         A zero or downward tool axis.
+    LimitError
+        A move the subdivision gives up on (:func:`~prs3_post.linearize.linearize`).
     """
     path = _unit_path(place_toolpath(path_part, setup), 0)
     return subdivide_axis_changes(machine.geometry, path, tolerance=tolerance, angle_tolerance=angle_tolerance)
@@ -164,15 +166,9 @@ class PostStream:
     def _post(self, chunk: Toolpath, *, scope: str) -> PostResult:
         machine, model = self.machine, self.model
         path = _unit_path(place_toolpath(chunk, self.setup), self._input_rows)
-        try:
-            linear = linearize(machine.geometry, path, tolerance=self.tolerance,
-                               angle_tolerance=self.angle_tolerance, start=self._last_pose)
-        except LimitError:                            # an end pose outside the limits is the clearer cause
-            ends = inverse(machine.geometry, path.tip, path.axis, model=model)
-            _raise_unreachable(machine, path, ends, model, self._counted(scope, len(path)))
-            raise_first_violation(check_limits(machine, ends, path.axis), path.describe,
-                                  scope=self._counted(scope, len(path)))
-            raise
+        _check_end_points(machine, path, model, self._counted(scope, len(path)))
+        linear = linearize(machine.geometry, path, tolerance=self.tolerance, angle_tolerance=self.angle_tolerance,
+                           start=self._last_pose)
         path = linear.path
         subdivided = len(path)
         ik = inverse(machine.geometry, path.tip, path.axis, model=model)
@@ -280,6 +276,26 @@ def program_text(machine: Machine, chunks: Iterable[Toolpath], setup: Setup, dia
     for chunk in chunks:
         yield emitter.rows(stream.feed(chunk).program)
     yield emitter.end()
+
+
+def _check_end_points(machine: Machine, path: Toolpath, model: IKModel, scope: str) -> None:
+    """Reach and limits of the rows as given, before their moves are subdivided.
+
+    A move whose end point is out of reach or past the tilt limit (the singularity lies not far
+    beyond it) cannot be subdivided: its joint-space line does not converge, and bisection would
+    double its rows round after round. Such a row is the error, with the same message as after subdivision
+    (the count is of the rows as given). The inserted rows cannot break the tilt limit where the end
+    points keep it (the axes within a tilt of the vertical are a convex cap: the great circle between
+    two of them stays in it); they are checked with the rest after subdivision.
+
+    Raises
+    ------
+    ReachError, LimitError
+        As :func:`post_process`.
+    """
+    ik = inverse(machine.geometry, path.tip, path.axis, model=model)
+    _raise_unreachable(machine, path, ik, model, scope)
+    raise_first_violation(check_limits(machine, ik, path.axis), path.describe, scope=scope)
 
 
 def _raise_unreachable(machine: Machine, path: Toolpath, ik: IKResult, model: IKModel, scope: str) -> None:

@@ -183,7 +183,7 @@ def suggest_origin(machine: Machine, path_part: Toolpath, setup: Setup, *, toler
         return None
     try:
         path = machine_path(machine, path_part, setup, tolerance=tolerance)
-    except ReachError:
+    except (ReachError, LimitError):                   # a bad axis, or a move bisection gives up on
         return None
     ranges = shift_ranges(machine, path)
     if ranges is None:
