@@ -21,6 +21,7 @@ import math
 import multiprocessing
 import os
 import re
+import signal
 import stat
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -584,7 +585,10 @@ def convert_one(input_path: str, output: str, settings: ConvertSettings, *, forc
 
 
 def _worker_init(threads: int) -> None:
+    """A worker: the kinematics' thread count, and Ctrl-C as in the main process (the forkserver's
+    children inherit an ignored SIGINT): an interrupted write removes its temp file."""
     os.environ[THREADS_VARIABLE] = str(threads)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def convert_batch(inputs: Sequence[str], outdir: str, settings: ConvertSettings, *, jobs: int = 1,
@@ -659,6 +663,23 @@ def default_jobs() -> int:
     return _cores()
 
 
+#: Seconds the workers get to stop by themselves after Ctrl-C before they are sent SIGTERM.
+_STOP_GRACE = 2.0
+
+
+def _stop_workers(processes: list[multiprocessing.process.BaseProcess]) -> None:
+    """After Ctrl-C: a terminal sends SIGINT to every worker too, and each interrupted write removes its
+    temp file; a second signal during that cleanup could cut it short, so SIGTERM goes only to the
+    workers still running after :data:`_STOP_GRACE` (those the signal did not reach)."""
+    deadline = time.monotonic() + _STOP_GRACE
+    for process in processes:
+        process.join(max(0.0, deadline - time.monotonic()))
+    for process in processes:
+        if process.is_alive():
+            process.terminate()                         # SIGTERM: write_atomic removes its temp file
+            process.join()
+
+
 def _run_parallel(inputs: Sequence[str], outputs: list[str], todo: list[int], settings: ConvertSettings, jobs: int,
                   fail_fast: bool, force: bool, results: dict[int, FileOutcome],
                   on_done: Callable[[FileOutcome], None] | None) -> list[int]:
@@ -666,7 +687,7 @@ def _run_parallel(inputs: Sequence[str], outputs: list[str], todo: list[int], se
     threads = max(1, _cores() // jobs)
     pending = list(todo)
     running: dict[Future[FileOutcome], int] = {}
-    context = multiprocessing.get_context("forkserver")
+    context = multiprocessing.get_context("fork")
     jobs = min(jobs, len(todo))
     with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init,
                              initargs=(threads,)) as pool:
@@ -689,10 +710,12 @@ def _run_parallel(inputs: Sequence[str], outputs: list[str], todo: list[int], se
                         stop = True
                 if stop and not running:
                     break
-        except BaseException:
+        except BaseException:                           # Ctrl-C, SIGTERM: stop the workers, whose writes clean up
             for future in running:
                 future.cancel()
-            pool.shutdown(wait=True, cancel_futures=True)
+            workers = list(getattr(pool, "_processes", {}).values())         # no public way to reach them
+            pool.shutdown(wait=False, cancel_futures=True)                  # idle workers exit
+            _stop_workers(workers)
             raise
     return pending
 
