@@ -7,6 +7,7 @@ with their exact message.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from pathlib import Path
@@ -25,6 +26,7 @@ from prs3_post.pipeline import place_toolpath
 from prs3_post.readers.apt import read_cl
 from prs3_post.readers.program import read_program
 from prs3_post.setup import Setup
+from prs3_post.workplane import WorkPlane
 
 REPO = Path(__file__).resolve().parents[1]
 CORPUS = REPO.parent / "shared" / "corpus" / "cl"
@@ -283,3 +285,63 @@ def test_report_json_accounts_for_every_record(tmp_path: Path) -> None:
     assert (file["input_moves"], file["arcs"], file["arc_rows"], file["emitted_moves"]) == (33, 2, 70, 103)
     assert data["summary"] == {"files": 1, "converted": 1, "failed": 0, "not_started": 0, "motion_records": 35,
                                "seconds": data["summary"]["seconds"]}
+
+
+# ----------------------------------------------------------------------------- G-code sources and options
+
+TILTED = """%
+O1000 (tilted drill)
+G21 G90 G17
+G68.2 X0 Y0 Z0 I0 J20 K0
+G53.1
+S3000 M3
+G0 X10 Y0 Z20
+G99 G83 X10 Y0 Z-5 R2 Q2 F100
+X20
+G80
+G18 G1 X0 Z5 F200
+G2 X10 Z5 I5 K0
+G69
+M5
+M30
+%
+"""
+
+
+@pytest.mark.parametrize(("extra", "name"), [((), "tilt.ngc"), (("--dialect", "fanuc", "--tool-length", "180"),
+                                                                  "tilt.nc")])
+def test_gcode_source_converts_and_verifies(tmp_path: Path, extra: tuple[str, ...], name: str, rs274_check) -> None:
+    """A G68.2 program (G83 peck, G2 in G18): the dialect's extension, the tool length in the header,
+    LinuxCNC, and verify --against the G-code (a fanuc header is upper case)."""
+    src = tmp_path / "tilt.gcode"
+    src.write_text(TILTED)
+    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(tmp_path / "out"), "--part-origin=0,0,-850", *extra)
+    assert code == 0, stdout
+    out = tmp_path / "out" / name
+    assert stdout.split("\t")[:3] == ["ok", str(src), str(out)]
+    lines = out.read_text().upper().splitlines()
+    expected = "(TOOL LENGTH: 180.000 MM, AS GIVEN)" if extra else "(TOOL LENGTH: 175.000 MM, THE MACHINE'S)"
+    assert expected in lines
+    assert rs274_check(out)[0] == 0
+    verified = CliRunner().invoke(main, ["verify", str(out), "--against", str(src)])
+    assert verified.output.splitlines()[-1] == "OK: within every limit and tolerance", verified.output
+
+
+def test_work_plane_puts_a_3_axis_program_on_a_plane(tmp_path: Path) -> None:
+    src = tmp_path / "flat.nc"
+    src.write_text("G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F100\nG1 X10\nM30\n")
+    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(tmp_path / "out"), "--part-origin=0,0,-850",
+                           "--work-plane", "0,0,0,0.6,0,0.8")
+    assert code == 0, stdout
+    conversion = convert_file(str(src), dataclasses.replace(_settings((0.0, 0.0, -850.0)),
+                                                            work_plane=WorkPlane.from_values([0, 0, 0, 0.6, 0, 0.8])))
+    assert_allclose(conversion.path.axis, np.tile([0.6, 0.0, 0.8], (len(conversion.path), 1)), atol=1e-12)
+    assert (tmp_path / "out" / "flat.ngc").read_text() == conversion.text
+
+
+def test_a_dangling_link_in_a_folder_fails_as_a_missing_file(tmp_path: Path) -> None:
+    (tmp_path / "cam").mkdir()
+    os.symlink(tmp_path / "nowhere", tmp_path / "cam" / "gone.cls")
+    code, stdout, _ = _cli(tmp_path, str(tmp_path / "cam"), "-o", str(tmp_path / "out"))
+    assert code == 1
+    assert stdout == f"failed\t{tmp_path / 'cam' / 'gone.cls'}\t-\t{tmp_path / 'cam' / 'gone.cls'}: file not found\n"
