@@ -345,3 +345,45 @@ def test_a_dangling_link_in_a_folder_fails_as_a_missing_file(tmp_path: Path) -> 
     code, stdout, _ = _cli(tmp_path, str(tmp_path / "cam"), "-o", str(tmp_path / "out"))
     assert code == 1
     assert stdout == f"failed\t{tmp_path / 'cam' / 'gone.cls'}\t-\t{tmp_path / 'cam' / 'gone.cls'}: file not found\n"
+
+
+#: Bad inputs through `convert`: (file name, content, the reason after ``path:``); each fails its file
+#: (exit 1), and nothing is written.
+BAD_INPUTS = [
+    ("goto4.cls", "RAPID\nGOTO/1,2,3,4\n",
+     "2: GOTO/ has 4 values: expected 3 (x,y,z) or 6 (x,y,z,i,j,k); found 'GOTO/1,2,3,4'"),
+    ("nan.cls", "RAPID\nGOTO/1,nan,3\n",
+     "2: GOTO/ value 2: 'nan' is not a number (expected a decimal like -12.5, .5 or 1.5E+02)"),
+    ("unknown.cls", "RAPID\nGOTO/0,200,0\nCUTCOM/LEFT\n",
+     "3: unknown major word 'CUTCOM' in 'CUTCOM/LEFT' (understood: GOTO, FROM, GOHOME, RAPID, FEDRAT, MULTAX, "
+     "TLAXIS, MSYS, UNITS, LOADTL, LOAD, SELECT, TLDATA, SPINDL, COOLNT, CYCLE, CIRCLE, PPRINT, END-OF-PATH, FINI, "
+     "STOP, OPSTOP; display-only, skipped: PAINT, TOOL PATH; other words can be ignored on purpose by listing them "
+     "as words to ignore)"),
+    ("zeroaxis.cls", "RAPID\nGOTO/0,200,0,0,0,0\n",
+     "2: GOTO/: zero tool vector (0, 0, 0); i,j,k must be a unit vector from the tool tip toward the spindle"),
+    ("msys.cls", "MSYS/0,0,0,1,0,0,0.5,1,0\nRAPID\nGOTO/0,200,0\n",
+     "1: MSYS/ axes are not orthogonal unit vectors: x axis (1, 0, 0), y axis (0.5, 1, 0) have |x| = 1, "
+     "|y| = 1.11803, x·y = 0.5 (valid: |x| = |y| = 1 and x·y = 0 within 1e-05)"),
+    ("arc.cls", "FEDRAT/100\nRAPID\nGOTO/10,200,0\nCIRCLE/0,200,0,0,0,1,10,0.01\nGOTO/-12,200,0\n",
+     "5: arc end point (-12.0000, 200.0000, 0.0000) is 2.0000 mm outside the circle of CIRCLE/ at line 4 "
+     "(radius 10); start and end must lie on the circle within 0.01 mm"),
+    ("g93.nc", "G21 G90\nG93 G1 X1 Y2 Z3\nM30\n",
+     "2: G1 under G93 (inverse time) without F: every feed move under G93 needs its own F (1/minute)"),
+    ("exp.nc", "G21 G90\nG0 X1e-05 Y0 Z0\nM30\n",
+     "2: word 'E-05' is not G-code: E is not read here, and a number with an exponent (1e-05) must be written as a "
+     "plain decimal (0.00001)"),
+    ("g682.nc", "G21\nG68.2 P3 Q1 X0 Y0 Z0 I1 J0 K0\nG68.2 P3 Q2 I0 J0 K0\n",
+     "3: G68.2 P3 Q2: the normal I J K is the zero vector (it must be the plane's z direction, the tool axis)"),
+]
+
+
+@pytest.mark.parametrize(("name", "text", "reason"), BAD_INPUTS, ids=[b[0] for b in BAD_INPUTS])
+def test_bad_input_fails_with_its_message(tmp_path: Path, name: str, text: str, reason: str) -> None:
+    src = tmp_path / name
+    src.write_text(text)
+    out = tmp_path / "out"
+    code, stdout, stderr = _cli(tmp_path, str(src), "-o", str(out))
+    assert code == 1
+    assert stdout == f"failed\t{src}\t-\t{src}:{reason}\n"
+    assert stderr.splitlines()[-1] == f"  {src}:{reason}"
+    assert list(out.iterdir()) == []
