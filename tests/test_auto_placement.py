@@ -27,7 +27,7 @@ from prs3_post.limits import check_limits
 from prs3_post.machine import Machine
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side
 from prs3_post.ops.work import HoleJob, ProfileJob
-from prs3_post.pipeline import machine_path
+from prs3_post.pipeline import machine_path, place_toolpath
 from prs3_post.placement import place
 from prs3_post.readers.header import read_header
 from prs3_post.setup import Setup
@@ -315,3 +315,26 @@ def test_the_example_job_with_auto_setup_is_the_best_on_the_grid(tmp_path):
     assert len(pieces) == 4                            # hole, lift, turn, round
     worst = assert_no_better_setup_nearby(MACHINE, pieces, lengths, result.setup, turns=(-5.0, 0.0, 5.0))
     assert worst == pytest.approx(1.0 / 3.0, abs=1e-6)   # the 30° face's tilt: 15° of 45° to spare (float32 STL)
+
+
+def test_the_search_rows_hold_every_limit_extreme():
+    """The rotation search evaluates only the rows that can hold a limit's extreme (per tool axis, the
+    lowest and highest tip and the farthest along 36 horizontal directions): at a multiple of 10° their
+    extremes are those of every row; between, the stage's are within 0.4 % of its spread."""
+    from prs3_post.placement import _support
+
+    rng = np.random.default_rng(7)
+    tilt = np.radians(rng.choice([0.0, 20.0, 35.0], size=3000))
+    azimuth = np.radians(rng.choice([0.0, 90.0, 200.0], size=3000))
+    axis = np.column_stack([np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)])
+    around = rng.uniform(0.0, 2.0 * np.pi, 3000)                     # tips on a circle: no corner holds an extreme
+    tips = np.column_stack([85.0 * np.cos(around), 85.0 * np.sin(around), rng.uniform(-30.0, 30.0, 3000)])
+    path = Toolpath(kind=np.zeros(3000, dtype=np.int64), tip=tips, axis=axis,
+                    feed=np.full(3000, 100.0), source=np.arange(3000))
+    keep = _support(path)
+    assert 20 < keep.sum() < 400
+    for rotation, allowed in ((0.0, 0.0), (10.0, 0.0), (37.0, 0.004 * 170.0)):
+        placed = place_toolpath(path, Setup((0.0, 0.0, -700.0), rotation))
+        value = check_limits(MACHINE, inverse(MACHINE.geometry, placed.tip, placed.axis), placed.axis).value
+        np.testing.assert_allclose(value[keep].max(axis=0), value.max(axis=0), atol=allowed + 1e-9)
+        np.testing.assert_allclose(value[keep].min(axis=0), value.min(axis=0), atol=allowed + 1e-9)
