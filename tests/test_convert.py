@@ -387,3 +387,13 @@ def test_bad_input_fails_with_its_message(tmp_path: Path, name: str, text: str, 
     assert stdout == f"failed\t{src}\t-\t{src}:{reason}\n"
     assert stderr.splitlines()[-1] == f"  {src}:{reason}"
     assert list(out.iterdir()) == []
+
+
+def test_an_input_in_the_output_folder_is_never_overwritten(tmp_path: Path) -> None:
+    src = tmp_path / "t.ngc"
+    src.write_text(TILTED)
+    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(tmp_path), "--part-origin=0,0,-850", "--force")
+    assert code == 1
+    assert stdout == (f"failed\t{src}\t-\t{src}: is also the input being converted: writing its program would "
+                      "destroy it (choose another file)\n")
+    assert src.read_text() == TILTED

@@ -244,16 +244,19 @@ def source_stream(path: str, settings: ConvertSettings, fmt: str) -> ClStream | 
     return GcodeStream(path, tolerance=settings.tolerance, work_plane=settings.work_plane)
 
 
-def _check_poses(machine: Machine, chunk: Toolpath, setup: Setup) -> None:
-    """Reach and limits of the points as read, before any subdivision: a path outside the workspace
-    is named at its first bad line at once (subdividing it first could not converge on moves that
-    cross a singularity, and would only multiply the bad rows)."""
+def _check_poses(machine: Machine, chunk: Toolpath, setup: Setup, *, limits: bool = True) -> None:
+    """The tool axes of the points as read (by input line), and with ``limits`` their reach and limits,
+    before any subdivision: a path outside the workspace is named at its first bad line at once
+    (subdividing it first could not converge on moves that cross a singularity, and would only
+    multiply the bad rows)."""
     path = place_toolpath(chunk, setup)
     try:
         axis = unit_axes(path.tip, path.axis, row_name="line", row_numbers=path.source)
     except PoseError as error:
         raise ReachError(f"{chunk.source_file}: {error}; a setup turns the part about z only, so no setup turns "
                          "these tool axes toward the spindle") from error
+    if not limits:
+        return
     ik = inverse(machine.geometry, path.tip, axis, model=model_for(machine))
     if not ik.reachable.all():
         return                                          # the pipeline names the unreachable pose
@@ -277,8 +280,13 @@ class _Run:
     def chunks(self) -> Iterator[Toolpath]:
         """The reader's chunks, checked as read; then an empty chunk with the counts as a closing comment."""
         machine = self.settings.ik_machine
+        last_axis: np.ndarray | None = None
         for chunk in self.reader:
-            _check_poses(machine, chunk, self.settings.setup)
+            if len(chunk):
+                axes = np.vstack([chunk.axis if last_axis is None else [last_axis], chunk.axis])
+                turning = np.ptp(axes, axis=0).max() > 0.0   # an axis change: subdivision needs reachable ends
+                _check_poses(machine, chunk, self.settings.setup, limits=bool(turning))
+                last_axis = chunk.axis[-1]
             self.rows += len(chunk)
             yield chunk
         if not self.rows:
@@ -573,9 +581,9 @@ def convert_one(input_path: str, output: str, settings: ConvertSettings, *, forc
     """Convert one file and write its program atomically; every :class:`Prs3Error` becomes a failed outcome."""
     start = time.perf_counter()
     try:
+        refuse_overwriting({"its program": output}, {"being converted": input_path})
         if not force and os.path.lexists(output):
             raise InputError("exists already: kept (convert with force to replace it)", path=output)
-        refuse_overwriting({"the program": output}, {"the input": input_path})
         report = write_conversion(input_path, output, settings)
     except Prs3Error as error:
         return FileOutcome(input=input_path, output=output, ok=False, error=str(error), exit_code=error.exit_code,
