@@ -413,7 +413,7 @@ class _Search:
         normalized = np.minimum(low_side + shift, high_side - shift) / span
         counted = np.array([name != "tilt" for name in columns.names])
         found = _Candidate(rotation_deg, origin, float(normalized[counted].min(initial=math.inf)))
-        self._cache[rotation_deg] = found
+        self._cache[key] = found
         return found
 
 
