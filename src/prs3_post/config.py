@@ -21,6 +21,8 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from prs3_post.controller import block_problem
 from prs3_post.dialect import (
     _DWELL_UNITS,
@@ -37,6 +39,8 @@ from prs3_post.dialect import (
 from prs3_post.errors import ConfigError, InputError
 from prs3_post.machine import Geometry, Limits, Machine, Stage
 from prs3_post.readers.files import read_text
+from prs3_post.readers.lexer import code_name
+from prs3_post.source import Orientation, Rotary, SourceConvention
 
 __all__ = [
     "AXIS_LETTERS",
@@ -52,6 +56,7 @@ __all__ = [
     "Stage",
     "load_dialect",
     "load_machine",
+    "load_source",
     "postproc_dir",
     "resolve",
     "shipped_names",
@@ -519,3 +524,108 @@ def load_dialect(name_or_path: str) -> Dialect:
         tool_number_max=tool_number_max,
         extension=extension,
     )
+
+
+# =============================================================================================
+# ----------------------------------------------------------------------------- source conventions
+# (5-axis G-code sources, postproc/sources/*.toml, for readers/fivex.py. Owned separately; it
+# only reuses the strict-reading helpers above.)
+
+_CODE = re.compile(r"([GM])([0-9]+(?:\.[0-9]+)?)")
+_VECTOR_LETTERS = "ABCIJKUVW"
+
+
+def _codes(table: _Table, key: str, letters: str = "GM") -> tuple[str, ...]:
+    """A list of G/M codes (``"G43.4"``, ``"M428"``), each as :func:`~prs3_post.readers.lexer.code_name`
+    writes it (``G00`` → ``G0``)."""
+    out = []
+    for i, text in enumerate(table.strings(key)):
+        match = _CODE.fullmatch(text.strip().upper())
+        if match is None or match[1] not in letters:
+            raise table._error(f"{key}[{i}]", f"expected a {' or '.join(letters)} code such as "
+                               f"{'G43.4' if 'G' in letters else 'M10'}, got {text!r}")
+        out.append(code_name(match[1], float(match[2])))
+    return tuple(out)
+
+
+def _rotary(table: _Table, is_table: bool) -> Rotary:
+    word = table.text("word")
+    if word not in ("A", "B", "C"):
+        table.finish()
+        raise table._error("word", f"expected \"A\", \"B\" or \"C\", got {word!r}")
+    axis = np.array(table.numbers("axis", 3, "[x, y, z], a unit vector"))
+    length = float(np.linalg.norm(axis))
+    if abs(length - 1.0) > 1e-6:
+        raise table._error("axis", f"must be a unit vector, got {axis.tolist()} (length {length:.6g})")
+    sign = table.integer("sign")
+    if sign not in (1, -1):
+        raise table._error("sign", f"must be 1 or -1, got {sign}")
+    zero_deg = table.number("zero_deg", unit="degrees")
+    table.finish()
+    unit = axis / length
+    return Rotary(word, is_table, (float(unit[0]), float(unit[1]), float(unit[2])), sign, zero_deg)
+
+
+def load_source(name_or_path: str) -> SourceConvention:
+    """Load a shipped source convention by name or a source TOML file by path, strictly.
+
+    Raises
+    ------
+    ConfigError
+        ``file: dotted.key: problem`` for anything missing, unknown, mistyped or out of range.
+    """
+    path = resolve("sources", name_or_path)
+    shown = _display(path)
+    data = _read_toml(path)
+    top = _Table(data, shown)
+    description = top.text("description")
+    kind = top.text("orientation")
+    if kind not in ("rotary", "vector"):
+        raise top._error("orientation", f"expected \"rotary\" or \"vector\", got {kind!r}")
+    orientation = Orientation(kind)
+    tcp = top.table("tcp")
+    tcp_on, tcp_off = _codes(tcp, "on"), _codes(tcp, "off")
+    tcp.finish()
+    for key, given in (("on", tcp_on), ("off", tcp_off)):
+        if not given:
+            raise tcp._error(key, "give at least one code")
+    both = sorted(set(tcp_on) & set(tcp_off))
+    if both:
+        raise tcp._error("off", f"{both[0]} is also in tcp.on")
+    extra = top.table("codes")
+    clamps, inert = _codes(extra, "clamps"), _codes(extra, "inert")
+    extra.finish()
+    rotaries: dict[str, list[Rotary]] = {"table": [], "head": []}
+    for key in ("table", "head"):
+        entries = top._get(key, [])
+        if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
+            raise top._error(key, f"expected [[{key}]] tables")
+        for i, entry in enumerate(entries):
+            rotaries[key].append(_rotary(_Table(entry, shown, f"{key}[{i}]."), key == "table"))
+    vector_words: tuple[str, ...] = ()
+    chain = rotaries["table"] + rotaries["head"]
+    if orientation is Orientation.VECTOR:
+        if chain:
+            raise top._error("table" if rotaries["table"] else "head",
+                             "a vector source has no rotary chain (orientation = \"vector\")")
+        vec = top.table("vector")
+        vector_words = tuple(w.upper() for w in vec.strings("words"))
+        vec.finish()
+        if (len(vector_words) != 3 or len(set(vector_words)) != 3
+                or not all(len(w) == 1 and w in _VECTOR_LETTERS for w in vector_words)):
+            raise vec._error("words", f"expected three distinct letters of {' '.join(_VECTOR_LETTERS)}, got "
+                             f"{list(vector_words)}")
+    else:
+        if "vector" in data:
+            top._get("vector")
+            raise top._error("vector", "only a vector source (orientation = \"vector\") has [vector]")
+        if not 1 <= len(chain) <= 3:
+            raise top._error("table", f"a rotary source needs 1 to 3 [[table]]/[[head]] entries, got {len(chain)}")
+        words = [r.word for r in chain]
+        twice = sorted({w for w in words if words.count(w) > 1})
+        if twice:
+            raise top._error("table", f"rotary word {twice[0]} appears twice in the chain")
+    top.finish()
+    return SourceConvention(name=path.stem, description=description, source=shown, orientation=orientation,
+                            tables=tuple(rotaries["table"]), heads=tuple(rotaries["head"]),
+                            vector_words=vector_words, tcp_on=tcp_on, tcp_off=tcp_off, clamps=clamps, inert=inert)

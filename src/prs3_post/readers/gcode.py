@@ -349,15 +349,24 @@ class GcodeStream:
                     raise InputError(problem, path=self.path)
         first = 1
         for text in self._texts():
-            if _ROTARY_HINT.search(text):
-                for number, line in enumerate(text.split("\n"), start=first):
-                    if _ROTARY_HINT.search(line):
-                        _refuse_rotary(line, number, self.path)
+            self._scan(text, first)
             first += text.count("\n")
+
+    def _scan(self, text: str, first: int) -> None:
+        """Refuse what no line of the file may have (here: a rotary word) in a piece whose first line is
+        line ``first`` (a hook: the 5-axis reader refuses expressions and parameters instead)."""
+        if _ROTARY_HINT.search(text):
+            for number, line in enumerate(text.split("\n"), start=first):
+                if _ROTARY_HINT.search(line):
+                    _refuse_rotary(line, number, self.path)
+
+    def _reader(self) -> _Reader:
+        """The interpreter of the lines (a hook: the 5-axis reader, :mod:`prs3_post.readers.fivex`, gives its own)."""
+        return _Reader(self.path, self.work_plane, self.tolerance, self.circle_tolerance)
 
     def __iter__(self) -> Iterator[Toolpath]:
         self._check()
-        reader = _Reader(self.path, self.work_plane, self.tolerance, self.circle_tolerance)
+        reader = self._reader()
         number = 1
         for lines in line_chunks(self._texts(), self.chunk_lines, strip_cr=True):
             reader.lines(number, lines)
@@ -442,6 +451,10 @@ class _Reader:
 
     def __init__(self, path: str, work_plane: WorkPlane, tolerance: float, circle_tolerance: float):
         self.path, self.tolerance, self.circle_tolerance = path, tolerance, circle_tolerance
+        # what :meth:`sort` accepts (the 5-axis reader, a subclass, adds its codes and rotary words)
+        self.g_groups, self.m_groups, self.value_letters = _G_GROUPS, _M_GROUPS, _VALUE_LETTERS
+        self.reader_name, self.codes_read, self.words_read = "the 3+2 G-code reader", _CODES_READ, _WORDS_READ
+        self.hints = _HINTS
         self.number = 0
         # rows, flat (x, y, z per row), in the coordinates of plane ``plane_of`` (index into planes)
         self.tip, self.kind, self.feed = array("d"), array("q"), array("d")
@@ -674,13 +687,13 @@ class _Reader:
             if not math.isfinite(value):
                 raise self.error(f"word {text[:24]!r}: the number is too large")
             if letter == "G" or letter == "M":
-                groups = _G_GROUPS if letter == "G" else _M_GROUPS
+                groups = self.g_groups if letter == "G" else self.m_groups
                 group = groups.get(value)
                 if group is None:
                     name = code_name(letter, value)
-                    hint = f": {_HINTS[name]}" if name in _HINTS else ""
-                    raise self.error(f"code {name} is not read by the 3+2 G-code reader{hint} (codes read: "
-                                     f"{_CODES_READ})")
+                    hint = f": {self.hints[name]}" if name in self.hints else ""
+                    raise self.error(f"code {name} is not read by {self.reader_name}{hint} (codes read: "
+                                     f"{self.codes_read})")
                 codes = block.g if letter == "G" else block.m
                 if group in codes:
                     raise self.error(f"{codes[group][1]} and {text} on one line: both are {letter} codes of the "
@@ -690,7 +703,7 @@ class _Reader:
             elif letter == "N":
                 if position:
                     raise self.error(f"the line number {text} must be the first word of the line")
-            elif letter in _VALUE_LETTERS:
+            elif letter in self.value_letters:
                 if letter in block.values:
                     raise self.error(f"{block.values[letter][1]} and {text} on one line: a word may appear once")
                 block.values[letter] = (value, text)
@@ -700,7 +713,7 @@ class _Reader:
             elif letter == "O":
                 raise self.error(f"an O word (program number) must be alone on its line, found {text!r}")
             else:
-                raise self.error(f"word {text!r} is not read by the 3+2 G-code reader (words read: {_WORDS_READ})")
+                raise self.error(f"word {text!r} is not read by {self.reader_name} (words read: {self.words_read})")
         return block
 
     # ---- one line's words, in LinuxCNC's order of execution
