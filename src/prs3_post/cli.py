@@ -21,7 +21,7 @@ import click
 import numpy as np
 
 from prs3_post import __version__
-from prs3_post.config import Machine, load_dialect, load_machine, postproc_dir, shipped_names
+from prs3_post.config import Machine, load_dialect, load_machine, load_source, postproc_dir, shipped_names
 from prs3_post.convert import (
     FORMATS,
     ConvertSettings,
@@ -474,6 +474,30 @@ def machines() -> None:
             machine = load_machine(name)
             stage = "XY stage" if machine.stage.present else "no stage"
             click.echo(f"{name:<18} {stage:<9} {machine.description}")
+        return 0
+
+    run_reported(body)
+
+
+@main.command()
+def sources() -> None:
+    """List the shipped 5-axis source conventions (how a program for another machine gives its tool axis).
+
+    Each line: name, the rotary words (or the vector words), the TCP on/off codes and the
+    description. The files live in postproc/sources/ (every key commented); copy one to describe
+    another machine.
+
+    \b
+    Example:
+      prs3-post sources
+    """
+
+    def body() -> int:
+        for name in shipped_names("sources"):
+            source = load_source(name)
+            words = " ".join(source.words or source.vector_words)
+            tcp = f"{'/'.join(source.tcp_on)} {'/'.join(source.tcp_off)}"
+            click.echo(f"{name:<14} {words:<6} {tcp:<12} {source.description}")
         return 0
 
     run_reported(body)
