@@ -194,14 +194,19 @@ class FivexStream(GcodeStream):
         self.tcp_off = source.tcp_off if tcp_off is None else tuple(tcp_off)
         _check_codes(source, self.tcp_on, self.tcp_off)
         self.fivex: FivexFile | None = None
+        self._percents = 0                             # '%' lines seen by _scan (the second closes the program)
         self._five: _FivexReader | None = None
 
     def _scan(self, text: str, first: int) -> None:
         """Refuse LinuxCNC expressions and parameters, naming the first line that has one (up to the
         closing ``%``: what follows it is not read)."""
-        if not _EXPRESSION.search(text):
+        if self._percents >= 2 or not (_EXPRESSION.search(text) or "%" in text):
             return
         for number, line in enumerate(text.split("\n"), start=first):
+            if line.strip() == "%":
+                self._percents += 1
+                if self._percents >= 2:
+                    return
             if not _EXPRESSION.search(line):
                 continue
             try:
@@ -290,6 +295,7 @@ class _FivexReader(_Reader):
         self.last_axis: FloatArray | None = None
         self.pending: dict[str, float] = {}            # this block's rotary/vector words
         self.code_text = ""
+        self.machine_line = 0                          # the last machine-coordinate block, until the next row
         # counts
         self.tcp_on_count = self.tcp_off_count = self.tcp_moves = self.changes = self.prepositions = 0
         self.machine: Counter[str] = Counter()
@@ -316,7 +322,7 @@ class _FivexReader(_Reader):
 
     def bulk(self, first: int, values: FloatArray, moves: np.ndarray, lines: list[str]) -> bool:
         # runs of X Y Z moves keep the orientation: read in bulk where the state is plain
-        if self.axis_now is None or not (self.tcp or self.at_zero()):
+        if self.axis_now is None or self.machine_line or not (self.tcp or self.at_zero()):
             return False
         done = super().bulk(first, values, moves, lines)
         if done and self.tcp:
@@ -343,6 +349,7 @@ class _FivexReader(_Reader):
             self.changes += 1
         self.axis_rows.frombytes(np.broadcast_to(self.axis_now, (n, 3)).tobytes())
         self.last_axis = self.axis_now
+        self.machine_line = 0
         super().add_rows(tip, kind, feed, source)
 
     def take(self) -> Toolpath:
@@ -448,6 +455,7 @@ class _FivexReader(_Reader):
             self.rotary[self.letters.index(letter)] = math.nan
         if rotary:
             self.axis_now = self.orientation_of(self.rotary)
+        self.machine_line = self.number
         kind = "G28" if value == 28.0 else "G53"
         self.machine[kind] += 1
         self.event(EventKind.COMMENT, text=f"{self.code_text}: {_MACHINE_CODES[value]} of the source machine, not "
@@ -480,6 +488,10 @@ class _FivexReader(_Reader):
                           "source file does not give; it cannot be converted")
 
     def move(self, block: _Block) -> None:
+        if self.machine_line and self.motion != 0.0:
+            raise self.error(f"{code_name('G', self.motion or 1.0)} after the machine-coordinate block of line "
+                             f"{self.machine_line}: the source machine moved in its own coordinates, so the tool's "
+                             "position is not known here; the next move must be a rapid (G0)")
         values = self.rotary_target()
         axis: FloatArray | None
         if not self.tcp:

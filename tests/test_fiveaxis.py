@@ -1,0 +1,324 @@
+"""5-axis G-code in: the source conventions (proven against a CL source), the reader's TCP, machine and
+clamp blocks, round trips in every shipped convention, the corpus programs, exact refusals."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from numpy.testing import assert_allclose
+
+from prs3_post.cli import main
+from prs3_post.config import load_machine, load_source
+from prs3_post.errors import ConfigError, InputError
+from prs3_post.pipeline import post_process
+from prs3_post.readers.apt import read_cl
+from prs3_post.readers.fivex import FivexFile, parse_fivex, read_fivex
+from prs3_post.setup import Setup
+from prs3_post.source import Rotary
+from prs3_post.toolpath import EventKind, MoveKind
+
+REPO = Path(__file__).resolve().parents[1]
+CORPUS = REPO.parent / "shared" / "corpus"
+HAAS = CORPUS / "gcode" / "mech491_PostProcessed_Variable_Axis_haas_umc750.nc"
+HAAS_CL = CORPUS / "cl" / "mech491_APT_Variable_Axis.cls"
+TOL = 0.002
+INCH = 25.4
+corpus = pytest.mark.skipif(not CORPUS.is_dir(), reason="../shared/corpus is not there")
+
+
+def _parse(text: str, source: str, **kwargs: object) -> FivexFile:
+    return parse_fivex(text, load_source(source), path="t.ngc", tolerance=TOL, **kwargs)  # type: ignore[arg-type]
+
+
+def _angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.sum(a * b, axis=1)))
+
+
+# ----------------------------------------------------------------------------- the golden pair
+
+
+@corpus
+def test_haas_program_lands_on_its_cl_source() -> None:
+    """The Haas UMC-750 program read with haas-umc750 gives the tips and tool axes of the CL file it was
+    posted from (MSYS applied: its origin (3, 3, 0) in is the program's G54), within the program's
+    rounding: 0.0001 in on X Y Z, 0.001° on B C."""
+    gcode = read_fivex(str(HAAS), load_source("haas-umc750"), tolerance=TOL)
+    cl = read_cl(str(HAAS_CL), tolerance=TOL)
+    assert gcode.gcode.units == "inch" and cl.units == "inch"
+    assert len(gcode.toolpath) == len(cl.toolpath) == 348
+    msys_origin = np.array([3.0, 3.0, 0.0]) * INCH
+    assert_allclose(gcode.toolpath.tip, cl.toolpath.tip - msys_origin, atol=0.0001 * INCH + 1e-9, rtol=0)
+    assert _angle_deg(gcode.toolpath.axis, cl.toolpath.axis).max() < 0.001
+    assert gcode.toolpath.kind.tolist() == cl.toolpath.kind.tolist()
+    assert_allclose(gcode.toolpath.feed, cl.toolpath.feed, atol=1e-9, rtol=0)     # F10. IPM, G94: tip feed
+
+
+@corpus
+@pytest.mark.parametrize("signs", [(1, -1), (-1, 1), (1, 1)])
+def test_haas_other_turning_directions_miss_the_cl_axes(signs: tuple[int, int]) -> None:
+    """The convention is proven, not assumed: B or C turning the other way misses the CL axes by degrees."""
+    haas = load_source("haas-umc750")
+    turned = dataclasses.replace(haas, tables=tuple(dataclasses.replace(r, sign=s)
+                                                    for r, s in zip(haas.tables, signs, strict=True)))
+    gcode = read_fivex(str(HAAS), turned, tolerance=TOL)
+    cl = read_cl(str(HAAS_CL), tolerance=TOL)
+    assert _angle_deg(gcode.toolpath.axis, cl.toolpath.axis).max() > 10.0
+
+
+@corpus
+def test_haas_program_accounting() -> None:
+    """Every line accounted for: machine-coordinate blocks, clamps, G255, the trailing listing line."""
+    read = read_fivex(str(HAAS), load_source("haas-umc750"), tolerance=TOL)
+    c, g = read.counts, read.gcode.counts
+    assert (c.tcp_on, c.tcp_off, c.tcp_moves, c.prepositions) == (1, 1, 348, 1)
+    assert c.machine_blocks == (("G28", 4), ("G53", 3))
+    assert c.clamps == (("M10", 1), ("M11", 1), ("M12", 1), ("M13", 1))
+    assert c.inert == (("G255", 1),)
+    assert (c.trailing_lines, c.trailing_first) == (1, 391)
+    assert g.lines == 391 and g.records == 373 and g.moves == 348
+    assert g.lines == g.records + g.comment_lines + g.blank_lines + dict(g.skipped)["%"] + c.trailing_lines
+    comments = [e.text for e in read.toolpath.events if e.kind is EventKind.COMMENT]
+    assert comments.count("G91 G28 B0.0 C0.0: home (G28) of the source machine, not converted") == 2
+    assert comments.count("G53 G00 Z0.0: machine coordinates (G53) of the source machine, not converted") == 3
+    assert "M11: axis clamp, not converted" in comments and "G255: no effect on this machine, not converted" in comments
+
+
+# ----------------------------------------------------------------------------- round trips
+
+
+def _words_haas(axis: np.ndarray, flip: bool) -> dict[str, float]:
+    # tool axis (sin B cos C, sin B sin C, cos B): B, C from the axis (flip: −B, C + 180)
+    b, c = math.degrees(math.acos(axis[2])), math.degrees(math.atan2(axis[1], axis[0]))
+    return {"B": -b, "C": c + 180.0} if flip else {"B": b, "C": c}
+
+
+def _words_xyzac(axis: np.ndarray, flip: bool) -> dict[str, float]:
+    # LinuxCNC xyzac-trt: (sin C sin A, cos C sin A, cos A)
+    a, c = math.degrees(math.acos(axis[2])), math.degrees(math.atan2(axis[0], axis[1]))
+    return {"A": -a, "C": c + 180.0} if flip else {"A": a, "C": c}
+
+
+def _words_head_ab(axis: np.ndarray, flip: bool) -> dict[str, float]:
+    # head A (about X) carrying head B (about Y): (sin B, −sin A cos B, cos A cos B)
+    b, a = math.degrees(math.asin(axis[0])), math.degrees(math.atan2(-axis[1], axis[2]))
+    return {"A": a + 180.0, "B": 180.0 - b} if flip else {"A": a, "B": b}
+
+
+_INVERSES = {"haas-umc750": _words_haas, "xyzac-trt": _words_xyzac, "head-ab": _words_head_ab}
+_TCP = {"haas-umc750": "G234 H1", "xyzac-trt": "M428", "head-ab": "G43.4 H1", "vector": "G43.5 H1"}
+
+
+def _orientations(count: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    v = rng.normal(size=(count, 3))
+    v[:, 2] = np.abs(v[:, 2]) + 0.05
+    return v / np.linalg.norm(v, axis=1)[:, None]
+
+
+@pytest.mark.parametrize("name", ["haas-umc750", "xyzac-trt", "head-ab", "vector"])
+def test_round_trip_every_shipped_convention(name: str) -> None:
+    """orientation → rotary words (closed forms derived by hand, with either sign and wound by whole
+    turns) → the reader → the same axis, to 1e-9."""
+    axes = _orientations(60, seed=len(name))
+    rng = np.random.default_rng(7)
+    lines = ["G21 G90 G94", _TCP[name]]
+    for i, axis in enumerate(axes):
+        if name == "vector":
+            words = dict(zip("IJK", axis * rng.uniform(0.2, 5.0), strict=True))
+        else:
+            words = _INVERSES[name](axis, flip=bool(i % 2))
+            words = {k: v + 360.0 * int(rng.integers(-2, 3)) for k, v in words.items()}
+        text = " ".join(f"{k}{v:.12f}" for k, v in words.items())
+        lines.append(f"G1 X{i} Y{-i} Z{10 + i} {text} F500" if i else f"G0 X0 Y0 Z10 {text}")
+    read = _parse("\n".join(lines) + "\nM2\n", name)
+    assert_allclose(read.toolpath.axis, axes, atol=1e-9, rtol=0)
+    assert read.counts.tcp_moves == 60
+
+
+def test_c_wraps_around_on_the_short_great_circle() -> None:
+    """C 359° → 1° is a 2° turn: the linearized path keeps the axis between the two (never the long way)."""
+    text = "G21 G90\nG234 H1\nG0 X0 Y0 Z5 B20 C359\nG1 X10 C1 F600\nG1 X20 C-359\nM30\n"
+    read = _parse(text, "haas-umc750")
+    azimuth = np.degrees(np.arctan2(read.toolpath.axis[:, 1], read.toolpath.axis[:, 0]))
+    assert_allclose(azimuth, [-1.0, 1.0, 1.0], atol=1e-9)
+    machine = load_machine("patel2020")
+    result = post_process(machine, read.toolpath, Setup((0.0, 0.0, -900.0)))
+    between = np.degrees(np.arctan2(result.path.axis[:, 1], result.path.axis[:, 0]))
+    assert np.all(np.abs(between) <= 1.0 + 1e-9)
+    assert len(result.path) < 20
+
+
+def test_inverse_time_feeds_keep_each_move_time() -> None:
+    """G93: each input move takes 1/F minutes in the program too, however it was subdivided."""
+    text = ("G21 G90\nM428\nG0 X0 Y0 Z10 A0 C0\nG93\nG1 X20 Y5 Z8 A20 C30 F12.5\nG1 X25 Y-5 A-15 C-40 F40\n"
+            "G1 X30 F80\nG94\nM429\nM2\n")
+    read = _parse(text, "xyzac-trt")
+    result = post_process(load_machine("patel2020"), read.toolpath, Setup((0.0, 0.0, -900.0)))
+    program = result.program
+    for line, f in ((5, 12.5), (6, 40.0), (7, 80.0)):
+        rows = program.source == line
+        assert rows.sum() >= 1
+        assert_allclose(np.sum(1.0 / program.inverse_time[rows]), 1.0 / f, rtol=1e-9)
+
+
+def test_arc_under_tcp_keeps_the_orientation() -> None:
+    read = _parse("G21 G90\nG43.4 H1\nG0 X0 Y0 Z5 A10 B0\nG2 X10 Y0 I5 J0 F300\nM2\n", "head-ab")
+    assert read.gcode.counts.arcs == 1 and len(read.toolpath) > 2
+    assert_allclose(read.toolpath.axis, np.tile([0.0, -math.sin(math.radians(10)), math.cos(math.radians(10))],
+                                                (len(read.toolpath), 1)), atol=1e-12)
+
+
+def test_linear_moves_outside_tcp_at_rotary_zero_are_three_axis() -> None:
+    read = _parse("G21 G90\nG0 B0 C0\nG0 X0 Y0 Z5\nG1 Z0 F100\nM30\n", "haas-umc750")
+    assert read.toolpath.tip.tolist() == [[0.0, 0.0, 5.0], [0.0, 0.0, 0.0]]
+    assert read.toolpath.axis.tolist() == [[0.0, 0.0, 1.0]] * 2
+    assert read.counts.prepositions == 1 and read.counts.tcp_moves == 0
+
+
+def test_tcp_codes_can_be_overridden() -> None:
+    text = "G21 G90\nM128\nG0 X0 Y0 Z5 B10 C0\nM129\nM30\n"
+    with pytest.raises(InputError) as error:
+        _parse(text, "haas-umc750")
+    assert str(error.value) == (
+        "t.ngc:2: code M128 is not read by the 5-axis G-code reader (source haas-umc750) (codes read: G0 G1 G2 G3 G4 "
+        "G17 G18 G19 G20 G21 G40 G43 G49 G54 G80 G90 G91 G91.1 G93 G94 G98 G99; M0 M1 M2 M3 M4 M5 M6 M7 M8 M9 M30; "
+        "G234 G255 G28 G49 G53 M10 M11 M12 M13)")
+    read = _parse(text, "haas-umc750", tcp_on=("M128",), tcp_off=("M129",))
+    assert read.tcp_on == ("M128",) and read.counts.tcp_on == 1 and read.counts.tcp_off == 1
+    with pytest.raises(ConfigError, match=r"tcp.on: G1 is read as itself \(motion group\), it cannot switch TCP"):
+        _parse(text, "haas-umc750", tcp_on=("G1",))
+
+
+# ----------------------------------------------------------------------------- the corpus
+
+
+@corpus
+@pytest.mark.parametrize(("name", "rows", "beyond"), [("linuxcnc_boat-xyzac.ngc", 1883, 894),
+                                                      ("linuxcnc_impeller-7bl-xyzac.ngc", 4492, 3653)])
+def test_linuxcnc_demos_read_and_tilt_beyond_45_degrees(name: str, rows: int, beyond: int) -> None:
+    """Both demos are TCP throughout (M428 on line 2): they read completely; then the tilt limit
+    (45°) refuses them at their first line beyond it, which is the line and value the pipeline names."""
+    read = read_fivex(str(CORPUS / "gcode" / name), load_source("xyzac-trt"), tolerance=TOL)
+    assert len(read.toolpath) == rows and read.counts.tcp_on == 1 and read.counts.tcp_off == 1
+    tilt = np.degrees(np.arccos(np.clip(read.toolpath.axis[:, 2], -1.0, 1.0)))
+    assert int((tilt > 45.0).sum()) == beyond
+
+
+@corpus
+def test_linuxcnc_expressions_are_refused_with_their_line() -> None:
+    path = str(CORPUS / "gcode" / "linuxcnc_xyzab-tdr-demo.ngc")
+    with pytest.raises(InputError) as error:
+        read_fivex(path, load_source("xyzac-trt"), tolerance=TOL)
+    assert str(error.value) == (
+        f"{path}:10: LinuxCNC expression or parameter in 'g10 l20 p0 x-[#<_hal[xyzab_tdr_kins.x-ro...': its values "
+        "exist only in LinuxCNC's interpreter at run time (HAL pins, parameters), so the program cannot be converted; "
+        "write it in plain numbers")
+
+
+# ----------------------------------------------------------------------------- refusals
+
+_OUTSIDE = ("outside TCP (G234 not on): without TCP the source machine's X Y Z are not the tool tip in the part "
+            "frame, and where a rotary move takes the tip depends on the source machine's pivot geometry, which the "
+            "source file does not give; it cannot be converted")
+_IN_PLACE = ("a feed move that turns the tool about a fixed tip (a reorientation in place): it has no tip path, and "
+             "this machine's program times every move by its tip path (G93), so its time cannot be kept; give the "
+             "tip a move, or turn at rapid (G0)")
+
+
+@pytest.mark.parametrize(("source", "text", "message"), [
+    ("haas-umc750", "G20 G90\nG234 H1\nG0 X0 Y0 Z1 B0 C0\nG0 X1 A10\n",
+     "t.ngc:4: rotary word 'A10': source haas-umc750 has no A axis (its rotary words are B C)"),
+    ("vector", "G21 G90\nG43.5 H1\nG0 X0 Y0 Z10 A1\n",
+     "t.ngc:3: rotary word 'A1': source vector has no A axis (the orientation is the tool vector I J K)"),
+    ("vector", "G21 G90\nG43.5 H1\nG0 X0 Y0 Z10 I0 J0 K0\n",
+     "t.ngc:3: zero-length tool vector I0 J0 K0: the tool axis has no direction"),
+    ("vector", "G21 G90\nG43.5 H1\nG0 X0 Y0 Z10 I0 J0\n", "t.ngc:3: a tool vector needs all of I J K on its line"),
+    ("vector", "G21 G90\nG43.5 H1\nG0 X0 Y0 Z10 I0 J0 K1\nG2 X1 Y1 I1 J0 K0 F100\n",
+     "t.ngc:4: G2 in a vector source: I J K are the tool vector here, not an arc's centre (a vector program has no "
+     "arcs)"),
+    ("haas-umc750", "G20 G90\nG0 B0 C0\nG0 X0 Y0 Z1\nG0 B10\n", f"t.ngc:4: rotary motion (B10) {_OUTSIDE}"),
+    ("haas-umc750", "G20 G90\nG0 B0 C0\nG0 X0 Y0 Z1\nG234 H1\nG0 X1 B5\nG49\nG1 X2 C5 F10\n",
+     f"t.ngc:7: rotary motion (C5) {_OUTSIDE}"),
+    ("haas-umc750", "G20 G90\nG0 B10 C0\nG0 X0 Y0 Z1\n",
+     f"t.ngc:3: a linear move with the rotaries at B10 C0 (not at their zero) {_OUTSIDE}"),
+    ("haas-umc750", "G20 G90\nG234 H1\nG0 X0 Y0 Z1 B0 C0\nG21\n",
+     "t.ngc:4: inconsistent units: G21 (mm) after moves in inch; a program's length unit must not change after its "
+     "first move"),
+    ("haas-umc750", "G20 G90\nG234 H1\nG0 X0 Y0 Z1 B0 C0\nG1 B10 F10\n", f"t.ngc:4: {_IN_PLACE}"),
+    ("haas-umc750", "G20 G90\nG234 H1\nG0 X0 Y0 Z1\n",
+     "t.ngc:3: a move before the tool orientation is known: give B C on it or before it"),
+    ("haas-umc750", "G20 G90\nG234 H1\nG0 X0 Y0 Z1 B0 C0\nG53 G0 Z0 M5\n",
+     "t.ngc:4: M5 on the G53 line: a machine-coordinate block is not converted, so it may hold only G0/G1, G90/G91 "
+     "and axis words (put the rest on its own line)"),
+    ("haas-umc750", "G20 G90\nG234 H1\nG0 X0 Y0 Z1 B0 C0\nG53 G0 Z0\nG1 X1 Y1 Z1 F10\n",
+     "t.ngc:5: G1 after the machine-coordinate block of line 4: the source machine moved in its own coordinates, so "
+     "the tool's position is not known here; the next move must be a rapid (G0)"),
+    ("xyzac-trt", "G21 G90\nM428\nG0 X0 Y0 Z1 A0 C0\nG81 X1 Y1 Z-1 R1 F100\n",
+     "t.ngc:4: code G81 is not read by the 5-axis G-code reader (source xyzac-trt) (codes read: G0 G1 G2 G3 G4 G17 "
+     "G18 G19 G20 G21 G40 G43 G49 G54 G80 G90 G91 G91.1 G93 G94 G98 G99; M0 M1 M2 M3 M4 M5 M6 M7 M8 M9 M30; G28 "
+     "G53 M428 M429)"),
+])
+def test_bad_input_exact_message(source: str, text: str, message: str) -> None:
+    with pytest.raises(InputError) as error:
+        _parse(text, source)
+    assert str(error.value) == message
+
+
+def test_text_after_the_closing_percent_is_reported_not_read() -> None:
+    read = _parse("%\nG21\nG234 H1\nG0 X0 Y0 Z1 B0 C0\nM30\n%\nTool Path Listing has 6 lines. (\n\nmore [#1]\n",
+                  "haas-umc750")
+    assert (read.counts.trailing_lines, read.counts.trailing_first) == (2, 7)
+
+
+# ----------------------------------------------------------------------------- source files
+
+
+def test_sources_command_lists_the_shipped_conventions() -> None:
+    result = CliRunner().invoke(main, ["sources"])
+    assert result.exit_code == 0
+    assert result.output == (
+        "haas-umc750    B C    G234 G49     Haas UMC-750 trunnion: table B (about Y) carrying table C (about Z), "
+        "TCP G234/G49\n"
+        "head-ab        A B    G43.4 G49    head-head: head A (about X) carrying head B (about Y), TCP G43.4/G49\n"
+        "vector         I J K  G43.5 G49    tool vectors I J K on the motion blocks (tip to spindle), TCP G43.5/G49\n"
+        "xyzac-trt      A C    M428 M429    LinuxCNC xyzac-trt: table A (about X) carrying table C (about Z), TCP "
+        "M428/M429\n")
+
+
+def test_shipped_sources_load_as_documented() -> None:
+    haas = load_source("haas-umc750")
+    assert haas.tables == (Rotary("B", True, (0.0, 1.0, 0.0), -1), Rotary("C", True, (0.0, 0.0, 1.0), -1))
+    assert haas.source == "sources/haas-umc750.toml" and haas.clamps == ("M10", "M11", "M12", "M13")
+    assert load_source("head-ab").heads[0] == Rotary("A", False, (1.0, 0.0, 0.0), 1)
+    assert load_source("vector").vector_words == ("I", "J", "K")
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    (("\nsign = -1", "\nsign = 2", 1), "table[0].sign: must be 1 or -1, got 2"),
+    (("zero_deg = 0.0", "zero_deg = 0.0\nspeed = 3", 1), "table[0].speed: unknown key"),
+    (('word = "C"', 'word = "B"', 1), "table: rotary word B appears twice in the chain"),
+    (('on = ["G234"]', 'on = ["G234x"]', 1), "tcp.on[0]: expected a G or M code such as G43.4, got 'G234x'"),
+    (("axis = [0.0, 1.0, 0.0]", "axis = [0.0, 2.0, 0.0]", 1),
+     "table[0].axis: must be a unit vector, got [0.0, 2.0, 0.0] (length 2)"),
+    (('off = ["G49"]', 'off = ["G234"]', 1), "tcp.off: G234 is also in tcp.on"),
+])
+def test_bad_source_files(tmp_path: Path, change: tuple[str, str, int], message: str) -> None:
+    text = (REPO / "postproc" / "sources" / "haas-umc750.toml").read_text()
+    old, new, count = change
+    assert old in text
+    path = tmp_path / "bad.toml"
+    path.write_text(text.replace(old, new, count))
+    with pytest.raises(ConfigError) as error:
+        load_source(str(path))
+    assert str(error.value) == f"{path}: {message}"
+
+
+def test_feed_rows_are_tip_feeds_under_g94() -> None:
+    read = _parse("G20 G90 G94\nG234 H1\nG0 X0 Y0 Z1 B0 C0\nG1 X1 B5 F10\nM30\n", "haas-umc750")
+    assert read.toolpath.kind.tolist() == [int(MoveKind.RAPID), int(MoveKind.FEED)]
+    assert read.toolpath.feed.tolist() == [0.0, 254.0]
