@@ -33,7 +33,7 @@ from prs3_post.cli import Decimal, Integer, Numbers, OutputPath, main
 REPO = Path(__file__).resolve().parents[1]
 
 #: How many examples each command gets (the whole file runs in ~15 s; preview draws a figure).
-EXAMPLES = {"run": 40, "demo": 50, "faces": 40, "ik": 50, "fk": 50, "verify": 50, "preview": 12, "machines": 5,
+EXAMPLES = {"run": 40, "demo": 50, "faces": 40, "ik": 50, "fk": 50, "verify": 50, "preview": 12, "machines": 5, "sources": 5,
             "job": 25, "convert": 30}
 #: Options set in one example, besides the required ones.
 MAX_OPTIONS = 4
@@ -269,5 +269,6 @@ test_fuzz_fk = _fuzz("fk")
 test_fuzz_verify = _fuzz("verify")
 test_fuzz_preview = _fuzz("preview")
 test_fuzz_machines = _fuzz("machines")
+test_fuzz_sources = _fuzz("sources")
 test_fuzz_job = _fuzz("job")
 test_fuzz_convert = _fuzz("convert")
