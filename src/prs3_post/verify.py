@@ -178,7 +178,11 @@ def _shift_keys(strokes: FloatArray) -> tuple[FloatArray, IntArray]:
     """
     strokes = np.asarray(strokes, dtype=np.float64).reshape(-1, 3)
     key = (strokes[:, 1] - strokes[:, 0]) + 1j * (strokes[:, 2] - strokes[:, 0])
-    distinct, inverse_index = np.unique(key, return_inverse=True)
+    # a program repeats a pose row after row: sort only the first row of each run of equal keys
+    head = np.ones(len(key), dtype=bool)
+    head[1:] = key[1:] != key[:-1]
+    distinct, head_index = np.unique(key[head], return_inverse=True)
+    inverse_index = head_index.reshape(-1)[np.cumsum(head) - 1]
     canonical = np.column_stack([np.zeros(len(distinct)), distinct.real, distinct.imag])
     return canonical, inverse_index.reshape(-1)
 
@@ -258,24 +262,27 @@ def _translation_bound(machine: Machine, joints: FloatArray, ends: _Poses) -> Fl
     if n < 2:
         return bound
     delta = np.diff(joints[:, 2:], axis=0)
-    common = delta.mean(axis=1)
+    # column by column (numpy's reductions along a row of three are slow; the same sums, in the same order)
+    common = (delta[:, 0] + delta[:, 1] + delta[:, 2]) / 3.0
     spread = delta - common[:, None]
-    rows = np.flatnonzero(np.abs(spread).max(axis=1) <= TRANSLATION_SPREAD) + 1
+    widest = np.maximum(np.maximum(np.abs(spread[:, 0]), np.abs(spread[:, 1])), np.abs(spread[:, 2]))
+    rows = np.flatnonzero(widest <= TRANSLATION_SPREAD) + 1
     if not len(rows):
         return bound
-    back = joints[rows - 1].copy()
+    back = joints[rows - 1]                              # fancy indexing: copies
     back[:, 2:] -= spread[rows - 1]
     mirror = _poses(machine, back, condition=False)      # the shape of the move only: no limits here
-    head_end = ends.tip[rows].copy()
+    head_end = ends.tip[rows]
     head_end[:, :2] -= joints[rows, :2]
     head_end[:, 2] += common[rows - 1]                   # g(1) = FK(q_{k-1} + d) = FK(q_k) + c e_z
-    head_start = ends.tip[rows - 1].copy()
+    head_start = ends.tip[rows - 1]
     head_start[:, :2] -= joints[rows - 1, :2]
-    head_back = mirror.tip.copy()
+    head_back = mirror.tip                               # the mirror's own array: nothing else reads it
     head_back[:, :2] -= back[:, :2]
-    tip2 = np.linalg.norm(head_end - 2.0 * head_start + head_back, axis=1)
-    angle2 = machine.geometry.link_length * np.max(np.abs(ends.link_angle[rows] - 2.0 * ends.link_angle[rows - 1]
-                                                          + mirror.link_angle), axis=1)
+    second = head_end - 2.0 * head_start + head_back
+    tip2 = np.sqrt(second[:, 0] * second[:, 0] + second[:, 1] * second[:, 1] + second[:, 2] * second[:, 2])
+    turn = np.abs(ends.link_angle[rows] - 2.0 * ends.link_angle[rows - 1] + mirror.link_angle)
+    angle2 = machine.geometry.link_length * np.maximum(np.maximum(turn[:, 0], turn[:, 1]), turn[:, 2])
     bound[rows] = SAFETY * np.maximum(tip2, angle2) / 8.0     # NaN stays NaN: no assembly, sample it
     return bound
 
