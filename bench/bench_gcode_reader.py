@@ -7,9 +7,12 @@ Writes a synthetic 3-axis program in a G68.2 tilted plane (``G1 X.. Y.. Z..`` li
 and (b) streamed with ``GcodeStream`` (chunks dropped as they come, as a streaming conversion
 would). The reference in the same run, (c), is a loop that only parses the program's first
 ``--pygcode-lines`` lines with ``pygcode.Line`` (its rate is per line, so a shorter run measures
-it fairly). Peak memory is traced with tracemalloc per call. The issue's end-to-end targets for
-``convert``: ≥ 300,000 input moves/s for one file on the 2-core machine, ≥ 30 times pygcode's
-parse-only loop, a 10-million-line input under 500 MB; the reader alone must be well inside them.
+it fairly). The three run alternately ``--repeat`` times; the script prints the median and the
+range of each rate, wall clock and per CPU second (the fairer one on a loaded machine), and of the
+ratio to pygcode's loop per CPU second. Peak memory is traced with tracemalloc in one more call.
+The issue's end-to-end targets for ``convert``: ≥ 300,000 input moves/s for one file on the
+2-core machine, ≥ 30 times pygcode's parse-only loop, a 10-million-line input under 500 MB; the
+reader alone must be well inside them.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import argparse
 import itertools
 import os
 import random
+import statistics
 import tempfile
 import time
 import tracemalloc
@@ -59,20 +63,24 @@ def streamed(path: str) -> None:
         pass
 
 
-def measure(call: Callable[[], object], repeat: int) -> tuple[float, float, int]:
-    """Best wall time and best CPU time of ``repeat`` calls (s; CPU time is the fairer one on a loaded
-    machine) and the peak traced memory of one call (bytes)."""
-    best, best_cpu = float("inf"), float("inf")
-    for _ in range(repeat):
-        start, start_cpu = time.perf_counter(), time.process_time()
-        call()
-        best = min(best, time.perf_counter() - start)
-        best_cpu = min(best_cpu, time.process_time() - start_cpu)
+def _cpu(call: Callable[[], object]) -> tuple[float, float]:
+    """Wall time and CPU time of one call (s)."""
+    start, start_cpu = time.perf_counter(), time.process_time()
+    call()
+    return time.perf_counter() - start, time.process_time() - start_cpu
+
+
+def _peak(call: Callable[[], object]) -> int:
+    """Peak traced memory of one call (bytes; traced apart: tracing slows the call)."""
     tracemalloc.start()
     call()
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
-    return best, best_cpu, peak
+    return peak
+
+
+def _spread(values: list[float], fmt: str) -> str:
+    return f"{format(statistics.median(values), fmt)} (range {format(min(values), fmt)}..{format(max(values), fmt)})"
 
 
 def main() -> None:
@@ -85,18 +93,26 @@ def main() -> None:
         path = os.path.join(tmp, "bench.ngc")
         moves = write_program(path, args.lines)
         size = os.path.getsize(path)
-        print(f"{args.lines:,} lines, {moves:,} moves, {size / 1e6:.1f} MB")
+        print(f"{args.lines:,} lines, {moves:,} moves, {size / 1e6:.1f} MB; load average {os.getloadavg()[0]:.2f}, "
+              f"{os.cpu_count()} cores")
         reference_lines = min(args.pygcode_lines, args.lines)
-        seconds, cpu, _ = measure(lambda: pygcode_loop(path, reference_lines), 1)
-        reference, reference_cpu = reference_lines / seconds, reference_lines / cpu          # lines/s
-        print(f"{'pygcode.Line (parse only)':28s} {reference:10,.0f} lines/s, {reference_cpu:10,.0f} per CPU s "
-              f"(first {reference_lines:,} lines)")
-        for name, call in (("read_gcode (whole)", lambda: read_gcode(path, tolerance=0.002)),
-                           ("GcodeStream (chunks dropped)", lambda: streamed(path))):
-            seconds, cpu, peak = measure(call, args.repeat)
-            print(f"{name:28s} {moves / seconds:10,.0f} moves/s, {moves / cpu:10,.0f} per CPU s; "
-                  f"{args.lines / seconds / reference:5.1f} x pygcode's lines/s "
-                  f"({args.lines / cpu / reference_cpu:5.1f} per CPU s); peak {peak / 1e6:6.1f} MB")
+        calls = (("read_gcode (whole)", lambda: read_gcode(path, tolerance=0.002)),
+                 ("GcodeStream (chunks dropped)", lambda: streamed(path)))
+        reference: list[tuple[float, float]] = []                       # lines/s wall, per CPU s
+        rates: dict[str, list[tuple[float, float]]] = {name: [] for name, _ in calls}
+        for _ in range(args.repeat):                                    # alternately: the same load for each
+            wall, cpu = _cpu(lambda: pygcode_loop(path, reference_lines))
+            reference.append((reference_lines / wall, reference_lines / cpu))
+            for name, call in calls:
+                wall, cpu = _cpu(call)
+                rates[name].append((moves / wall, moves / cpu))
+        print(f"{'pygcode.Line (parse only)':28s} lines/s wall {_spread([r[0] for r in reference], ',.0f')}, "
+              f"per CPU s {_spread([r[1] for r in reference], ',.0f')} (first {reference_lines:,} lines)")
+        for name, call in calls:
+            walls, cpus = [r[0] for r in rates[name]], [r[1] for r in rates[name]]
+            ratio = [args.lines / moves * c / ref[1] for c, ref in zip(cpus, reference, strict=True)]
+            print(f"{name:28s} moves/s wall {_spread(walls, ',.0f')}, per CPU s {_spread(cpus, ',.0f')}; "
+                  f"lines per CPU s / pygcode's: {_spread(ratio, '.1f')}x; peak {_peak(call) / 1e6:.1f} MB")
 
 
 if __name__ == "__main__":
