@@ -397,3 +397,28 @@ def test_an_input_in_the_output_folder_is_never_overwritten(tmp_path: Path) -> N
     assert stdout == (f"failed\t{src}\t-\t{src}: is also the input being converted: writing its program would "
                       "destroy it (choose another file)\n")
     assert src.read_text() == TILTED
+
+
+def test_the_corpus_folder_with_automatic_placement(tmp_path: Path) -> None:
+    """`convert ../shared/corpus/cl -o out --part-origin auto`: every placeable file converts (each with
+    its own origin, recorded in its header and report), the others fail with their reason."""
+    out = tmp_path / "out"
+    report = tmp_path / "report.json"
+    result = CliRunner().invoke(main, ["convert", str(CORPUS), "-o", str(out), "--part-origin", "auto",
+                                       "--jobs", "2", "--report", str(report)])
+    assert result.exit_code == 1
+    files = {Path(f["input"]).name: f for f in json.loads(report.read_text())["files"]}
+    assert sorted(n for n, f in files.items() if f["ok"]) == sorted(PLACED)
+    assert sorted(Path(p).stem for p in os.listdir(out)) == sorted(Path(n).stem for n in PLACED)
+    assert files["humman_1_KONTUR_NAR_40_N2.cls"]["error"] == (
+        f"{CORPUS / 'humman_1_KONTUR_NAR_40_N2.cls'}: {UNPLACEABLE['humman_1_KONTUR_NAR_40_N2.cls']}")
+    assert files["humman_ust_a_variable_contour.cls"]["error"] == (
+        f"{CORPUS / 'humman_ust_a_variable_contour.cls'}:177: the joint-space move to this point would need more "
+        "than 1000 inserted points: it still strays 134.6 mm / 42.32 deg from the intended one after 9 rounds of "
+        "bisection (allowed: 0.002 mm, 0.01 deg); the tool axis may pass a singularity")
+    assert files["mech491_APT_Variable_Axis.cls"]["report"]["setup"] == (
+        "part origin at machine [-44.0000, -81.3000, -786.7000] mm, rotation 0.0000 deg about z")
+    for name in PLACED:
+        verified = CliRunner().invoke(main, ["verify", str(out / (Path(name).stem + ".ngc")),
+                                             "--against", str(CORPUS / name)])
+        assert verified.output.splitlines()[-1] == "OK: within every limit and tolerance", verified.output

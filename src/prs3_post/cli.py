@@ -1050,8 +1050,8 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext, opts: d
 @click.option("--against", "against_path", type=click.Path(dir_okay=False), metavar="PART.stl|POSES.csv|INPUT",
               help="The intended path: PART.stl (the operation is rebuilt from the program's header; a program "
                    "without one needs the options it was made with: --profile, --at, --depth, ...), or POSES.csv (the `ik --batch` format, "
-                   "machine frame, one pose per G0/G1 line), or for a program made by `prs3-post convert` its CAM input "
-                   "(APT CL or G-code; checked by the SHA-256 its header records).")
+                   "machine frame, one pose per G0/G1 line), or for a program made by `prs3-post convert` its CAM "
+                   "input (APT CL or G-code; checked by the SHA-256 its header records).")
 @click.option("--axis-tolerance", "axis_tolerance_deg", type=Decimal(ANGLE), default=DEFAULT_ANGLE_TOLERANCE_DEG,
               show_default=True,
               help="Allowed tool-axis deviation from the --against path, degrees.")
@@ -1230,8 +1230,8 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
 @click.option("--ignore", "ignore_words", multiple=True, metavar="WORD",
               help="Skip (and count) this unknown CL major word instead of failing (repeatable).")
 @machine_option
-@part_origin_option
-@part_rotation_option
+@job_part_origin_option
+@job_part_rotation_option
 @dialect_option
 @line_number_options[0]
 @line_number_options[1]
@@ -1240,7 +1240,7 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
 def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: bool, force: bool, input_format: str,
             report_path: str | None, tool_length: float | None, angle_tolerance_deg: float, units: str | None,
             work_plane_text: str | None, ignore_words: tuple[str, ...], machine_name: str,
-            part_origin: tuple[float, ...] | None, part_rotation: float | None, dialect_name: str,
+            part_origin: tuple[float, ...] | str | None, part_rotation: float | str | None, dialect_name: str,
             line_numbers: bool | None, line_start: int | None, line_step: int | None, tolerance: float) -> None:
     """Convert CAM output (APT CL files, 3+2 G-code) into programs for this machine.
 
@@ -1254,7 +1254,7 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
     \b
     Examples:
       prs3-post convert ../shared/corpus/cl/mech491_APT_SimpleMillPlane.cls -o out --part-origin 0,-17.2,-856
-      prs3-post convert cam/ -o out --jobs 2 --report out/report.json
+      prs3-post convert cam/ -o out --part-origin auto --jobs 2 --report out/report.json
     """
 
     def body() -> int:
@@ -1269,7 +1269,8 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
             machine=machine, dialect=dialect, setup=resolve_setup(machine, part_origin, part_rotation),
             tolerance=tolerance, angle_tolerance_deg=angle_tolerance_deg, tool_length=tool_length,
             input_format=input_format, units=units, ignore=tuple(w.upper() for w in ignore_words), work_plane=plane,
-            line_numbers=line_numbers, line_start=line_start, line_step=line_step)
+            line_numbers=line_numbers, line_start=line_start, line_step=line_step,
+            auto_origin=part_origin == AUTO, auto_rotation=part_rotation == AUTO)
         files = collect_inputs(inputs, exclude=outdir, exclude_suffix=dialect.extension)
         if report_path is not None:
             refuse_overwriting({"--report": report_path}, {f"input {i + 1}": f for i, f in enumerate(files)})

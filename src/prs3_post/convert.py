@@ -41,7 +41,7 @@ from prs3_post.kinematics.blocks import THREADS_VARIABLE
 from prs3_post.limits import check_limits, raise_first_violation
 from prs3_post.output import refuse_overwriting, write_atomic
 from prs3_post.pipeline import PostCounts, PostResult, PostStream, model_for, place_toolpath, program_text
-from prs3_post.placement import placement_error
+from prs3_post.placement import place, placement_error
 from prs3_post.readers.apt import ClStream, join_toolpaths
 from prs3_post.readers.detect import DETECT_BYTES, detect_format
 from prs3_post.readers.files import open_input
@@ -77,6 +77,8 @@ class ConvertSettings:
     ignore : tuple of str — CL major words skipped (and counted) instead of refused
     work_plane : WorkPlane | None — where a G-code program's X, Y, Z are in the part (None: the part frame)
     line_numbers, line_start, line_step : block numbering overrides (None: the dialect's)
+    auto_origin, auto_rotation : bool — choose the part origin / the rotation about z for each file
+        (:func:`prs3_post.placement.place`: the largest worst-case margin); ``setup`` holds the values kept
     """
 
     machine: Machine
@@ -92,6 +94,8 @@ class ConvertSettings:
     line_numbers: bool | None = None
     line_start: int | None = None
     line_step: int | None = None
+    auto_origin: bool = False
+    auto_rotation: bool = False
 
     def __post_init__(self) -> None:
         if self.input_format not in FORMATS:
@@ -134,6 +138,7 @@ class ConvertReport:
     deviation_after : float — mm, the same after subdivision (≤ the tolerance)
     angle_before_deg, angle_after_deg : float — degrees, the same for the tool axis
     tool_length : float — mm, used by the IK
+    setup : str — the setup used (chosen automatically or given), as the header states it
     """
 
     input: str
@@ -159,6 +164,7 @@ class ConvertReport:
     angle_before_deg: float
     angle_after_deg: float
     tool_length: float
+    setup: str
 
     @property
     def motion_records(self) -> int:
@@ -308,11 +314,21 @@ class _Run:
             toolpath_rows=counts.input_rows, subdivisions=counts.inserted, dropped=counts.dropped,
             emitted_moves=counts.program_rows, deviation_before=counts.tip_before, deviation_after=counts.tip_after,
             angle_before_deg=math.degrees(counts.angle_before), angle_after_deg=math.degrees(counts.angle_after),
-            tool_length=self.settings.ik_machine.geometry.tool_length)
+            tool_length=self.settings.ik_machine.geometry.tool_length, setup=self.settings.setup.describe())
 
 
 def _start(path: str, settings: ConvertSettings) -> _Run:
     fmt = input_format(path, settings.input_format)
+    if settings.auto_origin or settings.auto_rotation:   # the whole path decides the setup: read it once more
+        whole = source_stream(path, settings, fmt).whole()
+        if not len(whole.toolpath):
+            raise InputError("no moves in the file: nothing to convert", path=path)
+        _check_poses(settings.ik_machine, whole.toolpath, settings.setup, limits=False)   # axes by input line
+        chosen = place(settings.ik_machine, whole.toolpath,
+                       origin=None if settings.auto_origin else settings.setup.origin,
+                       rotation_deg=None if settings.auto_rotation else settings.setup.rotation_deg,
+                       tolerance=settings.tolerance, angle_tolerance=math.radians(settings.angle_tolerance_deg))
+        settings = dataclasses.replace(settings, setup=chosen.setup, auto_origin=False, auto_rotation=False)
     reader = source_stream(path, settings, fmt)
     machine = settings.ik_machine
     post = PostStream(machine, settings.setup, tolerance=settings.tolerance,
