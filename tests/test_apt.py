@@ -238,8 +238,9 @@ def test_events_spindle_coolant_tools_comments_stops() -> None:
     shown = [(e.before, e.kind.value, e.value, e.text) for e in tp.events]
     assert shown == [
         (0, "tool_change", 3.0, "tool 3: TLDATA/MILL,10.0000,0.0000,50.0000,0.0000,0.0000"),
-        (0, "spindle_on", 1200.0, "ccw"), (0, "coolant_on", 0.0, "mist"), (0, "comment", 0.0, "ROUGH, THEN FINISH"),
-        (0, "comment", 0.0, "above"), (1, "stop", 0.0, ""), (1, "stop", 0.0, "optional"),
+        (0, "spindle_on_ccw", 1200.0, ""), (0, "coolant_on", 0.0, "mist"),
+        (0, "comment", 0.0, "ROUGH, THEN FINISH"), (0, "comment", 0.0, "above"), (1, "stop", 0.0, ""),
+        (1, "optional_stop", 0.0, ""),
         (1, "coolant_off", 0.0, ""), (1, "spindle_off", 0.0, ""),
         (1, "tool_change", 4.0, "tool 4: TLDATA/MILL,10.0000,0.0000,50.0000,0.0000,0.0000"),
     ]

@@ -246,10 +246,10 @@ def test_g82_dwell_g73_chip_break_g4_and_events() -> None:
     assert_allclose(tp.tip[:, 2], [5, 1, -1, 5, 5, 1, -0.5, -0.5 + PECK_GAP_MM, -2, 5], atol=1e-12)
     assert_allclose(tp.tip[4:, 0], 1, atol=0)
     assert [(e.before, e.kind, e.value, e.text) for e in tp.events] == [
-        (0, EventKind.TOOL_CHANGE, 3.0, "tool 3"), (0, EventKind.SPINDLE_ON, 1000.0, "ccw"),
+        (0, EventKind.TOOL_CHANGE, 3.0, "tool 3"), (0, EventKind.SPINDLE_ON_CCW, 1000.0, ""),
         (0, EventKind.COOLANT_ON, 0.0, "mist"), (3, EventKind.DWELL, 0.5, ""), (10, EventKind.DWELL, 2.0, ""),
-        (10, EventKind.SPINDLE_ON, 2000.0, "ccw"), (10, EventKind.STOP, 0.0, ""),
-        (10, EventKind.STOP, 0.0, "optional"), (10, EventKind.SPINDLE_OFF, 0.0, ""),
+        (10, EventKind.SPINDLE_ON_CCW, 2000.0, ""), (10, EventKind.STOP, 0.0, ""),
+        (10, EventKind.OPTIONAL_STOP, 0.0, ""), (10, EventKind.SPINDLE_OFF, 0.0, ""),
         (10, EventKind.COOLANT_OFF, 0.0, "")]
 
 

@@ -73,6 +73,51 @@ def test_reader_reads_back_what_the_emitter_wrote():
     assert read.end_line == len(lines) - 2                 # M30, then the closing %
 
 
+def test_a_counter_clockwise_spindle_and_an_optional_stop_are_m4_and_m1_and_read_back(tmp_path, rs274_check):
+    """CAM input marks them (SPINDL/...,CCLW and OPSTOP here; M4 and M1 in 3+2 G-code): the program says
+    M4 and M1 (not M3 and M0: the spindle would turn the wrong way), LinuxCNC runs it, and verify's
+    reader gives the same events back."""
+    from prs3_post.emit import emit_program
+    from prs3_post.pipeline import post_process
+    from prs3_post.readers.apt import parse_cl
+
+    cl = ("LOADTL/1\nSPINDL/RPM,1200,CCLW\nFEDRAT/100,MMPM\nRAPID\nGOTO/0,0,10\nGOTO/0,0,0\nOPSTOP\n"
+          "GOTO/5,0,0\nSTOP\nSPINDL/OFF\nFINI\n")
+    path = parse_cl(cl, path="t.cls", tolerance=0.002).toolpath
+    dialect, setup = load_dialect("linuxcnc"), Setup.resolve(MACHINE)
+    made = post_process(MACHINE, path, setup, length_decimals=dialect.decimals.length).program
+    text = emit_program(made, dialect)
+    assert text == (
+        "(axes: X Y = stage X Y mm, U V W = actuator strokes T1 T2 T3 mm)\n"
+        "(motion: joint space, G1 feed in G93 inverse time, F = 1 / move time in min)\n"
+        "G17 G21 G40 G49 G54 G80 G90 G94\n"
+        "G61\n"
+        "(tool 1)\n"
+        "T1 M6\n"
+        "S1200 M4\n"
+        "G0 X-100.0000 Y-200.0000 U355.5270 V355.5270 W355.5270\n"
+        "G93\n"
+        "G1 U365.5270 V365.5270 W365.5270 F10.0000\n"
+        "M1\n"
+        "G1 X-95.0000 Y-200.0000 U365.5270 V365.5270 W365.5270 F20.0000\n"
+        "M0\n"
+        "M5\n"
+        "G94\n"
+        "M2\n"
+    )
+    out = tmp_path / "ccw.ngc"
+    out.write_text(text)
+    code, report = rs274_check(out)
+    assert code == 0, report
+    read = load_program(str(out), dialect)
+    events = [(e.before, e.kind, e.value) for e in read.moves.events]
+    assert events == [(0, EventKind.TOOL_CHANGE, 1.0), (0, EventKind.SPINDLE_ON_CCW, 1200.0),
+                      (2, EventKind.OPTIONAL_STOP, 0.0), (3, EventKind.STOP, 0.0), (3, EventKind.SPINDLE_OFF, 0.0)]
+    assert events == [(e.before, e.kind, e.value) for e in made.events if e.kind is not EventKind.COMMENT]
+    assert verify_program(MACHINE, read.moves, setup=setup).ok
+    assert run("verify", out).exit_code == 0
+
+
 def test_reader_keeps_modal_state_and_line_numbers():
     text = "%\nO1000 (T)\nN10 G0 X1 Y2 U3 V4 W5\n(c)\nN20 G93\nN30 G1 U3.5 F2.\nN40 V4.5 F.5\nN50 G0 X0\nN60 M30\n%\n"
     read = read_program(text, load_dialect("fanuc"), path="t.nc")
@@ -125,6 +170,9 @@ def test_verify_unknown_dialect():
     ("G0 X1 Y1 U1 V1 W1 F3\nM2\n", "1: F word on a line without a G1 move (prs3-post programs carry F only on "
                                    "G1 lines)"),
     ("M3\nM2\n", "1: M3 (spindle on) without a spindle speed S > 0"),
+    ("S0 M4\nM2\n", "1: M4 (spindle on, counter-clockwise) without a spindle speed S > 0"),
+    ("M3 M4\nM2\n", "1: M3 and M4 are in the same modal group (spindle): one per line"),
+    ("M0 M1\nM2\n", "1: M0 and M1 are in the same modal group (stop): one per line"),
     ("G0 X1 Y1 U1 V1 W1\nM2\nG0 X2\n", "3: code after the program end (line 2): 'G0 X2' (LinuxCNC never reads it)"),
     ("G0 X1 Y1 U1 V1 W1\nM2\n%\nG0\n", "4: text after the closing '%': 'G0' (LinuxCNC never reads it)"),
     ("G0 X1e-5 Y1 U1 V1 W1\nM2\n", "1: word 'E' is not used in prs3-post programs (words read: G M N F S T P "

@@ -33,7 +33,9 @@ class EventKind(enum.Enum):
     """A non-motion action between rows."""
 
     SPINDLE_ON = "spindle_on"
-    """M3 at ``value`` rpm (clockwise)."""
+    """M3 at ``value`` rpm: the spindle turns clockwise (seen from the spindle toward the tip)."""
+    SPINDLE_ON_CCW = "spindle_on_ccw"
+    """M4 at ``value`` rpm: the spindle turns counter-clockwise (left-hand tools, taps)."""
     SPINDLE_OFF = "spindle_off"
     """M5."""
     COOLANT_ON = "coolant_on"
@@ -48,6 +50,8 @@ class EventKind(enum.Enum):
     """An operator-visible comment ``text``."""
     STOP = "stop"
     """M0: program stop, cycle start resumes."""
+    OPTIONAL_STOP = "optional_stop"
+    """M1: program stop only where the operator's optional-stop switch is on; cycle start resumes."""
 
 
 @dataclass(frozen=True, slots=True)

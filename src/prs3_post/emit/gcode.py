@@ -207,18 +207,23 @@ class _Blocks:
         return text
 
 
+#: The M code of each spindle direction, and of each program stop.
+_SPINDLE_ON = {EventKind.SPINDLE_ON: "M3", EventKind.SPINDLE_ON_CCW: "M4"}
+_STOPS = {EventKind.STOP: "M0", EventKind.OPTIONAL_STOP: "M1"}
+
+
 def _event_blocks(where: str, event: Event, dialect: Dialect) -> tuple[str | None, str]:
     """``(comment or None, block)`` for a non-COMMENT event; bad values are a LimitError at ``where``."""
     value = float(event.value)
     dec = dialect.decimals
-    if event.kind is EventKind.SPINDLE_ON:
+    if event.kind in _SPINDLE_ON:
         word = format_word("S", value, dec.spindle) if math.isfinite(value) else ""
         if not word or float(word[1:]) <= 0:
             raise LimitError(
                 f"{where}: spindle speed must be > 0 rpm once printed with decimals.spindle = {dec.spindle}, "
                 f"got {value!r}"
             )
-        return None, f"{word} M3"
+        return None, f"{word} {_SPINDLE_ON[event.kind]}"
     if event.kind is EventKind.SPINDLE_OFF:
         return None, "M5"
     if event.kind is EventKind.COOLANT_ON:
@@ -236,8 +241,8 @@ def _event_blocks(where: str, event: Event, dialect: Dialect) -> tuple[str | Non
             raise LimitError(f"{where}: dwell must be a finite number ≥ 0 s, got {value!r}")
         seconds = value * 1000.0 if dialect.dwell_unit == "ms" else value
         return None, f"G4 {format_word('P', seconds, dec.dwell)}"
-    if event.kind is EventKind.STOP:
-        return None, "M0"
+    if event.kind in _STOPS:
+        return None, _STOPS[event.kind]
     raise ValueError(f"no G-code for event kind {event.kind!r}")
 
 
@@ -250,7 +255,7 @@ def _axis_line(dialect: Dialect, stage: bool) -> str:
 
 
 #: Events after which the axes are stated again: the tool-change macro or the operator may move them.
-_RESTATE = (EventKind.TOOL_CHANGE, EventKind.STOP)
+_RESTATE = (EventKind.TOOL_CHANGE, EventKind.STOP, EventKind.OPTIONAL_STOP)
 
 
 @dataclass(slots=True)

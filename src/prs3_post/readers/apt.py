@@ -36,8 +36,8 @@ Major words understood (anything else is an error naming file:line, unless it is
   ``SELECT/TOOL,n`` pre-selects the next tool (no event: the tool in the spindle does not change);
   ``TLDATA/...`` describes the cutter's shape (kept in :attr:`ClFile.tool_data`; it does not give
   the tool's gauge length).
-- ``SPINDL/[RPM,]s[,CLW|CCLW]``, ``SPINDL/ON``, ``SPINDL/OFF`` — SPINDLE_ON (``text = 'ccw'`` for
-  CCLW) / SPINDLE_OFF events.
+- ``SPINDL/[RPM,]s[,CLW|CCLW]``, ``SPINDL/ON``, ``SPINDL/OFF`` — SPINDLE_ON (CLW, the default) or
+  SPINDLE_ON_CCW (CCLW) / SPINDLE_OFF events; ``SPINDL/ON`` keeps the last direction.
 - ``COOLNT/ON|FLOOD|MIST|OFF`` — COOLANT_ON (``text`` flood or mist) / COOLANT_OFF events.
 - ``CYCLE/DRILL|DEEP|BRKCHP,...`` (also ``DRILL,DEEP`` and ``DRILL,BRKCHP``) with ``RAPTO,c``,
   ``FEDTO,d``, optional ``RTRCTO,r``, ``STEP,s``, ``DWELL,t`` and a feed ``MMPM|IPM|MMPR|IPR,f``;
@@ -54,7 +54,7 @@ Major words understood (anything else is an error naming file:line, unless it is
   Start and end must lie on the circle within ``circle_tolerance`` (radially, and at one height
   along the axis); the end GOTO may not change the tool axis.
 - ``PPRINT/text`` (or ``PPRINT text``) and ``$$`` comments — COMMENT events, text kept as written.
-- ``STOP`` — STOP event; ``OPSTOP`` — STOP event with ``text = 'optional'`` (M1).
+- ``STOP`` — STOP event (M0); ``OPSTOP`` — OPTIONAL_STOP event (M1).
 - ``END-OF-PATH`` ends a tool path (another may follow); ``FINI`` ends the file (only blank lines,
   or the listing trailer, may follow).
 
@@ -593,7 +593,7 @@ class _Reader:
         self.per_rev = False
         self.spindle_rpm = 0.0
         self.spindle_on = False
-        self.spindle_text = ""                         # 'ccw' for CCLW
+        self.spindle_kind = EventKind.SPINDLE_ON       # the direction: SPINDLE_ON_CCW for CCLW
         self.multax_on: bool | None = None
         self.arc: _Arc | None = None
         self.cycle: _ActiveCycle | None = None
@@ -926,7 +926,7 @@ class _Reader:
             if not self.spindle_rpm > 0:
                 raise self.error("SPINDL/ON before any spindle speed: give SPINDL/RPM,s,CLW first")
             self.spindle_on = True
-            self.event(EventKind.SPINDLE_ON, value=self.spindle_rpm, text=self.spindle_text)
+            self.event(self.spindle_kind, value=self.spindle_rpm)
             return
         direction = "CLW"
         speed: list[str] = []
@@ -946,8 +946,8 @@ class _Reader:
         if not rpm > 0:
             raise self.error(f"SPINDL/ speed must be > 0 rpm, got {speed[0]}")
         self.spindle_rpm, self.spindle_on = rpm, True
-        self.spindle_text = "ccw" if direction == "CCLW" else ""
-        self.event(EventKind.SPINDLE_ON, value=rpm, text=self.spindle_text)
+        self.spindle_kind = EventKind.SPINDLE_ON_CCW if direction == "CCLW" else EventKind.SPINDLE_ON
+        self.event(self.spindle_kind, value=rpm)
 
     def coolnt(self, record: _Record) -> None:
         words = {arg.upper() for arg in record.args}
@@ -1031,7 +1031,7 @@ class _Reader:
     def stop(self, record: _Record) -> None:
         if record.args:
             raise self.error(f"{record.word} takes no values; found {_quote(record.text)}")
-        self.event(EventKind.STOP, text="optional" if record.word == "OPSTOP" else "")
+        self.event(EventKind.OPTIONAL_STOP if record.word == "OPSTOP" else EventKind.STOP)
 
     def end(self, record: _Record) -> None:
         if record.args:

@@ -482,7 +482,7 @@ class _Reader:
         self.feed_word: float | None = None            # F as written (program units per minute)
         self.spindle_rpm = 0.0
         self.spindle_on = False
-        self.spindle_text = ""
+        self.spindle_kind = EventKind.SPINDLE_ON       # the direction: SPINDLE_ON_CCW after M4
         self.tool: int | None = None
         self.cycle: _Cycle | None = None
         self.cycles: list[GcodeCycle] = []
@@ -736,7 +736,7 @@ class _Reader:
                 raise self.error(f"S must be ≥ 0 rpm, got {block.values['S'][1]}")
             self.spindle_rpm = speed
             if self.spindle_on and "spindle" not in m:
-                self.event(EventKind.SPINDLE_ON, value=speed, text=self.spindle_text)
+                self.event(self.spindle_kind, value=speed)
         tool = block.take("T")
         if tool is not None:
             if tool < 0 or tool != int(tool):
@@ -778,7 +778,7 @@ class _Reader:
         if "stop" in m:
             code = m["stop"]
             if code in (0, 1):
-                self.event(EventKind.STOP, text="optional" if code == 1 else "")
+                self.event(EventKind.OPTIONAL_STOP if code == 1 else EventKind.STOP)
             else:
                 if self.cycle is not None:
                     self.end_cycle()
@@ -791,8 +791,9 @@ class _Reader:
             return
         if not self.spindle_rpm > 0:
             raise self.error(f"{code_name('M', code)} without a spindle speed: give S (rpm) on this line or before")
-        self.spindle_on, self.spindle_text = True, "ccw" if code == 4 else ""
-        self.event(EventKind.SPINDLE_ON, value=self.spindle_rpm, text=self.spindle_text)
+        self.spindle_on = True
+        self.spindle_kind = EventKind.SPINDLE_ON_CCW if code == 4 else EventKind.SPINDLE_ON
+        self.event(self.spindle_kind, value=self.spindle_rpm)
 
     # ---- planes
     def tilt_code(self, code: float, block: _Block) -> None:

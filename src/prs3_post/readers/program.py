@@ -10,7 +10,7 @@ Understood
 - The axis letters of the dialect (``[axes]``: stage X, Y and strokes T1, T2, T3); any other axis
   letter (A B C U V W X Y Z) is an error (``word 'Z' is not an axis of dialect linuxcnc (axes: X Y
   U V W)``). On a machine without a stage (``stage=False``) the stage letters are errors too.
-- G0 G1 G4 G17 G21 G40 G49 G54 G61 G64 G80 G90 G93 G94; M0 M2 M3 M5 M6 M7 M8 M9 M30; F, S, T, P
+- G0 G1 G4 G17 G21 G40 G49 G54 G61 G64 G80 G90 G93 G94; M0 M1 M2 M3 M4 M5 M6 M7 M8 M9 M30; F, S, T, P
   (with G4 or G64), N (first word), an ``O`` line, ``%`` lines, comments in the dialect's
   delimiters. Numbers are plain decimals (``-12.5``, ``.5``, ``5.``); spaces between and inside
   words are ignored and letters may be lower case, as LinuxCNC reads them.
@@ -72,8 +72,8 @@ ALLOWED_G: dict[int, str] = {
     90: "distance mode", 93: "feed mode", 94: "feed mode",
 }
 #: M-codes the emitter writes, with their modal group.
-ALLOWED_M: dict[int, str] = {0: "stop", 2: "stop", 30: "stop", 3: "spindle", 5: "spindle", 6: "tool change",
-                             7: "coolant", 8: "coolant", 9: "coolant"}
+ALLOWED_M: dict[int, str] = {0: "stop", 1: "stop", 2: "stop", 30: "stop", 3: "spindle", 4: "spindle", 5: "spindle",
+                             6: "tool change", 7: "coolant", 8: "coolant", 9: "coolant"}
 #: Word letters other than axes: what each is for.
 _OTHER_LETTERS = "GMNFSTPO"
 _AXIS_NAMES = ("stage X", "stage Y", "actuator T1", "actuator T2", "actuator T3")
@@ -466,8 +466,8 @@ class _Reader:
             assert motion is not None  # checked in motion_of: a move needs a motion mode
             self.move(motion, block.axes, block.values.get("F", 0.0))
         stop = block.m_codes.get("stop")
-        if stop == 0:
-            self.event(EventKind.STOP)
+        if stop in (0, 1):
+            self.event(EventKind.STOP if stop == 0 else EventKind.OPTIONAL_STOP)
         elif stop in (2, 30):
             self.end_line = self.number
 
@@ -567,10 +567,11 @@ class _Reader:
                 raise self.error("M6 (tool change) without a tool number T")
             self.event(EventKind.TOOL_CHANGE, float(self.tool), f"T{self.tool}")
         spindle = m_codes.get("spindle")
-        if spindle == 3:
+        if spindle in (3, 4):
             if self.spindle is None or not self.spindle > 0:
-                raise self.error("M3 (spindle on) without a spindle speed S > 0")
-            self.event(EventKind.SPINDLE_ON, self.spindle)
+                what = "M3 (spindle on)" if spindle == 3 else "M4 (spindle on, counter-clockwise)"
+                raise self.error(f"{what} without a spindle speed S > 0")
+            self.event(EventKind.SPINDLE_ON if spindle == 3 else EventKind.SPINDLE_ON_CCW, self.spindle)
         elif spindle == 5:
             self.event(EventKind.SPINDLE_OFF)
         coolant = m_codes.get("coolant")
