@@ -322,3 +322,98 @@ def test_feed_rows_are_tip_feeds_under_g94() -> None:
     read = _parse("G20 G90 G94\nG234 H1\nG0 X0 Y0 Z1 B0 C0\nG1 X1 B5 F10\nM30\n", "haas-umc750")
     assert read.toolpath.kind.tolist() == [int(MoveKind.RAPID), int(MoveKind.FEED)]
     assert read.toolpath.feed.tolist() == [0.0, 254.0]
+
+
+# ----------------------------------------------------------------------------- through convert
+
+#: The CL conversion's part origin in tests/test_convert.py, shifted by the CL file's MSYS origin
+#: (3, 3, 0) in: the Haas program's G54 is the MSYS frame, so both put the part at one place.
+_CL_ORIGIN = (-44.0, -81.3, -786.7)
+_HAAS_ORIGIN = (-44.0 + 3 * INCH, -81.3 + 3 * INCH, -786.7)
+
+
+def _convert_settings(origin: tuple[float, float, float], source: str, **kwargs: object) -> object:
+    from prs3_post.config import load_dialect
+    from prs3_post.convert import ConvertSettings
+
+    machine = load_machine("patel2020")
+    return ConvertSettings(machine=machine, dialect=load_dialect("linuxcnc"), setup=Setup(origin),
+                           source=load_source(source), **kwargs)  # type: ignore[arg-type]
+
+
+@corpus
+def test_converted_haas_program_replays_onto_the_cl_points(tmp_path: Path, rs274_check) -> None:
+    """FK of the converted Haas program lands on the CL file's points and axes (MSYS and the same placement
+    applied) within the Haas program's rounding (0.0001 in, 0.001°) plus the output's; LinuxCNC accepts it."""
+    from prs3_post.convert import convert_file
+    from prs3_post.kinematics import forward
+    from prs3_post.pipeline import place_toolpath
+    from prs3_post.readers.program import read_program
+
+    settings = _convert_settings(_HAAS_ORIGIN, "haas-umc750")
+    conversion = convert_file(str(HAAS), settings)  # type: ignore[arg-type]
+    program = read_program(conversion.text, settings.dialect, path="haas.ngc")  # type: ignore[attr-defined]
+    fk = forward(settings.machine.geometry, program.moves.strokes, program.moves.stage)  # type: ignore[attr-defined]
+    assert fk.converged.all() and len(fk.tip) == conversion.report.emitted_moves == 1338
+    lines = read_fivex(str(HAAS), load_source("haas-umc750"), tolerance=TOL).toolpath.source
+    last = np.array([np.flatnonzero(conversion.path.source == line)[-1] for line in lines])   # each input move's end
+    cl = place_toolpath(read_cl(str(HAAS_CL), tolerance=TOL).toolpath, Setup(_CL_ORIGIN))
+    rounding = 2e-4                                   # 4 decimals on 5 joint words (as tests/test_convert.py)
+    assert_allclose(fk.tip[last], cl.tip, atol=0.0001 * INCH + rounding, rtol=0)
+    assert _angle_deg(fk.axis[last], cl.axis).max() < 0.001 + 1e-3
+    assert conversion.report.skipped[-2:] == (("rotary positioning outside TCP (sets the next orientation)", 1),
+                                              ("text after the closing % (from line 391)", 1))
+    out = tmp_path / "haas.ngc"
+    out.write_text(conversion.text)
+    code, text = rs274_check(out)
+    assert code == 0, text
+
+
+@corpus
+@pytest.mark.parametrize(("name", "message"), [
+    ("linuxcnc_boat-xyzac.ngc", "663: the program's tool axis tilts 46.0620 deg from the part's z, beyond this "
+     "machine's maximum tilt 45.0000 deg; 894 of 1883 rows (47.5%) tilt beyond it, and a setup turns the part about "
+     "z only"),
+    ("linuxcnc_impeller-7bl-xyzac.ngc", "8: the program's tool axis tilts 71.8410 deg from the part's z, beyond this "
+     "machine's maximum tilt 45.0000 deg; 3653 of 4492 rows (81.3%) tilt beyond it, and a setup turns the part about "
+     "z only"),
+    ("linuxcnc_xyzab-tdr-demo.ngc", "10: LinuxCNC expression or parameter in 'g10 l20 p0 x-[#<_hal[xyzab_tdr_kins."
+     "x-ro...': its values exist only in LinuxCNC's interpreter at run time (HAL pins, parameters), so the program "
+     "cannot be converted; write it in plain numbers"),
+])
+def test_linuxcnc_demos_fail_for_their_reason(name: str, message: str, tmp_path: Path) -> None:
+    path = CORPUS / "gcode" / name
+    result = CliRunner().invoke(main, ["convert", str(path), "-o", str(tmp_path), "--jobs", "1",
+                                       "--source", "xyzac-trt", "--part-origin", "0,0,-900"])
+    assert result.exit_code == 1
+    assert result.stdout == f"failed\t{path}\t-\t{path}:{message}\n"
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--source", "nope"], "prs3-post: error: nope: no such source file or shipped name (shipped: haas-umc750, "
+                           "head-ab, vector, xyzac-trt)"),
+    (["--source", "haas-umc750", "--tcp-on", "G43.4;"], "Error: Invalid value for '--tcp-on': expected G or M codes "
+                                                       "separated by commas (e.g. G43.4,M428), got 'G43.4;'"),
+])
+def test_convert_bad_source_options(args: list[str], message: str, tmp_path: Path) -> None:
+    program = tmp_path / "in.nc"
+    program.write_text("G21\nG234 H1\nG0 X0 Y0 Z1 B0 C0\nM30\n")
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["convert", str(program), "-o", str(out), "--jobs", "1", *args])
+    assert result.exit_code == 2
+    assert message in result.output.splitlines()
+    assert not out.exists() or list(out.iterdir()) == []
+
+
+def test_convert_with_tcp_codes_given(tmp_path: Path) -> None:
+    program = tmp_path / "in.nc"
+    program.write_text("G21 G90\nM128\nG0 X0 Y0 Z5 B10 C0\nG1 X10 B12 C5 F300\nM129\nM30\n")
+    out = tmp_path / "out"
+    args = ["convert", str(program), "-o", str(out), "--jobs", "1", "--source", "haas-umc750", "--part-origin",
+            "0,0,-900"]
+    refused = CliRunner().invoke(main, args)
+    assert refused.exit_code == 1 and list(out.iterdir()) == []
+    result = CliRunner().invoke(main, [*args, "--tcp-on", "M128", "--tcp-off", "m129"])
+    assert result.exit_code == 0, result.output
+    assert [p.name for p in out.iterdir()] == ["in.ngc"]

@@ -43,6 +43,7 @@ from prs3_post.ops.common import require_tolerance
 from prs3_post.output import is_stdout, refuse_overwriting, stdout_error, write_atomic, write_outputs
 from prs3_post.placement import AUTO, Placement
 from prs3_post.readers.header import ProgramHeader, SourceHeader
+from prs3_post.readers.lexer import code_name
 from prs3_post.readers.program import read_program
 from prs3_post.readers.stl import UP_ROTATION, load_part
 from prs3_post.readers.tooltable import ToolTable, read_tool_table
@@ -477,6 +478,20 @@ def machines() -> None:
         return 0
 
     run_reported(body)
+
+
+def _codes_option(text: str | None, flag: str) -> tuple[str, ...] | None:
+    """``G43.4,M428`` → ``("G43.4", "M428")`` (as :func:`~prs3_post.readers.lexer.code_name` writes them)."""
+    if text is None:
+        return None
+    codes = []
+    for item in text.split(","):
+        match = re.fullmatch(r"\s*([GgMm])([0-9]+(?:\.[0-9]+)?)\s*", item)
+        if match is None:
+            raise click.BadParameter(f"expected G or M codes separated by commas (e.g. G43.4,M428), got {text!r}",
+                                     param_hint=f"'{flag}'")
+        codes.append(code_name(match[1].upper(), float(match[2])))
+    return tuple(codes)
 
 
 @main.command()
@@ -1229,6 +1244,12 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
               help="Where a G-code program's X, Y, Z are in the part: a face frame (u, v, w) or origin, normal, x.")
 @click.option("--ignore", "ignore_words", multiple=True, metavar="WORD",
               help="Skip (and count) this unknown CL major word instead of failing (repeatable).")
+@click.option("--source", "source_name", default=None, metavar="NAME|PATH",
+              help="Read G-code as a 5-axis program of this source machine (see `prs3-post sources`).")
+@click.option("--tcp-on", "tcp_on", default=None, metavar="CODES",
+              help="Codes that switch the source's TCP on, comma-separated (e.g. G43.4).  [default: the source's]")
+@click.option("--tcp-off", "tcp_off", default=None, metavar="CODES",
+              help="Codes that switch the source's TCP off, comma-separated (e.g. G49).  [default: the source's]")
 @machine_option
 @job_part_origin_option
 @job_part_rotation_option
@@ -1239,7 +1260,8 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
 @tolerance_option
 def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: bool, force: bool, input_format: str,
             report_path: str | None, tool_length: float | None, angle_tolerance_deg: float, units: str | None,
-            work_plane_text: str | None, ignore_words: tuple[str, ...], machine_name: str,
+            work_plane_text: str | None, ignore_words: tuple[str, ...], source_name: str | None,
+            tcp_on: str | None, tcp_off: str | None, machine_name: str,
             part_origin: tuple[float, ...] | str | None, part_rotation: float | str | None, dialect_name: str,
             line_numbers: bool | None, line_start: int | None, line_step: int | None, tolerance: float) -> None:
     """Convert CAM output (APT CL files, 3+2 G-code) into programs for this machine.
@@ -1269,6 +1291,8 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
             machine=machine, dialect=dialect, setup=resolve_setup(machine, part_origin, part_rotation),
             tolerance=tolerance, angle_tolerance_deg=angle_tolerance_deg, tool_length=tool_length,
             input_format=input_format, units=units, ignore=tuple(w.upper() for w in ignore_words), work_plane=plane,
+            source=None if source_name is None else load_source(source_name),
+            tcp_on=_codes_option(tcp_on, "--tcp-on"), tcp_off=_codes_option(tcp_off, "--tcp-off"),
             line_numbers=line_numbers, line_start=line_start, line_step=line_step,
             auto_origin=part_origin == AUTO, auto_rotation=part_rotation == AUTO)
         files = collect_inputs(inputs, exclude=outdir, exclude_suffix=dialect.extension)

@@ -45,10 +45,12 @@ from prs3_post.placement import place, placement_error
 from prs3_post.readers.apt import ClStream, join_toolpaths
 from prs3_post.readers.detect import DETECT_BYTES, detect_format
 from prs3_post.readers.files import open_input
+from prs3_post.readers.fivex import FivexStream
 from prs3_post.readers.gcode import GcodeStream
 from prs3_post.readers.header import SourceHeader, file_sha256, source_header_entries
 from prs3_post.readers.stl import load_part
 from prs3_post.setup import Setup
+from prs3_post.source import SourceConvention
 from prs3_post.toolpath import Event, EventKind, Toolpath
 from prs3_post.workplane import WorkPlane, WorkPlaneError
 
@@ -76,6 +78,8 @@ class ConvertSettings:
     units : str | None — a CL file's length unit when it has no UNITS/ record (None: from its feeds)
     ignore : tuple of str — CL major words skipped (and counted) instead of refused
     work_plane : WorkPlane | None — where a G-code program's X, Y, Z are in the part (None: the part frame)
+    source : SourceConvention | None — G-code is a 5-axis program of this source machine (None: 3+2 G-code)
+    tcp_on, tcp_off : tuple of str | None — the codes that switch its TCP on and off (None: the source's)
     line_numbers, line_start, line_step : block numbering overrides (None: the dialect's)
     auto_origin, auto_rotation : bool — choose the part origin / the rotation about z for each file
         (:func:`prs3_post.placement.place`: the largest worst-case margin); ``setup`` holds the values kept
@@ -91,6 +95,9 @@ class ConvertSettings:
     units: str | None = None
     ignore: tuple[str, ...] = ()
     work_plane: WorkPlane | None = None
+    source: SourceConvention | None = None
+    tcp_on: tuple[str, ...] | None = None
+    tcp_off: tuple[str, ...] | None = None
     line_numbers: bool | None = None
     line_start: int | None = None
     line_step: int | None = None
@@ -139,6 +146,7 @@ class ConvertReport:
     angle_before_deg, angle_after_deg : float — degrees, the same for the tool axis
     tool_length : float — mm, used by the IK
     setup : str — the setup used (chosen automatically or given), as the header states it
+    five_axis : str — for a 5-axis G-code program: its source convention and the path it is read as
     """
 
     input: str
@@ -165,6 +173,7 @@ class ConvertReport:
     angle_after_deg: float
     tool_length: float
     setup: str
+    five_axis: str = ""
 
     @property
     def motion_records(self) -> int:
@@ -244,10 +253,55 @@ def input_format(path: str, requested: str = "auto") -> str:
 
 
 def source_stream(path: str, settings: ConvertSettings, fmt: str) -> ClStream | GcodeStream:
-    """The input's reader for its format, in chunks of lines (part frame, mm)."""
+    """The input's reader for its format, in chunks of lines (part frame, mm); G-code with a source
+    convention is read as a 5-axis program (:mod:`prs3_post.readers.fivex`)."""
     if fmt == "cl":
         return ClStream(path, tolerance=settings.tolerance, units=settings.units, ignore=frozenset(settings.ignore))
+    if settings.source is not None:
+        return FivexStream(path, settings.source, tolerance=settings.tolerance, tcp_on=settings.tcp_on,
+                           tcp_off=settings.tcp_off)
     return GcodeStream(path, tolerance=settings.tolerance, work_plane=settings.work_plane)
+
+
+def _five_axis_text(reader: FivexStream) -> str:
+    """What a 5-axis program was read as (the report and the program's first comment say it)."""
+    return (f"5-axis source {reader.source.name}, TCP {'/'.join(reader.tcp_on)} on, {'/'.join(reader.tcp_off)} "
+            "off; between two input points the intended path is the straight tip line with the tool axis on the "
+            "great circle (the source machine's rotary interpolation is not reproduced)")
+
+
+def _five_axis_skipped(reader: FivexStream) -> tuple[tuple[str, int], ...]:
+    """The 5-axis blocks that became no row, for the report's skipped counts."""
+    assert reader.fivex is not None  # set when the reader's iteration ends
+    c = reader.fivex.counts
+    out = [(f"{code} (machine coordinates, not converted)", n) for code, n in c.machine_blocks]
+    out += [(f"{code} (axis clamp)", n) for code, n in c.clamps]
+    out += [(f"{code} (no effect here)", n) for code, n in c.inert]
+    if c.prepositions:
+        out.append(("rotary positioning outside TCP (sets the next orientation)", c.prepositions))
+    if c.trailing_lines:
+        out.append((f"text after the closing % (from line {c.trailing_first})", c.trailing_lines))
+    return tuple(out)
+
+
+def _refuse_tilt(machine: Machine, chunk: Toolpath, run: _Run) -> None:
+    """A 5-axis program's orientations beyond the machine's tilt limit, named at the first line with its
+    value and the share of the file's rows beyond it (read again for that: only a failure pays)."""
+    tilt = np.degrees(np.arccos(np.clip(chunk.axis[:, 2], -1.0, 1.0)))     # clip: rounding past ±1
+    limit = math.degrees(machine.limits.max_tilt)
+    bad = np.flatnonzero(tilt > limit)
+    if not len(bad):
+        return
+    row = int(bad[0])
+    beyond = total = 0
+    for part in source_stream(run.path, run.settings, run.fmt):
+        part_tilt = np.degrees(np.arccos(np.clip(part.axis[:, 2], -1.0, 1.0)))
+        beyond += int((part_tilt > limit).sum())
+        total += len(part)
+    run.placeable = False
+    raise LimitError(f"{chunk.describe(row)}: the program's tool axis tilts {tilt[row]:.4f} deg from the part's z, "
+                     f"beyond this machine's maximum tilt {limit:.4f} deg; {beyond} of {total} rows "
+                     f"({100.0 * beyond / total:.1f}%) tilt beyond it, and a setup turns the part about z only")
 
 
 def _check_poses(machine: Machine, chunk: Toolpath, setup: Setup, *, limits: bool = True) -> None:
@@ -282,12 +336,18 @@ class _Run:
     rows: int = 0
     results: list[PostResult] = field(default_factory=list)
     keep: bool = False                                  # keep every chunk's PostResult (convert_file)
+    placeable: bool = True                              # False: no setup can help the error raised
 
     def chunks(self) -> Iterator[Toolpath]:
         """The reader's chunks, checked as read; then an empty chunk with the counts as a closing comment."""
         machine = self.settings.ik_machine
         last_axis: np.ndarray | None = None
         for chunk in self.reader:
+            if isinstance(self.reader, FivexStream):
+                _refuse_tilt(machine, chunk, self)
+                if not self.rows:
+                    chunk = dataclasses.replace(chunk, events=(
+                        Event(before=0, kind=EventKind.COMMENT, text=_five_axis_text(self.reader)), *chunk.events))
             if len(chunk):
                 axes = np.vstack([chunk.axis if last_axis is None else [last_axis], chunk.axis])
                 turning = np.ptp(axes, axis=0).max() > 0.0   # an axis change: subdivision needs reachable ends
@@ -307,14 +367,18 @@ class _Run:
         summary = self.reader.summary
         assert summary is not None  # set when the reader's iteration ends
         c = summary.counts
+        skipped, five_axis = c.skipped, ""
+        if isinstance(self.reader, FivexStream):
+            skipped, five_axis = skipped + _five_axis_skipped(self.reader), _five_axis_text(self.reader)
         return ConvertReport(
             input=self.path, format=self.fmt, units=summary.units, sha256=self.sha256, records=c.records,
             by_word=c.by_word, input_moves=c.moves, arcs=c.arcs, arc_rows=c.arc_segments, cycles=c.cycles,
-            cycle_holes=c.cycle_holes, cycle_rows=c.cycle_rows, comments=c.comments, skipped=c.skipped,
+            cycle_holes=c.cycle_holes, cycle_rows=c.cycle_rows, comments=c.comments, skipped=skipped,
             toolpath_rows=counts.input_rows, subdivisions=counts.inserted, dropped=counts.dropped,
             emitted_moves=counts.program_rows, deviation_before=counts.tip_before, deviation_after=counts.tip_after,
             angle_before_deg=math.degrees(counts.angle_before), angle_after_deg=math.degrees(counts.angle_after),
-            tool_length=self.settings.ik_machine.geometry.tool_length, setup=self.settings.setup.describe())
+            tool_length=self.settings.ik_machine.geometry.tool_length, setup=self.settings.setup.describe(),
+            five_axis=five_axis)
 
 
 def _start(path: str, settings: ConvertSettings) -> _Run:
@@ -360,7 +424,7 @@ def _placed(error: LimitError | ReachError, run: _Run) -> Exception:
     """``error`` with the setup used and a part origin that fits, if one does (the whole file is read
     again for that: only a failure pays for it)."""
     settings = run.settings
-    if str(error).startswith(f"{run.path}: line"):        # a tool axis no setup can turn (about z only)
+    if not run.placeable or str(error).startswith(f"{run.path}: line"):   # no setup turns a tool axis (z only)
         return error
     try:
         whole = source_stream(run.path, settings, run.fmt).whole()
