@@ -304,6 +304,11 @@ def _refuse_tilt(machine: Machine, chunk: Toolpath, run: _Run) -> None:
                      f"({100.0 * beyond / total:.1f}%) tilt beyond it, and a setup turns the part about z only")
 
 
+class AxisError(ReachError):
+    """A tool axis that points away from the spindle (or is zero) in the part frame: no setup, which
+    turns the part about z only, can fix it, so no part origin is suggested."""
+
+
 def _check_poses(machine: Machine, chunk: Toolpath, setup: Setup, *, limits: bool = True) -> None:
     """The tool axes of the points as read (by input line), and with ``limits`` their reach and limits,
     before any subdivision: a path outside the workspace is named at its first bad line at once
@@ -313,8 +318,8 @@ def _check_poses(machine: Machine, chunk: Toolpath, setup: Setup, *, limits: boo
     try:
         axis = unit_axes(path.tip, path.axis, row_name="line", row_numbers=path.source)
     except PoseError as error:
-        raise ReachError(f"{chunk.source_file}: {error}; a setup turns the part about z only, so no setup turns "
-                         "these tool axes toward the spindle") from error
+        raise AxisError(f"{chunk.source_file}: {error}; a setup turns the part about z only, so no setup turns "
+                        "these tool axes toward the spindle") from error
     if not limits:
         return
     ik = inverse(machine.geometry, path.tip, axis, model=model_for(machine))
@@ -334,8 +339,7 @@ class _Run:
     reader: ClStream | GcodeStream
     post: PostStream
     rows: int = 0
-    results: list[PostResult] = field(default_factory=list)
-    keep: bool = False                                  # keep every chunk's PostResult (convert_file)
+    results: list[PostResult] = field(default_factory=list)   # each chunk's, when kept (convert_file)
     placeable: bool = True                              # False: no setup can help the error raised
 
     def chunks(self) -> Iterator[Toolpath]:
@@ -424,7 +428,7 @@ def _placed(error: LimitError | ReachError, run: _Run) -> Exception:
     """``error`` with the setup used and a part origin that fits, if one does (the whole file is read
     again for that: only a failure pays for it)."""
     settings = run.settings
-    if not run.placeable or str(error).startswith(f"{run.path}: line"):   # no setup turns a tool axis (z only)
+    if not run.placeable or isinstance(error, AxisError):   # no setup turns a tool axis (about z only)
         return error
     try:
         whole = source_stream(run.path, settings, run.fmt).whole()
@@ -438,7 +442,6 @@ def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) 
     """The conversion of one file as chunks of program text (lazy: see
     :func:`prs3_post.pipeline.program_text`), and the run whose :meth:`_Run.report` follows."""
     run = _start(path, settings)
-    run.keep = keep
     stream = run.post
     if keep:                                            # keep each chunk's result (tests, verify --against)
         feed = stream.feed
