@@ -417,3 +417,17 @@ def test_convert_with_tcp_codes_given(tmp_path: Path) -> None:
     result = CliRunner().invoke(main, [*args, "--tcp-on", "M128", "--tcp-off", "m129"])
     assert result.exit_code == 0, result.output
     assert [p.name for p in out.iterdir()] == ["in.ngc"]
+
+
+@corpus
+def test_verify_against_the_haas_source(tmp_path: Path) -> None:
+    """The header records the source convention and TCP codes, so that verify --against reads the input as
+    the conversion did."""
+    args = ["convert", str(HAAS), "-o", str(tmp_path), "--jobs", "1", "--source", "haas-umc750",
+            "--part-origin=" + ",".join(f"{v:g}" for v in _HAAS_ORIGIN)]
+    assert CliRunner().invoke(main, args).exit_code == 0
+    out = tmp_path / (HAAS.stem + ".ngc")
+    assert out.read_text().splitlines()[4] == "(five axis: haas-umc750, tcp on G234, off G49)"
+    verified = CliRunner().invoke(main, ["verify", str(out), "--against", str(HAAS)])
+    assert verified.exit_code == 0, verified.output
+    assert verified.output.splitlines()[-1] == "OK: within every limit and tolerance"

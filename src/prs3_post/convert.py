@@ -258,6 +258,9 @@ def source_stream(path: str, settings: ConvertSettings, fmt: str) -> ClStream | 
     if fmt == "cl":
         return ClStream(path, tolerance=settings.tolerance, units=settings.units, ignore=frozenset(settings.ignore))
     if settings.source is not None:
+        if settings.work_plane is not None:
+            raise InputError("a work plane and a 5-axis source: under TCP the program's X Y Z are the part frame "
+                             "itself (its work offset), so there is no work plane to put them on", path=path)
         return FivexStream(path, settings.source, tolerance=settings.tolerance, tcp_on=settings.tcp_on,
                            tcp_off=settings.tcp_off)
     return GcodeStream(path, tolerance=settings.tolerance, work_plane=settings.work_plane)
@@ -421,6 +424,10 @@ def _header(run: _Run) -> tuple[tuple[str, str], ...]:
         tolerance=settings.tolerance, angle_tolerance_deg=settings.angle_tolerance_deg,
         line_numbers=settings.line_numbers, line_start=settings.line_start, line_step=settings.line_step,
     )
+    if isinstance(run.reader, FivexStream):
+        source = run.reader.source
+        header = dataclasses.replace(header, five_axis=file_given(source.source, "sources", source.name) or source.name,
+                                     tcp_on=run.reader.tcp_on, tcp_off=run.reader.tcp_off)
     return source_header_entries(header, description=settings.machine.description)
 
 

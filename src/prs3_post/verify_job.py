@@ -27,7 +27,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from prs3_post.config import Dialect, Machine, load_dialect, load_machine
+from prs3_post.config import Dialect, Machine, load_dialect, load_machine, load_source
 from prs3_post.errors import ConfigError, InputError, PoseError
 from prs3_post.face import Face
 from prs3_post.job import JobSpec, run_operations, specs_from_header
@@ -275,6 +275,8 @@ def intended_from_source(context: ProgramContext, source: str) -> Intended:
         angle_tolerance_deg=header.angle_tolerance_deg, input_format=header.source_format,
         units=None if header.source_units == "auto" else header.source_units,
         ignore=header.ignore, work_plane=header.work_plane, line_numbers=header.line_numbers,
+        source=load_source(header.five_axis) if header.five_axis else None, tcp_on=header.tcp_on or None,
+        tcp_off=header.tcp_off or None,
         line_start=header.line_start, line_step=header.line_step)
     path = convert_file(source, settings).path
     feed = np.where(path.kind == MoveKind.FEED, path.feed, np.nan)

@@ -167,6 +167,7 @@ class SourceHeader:
         (dialect: linuxcnc)
         (source: drill.clsf, format cl, units mm, sha256 0f3a...)
         (ignore: CUTCOM, THICK)                        only when words were ignored
+        (five axis: haas-umc750, tcp on G234, off G49) only for a 5-axis G-code program
         (work plane: origin [x, y, z] mm, x [..], z [..])   only for G-code on a work plane
         (setup: part origin at machine [...] mm, rotation θ deg about z)
         (tool length: 175.000 mm, the machine's)      or "as given"
@@ -187,6 +188,8 @@ class SourceHeader:
     tool_length : float — mm, the tool length the IK used
     tool_length_given : bool — given for the conversion (False: the machine's)
     angle_tolerance_deg : float — degrees
+    five_axis : str — a 5-axis G-code program's source convention (shipped name or file; "": not one)
+    tcp_on, tcp_off : tuple of str — the codes that switched its TCP on and off
     """
 
     version: str
@@ -210,6 +213,9 @@ class SourceHeader:
     line_step: int | None = None
     lines: tuple[tuple[str, int], ...] = ()
     path: str = ""
+    five_axis: str = ""
+    tcp_on: tuple[str, ...] = ()
+    tcp_off: tuple[str, ...] = ()
 
     def line(self, key: str) -> int | None:
         """The program line the ``key`` entry was read from (None when not read from a file)."""
@@ -425,6 +431,9 @@ def source_header_entries(header: SourceHeader, *, description: str = "") -> tup
     ]
     if header.ignore:
         entries.append(("ignore", ", ".join(header.ignore)))
+    if header.five_axis:
+        entries.append(("five axis", f"{header.five_axis}, tcp on {','.join(header.tcp_on)}, "
+                                     f"off {','.join(header.tcp_off)}"))
     if header.work_plane is not None:
         plane = header.work_plane
         entries.append(("work plane", f"origin {_numbers(plane.origin, 4)} mm, x {_numbers(plane.rotation[:, 0], 6)}, "
@@ -452,7 +461,7 @@ _VECTOR = rf"\[\s*{_NUMBER}(?:\s*,\s*{_NUMBER})*\s*\]"
 _ENTRY = re.compile(r"^\s*([a-z][a-z0-9 ]*?)\s*:\s?(.*?)\s*$", re.IGNORECASE)
 _KEYS = ("program", "machine", "machine file", "dialect", "dialect file", "part", "face", "setup", "operation",
          "parameters", "tool", "tools", "operations", "tolerance", "units", "source", "ignore", "work plane",
-         "tool length")
+         "tool length", "five axis")
 _REQUIRED = ("program", "machine", "dialect", "part", "face", "setup", "operation", "parameters", "tool", "tolerance",
              "units")
 #: The keys of a job of several operations (and ``operation K ...`` for each).
@@ -723,7 +732,9 @@ _SOURCE = r"(.*), format (cl|gcode), units (mm|inch|auto), sha256 ([0-9a-f]{64})
 _WORK_PLANE = rf"origin ({_VECTOR}) mm, x ({_VECTOR}), z ({_VECTOR})"
 _TOOL_LENGTH = rf"({_NUMBER}) mm, (as given|the machine's)"
 _SOURCE_TOLERANCE = rf"({_NUMBER}) mm, angle ({_NUMBER}) deg"
+_FIVE_AXIS = r"(.+), tcp on ([GM][0-9.]+(?:,[GM][0-9.]+)*), off ([GM][0-9.]+(?:,[GM][0-9.]+)*)"
 _FORMS |= {
+    _FIVE_AXIS: "'SOURCE, tcp on CODES, off CODES'",
     _SOURCE: "'NAME, format cl|gcode, units mm|inch|auto, sha256 HEX'",
     _WORK_PLANE: "'origin [x, y, z] mm, x [..], z [..]'",
     _TOOL_LENGTH: "'L mm, as given|the machine's'",
@@ -753,6 +764,11 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
             ignore = tuple(w.strip().upper() for w in found["ignore"][1].split(","))
             if not all(re.fullmatch(r"[A-Z][A-Z0-9 _-]*", w) for w in ignore):
                 raise _Bad(f"expected major words separated by commas, got {found['ignore'][1]!r}")
+        five_axis, tcp_on, tcp_off = "", (), ()
+        if "five axis" in found:
+            key = "five axis"
+            five = _match(_FIVE_AXIS, found["five axis"][1])
+            five_axis, tcp_on, tcp_off = five.group(1), tuple(five.group(2).split(",")), tuple(five.group(3).split(","))
         plane = None
         if "work plane" in found:
             key = "work plane"
@@ -789,7 +805,7 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
         source_units=source.group(3).lower(), ignore=ignore, work_plane=plane, setup=setup, tool_length=tool_length,
         tool_length_given=length.group(2).lower() == "as given", tolerance=tolerance, angle_tolerance_deg=angle,
         line_numbers=numbers, line_start=start, line_step=step, lines=tuple((k, v[0]) for k, v in found.items()),
-        path=path,
+        path=path, five_axis=five_axis, tcp_on=tcp_on, tcp_off=tcp_off,
     )
 
 
