@@ -415,11 +415,11 @@ def test_a_toolpath_past_the_tilt_limit_fails_at_its_first_bad_row_before_any_su
     """humman_ust_a tilts its tool up to 86° (the machine allows 45°) and spans 800 mm in y (the stage
     300 mm): post-processing names the first row outside a limit at once, where it used to bisect
     the moves through the singularity for minutes first; no part origin is offered (the tilt does
-    not depend on where the part is)."""
+    not depend on where the part is), and automatic placement says the tilt cannot be kept."""
     from prs3_post.config import load_machine
     from prs3_post.errors import LimitError
     from prs3_post.pipeline import post_process
-    from prs3_post.placement import suggest_origin
+    from prs3_post.placement import place, suggest_origin
     from prs3_post.setup import Setup
 
     name = "humman_ust_a_variable_contour.cls"
@@ -431,6 +431,14 @@ def test_a_toolpath_past_the_tilt_limit_fails_at_its_first_bad_row_before_any_su
     assert str(caught.value) == (f"{CORPUS / name}:11: stage Y -1396.5000 mm is below the minimum -300.0000 mm by "
                                  "1096.5000 mm (546 points outside limits in all)")
     assert suggest_origin(machine, path, setup, tolerance=TOL) is None
+    # automatic placement evaluates the rows as given (no subdivision: no setup can run them)
+    with pytest.raises(LimitError) as caught:
+        place(machine, path, tolerance=TOL)
+    where = f"{CORPUS / name}:261"
+    clauses = str(caught.value).split("; ")
+    assert clauses[0].startswith("no part origin and rotation about z puts every point inside the machine's limits: ")
+    assert (f"the tilt is outside too, by 41.3459 deg there ({where}: tilt 86.3459 deg is above the maximum "
+            "45.0000 deg by 41.3459 deg)") in clauses
 
 
 def test_subdividing_a_move_through_the_singularity_stops_at_the_row_cap_naming_the_move() -> None:

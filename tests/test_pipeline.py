@@ -206,15 +206,18 @@ def test_a_move_through_the_singularity_names_the_limit_its_end_breaks():
     """A feed from a vertical axis to one tilted 70°: past the singularity (49.8°), the joint-space
     line cannot be bisected onto the path: the bisection gives up when the move would need more than
     its cap of rows; post-processing checks the end poses first, and the error is the first limit
-    its end pose breaks (its tilt too), not the bisection."""
+    its end pose breaks (its tilt too), not the bisection; the placement's machine path does not
+    subdivide it at all."""
     tilted = np.array([np.sin(np.radians(70.0)), 0.0, np.cos(np.radians(70.0))])
     p = path([[20.0, 220.0, 290.0], [60.0, 220.0, 290.0]], [[0.0, 0.0, 1.0], tilted], [MoveKind.RAPID, MoveKind.FEED],
              [0, 100], labels=("approach", "turn"))
     with pytest.raises(LimitError) as caught:
-        machine_path(MACHINE, p, ORIGIN)
+        subdivide_axis_changes(MACHINE.geometry, machine_path(MACHINE, p, ORIGIN))
     assert str(caught.value) == ("turn: the joint-space move to this point would need more than 1000 inserted "
                                  "points: it still strays 59.85 mm / 17.97 deg from the intended one after 12 rounds "
                                  "of bisection (allowed: 0.002 mm, 0.01 deg); the tool axis may pass a singularity")
+    # the placement's machine path leaves a path that tilts past the limit as given (no setup runs it)
+    assert len(machine_path(MACHINE, p, ORIGIN)) == 2
     with pytest.raises(LimitError) as caught:
         post_process(MACHINE, p, ORIGIN)
     assert str(caught.value) == "turn: T2 stroke 412.4087 mm is above the maximum 400.0000 mm by 12.4087 mm"

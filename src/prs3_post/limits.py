@@ -54,6 +54,11 @@ class LimitReport:
         return f"{name} {value:.4f}{suffix} is below the minimum {low:.4f}{suffix} by {-margin:.4f}{suffix}"
 
 
+def tilt_of(axis: FloatArray) -> FloatArray:
+    """(N,) float — rad, the angle of each unit tool axis (N, 3) from the machine's vertical."""
+    return np.arccos(np.clip(np.asarray(axis, dtype=np.float64).reshape(-1, 3)[:, 2], -1.0, 1.0))  # clip: rounding
+
+
 def check_limits(machine: Machine, ik: IKResult, axis: FloatArray) -> LimitReport:
     """Evaluate every limit of ``machine`` on IK results.
 
@@ -73,8 +78,7 @@ def check_limits(machine: Machine, ik: IKResult, axis: FloatArray) -> LimitRepor
         columns.append((f"T{leg + 1} stroke", "mm", *lim.stroke, ik.strokes[:, leg]))
     for leg in range(3):
         columns.append((f"θ{leg + 1} link angle", "deg", *lim.link_angle, ik.link_angle[:, leg]))
-    tilt = np.arccos(np.clip(np.asarray(axis, dtype=np.float64).reshape(-1, 3)[:, 2], -1.0, 1.0))  # clip: rounding
-    columns.append(("tilt", "deg", -math.inf, lim.max_tilt, tilt))
+    columns.append(("tilt", "deg", -math.inf, lim.max_tilt, tilt_of(axis)))
     columns.append(("condition number", "", -math.inf, lim.max_condition, ik.condition))
     if machine.stage.present:
         columns.append(("stage X", "mm", *machine.stage.travel_x, ik.stage[:, 0]))

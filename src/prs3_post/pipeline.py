@@ -25,7 +25,7 @@ from prs3_post.dialect import Dialect
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.errors import LimitError, PoseError, ReachError
 from prs3_post.kinematics import IKModel, IKResult, inverse, unit_axes
-from prs3_post.limits import LimitReport, check_limits, raise_first_violation
+from prs3_post.limits import LimitReport, check_limits, raise_first_violation, tilt_of
 from prs3_post.linearize import linearize, subdivide_axis_changes
 from prs3_post.machine import Machine
 from prs3_post.resolution import VisibleMoves
@@ -104,6 +104,10 @@ def machine_path(machine: Machine, path_part: Toolpath, setup: Setup, *, toleran
                  angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE) -> Toolpath:
     """The part-frame toolpath placed on the machine, with unit axes, its axis-changing moves subdivided.
 
+    Not subdivided when a row tilts past the machine's limit: no setup runs such a path (the tilt
+    does not depend on where the part is), and near the singularity beyond that limit bisection
+    does not converge; the rows as given are what the limit check then reports.
+
     Raises
     ------
     ReachError
@@ -112,6 +116,8 @@ def machine_path(machine: Machine, path_part: Toolpath, setup: Setup, *, toleran
         A move the subdivision gives up on (:func:`~prs3_post.linearize.linearize`).
     """
     path = _unit_path(place_toolpath(path_part, setup), 0)
+    if (tilt_of(path.axis) > machine.limits.max_tilt).any():
+        return path
     return subdivide_axis_changes(machine.geometry, path, tolerance=tolerance, angle_tolerance=angle_tolerance)
 
 
