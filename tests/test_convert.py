@@ -10,6 +10,10 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -427,3 +431,31 @@ def test_the_corpus_folder_with_automatic_placement(tmp_path: Path) -> None:
         verified = CliRunner().invoke(main, ["verify", str(out / (Path(name).stem + ".ngc")),
                                              "--against", str(CORPUS / name)])
         assert verified.output.splitlines()[-1] == "OK: within every limit and tolerance", verified.output
+
+
+def test_ctrl_c_leaves_no_program_and_no_temp_file(tmp_path: Path) -> None:
+    """SIGINT to the batch's process group (what a terminal's Ctrl-C does) once both workers are writing:
+    no temp file is left, and no program is cut short."""
+    rows = 300_000
+    t = np.arange(rows)
+    lines = np.char.add(np.char.add("GOTO/", np.char.mod("%.4f", 40 * np.sin(t * 1e-3))),
+                        np.char.mod(",%.4f,-1\n", 40 * np.cos(t * 1e-3)))
+    text = "UNITS/MM\nFEDRAT/MMPM,500\nRAPID\nGOTO/0,40,10\n" + "".join(lines.tolist())
+    for name in ("a.cls", "b.cls"):
+        (tmp_path / name).write_text(text)
+    out = tmp_path / "out"
+    env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
+    process = subprocess.Popen(
+        [sys.executable, "-c", "from prs3_post.cli import main; main()", "convert", "a.cls", "b.cls", "-o", "out",
+         "--part-origin=0,0,-850", "--jobs", "2"],
+        cwd=tmp_path, env=env, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and len(list(out.glob(".*.tmp")) if out.exists() else []) < 2:
+        time.sleep(0.02)
+    assert process.poll() is None, "the batch ended before it could be interrupted"
+    os.killpg(process.pid, signal.SIGINT)
+    assert process.wait(timeout=30) != 0
+    left = sorted(os.listdir(out))
+    assert not [name for name in left if name.endswith(".tmp")]
+    # a file that finished in the moment before the signal is whole; none is cut short
+    assert all((out / name).read_text().endswith("\nG94\nM2\n") for name in left)
