@@ -73,6 +73,25 @@ def test_output_onto_an_input_is_refused_before_any_work(folder: Path, args: lis
     assert (folder / "link.stl").is_symlink()
 
 
+@pytest.mark.parametrize(("target", "input_name"), [
+    ("jobs/tools.tbl", "tool_table of jobs/example.toml"),
+    ("parts/../parts/twofaces.stl", "part of jobs/example.toml"),
+])
+def test_a_job_output_onto_a_file_the_job_names_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                           target: str, input_name: str) -> None:
+    """The job file names its part and tool table: -o onto either would destroy an input too."""
+    monkeypatch.chdir(tmp_path)
+    for folder_name in ("jobs", "parts"):
+        (tmp_path / folder_name).mkdir()
+    for name in ("jobs/example.toml", "jobs/tools.tbl", "parts/twofaces.stl"):
+        (tmp_path / name).write_bytes((REPO / "fixtures" / name).read_bytes())
+    before = {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
+    result = invoke("job", "jobs/example.toml", "-o", target)
+    assert (result.exit_code, result.stderr, result.stdout) == (
+        2, _error(target, f"is also the input {input_name}: writing --output would destroy it (choose another file)"), "")
+    assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before
+
+
 # ----------------------------------------------------------------------------- what the target is
 
 def test_a_fifo_is_written_into_not_replaced(tmp_path: Path) -> None:

@@ -836,7 +836,12 @@ def job(job_path: str, out_path: str | None) -> None:
     """
 
     def body() -> int:
-        specs = _job_specs(read_job_file(job_path))
+        job_file = read_job_file(job_path)
+        named = {"part": job_file.part} | {key: job_file.settings.get(key)
+                                            for key in ("tool_table", "machine", "dialect")}
+        refuse_overwriting({"--output": out_path}, {f"{key} of {job_path}": path for key, path in named.items()
+                                                    if isinstance(path, str)})
+        specs = _job_specs(job_file)
         result = run_operations(specs)
         write_outputs([(out_path, result.text)])
         _report_placement(result)
