@@ -87,8 +87,8 @@ def test_a_job_output_onto_a_file_the_job_names_is_refused(tmp_path: Path, monke
         (tmp_path / name).write_bytes((REPO / "fixtures" / name).read_bytes())
     before = {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
     result = invoke("job", "jobs/example.toml", "-o", target)
-    assert (result.exit_code, result.stderr, result.stdout) == (
-        2, _error(target, f"is also the input {input_name}: writing --output would destroy it (choose another file)"), "")
+    message = f"is also the input {input_name}: writing --output would destroy it (choose another file)"
+    assert (result.exit_code, result.stderr, result.stdout) == (2, _error(target, message), "")
     assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before
 
 
