@@ -99,6 +99,11 @@ def resolve(kind: str, name_or_path: str) -> Path:
 # ----------------------------------------------------------------------------- strict reading
 
 
+#: The largest magnitude a number in a machine, dialect or source file may have (mm, degrees, mm/min,
+#: rpm ...): physically meaningful with room to spare, as for the command line's options.
+MAX_MAGNITUDE = 1e6
+
+
 class _Table:
     """A TOML table read strictly: every key must be taken once, and unknown keys are errors."""
 
@@ -147,6 +152,9 @@ class _Table:
         value = self._get(key, default)
         if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
             raise self._error(key, f"expected a number{' in ' + unit if unit else ''}, got {value!r}")
+        if abs(value) > MAX_MAGNITUDE:
+            raise self._error(key, f"{value:.6g}{' ' + unit if unit else ''} is out of range "
+                                   f"(allowed: within ±{MAX_MAGNITUDE:.6g}{' ' + unit if unit else ''})")
         if positive and value <= 0:
             raise self._error(key, f"must be > 0{' ' + unit if unit else ''}, got {value}")
         return float(value)
@@ -158,6 +166,9 @@ class _Table:
         )
         if not ok:
             raise self._error(key, f"expected {what}, got {value!r}")
+        for v in value:
+            if abs(v) > MAX_MAGNITUDE:
+                raise self._error(key, f"{v:.6g} is out of range (allowed: within ±{MAX_MAGNITUDE:.6g})")
         return tuple(float(v) for v in value)
 
     def range(self, key: str, unit: str) -> tuple[float, float]:
