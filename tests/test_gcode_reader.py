@@ -352,6 +352,10 @@ BAD = [
     ("G0 X0 Y0 Z0\nG0 X1 R2\n", 2, "word 'R2' is not used by any code on this line (R goes with G2/G3 or a canned "
      "cycle)"),
     ("G0 X0 Y0 Z0\nG83 X1 Y1 Z-5 R1 F100\n", 2, "G83 needs Q > 0, the depth of each peck"),
+    ("G0 X0 Y0 Z5\nG83 X0 Y0 Z-5 R2 Q0.000000001 F100\n", 2, "G83 Q1e-09 would drill 7 from R to Z in "
+     "7,000,000,000 pecks, more than 10,000: use a larger Q"),
+    ("G0 X0 Y0 Z5\nG2 X0 Y0 I10 P100000000 F100\n", 2, "G2 (radius 10, 100000000 turns) needs 15,707,701,462 "
+     "segments within 0.002 mm, more than 100,000"),
     ("G0 X0 Y0 Z0\nG81 X1 Y1 Z5 R1 F100\n", 2, "G81 bottom Z 5 is not below the retract plane R 1: the hole goes down "
      "the tool axis, from R to Z"),
     ("G0 X0 Y0 Z0\nG17 G2 X1 Y1 I1 K1 F100\n", 2, "K1 in G17: the arc centre's offsets in G17 are I and J"),

@@ -79,6 +79,11 @@ def arc_sweep(centre: FloatArray, normal: FloatArray, start: FloatArray, end: Fl
     return angle if angle > 0.0 else angle + 2.0 * math.pi
 
 
+#: The most segments one arc may become (a radius of about 4 km at 0.002 mm, or thousands of turns: a typo,
+#: not a part); the readers refuse an arc that needs more, naming its line.
+MAX_ARC_SEGMENTS = 100_000
+
+
 def arc_segment_count(radius: float, sweep: float, *, tolerance: float) -> int:
     """Fewest equal segments of an arc of ``radius`` (mm) and ``sweep`` (rad) with sagitta ≤ ``tolerance`` (mm).
 

@@ -29,7 +29,11 @@ import numpy as np
 from prs3_post.toolpath import MoveKind
 from prs3_post.types import FloatArray, IntArray
 
-__all__ = ["DrillCycle", "Pecking", "drill_pattern", "drill_rows"]
+__all__ = ["MAX_PECKS", "DrillCycle", "Pecking", "drill_pattern", "drill_rows", "peck_count"]
+
+#: The most pecks one hole may take (as the operations' most depth passes): more is a typo in the peck
+#: depth, and would expand into millions of rows; the readers refuse it, naming the line.
+MAX_PECKS = 10_000
 
 
 class Pecking(enum.Enum):
@@ -85,10 +89,21 @@ class DrillCycle:
             raise ValueError(f"DrillCycle.peck must be > 0 mm when pecking, got {self.peck!r}")
 
 
+def peck_count(depth: float, peck: float) -> int:
+    """How many pecks of ``peck`` mm (> 0) drill ``depth`` mm (≥ 0): at least 1.
+
+    >>> peck_count(5.0, 2.0), peck_count(4.0, 2.0), peck_count(1.0, 2.0)
+    (3, 2, 1)
+    """
+    if peck >= depth:
+        return 1
+    return math.ceil(depth / peck - 1e-9)                 # a last peck of 1e-9 x peck is rounding
+
+
 def _peck_depths(cycle: DrillCycle) -> list[float]:
-    if cycle.pecking is Pecking.NONE or cycle.peck >= cycle.depth:
+    if cycle.pecking is Pecking.NONE:
         return [cycle.depth]
-    count = math.ceil(cycle.depth / cycle.peck - 1e-9)   # a last peck of 1e-9 x peck is rounding
+    count = peck_count(cycle.depth, cycle.peck)
     return [min(cycle.peck * i, cycle.depth) for i in range(1, count + 1)]
 
 

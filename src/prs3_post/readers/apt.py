@@ -80,8 +80,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from prs3_post.arcs import arc_points_3d, arc_segment_count, arc_sweep
-from prs3_post.cycles import DrillCycle, Pecking, drill_rows
+from prs3_post.arcs import MAX_ARC_SEGMENTS, arc_points_3d, arc_segment_count, arc_sweep
+from prs3_post.cycles import MAX_PECKS, DrillCycle, Pecking, drill_rows, peck_count
 from prs3_post.errors import InputError
 from prs3_post.readers.files import iter_pieces, line_chunks
 from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
@@ -109,8 +109,6 @@ FRAME_TOLERANCE = 1e-5
 #: A tool vector must have length 1 within this (it is then normalized).
 AXIS_LENGTH_TOLERANCE = 1e-3
 MM_PER_INCH = 25.4
-#: The most segments one arc may become (a radius of about 4 km at 0.002 mm: a typo, not a part).
-MAX_ARC_SEGMENTS = 100_000
 
 _KNOWN_WORDS = ("GOTO", "FROM", "GOHOME", "RAPID", "FEDRAT", "MULTAX", "TLAXIS", "MSYS", "UNITS", "LOADTL",
                 "LOAD", "SELECT", "TLDATA", "SPINDL", "COOLNT", "CYCLE", "CIRCLE", "PPRINT", "END-OF-PATH",
@@ -1017,6 +1015,9 @@ class _Reader:
         peck = params.get("STEP", 0.0) * self.scale
         if pecking is not Pecking.NONE and "STEP" in params and not peck > 0:
             raise self.error(f"CYCLE/ STEP must be > 0, got {params['STEP']:g}")
+        if peck > 0 and (count := peck_count(abs(params["FEDTO"]) * self.scale, peck)) > MAX_PECKS:
+            raise self.error(f"CYCLE/ STEP {params['STEP']:g} would drill FEDTO {abs(params['FEDTO']):g} in "
+                             f"{count:,} pecks, more than {MAX_PECKS:,}: use a larger STEP")
         if params.get("DWELL", 0.0) < 0:
             raise self.error(f"CYCLE/ DWELL must be ≥ 0 s, got {params['DWELL']:g}")
         return DrillCycle(

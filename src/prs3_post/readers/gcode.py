@@ -75,8 +75,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from prs3_post.arcs import arc_points_3d, arc_sweep
-from prs3_post.cycles import DrillCycle, Pecking, drill_rows
+from prs3_post.arcs import MAX_ARC_SEGMENTS, arc_points_3d, arc_segment_count, arc_sweep
+from prs3_post.cycles import MAX_PECKS, DrillCycle, Pecking, drill_rows, peck_count
 from prs3_post.errors import InputError, LexError
 from prs3_post.readers.apt import join_toolpaths
 from prs3_post.readers.files import iter_pieces, line_chunks
@@ -1032,8 +1032,12 @@ class _Reader:
         axis = np.zeros(3)
         axis[normal_axis] = 1.0 if self.motion == 3.0 else -1.0      # G3: counter-clockwise about the normal
         try:
-            points = arc_points_3d(centre, axis, start, end, tolerance=self.tolerance, turns=int(turns) - 1)[1:]
             sweep = arc_sweep(centre, axis, start, end) + 2.0 * math.pi * (int(turns) - 1)
+            count = arc_segment_count(radius, sweep, tolerance=self.tolerance)
+            if count > MAX_ARC_SEGMENTS:
+                raise self.error(f"{code} (radius {radius / self.scale:g}, {int(turns)} turns) needs {count:,} "
+                                 f"segments within {self.tolerance:g} mm, more than {MAX_ARC_SEGMENTS:,}")
+            points = arc_points_3d(centre, axis, start, end, tolerance=self.tolerance, turns=int(turns) - 1)[1:]
         except ValueError as exc:                        # the start or end on the arc's axis
             raise self.error(f"{code} start or end is at the arc's centre: the arc has no direction there") from exc
         length = math.hypot(sweep * radius, float(end[normal_axis] - start[normal_axis]))
@@ -1111,6 +1115,9 @@ class _Reader:
         if before[0] == current:                         # a move that goes nowhere
             del before[0]
         clear = r if self.retract_to_r else max(cycle.initial_z, r)
+        if pecking is not Pecking.NONE and (count := peck_count(r - z, (cycle.q or 0.0) * self.scale)) > MAX_PECKS:
+            raise self.error(f"{code} Q{cycle.q:g} would drill {(r - z) / self.scale:g} from R to Z in "
+                             f"{count:,} pecks, more than {MAX_PECKS:,}: use a larger Q")
         drill = DrillCycle(depth=r - z, clearance=0.0, retract=clear - r, feed=feed, pecking=pecking,
                            peck=(cycle.q or 0.0) * self.scale, gap=PECK_GAP_MM,
                            dwell=(cycle.p or 0.0) if cycle.code == 82 else 0.0)
