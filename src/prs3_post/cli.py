@@ -1318,3 +1318,7 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
         return 1 if result.failures or result.not_started else 0
 
     run_reported(body)
+
+
+if __name__ == "__main__":
+    main()
