@@ -18,14 +18,14 @@ reader alone must be well inside them.
 from __future__ import annotations
 
 import argparse
-import itertools
 import os
 import random
-import statistics
 import tempfile
 import time
 import tracemalloc
 from collections.abc import Callable
+
+from _measure import load, pygcode_rate, spread
 
 from prs3_post.readers.gcode import GcodeStream, read_gcode
 
@@ -51,13 +51,6 @@ def write_program(path: str, lines: int, seed: int = 0) -> int:
     return moves + 3
 
 
-def pygcode_loop(path: str, lines: int) -> None:
-    import pygcode  # the reference only: not a dependency of the reader
-    with open(path) as stream:
-        for line in itertools.islice(stream, lines):
-            pygcode.Line(line)
-
-
 def streamed(path: str) -> None:
     for _ in GcodeStream(path, tolerance=0.002):
         pass
@@ -79,10 +72,6 @@ def _peak(call: Callable[[], object]) -> int:
     return peak
 
 
-def _spread(values: list[float], fmt: str) -> str:
-    return f"{format(statistics.median(values), fmt)} (range {format(min(values), fmt)}..{format(max(values), fmt)})"
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--lines", type=int, default=1_000_000)
@@ -93,26 +82,24 @@ def main() -> None:
         path = os.path.join(tmp, "bench.ngc")
         moves = write_program(path, args.lines)
         size = os.path.getsize(path)
-        print(f"{args.lines:,} lines, {moves:,} moves, {size / 1e6:.1f} MB; load average {os.getloadavg()[0]:.2f}, "
-              f"{os.cpu_count()} cores")
+        print(f"{args.lines:,} lines, {moves:,} moves, {size / 1e6:.1f} MB; {load()}")
         reference_lines = min(args.pygcode_lines, args.lines)
         calls = (("read_gcode (whole)", lambda: read_gcode(path, tolerance=0.002)),
                  ("GcodeStream (chunks dropped)", lambda: streamed(path)))
         reference: list[tuple[float, float]] = []                       # lines/s wall, per CPU s
         rates: dict[str, list[tuple[float, float]]] = {name: [] for name, _ in calls}
         for _ in range(args.repeat):                                    # alternately: the same load for each
-            wall, cpu = _cpu(lambda: pygcode_loop(path, reference_lines))
-            reference.append((reference_lines / wall, reference_lines / cpu))
+            reference.append(pygcode_rate(path, reference_lines))
             for name, call in calls:
                 wall, cpu = _cpu(call)
                 rates[name].append((moves / wall, moves / cpu))
-        print(f"{'pygcode.Line (parse only)':28s} lines/s wall {_spread([r[0] for r in reference], ',.0f')}, "
-              f"per CPU s {_spread([r[1] for r in reference], ',.0f')} (first {reference_lines:,} lines)")
+        print(f"{'pygcode.Line (parse only)':28s} lines/s wall {spread([r[0] for r in reference], ',.0f')}, "
+              f"per CPU s {spread([r[1] for r in reference], ',.0f')} (first {reference_lines:,} lines)")
         for name, call in calls:
             walls, cpus = [r[0] for r in rates[name]], [r[1] for r in rates[name]]
             ratio = [args.lines / moves * c / ref[1] for c, ref in zip(cpus, reference, strict=True)]
-            print(f"{name:28s} moves/s wall {_spread(walls, ',.0f')}, per CPU s {_spread(cpus, ',.0f')}; "
-                  f"lines per CPU s / pygcode's: {_spread(ratio, '.1f')}x; peak {_peak(call) / 1e6:.1f} MB")
+            print(f"{name:28s} moves/s wall {spread(walls, ',.0f')}, per CPU s {spread(cpus, ',.0f')}; "
+                  f"lines per CPU s / pygcode's: {spread(ratio, '.1f')}x; peak {_peak(call) / 1e6:.1f} MB")
 
 
 if __name__ == "__main__":

@@ -12,8 +12,8 @@ machine's load average before and after (the numbers mean little on a loaded mac
 * ``prs3-post ik --batch`` on ``--poses`` random workspace poses (tilt ≤ 45°, written with full
   precision, 120 MB for a million): rows/s. Target ≥ 500,000 rows/s within 300 MB at any size.
 
-Peak memory is the child's own peak resident set (``ru_maxrss``); its CPU time (user + system, from
-its own ``getrusage``) gives the rates per CPU second, the fairer ones on a loaded machine.
+Peak memory is the child's own peak resident set (VmHWM), its CPU time user + system from its own
+``getrusage`` (``_measure.run_cli``): the rates per CPU second are the fairer ones on a loaded machine.
 
 Because a loaded machine slows everything, the formatting is also measured against its old way in
 the same process, alternately (``--rows`` rows): the emitter's motion lines against one
@@ -24,42 +24,15 @@ CSV's lines against ``repr`` per number (the old CSV's 85 %). Those ratios hold 
 from __future__ import annotations
 
 import argparse
-import os
-import statistics
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
-
-REPO = Path(__file__).resolve().parents[1]
-
-#: Runs the CLI in a child process and reports its own peak resident memory on standard error.
-_CHILD = """import resource, sys
-from prs3_post.cli import main
-try:
-    main(sys.argv[1:])
-finally:
-    usage = resource.getrusage(resource.RUSAGE_SELF)
-    sys.stderr.write(f"\\nMAXRSS_KB {usage.ru_maxrss} CPU_S {usage.ru_utime + usage.ru_stime}\\n")
-"""
+from _measure import count_lines, load, run_cli, spread
 
 MAIN_JOB = ["demo", "--profile", "round", "--diameter", "36", "--depth", "10", "--step-down", "0.01",
             "--tolerance", "0.0001"]
-
-
-def run_cli(args: list[str]) -> tuple[float, float, float, int, str]:
-    """Wall time (s), CPU time (s), peak RSS (MB), exit status and the last line of standard error of one run."""
-    env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
-    start = time.perf_counter()
-    done = subprocess.run([sys.executable, "-c", _CHILD, *args], capture_output=True, env=env, text=True,
-                          check=False)
-    wall = time.perf_counter() - start
-    words = next(ln.split() for ln in done.stderr.splitlines() if ln.startswith("MAXRSS_KB "))
-    said = [ln for ln in done.stderr.splitlines() if ln.strip() and not ln.startswith("MAXRSS_KB ")]
-    return wall, float(words[3]), float(words[1]) / 1024, done.returncode, (said or [""])[-1][:100]
 
 
 def write_poses(path: Path, n: int, seed: int = 0) -> None:
@@ -75,30 +48,22 @@ def write_poses(path: Path, n: int, seed: int = 0) -> None:
             np.savetxt(stream, np.hstack([tip, axis]), fmt="%.17g", delimiter=",")
 
 
-def _spread(values: list[float], fmt: str) -> str:
-    return f"{format(statistics.median(values), fmt)} (range {format(min(values), fmt)}..{format(max(values), fmt)})"
-
-
-def _load() -> str:
-    one, five, _ = os.getloadavg()
-    return f"load average {one:.2f} (5 min {five:.2f}), {os.cpu_count()} cores"
-
-
 def bench(name: str, args: list[str], out: Path, count_rows, repeat: int, target_rate: float, unit: str) -> None:
     """Run ``args`` ``repeat`` times; rows per second from ``count_rows(out)``; print each run and the spread."""
     rates, cpu_rates, peaks = [], [], []
     for _ in range(repeat):
         out.unlink(missing_ok=True)
-        wall, cpu, rss, code, said = run_cli([*args, "-o", str(out)])
+        run = run_cli([*args, "-o", str(out)])
+        wall, cpu, rss = run.wall, run.cpu, run.peak_mb
         rows = count_rows(out) if out.exists() else 0
         rates.append(rows / wall)
         cpu_rates.append(rows / cpu)
         peaks.append(rss)
         print(f"  {name}: {wall:.2f} s wall, {cpu:.2f} s CPU, {rows:,} {unit}, {rows / wall:,.0f} {unit}/s, "
-              f"{rows / cpu:,.0f} per CPU s, peak RSS {rss:.0f} MB, exit {code}: {said}")
-    print(f"{name} {unit}/s (wall): {_spread(rates, ',.0f')}; per CPU second: {_spread(cpu_rates, ',.0f')}  "
+              f"{rows / cpu:,.0f} per CPU s, peak RSS {rss:.0f} MB, exit {run.code}: {run.last}")
+    print(f"{name} {unit}/s (wall): {spread(rates, ',.0f')}; per CPU second: {spread(cpu_rates, ',.0f')}  "
           f"(target ≥ {target_rate:,.0f})")
-    print(f"{name} peak RSS MB: {_spread(peaks, '.0f')}  (target < 300)")
+    print(f"{name} peak RSS MB: {spread(peaks, '.0f')}  (target < 300)")
 
 
 def formatting_ratios(rows: int, repeat: int) -> None:
@@ -142,12 +107,7 @@ def formatting_ratios(rows: int, repeat: int) -> None:
             end = time.process_time()
             rates.append(rows / (middle - start))
             ratios.append((end - middle) / (middle - start))
-        print(f"{name}: {_spread(rates, ',.0f')} rows per CPU second, {_spread(ratios, '.1f')}× the old way")
-
-
-def _lines(path: Path) -> int:
-    with open(path, "rb") as stream:
-        return sum(block.count(b"\n") for block in iter(lambda: stream.read(1 << 20), b""))
+        print(f"{name}: {spread(rates, ',.0f')} rows per CPU second, {spread(ratios, '.1f')}× the old way")
 
 
 def main() -> None:
@@ -158,22 +118,22 @@ def main() -> None:
     parser.add_argument("--rows", type=int, default=200_000, help="rows of the formatting comparison")
     parser.add_argument("--keep", type=Path, help="write the inputs and outputs here and keep them")
     args = parser.parse_args()
-    print(f"before: {_load()}")
+    print(f"before: {load()}")
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.keep or Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
         if args.only in (None, "main"):
             print(f"main job: prs3-post {' '.join(MAIN_JOB)}")
-            bench("main job", MAIN_JOB, folder / "main.ngc", _lines, args.repeat, 250_000, "lines")
+            bench("main job", MAIN_JOB, folder / "main.ngc", count_lines, args.repeat, 250_000, "lines")
         if args.only in (None, "ik"):
             poses = folder / "poses.csv"
             write_poses(poses, args.poses)
             print(f"ik --batch: {args.poses:,} poses, {poses.stat().st_size / 1e6:.0f} MB")
-            bench("ik --batch", ["ik", "--batch", str(poses)], folder / "ik.csv", lambda p: _lines(p) - 1,
+            bench("ik --batch", ["ik", "--batch", str(poses)], folder / "ik.csv", lambda p: count_lines(p) - 1,
                   args.repeat, 500_000, "rows")
     if args.only in (None, "formatting"):
         formatting_ratios(args.rows, args.repeat)
-    print(f"after: {_load()}")
+    print(f"after: {load()}")
 
 
 if __name__ == "__main__":

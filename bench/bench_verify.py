@@ -20,20 +20,16 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
+from _measure import REPO, pygcode_rate, run_cli, spread
 
 from prs3_post.config import load_machine
 from prs3_post.fixed import fixed_column
 from prs3_post.kinematics import forward
 
-REPO = Path(__file__).resolve().parents[1]
 GOLDEN = REPO / "fixtures" / "golden" / "wedge-round.ngc"
 
 
@@ -79,48 +75,6 @@ def make_program(path: Path, lines: int) -> int:
     return len(head) + len(body) + len(tail) - (1 if text.endswith("\n") else 0)
 
 
-#: Runs the CLI in a child process and reports its own CPU time and peak resident memory on standard
-#: error (VmHWM: the peak of this process image; rusage's ru_maxrss would count the parent's pages at fork).
-_CHILD = """import resource, sys
-from prs3_post.cli import main
-try:
-    main(sys.argv[1:])
-finally:
-    usage = resource.getrusage(resource.RUSAGE_SELF)
-    peak = next(ln.split()[1] for ln in open("/proc/self/status") if ln.startswith("VmHWM:"))
-    sys.stderr.write(f"\\nPEAK_KB {peak} CPU_S {usage.ru_utime + usage.ru_stime}\\n")
-"""
-
-
-def run_verify(path: Path) -> tuple[float, float, float, int, str]:
-    """Wall time (s), CPU time (s), peak RSS (MB), exit status and the last output line of one `verify` process."""
-    env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
-    start = time.perf_counter()
-    done = subprocess.run([sys.executable, "-c", _CHILD, "verify", str(path)], capture_output=True, env=env,
-                          text=True, check=False)
-    wall = time.perf_counter() - start
-    words = next(ln.split() for ln in done.stderr.splitlines() if ln.startswith("PEAK_KB "))
-    last = (done.stdout.strip().splitlines() or [ln for ln in done.stderr.splitlines() if ln.strip()] or [""])[-1]
-    return wall, float(words[3]), float(words[1]) / 1024, done.returncode, last
-
-
-def pygcode_rate(path: Path, lines: int) -> tuple[float, float]:
-    """Lines per second of wall time and of CPU time of a loop that only parses the file's first
-    ``lines`` lines with pygcode.Line."""
-    import pygcode
-
-    with open(path, encoding="utf-8") as stream:
-        text = [next(stream) for _ in range(lines)]
-    wall, cpu = time.perf_counter(), time.process_time()
-    for line in text:
-        pygcode.Line(line)
-    return len(text) / (time.perf_counter() - wall), len(text) / (time.process_time() - cpu)
-
-
-def _spread(values: list[float], fmt: str) -> str:
-    return f"{format(statistics.median(values), fmt)} (range {format(min(values), fmt)}..{format(max(values), fmt)})"
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--lines", type=int, default=1_000_000)
@@ -138,23 +92,24 @@ def main() -> None:
               f"{os.cpu_count()} cores")
         walls, cpus, peaks, refs, ref_cpus = [], [], [], [], []
         for _ in range(args.repeat):
-            wall, cpu, rss, code, last = run_verify(program)
-            walls.append(wall)
-            cpus.append(cpu)
-            peaks.append(rss)
+            run = run_cli(["verify", str(program)])
+            walls.append(run.wall)
+            cpus.append(run.cpu)
+            peaks.append(run.peak_mb)
             ref, ref_cpu = pygcode_rate(program, min(args.pygcode_lines, count))
             refs.append(ref)
             ref_cpus.append(ref_cpu)
-            print(f"  verify: {wall:.2f} s wall, {cpu:.2f} s CPU, peak RSS {rss:.0f} MB, exit {code}: {last} "
+            print(f"  verify: {run.wall:.2f} s wall, {run.cpu:.2f} s CPU, peak RSS {run.peak_mb:.0f} MB, "
+                  f"exit {run.code}: {run.last} "
                   f"(load average {os.getloadavg()[0]:.2f})")
         rates = [count / w for w in walls]
         cpu_rates = [count / c for c in cpus]
-        print(f"verify lines/s (wall): {_spread(rates, ',.0f')}  (target ≥ 200,000)")
-        print(f"verify lines per CPU second: {_spread(cpu_rates, ',.0f')}")
-        print(f"verify peak RSS MB: {_spread(peaks, '.0f')}  (target < 300)")
-        print(f"pygcode.Line loop lines/s (wall): {_spread(refs, ',.0f')}; per CPU second: {_spread(ref_cpus, ',.0f')}")
-        print(f"verify / pygcode (wall): {_spread([r / p for r, p in zip(rates, refs, strict=True)], '.1f')}×; "
-              f"(CPU): {_spread([r / p for r, p in zip(cpu_rates, ref_cpus, strict=True)], '.1f')}×  "
+        print(f"verify lines/s (wall): {spread(rates, ',.0f')}  (target ≥ 200,000)")
+        print(f"verify lines per CPU second: {spread(cpu_rates, ',.0f')}")
+        print(f"verify peak RSS MB: {spread(peaks, '.0f')}  (target < 300)")
+        print(f"pygcode.Line loop lines/s (wall): {spread(refs, ',.0f')}; per CPU second: {spread(ref_cpus, ',.0f')}")
+        print(f"verify / pygcode (wall): {spread([r / p for r, p in zip(rates, refs, strict=True)], '.1f')}×; "
+              f"(CPU): {spread([r / p for r, p in zip(cpu_rates, ref_cpus, strict=True)], '.1f')}×  "
               "(target ≥ 10×, aim 20×)")
 
 

@@ -1,0 +1,95 @@
+"""What the benches share: the CLI in a child process (wall, CPU, peak memory), pygcode's parse-only
+loop as the reference, the load average, and "median (range min..max)" (helpers, not a bench).
+
+The child's peak memory is its ``VmHWM`` from ``/proc/self/status`` (the peak resident set of that
+process image; ``ru_maxrss`` would count the parent's pages at fork), its CPU time user + system
+from its own ``getrusage`` (all its threads). On a loaded machine the rates per CPU second say more
+than the wall-clock ones.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import statistics
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+#: Runs the CLI in a child process and reports its own CPU time and peak resident memory on standard error.
+_CHILD = """import resource, sys
+from prs3_post.cli import main
+try:
+    main(sys.argv[1:])
+finally:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    peak = next(ln.split()[1] for ln in open("/proc/self/status") if ln.startswith("VmHWM:"))
+    sys.stderr.write(f"\\nPEAK_KB {peak} CPU_S {usage.ru_utime + usage.ru_stime}\\n")
+"""
+
+
+@dataclass(frozen=True, slots=True)
+class ChildRun:
+    """One CLI run in a child process.
+
+    Attributes
+    ----------
+    wall, cpu : float — s (cpu: the child's user + system time, start-up included)
+    peak_mb : float — the child's peak resident memory (VmHWM), MB (2**20 bytes)
+    code : int — exit status
+    last : str — its last line of output (standard output, else standard error), for the log
+    """
+
+    wall: float
+    cpu: float
+    peak_mb: float
+    code: int
+    last: str
+
+
+def run_cli(args: list[str], env: dict[str, str] | None = None) -> ChildRun:
+    """Run ``prs3-post ARGS`` (this worktree's ``src``) in a fresh process and measure it."""
+    env = dict(os.environ, PYTHONPATH=str(REPO / "src"), **(env or {}))
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, "-c", _CHILD, *args], capture_output=True, env=env, text=True,
+                          check=False)
+    wall = time.perf_counter() - start
+    words = next(ln.split() for ln in done.stderr.splitlines() if ln.startswith("PEAK_KB "))
+    said = [ln for ln in done.stderr.splitlines() if ln.strip() and not ln.startswith("PEAK_KB ")]
+    last = (done.stdout.strip().splitlines() or said or [""])[-1]
+    return ChildRun(wall=wall, cpu=float(words[3]), peak_mb=float(words[1]) / 1024, code=done.returncode,
+                    last=last[:160])
+
+
+def pygcode_rate(path: Path | str, lines: int) -> tuple[float, float]:
+    """Lines per second of wall time and of CPU time of a loop that only parses the file's first
+    ``lines`` lines with ``pygcode.Line`` (read into memory first: the loop times the parsing alone)."""
+    import pygcode  # the reference only: not a dependency of prs3-post
+
+    with open(path, encoding="utf-8") as stream:
+        text = list(itertools.islice(stream, lines))
+    wall, cpu = time.perf_counter(), time.process_time()
+    for line in text:
+        pygcode.Line(line)
+    return len(text) / (time.perf_counter() - wall), len(text) / (time.process_time() - cpu)
+
+
+def spread(values: list[float], fmt: str) -> str:
+    """``median (range min..max)``, each formatted with ``fmt``."""
+    return f"{format(statistics.median(values), fmt)} (range {format(min(values), fmt)}..{format(max(values), fmt)})"
+
+
+def load() -> str:
+    """The load average (1 and 5 minutes) and the cores, for the log."""
+    one, five, _ = os.getloadavg()
+    return f"load average {one:.2f} (5 min {five:.2f}), {os.cpu_count()} cores"
+
+
+def count_lines(path: Path | str) -> int:
+    """Newlines in a file, read in blocks."""
+    with open(path, "rb") as stream:
+        return sum(block.count(b"\n") for block in iter(lambda: stream.read(1 << 20), b""))
