@@ -1,5 +1,6 @@
-"""What the benches share: the CLI in a child process (wall, CPU, peak memory), pygcode's parse-only
-loop as the reference, the load average, and "median (range min..max)" (helpers, not a bench).
+"""What the benches share: a call timed in this process (wall, CPU, traced peak), the CLI in a child
+process (wall, CPU, peak memory), pygcode's parse-only loop as the reference, the load average, and
+"median (range min..max)" (helpers, not a bench).
 
 The child's peak memory is its ``VmHWM`` from ``/proc/self/status`` (the peak resident set of that
 process image; ``ru_maxrss`` would count the parent's pages at fork), its CPU time user + system
@@ -15,6 +16,8 @@ import statistics
 import subprocess
 import sys
 import time
+import tracemalloc
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -76,6 +79,29 @@ def pygcode_rate(path: Path | str, lines: int) -> tuple[float, float]:
     for line in text:
         pygcode.Line(line)
     return len(text) / (time.perf_counter() - wall), len(text) / (time.process_time() - cpu)
+
+
+def timed(call: Callable[[], object]) -> tuple[float, float]:
+    """Wall time and CPU time of one call in this process (s; CPU time is the fairer on a loaded machine)."""
+    start, start_cpu = time.perf_counter(), time.process_time()
+    call()
+    return time.perf_counter() - start, time.process_time() - start_cpu
+
+
+def traced_peak(call: Callable[[], object]) -> int:
+    """Peak memory traced by tracemalloc during one call (bytes; NumPy reports its buffers to it).
+    Traced apart from the timed calls: tracing slows the call."""
+    tracemalloc.start()
+    call()
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return peak
+
+
+def measure(call: Callable[[], object], repeat: int) -> tuple[float, float, int]:
+    """Best wall and best CPU time of ``repeat`` calls (s) and the traced peak of one more (bytes)."""
+    times = [timed(call) for _ in range(repeat)]
+    return min(t[0] for t in times), min(t[1] for t in times), traced_peak(call)
 
 
 def spread(values: list[float], fmt: str) -> str:

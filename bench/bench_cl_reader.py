@@ -17,9 +17,8 @@ import argparse
 import os
 import random
 import tempfile
-import time
-import tracemalloc
-from collections.abc import Callable
+
+from _measure import measure
 
 from prs3_post.readers.apt import ClStream, read_cl
 
@@ -57,21 +56,6 @@ def baseline(path: str) -> None:
 def streamed(path: str) -> None:
     for _ in ClStream(path, tolerance=0.002):
         pass
-
-
-def measure(call: Callable[[], object], repeat: int) -> tuple[float, float, int]:
-    """Best wall and CPU time of ``repeat`` calls (s; CPU time counts when other processes load the
-    machine) and the peak traced memory of one call (bytes)."""
-    best, best_cpu = float("inf"), float("inf")
-    for _ in range(repeat):
-        start, start_cpu = time.perf_counter(), time.process_time()
-        call()
-        best, best_cpu = min(best, time.perf_counter() - start), min(best_cpu, time.process_time() - start_cpu)
-    tracemalloc.start()
-    call()
-    peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
-    return best, best_cpu, peak
 
 
 def main() -> None:

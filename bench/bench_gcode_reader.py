@@ -21,11 +21,8 @@ import argparse
 import os
 import random
 import tempfile
-import time
-import tracemalloc
-from collections.abc import Callable
 
-from _measure import load, pygcode_rate, spread
+from _measure import load, pygcode_rate, spread, timed, traced_peak
 
 from prs3_post.readers.gcode import GcodeStream, read_gcode
 
@@ -56,22 +53,6 @@ def streamed(path: str) -> None:
         pass
 
 
-def _cpu(call: Callable[[], object]) -> tuple[float, float]:
-    """Wall time and CPU time of one call (s)."""
-    start, start_cpu = time.perf_counter(), time.process_time()
-    call()
-    return time.perf_counter() - start, time.process_time() - start_cpu
-
-
-def _peak(call: Callable[[], object]) -> int:
-    """Peak traced memory of one call (bytes; traced apart: tracing slows the call)."""
-    tracemalloc.start()
-    call()
-    peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
-    return peak
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--lines", type=int, default=1_000_000)
@@ -91,7 +72,7 @@ def main() -> None:
         for _ in range(args.repeat):                                    # alternately: the same load for each
             reference.append(pygcode_rate(path, reference_lines))
             for name, call in calls:
-                wall, cpu = _cpu(call)
+                wall, cpu = timed(call)
                 rates[name].append((moves / wall, moves / cpu))
         print(f"{'pygcode.Line (parse only)':28s} lines/s wall {spread([r[0] for r in reference], ',.0f')}, "
               f"per CPU s {spread([r[1] for r in reference], ',.0f')} (first {reference_lines:,} lines)")
@@ -99,7 +80,7 @@ def main() -> None:
             walls, cpus = [r[0] for r in rates[name]], [r[1] for r in rates[name]]
             ratio = [args.lines / moves * c / ref[1] for c, ref in zip(cpus, reference, strict=True)]
             print(f"{name:28s} moves/s wall {spread(walls, ',.0f')}, per CPU s {spread(cpus, ',.0f')}; "
-                  f"lines per CPU s / pygcode's: {spread(ratio, '.1f')}x; peak {_peak(call) / 1e6:.1f} MB")
+                  f"lines per CPU s / pygcode's: {spread(ratio, '.1f')}x; peak {traced_peak(call) / 1e6:.1f} MB")
 
 
 if __name__ == "__main__":

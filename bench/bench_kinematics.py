@@ -15,12 +15,10 @@ FK ≥ 1 M poses/s.
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
-import time
-import tracemalloc
 
 import numpy as np
+from _measure import load, spread, timed, traced_peak
 
 from prs3_post.config import load_machine
 from prs3_post.kinematics import forward, inverse
@@ -35,30 +33,6 @@ def workspace(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     axis = np.column_stack([np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt)])
     tip = np.column_stack([rng.uniform(-150, 150, n), rng.uniform(-150, 150, n), rng.uniform(-750, -600, n)])
     return tip, axis
-
-
-def peak_memory(call) -> int:
-    """The peak traced memory of one call (bytes)."""
-    tracemalloc.start()
-    call()
-    peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
-    return peak
-
-
-def _timed(call) -> float:
-    start = time.perf_counter()
-    call()
-    return time.perf_counter() - start
-
-
-def _load() -> str:
-    one, five, _ = os.getloadavg()
-    return f"load average {one:.2f} (5 min {five:.2f}), {os.cpu_count()} cores"
-
-
-def _spread(values: list[float]) -> str:
-    return f"{statistics.median(values):6.2f} ({min(values):5.2f}..{max(values):5.2f})"
 
 
 def main() -> None:
@@ -78,20 +52,20 @@ def main() -> None:
         ("FK", lambda: forward(geo, ik.strokes, ik.stage),
          lambda: forward(geo, ik.strokes, ik.stage, block_rows=n, workers=1)),
     ]
-    print(f"N = {n:,} poses, {args.repeat} runs each; before: {_load()}")
+    print(f"N = {n:,} poses, {args.repeat} runs each; before: {load()}")
     print(f"{'kernel':<10} {'M poses/s: median (min..max)':>30} {'baseline':>22} {'ratio':>6} {'peak MB':>8} "
           f"{'bytes/pose':>10}")
     for name, shipped, baseline in cases:
         shipped(), baseline()                          # warm up: page in, thread pool
         rates, base_rates = [], []
         for _ in range(args.repeat):                   # alternately, so that a load change hits both
-            rates.append(n / _timed(shipped) / 1e6)
-            base_rates.append(n / _timed(baseline) / 1e6)
-        peak = peak_memory(shipped)
+            rates.append(n / timed(shipped)[0] / 1e6)
+            base_rates.append(n / timed(baseline)[0] / 1e6)
+        peak = traced_peak(shipped)
         ratio = statistics.median(rates) / statistics.median(base_rates)
-        print(f"{name:<10} {_spread(rates):>30} {_spread(base_rates):>22} {ratio:6.2f} {peak / 1e6:8.1f} "
+        print(f"{name:<10} {spread(rates, '6.2f'):>30} {spread(base_rates, '6.2f'):>22} {ratio:6.2f} {peak / 1e6:8.1f} "
               f"{peak / n:10.0f}")
-    print(f"after: {_load()}")
+    print(f"after: {load()}")
 
 
 if __name__ == "__main__":
