@@ -47,11 +47,18 @@ class LimitReport:
         value, margin = self.value[row, column] * scale, self.margin[row, column] * scale
         low, high = self.low[column] * scale, self.high[column] * scale
         suffix = f" {unit}" if unit else ""
+        value_text, margin_text = _shown(value), _shown(abs(margin))
         if margin >= 0:
-            return f"{name} {value:.4f}{suffix} is within [{low:.4f}, {high:.4f}]{suffix} with margin {margin:.4f}{suffix}"
+            return (f"{name} {value_text}{suffix} is within [{low:.4f}, {high:.4f}]{suffix} "
+                    f"with margin {margin_text}{suffix}")
         if value > high:
-            return f"{name} {value:.4f}{suffix} is above the maximum {high:.4f}{suffix} by {-margin:.4f}{suffix}"
-        return f"{name} {value:.4f}{suffix} is below the minimum {low:.4f}{suffix} by {-margin:.4f}{suffix}"
+            return f"{name} {value_text}{suffix} is above the maximum {high:.4f}{suffix} by {margin_text}{suffix}"
+        return f"{name} {value_text}{suffix} is below the minimum {low:.4f}{suffix} by {margin_text}{suffix}"
+
+
+def _shown(value: float) -> str:
+    """A value for a message: 4 decimals, or 6 significant digits from 1e9 up (``1e+300``, not 301 digits)."""
+    return f"{value:.4f}" if abs(value) < 1e9 else f"{value:.6g}"
 
 
 def tilt_of(axis: FloatArray) -> FloatArray:
