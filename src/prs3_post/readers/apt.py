@@ -483,13 +483,14 @@ def _unit_records(pieces: Iterator[str], path: str) -> list[_Record]:
         text = carry + piece
         if carry:
             first_line, carry = carry_line, ""
+        number, counted_to = first_line, 0
         for match in _UNIT_LINE.finditer(text):
-            number = first_line + text.count("\n", 0, match.start())
+            # line numbers and lines are taken from the match on, never from the piece's start: a piece
+            # with many FEDRAT/ records costs linear, not quadratic, time
+            number += text.count("\n", counted_to, match.start())
+            counted_to = match.start()
             assembler = _Assembler(path)
-            lines = text[match.start():].split("\n")
-            if lines[-1] == "":
-                lines.pop()                              # the piece's final line end, not a blank line
-            for offset, raw in enumerate(lines):
+            for offset, raw in enumerate(_lines_from(text, match.start())):
                 record = assembler.push(number + offset, raw)
                 if record is not None:
                     found.append(record)
@@ -500,6 +501,17 @@ def _unit_records(pieces: Iterator[str], path: str) -> list[_Record]:
         if not carry:
             first_line += text.count("\n")
     return found
+
+
+def _lines_from(text: str, start: int) -> Iterator[str]:
+    """The lines of ``text`` from ``start`` on, without line ends (a final line end ends the last line)."""
+    while start < len(text):
+        end = text.find("\n", start)
+        if end == -1:
+            yield text[start:]
+            return
+        yield text[start:end]
+        start = end + 1
 
 
 def _file_units(records: list[_Record], path: str, caller: str | None) -> str:
