@@ -109,6 +109,9 @@ FRAME_TOLERANCE = 1e-5
 #: A tool vector must have length 1 within this (it is then normalized).
 AXIS_LENGTH_TOLERANCE = 1e-3
 MM_PER_INCH = 25.4
+#: mm/min, the fastest feed per minute a CAM file may ask for (a kilometre a minute, as the command line's
+#: feeds): more is a typo, and would make a program whose moves the controller cannot follow.
+MAX_FEED_MM_MIN = 1e6
 
 _KNOWN_WORDS = ("GOTO", "FROM", "GOHOME", "RAPID", "FEDRAT", "MULTAX", "TLAXIS", "MSYS", "UNITS", "LOADTL",
                 "LOAD", "SELECT", "TLDATA", "SPINDL", "COOLNT", "CYCLE", "CIRCLE", "PPRINT", "END-OF-PATH",
@@ -866,6 +869,8 @@ class _Reader:
         else:
             factor, per_rev = _FEED_UNITS[unit]
             self.feed_value, self.per_rev = value * factor, per_rev
+        if not self.per_rev and self.feed_value > MAX_FEED_MM_MIN:
+            raise self.error(f"FEDRAT/ {values[0]} is {self.feed_value:.6g} mm/min, more than {MAX_FEED_MM_MIN:g} mm/min")
 
     def multax(self, record: _Record) -> None:
         setting = record.args[0].upper() if record.args else "ON"

@@ -78,7 +78,7 @@ import numpy as np
 from prs3_post.arcs import MAX_ARC_SEGMENTS, arc_points_3d, arc_segment_count, arc_sweep
 from prs3_post.cycles import MAX_PECKS, DrillCycle, Pecking, drill_rows, peck_count
 from prs3_post.errors import InputError, LexError
-from prs3_post.readers.apt import join_toolpaths
+from prs3_post.readers.apt import MAX_FEED_MM_MIN, join_toolpaths
 from prs3_post.readers.files import iter_pieces, line_chunks
 from prs3_post.readers.lexer import (
     BYTE_ORDER_MARK,
@@ -557,7 +557,7 @@ class _Reader:
         feeding = motion == 1.0
         has_f = ~np.isnan(feed)
         if (((motion != 0.0) & (motion != 1.0)).any() or not (feed[has_f] > 0).all()
-                or not np.isfinite(feed[has_f]).all()
+                or not (feed[has_f] * self.scale <= MAX_FEED_MM_MIN).all()   # the careful reader words it
                 or np.isnan(given_feed[feeding]).any() or not np.isfinite(position).all()):
             return False
         k = len(values)
@@ -729,6 +729,9 @@ class _Reader:
         if feed is not None:
             if not feed > 0:
                 raise self.error(f"F must be > 0, got {block.values['F'][1]}")
+            if not self.inverse_time and feed * self.scale > MAX_FEED_MM_MIN:
+                raise self.error(f"{block.values['F'][1]} is {feed * self.scale:.6g} mm/min, more than "
+                                 f"{MAX_FEED_MM_MIN:g} mm/min")
             self.feed_word = feed
         speed = block.take("S")
         if speed is not None:
