@@ -870,7 +870,8 @@ class _Reader:
             factor, per_rev = _FEED_UNITS[unit]
             self.feed_value, self.per_rev = value * factor, per_rev
         if not self.per_rev and self.feed_value > MAX_FEED_MM_MIN:
-            raise self.error(f"FEDRAT/ {values[0]} is {self.feed_value:.6g} mm/min, more than {MAX_FEED_MM_MIN:g} mm/min")
+            raise self.error(f"FEDRAT/ {values[0]} is {self.feed_value:.6g} mm/min, "
+                             f"more than {MAX_FEED_MM_MIN:g} mm/min")
 
     def multax(self, record: _Record) -> None:
         setting = record.args[0].upper() if record.args else "ON"

@@ -21,7 +21,6 @@ SIZE_LIMITS: dict[str, int] = {
     "a G-code program": 1000 * MB,    # ~25 million lines
     "a CL file": 1000 * MB,           # ~25 million records (read in pieces: iter_pieces)
     "a CSV file": 1000 * MB,          # ~15 million poses
-    "a CL file": 1000 * MB,           # APT CL data, some 20 million records
     "a TOML file": 1 * MB,            # a machine or dialect description is a few kB
     "a tool table": 1 * MB,           # some 10,000 tools
 }
