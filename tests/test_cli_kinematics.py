@@ -202,3 +202,12 @@ def test_ik_batch_bad_line_in_a_later_chunk_writes_nothing(tmp_path):
         write_atomic(str(out), IKBatch(load_machine("patel2020"), str(path), chunk_lines=4).chunks())
     assert str(caught.value) == f"{path}:31: expected 6 values (tip_x,tip_y,tip_z,axis_x,axis_y,axis_z), got 5"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["poses.csv"]
+
+
+def test_ik_batch_reads_a_csv_saved_with_a_byte_order_mark(tmp_path):
+    """Spreadsheets save UTF-8 CSV with a BOM before the header: it is not part of the header."""
+    plain, marked = tmp_path / "plain.csv", tmp_path / "marked.csv"
+    plain.write_text(POSES.read_text())
+    marked.write_bytes(b"\xef\xbb\xbf" + POSES.read_bytes())
+    expected = run("ik", "--batch", str(plain))
+    assert expected.exit_code == 1 and run("ik", "--batch", str(marked)).output == expected.output

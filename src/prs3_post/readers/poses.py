@@ -72,6 +72,8 @@ def iter_poses(path: str, *, chunk_lines: int = 65536) -> Iterator[PoseTable]:
             except UnicodeDecodeError as exc:
                 raise InputError(f"not UTF-8 text: {exc.reason} at byte {offset + exc.start}", path=path) from exc
             if number == 0:
+                if lines:                                # a spreadsheet's byte order mark is not the header's
+                    lines[0] = lines[0].removeprefix("\ufeff")
                 header = next(csv.reader(lines[:1]), [])
                 if [h.strip() for h in header] != list(POSE_COLUMNS):
                     raise InputError(f"expected the header {expected}, got {','.join(header)!r}", path=path, line=1)
