@@ -459,3 +459,16 @@ def test_ctrl_c_leaves_no_program_and_no_temp_file(tmp_path: Path) -> None:
     assert not [name for name in left if name.endswith(".tmp")]
     # a file that finished in the moment before the signal is whole; none is cut short
     assert all((out / name).read_text().endswith("\nG94\nM2\n") for name in left)
+
+
+def test_a_report_named_like_a_program_is_refused_before_any_work(tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """--report OUT/x.ngc would replace the program of x.cls with the JSON report (exit 0)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "x.cls").write_bytes((CORPUS / "mech491_APT_SimpleMillPlane.cls").read_bytes())
+    result = CliRunner().invoke(main, ["convert", "x.cls", "-o", "out", "--part-origin", "0,-17.2,-856",
+                                       "--jobs", "1", "--report", "./out/x.ngc"])
+    assert (result.exit_code, result.stderr) == (
+        2, "prs3-post: error: ./out/x.ngc: the program of x.cls and --report name the same file: one would "
+           "overwrite the other\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.cls"]

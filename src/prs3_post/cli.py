@@ -30,6 +30,7 @@ from prs3_post.convert import (
     convert_batch,
     default_jobs,
     outcome_line,
+    output_path,
     work_plane_from_text,
 )
 from prs3_post.errors import FeatureError, InputError, Prs3Error, Prs3Warning, ReachError
@@ -1303,6 +1304,9 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
         files = collect_inputs(inputs, exclude=outdir, exclude_suffix=dialect.extension)
         if report_path is not None:
             refuse_overwriting({"--report": report_path}, {f"input {i + 1}": f for i, f in enumerate(files)})
+            for file in files:                           # the report must not replace a program either
+                refuse_overwriting({f"the program of {file}": output_path(file, outdir, dialect),
+                                    "--report": report_path}, {})
         count = jobs or default_jobs()
         terminal = sys.stderr.isatty()
         if terminal:
