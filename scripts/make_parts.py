@@ -69,6 +69,15 @@ def twofaces() -> trimesh.Trimesh:
     return prism(profile, (150.0, 250.0), "xzy")
 
 
+def wall30() -> trimesh.Trimesh:
+    """A 30° face falling towards +x (x −50…50, y 150…250), and beside its low edge a wall 5 mm thick
+    (x 50…55) rising 40 mm above that edge (the collision tests). The profile is not convex, but every
+    point of it is seen from its first vertex (55, 0), so the fan from there triangulates it."""
+    top = 275.0 + 100.0 * TAN(RAD(30.0))
+    return prism([(55.0, 0.0), (55.0, 315.0), (50.0, 315.0), (50.0, 275.0), (-50.0, top), (-50.0, 0.0)],
+                 (150.0, 250.0), "xzy")
+
+
 def cube() -> trimesh.Trimesh:
     """An axis-aligned 50 mm cube: no inclined face."""
     return prism([(0.0, 0.0), (50.0, 0.0), (50.0, 50.0), (0.0, 50.0)], (0.0, 50.0), "xzy")
@@ -99,6 +108,7 @@ def main() -> None:
     write(wedge(), "postproc/parts/patel2020-wedge.stl", "fixtures/parts/wedge.stl")
     write(tilt35(), "fixtures/parts/tilt35.stl")
     write(twofaces(), "fixtures/parts/twofaces.stl")
+    write(wall30(), "fixtures/parts/wall30.stl")
     write(cube(), "fixtures/bad/cube.stl")
     write(downward(), "fixtures/bad/downward.stl")
     write(wedge().apply_scale(0.001), "fixtures/bad/tiny.stl")  # the wedge in metres: 0.1 x 0.1 x 0.3

@@ -293,7 +293,8 @@ def test_golden_program(made: dict[str, Made], name: str, update_golden: bool) -
     assert item.text == result.text
     # what the CLI says after writing the file
     assert item.stderr == (f"prs3-post: wrote {item.out}: {item.text.count(chr(10))} lines, "
-                           f"{len(result.post.program)} moves; {result.face_note}\n")
+                           f"{len(result.post.program)} moves; {result.face_note}\n"
+                           f"prs3-post: {result.dynamics}\n")
 
 
 @pytest.mark.parametrize("name", CASE_NAMES)

@@ -479,8 +479,9 @@ def test_text_report_against_line_comes_from_the_summary_not_the_json_record(mon
 
 
 def test_no_straightness_problem_where_the_head_does_not_assemble(tmp_path):
-    """W600 on a G1 of the demo square: the head does not assemble there, so the line's problems are that and
-    the stroke limit; no 'leaves the straight line by nan mm' besides (nor on the next move, which starts there)."""
+    """W600 on a G1 of the demo square: the head does not assemble there, so the line's problems are that,
+    the stroke limit and the stroke speed (the jump to W600 in the move's time); no 'leaves the straight line
+    by nan mm' besides (nor on the next move, which starts there)."""
     out = tmp_path / "square.ngc"
     assert run("demo", "--profile", "square", "-o", out).exit_code == 0
     lines = out.read_text().split("\n")
@@ -490,13 +491,15 @@ def test_no_straightness_problem_where_the_head_does_not_assemble(tmp_path):
     out.write_text("\n".join(lines))
     code, report = verify_json(out)
     assert (code, report["problems"]) == (1, [
-        {"line": 24, "kind": "reach", "message": "line 24: the head does not assemble at 25.0 % of the move "
+        {"line": 25, "kind": "reach", "message": "line 25: the head does not assemble at 25.0 % of the move "
                                                  "(strokes 32.1044, 166.2685, 213.2885 mm)"},
-        {"line": 24, "kind": "limit", "message": "line 24: T3 stroke 600.0000 mm is above the maximum 400.0000 mm "
+        {"line": 25, "kind": "limit", "message": "line 25: T3 stroke 600.0000 mm is above the maximum 400.0000 mm "
                                                  "by 200.0000 mm at the end point"},
-        {"line": 26, "kind": "reach", "message": "line 26: the head does not assemble at 12.5 % of the move "
+        {"line": 25, "kind": "speed", "message": "line 25: the feed drives stroke T3 at 25780.8 mm/min, 5.16 x its top "
+                                                 "speed 5000.0 mm/min"},
+        {"line": 27, "kind": "reach", "message": "line 27: the head does not assemble at 12.5 % of the move "
                                                  "(strokes 33.5340, 167.6981, 535.8596 mm)"},
-        {"line": 26, "kind": "limit", "message": "line 26: T3 stroke 535.8596 mm is above the maximum 400.0000 mm "
+        {"line": 27, "kind": "limit", "message": "line 27: T3 stroke 535.8596 mm is above the maximum 400.0000 mm "
                                                  "by 135.8596 mm at 12.5 % of the move"},
     ])
-    assert number == 24
+    assert number == 25

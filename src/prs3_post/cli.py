@@ -590,6 +590,14 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
         dialect_option,
         *line_number_options,
         tolerance_option,
+        click.option("--clamp/--no-clamp", default=True, show_default=True,
+                     help="Lower G1 feeds that would drive an axis over its top speed (the machine's [dynamics]); "
+                          "--no-clamp refuses such a feed, naming its line."),
+        click.option("--collision-check/--no-collision-check", default=True, show_default=True,
+                     help="Check that the tool, holder and spindle nose stay clear of the part (the machine's "
+                          "[holder]) before writing; the header says when it was skipped."),
+        click.option("--clearance-min", type=Decimal(LENGTH), default=1.0, show_default=True,
+                     help="Least distance the tool, holder and spindle nose keep from the part, mm."),
         click.option("-o", "--output", "out_path", type=OutputPath(),
                      help="Program file (written to a temp file, then renamed). Default: standard output."),
         click.option("--preview", "preview_path", type=OutputPath(), metavar="OUT.png|OUT.svg",
@@ -625,6 +633,8 @@ def _run_job(part: str, **opts: Any) -> int:
     if not is_stdout(opts["out_path"]):
         click.echo(f"prs3-post: wrote {opts['out_path']}: {result.text.count(chr(10))} lines, "
                    f"{len(result.post.program)} moves; {result.face_note}", err=True)
+        if spec.machine.dynamics is not None:
+            click.echo(f"prs3-post: {result.dynamics}", err=True)
     if image is not None:
         click.echo(f"prs3-post: wrote {opts['preview_path']}", err=True)
     return 0
@@ -692,6 +702,8 @@ def _job_spec(part: str, opts: dict[str, Any]) -> JobSpec:
         line_numbers=opts.get("line_numbers"), line_start=opts.get("line_start"), line_step=opts.get("line_step"),
         up=opts.get("up", "z"), auto_origin=opts["part_origin"] == AUTO, auto_rotation=opts.get("part_rotation") == AUTO,
         tool_table=read_tool_table(opts["tool_table"]) if opts.get("tool_table") else None,
+        clamp=opts.get("clamp", True), collision_check=opts.get("collision_check", True),
+        clearance_min=opts.get("clearance_min", 1.0),
     )
 
 
@@ -849,6 +861,8 @@ def job(job_path: str, out_path: str | None) -> None:
         if not is_stdout(out_path):
             click.echo(f"prs3-post: wrote {out_path}: {result.text.count(chr(10))} lines, "
                        f"{len(result.post.program)} moves, {len(specs)} operations", err=True)
+            if specs[0].machine.dynamics is not None:
+                click.echo(f"prs3-post: {result.dynamics}", err=True)
         return 0
 
     run_reported(body)

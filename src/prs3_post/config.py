@@ -37,7 +37,7 @@ from prs3_post.dialect import (
     LineNumbers,
 )
 from prs3_post.errors import ConfigError, InputError
-from prs3_post.machine import Geometry, Limits, Machine, Stage
+from prs3_post.machine import Dynamics, Geometry, Holder, Limits, Machine, Stage
 from prs3_post.readers.files import read_text
 from prs3_post.readers.lexer import code_name
 from prs3_post.source import Orientation, Rotary, SourceConvention
@@ -49,7 +49,9 @@ __all__ = [
     "CommentStyle",
     "Decimals",
     "Dialect",
+    "Dynamics",
     "Geometry",
+    "Holder",
     "Limits",
     "LineNumbers",
     "Machine",
@@ -183,6 +185,13 @@ class _Table:
             raise self._error(key, f"expected a list of strings, got {value!r}")
         return tuple(value)
 
+    def optional_table(self, key: str) -> _Table | None:
+        """The table ``key``, or None when the file has none (a table added after files were written)."""
+        if key not in self._data:
+            self._taken.add(key)
+            return None
+        return self.table(key)
+
     def finish(self) -> None:
         """Raise on the first key nobody asked for (a typo must not be ignored)."""
         unknown = sorted(set(self._data) - self._taken)
@@ -298,6 +307,8 @@ def load_machine(name_or_path: str) -> Machine:
     setup = top.table("setup")
     part_origin = setup.numbers("part_origin_mm", 3, "[x, y, z] in mm")
     setup.finish()
+    dynamics = _dynamics(top.optional_table("dynamics"))
+    holder = _holder(top.optional_table("holder"))
     top.finish()
     return Machine(
         name=path.stem,
@@ -307,7 +318,33 @@ def load_machine(name_or_path: str) -> Machine:
         limits=limits,
         stage=stage,
         part_origin=part_origin,  # type: ignore[arg-type]
+        dynamics=dynamics,
+        holder=holder,
     )
+
+
+def _dynamics(table: _Table | None) -> Dynamics | None:
+    """The ``[dynamics]`` table (all four keys, each > 0), or None without one."""
+    if table is None:
+        return None
+    out = Dynamics(
+        stroke_speed=table.number("stroke_speed_mm_min", unit="mm/min", positive=True),
+        stroke_accel=table.number("stroke_accel_mm_s2", unit="mm/s²", positive=True),
+        stage_speed=table.number("stage_speed_mm_min", unit="mm/min", positive=True),
+        stage_accel=table.number("stage_accel_mm_s2", unit="mm/s²", positive=True),
+    )
+    table.finish()
+    return out
+
+
+def _holder(table: _Table | None) -> Holder | None:
+    """The ``[holder]`` table (all four keys, each > 0 mm), or None without one."""
+    if table is None:
+        return None
+    out = Holder(**{key: table.number(f"{key}_mm", unit="mm", positive=True) for key in (
+        "holder_diameter", "holder_length", "nose_diameter", "nose_length")})
+    table.finish()
+    return out
 
 
 # =============================================================================================

@@ -24,7 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from prs3_post import __version__
+from prs3_post.collision import check_program
 from prs3_post.config import Dialect, Machine
+from prs3_post.dynamics import dynamics_entry
 from prs3_post.emit.gcode import emit_program
 from prs3_post.errors import FeatureError, InputError, LimitError, ReachError
 from prs3_post.face import Face
@@ -68,6 +70,9 @@ class JobSpec:
     tool_table : ToolTable | None — the tools' lengths (None: every tool is the machine's ``tool_length_mm``)
     auto_origin, auto_rotation : bool — choose the part origin / the rotation (:func:`~prs3_post.placement.place`);
         ``setup`` then holds only what was given
+    clamp : bool — lower feeds that would drive an axis over its top speed (False: refuse them)
+    collision_check : bool — check the tool, holder and spindle nose against the part before writing
+    clearance_min : float — mm, the least distance they must keep from the part
     """
 
     part: str
@@ -88,6 +93,9 @@ class JobSpec:
     tool_table: ToolTable | None = None
     auto_origin: bool = False
     auto_rotation: bool = False
+    clamp: bool = True
+    collision_check: bool = True
+    clearance_min: float = 1.0
 
     @property
     def operation(self) -> Operation:
@@ -131,6 +139,7 @@ class JobResult:
     operations : tuple of OperationResult — every operation, in program order
     tool_length : (N,) float — mm, the tool length "TL" the IK used for each row of ``post``
     placement : PlacementResult | None — how the setup was chosen (None: as given)
+    dynamics : str — the header's ``dynamics`` entry (cycle time, feeds slowed), for the summary
     """
 
     text: str
@@ -143,6 +152,7 @@ class JobResult:
     operations: tuple[OperationResult, ...]
     tool_length: FloatArray
     placement: PlacementResult | None = None
+    dynamics: str = ""
 
 
 def positions(face: Face, at_uv: FloatArray, at_xyz: FloatArray) -> FloatArray:
@@ -255,6 +265,7 @@ def run_operations(specs: tuple[JobSpec, ...]) -> JobResult:
     several = len(specs) > 1
     decimals = first.dialect.decimals.length
     done: list[OperationResult] = []
+    collisions: list[str] = []
     for number, spec in enumerate(specs, start=1):
         try:  # automatic selection skips faces narrower than the tool
             face, note = select_face(faces, spec.face, min_width=max(MIN_FACE_WIDTH_MM, spec.cutting.tool_diameter))
@@ -273,12 +284,16 @@ def run_operations(specs: tuple[JobSpec, ...]) -> JobResult:
         path_part = operation.path_part
         machine = _with_tool_length(spec.machine, operation.tool_length)
         try:
-            post = post_process(machine, path_part, spec.setup, tolerance=spec.tolerance, length_decimals=decimals)
+            post = post_process(machine, path_part, spec.setup, tolerance=spec.tolerance, length_decimals=decimals,
+                                clamp=spec.clamp)
         except (LimitError, ReachError) as error:          # say the setup, and one that fits if there is one
             if several:                                    # a suggestion would fit this operation alone
                 raise _operation_error(error, machine, path_part, spec, decimals) from error
             raise placement_error(error, machine, path_part, spec.setup, tolerance=spec.tolerance,
                                   length_decimals=decimals) from error
+        collisions.append(check_program(machine, post.program, spec.setup, triangles, operation.face,
+                                        spec.cutting.tool_diameter, clearance_min=spec.clearance_min)
+                          if spec.collision_check else "")
         posts.append(post)
     if several:
         post, row_length = _assemble(specs, done, posts, safe_height(triangles, first.setup, specs))
@@ -288,12 +303,14 @@ def run_operations(specs: tuple[JobSpec, ...]) -> JobResult:
     header = header_of(first, sha, operations=specs if several else (), lengths=[o.tool_length for o in done])
     entries = with_placement(header_entries(header, done[0].face, description=first.machine.description,
                                             faces=tuple(o.face for o in done) if several else ()), placement)
+    dynamics = dynamics_entry(first.machine, post.program, [p.dynamics for p in posts])
+    entries += (("dynamics", dynamics), ("collision", _collision_entry(specs, collisions)))
     text = emit_program(post.program, first.dialect, header=entries,
                         stage=first.machine.stage.present, line_numbers=first.line_numbers,
                         line_start=first.line_start, line_step=first.line_step)
     return JobResult(text=text, face=done[0].face, face_note=done[0].face_note, path_part=done[0].path_part,
                      post=post, setup=first.setup, triangles=triangles, operations=tuple(done),
-                     tool_length=row_length, placement=placement)
+                     tool_length=row_length, placement=placement, dynamics=dynamics)
 
 
 def choose_setup(specs: tuple[JobSpec, ...], operations: list[OperationResult],
@@ -348,6 +365,16 @@ def with_placement(entries: tuple[tuple[str, str], ...],
         return entries
     at = [key for key, _ in entries].index("setup") + 1
     return (*entries[:at], ("placement", placement.describe()), *entries[at:])
+
+
+def _collision_entry(specs: tuple[JobSpec, ...], found: list[str]) -> str:
+    """The header's ``collision`` entry: each operation's clearances (the moves between operations, at
+    the job's safe height, are not checked)."""
+    if not any(spec.collision_check for spec in specs):
+        return "not checked (asked not to)"
+    if len(found) == 1:
+        return found[0]
+    return "; ".join(f"operation {n}: {text or 'not checked'}" for n, text in enumerate(found, start=1))
 
 
 def _operation_error(error: LimitError | ReachError, machine: Machine, path_part: Toolpath, spec: JobSpec,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-__all__ = ["Geometry", "Limits", "Machine", "Stage"]
+__all__ = ["Dynamics", "Geometry", "Holder", "Limits", "Machine", "Stage"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,6 +80,62 @@ class Stage:
 
 
 @dataclass(frozen=True, slots=True)
+class Dynamics:
+    """How fast the machine's axes move (the ``[dynamics]`` table).
+
+    Attributes
+    ----------
+    stroke_speed : float — mm/min, top speed of each actuator
+    stroke_accel : float — mm/s², acceleration (and deceleration) of each actuator
+    stage_speed : float — mm/min, top speed of each stage axis (unused without a stage)
+    stage_accel : float — mm/s², acceleration of each stage axis
+    """
+
+    stroke_speed: float
+    stroke_accel: float
+    stage_speed: float
+    stage_accel: float
+
+    def __post_init__(self) -> None:
+        for name in ("stroke_speed", "stroke_accel", "stage_speed", "stage_accel"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0")
+
+    def speeds(self) -> tuple[float, float, float, float, float]:
+        """mm/min, the top speed of the program's axes in column order: stage X, Y, strokes T1, T2, T3."""
+        return (self.stage_speed,) * 2 + (self.stroke_speed,) * 3
+
+    def accels(self) -> tuple[float, float, float, float, float]:
+        """mm/min², the acceleration of stage X, Y, strokes T1, T2, T3 (the config's mm/s² × 3600)."""
+        return (self.stage_accel * 3600.0,) * 2 + (self.stroke_accel * 3600.0,) * 3
+
+
+@dataclass(frozen=True, slots=True)
+class Holder:
+    """What holds the tool: the tool holder below the spindle's gauge line and the spindle nose above
+    it, as cylinders on the tool axis (the ``[holder]`` table), for the collision check with the part.
+
+    From the tip up: the tool (the operation's diameter), from the tip to ``holder_length`` below
+    the gauge line; the holder, from there to the gauge line; the spindle nose, ``nose_length`` above it.
+
+    Attributes
+    ----------
+    holder_diameter, holder_length : float — mm
+    nose_diameter, nose_length : float — mm
+    """
+
+    holder_diameter: float
+    holder_length: float
+    nose_diameter: float
+    nose_length: float
+
+    def __post_init__(self) -> None:
+        for name in ("holder_diameter", "holder_length", "nose_diameter", "nose_length"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0")
+
+
+@dataclass(frozen=True, slots=True)
 class Machine:
     """A whole machine file: head geometry, limits, stage and default setup.
 
@@ -90,6 +146,9 @@ class Machine:
     source : str — where it was loaded from, as shown in messages
     geometry, limits, stage : see their classes
     part_origin : (3,) tuple — mm, machine coordinates of the part origin in the default setup
+    dynamics : Dynamics | None — axis speeds and accelerations (None: an older file without
+        ``[dynamics]``: no feed clamping, no cycle time)
+    holder : Holder | None — holder and spindle nose (None: no ``[holder]``: no collision check)
     """
 
     name: str
@@ -99,3 +158,5 @@ class Machine:
     limits: Limits
     stage: Stage
     part_origin: tuple[float, float, float]
+    dynamics: Dynamics | None = None
+    holder: Holder | None = None

@@ -22,6 +22,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from prs3_post.dialect import Dialect
+from prs3_post.dynamics import DynamicsTally
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.errors import LimitError, PoseError, ReachError
 from prs3_post.kinematics import IKModel, IKResult, inverse, unit_axes
@@ -53,12 +54,14 @@ class PostResult:
     path : Toolpath — the machine-frame toolpath after subdivision (one row per program row)
     ik : IKResult — per row
     limits : LimitReport — per row (all ok)
+    dynamics : DynamicsTally | None — feeds slowed and time, of the rows so far (None: not counted)
     """
 
     program: JointProgram
     path: Toolpath
     ik: IKResult
     limits: LimitReport
+    dynamics: DynamicsTally | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -132,11 +135,12 @@ class PostStream:
 
     Parameters
     ----------
-    machine, setup, tolerance, angle_tolerance, length_decimals : as :func:`post_process`
+    machine, setup, tolerance, angle_tolerance, length_decimals, clamp : as :func:`post_process`
     """
 
     def __init__(self, machine: Machine, setup: Setup, *, tolerance: float = DEFAULT_TOLERANCE,
-                 angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, length_decimals: int | None = None):
+                 angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, length_decimals: int | None = None,
+                 clamp: bool = True):
         self.machine, self.setup = machine, setup
         self.tolerance, self.angle_tolerance = tolerance, angle_tolerance
         self.model = model_for(machine)
@@ -146,6 +150,7 @@ class PostStream:
         self._input_rows = self._inserted = self._dropped = self._program_rows = 0
         self._worst = np.zeros(4)                     # tip, angle before; tip, angle after
         self._failed = False
+        self.dynamics = DynamicsTally(machine, clamp=clamp)   # feeds clamped to the axis speeds, cycle time
 
     def feed(self, chunk: Toolpath) -> PostResult:
         """The next chunk of the part-frame toolpath, post-processed (see :func:`post_process`).
@@ -199,15 +204,12 @@ class PostStream:
         self._last_pose = last_pose
         if len(path):
             self._last_tip = path.tip[-1].copy()
-        return PostResult(
-            program=JointProgram(
-                kind=path.kind, stage=stage, strokes=ik.strokes, inverse_time=feeds, source=path.source,
-                events=path.events, source_labels=path.source_labels, source_file=path.source_file,
-            ),
-            path=path,
-            ik=ik,
-            limits=report,
+        program = JointProgram(
+            kind=path.kind, stage=stage, strokes=ik.strokes, inverse_time=feeds, source=path.source,
+            events=path.events, source_labels=path.source_labels, source_file=path.source_file,
         )
+        program = replace(program, inverse_time=self.dynamics.feed(program))
+        return PostResult(program=program, path=path, ik=ik, limits=report, dynamics=self.dynamics)
 
     def _counted(self, scope: str, rows: int) -> str:
         """How a count of bad points is qualified: ``in all`` (the whole path) or of the rows so far."""
@@ -217,7 +219,8 @@ class PostStream:
 
 
 def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float = DEFAULT_TOLERANCE,
-                 angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, length_decimals: int | None = None) -> PostResult:
+                 angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, length_decimals: int | None = None,
+                 clamp: bool = True) -> PostResult:
     """Turn a part-frame toolpath into a checked joint-space program.
 
     Parameters
@@ -229,6 +232,8 @@ def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, toleran
     angle_tolerance : float — rad, tool-axis deviation allowed on moves whose axis changes
     length_decimals : int, optional — digits after the point of the program's axis words: rows
         that would print no changed axis word are dropped (None: keep every row)
+    clamp : bool — lower a G1 feed that would drive an axis over its top speed (machine dynamics);
+        False: such a feed is a LimitError
 
     Returns
     -------
@@ -239,10 +244,11 @@ def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, toleran
     ReachError
         A pose that does not assemble, or that a machine without a stage cannot reach.
     LimitError
-        A point outside a machine limit, or a feed move with zero length.
+        A point outside a machine limit, a feed move with zero length, or (``clamp=False``) a feed
+        over an axis's top speed.
     """
     stream = PostStream(machine, setup, tolerance=tolerance, angle_tolerance=angle_tolerance,
-                        length_decimals=length_decimals)
+                        length_decimals=length_decimals, clamp=clamp)
     return stream._post(path_part, scope="in all")
 
 

@@ -82,10 +82,12 @@ from typing import Any
 import numpy as np
 
 from prs3_post.config import Machine
+from prs3_post.dynamics import AXIS_NAMES, joint_columns, joint_deltas, move_times, speed_excess
 from prs3_post.errors import Prs3Error
 from prs3_post.kinematics import IKModel, IKResult, forward, inverse
 from prs3_post.limits import LimitReport, check_limits
 from prs3_post.linearize import slerp
+from prs3_post.machine import Dynamics
 from prs3_post.setup import Setup
 from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind, program_from_columns
@@ -373,9 +375,11 @@ def _rounding_of_keys(machine: Machine, canonical: FloatArray, decimals: int, *,
     return half * total
 
 
-def row_times(program: JointProgram, *, rapid_rate: float = NOMINAL_RAPID_RATE) -> tuple[FloatArray, FloatArray]:
+def row_times(program: JointProgram, *, rapid_rate: float = NOMINAL_RAPID_RATE,
+              dynamics: Dynamics | None = None) -> tuple[FloatArray, FloatArray]:
     """Start and end time of every row's move, min (G1: 1/F; G0: longest joint travel / rapid_rate;
-    G4 dwells before a row delay it; row 0 starts and ends at 0, its start being unknown).
+    G4 dwells before a row delay it; row 0 starts and ends at 0, its start being unknown). With the
+    machine's ``dynamics``: each move's trapezoidal time (:func:`prs3_post.dynamics.move_times`).
 
     Returns
     -------
@@ -383,7 +387,10 @@ def row_times(program: JointProgram, *, rapid_rate: float = NOMINAL_RAPID_RATE) 
     """
     n = len(program)
     duration = np.zeros(n)
-    if n > 1:                                          # in place, column by column: a long program's rows
+    if dynamics is not None:
+        duration = move_times(dynamics, program.kind, joint_deltas(joint_columns(program.stage, program.strokes)),
+                              program.inverse_time)
+    elif n > 1:                                        # in place, column by column: a long program's rows
         travel = duration[1:]                          # G0: the longest joint travel / rapid_rate
         for columns in (program.stage, program.strokes):
             for j in range(columns.shape[1]):
@@ -439,7 +446,7 @@ class Problem:
     Attributes
     ----------
     line : int — program line (0: the whole program)
-    kind : str — ``limit``, ``reach``, ``straightness``, ``deviation``, ``axis``, ``feed``, ``move``
+    kind : str — ``limit``, ``reach``, ``straightness``, ``deviation``, ``axis``, ``feed``, ``move``, ``speed``
     message : str — ``line 12: ...``
     """
 
@@ -523,6 +530,9 @@ class VerifyReport:
     closest : tuple of Closest — one per limit
     against : Against | None
     problems, warnings : tuple of Problem
+    dynamics : Dynamics | None — the machine's axis speeds (None: the file has none; times at a nominal rapid rate)
+    fastest : (ratio, line, axis) — the G1 whose axis runs closest to (or over) its top speed: speed /
+        top speed, its line, the axis (0, 0, '' without dynamics or G1)
     """
 
     program: JointProgram
@@ -545,6 +555,8 @@ class VerifyReport:
     against: Against | None
     problems: tuple[Problem, ...]
     warnings: tuple[Problem, ...]
+    dynamics: Dynamics | None = None
+    fastest: tuple[float, int, str] = (0.0, 0, "")
 
     @property
     def ok(self) -> bool:
@@ -676,6 +688,7 @@ class Verifier:
         self.problems: list[Problem] = []
         self.warnings: list[Problem] = []
         self.last: JointProgram | None = None                # the previous chunk's last row
+        self.fastest: tuple[float, int, str] = (0.0, 0, "")   # the worst G1 axis speed / top speed, line, axis
 
     def add(self, chunk: JointProgram) -> None:
         """Replay and check the next rows (their events count rows from the chunk's start)."""
@@ -743,6 +756,16 @@ class Verifier:
                 problems.append(Problem(int(lines[r]), "limit",
                                         f"line {lines[r]}: {limits.describe(i, col)} at {_at(rep.fraction[i])}"))
         self._closest_in(rep, lines, own)
+
+        # ---- axis speeds (the machine's dynamics)
+        if self.machine.dynamics is not None:
+            ratio, axis, over = speed_excess(self.machine.dynamics, rows, first=skip,
+                                             length_decimals=self.length_decimals, feed_decimals=self.feed_decimals)
+            for r, text in over:
+                problems.append(Problem(int(lines[r]), "speed", f"line {lines[r]}: {text}"))
+            if len(ratio) > skip and float(ratio[skip:].max()) > self.fastest[0]:
+                r = skip + int(np.argmax(ratio[skip:]))
+                self.fastest = (float(ratio[r]), int(lines[r]), AXIS_NAMES[int(axis[r])])
 
         # ---- straightness of G1 moves
         end = rep.end
@@ -872,6 +895,7 @@ class Verifier:
             intervals=per_move["intervals"], bound=per_move["bound"], samples=self.samples,
             epsilon=self.tolerance * EPSILON_FRACTION, feed_groups=groups, closest=self._closest_table(),
             against=against, problems=tuple(problems), warnings=tuple(warnings),
+            dynamics=self.machine.dynamics, fastest=self.fastest,
         )
 
     def _closest_table(self) -> tuple[Closest, ...]:

@@ -57,7 +57,7 @@ def summary(report: VerifyReport, *, rapid_rate: float = NOMINAL_RAPID_RATE) -> 
     """Headline numbers shared by the text and JSON reports (from the per-move values: no samples needed)."""
     program = report.program
     feed_row = program.kind == MoveKind.FEED
-    start, end = row_times(program, rapid_rate=rapid_rate)
+    start, end = row_times(program, rapid_rate=rapid_rate, dynamics=report.dynamics)
     durations = end - start
     dwell = sum(e.value for e in program.events if e.kind is EventKind.DWELL) / 60.0
     straight, straight_line, _ = _worst(report.straightness, np.arange(len(program)), program.source)
@@ -73,6 +73,10 @@ def summary(report: VerifyReport, *, rapid_rate: float = NOMINAL_RAPID_RATE) -> 
         "implied_feed_max": float(implied.max()) if len(implied) else None,
         "time_feed_min": float(durations[feed_row].sum()), "time_rapid_min": float(durations[~feed_row].sum()),
         "time_dwell_min": float(dwell), "time_total_min": float(end[-1]) if len(end) else 0.0,
+        "time_model": "trapezoid" if report.dynamics is not None else "nominal rapid rate",
+        "axis_speed_max_fraction": report.fastest[0] if report.dynamics is not None else None,
+        "axis_speed_max_line": report.fastest[1] if report.dynamics is not None else None,
+        "axis_speed_max_axis": report.fastest[2] if report.dynamics is not None else None,
     }
 
 
@@ -190,8 +194,16 @@ def report_text(report: VerifyReport, *, path: str = "", dialect: str = "",
         more = f", ... ({len(report.feed_groups)} groups)" if len(report.feed_groups) > 6 else ""
         out.append(f"  feeds (G93, chord × F): {head['implied_feed_min']:.1f}..{head['implied_feed_max']:.1f} mm/min; "
                    f"{groups}{more}")
-    out.append(f"  time: {head['time_total_min']:.3f} min (G1 {head['time_feed_min']:.3f}, G0 "
-               f"{head['time_rapid_min']:.3f} at {rapid_rate:g} mm/min, dwell {head['time_dwell_min']:.3f})")
+    if report.dynamics is None:
+        out.append(f"  time: {head['time_total_min']:.3f} min (G1 {head['time_feed_min']:.3f}, G0 "
+                   f"{head['time_rapid_min']:.3f} at {rapid_rate:g} mm/min, dwell {head['time_dwell_min']:.3f})")
+    else:
+        out.append(f"  cycle time: {head['time_total_min']:.3f} min (G1 {head['time_feed_min']:.3f}, G0 "
+                   f"{head['time_rapid_min']:.3f}, dwell {head['time_dwell_min']:.3f}; trapezoidal profile of the "
+                   "slowest axis, the machine's speeds and accelerations)")
+        fastest, line, axis = report.fastest
+        if line:
+            out.append(f"  axis speeds: G1 at most {100 * fastest:.1f} % of the top speed ({axis}, line {line})")
     rec = against_summary(report)
     if rec is not None:
         out.append(f"  against {rec['label']}: tip max {fixed(rec['tip_max_mm'], 6)} mm at line {rec['tip_max_line']}"
