@@ -1,22 +1,34 @@
-"""Tool, holder and spindle nose against the part: a hole near a wall beside a 30° face is refused
-(the holder hits the wall), the same hole 40 mm from the wall passes."""
+"""Tool, holder and spindle nose against the part (fixtures/parts/wall30.stl: a 30° face falling
+towards a wall 5 mm thick that rises 40 mm above the face's low edge)."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
+import numpy as np
+import pytest
 from click.testing import CliRunner
 
 from prs3_post.cli import main
+from prs3_post.collision import body_cylinders, clearance, inside, point_triangle_distance
+from prs3_post.config import load_machine
+from prs3_post.geometry import find_faces, select_face
+from prs3_post.readers.stl import load_part
 
 WALL = Path(__file__).resolve().parents[1] / "fixtures" / "parts" / "wall30.stl"
+MACHINE = load_machine("patel2020")
+MESH = load_part(str(WALL), units="mm")
+TRIANGLES = np.asarray(MESH.triangles, dtype=np.float64)
+FACE, _ = select_face(find_faces(MESH), None, min_width=6.0)
+BODIES = body_cylinders(6.0, 55.0, MACHINE.holder)        # the machine's default tool: 55 mm below the gauge line
 
 
 def test_hole_near_the_wall_is_refused_naming_the_step_body_and_depth(tmp_path):
     out = tmp_path / "near.ngc"
     result = CliRunner().invoke(main, ["run", str(WALL), "--profile", "hole", "--at", "30,0", "-o", str(out)])
     assert result.exit_code == 1
-    assert result.output == ("prs3-post: error: hole 1 approach: the holder hits the part, 2.498 mm deep "
+    assert result.output == ("prs3-post: error: hole 1 approach: the holder hits the part, 2.446 mm deep "
                              "(clearance min 1.000 mm)\n")
     assert not out.exists()
 
@@ -25,8 +37,9 @@ def test_hole_forty_mm_from_the_wall_passes_and_the_header_says_the_clearances(t
     out = tmp_path / "far.ngc"
     result = CliRunner().invoke(main, ["run", str(WALL), "--profile", "hole", "--at", "8.1,0", "-o", str(out)])
     assert result.exit_code == 0, result.output
-    assert out.read_text().split("\n")[12] == ("(collision: clear of the part by at least 1.000 mm: tool over 26.480 mm, "
-                                               "holder over 3.978 mm, spindle nose 22.859 mm)")
+    assert [ln for ln in out.read_text().split("\n") if ln.startswith("(collision:")] == [
+        "(collision: clear of the part by at least 1.000 mm: tool over 26.834 mm, holder 8.637 mm, "
+        "spindle nose 12.859 mm)"]
 
 
 def test_no_collision_check_is_stated_in_the_header(tmp_path):
@@ -34,4 +47,48 @@ def test_no_collision_check_is_stated_in_the_header(tmp_path):
     result = CliRunner().invoke(main, ["run", str(WALL), "--profile", "hole", "--at", "30,0", "--no-collision-check",
                                        "-o", str(out)])
     assert result.exit_code == 0, result.output
-    assert out.read_text().split("\n")[12] == "(collision: not checked [asked not to])"
+    assert [ln for ln in out.read_text().split("\n") if ln.startswith("(collision:")] == [
+        "(collision: not checked [asked not to])"]
+
+
+def _sweep(height: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A rapid from 10 mm above a hole at u = 30 on the face to a point beyond the wall, at z = height."""
+    start = FACE.origin + 30.0 * FACE.u + 10.0 * FACE.normal
+    start[2] = height
+    end = np.array([80.0, start[1], height])
+    tip = start + np.linspace(0.0, 1.0, 21)[:, None] * (end - start)
+    features = np.array([FACE.origin + 30.0 * FACE.u, end - 10.0 * FACE.normal])
+    return tip, np.tile(FACE.normal, (21, 1)), features
+
+
+def test_a_rapid_through_the_wall_between_two_features_is_caught():
+    tip, axis, features = _sweep(FACE.origin[2] + 30.0 * FACE.u[2] + 10.0 * FACE.normal[2])
+    found = clearance(TRIANGLES, tip, axis, BODIES, FACE, features, refine_max=10**6)
+    # the tool (radius 3) crosses the 5 mm wall: its deepest surface point is half the wall inside
+    assert found.distance[0] == pytest.approx(-2.5, abs=0.02)
+    assert found.distance[1] < 0 and found.exact.all()
+
+
+def test_the_same_rapid_above_the_wall_clears_it_by_the_formula():
+    tip, axis, features = _sweep(330.0)
+    found = clearance(TRIANGLES, tip, axis, BODIES, FACE, features, refine_max=10**6)
+    # the tool's low rim, tilted 30°: 330 − 3 sin 30° above the wall's top at z = 315
+    assert found.distance[0] == pytest.approx(330.0 - 3.0 * math.sin(math.radians(30.0)) - 315.0, abs=1e-6)
+    assert found.exact.all()
+
+
+def test_lower_bound_never_exceeds_the_sampled_minimum():
+    tip, axis, features = _sweep(320.0)
+    quick = clearance(TRIANGLES, tip, axis, BODIES, FACE, features)
+    full = clearance(TRIANGLES, tip, axis, BODIES, FACE, features, refine_max=10**6)
+    assert (quick.distance <= full.distance + 1e-12).all()
+    assert full.exact.all()
+
+
+def test_point_triangle_distance_and_inside_against_plain_cases():
+    tri = np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]])
+    points = np.array([[0.2, 0.2, 1.0], [-1.0, 0, 0], [1, 1, 0], [2, -1, 0], [0.5, -2, 0]])
+    expected = [1.0, 1.0, math.sqrt(0.5), math.sqrt(2.0), 2.0]
+    np.testing.assert_allclose(point_triangle_distance(points, tri)[:, 0], expected, atol=1e-12)
+    assert inside(np.array([[0.0, 200.0, 100.0], [0.0, 200.0, 400.0], [52.0, 200.0, 310.0]]), TRIANGLES).tolist() == [
+        True, False, True]
