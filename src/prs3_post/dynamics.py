@@ -28,8 +28,21 @@ from prs3_post.machine import Dynamics, Machine
 from prs3_post.toolpath import EventKind, JointProgram, MoveKind
 from prs3_post.types import BoolArray, FloatArray
 
-__all__ = ["AXIS_NAMES", "NO_DYNAMICS", "DynamicsTally", "dynamics_entry", "FeedClamp", "axis_speed_ratio", "clamp_feeds", "joint_columns",
-           "joint_deltas", "move_times", "program_time", "speed_excess", "trapezoid_time"]
+__all__ = [
+    "AXIS_NAMES",
+    "NO_DYNAMICS",
+    "DynamicsTally",
+    "FeedClamp",
+    "axis_speed_ratio",
+    "clamp_feeds",
+    "dynamics_entry",
+    "joint_columns",
+    "joint_deltas",
+    "move_times",
+    "program_time",
+    "speed_excess",
+    "trapezoid_time",
+]
 
 #: The program's axes in :func:`joint_columns` order, for messages.
 AXIS_NAMES = ("stage X", "stage Y", "stroke T1", "stroke T2", "stroke T3")
