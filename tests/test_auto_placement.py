@@ -266,7 +266,7 @@ def test_auto_is_for_making_a_program_not_for_reading_one(tmp_path):
 ])
 def test_a_corpus_hole_works_with_part_origin_auto_and_nothing_else(tmp_path, part, options, setup):
     out = tmp_path / "h.ngc"
-    done = invoke(part, "--profile", "hole", *options, "--part-origin", "auto", "-o", out)
+    done = invoke(part, "--profile", "hole", *options, "--part-origin", "auto", "--no-collision-check", "-o", out)
     assert done.exit_code == 0, done.stderr
     header = read_header(str(out))
     assert header is not None and header.setup == setup
@@ -274,7 +274,7 @@ def test_a_corpus_hole_works_with_part_origin_auto_and_nothing_else(tmp_path, pa
     assert checked.exit_code == 0, checked.stdout
     units = "inch" if "inch" in options else "mm"
     spec = hole_spec(part, units=units, up="y" if "y" in options else "z",
-                     at_uv=np.array([[5.0, 0.0]]) if "--at" in options else np.zeros((0, 2)))
+                     at_uv=np.array([[5.0, 0.0]]) if "--at" in options else np.zeros((0, 2)), collision_check=False)
     result = run_job(spec)
     assert result.setup == setup
     assert_no_better_setup_nearby(MACHINE, [result.path_part], [MACHINE.geometry.tool_length], setup)

@@ -68,6 +68,7 @@ def test_feed_needing_three_times_a_stroke_speed_is_clamped_to_exactly_the_limit
     assert fk.converged.all()
     tip_feed = np.linalg.norm(fk.tip[1] - fk.tip[0]) * f                   # FK-replayed tip feed, mm/min
     assert_allclose(tip_feed, 100.0, rtol=1e-9)                             # 300 mm/min slowed 3×
+    assert_allclose(post.path.feed[1], 100.0, rtol=1e-12)                   # the path says so too
     rounded = round(f, 4)                                                   # the F word as emitted
     assert_allclose(np.linalg.norm(fk.tip[1] - fk.tip[0]) * rounded, 100.0, rtol=0.5e-4 / f)
 

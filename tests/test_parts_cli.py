@@ -134,8 +134,8 @@ def test_readme_placement_and_exit_code_examples_do_what_it_says(tmp_path, monke
     monkeypatch.chdir(tmp_path)
     (tmp_path / "ssg_slope.stl").write_bytes(Path(SLOPE).read_bytes())
     placed = [line.strip() for line in section.splitlines() if line.startswith("      prs3-post ")]
-    assert placed == ["prs3-post ssg_slope.stl --profile hole --part-origin=-18,-10,-688 -o slope.ngc",
-                      "prs3-post ssg_slope.stl --profile hole --part-origin auto -o slope.ngc"]
+    assert placed == ["prs3-post ssg_slope.stl --profile hole --part-origin=-18,-10,-688 --no-collision-check -o slope.ngc",
+                      "prs3-post ssg_slope.stl --profile hole --part-origin auto --no-collision-check -o slope.ngc"]
     assert invoke(*placed[0].split()[1:]).exit_code == 0
     auto = invoke(*placed[1].split()[1:])                  # prints what the README shows
     assert auto.exit_code == 0
@@ -160,7 +160,7 @@ def test_corpus_part_works_with_the_part_origin_its_limit_error_suggests(tmp_pat
     assert first.exit_code == 1 and not out.exists()
     suggested = re.search(r": (--part-origin=\S+)$", first.stderr.rstrip("\n"))
     assert suggested is not None, first.stderr
-    second = invoke(part, *options, suggested.group(1), "-o", str(out))
+    second = invoke(part, *options, suggested.group(1), "--no-collision-check", "-o", str(out))  # the slope: a tunnel
     assert second.exit_code == 0, second.stderr
     checked = invoke("verify", str(out), "--against", part)
     assert (checked.exit_code, checked.stdout.splitlines()[-1]) == (0, "OK: within every limit and tolerance")

@@ -491,15 +491,15 @@ def test_no_straightness_problem_where_the_head_does_not_assemble(tmp_path):
     out.write_text("\n".join(lines))
     code, report = verify_json(out)
     assert (code, report["problems"]) == (1, [
-        {"line": 25, "kind": "reach", "message": "line 25: the head does not assemble at 25.0 % of the move "
+        {"line": 26, "kind": "reach", "message": "line 26: the head does not assemble at 25.0 % of the move "
                                                  "(strokes 32.1044, 166.2685, 213.2885 mm)"},
-        {"line": 25, "kind": "limit", "message": "line 25: T3 stroke 600.0000 mm is above the maximum 400.0000 mm "
+        {"line": 26, "kind": "limit", "message": "line 26: T3 stroke 600.0000 mm is above the maximum 400.0000 mm "
                                                  "by 200.0000 mm at the end point"},
-        {"line": 25, "kind": "speed", "message": "line 25: the feed drives stroke T3 at 25780.8 mm/min, 5.16 x its top "
+        {"line": 26, "kind": "speed", "message": "line 26: the feed drives stroke T3 at 25780.8 mm/min, 5.16 x its top "
                                                  "speed 5000.0 mm/min"},
-        {"line": 27, "kind": "reach", "message": "line 27: the head does not assemble at 12.5 % of the move "
+        {"line": 28, "kind": "reach", "message": "line 28: the head does not assemble at 12.5 % of the move "
                                                  "(strokes 33.5340, 167.6981, 535.8596 mm)"},
-        {"line": 27, "kind": "limit", "message": "line 27: T3 stroke 535.8596 mm is above the maximum 400.0000 mm "
+        {"line": 28, "kind": "limit", "message": "line 28: T3 stroke 535.8596 mm is above the maximum 400.0000 mm "
                                                  "by 135.8596 mm at 12.5 % of the move"},
     ])
-    assert number == 25
+    assert number == 26

@@ -252,7 +252,7 @@ class DynamicsTally:
         dwell = sum(e.value for e in program.events if e.kind is EventKind.DWELL) / 60.0
         self.time_min += float(times.sum()) + dwell
         self._last = joints[-1].copy()
-        return result.inverse_time
+        return result.inverse_time if len(over) else program.inverse_time
 
     def header_text(self) -> str:
         """The program header's ``dynamics`` entry for the rows so far."""

@@ -208,7 +208,12 @@ class PostStream:
             kind=path.kind, stage=stage, strokes=ik.strokes, inverse_time=feeds, source=path.source,
             events=path.events, source_labels=path.source_labels, source_file=path.source_file,
         )
-        program = replace(program, inverse_time=self.dynamics.feed(program))
+        clamped = self.dynamics.feed(program)
+        if clamped is not program.inverse_time:        # slowed: the path's tip feeds drop by the same ratio
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = np.where(feeds > 0, clamped / feeds, 1.0)
+            program = replace(program, inverse_time=clamped)
+            path = replace(path, feed=path.feed * ratio)
         return PostResult(program=program, path=path, ik=ik, limits=report, dynamics=self.dynamics)
 
     def _counted(self, scope: str, rows: int) -> str:

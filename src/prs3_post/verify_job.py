@@ -20,7 +20,7 @@ import dataclasses
 import math
 import threading
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from queue import Full, Queue
 from typing import Any, TypeVar
@@ -244,7 +244,8 @@ def intended_from_job(specs: JobSpec | tuple[JobSpec, ...]) -> Intended:
     length of the tool in the spindle, from the program's header).
     """
     specs = specs if isinstance(specs, tuple) else (specs,)
-    path = run_operations(specs).post.path
+    # the path only: the program's own collision check (or its absence) is in its header
+    path = run_operations(tuple(replace(s, collision_check=False) for s in specs)).post.path
     feed = np.where(path.kind == MoveKind.FEED, path.feed, np.nan)
     what = "+".join(dict.fromkeys(s.operation.value for s in specs))
     return Intended(tip=path.tip, axis=path.axis, feed=feed, kind=path.kind,
