@@ -38,7 +38,7 @@ def test_hole_forty_mm_from_the_wall_passes_and_the_header_says_the_clearances(t
     result = CliRunner().invoke(main, ["run", str(WALL), "--profile", "hole", "--at", "8.1,0", "-o", str(out)])
     assert result.exit_code == 0, result.output
     assert [ln for ln in out.read_text().split("\n") if ln.startswith("(collision:")] == [
-        "(collision: clear of the part by at least 1.000 mm: tool over 26.834 mm, holder 8.637 mm, "
+        "(collision: clear of the part by at least 1.000 mm: tool over 11.834 mm, holder over 8.613 mm, "
         "spindle nose 12.859 mm)"]
 
 

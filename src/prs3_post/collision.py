@@ -46,6 +46,8 @@ BODY_NAMES = ("tool", "holder", "spindle nose")
 AZIMUTHS = 24
 RING_SPACING_MM = 2.0
 AXIS_STEP_MM = 2.0
+#: Poses beyond which the main job does not run the check (it says so in the header).
+MAX_POSES = 20000
 _RAY = np.array([0.5773502691896258, 0.4082482904638631, 0.7071067811865476])   # no axis-aligned edges hit
 
 
@@ -172,32 +174,116 @@ def _signed(points: FloatArray, triangles: FloatArray, others: BoolArray, face: 
 
 
 def _signed_min(tip: FloatArray, axis: FloatArray, stations: FloatArray, triangles: FloatArray, others: BoolArray,
-                face: Face, swept: BoolArray | None, block: int) -> FloatArray:
-    """(S,) mm: the smallest :func:`_signed` distance of the axis points ``stations`` (mm from the tip) at each pose."""
-    out = np.zeros(len(tip))
-    rows_per = max(1, block * 8)
-    for start in range(0, len(tip), rows_per):
-        rows = slice(start, start + rows_per)
-        world = tip[rows, None] + stations[None, :, None] * axis[rows, None]
-        n = world.shape[0]
-        cutting = None if swept is None else np.repeat(swept[rows], len(stations))
-        out[rows] = _signed(world.reshape(-1, 3), triangles, others, face, cutting).reshape(n, -1).min(axis=1)
+                face: Face, swept: BoolArray | None, block: int, *, radius: float, slack: float,
+                near_mm: float, group: int = 128) -> FloatArray:
+    """(S,) mm: a lower bound of the smallest :func:`_signed` distance of the axis points ``stations``
+    (mm from the tip) at each pose.
+
+    Consecutive poses are taken ``group`` at a time first: the stations of the group's first pose,
+    less how far any pose of the group moves any station from there, bound the whole group; only
+    the groups whose bound is under ``near_mm`` are measured pose by pose.
+    """
+    n = len(tip)
+    out = np.zeros(n)
+    if not n:
+        return out
+    first = np.arange(0, n, group)
+    owner = np.arange(n) // group
+    reach = float(np.abs(stations).max())
+    spread = (np.linalg.norm(tip - tip[first][owner], axis=1)
+              + reach * np.linalg.norm(axis - axis[first][owner], axis=1))
+    spread = np.maximum.reduceat(spread, first)                                  # (G,) mm
+    cutting = None
+    if swept is not None:
+        cutting = np.logical_and.reduceat(swept, first)                          # every pose of the group cuts
+    coarse = _station_min(tip[first], axis[first], stations, triangles, others, face, cutting, block,
+                          radius=radius, slack=slack) - spread
+    out[:] = coarse[owner]
+    near = np.flatnonzero(coarse[owner] < near_mm)
+    if len(near):
+        out[near] = _station_min(tip[near], axis[near], stations, triangles, others, face,
+                                 None if swept is None else swept[near], block, radius=radius, slack=slack)
     return out
 
 
-def _swept(tip_uv: FloatArray, feed_uv: FloatArray, radius: float) -> BoolArray:
-    """(S,) bool: the tip (in face u, v) is within ``radius`` of the polyline of the feed tips (M, 2)."""
-    if len(feed_uv) == 0:
+def _station_min(tip: FloatArray, axis: FloatArray, stations: FloatArray, triangles: FloatArray, others: BoolArray,
+                 face: Face, swept: BoolArray | None, block: int, *, radius: float = 0.0,
+                 slack: float = 0.0) -> FloatArray:
+    """(S,) mm: a lower bound of each pose's cylinder distance to the part (-inf: an axis point inside it).
+
+    Per triangle, the larger of two bounds: the axis points' distances less ``slack`` (the radius of
+    the spheres round them that hold the cylinder), and the gap between the cylinder and the
+    triangle's plane when the cylinder is all on one side of it (what keeps a wide holder's bound
+    tight over the face below it). Where ``swept`` (the tool cutting): axis points below the worked
+    face do not count, nor do the face's own triangles.
+    """
+    out = np.zeros(len(tip))
+    normal = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    offset = (normal * triangles[:, 0]).sum(axis=1)                             # (T,)
+    rows_per = max(1, block * 8)
+    for start in range(0, len(tip), rows_per):
+        rows = slice(start, start + rows_per)
+        t, a = tip[rows], axis[rows]
+        n = len(t)
+        world = t[:, None] + stations[None, :, None] * a[:, None]                # (n, k, 3)
+        flat = world.reshape(-1, 3)
+        every = point_triangle_distance(flat, triangles).reshape(n, len(stations), -1)   # (n, k, T)
+        if swept is not None and swept[rows].any():
+            height = ((world - face.origin) @ face.normal)                       # (n, k)
+            below = swept[rows][:, None] & (height < 0.0)
+            every = np.where(below[..., None], np.inf, every)
+            every = np.where(swept[rows][:, None, None] & ~others[None, None, :], np.inf, every)
+        spheres = every.min(axis=1) - slack                                      # (n, T)
+        ends = (t @ normal.T)[:, None, :] + stations[[0, -1]][None, :, None] * (a @ normal.T)[:, None, :]
+        ends = ends - offset                                                     # (n, 2, T) signed heights
+        bulge = radius * np.sqrt(np.clip(1.0 - (a @ normal.T) ** 2, 0.0, 1.0))   # (n, T)
+        gap = np.maximum(np.maximum(ends.min(axis=1) - bulge, -ends.max(axis=1) - bulge), 0.0)
+        if swept is not None:
+            gap = np.where(swept[rows][:, None] & ~others[None, :], np.inf, gap)
+        bound = np.maximum(spheres, gap).min(axis=1)
+        inner = inside(flat, triangles).reshape(n, -1)
+        if swept is not None and swept[rows].any():
+            inner &= ~below
+        out[rows] = np.where(inner.any(axis=1), -np.inf, bound)
+    return out
+
+
+def _swept(tip_uv: FloatArray, feed_uv: FloatArray, radius: float, *, cell: float = 0.25) -> BoolArray:
+    """(S,) bool: the tip (in face u, v) is within about ``radius`` of the polyline of the feed tips (M, 2).
+
+    The polyline is drawn on a grid of ``cell`` mm (points every half cell along each segment),
+    widened by ``radius`` plus a cell, and each tip looks up its cell: a region a cell or two wider
+    than the exact one, at a cost linear in the rows.
+    """
+    if len(feed_uv) == 0 or len(tip_uv) == 0:
         return np.zeros(len(tip_uv), dtype=bool)
-    if len(feed_uv) == 1:
-        return np.linalg.norm(tip_uv - feed_uv[0], axis=1) <= radius
-    a, b = feed_uv[:-1][None], feed_uv[1:][None]
-    ab = b - a
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.clip(((tip_uv[:, None] - a) * ab).sum(-1) / (ab * ab).sum(-1), 0, 1)
-    t = np.where(np.isfinite(t), t, 0.0)
-    d = np.linalg.norm(tip_uv[:, None] - (a + t[..., None] * ab), axis=-1)
-    return (d <= radius).any(axis=1)
+    low = feed_uv.min(axis=0) - radius - 2 * cell
+    size = np.ceil((feed_uv.max(axis=0) + radius + 2 * cell - low) / cell).astype(np.int64) + 1
+    if size.prod() > 4e7:                               # a region too large to draw: no exemption
+        return np.zeros(len(tip_uv), dtype=bool)
+    grid = np.zeros(tuple(size), dtype=bool)
+    ends = feed_uv[:-1], feed_uv[1:]
+    length = np.linalg.norm(ends[1] - ends[0], axis=1) if len(feed_uv) > 1 else np.zeros(0)
+    steps = np.maximum(1, np.ceil(length / (0.5 * cell)).astype(np.int64))
+    seg = np.repeat(np.arange(len(steps)), steps + 1)
+    t = (np.arange(len(seg)) - np.repeat(np.cumsum(steps + 1) - (steps + 1), steps + 1)) / np.repeat(steps, steps + 1)
+    points = np.concatenate([feed_uv[:1], ends[0][seg] + t[:, None] * (ends[1][seg] - ends[0][seg])])
+    index = np.floor((points - low) / cell).astype(np.int64)
+    grid[index[:, 0], index[:, 1]] = True
+    reach = math.ceil(radius / cell) + 1
+    wide = np.zeros_like(grid)
+    for du in range(-reach, reach + 1):
+        for dv in range(-reach, reach + 1):
+            if (abs(du) - 1) ** 2 + (abs(dv) - 1) ** 2 > (radius / cell) ** 2 and (du or dv):
+                continue
+            wide[max(du, 0):size[0] + min(du, 0), max(dv, 0):size[1] + min(dv, 0)] |= \
+                grid[max(-du, 0):size[0] + min(-du, 0), max(-dv, 0):size[1] + min(-dv, 0)]
+    cells = np.floor((tip_uv - low) / cell).astype(np.int64)
+    ok = (cells >= 0).all(axis=1) & (cells < size).all(axis=1)
+    out = np.zeros(len(tip_uv), dtype=bool)
+    out[ok] = wide[cells[ok, 0], cells[ok, 1]]
+    return out
 
 
 def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinders: FloatArray, face: Face,
@@ -239,7 +325,8 @@ def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinder
         # the cylinder's slice around it
         stations = np.linspace(z0, z1, max(2, math.ceil((z1 - z0) / AXIS_STEP_MM) + 1))
         slack = math.hypot(radius, 0.5 * (stations[1] - stations[0]))
-        bound = _signed_min(tip, axis, stations, triangles, others, face, swept if b == 0 else None, block) - slack
+        bound = _signed_min(tip, axis, stations, triangles, others, face, swept if b == 0 else None, block,
+                            radius=float(radius), slack=slack, near_mm=clearance_min)
         # the surface points, poses in order of their bound, until no bound is below the best found:
         # the minimum over the surface points of every pose, without sampling most of them
         order = np.argsort(bound, kind="stable")
@@ -267,7 +354,7 @@ def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinder
 
 
 def check_program(machine: Machine, program: JointProgram, setup: Setup, triangles: FloatArray, face: Face,
-                  tool_diameter: float, *, clearance_min: float = 1.0) -> str:
+                  tool_diameter: float, *, clearance_min: float = 1.0, max_poses: int = MAX_POSES) -> str:
     """Replay ``program`` (verify's FK samples) and check the bodies' clearance from the part.
 
     Returns
@@ -292,6 +379,9 @@ def check_program(machine: Machine, program: JointProgram, setup: Setup, triangl
                          f"length {machine.holder.holder_length:.3f} mm: the holder would cut (a longer tool, or "
                          "a shorter holder in the machine file)")
     rep = replay(machine, program)
+    if len(rep.row) > max_poses:
+        return (f"not checked: {len(rep.row)} poses, more than the check's limit of {max_poses} (it costs about "
+                "60 us a pose: a long program would take minutes)")
     tip, axis = setup.points_to_part(rep.tip), setup.axes_to_part(rep.axis)
     ok = np.isfinite(tip).all(axis=1)
     feed_rows = np.flatnonzero(program.kind == MoveKind.FEED)
