@@ -472,3 +472,13 @@ def test_a_report_named_like_a_program_is_refused_before_any_work(tmp_path: Path
         2, "prs3-post: error: ./out/x.ngc: the program of x.cls and --report name the same file: one would "
            "overwrite the other\n")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.cls"]
+
+
+def test_a_report_onto_an_input_names_the_input_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "x.cls").write_bytes((CORPUS / "mech491_APT_SimpleMillPlane.cls").read_bytes())
+    result = CliRunner().invoke(main, ["convert", "x.cls", "-o", "out", "--report", "x.cls"])
+    assert (result.exit_code, result.stderr) == (
+        2, "prs3-post: error: x.cls: is also the input 1 (x.cls): writing --report would destroy it (choose another "
+           "file)\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.cls"]

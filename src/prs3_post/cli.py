@@ -1317,7 +1317,7 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
             auto_origin=part_origin == AUTO, auto_rotation=part_rotation == AUTO)
         files = collect_inputs(inputs, exclude=outdir, exclude_suffix=dialect.extension)
         if report_path is not None:
-            refuse_overwriting({"--report": report_path}, {f"input {i + 1}": f for i, f in enumerate(files)})
+            refuse_overwriting({"--report": report_path}, {f"{i + 1} ({f})": f for i, f in enumerate(files)})
             for file in files:                           # the report must not replace a program either
                 refuse_overwriting({f"the program of {file}": output_path(file, outdir, dialect),
                                     "--report": report_path}, {})
