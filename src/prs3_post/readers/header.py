@@ -95,8 +95,19 @@ class ToolRecord:
     ik_length: float
 
 
+class _HeaderLines:
+    """``line()`` for both headers: where each entry was read (their ``lines`` field)."""
+
+    __slots__ = ()
+    lines: tuple[tuple[str, int], ...]
+
+    def line(self, key: str) -> int | None:
+        """The program line the ``key`` entry was read from (None when not read from a file)."""
+        return dict(self.lines).get(key)
+
+
 @dataclass(frozen=True, slots=True)
-class ProgramHeader:
+class ProgramHeader(_HeaderLines):
     """What a program says it was made from.
 
     Attributes
@@ -151,13 +162,9 @@ class ProgramHeader:
     lines: tuple[tuple[str, int], ...] = ()
     path: str = ""
 
-    def line(self, key: str) -> int | None:
-        """The program line the ``key`` entry was read from (None when not read from a file)."""
-        return dict(self.lines).get(key)
-
 
 @dataclass(frozen=True, slots=True)
-class SourceHeader:
+class SourceHeader(_HeaderLines):
     """What a converted program (``prs3-post convert``) says it was made from: a CAM file, not a part.
 
     Written as::
@@ -216,10 +223,6 @@ class SourceHeader:
     five_axis: str = ""
     tcp_on: tuple[str, ...] = ()
     tcp_off: tuple[str, ...] = ()
-
-    def line(self, key: str) -> int | None:
-        """The program line the ``key`` entry was read from (None when not read from a file)."""
-        return dict(self.lines).get(key)
 
 
 def file_sha256(path: str) -> str:
@@ -566,6 +569,22 @@ def _cutting(text: str) -> Cutting:
         raise _Bad(str(error)) from error
 
 
+def _machine_name(text: str) -> str:
+    """The machine entry's name, without the ``[...]`` after it."""
+    machine = re.sub(r"\s*\[.*\]$", "", text).strip()
+    if not machine:
+        raise _Bad("no machine name")
+    return machine
+
+
+def _setup(text: str) -> Setup:
+    found = _match(_SETUP, text)
+    try:
+        return Setup(_vector(found.group(1), 3), float(found.group(2)))  # type: ignore[arg-type]
+    except Prs3Error as error:
+        raise _Bad(str(error)) from error
+
+
 def _dialect(text: str) -> tuple[str, bool | None, int | None, int | None]:
     name, *rest = [p.strip() for p in text.split(",")]
     numbers: bool | None = None
@@ -628,19 +647,13 @@ def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHe
     key = PROGRAM_KEY
     try:
         key = "machine"
-        machine = re.sub(r"\s*\[.*\]$", "", found["machine"][1]).strip()
-        if not machine:
-            raise _Bad("no machine name")
+        machine = _machine_name(found["machine"][1])
         key = "dialect"
         dialect, numbers, start, step = _dialect(found["dialect"][1])
         key = "part"
         part = _match(_PART, found["part"][1])
         key = "setup"
-        setup_match = _match(_SETUP, found["setup"][1])
-        try:
-            setup = Setup(_vector(setup_match.group(1), 3), float(setup_match.group(2)))  # type: ignore[arg-type]
-        except Prs3Error as error:
-            raise _Bad(str(error)) from error
+        setup = _setup(found["setup"][1])
         tools: tuple[ToolRecord, ...] = ()
         if "tools" in found:
             key = "tools"
@@ -751,9 +764,7 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
                          f"has {', '.join(_SOURCE_REQUIRED)})", path=path, line=last)
     key = "machine"
     try:
-        machine = re.sub(r"\s*\[.*\]$", "", found["machine"][1]).strip()
-        if not machine:
-            raise _Bad("no machine name")
+        machine = _machine_name(found["machine"][1])
         key = "dialect"
         dialect, numbers, start, step = _dialect(found["dialect"][1])
         key = "source"
@@ -779,11 +790,7 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
             except WorkPlaneError as error:
                 raise _Bad(str(error)) from error
         key = "setup"
-        setup_match = _match(_SETUP, found["setup"][1])
-        try:
-            setup = Setup(_vector(setup_match.group(1), 3), float(setup_match.group(2)))  # type: ignore[arg-type]
-        except Prs3Error as error:
-            raise _Bad(str(error)) from error
+        setup = _setup(found["setup"][1])
         key = "tool length"
         length = _match(_TOOL_LENGTH, found["tool length"][1])
         tool_length = float(length.group(1))
