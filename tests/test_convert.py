@@ -169,7 +169,7 @@ def test_truncated_record_fails_and_writes_nothing(tmp_path: Path) -> None:
     src.write_text("RAPID\nGOTO/1,2,3\nGOTO/1,2,$\n")
     out = tmp_path / "out"
     code, stdout, _ = _cli(tmp_path, str(src), "-o", str(out))
-    assert code == 1
+    assert code == 2
     reason = stdout.split("\t")[3].rstrip("\n")
     assert reason == (f"{src}:3: truncated record: 'GOTO/1,2,' continues with '$' but the file ends (a continued "
                       "record needs its next line)")
@@ -204,7 +204,7 @@ def test_existing_output_is_kept_unless_forced(tmp_path: Path) -> None:
     kept = out / "humman_deep_drill.ngc"
     kept.write_text("mine\n")
     code, stdout, _ = _cli(tmp_path, str(CORPUS / name), "-o", str(out), _origin_option(PLACED[name]))
-    assert code == 1
+    assert code == 2
     assert stdout == (f"failed\t{CORPUS / name}\t-\t{kept}: exists already: kept (convert with force to replace "
                       "it)\n")
     assert kept.read_text() == "mine\n"
@@ -347,7 +347,7 @@ def test_a_dangling_link_in_a_folder_fails_as_a_missing_file(tmp_path: Path) -> 
     (tmp_path / "cam").mkdir()
     os.symlink(tmp_path / "nowhere", tmp_path / "cam" / "gone.cls")
     code, stdout, _ = _cli(tmp_path, str(tmp_path / "cam"), "-o", str(tmp_path / "out"))
-    assert code == 1
+    assert code == 2
     assert stdout == f"failed\t{tmp_path / 'cam' / 'gone.cls'}\t-\t{tmp_path / 'cam' / 'gone.cls'}: file not found\n"
 
 
@@ -387,7 +387,7 @@ def test_bad_input_fails_with_its_message(tmp_path: Path, name: str, text: str, 
     src.write_text(text)
     out = tmp_path / "out"
     code, stdout, stderr = _cli(tmp_path, str(src), "-o", str(out))
-    assert code == 1
+    assert code == 2
     assert stdout == f"failed\t{src}\t-\t{src}:{reason}\n"
     assert stderr.splitlines()[-1] == f"  {src}:{reason}"
     assert list(out.iterdir()) == []
@@ -397,7 +397,7 @@ def test_an_input_in_the_output_folder_is_never_overwritten(tmp_path: Path) -> N
     src = tmp_path / "t.ngc"
     src.write_text(TILTED)
     code, stdout, _ = _cli(tmp_path, str(src), "-o", str(tmp_path), "--part-origin=0,0,-850", "--force")
-    assert code == 1
+    assert code == 2
     assert stdout == (f"failed\t{src}\t-\t{src}: is also the input being converted: writing its program would "
                       "destroy it (choose another file)\n")
     assert src.read_text() == TILTED

@@ -1333,7 +1333,10 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
         if report_path is not None:
             write_atomic(report_path, json.dumps(result.record(), indent=1, allow_nan=False) + "\n")
         click.echo(batch_summary(result), err=True, nl=False)
-        return 1 if result.failures or result.not_started else 0
+        # the project's exit codes hold for a batch too: 2 when any file was bad input (unreadable, not
+        # understood), else 1 when any failed a limit or reach or was not started, else 0
+        codes = [outcome.exit_code for outcome in result.failures] + [1] * bool(result.not_started)
+        return max(codes, default=0)
 
     run_reported(body)
 
