@@ -15,11 +15,11 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from prs3_post.config import load_machine
+from prs3_post.errors import LimitError
 from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, forward, inverse, unit_axes
 from prs3_post.kinematics.exact import inverse_exact, platform_centre_xy, spherical_joints
 from prs3_post.kinematics.paper import inverse_paper, paper_joints
 from prs3_post.limits import check_limits, raise_first_violation
-from prs3_post.errors import LimitError
 
 MACHINE = load_machine("patel2020")
 GEO = MACHINE.geometry
@@ -252,7 +252,7 @@ def scalar_fk(strokes, guess):
 
     def joints(theta):
         return [np.array([(k - u * math.cos(t)) * math.cos(a), (k - u * math.cos(t)) * math.sin(a),
-                          -s - u * math.sin(t)]) for t, a, s in zip(theta, alpha, strokes)]
+                          -s - u * math.sin(t)]) for t, a, s in zip(theta, alpha, strokes, strict=False)]
 
     def residual(theta):
         j = joints(theta)
@@ -335,7 +335,7 @@ def test_head_model_reports_the_missing_xy():
 
 
 def test_parasitic_centre_matches_design_closed_form():
-    tip, axis = poses_from(np.array([10.0, 30.0, 45.0]), np.array([0.0, 77.0, 200.0]), np.zeros((3, 3)))
+    _tip, axis = poses_from(np.array([10.0, 30.0, 45.0]), np.array([0.0, 77.0, 200.0]), np.zeros((3, 3)))
     ax, ay, az = axis.T
     expected = np.column_stack([GEO.platform_radius * ax * ay / (1 + az),
                                 GEO.platform_radius * (ax**2 - ay**2) / (2 * (1 + az))])

@@ -205,7 +205,7 @@ def test_faces_json(at_repo: Path) -> None:
         (10000.0 * s5 / 2.0, [1.0 / s5, 0.0, 2.0 / s5], 26.56505117707799, [0.0, 200.0, 300.0]),
         (10000.0, [0.0, 0.0, -1.0], 180.0, [0.0, 200.0, 0.0]),
     ]
-    for row, (area, normal, inclination, origin) in zip(rows, expected):
+    for row, (area, normal, inclination, origin) in zip(rows, expected, strict=False):
         assert_allclose(row["area_mm2"], area, rtol=0, atol=1e-9)
         assert_allclose(row["normal"], normal, rtol=0, atol=1e-9)
         assert_allclose(row["inclination_deg"], inclination, rtol=0, atol=1e-9)

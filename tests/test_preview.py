@@ -16,9 +16,9 @@ from prs3_post.config import load_dialect, load_machine
 from prs3_post.errors import Prs3Error
 from prs3_post.geometry import find_faces, select_face
 from prs3_post.kinematics import forward
-from prs3_post.setup import Setup
 from prs3_post.readers.program import load_program
 from prs3_post.readers.stl import load_part
+from prs3_post.setup import Setup
 from prs3_post.toolpath import MoveKind
 from prs3_post.verify import row_times, verify_program
 
@@ -77,7 +77,7 @@ def test_the_other_panels_show_program_data(drawn):
     ax3d, ax_t, ax_xy, ax_bar = figure.axes
     assert [c.get_label() for c in ax3d.collections] == ["face 4", "start"]
     assert [ln.get_label() for ln in ax3d.get_lines()] == ["part edges", "G1 (feed)", "G0 (rapid)", "tool axis"]
-    start, end = row_times(moves)
+    _start, end = row_times(moves)
     for leg, line in enumerate(ax_t.get_lines()[:3]):
         assert line.get_label() == f"T{leg + 1}"
         assert_allclose(line.get_xdata()[1::2], end, atol=0)

@@ -21,6 +21,7 @@ from prs3_post.output import write_atomic
 from prs3_post.pipeline import PostStream, post_process, program_text
 from prs3_post.setup import Setup
 from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
+import itertools
 
 MACHINE = load_machine("patel2020")
 DIALECT = load_dialect("linuxcnc")
@@ -145,7 +146,7 @@ def test_chunks_of_random_sizes_give_the_same_bytes(path: Toolpath, whole: str):
     at_events = [e.before for e in path.events][::2]
     cuts = np.unique(np.r_[0, np.cumsum(rng.integers(1, 60, 200)), at_events, len(path)].clip(0, len(path)))
     pieces = []
-    for lo, hi in zip(cuts[:-1], cuts[1:], strict=True):
+    for lo, hi in itertools.pairwise(cuts):
         pieces.append(Toolpath(kind=np.zeros(0, dtype=np.int64), tip=np.zeros((0, 3)), axis=np.zeros((0, 3)),
                                feed=np.zeros(0), source=np.zeros(0, dtype=np.int64), source_file=CL,
                                events=tuple(Event(0, e.kind, e.value, e.text) for e in path.events

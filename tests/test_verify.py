@@ -16,8 +16,8 @@ from prs3_post.config import load_dialect, load_machine
 from prs3_post.errors import InputError
 from prs3_post.job import run_job
 from prs3_post.kinematics import forward
-from prs3_post.setup import Setup
 from prs3_post.readers.program import load_program, read_program
+from prs3_post.setup import Setup
 from prs3_post.toolpath import EventKind, MoveKind
 from prs3_post.verify import EPSILON_FRACTION, PROBE_INTERVALS, Intended, replay, verify_program
 
@@ -294,7 +294,7 @@ def test_limit_crossed_between_two_points_inside_the_joint_interpolation():
         "FAIL: 1 problem",
         "  line 6: tilt 46.2642 deg is above the maximum 45.0000 deg by 1.2642 deg at 50.0 % of the move",
     ]
-    code, report = verify_json(path)
+    _code, report = verify_json(path)
     limits = {c["limit"]: c for c in report["limits"]}
     # the end points are within limits (margins from FK of the programmed values alone)
     program = load_program(str(path), load_dialect("linuxcnc"))
@@ -383,7 +383,7 @@ def test_verify_fanuc_program_against_its_part(tmp_path):
     result = run("verify", out, "--dialect", "fanuc", "--against", WEDGE, "--profile", "round")
     assert result.exit_code == 0, result.output
     # 3 decimals: the deviation is the rounding, and it is allowed for
-    code, report = verify_json(out, "--dialect", "fanuc", "--against", WEDGE, "--profile", "round")
+    _code, report = verify_json(out, "--dialect", "fanuc", "--against", WEDGE, "--profile", "round")
     assert 1e-4 < report["against"]["tip_max_mm"] < 0.002 + max(d["rounding_mm"] for d in report["moves_detail"])
 
 

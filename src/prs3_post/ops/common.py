@@ -47,9 +47,9 @@ __all__ = [
     "format_mm",
     "format_uv",
     "pass_depths",
-    "require_tolerance",
     "require_nonnegative",
     "require_positive",
+    "require_tolerance",
     "start_program",
     "swept_region",
 ]
