@@ -8,6 +8,7 @@ writer); every chunking must give the same bytes. Errors name the input file and
 
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 
@@ -21,7 +22,6 @@ from prs3_post.output import write_atomic
 from prs3_post.pipeline import PostStream, post_process, program_text
 from prs3_post.setup import Setup
 from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
-import itertools
 
 MACHINE = load_machine("patel2020")
 DIALECT = load_dialect("linuxcnc")
@@ -78,8 +78,8 @@ def chunked(path: Toolpath, size: int, *, boundary_events_late: bool = True) -> 
         hi = min(n, lo + size)
         keep = np.zeros(n, dtype=bool)
         keep[lo:hi] = True
-        take = (lambda b: lo <= b < hi or (b == hi == n)) if boundary_events_late else (
-            lambda b: lo < b <= hi or (b == lo == 0))
+        take = (lambda b, lo=lo, hi=hi: lo <= b < hi or (b == hi == n)) if boundary_events_late else (
+            lambda b, lo=lo, hi=hi: lo < b <= hi or (b == lo == 0))
         events = tuple(Event(e.before - lo, e.kind, e.value, e.text) for e in path.events if take(e.before))
         out.append(Toolpath(kind=path.kind[lo:hi], tip=path.tip[lo:hi], axis=path.axis[lo:hi],
                             feed=path.feed[lo:hi], source=path.source[lo:hi], events=events,

@@ -130,7 +130,7 @@ def report_record(report: VerifyReport, *, path: str = "", dialect: str = "",
         if report.against is not None:
             a = report.against
             record["tip_deviation_mm"] = _nums(a.tip_deviation[e])
-            record["tip_deviation_norm_mm"] = _num(np.linalg.norm(a.tip_deviation[e]))
+            record["tip_deviation_norm_mm"] = _num(float(np.linalg.norm(a.tip_deviation[e])))
             record["axis_deviation_deg"] = _num(math.degrees(a.axis_deviation[e]))
         rows.append(record)
     return {

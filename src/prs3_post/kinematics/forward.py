@@ -72,7 +72,9 @@ def _rotate(cos_t: FloatArray, sin_t: FloatArray, delta: FloatArray) -> tuple[Fl
     return new_cos * scale, new_sin * scale
 
 
-def _solve_block(geometry: Geometry, strokes: FloatArray, tol: float, max_iter: int) -> tuple[FloatArray, ...]:
+def _solve_block(
+    geometry: Geometry, strokes: FloatArray, tol: float, max_iter: int
+) -> tuple[FloatArray, FloatArray, IntArray, FloatArray]:
     """Newton on the link angles of one block: cos θ, sin θ (3, n), iterations (n,), residual (n,) mm.
 
     Arrays are leg-major, (3, n), so that every per-leg row is contiguous.
@@ -124,7 +126,9 @@ def _solve_block(geometry: Geometry, strokes: FloatArray, tol: float, max_iter: 
     return out_cos, out_sin, iterations, residual
 
 
-def _pose_block(geometry: Geometry, strokes: FloatArray, stage: FloatArray, tol: float, max_iter: int, out: dict[str, np.ndarray]) -> None:
+def _pose_block(
+    geometry: Geometry, strokes: FloatArray, stage: FloatArray, tol: float, max_iter: int, out: dict[str, np.ndarray]
+) -> None:
     """FK of one block into the ``out`` views (keys as :class:`FKResult` fields)."""
     cos_t, sin_t, out["iterations"][:], out["residual"][:] = _solve_block(geometry, strokes, tol, max_iter)
     alpha = np.asarray(geometry.leg_azimuth)

@@ -441,8 +441,8 @@ def plan_profile(
     name = "square" if isinstance(shape, SquareShape) else "round"
     lap = _Lap.of(contour, resolution)
     if len(lap.points) < 4:                           # fewer than 3 corners the program can tell apart
-        around = float(np.sum(np.linalg.norm(np.diff(contour, axis=0), axis=1)))
-        raise FeatureError(f"{what}: the tool centre goes {around:.4f} mm around, too little for the "
+        travel = float(np.sum(np.linalg.norm(np.diff(contour, axis=0), axis=1)))
+        raise FeatureError(f"{what}: the tool centre goes {travel:.4f} mm around, too little for the "
                            f"program's resolution of {resolution:g} mm (a larger shape, or a hole?)")
     depths = pass_depths(params.depth, params.step_down, resolution=resolution)
     passes = len(depths)
@@ -464,8 +464,8 @@ def plan_profile(
     s_here = 0.0                                      # arc length of the tool's place on the contour
     here = start
     previous_depth = 0.0
-    for k, depth in enumerate(depths, start=1):
-        depth = float(depth)
+    for k, pass_depth in enumerate(depths, start=1):
+        depth = float(pass_depth)
         tag = f"{name} pass {k}/{passes}"
         builder.comment(f"{tag} at depth {depth:.3f} mm")
         if params.entry is Entry.PLUNGE:
