@@ -4,7 +4,7 @@ Run from anywhere:  python scripts/make_preview.py
 
 It runs the one-step form of the main job, exactly as a user would type it,
 
-    prs3-post demo --profile square --size 40 --corner-radius 6 -o <temp>/demo-square.ngc --preview docs/preview-demo.png
+  prs3-post demo --profile square --size 40 --corner-radius 6 -o <temp>/demo-square.ngc --preview docs/preview-demo.png
 
 so the picture is the FK replay of the program that command writes. The PNG carries no time stamp
 or software version, so it only changes when the program or the drawing does (the bytes may still

@@ -93,7 +93,9 @@ def test_ik_missing_batch_file(tmp_path):
 def test_ik_bad_option_values():
     result = run("ik", "--tip", "1,2", "--axis", AXIS_2A)
     assert result.exit_code == 2
-    assert result.output.splitlines()[-1] == "Error: Invalid value for '--tip': expected 3 plain decimal numbers X,Y,Z, got '1,2'"
+    assert result.output.splitlines()[-1] == (
+        "Error: Invalid value for '--tip': expected 3 plain decimal numbers X,Y,Z, got '1,2'"
+    )
     result = run("ik", "--tip", TIP_2A, "--axis", "0,0,-1")
     assert (result.exit_code, result.output) == (
         2, "prs3-post: error: pose 0: the axis points away from the spindle (axis z must be > 0)\n")

@@ -35,7 +35,9 @@ from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind
 REPO = Path(__file__).resolve().parents[1]
 BAD_DIALECTS = sorted((REPO / "fixtures" / "bad" / "dialects").glob("*.toml"))
 #: LinuxCNC's interpreter wrapper (see its README); RS274_CHECK overrides where it lives.
-RS274_CHECK = Path(os.environ.get("RS274_CHECK", Path(__file__).resolve().parents[2] / "shared" / "tools" / "rs274-check"))
+RS274_CHECK = Path(
+    os.environ.get("RS274_CHECK", Path(__file__).resolve().parents[2] / "shared" / "tools" / "rs274-check")
+)
 
 R, F = MoveKind.RAPID, MoveKind.FEED
 

@@ -33,7 +33,8 @@ from prs3_post.cli import Decimal, Integer, Numbers, OutputPath, main
 REPO = Path(__file__).resolve().parents[1]
 
 #: How many examples each command gets (the whole file runs in ~15 s; preview draws a figure).
-EXAMPLES = {"run": 40, "demo": 50, "faces": 40, "ik": 50, "fk": 50, "verify": 50, "preview": 12, "machines": 5, "sources": 5,
+EXAMPLES = {"run": 40, "demo": 50, "faces": 40, "ik": 50, "fk": 50, "verify": 50, "preview": 12, "machines": 5,
+            "sources": 5,
             "job": 25, "convert": 30}
 #: Options set in one example, besides the required ones.
 MAX_OPTIONS = 4

@@ -342,7 +342,8 @@ def test_tiny_part_loads_in_inches():
         (b"", None, "not an STL file (expected ASCII 'solid ...' or binary STL): the file is empty (0 bytes)"),
         (b"  \n\n", None, "not an STL file (expected ASCII 'solid ...' or binary STL): "
          "the file contains only whitespace"),
-        (b"solid t\n facet normal 0 0 1\n  outer loop\n", 1, "'solid' has no matching 'endsolid' (is the file truncated?)"),
+        (b"solid t\n facet normal 0 0 1\n  outer loop\n", 1,
+         "'solid' has no matching 'endsolid' (is the file truncated?)"),
         (b"solid a\nsolid b\nendsolid\n", 2, "'solid' inside the solid opened on line 1 (missing 'endsolid')"),
         (b"solid a\nendsolid a\nhello\n", 3, "expected 'facet', found 'hello'"),
         (b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertx 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n"

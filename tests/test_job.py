@@ -565,8 +565,9 @@ def test_same_job_twice_gives_the_same_bytes(made: dict[str, Made], tmp_path: Pa
     assert CliRunner().invoke(main, [*case.args, "-o", str(first)]).exit_code == 0
     assert CliRunner().invoke(main, [*case.args[1:], "-o", str(second)]).exit_code == 0
     env = {**os.environ, "PYTHONHASHSEED": "12345"}
-    done = subprocess.run([sys.executable, "-c", "from prs3_post.cli import main; main()", *case.args, "-o", str(third)],
-                          cwd=tmp_path, env=env, capture_output=True, text=True, check=False)
+    done = subprocess.run(
+        [sys.executable, "-c", "from prs3_post.cli import main; main()", *case.args, "-o", str(third)],
+        cwd=tmp_path, env=env, capture_output=True, text=True, check=False)
     assert done.returncode == 0, done.stderr
     expected = made[case.name].text.encode("utf-8")
     assert first.read_bytes() == expected

@@ -134,8 +134,10 @@ def test_readme_placement_and_exit_code_examples_do_what_it_says(tmp_path, monke
     monkeypatch.chdir(tmp_path)
     (tmp_path / "ssg_slope.stl").write_bytes(Path(SLOPE).read_bytes())
     placed = [line.strip() for line in section.splitlines() if line.startswith("      prs3-post ")]
-    assert placed == ["prs3-post ssg_slope.stl --profile hole --part-origin=-18,-10,-688 --no-collision-check -o slope.ngc",
-                      "prs3-post ssg_slope.stl --profile hole --part-origin auto --no-collision-check -o slope.ngc"]
+    assert placed == [
+        "prs3-post ssg_slope.stl --profile hole --part-origin=-18,-10,-688 --no-collision-check -o slope.ngc",
+        "prs3-post ssg_slope.stl --profile hole --part-origin auto --no-collision-check -o slope.ngc",
+    ]
     assert invoke(*placed[0].split()[1:]).exit_code == 0
     auto = invoke(*placed[1].split()[1:])                  # prints what the README shows
     assert auto.exit_code == 0

@@ -67,7 +67,8 @@ def test_post_process_places_the_part_and_matches_case_2a():
 
 def test_limit_error_names_the_step():
     far = np.array([0.0, 0.0, 900.0])                            # 900 mm above the part origin: stroke < -100
-    p = path([far, far - A], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100], labels=("hole 1 approach", "hole 1 feed"))
+    p = path([far, far - A], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100],
+             labels=("hole 1 approach", "hole 1 feed"))
     with pytest.raises(LimitError) as caught:
         post_process(MACHINE, p, ORIGIN)
     assert str(caught.value) == ("hole 1 approach: T1 stroke -573.2621 mm is below the minimum -100.0000 mm "
@@ -96,7 +97,8 @@ def test_head_alone_moves_its_tip_only_vertically_at_a_fixed_tilt():
     head = load_machine("patel2020-head")
     tip_part = np.array([18.9736, 221.2132, 290.5135])
     p = path([[*tip_part, 0, 0, 10], tip_part], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100])
-    shifted = ORIGIN.with_origin(ORIGIN.shift - np.array([-2.7640208, 12.0703266, 0.0]))   # the part placed under the head's tip
+    # the part placed under the head's tip
+    shifted = ORIGIN.with_origin(ORIGIN.shift - np.array([-2.7640208, 12.0703266, 0.0]))
     result = post_process(head, p, shifted)
     assert_allclose(result.program.stage, 0.0, atol=0.0)
     assert_allclose(result.ik.stage, 0.0, atol=1e-6)

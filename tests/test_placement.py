@@ -56,7 +56,8 @@ def test_slope_part_fails_with_the_default_setup_and_works_with_the_suggested_or
     suggested = re.fullmatch(r".*: (--part-origin=\S+)", message)
     assert suggested is not None, message
     assert not out.exists()
-    again = invoke(SLOPE, "--profile", "hole", suggested.group(1), "--no-collision-check", "-o", out)  # a tunnel: no holder enters it
+    # a tunnel: no holder enters it
+    again = invoke(SLOPE, "--profile", "hole", suggested.group(1), "--no-collision-check", "-o", out)
     assert again.exit_code == 0, again.stderr
     assert invoke("verify", out, "--against", SLOPE).exit_code == 0
 

@@ -430,7 +430,8 @@ def ik(tip: tuple[float, ...] | None, axis: tuple[float, ...] | None, batch_path
 
 
 @main.command()
-@click.option("--strokes", type=Numbers("T1,T2,T3"), required=True, help="Actuator strokes, mm (downward from the base).")
+@click.option("--strokes", type=Numbers("T1,T2,T3"), required=True,
+              help="Actuator strokes, mm (downward from the base).")
 @click.option("--xy", type=Numbers("X,Y"), default="0,0", show_default=True, help="Stage position X, Y, mm.")
 @machine_option
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
@@ -533,7 +534,8 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
         click.option("--at", "at_uv", type=Numbers("U,V"), multiple=True,
                      help="Feature position in face coordinates, mm (repeat for several holes). Default: face origin."),
         click.option("--at-xyz", "at_xyz", type=Numbers("X,Y,Z"), multiple=True,
-                     help="Feature position in part coordinates, mm: a point on the face (within 0.01 mm; repeatable)."),
+                     help="Feature position in part coordinates, mm: a point on the face "
+                          "(within 0.01 mm; repeatable)."),
         click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True,
                      help="Length unit of the STL file."),
         up_option,
@@ -553,7 +555,8 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="square: rotation about the face normal from the down-slope direction u, degrees."),
         click.option("--diameter", type=Decimal(LENGTH), default=30.0, show_default=True, help="round: diameter, mm."),
         click.option("--side", type=click.Choice([s.value for s in Side]), default="on", show_default=True,
-                     help="Tool centre on the outline (a groove), inside it or outside it (offset by the tool radius)."),
+                     help="Tool centre on the outline (a groove), inside it or outside it "
+                          "(offset by the tool radius)."),
         click.option("--step-down", type=Decimal(LENGTH), default=1.0, show_default=True,
                      help="square/round: depth per pass, mm."),
         click.option("--direction", type=click.Choice([d.value for d in Direction]), default="climb", show_default=True,
@@ -700,7 +703,8 @@ def _job_spec(part: str, opts: dict[str, Any]) -> JobSpec:
         cutting=cutting, machine=machine, dialect=dialect,
         setup=resolve_setup(machine, opts["part_origin"], opts.get("part_rotation")), tolerance=opts["tolerance"],
         line_numbers=opts.get("line_numbers"), line_start=opts.get("line_start"), line_step=opts.get("line_step"),
-        up=opts.get("up", "z"), auto_origin=opts["part_origin"] == AUTO, auto_rotation=opts.get("part_rotation") == AUTO,
+        up=opts.get("up", "z"), auto_origin=opts["part_origin"] == AUTO,
+        auto_rotation=opts.get("part_rotation") == AUTO,
         tool_table=read_tool_table(opts["tool_table"]) if opts.get("tool_table") else None,
         clamp=opts.get("clamp", True), collision_check=opts.get("collision_check", True),
         clearance_min=opts.get("clearance_min", 1.0),
@@ -870,7 +874,8 @@ def job(job_path: str, out_path: str | None) -> None:
 
 @main.command()
 @click.argument("part", type=click.Path(dir_okay=False), metavar="PART.stl")
-@click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True, help="Length unit of the STL.")
+@click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True,
+              help="Length unit of the STL.")
 @up_option
 @click.option("--json", "as_json", is_flag=True, help="Print the table as JSON.")
 def faces(part: str, units: str, up: str, as_json: bool) -> None:
@@ -962,8 +967,8 @@ _HEADER_FLAGS = {"machine": "--machine", "dialect": "--dialect", "part origin": 
 def _open_program(ctx: click.Context, path: str, machine_name: str, dialect_name: str,
                   part_origin: tuple[float, ...] | None, part_rotation: float | None,
                   opener: Callable[..., _Opened]) -> _Opened:
-    """The program (``open_program``), or its setting only (``open_setting``), with the machine, dialect and setup of its header,
-    or those given."""
+    """The program (``open_program``), or its setting only (``open_setting``), with the machine, dialect and setup
+    of its header, or those given."""
     for value, flag in ((part_origin, "--part-origin"), (part_rotation, "--part-rotation")):
         if value == AUTO:
             raise click.BadParameter("auto chooses the setup when a program is made; a program is read with the "
@@ -1084,7 +1089,8 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext, opts: d
 @click.argument("program_path", type=click.Path(dir_okay=False), metavar="PROGRAM.ngc")
 @click.option("--against", "against_path", type=click.Path(dir_okay=False), metavar="PART.stl|POSES.csv|INPUT",
               help="The intended path: PART.stl (the operation is rebuilt from the program's header; a program "
-                   "without one needs the options it was made with: --profile, --at, --depth, ...), or POSES.csv (the `ik --batch` format, "
+                   "without one needs the options it was made with: --profile, --at, --depth, ...), "
+                   "or POSES.csv (the `ik --batch` format, "
                    "machine frame, one pose per G0/G1 line), or for a program made by `prs3-post convert` its CAM "
                    "input (APT CL or G-code; checked by the SHA-256 its header records).")
 @click.option("--axis-tolerance", "axis_tolerance_deg", type=Decimal(ANGLE), default=DEFAULT_ANGLE_TOLERANCE_DEG,
@@ -1168,12 +1174,14 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
 @main.command()
 @click.argument("program_path", type=click.Path(dir_okay=False), metavar="PROGRAM.ngc")
 @click.option("-o", "--output", "out_path", type=OutputPath(), required=True,
-              metavar="OUT.png|OUT.svg", help="Image file (PNG or SVG by suffix; written to a temp file, then renamed).")
+              metavar="OUT.png|OUT.svg",
+              help="Image file (PNG or SVG by suffix; written to a temp file, then renamed).")
 @click.option("--part", "part_path", type=click.Path(dir_okay=False), metavar="PART.stl",
               help="Draw the part (part coordinates) and highlight its face (--face).")
 @click.option("--face", "face_choice", default="auto", show_default=True, metavar="auto|N",
               help="Face to highlight: auto = the main job's automatic choice; N = index from `prs3-post faces`.")
-@click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True, help="Length unit of the STL.")
+@click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True,
+              help="Length unit of the STL.")
 @up_option
 @machine_option
 @click.option("--dialect", "dialect_name", default=DEFAULT_DIALECT, show_default=True, metavar="NAME|PATH",

@@ -179,7 +179,8 @@ def _group_stats(
     kept = labels >= 0
     groups = int(labels.max()) + 1
     lab, weight = labels[kept], area_tri[kept]
-    area: FloatArray = np.bincount(lab, weights=weight, minlength=groups).astype(np.float64)  # numpy types bincount as int
+    # numpy types bincount as int
+    area: FloatArray = np.bincount(lab, weights=weight, minlength=groups).astype(np.float64)
     normal = np.zeros((groups, 3))
     centroid = np.zeros((groups, 3))
     np.add.at(normal, lab, normal_tri[kept] * weight[:, None])

@@ -35,7 +35,9 @@ def default_workers() -> int:
     return max(1, min(2, cpus))
 
 
-def run_blocks(kernel: Callable[[slice], None], n: int, *, block_rows: int = BLOCK_ROWS, workers: int | None = None) -> None:
+def run_blocks(
+    kernel: Callable[[slice], None], n: int, *, block_rows: int = BLOCK_ROWS, workers: int | None = None
+) -> None:
     """Call ``kernel(rows)`` for consecutive row slices covering ``range(n)``.
 
     Parameters

@@ -379,7 +379,9 @@ class _Lap:
 
     def point_at(self, s: float) -> FloatArray:
         """(2,) mm, the contour point at arc length ``s`` in [0, length]."""
-        return np.array([np.interp(s, self.arc_length, self.points[:, 0]), np.interp(s, self.arc_length, self.points[:, 1])])
+        return np.array([
+            np.interp(s, self.arc_length, self.points[:, 0]), np.interp(s, self.arc_length, self.points[:, 1])
+        ])
 
     def vertices_between(self, s_from: float, s_to: float) -> tuple[FloatArray, FloatArray]:
         """Contour vertices strictly between arc lengths ``s_from`` < ``s_to`` ≤ s_from + length.
@@ -434,7 +436,9 @@ def plan_profile(
     center = np.asarray(center_uv, dtype=np.float64)
     if center.shape != (2,) or not np.isfinite(center).all():
         raise FeatureError(f"profile centre: expected a finite face point (u, v) in mm, got {center_uv!r}")
-    contour = tool_center_contour(center, shape, params.side, params.direction, cutting.tool_diameter, tolerance=tolerance)
+    contour = tool_center_contour(
+        center, shape, params.side, params.direction, cutting.tool_diameter, tolerance=tolerance
+    )
     what = f"{shape.describe()} at {format_uv(center)} with tool Ø{cutting.tool_diameter:.3f}"
     check_fits(face, swept_region(contour, cutting.tool_radius), what)
 
