@@ -175,7 +175,7 @@ face   area mm²  width mm    incl °   normal x   normal y   normal z  origin x
    4  11180.340    100.00   26.5651   0.447214   0.000000   0.894427    0.0000  200.0000  300.0000  inclined up      yes        inclined up, 100.00 mm wide
    5  10000.000    100.00  180.0000   0.000000   0.000000  -1.000000    0.0000  200.0000    0.0000  horizontal down  no         faces down
 auto: face 4 is the largest upward-facing inclined face (inclination 26.5651°, area 11180.3 mm²)
-"""
+"""  # noqa: E501 (a golden table: its rows are as wide as the command prints them)
 
 
 def test_faces_text(at_repo: Path) -> None:
@@ -293,7 +293,8 @@ def test_output_file_gets_ordinary_permissions(tmp_path):
 
 
 @pytest.mark.parametrize(("args", "message"), [
-    (["demo", "--profile", "hole", "--face", "²"], "Invalid value for '--face': expected auto or a face index, got '²'"),
+    (["demo", "--profile", "hole", "--face", "²"],
+     "Invalid value for '--face': expected auto or a face index, got '²'"),
     (["demo", "--profile", "hole", "--line-numbers", "--line-start", "99999", "--line-step", "1000"],
      "Invalid value for '--line-start': --line-start 99999 + --line-step 1000 passes dialect linuxcnc's largest "
      "block number 99999: every block would get the same number"),
@@ -332,7 +333,8 @@ def test_verify_refuses_operation_options_without_an_stl(tmp_path):
     assert result.stderr.splitlines()[-1] == (
         "Error: --face, --depth, --size: the operation options are only used with --against PART.stl")
     for option, value, message in (
-        ("--tolerance", "0", "prs3-post: error: --tolerance must be ≥ 0.0001 mm, the resolution of the program (got 0)"),
+        ("--tolerance", "0",
+         "prs3-post: error: --tolerance must be ≥ 0.0001 mm, the resolution of the program (got 0)"),
         ("--axis-tolerance", "-1", "Error: Invalid value for '--axis-tolerance': must be a number ≥ 0 degrees, got -1"),
     ):
         result = CliRunner().invoke(main, ["verify", str(program), option, value])

@@ -61,7 +61,9 @@ def make_face(boundary: shapely.Polygon | None = None) -> Face:
 
 
 FACE = make_face()
-CUT = Cutting(tool_diameter=6.0, feed=600.0, plunge_feed=200.0, spindle_rpm=8000.0, coolant=Coolant.FLOOD, tool_number=3)
+CUT = Cutting(
+    tool_diameter=6.0, feed=600.0, plunge_feed=200.0, spindle_rpm=8000.0, coolant=Coolant.FLOOD, tool_number=3
+)
 
 
 def hole_params(**changes: float) -> HoleParams:
@@ -72,7 +74,8 @@ def hole_params(**changes: float) -> HoleParams:
 
 def profile_params(**changes: object) -> ProfileParams:
     values: dict[str, object] = dict(
-        side=Side.ON, depth=5.0, step_down=2.0, direction=Direction.CLIMB, entry=Entry.PLUNGE, clearance=2.0, retract=10.0
+        side=Side.ON, depth=5.0, step_down=2.0, direction=Direction.CLIMB, entry=Entry.PLUNGE, clearance=2.0,
+        retract=10.0
     )
     values.update(changes)
     return ProfileParams(**values)  # type: ignore[arg-type]
@@ -163,7 +166,8 @@ def test_hole_events_spindle_coolant_dwell_and_end() -> None:
 
 
 def test_hole_without_pecking_dwell_or_coolant() -> None:
-    dry = Cutting(tool_diameter=6.0, feed=600.0, plunge_feed=150.0, spindle_rpm=5000.0, coolant=Coolant.OFF, tool_number=1)
+    dry = Cutting(tool_diameter=6.0, feed=600.0, plunge_feed=150.0, spindle_rpm=5000.0, coolant=Coolant.OFF,
+                  tool_number=1)
     path = plan_holes(FACE, np.array([[0.0, 0.0]]), hole_params(peck=0.0, dwell=0.0), dry)
     assert_allclose(face_uvw(path)[:, 2], [10.0, 2.0, -10.0, 2.0, 10.0], rtol=0, atol=1e-12)
     assert labels(path) == ["hole 1 approach", "hole 1 approach", "hole 1 feed", "hole 1 retract", "hole 1 retract"]
@@ -174,7 +178,8 @@ def test_hole_without_pecking_dwell_or_coolant() -> None:
 
 
 def test_mist_coolant_event_text() -> None:
-    mist = Cutting(tool_diameter=6.0, feed=600.0, plunge_feed=150.0, spindle_rpm=5000.0, coolant=Coolant.MIST, tool_number=1)
+    mist = Cutting(tool_diameter=6.0, feed=600.0, plunge_feed=150.0, spindle_rpm=5000.0, coolant=Coolant.MIST,
+                   tool_number=1)
     path = plan_holes(FACE, np.array([[0.0, 0.0]]), hole_params(), mist)
     assert [e.text for e in path.events if e.kind is EventKind.COOLANT_ON] == ["mist"]
 
@@ -205,7 +210,9 @@ def test_holes_drilled_in_the_given_order_moving_at_retract_height() -> None:
     assert_allclose(uvw[4::5, 2], 10.0, rtol=0, atol=1e-12)                     # and leaves at it
     assert labels(path)[5] == "hole 2 approach"
     comments = [e.text for e in path.events if e.kind is EventKind.COMMENT]
-    assert comments[1:] == ["hole 1/3 at (u 20.000, v 10.000)", "hole 2/3 at (u -20.000, v 10.000)", "hole 3/3 at (u 0.000, v -30.000)"]
+    assert comments[1:] == [
+        "hole 1/3 at (u 20.000, v 10.000)", "hole 2/3 at (u -20.000, v 10.000)", "hole 3/3 at (u 0.000, v -30.000)"
+    ]
     assert_common_rows(path)
 
 
@@ -213,11 +220,15 @@ def test_one_hole_at_the_edge_does_not_fit_and_says_by_how_much() -> None:
     # disc of radius 3 around u = 54 reaches u = 57; the face edge is at 55.9017: 1.0983 mm over
     with pytest.raises(FeatureError) as err:
         plan_holes(FACE, np.array([[0.0, 0.0], [54.0, 0.0]]), hole_params(), CUT)
-    assert str(err.value) == "hole 2 at (u 54.000, v 0.000) with tool Ø6.000: does not fit on face 0: overshoots its edge by 1.098 mm"
+    assert str(err.value) == (
+        "hole 2 at (u 54.000, v 0.000) with tool Ø6.000: does not fit on face 0: overshoots its edge by 1.098 mm"
+    )
 
 
 def test_hole_near_a_hole_in_the_face() -> None:
-    with_opening = make_face(shapely.box(-55.9017, -50.0, 55.9017, 50.0).difference(shapely.box(-35.0, -5.0, -25.0, 5.0)))
+    with_opening = make_face(
+        shapely.box(-55.9017, -50.0, 55.9017, 50.0).difference(shapely.box(-35.0, -5.0, -25.0, 5.0))
+    )
     with pytest.raises(FeatureError) as err:   # reaches u = -26.5: 1.5 mm into the opening that starts at -25
         plan_holes(with_opening, np.array([[-23.5, 0.0]]), hole_params(), CUT)
     assert str(err.value) == (
@@ -231,7 +242,8 @@ def test_hole_near_a_hole_in_the_face() -> None:
         "touches the hole in the face at (u -30.000, v 0.000)"
     )
     with pytest.raises(FeatureError) as err:   # a big tool swallows the whole opening: 5 mm (its half-width)
-        plan_holes(with_opening, np.array([[-30.0, 0.0]]), hole_params(), Cutting(30.0, 600.0, 200.0, 8000.0, Coolant.OFF, 1))
+        plan_holes(with_opening, np.array([[-30.0, 0.0]]), hole_params(),
+                   Cutting(30.0, 600.0, 200.0, 8000.0, Coolant.OFF, 1))
     assert str(err.value) == (
         "hole 1 at (u -30.000, v 0.000) with tool Ø30.000: does not fit on face 0: "
         "cuts 5.000 mm into the hole in the face at (u -30.000, v 0.000)"
@@ -298,7 +310,9 @@ def test_hole_positions_refused(centers: np.ndarray, message: str) -> None:
     ],
 )
 def test_cutting_refused(changes: dict[str, float], message: str) -> None:
-    values: dict[str, object] = dict(tool_diameter=6.0, feed=600.0, plunge_feed=200.0, spindle_rpm=8000.0, coolant=Coolant.FLOOD, tool_number=1)
+    values: dict[str, object] = dict(
+        tool_diameter=6.0, feed=600.0, plunge_feed=200.0, spindle_rpm=8000.0, coolant=Coolant.FLOOD, tool_number=1
+    )
     values.update(changes)
     with pytest.raises(FeatureError) as err:
         Cutting(**values)  # type: ignore[arg-type]
@@ -341,7 +355,9 @@ def test_rounded_square_outside_contour() -> None:
     # square 40 with 2 mm corners, tool Ø6 outside: tool centre on a 46 mm square with 5 mm corners,
     # corner centres at (±18, ±18); 28 steps per quarter (1.5708 / (2·acos(1 − 0.002/5)) = 27.77)
     center = np.array([10.0, 5.0])
-    contour = tool_center_contour(center, SquareShape(40.0, corner_radius=2.0), Side.OUTSIDE, Direction.CONVENTIONAL, 6.0)
+    contour = tool_center_contour(
+        center, SquareShape(40.0, corner_radius=2.0), Side.OUTSIDE, Direction.CONVENTIONAL, 6.0
+    )
     assert contour.shape == (1 + 4 * 29 + 1, 2)
     assert_allclose(contour[0], [*center, 23.0, 0.0], rtol=0, atol=1e-12)
     assert_array_equal(contour[-1], contour[0])
@@ -378,9 +394,12 @@ def test_square_that_is_a_circle_has_no_zero_length_sides() -> None:
 
 def test_rotated_square_starts_at_the_rotated_side_middle() -> None:
     rotation = math.radians(30.0)
-    contour = tool_center_contour(np.array([1.0, 2.0]), SquareShape(30.0, rotation=rotation), Side.ON, Direction.CLIMB, 6.0)
+    contour = tool_center_contour(
+        np.array([1.0, 2.0]), SquareShape(30.0, rotation=rotation), Side.ON, Direction.CLIMB, 6.0
+    )
     assert_allclose(contour[0], [1.0 + 15.0 * math.cos(rotation), 2.0 + 15.0 * math.sin(rotation)], rtol=0, atol=1e-12)
-    assert_allclose(contour[1], [1.0, 2.0] + 15.0 * np.array([math.cos(rotation) + math.sin(rotation), math.sin(rotation) - math.cos(rotation)]), atol=1e-12)
+    corner = np.array([math.cos(rotation) + math.sin(rotation), math.sin(rotation) - math.cos(rotation)])
+    assert_allclose(contour[1], [1.0, 2.0] + 15.0 * corner, atol=1e-12)
 
 
 @pytest.mark.parametrize(
@@ -395,7 +414,9 @@ def test_rotated_square_starts_at_the_rotated_side_middle() -> None:
     ],
 )
 def test_lap_direction_in_the_toolpath(side: Side, direction: Direction, clockwise: bool) -> None:
-    path = plan_profile(FACE, np.zeros(2), RoundShape(30.0), profile_params(side=side, direction=direction, depth=2.0), CUT)
+    path = plan_profile(
+        FACE, np.zeros(2), RoundShape(30.0), profile_params(side=side, direction=direction, depth=2.0), CUT
+    )
     lap = face_uvw(path)[[i for i, name in enumerate(labels(path)) if name.endswith("lap")]]
     start = face_uvw(path)[[i for i, name in enumerate(labels(path)) if name.endswith("plunge")]]
     area = signed_area(np.concatenate([start[:, :2], lap[:, :2]]))
@@ -445,7 +466,8 @@ def test_square_profile_starts_at_the_papers_profile_point() -> None:
     assert_allclose(face_uvw(path)[face_row], [15.0, 0.0, 0.0], rtol=0, atol=1e-12)
     # the paper's point is printed to 4 decimals and lies 2.7e-4 mm off the face (3.0e-4 mm in z)
     assert_allclose(path.tip[face_row], PAPER_2B_PART, atol=3.1e-4)
-    assert_allclose(path.tip[face_row], [15.0 * math.cos(BETA), 200.0, 300.0 - 15.0 * math.sin(BETA)], rtol=0, atol=1e-12)
+    assert_allclose(path.tip[face_row], [15.0 * math.cos(BETA), 200.0, 300.0 - 15.0 * math.sin(BETA)],
+                    rtol=0, atol=1e-12)
 
 
 def test_step_down_with_floating_error_makes_no_extra_pass() -> None:
@@ -456,13 +478,16 @@ def test_step_down_with_floating_error_makes_no_extra_pass() -> None:
 
 def test_ramp_entry_follows_the_contour_and_the_feature_ends_where_the_ramp_did() -> None:
     ramp_angle = math.radians(3.0)
-    path = plan_profile(FACE, np.zeros(2), SquareShape(30.0), profile_params(entry=Entry.RAMP, ramp_angle=ramp_angle), CUT)
+    path = plan_profile(
+        FACE, np.zeros(2), SquareShape(30.0), profile_params(entry=Entry.RAMP, ramp_angle=ramp_angle), CUT
+    )
     uvw = face_uvw(path)
     names = labels(path)
     # pass 1 from (15, 0, 0): 2/tan 3° = 38.1623 mm clockwise: 15 mm down the +u side, 23.1623 along −v side
     ramp1 = rows_labelled(path, "pass 1/3 ramp")
     length1 = 2.0 / math.tan(ramp_angle)
-    assert_allclose(uvw[ramp1], [[15.0, -15.0, -2.0 * 15.0 / length1], [15.0 - (length1 - 15.0), -15.0, -2.0]], rtol=0, atol=1e-12)
+    assert_allclose(uvw[ramp1], [[15.0, -15.0, -2.0 * 15.0 / length1], [15.0 - (length1 - 15.0), -15.0, -2.0]],
+                    rtol=0, atol=1e-12)
     assert_allclose(path.feed[ramp1], 200.0, rtol=0, atol=0)
     for k, depth in enumerate([2.0, 4.0, 5.0], start=1):
         ramp, lap = rows_labelled(path, f"pass {k}/3 ramp"), rows_labelled(path, f"pass {k}/3 lap")
@@ -475,7 +500,8 @@ def test_ramp_entry_follows_the_contour_and_the_feature_ends_where_the_ramp_did(
         # the lap is at depth and returns exactly to where the ramp ended
         assert_allclose(uvw[lap, 2], -depth, rtol=0, atol=1e-12)
         assert_allclose(uvw[lap[-1]], uvw[ramp[-1]], rtol=0, atol=1e-12)
-        assert_allclose(np.sum(np.linalg.norm(np.diff(uvw[np.r_[ramp[-1], lap], :2], axis=0), axis=1)), 120.0, atol=1e-9)
+        lap_uv = uvw[np.r_[ramp[-1], lap], :2]
+        assert_allclose(np.sum(np.linalg.norm(np.diff(lap_uv, axis=0), axis=1)), 120.0, atol=1e-9)
     # the feature ends at the last lap's end, then goes straight up along +w
     end = uvw[rows_labelled(path, "pass 3/3 lap")[-1]]
     assert names[-2:] == ["square retract", "square retract"]
@@ -496,7 +522,8 @@ def test_ramp_longer_than_a_lap_is_steepened_and_says_so() -> None:
     assert_allclose(uvw[ramp, :2], contour[1:], rtol=0, atol=1e-12)
     steeper = math.degrees(math.atan2(2.0, lap_length))
     texts = [e.text for e in path.events if e.kind is EventKind.COMMENT]
-    assert f"round pass 1/1: ramp steepened to {steeper:.3f}° (one lap is {lap_length:.3f} mm, 3.000° needs 38.162 mm)" in texts
+    assert (f"round pass 1/1: ramp steepened to {steeper:.3f}° "
+            f"(one lap is {lap_length:.3f} mm, 3.000° needs 38.162 mm)") in texts
     assert f"{steeper:.3f}" == "3.643"
 
 
@@ -505,12 +532,14 @@ def test_outside_profile_that_overshoots_the_face_edge() -> None:
     with pytest.raises(FeatureError) as err:
         plan_profile(FACE, np.array([40.0, 0.0]), SquareShape(40.0), profile_params(), CUT)
     assert str(err.value) == (
-        "square 40.000 mm at (u 40.000, v 0.000) with tool Ø6.000: does not fit on face 0: overshoots its edge by 7.098 mm"
+        "square 40.000 mm at (u 40.000, v 0.000) with tool Ø6.000: does not fit on face 0: "
+        "overshoots its edge by 7.098 mm"
     )
     with pytest.raises(FeatureError) as err:   # outside a Ø30 at u = 40: tool centre radius 18, reach 21 → u 61
         plan_profile(FACE, np.array([40.0, 0.0]), RoundShape(30.0), profile_params(side=Side.OUTSIDE), CUT)
     assert str(err.value) == (
-        "round Ø30.000 mm at (u 40.000, v 0.000) with tool Ø6.000: does not fit on face 0: overshoots its edge by 5.098 mm"
+        "round Ø30.000 mm at (u 40.000, v 0.000) with tool Ø6.000: does not fit on face 0: "
+        "overshoots its edge by 5.098 mm"
     )
 
 
@@ -529,15 +558,18 @@ def test_outside_profile_that_overshoots_the_face_edge() -> None:
         ),
         (
             SquareShape(6.0, corner_radius=3.0),
-            "--side inside: the tool Ø6.000 mm does not fit inside the square 6.000 mm (use a tool smaller than Ø6.000)",
+            "--side inside: the tool Ø6.000 mm does not fit inside the square 6.000 mm "
+            "(use a tool smaller than Ø6.000)",
         ),
         (
             RoundShape(6.0),
-            "--side inside: the tool Ø6.000 mm does not fit inside the round Ø6.000 mm (use a tool smaller than Ø6.000)",
+            "--side inside: the tool Ø6.000 mm does not fit inside the round Ø6.000 mm "
+            "(use a tool smaller than Ø6.000)",
         ),
         (
             RoundShape(4.0),
-            "--side inside: the tool Ø6.000 mm does not fit inside the round Ø4.000 mm (use a tool smaller than Ø4.000)",
+            "--side inside: the tool Ø6.000 mm does not fit inside the round Ø4.000 mm "
+            "(use a tool smaller than Ø4.000)",
         ),
     ],
 )
@@ -570,7 +602,8 @@ def test_smallest_inside_round_still_plans() -> None:
         (lambda: profile_params(step_down=0.0), "--step-down must be > 0 mm (got 0)"),
         (lambda: profile_params(ramp_angle=0.0), "--ramp-angle must be > 0° and < 90° (got 0°)"),
         (lambda: profile_params(ramp_angle=math.pi / 2), "--ramp-angle must be > 0° and < 90° (got 90°)"),
-        (lambda: profile_params(retract=1.0), "--retract must be ≥ --clearance (got --retract 1.000 mm < --clearance 2.000 mm)"),
+        (lambda: profile_params(retract=1.0),
+         "--retract must be ≥ --clearance (got --retract 1.000 mm < --clearance 2.000 mm)"),
         (
             lambda: plan_profile(FACE, np.zeros(2), RoundShape(10.0), profile_params(), CUT, tolerance=0.0),
             "--tolerance must be ≥ 0.0001 mm, the resolution of the program (got 0)",
@@ -605,7 +638,8 @@ def test_overshoot_of_a_far_away_feature_terminates():
     (which a float near 1e10 cannot resolve: the search used to loop for ever)."""
     with pytest.raises(FeatureError) as caught:
         plan_holes(FACE, np.array([[1e10, 0.0]]), HoleParams(depth=5, peck=0, dwell=0, clearance=2, retract=10), CUT)
-    assert str(caught.value).startswith("hole 1 at (u 10000000000.000, v 0.000) with tool Ø6.000: does not fit on face 0: "
+    assert str(caught.value).startswith(
+        "hole 1 at (u 10000000000.000, v 0.000) with tool Ø6.000: does not fit on face 0: "
                                         "overshoots its edge by 99999999")
 
 
