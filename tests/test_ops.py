@@ -359,7 +359,7 @@ def test_rounded_square_outside_contour() -> None:
         center, SquareShape(40.0, corner_radius=2.0), Side.OUTSIDE, Direction.CONVENTIONAL, 6.0
     )
     assert contour.shape == (1 + 4 * 29 + 1, 2)
-    assert_allclose(contour[0], [*center, 23.0, 0.0], rtol=0, atol=1e-12)
+    assert_allclose(contour[0], center + np.array([23.0, 0.0]), rtol=0, atol=1e-12)
     assert_array_equal(contour[-1], contour[0])
     local = contour - center
     corner_centers = 18.0 * np.array([[1, 1], [-1, 1], [-1, -1], [1, -1]])

@@ -96,7 +96,7 @@ def test_head_alone_moves_its_tip_only_vertically_at_a_fixed_tilt():
     """
     head = load_machine("patel2020-head")
     tip_part = np.array([18.9736, 221.2132, 290.5135])
-    p = path([[*tip_part, 0, 0, 10], tip_part], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100])
+    p = path([tip_part + np.array([0, 0, 10]), tip_part], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100])
     # the part placed under the head's tip
     shifted = ORIGIN.with_origin(ORIGIN.shift - np.array([-2.7640208, 12.0703266, 0.0]))
     result = post_process(head, p, shifted)
