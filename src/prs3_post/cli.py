@@ -580,7 +580,8 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="Feed into the material (drilling, plunges, ramps), mm/min."),
         click.option("--spindle", type=Decimal(SPEED), default=3000.0, show_default=True,
                      help="Spindle speed, rpm (clockwise)."),
-        click.option("--coolant", type=click.Choice([c.value for c in Coolant]), default="flood", show_default=True,
+        click.option("--coolant", type=click.Choice([c.value for c in Coolant]), default=Coolant.FLOOD.value,
+                     show_default=True,
                      help="Coolant during cutting: flood (M8), mist (M7) or off."),
         click.option("--tool-table", "tool_table", type=click.Path(dir_okay=False), metavar="TOOL.tbl",
                      help="LinuxCNC tool table (T P D Z ;comment): the IK uses the machine's gauge offset plus the "

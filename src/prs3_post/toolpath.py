@@ -29,6 +29,34 @@ class MoveKind(enum.IntEnum):
     """G1: a controlled move at the row's tip feed, straight at the tool tip."""
 
 
+class Coolant(enum.Enum):
+    """The coolant while the tool cuts: ``--coolant``, a job file's ``coolant``, what a COOLANT_ON
+    event turns on (its ``text`` holds the value) and what M7/M8 or ``COOLNT/`` in an input ask for."""
+
+    FLOOD = "flood"
+    """M8: flood coolant on while cutting, M9 at the end."""
+    MIST = "mist"
+    """M7: mist coolant on while cutting, M9 at the end."""
+    OFF = "off"
+    """No coolant words at all (dry cutting)."""
+
+    @classmethod
+    def from_m_code(cls, code: float) -> Coolant:
+        """The coolant an M code turns on: 7 → MIST, 8 → FLOOD.
+
+        >>> Coolant.from_m_code(7), Coolant.from_m_code(8)
+        (<Coolant.MIST: 'mist'>, <Coolant.FLOOD: 'flood'>)
+        """
+        return {7.0: cls.MIST, 8.0: cls.FLOOD}[code]
+
+    @property
+    def m_word(self) -> str:
+        """The block that turns it on: ``M8`` (flood) or ``M7`` (mist); OFF has none (ValueError)."""
+        if self is Coolant.OFF:
+            raise ValueError("no M word turns coolant 'off' on (COOLANT_OFF is M9)")
+        return "M7" if self is Coolant.MIST else "M8"
+
+
 class EventKind(enum.Enum):
     """A non-motion action between rows."""
 
@@ -39,7 +67,7 @@ class EventKind(enum.Enum):
     SPINDLE_OFF = "spindle_off"
     """M5."""
     COOLANT_ON = "coolant_on"
-    """M8 (flood) or M7 (mist, ``text == 'mist'``)."""
+    """M8 or M7: the :class:`Coolant` whose value is ``text`` (empty: flood), see :attr:`Event.coolant`."""
     COOLANT_OFF = "coolant_off"
     """M9."""
     TOOL_CHANGE = "tool_change"
@@ -62,6 +90,15 @@ class Event:
     kind: EventKind
     value: float = 0.0
     text: str = ""
+
+    @property
+    def coolant(self) -> Coolant:
+        """The coolant a COOLANT_ON event turns on: ``Coolant(text)``, FLOOD when ``text`` is empty.
+
+        >>> Event(0, EventKind.COOLANT_ON, text=Coolant.MIST.value).coolant, Event(0, EventKind.COOLANT_ON).coolant
+        (<Coolant.MIST: 'mist'>, <Coolant.FLOOD: 'flood'>)
+        """
+        return Coolant(self.text) if self.text else Coolant.FLOOD
 
 
 def _frozen(array: np.ndarray, dtype: type, shape_tail: tuple[int, ...], name: str) -> np.ndarray:

@@ -227,7 +227,7 @@ def _event_blocks(where: str, event: Event, dialect: Dialect) -> tuple[str | Non
     if event.kind is EventKind.SPINDLE_OFF:
         return None, "M5"
     if event.kind is EventKind.COOLANT_ON:
-        return None, "M7" if event.text == "mist" else "M8"
+        return None, event.coolant.m_word
     if event.kind is EventKind.COOLANT_OFF:
         return None, "M9"
     if event.kind is EventKind.TOOL_CHANGE:

@@ -18,7 +18,6 @@ that is what the user typed; the CLI's option for a field is the field name with
 
 from __future__ import annotations
 
-import enum
 import math
 import numbers
 from dataclasses import dataclass
@@ -29,7 +28,7 @@ import numpy as np
 from prs3_post.errors import FeatureError
 from prs3_post.face import Face
 from prs3_post.fixed import fixed
-from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
+from prs3_post.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath
 from prs3_post.types import FloatArray
 
 if TYPE_CHECKING:                      # imported where used: `ik`, `fk`, `verify` never plan a feature
@@ -198,17 +197,6 @@ def format_uv(uv: FloatArray | tuple[float, float]) -> str:
 # --------------------------------------------------------------------------------------------
 # Cutting data
 # --------------------------------------------------------------------------------------------
-class Coolant(enum.Enum):
-    """Coolant used while the tool cuts."""
-
-    FLOOD = "flood"
-    """M8: flood coolant on while cutting, M9 at the end."""
-    MIST = "mist"
-    """M7: mist coolant on while cutting, M9 at the end."""
-    OFF = "off"
-    """No coolant words at all (dry cutting)."""
-
-
 @dataclass(frozen=True, slots=True)
 class Cutting:
     """The tool and how it cuts, shared by every operation.

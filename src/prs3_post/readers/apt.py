@@ -84,7 +84,7 @@ from prs3_post.arcs import MAX_ARC_SEGMENTS, arc_points_3d, arc_segment_count, a
 from prs3_post.cycles import MAX_PECKS, DrillCycle, Pecking, drill_rows, peck_count
 from prs3_post.errors import InputError
 from prs3_post.readers.files import iter_pieces, line_chunks
-from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
+from prs3_post.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath
 from prs3_post.types import FloatArray
 from prs3_post.workplane import rotate_rows
 
@@ -970,9 +970,9 @@ class _Reader:
         if words == {"OFF"}:
             self.event(EventKind.COOLANT_OFF)
         elif words and words <= {"ON", "FLOOD"}:
-            self.event(EventKind.COOLANT_ON, text="flood")
+            self.event(EventKind.COOLANT_ON, text=Coolant.FLOOD.value)
         elif words in ({"MIST"}, {"MIST", "ON"}):
-            self.event(EventKind.COOLANT_ON, text="mist")
+            self.event(EventKind.COOLANT_ON, text=Coolant.MIST.value)
         else:
             raise self.error(f"COOLNT/ expects ON, FLOOD, MIST or OFF; found {_quote(record.text)}")
 

@@ -92,7 +92,7 @@ from prs3_post.readers.lexer import (
     quote,
     split_comments,
 )
-from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
+from prs3_post.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath
 from prs3_post.types import BoolArray, FloatArray
 from prs3_post.workplane import WorkPlane, euler_zxz_deg
 
@@ -756,7 +756,7 @@ class _Reader:
             if code == 9:
                 self.event(EventKind.COOLANT_OFF)
             else:
-                self.event(EventKind.COOLANT_ON, text="mist" if code == 7 else "flood")
+                self.event(EventKind.COOLANT_ON, text=Coolant.from_m_code(code).value)
         if "dwell" in g:
             seconds = block.take("P")
             if seconds is None or seconds < 0:
