@@ -13,6 +13,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -24,10 +25,11 @@ from numpy.testing import assert_allclose
 
 from prs3_post.cli import main
 from prs3_post.config import load_dialect, load_machine
-from prs3_post.convert import ConvertSettings, collect_inputs, convert_batch, convert_file
+from prs3_post.convert import ConvertSettings, collect_inputs, convert_batch, convert_file, write_conversion
 from prs3_post.kinematics import forward
 from prs3_post.pipeline import place_toolpath
 from prs3_post.readers.apt import read_cl
+from prs3_post.readers.header import SourceHeader, read_header
 from prs3_post.readers.program import read_program
 from prs3_post.setup import Setup
 from prs3_post.workplane import WorkPlane
@@ -482,3 +484,24 @@ def test_a_report_onto_an_input_names_the_input_once(tmp_path: Path, monkeypatch
         2, "prs3-post: error: x.cls: is also the input 1 (x.cls): writing --report would destroy it (choose another "
            "file)\n")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.cls"]
+
+
+def test_the_counts_head_the_program_in_a_file_and_in_a_fifo(tmp_path: Path) -> None:
+    """The header's counts are the report's, and a FIFO gets the same bytes as a file (the body is spooled)."""
+    name = "humman_deep_drill.clsf"
+    settings = _settings(PLACED[name])
+    regular = tmp_path / "a.ngc"
+    report = write_conversion(str(CORPUS / name), str(regular), settings)
+    header = read_header(str(regular))
+    assert isinstance(header, SourceHeader)
+    assert header.counts == report.counts()
+    assert (header.counts.records, header.counts.cycle_holes, header.counts.program_moves) == (14, 2, 6)
+    fifo = tmp_path / "f.ngc"
+    os.mkfifo(fifo)
+    received: list[bytes] = []
+    reader = threading.Thread(target=lambda: received.append(fifo.read_bytes()))
+    reader.start()
+    write_conversion(str(CORPUS / name), str(fifo), settings)
+    reader.join(timeout=30)
+    assert received == [regular.read_bytes()]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc", "f.ngc"]

@@ -14,11 +14,21 @@ from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
 from prs3_post.config import load_dialect, load_machine
+from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.errors import InputError
 from prs3_post.job import JobSpec, run_job, run_operations, spec_from_header, specs_from_header
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
 from prs3_post.ops.work import HoleJob, ProfileJob
-from prs3_post.readers.header import degrees_text, exact_text, header_comments, parse_header, read_header
+from prs3_post.readers.header import (
+    SourceCounts,
+    SourceHeader,
+    degrees_text,
+    exact_text,
+    header_comments,
+    parse_header,
+    read_header,
+    source_header_entries,
+)
 from prs3_post.setup import Setup
 
 REPO = Path(__file__).resolve().parents[1]
@@ -172,3 +182,44 @@ def test_a_mutated_header_is_read_or_refused_never_a_traceback(tmp_path, data):
         read_header(str(mutated))
     except InputError as error:
         assert error.line is not None and str(error).startswith(f"{mutated}:")
+
+
+# ----------------------------------------------------------------------------- a converted program's counts
+
+CONVERTED = GOLDEN / "convert-mech491_APT_SimpleMillPlane.ngc"
+
+
+def test_a_converted_program_states_its_counts_in_the_header():
+    header = read_header(str(CONVERTED))
+    assert isinstance(header, SourceHeader)
+    assert header.counts == SourceCounts(records=82, moves=33, arcs=2, arc_rows=70, cycle_holes=0, cycle_rows=0,
+                                         comments=1, program_moves=103, subdivisions=0,
+                                         skipped=(("PAINT", 36), ("TOOL PATH", 1), ("Tool Path Listing", 1)))
+    assert header.line("counts") == 8
+    assert sum(ln.startswith("(counts: ") for ln in CONVERTED.read_text().splitlines()) == 1
+
+
+@pytest.mark.parametrize("skipped", [(), (("G53 (machine coordinates, not converted)", 2), ("PAINT", 3))])
+def test_counts_read_back_through_an_upper_case_wrapping_dialect(skipped):
+    """Fanuc upper-cases comments; a short line limit wraps the entry; a word's remark keeps its commas."""
+    counts = SourceCounts(records=9, moves=4, arcs=1, arc_rows=12, cycle_holes=2, cycle_rows=6, comments=0,
+                          program_moves=22, subdivisions=5, skipped=skipped)
+    header = dataclasses.replace(read_header(str(CONVERTED)), counts=counts, lines=(), path="")
+    dialect = dataclasses.replace(load_dialect("fanuc"), max_line_length=100)
+    text = ProgramEmitter(dialect).begin(source_header_entries(header))
+    assert "(COUNTS: 9 RECORDS, 4 MOVES" in text
+    back = parse_header(header_comments(text), path="p.nc")
+    assert back.counts == dataclasses.replace(counts, skipped=tuple((w.upper().replace("(", "[").replace(")", "]"), n)
+                                                                    for w, n in skipped))
+
+
+def test_a_malformed_counts_entry_is_an_error_with_its_line(tmp_path):
+    lines = _header_lines(CONVERTED)
+    number = next(i for i, ln in enumerate(lines) if ln.startswith("(counts: "))
+    lines[number] = lines[number].replace("skipped PAINT 36", "skipped PAINT")
+    bad = tmp_path / "bad.ngc"
+    bad.write_text("\n".join(lines), encoding="utf-8")
+    with pytest.raises(InputError) as caught:
+        read_header(str(bad))
+    assert str(caught.value) == (
+        f"{bad}:{number + 1}: header: counts: expected 'skipped none' or 'WORD N' for each skipped word, got 'PAINT'")

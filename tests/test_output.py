@@ -18,7 +18,7 @@ from click.testing import CliRunner
 from prs3_post import output as output_module
 from prs3_post.cli import demo_part, main
 from prs3_post.errors import InputError
-from prs3_post.output import write_atomic, write_outputs
+from prs3_post.output import HeadLast, write_atomic, write_outputs
 
 REPO = Path(__file__).resolve().parents[1]
 WEDGE = REPO / "fixtures" / "parts" / "wedge.stl"
@@ -196,3 +196,55 @@ def test_full_standard_output_is_a_clear_error(args: list[str]) -> None:
                               stdout=full, stderr=subprocess.PIPE, text=True, timeout=60, check=False)
     assert (done.returncode, done.stderr) == (
         2, "prs3-post: error: standard output: cannot write: No space left on device\n")
+
+
+# ----------------------------------------------------------------------------- a head made last
+
+def _head_last(made: list[str]) -> HeadLast:
+    def body():
+        for piece in ("G0 X1\n", b"G1 X2\n"):
+            made.append("body")
+            yield piece
+
+    def head() -> str:
+        made.append("head")
+        return "(counts: 2 lines)\n"
+
+    return HeadLast(body=body(), head=head)
+
+
+def test_a_head_made_last_is_written_first(tmp_path: Path) -> None:
+    made: list[str] = []
+    target = tmp_path / "p.ngc"
+    write_atomic(str(target), _head_last(made))
+    assert made == ["body", "body", "head"]
+    assert target.read_text() == "(counts: 2 lines)\nG0 X1\nG1 X2\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["p.ngc"]       # the spooled body left no file
+
+
+def test_a_head_made_last_goes_first_into_a_fifo(tmp_path: Path) -> None:
+    fifo = tmp_path / "f.ngc"
+    os.mkfifo(fifo)
+    received: list[bytes] = []
+    reader = threading.Thread(target=lambda: received.append(fifo.read_bytes()))
+    reader.start()
+    write_atomic(str(fifo), _head_last([]))
+    reader.join(timeout=10)
+    assert received == [b"(counts: 2 lines)\nG0 X1\nG1 X2\n"]
+    assert stat.S_ISFIFO(fifo.lstat().st_mode)
+
+
+def test_a_body_that_fails_leaves_nothing_and_makes_no_head(tmp_path: Path) -> None:
+    made: list[str] = []
+
+    def body():
+        yield "G0 X1\n"
+        raise InputError("bad line", path="in.cls", line=3)
+
+    target = tmp_path / "p.ngc"
+    target.write_text("old\n")
+    with pytest.raises(InputError, match=r"in\.cls:3: bad line"):
+        write_atomic(str(target), HeadLast(body=body(), head=lambda: made.append("head") or ""))
+    assert made == []
+    assert [p.name for p in tmp_path.iterdir()] == ["p.ngc"]
+    assert target.read_text() == "old\n"

@@ -33,13 +33,14 @@ import numpy as np
 
 from prs3_post import __version__
 from prs3_post.config import Dialect, Machine
+from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.errors import FeatureError, InputError, LimitError, PoseError, Prs3Error, ReachError
 from prs3_post.geometry import find_faces, select_face
 from prs3_post.job import file_given
 from prs3_post.kinematics import inverse, unit_axes
 from prs3_post.kinematics.blocks import THREADS_VARIABLE
 from prs3_post.limits import check_limits, raise_first_violation
-from prs3_post.output import refuse_overwriting, write_atomic
+from prs3_post.output import HeadLast, refuse_overwriting, write_atomic
 from prs3_post.pipeline import PostCounts, PostResult, PostStream, model_for, place_toolpath, program_text
 from prs3_post.placement import place, placement_error
 from prs3_post.readers.apt import ClStream, join_toolpaths
@@ -47,7 +48,7 @@ from prs3_post.readers.detect import DETECT_BYTES, detect_format
 from prs3_post.readers.files import open_input
 from prs3_post.readers.fivex import FivexStream
 from prs3_post.readers.gcode import GcodeStream
-from prs3_post.readers.header import SourceHeader, file_sha256, source_header_entries
+from prs3_post.readers.header import SourceCounts, SourceHeader, file_sha256, source_header_entries
 from prs3_post.readers.stl import load_part
 from prs3_post.setup import Setup
 from prs3_post.source import SourceConvention
@@ -179,6 +180,12 @@ class ConvertReport:
     def motion_records(self) -> int:
         """Moves, arcs and drilled holes as the input states them (what "moves/s" counts)."""
         return self.input_moves + self.arcs + self.cycle_holes
+
+    def counts(self) -> SourceCounts:
+        """What the program's header states of this accounting."""
+        return SourceCounts(records=self.records, moves=self.input_moves, arcs=self.arcs, arc_rows=self.arc_rows,
+                            cycle_holes=self.cycle_holes, cycle_rows=self.cycle_rows, comments=self.comments,
+                            program_moves=self.emitted_moves, subdivisions=self.subdivisions, skipped=self.skipped)
 
     def record(self) -> dict[str, object]:
         """The report as JSON-ready data (word counts as objects)."""
@@ -346,7 +353,7 @@ class _Run:
     placeable: bool = True                              # False: no setup can help the error raised
 
     def chunks(self) -> Iterator[Toolpath]:
-        """The reader's chunks, checked as read; then an empty chunk with the counts as a closing comment."""
+        """The reader's chunks, checked as read."""
         machine = self.settings.ik_machine
         last_axis: np.ndarray | None = None
         for chunk in self.reader:
@@ -364,10 +371,6 @@ class _Run:
             yield chunk
         if not self.rows:
             raise InputError("no moves in the file: nothing to convert", path=self.path)
-        report = self.report(self.post.finish())
-        yield Toolpath(kind=np.zeros(0, dtype=np.int64), tip=np.zeros((0, 3)), axis=np.zeros((0, 3)),
-                       feed=np.zeros(0), source=np.zeros(0, dtype=np.int64),
-                       events=(Event(before=0, kind=EventKind.COMMENT, text=f"counts: {_counts_text(report)}"),))
 
     def report(self, counts: PostCounts) -> ConvertReport:
         """The accounting, once the reader is through."""
@@ -408,8 +411,8 @@ def _start(path: str, settings: ConvertSettings) -> _Run:
     return _Run(path=path, settings=settings, fmt=fmt, sha256=file_sha256(path), reader=reader, post=post)
 
 
-def _header(run: _Run) -> tuple[tuple[str, str], ...]:
-    """The program header (what is known before the file is read: the counts close the program)."""
+def _header(run: _Run) -> SourceHeader:
+    """The program header as known before the file is read (without the counts)."""
     settings = run.settings
     units = settings.units if run.fmt == "cl" else None
     header = SourceHeader(
@@ -428,7 +431,7 @@ def _header(run: _Run) -> tuple[tuple[str, str], ...]:
         source = run.reader.source
         header = dataclasses.replace(header, five_axis=file_given(source.source, "sources", source.name) or source.name,
                                      tcp_on=run.reader.tcp_on, tcp_off=run.reader.tcp_off)
-    return source_header_entries(header, description=settings.machine.description)
+    return header
 
 
 def _placed(error: LimitError | ReachError, run: _Run) -> Exception:
@@ -445,9 +448,11 @@ def _placed(error: LimitError | ReachError, run: _Run) -> Exception:
                            length_decimals=settings.dialect.decimals.length)
 
 
-def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) -> tuple[_Run, Iterator[str]]:
-    """The conversion of one file as chunks of program text (lazy: see
-    :func:`prs3_post.pipeline.program_text`), and the run whose :meth:`_Run.report` follows."""
+def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) -> tuple[_Run, HeadLast]:
+    """The conversion of one file as program text whose header is made last: the body's chunks are
+    lazy (see :func:`prs3_post.pipeline.program_text`), and the head, with the counts, is made once
+    they are through (:class:`prs3_post.output.HeadLast`: a writer spools the body, then writes the
+    head and the body). The run's :meth:`_Run.report` follows the body."""
     run = _start(path, settings)
     stream = run.post
     if keep:                                            # keep each chunk's result (tests, verify --against)
@@ -459,11 +464,28 @@ def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) 
             return result
 
         stream.feed = kept  # type: ignore[method-assign]  # a wrapper with the same signature
-    text = program_text(settings.ik_machine, run.chunks(), settings.setup, settings.dialect, header=_header(run),
-                        tolerance=settings.tolerance, angle_tolerance=math.radians(settings.angle_tolerance_deg),
+    header = _header(run)
+    description = settings.machine.description
+    text = program_text(settings.ik_machine, run.chunks(), settings.setup, settings.dialect,
+                        header=source_header_entries(header, description=description), tolerance=settings.tolerance,
+                        angle_tolerance=math.radians(settings.angle_tolerance_deg),
                         line_numbers=settings.line_numbers, line_start=settings.line_start,
                         line_step=settings.line_step, stream=stream)
-    return run, _with_placement(text, run)
+
+    def body() -> Iterator[str]:
+        next(text)                                      # its opening, made again below with the counts
+        yield from _with_placement(text, run)
+
+    def head() -> str:
+        counts = run.report(stream.finish()).counts()
+        entries = source_header_entries(dataclasses.replace(header, counts=counts), description=description)
+        # the same opening as program_text's (its comments have no block numbers: the body's agree)
+        emitter = ProgramEmitter(settings.dialect, stage=settings.ik_machine.stage.present,
+                                 line_numbers=settings.line_numbers, line_start=settings.line_start,
+                                 line_step=settings.line_step)
+        return emitter.begin(entries)
+
+    return run, HeadLast(body=body(), head=head)
 
 
 def _with_placement(text: Iterator[str], run: _Run) -> Iterator[str]:
@@ -484,8 +506,9 @@ def convert_file(path: str, settings: ConvertSettings) -> Conversion:
         A point outside a limit or the workspace (``path:line: ...``, the setup, and a part origin
         that fits where there is one).
     """
-    run, chunks = program_chunks(path, settings, keep=True)
-    text = "".join(chunks)
+    run, program = program_chunks(path, settings, keep=True)
+    body = "".join(program.body)                        # type: ignore[arg-type]  # str chunks
+    text = str(program.head()) + body
     report = run.report(run.post.finish())
     path_rows = [r.path for r in run.results if len(r.path)]
     return Conversion(text=text, report=report, path=join_toolpaths(path_rows) if path_rows else run.results[0].path)
@@ -500,16 +523,9 @@ def write_conversion(path: str, output: str, settings: ConvertSettings) -> Conve
     InputError, LimitError, ReachError
         As :func:`convert_file`, and an output that cannot be written.
     """
-    run, chunks = program_chunks(path, settings)
-    write_atomic(output, chunks)
+    run, program = program_chunks(path, settings)
+    write_atomic(output, program)
     return run.report(run.post.finish())
-
-
-def _counts_text(report: ConvertReport) -> str:
-    skipped = ", ".join(f"{word} {count}" for word, count in report.skipped) or "none"
-    return (f"{report.records} records, {report.input_moves} moves, {report.arcs} arcs to {report.arc_rows} rows, "
-            f"{report.cycle_holes} cycle holes to {report.cycle_rows} rows, {report.comments} comments, "
-            f"{report.emitted_moves} program moves, {report.subdivisions} subdivisions, skipped {skipped}")
 
 
 # ----------------------------------------------------------------------------- a batch

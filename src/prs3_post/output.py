@@ -12,7 +12,11 @@
 - Standard output that cannot be written (``> /dev/full``, a closed pipe) is an :class:`InputError`.
 
 The data is text (written as UTF-8), bytes, or an iterable of such chunks, so that a large program
-can be streamed without holding it whole.
+can be streamed without holding it whole. A :class:`HeadLast` is data whose opening is known only
+once the rest is made (a program's header with the counts of a streamed conversion): its body is
+spooled to an unnamed temp file first (next to the target; for a FIFO, a device or standard
+output in the temp folder), then the head and the spooled body are written, so that memory stays
+flat, and a FIFO or device gets nothing when making the body fails.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ import stat
 import sys
 import tempfile
 import threading
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -33,7 +37,22 @@ from typing import BinaryIO
 from prs3_post.errors import InputError
 
 Chunks = str | bytes | Iterable[str | bytes]
-"""What an output takes: text (UTF-8), bytes, or an iterable of text/bytes chunks."""
+"""Text (UTF-8), bytes, or an iterable of text/bytes chunks."""
+
+
+@dataclass(frozen=True, slots=True)
+class HeadLast:
+    """An output whose ``head`` (written first) is made after its ``body``: ``head()`` is called once
+    the body's chunks are all made (and spooled), so that it can state what the body holds."""
+
+    body: Chunks
+    head: Callable[[], Chunks]
+
+
+Output = Chunks | HeadLast
+"""What an output takes: chunks, or a :class:`HeadLast`."""
+
+_SPOOL_PIECE = 1 << 20  # bytes copied at a time from a spooled body
 
 STDOUT = "standard output"
 """How messages name standard output."""
@@ -48,7 +67,7 @@ def is_stdout(path: str | None) -> bool:
     return path is None or path == "-"
 
 
-def write_atomic(path: str, data: Chunks) -> None:
+def write_atomic(path: str, data: Output) -> None:
     """Write ``data`` to the file ``path`` without ever leaving half a file (see the module docstring).
 
     Raises
@@ -60,7 +79,7 @@ def write_atomic(path: str, data: Chunks) -> None:
     write_outputs([(path, data)])
 
 
-def write_outputs(items: Sequence[tuple[str | None, Chunks]]) -> None:
+def write_outputs(items: Sequence[tuple[str | None, Output]]) -> None:
     """Write several outputs, all or none: ``(path, data)`` pairs; a path of None or ``-`` is standard output.
 
     Every file output is first written to its temp file (FIFOs and devices: written directly,
@@ -92,7 +111,7 @@ def write_outputs(items: Sequence[tuple[str | None, Chunks]]) -> None:
                     stage.tmp.unlink(missing_ok=True)
 
 
-def write_stdout(data: Chunks) -> None:
+def write_stdout(data: Output) -> None:
     """Write ``data`` to standard output (text through ``sys.stdout``, bytes to its buffer).
 
     Raises
@@ -101,7 +120,7 @@ def write_stdout(data: Chunks) -> None:
         ``standard output: cannot write: No space left on device`` (or the pipe's reason).
     """
     try:
-        for chunk in _chunks(data):
+        for chunk in _spooled(data, None) if isinstance(data, HeadLast) else _chunks(data):
             if isinstance(chunk, bytes):
                 sys.stdout.flush()
                 sys.stdout.buffer.write(chunk)
@@ -165,7 +184,7 @@ class _Staged:
     existed: bool               # a regular file is replaced (False: a new file)
 
 
-def _stage(path: str, data: Chunks) -> _Staged:
+def _stage(path: str, data: Output) -> _Staged:
     """Check the target and write its temp file (or, for a FIFO or device, only check it)."""
     if not path or path.endswith(("/", os.sep)):
         raise InputError("is a folder or empty: give a file name", path=path or "''")
@@ -179,6 +198,11 @@ def _stage(path: str, data: Chunks) -> _Staged:
     if mode is not None and stat.S_ISDIR(mode):
         raise InputError("is a folder or empty: give a file name", path=path)
     if mode is not None and not stat.S_ISREG(mode):
+        if isinstance(data, HeadLast):                  # made before the FIFO or device gets a byte
+            try:
+                data = _spooled(data, None)
+            except OSError as exc:
+                raise InputError(f"cannot write the output: {exc.strerror}", path=path) from exc
         return _Staged(path, target, data, None, existed=True)
     prefix = f".{target.name[:_TEMP_NAME_MAX]}."
     try:
@@ -188,7 +212,7 @@ def _stage(path: str, data: Chunks) -> _Staged:
     stage = _Staged(path, target, None, Path(name), existed=mode is not None)
     try:
         with os.fdopen(fd, "wb") as stream:
-            _write_chunks(stream, data)
+            _write_chunks(stream, _spooled(data, target.parent) if isinstance(data, HeadLast) else data)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(name, 0o666 & ~umask)                  # the usual permissions, not mkstemp's 0600
@@ -243,6 +267,27 @@ def _hard_link_aside(stage: _Staged) -> Path | None:
     except OSError:
         return None
     return backup
+
+
+def _spooled(data: HeadLast, folder: Path | None) -> Iterator[str | bytes]:
+    """The chunks of ``data``: its body is made now, into an unnamed temp file in ``folder`` (None:
+    the temp folder; gone when closed, or when the process ends however it ends), then its head;
+    the iterator returned yields the head, then the body read back in pieces."""
+    spool = tempfile.TemporaryFile(dir=folder)
+    try:
+        _write_chunks(spool, data.body)
+        head = list(_chunks(data.head()))
+        spool.seek(0)
+    except BaseException:
+        spool.close()
+        raise
+
+    def pieces() -> Iterator[str | bytes]:
+        with spool:
+            yield from head
+            yield from iter(lambda: spool.read(_SPOOL_PIECE), b"")
+
+    return pieces()
 
 
 def _chunks(data: Chunks) -> Iterator[str | bytes]:

@@ -164,6 +164,42 @@ class ProgramHeader(_HeaderLines):
 
 
 @dataclass(frozen=True, slots=True)
+class SourceCounts:
+    """What a converted program's input held and what the program has (the header's ``counts`` entry;
+    the conversion report has the same numbers under the names given).
+
+    Attributes
+    ----------
+    records : int — input records (CL records, G-code lines with code)
+    moves : int — motion records that became one row each (``input_moves``)
+    arcs, arc_rows : int — arcs expanded and the rows they became
+    cycle_holes, cycle_rows : int — holes of drilling cycles and the rows they became
+    comments : int — comments carried into the program
+    program_moves : int — motion lines of the program (``emitted_moves``)
+    subdivisions : int — rows inserted to keep axis-changing moves within tolerance
+    skipped : tuple of (str, int) — records skipped on purpose, by word (as the comment shows the word)
+    """
+
+    records: int
+    moves: int
+    arcs: int
+    arc_rows: int
+    cycle_holes: int
+    cycle_rows: int
+    comments: int
+    program_moves: int
+    subdivisions: int
+    skipped: tuple[tuple[str, int], ...] = ()
+
+    def text(self) -> str:
+        """The header entry's value (read back by :func:`parse_header`)."""
+        skipped = ", ".join(f"{word} {count}" for word, count in self.skipped) or "none"
+        return (f"{self.records} records, {self.moves} moves, {self.arcs} arcs to {self.arc_rows} rows, "
+                f"{self.cycle_holes} cycle holes to {self.cycle_rows} rows, {self.comments} comments, "
+                f"{self.program_moves} program moves, {self.subdivisions} subdivisions, skipped {skipped}")
+
+
+@dataclass(frozen=True, slots=True)
 class SourceHeader(_HeaderLines):
     """What a converted program (``prs3-post convert``) says it was made from: a CAM file, not a part.
 
@@ -179,6 +215,7 @@ class SourceHeader(_HeaderLines):
         (setup: part origin at machine [...] mm, rotation θ deg about z)
         (tool length: 175.000 mm, the machine's)      or "as given"
         (tolerance: 0.002 mm, angle 0.01 deg)
+        (counts: 82 records, 33 moves, 2 arcs to 70 rows, ..., skipped PAINT 36)   see SourceCounts
         (units: mm, G93 inverse time: F = 1/minutes of each move)
 
     Attributes
@@ -197,6 +234,8 @@ class SourceHeader(_HeaderLines):
     angle_tolerance_deg : float — degrees
     five_axis : str — a 5-axis G-code program's source convention (shipped name or file; "": not one)
     tcp_on, tcp_off : tuple of str — the codes that switched its TCP on and off
+    counts : SourceCounts | None — what the input held and the program has (None: a program written
+        before the header had them, or a header not yet complete)
     """
 
     version: str
@@ -223,6 +262,7 @@ class SourceHeader(_HeaderLines):
     five_axis: str = ""
     tcp_on: tuple[str, ...] = ()
     tcp_off: tuple[str, ...] = ()
+    counts: SourceCounts | None = None
 
 
 def file_sha256(path: str) -> str:
@@ -423,7 +463,7 @@ def source_header_entries(header: SourceHeader, *, description: str = "") -> tup
     description : str — the machine's one-line description
 
     The counts (what the input held, what the program has) are only known at the end of a streamed
-    conversion: they close the program as a ``(counts: ...)`` comment, not in the header.
+    conversion: its writer makes the header last and puts it first (:class:`prs3_post.output.HeadLast`).
     """
     entries = [
         (PROGRAM_KEY, header.version),
@@ -446,6 +486,7 @@ def source_header_entries(header: SourceHeader, *, description: str = "") -> tup
         ("tool length", f"{exact_text(header.tool_length, 3)} mm, "
                         f"{'as given' if header.tool_length_given else 'the machine' + chr(39) + 's'}"),
         ("tolerance", f"{exact_text(header.tolerance, 3)} mm, angle {exact_text(header.angle_tolerance_deg, 2)} deg"),
+        *([] if header.counts is None else [("counts", header.counts.text())]),
         ("units", "mm, G93 inverse time: F = 1/minutes of each move"),
     ]
     return tuple(entries)
@@ -464,7 +505,7 @@ _VECTOR = rf"\[\s*{_NUMBER}(?:\s*,\s*{_NUMBER})*\s*\]"
 _ENTRY = re.compile(r"^\s*([a-z][a-z0-9 ]*?)\s*:\s?(.*?)\s*$", re.IGNORECASE)
 _KEYS = ("program", "machine", "machine file", "dialect", "dialect file", "part", "face", "setup", "operation",
          "parameters", "tool", "tools", "operations", "tolerance", "units", "source", "ignore", "work plane",
-         "tool length", "five axis")
+         "tool length", "five axis", "counts")
 _REQUIRED = ("program", "machine", "dialect", "part", "face", "setup", "operation", "parameters", "tool", "tolerance",
              "units")
 #: The keys of a job of several operations (and ``operation K ...`` for each).
@@ -746,13 +787,45 @@ _WORK_PLANE = rf"origin ({_VECTOR}) mm, x ({_VECTOR}), z ({_VECTOR})"
 _TOOL_LENGTH = rf"({_NUMBER}) mm, (as given|the machine's)"
 _SOURCE_TOLERANCE = rf"({_NUMBER}) mm, angle ({_NUMBER}) deg"
 _FIVE_AXIS = r"(.+), tcp on ([GM][0-9.]+(?:,[GM][0-9.]+)*), off ([GM][0-9.]+(?:,[GM][0-9.]+)*)"
+_COUNTS = (r"(\d+) records, (\d+) moves, (\d+) arcs to (\d+) rows, (\d+) cycle holes to (\d+) rows, "
+           r"(\d+) comments, (\d+) program moves, (\d+) subdivisions, skipped (.+)")
+_SKIPPED = re.compile(r"(.*\S) (\d+)")
 _FORMS |= {
+    _COUNTS: "'N records, N moves, N arcs to N rows, N cycle holes to N rows, N comments, N program moves, "
+             "N subdivisions, skipped none|WORD N[, WORD N]...'",
     _FIVE_AXIS: "'SOURCE, tcp on CODES, off CODES'",
     _SOURCE: "'NAME, format cl|gcode, units mm|inch|auto, sha256 HEX'",
     _WORK_PLANE: "'origin [x, y, z] mm, x [..], z [..]'",
     _TOOL_LENGTH: "'L mm, as given|the machine's'",
     _SOURCE_TOLERANCE: "'T mm, angle A deg'",
 }
+
+
+def _counts(text: str) -> SourceCounts:
+    """The ``counts`` entry: the skipped words are split at the commas outside brackets (a word may
+    hold a bracketed remark with commas)."""
+    found = _match(_COUNTS, text)
+    records, moves, arcs, arc_rows, holes, hole_rows, comments, program_moves, subdivisions = (
+        int(v) for v in found.groups()[:9])
+    skipped: list[tuple[str, int]] = []
+    rest = found.group(10)
+    if rest.lower() != "none":
+        depth, start = 0, 0
+        pieces = []
+        for index, char in enumerate(rest):
+            depth += (char in "[(") - (char in "])")
+            if char == "," and depth == 0:
+                pieces.append(rest[start:index])
+                start = index + 1
+        pieces.append(rest[start:])
+        for piece in pieces:
+            word = _SKIPPED.fullmatch(piece.strip())
+            if word is None:
+                raise _Bad(f"expected 'skipped none' or 'WORD N' for each skipped word, got {piece.strip()!r}")
+            skipped.append((word.group(1), int(word.group(2))))
+    return SourceCounts(records=records, moves=moves, arcs=arcs, arc_rows=arc_rows, cycle_holes=holes,
+                        cycle_rows=hole_rows, comments=comments, program_moves=program_moves,
+                        subdivisions=subdivisions, skipped=tuple(skipped))
 
 
 def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader:
@@ -796,6 +869,10 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
         tool_length = float(length.group(1))
         if not (math.isfinite(tool_length) and 0.0 < tool_length <= MAX_POSITION_MM):
             raise _Bad(f"expected a length > 0 mm, got {length.group(1)!r}")
+        counts = None
+        if "counts" in found:
+            key = "counts"
+            counts = _counts(found["counts"][1])
         key = "tolerance"
         tolerances = _match(_SOURCE_TOLERANCE, found["tolerance"][1])
         tolerance, angle = float(tolerances.group(1)), float(tolerances.group(2))
@@ -812,7 +889,7 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
         source_units=source.group(3).lower(), ignore=ignore, work_plane=plane, setup=setup, tool_length=tool_length,
         tool_length_given=length.group(2).lower() == "as given", tolerance=tolerance, angle_tolerance_deg=angle,
         line_numbers=numbers, line_start=start, line_step=step, lines=tuple((k, v[0]) for k, v in found.items()),
-        path=path, five_axis=five_axis, tcp_on=tcp_on, tcp_off=tcp_off,
+        path=path, five_axis=five_axis, tcp_on=tcp_on, tcp_off=tcp_off, counts=counts,
     )
 
 
