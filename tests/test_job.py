@@ -2,8 +2,9 @@
 
 Every golden program is made through the CLI (``CliRunner`` on ``prs3_post.cli.main``) with explicit
 options, written with ``-o`` and compared byte for byte with ``fixtures/golden/<name>``
-(``pytest --update-golden`` rewrites them; review the diff). While the CLI runs, ``run_job`` is
-wrapped so that the test also sees the :class:`~prs3_post.job.JobResult` behind the text.
+(``pytest --update-golden`` rewrites them; review the diff). While the CLI runs, ``check_job`` is
+wrapped (posting 7 rows at a time) so that the test also sees the :class:`~prs3_post.job.JobResult`
+of ``run_job`` behind the text, and checks that both make the same text in chunks of any size.
 
 The replay is an independent oracle: the program text is read back here with a small regex reader
 (cross-checked word by word against pygcode and, for some programs, against LinuxCNC's canonical
@@ -33,9 +34,10 @@ from conftest import compare_golden
 from numpy.testing import assert_allclose
 
 import prs3_post.cli as cli_module
+import prs3_post.job as job_module
 from prs3_post.cli import main
 from prs3_post.config import Geometry, load_dialect, load_machine
-from prs3_post.job import JobResult, JobSpec, ProfileJob, run_job
+from prs3_post.job import JobProgram, JobResult, JobSpec, ProfileJob, run_job
 from prs3_post.kinematics import forward, inverse
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, ProfileParams, Side, SquareShape
 from prs3_post.setup import Setup
@@ -127,16 +129,22 @@ class Made:
 
 
 def invoke_capturing(args: list[str]) -> tuple[object, list[JobResult]]:
-    """Run the CLI; also return every JobResult that run_job produced during the run."""
+    """Run the CLI; also return, for every job the CLI checked (``check_job``, whose program it
+    writes chunk by chunk), the JobResult of ``run_job`` on the same spec (every row's pose, IK and
+    limits), whose program and text must be the CLI's."""
     captured: list[JobResult] = []
-    real = cli_module.run_job
+    real = cli_module.check_job
 
-    def spy(spec: JobSpec) -> JobResult:
-        result = real(spec)
+    def spy(spec: JobSpec) -> JobProgram:
+        with mock.patch.object(job_module, "POST_ROWS", 7):        # posted 7 rows at a time: the same program
+            job = real(spec)
+        result = run_job(spec)
+        assert "".join(job.chunks(rows=5)) == "".join(job.chunks()) == result.text   # formatted in any chunks
+        assert len(job.program) == len(result.post.program)
         captured.append(result)
-        return result
+        return job
 
-    with mock.patch.object(cli_module, "run_job", spy):
+    with mock.patch.object(cli_module, "check_job", spy):
         outcome = CliRunner().invoke(main, args, prog_name="prs3-post")
     return outcome, captured
 

@@ -13,10 +13,11 @@ import pytest
 from click.testing import CliRunner
 from numpy.testing import assert_allclose
 
+import prs3_post.job as job_module
 from prs3_post.cli import main
 from prs3_post.config import load_dialect, load_machine
 from prs3_post.errors import LimitError
-from prs3_post.job import JobSpec, run_job
+from prs3_post.job import JobSpec, check_job, run_job
 from prs3_post.ops import Coolant, Cutting, HoleParams
 from prs3_post.ops.work import HoleJob
 from prs3_post.pipeline import machine_path, post_process
@@ -86,17 +87,34 @@ def test_no_suggestion_where_the_tool_axis_breaks_a_limit():
     assert suggest_origin(MACHINE, part_path, DEFAULT, tolerance=0.002) is None
 
 
-def test_run_job_raises_the_suggestion_as_data():
-    spec = JobSpec(
+def _wedge_hole_at_the_machine_origin() -> JobSpec:
+    return JobSpec(
         part=str(REPO / "fixtures" / "parts" / "wedge.stl"), units="mm", face=None,
         work=HoleJob(HoleParams(depth=5.0, peck=0.0, dwell=0.0, clearance=2.0, retract=10.0, reapproach_gap=0.5)),
         at_uv=np.zeros((0, 2)), at_xyz=np.zeros((0, 3)),
         cutting=Cutting(tool_diameter=6.0, feed=300.0, plunge_feed=100.0, spindle_rpm=3000.0, coolant=Coolant.FLOOD,
                         tool_number=1),
         machine=MACHINE, dialect=load_dialect("linuxcnc"), setup=Setup((0.0, 0.0, 0.0)))
+
+
+def test_run_job_raises_the_suggestion_as_data():
+    spec = _wedge_hole_at_the_machine_origin()
     with pytest.raises(PlacementLimitError) as caught:
         run_job(spec)
     assert caught.value.setup == Setup((0.0, 0.0, 0.0))
     assert caught.value.suggested_origin == ("-79.4", "-190.9", "-1028.4")
     assert str(caught.value).endswith("; a part origin at machine [-79.4, -190.9, -1028.4] mm puts every point "
                                       "inside the machine's limits")
+
+
+def test_a_job_checked_in_chunks_fails_with_the_whole_paths_error(monkeypatch):
+    """check_job posts the toolpath POST_ROWS rows at a time; the error of a chunk is the one
+    run_job raises for the whole path (its count of bad points is of every row, not of those so far)."""
+    spec = _wedge_hole_at_the_machine_origin()
+    with pytest.raises(PlacementLimitError) as whole:
+        run_job(spec)
+    monkeypatch.setattr(job_module, "POST_ROWS", 2)
+    with pytest.raises(PlacementLimitError) as chunked:
+        check_job(spec)
+    assert str(chunked.value) == str(whole.value)
+    assert re.search(r"\(\d+ points outside limits in all\)", str(chunked.value))

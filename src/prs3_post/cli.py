@@ -10,7 +10,9 @@ import contextlib
 import dataclasses
 import json
 import math
+import os
 import re
+import stat
 import sys
 import warnings
 from collections.abc import Callable, Iterator
@@ -35,7 +37,7 @@ from prs3_post.convert import (
 )
 from prs3_post.errors import FeatureError, InputError, Prs3Error, Prs3Warning, ReachError
 from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
-from prs3_post.job import HoleJob, JobResult, JobSpec, Operation, ProfileJob, run_job, run_operations
+from prs3_post.job import HoleJob, JobProgram, JobSpec, Operation, ProfileJob, check_job, check_operations
 from prs3_post.jobfile import JobFile, read_job_file
 from prs3_post.kinematics import IKModel, forward, inverse, unit_axes
 from prs3_post.limits import check_limits
@@ -614,40 +616,74 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 
 def _run_job(part: str, **opts: Any) -> int:
-    """Build the JobSpec from the options, run it, write the program (and its preview)."""
+    """Build the JobSpec from the options, check the job, write the program (and its preview)."""
     spec = _job_spec(part, opts)
     fmt = _image_format(opts["preview_path"]) if opts["preview_path"] else None
     try:
-        result = run_job(spec)
+        job = check_job(spec)
     except Placement as error:                         # the library's suggestion, as the option to give
         origin = error.suggested_origin
         hint = ("set by --part-origin X,Y,Z and --part-rotation DEG, or let --part-origin auto --part-rotation "
                 "auto search them" if origin is None
                 else f"--part-origin={','.join(origin)}")
         raise type(error)(f"{error}: {hint}", setup=error.setup, suggested_origin=origin) from error
+    out_path = opts["out_path"]
+    text = _ProgramText(job, whole=fmt is not None or not _streamable(out_path))
     image = None
     if fmt is not None:                                # draw before writing anything: no half results
-        program = read_program(result.text, spec.dialect, path=opts["out_path"] or "<program>",
+        program = read_program(text.whole, spec.dialect, path=out_path or "<program>",
                                stage=spec.machine.stage.present)
-        lengths = None if spec.tool_table is None else {spec.cutting.tool_number: result.operations[0].tool_length}
-        image = preview_bytes(program, spec.machine, result.setup, fmt, tolerance=spec.tolerance, tool_lengths=lengths,
-                               mesh=result.triangles, face=result.face, title=Path(part).name, dialect=spec.dialect)
-    write_outputs([(opts["out_path"], result.text)] + ([] if image is None else [(opts["preview_path"], image)]))
-    _report_placement(result)
-    if not is_stdout(opts["out_path"]):
-        click.echo(f"prs3-post: wrote {opts['out_path']}: {result.text.count(chr(10))} lines, "
-                   f"{len(result.post.program)} moves; {result.face_note}", err=True)
+        lengths = None if spec.tool_table is None else {spec.cutting.tool_number: job.tool_lengths[0]}
+        image = preview_bytes(program, spec.machine, job.setup, fmt, tolerance=spec.tolerance, tool_lengths=lengths,
+                              mesh=job.triangles, face=job.face, title=Path(part).name, dialect=spec.dialect)
+    write_outputs([(out_path, text.data())] + ([] if image is None else [(opts["preview_path"], image)]))
+    _report_placement(job)
+    if not is_stdout(out_path):
+        click.echo(f"prs3-post: wrote {out_path}: {text.lines} lines, "
+                   f"{len(job.program)} moves; {job.face_note}", err=True)
         if spec.machine.dynamics is not None:
-            click.echo(f"prs3-post: {result.dynamics}", err=True)
+            click.echo(f"prs3-post: {job.dynamics}", err=True)
     if image is not None:
         click.echo(f"prs3-post: wrote {opts['preview_path']}", err=True)
     return 0
 
 
-def _report_placement(result: JobResult) -> None:
+def _streamable(path: str | None) -> bool:
+    """The program may be written as it is formatted: ``path`` is a file written to a temp file and
+    renamed (a new or regular file), so that an error while formatting leaves nothing. Standard
+    output, a FIFO or a device get the whole text once it is complete."""
+    if is_stdout(path):
+        return False
+    try:
+        return stat.S_ISREG(os.stat(str(path)).st_mode)
+    except FileNotFoundError:
+        return True
+    except OSError:                                    # the writer says what is wrong with it
+        return True
+
+
+class _ProgramText:
+    """A checked job's text for the writer: streamed chunk by chunk, or whole (``whole``: made here),
+    counting its lines as it goes."""
+
+    def __init__(self, job: JobProgram, *, whole: bool):
+        self.job, self.streamed = job, not whole
+        self.whole = "" if self.streamed else "".join(job.chunks())
+        self.lines = self.whole.count("\n")
+
+    def data(self) -> str | Iterator[str]:
+        return self._counted() if self.streamed else self.whole
+
+    def _counted(self) -> Iterator[str]:
+        for chunk in self.job.chunks():
+            self.lines += chunk.count("\n")
+            yield chunk
+
+
+def _report_placement(job: JobProgram) -> None:
     """The setup automatic placement chose, and every limit's margin there, on standard error."""
-    if result.placement is not None:
-        click.echo(f"prs3-post: setup: {result.setup.describe()}; {result.placement.describe()}", err=True)
+    if job.placement is not None:
+        click.echo(f"prs3-post: setup: {job.setup.describe()}; {job.placement.describe()}", err=True)
 
 
 def _face_index(choice: str) -> int | None:
@@ -860,14 +896,15 @@ def job(job_path: str, out_path: str | None) -> None:
         refuse_overwriting({"--output": out_path}, {f"{key} of {job_path}": path for key, path in named.items()
                                                     if isinstance(path, str)})
         specs = _job_specs(job_file)
-        result = run_operations(specs)
-        write_outputs([(out_path, result.text)])
-        _report_placement(result)
+        job = check_operations(specs)
+        text = _ProgramText(job, whole=not _streamable(out_path))
+        write_outputs([(out_path, text.data())])
+        _report_placement(job)
         if not is_stdout(out_path):
-            click.echo(f"prs3-post: wrote {out_path}: {result.text.count(chr(10))} lines, "
-                       f"{len(result.post.program)} moves, {len(specs)} operations", err=True)
+            click.echo(f"prs3-post: wrote {out_path}: {text.lines} lines, "
+                       f"{len(job.program)} moves, {len(specs)} operations", err=True)
             if specs[0].machine.dynamics is not None:
-                click.echo(f"prs3-post: {result.dynamics}", err=True)
+                click.echo(f"prs3-post: {job.dynamics}", err=True)
         return 0
 
     run_reported(body)

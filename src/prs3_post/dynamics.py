@@ -151,11 +151,21 @@ def move_times(dynamics: Dynamics, kind: np.ndarray, deltas: FloatArray, inverse
     return times.max(axis=1) if len(times) else np.zeros(0)
 
 
+#: Rows whose move times :func:`program_time` computes together (its scratch memory is about 300 bytes a row).
+TIME_ROWS = 65536
+
+
 def program_time(dynamics: Dynamics, program: JointProgram) -> float:
     """min: the cycle time of a whole program: its moves (:func:`move_times`, row 0 from where it
     stands: no time) and its dwells."""
-    deltas = joint_deltas(joint_columns(program.stage, program.strokes))
-    moves = move_times(dynamics, program.kind, deltas, program.inverse_time)
+    n = len(program)
+    moves = np.zeros(n)                     # each move's time, computed TIME_ROWS rows at a time (memory)
+    for lo in range(0, n, TIME_ROWS):
+        hi = min(n, lo + TIME_ROWS)
+        joints = joint_columns(program.stage[lo:hi], program.strokes[lo:hi])
+        start = None if lo == 0 else joint_columns(program.stage[lo - 1], program.strokes[lo - 1])
+        moves[lo:hi] = move_times(dynamics, program.kind[lo:hi], joint_deltas(joints, start),
+                                  program.inverse_time[lo:hi])
     dwell = sum(e.value for e in program.events if e.kind is EventKind.DWELL) / 60.0
     return float(moves.sum()) + dwell
 

@@ -18,6 +18,7 @@ as text for the CLI to write.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -26,8 +27,8 @@ import numpy as np
 from prs3_post import __version__
 from prs3_post.collision import check_program
 from prs3_post.config import Dialect, Machine
-from prs3_post.dynamics import dynamics_entry
-from prs3_post.emit.gcode import emit_program
+from prs3_post.dynamics import DynamicsTally, dynamics_entry
+from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.errors import FeatureError, InputError, LimitError, ReachError
 from prs3_post.face import Face
 from prs3_post.geometry import MIN_FACE_WIDTH_MM, find_faces, project_onto_face, select_face
@@ -36,7 +37,7 @@ from prs3_post.linearize import slerp, subdivide_axis_changes
 from prs3_post.ops import Cutting, plan_holes, plan_profile
 from prs3_post.ops.common import require_tolerance
 from prs3_post.ops.work import HoleJob, Operation, ProfileJob
-from prs3_post.pipeline import PostResult, machine_path, post_process
+from prs3_post.pipeline import PostResult, PostStream, machine_path, post_process
 from prs3_post.placement import PlacementResult, place, placement_error, suggest_origin
 from prs3_post.readers.header import OperationRecord, ProgramHeader, ToolRecord, exact_text, file_sha256, header_entries
 from prs3_post.readers.stl import load_part
@@ -44,7 +45,16 @@ from prs3_post.readers.tooltable import Tool, ToolTable
 from prs3_post.resolution import length_resolution
 from prs3_post.setup import Setup
 from prs3_post.tolerances import DEFAULT_TOLERANCE
-from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpath, join_programs
+from prs3_post.toolpath import (
+    Event,
+    EventKind,
+    JointProgram,
+    MoveKind,
+    Toolpath,
+    join_programs,
+    program_chunks,
+    toolpath_chunks,
+)
 from prs3_post.types import FloatArray
 
 
@@ -244,7 +254,9 @@ def operation_label(number: int, spec: JobSpec, face: Face) -> str:
 
 def run_operations(specs: tuple[JobSpec, ...]) -> JobResult:
     """Several operations on one part in one program (the first spec's part, machine, dialect, setup,
-    tolerance and numbering are the job's; the others must share them).
+    tolerance and numbering are the job's; the others must share them), with the program's text and
+    every row's machine-frame pose, IK and limits (:func:`check_operations` keeps only what writing
+    the program needs).
 
     Raises
     ------
@@ -254,6 +266,146 @@ def run_operations(specs: tuple[JobSpec, ...]) -> JobResult:
     LimitError, ReachError
         A transition between operations breaks a limit.
     """
+    job, kept = _check(specs, keep=True)
+    assert kept is not None                             # keep=True: everything is kept
+    post, done, row_length = kept
+    return JobResult(text="".join(job.chunks()), face=done[0].face, face_note=done[0].face_note,
+                     path_part=done[0].path_part, post=post, setup=job.setup, triangles=job.triangles,
+                     operations=tuple(done), tool_length=row_length, placement=job.placement, dynamics=job.dynamics)
+
+
+def check_job(spec: JobSpec) -> JobProgram:
+    """:func:`check_operations` of a job of one operation (what the main job's command line writes)."""
+    return check_operations((spec,))
+
+
+def check_operations(specs: tuple[JobSpec, ...]) -> JobProgram:
+    """The job of :func:`run_operations`, checked (limits, reach, dynamics, collision: every row) and
+    ready to be written a chunk at a time (:meth:`JobProgram.chunks`), holding only the joint
+    program: the operations' toolpaths are post-processed POST_ROWS rows at a time and dropped once
+    posted, so that memory stays a few ten bytes per line of the program.
+
+    Raises
+    ------
+    As :func:`run_operations`.
+    """
+    return _check(specs, keep=False)[0]
+
+
+#: Rows of the program that :meth:`JobProgram.chunks` formats together.
+EMIT_ROWS = 65536
+#: Rows of an operation's toolpath post-processed together by :func:`check_operations` (the scratch
+#: memory of the IK, limits and dynamics is about 1 KB a row).
+POST_ROWS = 32768
+
+
+@dataclass(frozen=True, slots=True)
+class JobProgram:
+    """A checked job, ready to be written (:meth:`chunks`).
+
+    Attributes
+    ----------
+    program : JointProgram — every row of the program, checked
+    header : tuple of (str, str) — the header entries
+    dialect : Dialect
+    stage : bool — the machine has a stage
+    line_numbers, line_start, line_step : the block numbering overrides (as :class:`JobSpec`)
+    face : Face — the (first) operation's face
+    face_note : str — how that face was chosen
+    setup : Setup — the setup used
+    triangles : (F, 3, 3) float — mm, the part's triangles in part coordinates (for pictures)
+    tool_lengths : tuple of float — mm, each operation's tool length "TL"
+    placement : PlacementResult | None — how the setup was chosen (None: as given)
+    dynamics : str — the header's ``dynamics`` entry (cycle time, feeds slowed), for the summary
+    """
+
+    program: JointProgram
+    header: tuple[tuple[str, str], ...]
+    dialect: Dialect
+    stage: bool
+    line_numbers: bool | None
+    line_start: int | None
+    line_step: int | None
+    face: Face
+    face_note: str
+    setup: Setup
+    triangles: FloatArray
+    tool_lengths: tuple[float, ...]
+    placement: PlacementResult | None = None
+    dynamics: str = ""
+
+    def chunks(self, rows: int = EMIT_ROWS) -> Iterator[str]:
+        """The program's text, ``rows`` rows at a time (the header first, the end blocks last): the
+        same text whatever ``rows`` is, as :func:`~prs3_post.emit.gcode.emit_program` writes it.
+
+        Raises
+        ------
+        LimitError
+            As :func:`~prs3_post.emit.gcode.emit_program` (a line too long, a feed that prints as 0),
+            when the chunk concerned is asked for.
+        """
+        emitter = ProgramEmitter(self.dialect, stage=self.stage, line_numbers=self.line_numbers,
+                                 line_start=self.line_start, line_step=self.line_step)
+        yield emitter.begin(self.header)
+        for piece in program_chunks(self.program, rows):
+            yield from emitter.row_pieces(piece)
+        yield emitter.end()
+
+
+@dataclass(frozen=True, slots=True)
+class _Posted:
+    """One operation (or transition) post-processed: its program, the machine-frame poses of its first
+    and last rows (``ends``, for the transitions), its dynamics tally and, when kept, everything."""
+
+    program: JointProgram
+    ends: Toolpath
+    dynamics: DynamicsTally | None
+    full: PostResult | None
+
+    @staticmethod
+    def of(post: PostResult) -> _Posted:
+        return _Posted(post.program, _ends(post.path, post.path), post.dynamics, post)
+
+
+def _ends(first: Toolpath, last: Toolpath) -> Toolpath:
+    """The first row of ``first`` and the last of ``last`` (no rows when they have none)."""
+    if not len(first):
+        return first
+    return Toolpath(kind=np.array([first.kind[0], last.kind[-1]]), tip=np.array([first.tip[0], last.tip[-1]]),
+                    axis=np.array([first.axis[0], last.axis[-1]]), feed=np.array([first.feed[0], last.feed[-1]]),
+                    source=np.array([first.source[0], last.source[-1]]))
+
+
+def _post_operation(machine: Machine, path_part: Toolpath, spec: JobSpec, decimals: int, *, keep: bool) -> _Posted:
+    """``path_part`` post-processed whole (``keep``) or POST_ROWS rows at a time into its joint program
+    only; the same program, and the same first error: a chunk that fails has the whole path post-processed
+    again, for the error :func:`post_process` raises (its count of bad points is of every row)."""
+    if keep:
+        return _Posted.of(post_process(machine, path_part, spec.setup, tolerance=spec.tolerance,
+                                       length_decimals=decimals, clamp=spec.clamp))
+    stream = PostStream(machine, spec.setup, tolerance=spec.tolerance, length_decimals=decimals, clamp=spec.clamp)
+    programs: list[JointProgram] = []
+    first = last = None
+    try:
+        for chunk in toolpath_chunks(path_part, POST_ROWS):
+            result = stream.feed(chunk)
+            programs.append(result.program)
+            if len(result.path):
+                first = result.path if first is None else first
+                last = result.path
+    except (LimitError, ReachError):
+        post_process(machine, path_part, spec.setup, tolerance=spec.tolerance, length_decimals=decimals,
+                     clamp=spec.clamp)
+        raise                                          # (not reached: the whole path fails too)
+    program = join_programs(programs, source_labels=path_part.source_labels, source_file=path_part.source_file)
+    ends = _ends(first, last) if first is not None and last is not None else path_part.take(np.zeros(0, bool))
+    return _Posted(program, ends, stream.dynamics, None)
+
+
+def _check(specs: tuple[JobSpec, ...], *, keep: bool
+           ) -> tuple[JobProgram, tuple[PostResult, list[OperationResult], FloatArray] | None]:
+    """The checked job and, with ``keep``, the whole PostResult, the operations (with their toolpaths)
+    and each row's tool length (mm); without, each operation's toolpath is dropped once posted."""
     if not specs:
         raise ValueError("a job has at least one operation")
     first = specs[0]
@@ -277,40 +429,52 @@ def run_operations(specs: tuple[JobSpec, ...]) -> JobResult:
             path_part = replace(path_part, source_labels=tuple(f"{label}, {t}" for t in path_part.source_labels))
         done.append(OperationResult(face=face, face_note=note, path_part=path_part, tool_length=tool_length_of(spec),
                                     label=label))
+        del path_part
     specs, placement = choose_setup(specs, done, triangles)
     first = specs[0]
-    posts: list[PostResult] = []
-    for spec, operation in zip(specs, done, strict=True):
-        path_part = operation.path_part
+    posts: list[_Posted] = []
+    for k, spec in enumerate(specs):
+        operation = done[k]
         machine = _with_tool_length(spec.machine, operation.tool_length)
         try:
-            post = post_process(machine, path_part, spec.setup, tolerance=spec.tolerance, length_decimals=decimals,
-                                clamp=spec.clamp)
+            posted = _post_operation(machine, operation.path_part, spec, decimals, keep=keep)
         except (LimitError, ReachError) as error:          # say the setup, and one that fits if there is one
             if several:                                    # a suggestion would fit this operation alone
-                raise _operation_error(error, machine, path_part, spec, decimals) from error
-            raise placement_error(error, machine, path_part, spec.setup, tolerance=spec.tolerance,
+                raise _operation_error(error, machine, operation.path_part, spec, decimals) from error
+            raise placement_error(error, machine, operation.path_part, spec.setup, tolerance=spec.tolerance,
                                   length_decimals=decimals) from error
-        collisions.append(check_program(machine, post.program, spec.setup, triangles, operation.face,
+        if not keep:                                       # posted: its toolpath is no longer needed
+            done[k] = operation = replace(operation, path_part=_NO_ROWS)
+        collisions.append(check_program(machine, posted.program, spec.setup, triangles, operation.face,
                                         spec.cutting.tool_diameter, clearance_min=spec.clearance_min)
                           if spec.collision_check else "")
-        posts.append(post)
+        posts.append(posted)
     if several:
-        post, row_length = _assemble(specs, done, posts, safe_height(triangles, first.setup, specs))
+        pieces, lengths = _assemble(specs, done, posts, safe_height(triangles, first.setup, specs))
+        program = _join_programs([p.program for p in pieces])
     else:
-        post, row_length = posts[0], np.full(len(posts[0].path), done[0].tool_length)
+        pieces, lengths, program = posts, [done[0].tool_length], posts[0].program
     sha = file_sha256(first.part)
     header = header_of(first, sha, operations=specs if several else (), lengths=[o.tool_length for o in done])
     entries = with_placement(header_entries(header, done[0].face, description=first.machine.description,
                                             faces=tuple(o.face for o in done) if several else ()), placement)
-    dynamics = dynamics_entry(first.machine, post.program, [p.dynamics for p in posts])
+    dynamics = dynamics_entry(first.machine, program, [p.dynamics for p in posts])
     entries += (("dynamics", dynamics), ("collision", _collision_entry(specs, collisions)))
-    text = emit_program(post.program, first.dialect, header=entries,
-                        stage=first.machine.stage.present, line_numbers=first.line_numbers,
-                        line_start=first.line_start, line_step=first.line_step)
-    return JobResult(text=text, face=done[0].face, face_note=done[0].face_note, path_part=done[0].path_part,
-                     post=post, setup=first.setup, triangles=triangles, operations=tuple(done),
-                     tool_length=row_length, placement=placement, dynamics=dynamics)
+    job = JobProgram(program=program, header=entries, dialect=first.dialect, stage=first.machine.stage.present,
+                     line_numbers=first.line_numbers, line_start=first.line_start, line_step=first.line_step,
+                     face=done[0].face, face_note=done[0].face_note, setup=first.setup, triangles=triangles,
+                     tool_lengths=tuple(o.tool_length for o in done), placement=placement, dynamics=dynamics)
+    if not keep:
+        return job, None
+    fulls = [p.full for p in pieces if p.full is not None]      # keep=True: every piece is kept whole
+    post = _join_posts(fulls, program) if several else fulls[0]
+    counts = [len(p.program) for p in pieces]
+    return job, (post, done, np.repeat(np.array(lengths, dtype=np.float64), counts))
+
+
+#: A toolpath without rows: what a streamed job keeps of an operation's toolpath once it is posted.
+_NO_ROWS = Toolpath(kind=np.zeros(0, dtype=np.int64), tip=np.zeros((0, 3)), axis=np.zeros((0, 3)),
+                    feed=np.zeros(0), source=np.zeros(0, dtype=np.int64))
 
 
 def choose_setup(specs: tuple[JobSpec, ...], operations: list[OperationResult],
@@ -483,61 +647,60 @@ def post_transition(machine: Machine, before: Toolpath, after: Toolpath, lengths
 MACHINE_FRAME = Setup((0.0, 0.0, 0.0), 0.0)
 
 
-def _assemble(specs: tuple[JobSpec, ...], done: list[OperationResult], posts: list[PostResult],
-              height: float) -> tuple[PostResult, FloatArray]:
-    """One program of the operations and the transitions between them, and each row's tool length."""
-    pieces: list[PostResult] = [posts[0]]
+def _assemble(specs: tuple[JobSpec, ...], done: list[OperationResult], posts: list[_Posted],
+              height: float) -> tuple[list[_Posted], list[float]]:
+    """The operations and the transitions between them, in program order, and each piece's tool length."""
+    pieces: list[_Posted] = [posts[0]]
     lengths: list[float] = [done[0].tool_length]
     decimals = specs[0].dialect.decimals.length
     for k in range(1, len(specs)):
         spec, previous = specs[k], specs[k - 1]
         pair = (done[k - 1].tool_length, done[k].tool_length)
         lifted, turned = post_transition(
-            spec.machine, posts[k - 1].path, posts[k].path, pair, height, tolerance=spec.tolerance,
+            spec.machine, posts[k - 1].ends, posts[k].ends, pair, height, tolerance=spec.tolerance,
             length_decimals=decimals, labels=(f"{done[k - 1].label}, lift to the safe height",
                                               f"{done[k].label}, turn the tool axis at the safe height"))
         if lifted is not None:
-            pieces.append(lifted)
+            pieces.append(_Posted.of(lifted))
             lengths.append(pair[0])
         # the next operation's opening events (title, tool change, spindle, coolant) move before the turn
         body = posts[k].program
         opening = [e for e in body.events if e.before == 0]
         if previous.cutting.tool_number == spec.cutting.tool_number:
             opening = [e for e in opening if e.kind is not EventKind.TOOL_CHANGE]
-        turned = _with_events(turned, tuple(opening))
-        pieces += [turned, _with_events(posts[k], tuple(e for e in body.events if e.before != 0))]
+        pieces += [_with_events(_Posted.of(turned), tuple(opening)),
+                   _with_events(posts[k], tuple(e for e in body.events if e.before != 0))]
         lengths += [pair[1], pair[1]]
-    counts = [len(p.path) for p in pieces]
-    return _join_posts(pieces), np.repeat(np.array(lengths), counts)
+    return pieces, lengths
 
 
-def _with_events(post: PostResult, events: tuple[Event, ...]) -> PostResult:
-    program = replace(post.program, events=events)
-    return replace(post, program=program, path=replace(post.path, events=events))
+def _with_events(posted: _Posted, events: tuple[Event, ...]) -> _Posted:
+    full = posted.full
+    if full is not None:
+        full = replace(full, program=replace(full.program, events=events), path=replace(full.path, events=events))
+    return _Posted(program=full.program if full is not None else replace(posted.program, events=events),
+                   ends=posted.ends, dynamics=posted.dynamics, full=full)
 
 
-def _join_posts(pieces: list[PostResult]) -> PostResult:
-    """The pieces one after another: rows, IK, limits; step numbers and labels renumbered."""
+def _join_programs(programs: list[JointProgram]) -> JointProgram:
+    """The programs one after another; step numbers and labels renumbered."""
     offset = 0
     labels: list[str] = []
-    programs: list[JointProgram] = []
-    sources: list[np.ndarray] = []
-    for piece in pieces:
-        sources.append(piece.path.source + offset)
-        labels += piece.path.source_labels
-        offset += len(piece.path.source_labels)
-        programs.append(piece.program)
-    source = np.concatenate(sources)
-    events: list[Event] = []
-    rows = 0
-    for piece in pieces:
-        events += [replace(e, before=e.before + rows) for e in piece.program.events]
-        rows += len(piece.path)
-    program = replace(join_programs(programs), source=source, source_labels=tuple(labels))
+    pieces: list[JointProgram] = []
+    for piece in programs:
+        pieces.append(replace(piece, source=piece.source + offset))
+        labels += piece.source_labels
+        offset += len(piece.source_labels)
+    return join_programs(pieces, source_labels=tuple(labels))
+
+
+def _join_posts(pieces: list[PostResult], program: JointProgram) -> PostResult:
+    """The pieces one after another (``program``: their programs joined by :func:`_join_programs`):
+    rows, IK, limits."""
     paths = [p.path for p in pieces]
     path = Toolpath(kind=np.concatenate([p.kind for p in paths]), tip=np.vstack([p.tip for p in paths]),
                     axis=np.vstack([p.axis for p in paths]), feed=np.concatenate([p.feed for p in paths]),
-                    source=source, events=tuple(events), source_labels=tuple(labels))
+                    source=program.source, events=program.events, source_labels=program.source_labels)
     iks = [p.ik for p in pieces]
     ik = IKResult(**{name: np.concatenate([getattr(r, name) for r in iks])
                      for name in ("stage", "strokes", "link_angle", "condition", "reachable")})

@@ -13,6 +13,7 @@ input file, so that an error says ``part.cl:12`` instead of ``line 12``.
 from __future__ import annotations
 
 import enum
+from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -226,8 +227,10 @@ class JointProgram:
         return describe_source(self.source, self.source_labels, row, self.source_file)
 
 
-def join_programs(parts: list[JointProgram]) -> JointProgram:
-    """One program of consecutive pieces, each piece's events counting rows from its own start.
+def join_programs(parts: list[JointProgram], *, source_labels: tuple[str, ...] = (),
+                  source_file: str = "") -> JointProgram:
+    """One program of consecutive pieces, each piece's events counting rows from its own start
+    (``source_labels`` and ``source_file``: the joined program's, as in :class:`JointProgram`).
 
     Takes the pieces out of ``parts`` (which is left empty) so that each column's pieces are freed
     as soon as it is joined: a long program is held about twice, not three times.
@@ -245,10 +248,11 @@ def join_programs(parts: list[JointProgram]) -> JointProgram:
     for name, (dtype, tail) in shapes.items():
         columns[name] = (np.concatenate(pieces.pop(name)).astype(dtype, copy=False) if offset
                          else np.zeros((0, *tail), dtype=dtype))
-    return program_from_columns(columns, events)
+    return program_from_columns(columns, events, source_labels=source_labels, source_file=source_file)
 
 
-def program_from_columns(columns: dict[str, np.ndarray], events: list[Event] | tuple[Event, ...] = ()) -> JointProgram:
+def program_from_columns(columns: dict[str, np.ndarray], events: list[Event] | tuple[Event, ...] = (), *,
+                         source_labels: tuple[str, ...] = (), source_file: str = "") -> JointProgram:
     """A JointProgram of columns made for it (``kind``, ``stage``, ``strokes``, ``inverse_time``,
     ``source``, of its dtypes and row shapes), frozen in place instead of copied: the caller gives
     them up (a long program is then held once). Checks as the constructor does.
@@ -270,6 +274,36 @@ def program_from_columns(columns: dict[str, np.ndarray], events: list[Event] | t
         column.flags.writeable = False
         object.__setattr__(program, name, column)
     object.__setattr__(program, "events", tuple(sorted(events, key=lambda e: e.before)))
-    object.__setattr__(program, "source_labels", ())
-    object.__setattr__(program, "source_file", "")
+    object.__setattr__(program, "source_labels", tuple(source_labels))
+    object.__setattr__(program, "source_file", source_file)
     return program
+
+
+def _events_of_rows(events: tuple[Event, ...], lo: int, hi: int, last: bool) -> tuple[Event, ...]:
+    """The events before rows ``lo:hi``, counted from ``lo`` (with ``last``: also those after row ``hi − 1``)."""
+    return tuple(replace(e, before=e.before - lo) for e in events if lo <= e.before < hi or (last and e.before == hi))
+
+
+def toolpath_chunks(path: Toolpath, rows: int) -> Iterator[Toolpath]:
+    """``path`` as consecutive pieces of at most ``rows`` rows (at least one piece): an event goes with
+    the row it comes before, those after the last row with the last piece (as
+    :class:`~prs3_post.pipeline.PostStream` takes a toolpath)."""
+    n = len(path)
+    for lo in range(0, max(n, 1), rows):
+        hi = min(n, lo + rows)
+        yield Toolpath(kind=path.kind[lo:hi], tip=path.tip[lo:hi], axis=path.axis[lo:hi], feed=path.feed[lo:hi],
+                       source=path.source[lo:hi], events=_events_of_rows(path.events, lo, hi, hi == n),
+                       source_labels=path.source_labels, source_file=path.source_file)
+
+
+def program_chunks(program: JointProgram, rows: int) -> Iterator[JointProgram]:
+    """``program`` as consecutive pieces of at most ``rows`` rows (at least one piece), events as in
+    :func:`toolpath_chunks`; the pieces' columns are views of the program's (nothing is copied), so
+    that the emitter (:class:`~prs3_post.emit.gcode.ProgramEmitter`) writes a long program a piece at a time."""
+    n = len(program)
+    for lo in range(0, max(n, 1), rows):
+        hi = min(n, lo + rows)
+        columns = {name: getattr(program, name)[lo:hi] for name in ("kind", "stage", "strokes", "inverse_time",
+                                                                     "source")}
+        yield program_from_columns(columns, _events_of_rows(program.events, lo, hi, hi == n),
+                                   source_labels=program.source_labels, source_file=program.source_file)
