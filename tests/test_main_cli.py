@@ -339,3 +339,14 @@ def test_verify_refuses_operation_options_without_an_stl(tmp_path):
     ):
         result = CliRunner().invoke(main, ["verify", str(program), option, value])
         assert result.exit_code == 2 and result.stderr.splitlines()[-1] == message
+
+
+def test_the_same_hole_twice_is_refused_before_writing(tmp_path: Path) -> None:
+    out = tmp_path / "p.ngc"
+    result = invoke("demo", "--profile", "hole", "--at", "0,0", "--at", "5,5", "--at", "0,0", "-o", str(out))
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == ("prs3-post: error: hole 3 at (u 0.000, v 0.000) is hole 1 at (u 0.000, v 0.000) again "
+                             "(closer than the program's resolution, 0.0001 mm): it would be drilled twice; give each "
+                             "position once (--at, --at-xyz)\n")
+    assert list(tmp_path.iterdir()) == []
+

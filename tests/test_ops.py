@@ -297,6 +297,30 @@ def test_hole_positions_refused(centers: np.ndarray, message: str) -> None:
 
 
 @pytest.mark.parametrize(
+    ("centers", "message"),
+    [
+        (np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 0.0]]),
+         "hole 3 at (u 0.000, v 0.000) is hole 1 at (u 0.000, v 0.000) again (closer than the program's resolution, "
+         "0.001 mm): it would be drilled twice; give each position once (--at, --at-xyz)"),
+        (np.array([[5.0, 5.0], [5.0007, 4.9995]]),         # 0.00086 mm apart: the same hole within 0.001 mm
+         "hole 2 at (u 5.001, v 5.000) is hole 1 at (u 5.000, v 5.000) again (closer than the program's resolution, "
+         "0.001 mm): it would be drilled twice; give each position once (--at, --at-xyz)"),
+    ],
+)
+def test_the_same_hole_twice_is_refused(centers: np.ndarray, message: str) -> None:
+    with pytest.raises(FeatureError) as err:
+        plan_holes(FACE, centers, hole_params(), CUT, resolution=0.001)
+    assert str(err.value) == message
+
+
+def test_holes_one_output_unit_apart_are_two_holes() -> None:
+    centers = np.array([[5.0, 5.0], [5.001, 5.0], [5.0, 5.001]])
+    path = plan_holes(FACE, centers, hole_params(), CUT, resolution=0.001)
+    assert [e.text for e in path.events if e.kind is EventKind.COMMENT][1:] == [
+        "hole 1/3 at (u 5.000, v 5.000)", "hole 2/3 at (u 5.001, v 5.000)", "hole 3/3 at (u 5.000, v 5.001)"]
+
+
+@pytest.mark.parametrize(
     ("changes", "message"),
     [
         (dict(tool_diameter=0.0), "--tool-diameter must be > 0 mm (got 0)"),

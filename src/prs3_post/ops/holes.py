@@ -97,6 +97,25 @@ def _hole_name(index: int, center_uv: FloatArray, cutting: Cutting) -> str:
     return f"hole {index} at {format_uv(center_uv)} with tool Ø{cutting.tool_diameter:.3f}"
 
 
+def _refuse_repeated(centers: FloatArray, resolution: float) -> None:
+    """FeatureError naming the first hole that lies less than ``resolution`` mm from an earlier one.
+
+    Such a hole is the same hole drilled twice: the program cannot even show the two apart. Each centre
+    is compared with the earlier ones in its cell of a ``resolution`` grid and the 8 cells around it.
+    """
+    cells: dict[tuple[float, float], list[int]] = {}
+    keys = np.floor(centers / resolution)                       # (K, 2) float: no integer overflow
+    for index, (ku, kv) in enumerate(keys.tolist()):
+        near = {j for du in (-1.0, 0.0, 1.0) for dv in (-1.0, 0.0, 1.0) for j in cells.get((ku + du, kv + dv), ())}
+        for j in sorted(near):
+            if float(np.hypot(*(centers[index] - centers[j]))) < resolution:
+                raise FeatureError(
+                    f"hole {index + 1} at {format_uv(centers[index])} is hole {j + 1} at {format_uv(centers[j])} "
+                    f"again (closer than the program's resolution, {resolution:g} mm): it would be drilled twice; "
+                    f"give each position once (--at, --at-xyz)")
+        cells.setdefault((ku, kv), []).append(index)
+
+
 def plan_holes(face: Face, centers_uv: FloatArray, params: HoleParams, cutting: Cutting, *,
                resolution: float = MIN_TOLERANCE) -> Toolpath:
     """Drill holes normal to ``face`` at the given face points, in the order given.
@@ -120,8 +139,9 @@ def plan_holes(face: Face, centers_uv: FloatArray, params: HoleParams, cutting: 
     Raises
     ------
     FeatureError
-        When no centre is given, a centre is not finite, or a hole (a disc of the tool radius)
-        does not fit on the face (see :func:`~prs3_post.ops.common.check_fits`).
+        When no centre is given, a centre is not finite, a hole (a disc of the tool radius)
+        does not fit on the face (see :func:`~prs3_post.ops.common.check_fits`), or two centres are
+        closer than ``resolution`` (the same hole drilled twice).
     """
     centers = np.asarray(centers_uv, dtype=np.float64)
     if centers.ndim != 2 or centers.shape[1] != 2:
@@ -134,6 +154,7 @@ def plan_holes(face: Face, centers_uv: FloatArray, params: HoleParams, cutting: 
         raise FeatureError(f"hole {first + 1}: position {format_uv(centers[first])} is not a finite number")
     for index, center in enumerate(centers, start=1):   # refuse before planning anything
         check_fits(face, swept_region(center, cutting.tool_radius), _hole_name(index, center, cutting))
+    _refuse_repeated(centers, resolution)
 
     depths = (pass_depths(params.depth, params.peck, resolution=resolution, option="--peck") if params.peck > 0
               else np.array([params.depth]))
