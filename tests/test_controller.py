@@ -62,6 +62,16 @@ def test_a_tool_number_beyond_the_dialect_is_a_usage_error(tmp_path, extra, mess
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("number", ["0", "-3", "100000"])
+def test_both_bounds_of_the_tool_number_say_the_same(tmp_path, number):
+    out = tmp_path / "p.ngc"
+    result = invoke("demo", "--profile", "hole", "--tool-number", number, "-o", str(out))
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr.splitlines()[-1] == ("Error: Invalid value for '--tool-number': must be 1..99999 with dialect "
+                                              f"linuxcnc (its words.tool_number_max), got {number}")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_the_dialect_sets_the_largest_tool_number(tmp_path):
     dialect = _dialect_with_tool_max(tmp_path, 9)
     out = tmp_path / "p.ngc"

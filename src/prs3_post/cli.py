@@ -700,6 +700,11 @@ def _job_spec(part: str, opts: dict[str, Any]) -> JobSpec:
     operation = Operation(opts["profile"])
     depth = opts["depth"] if opts["depth"] is not None else (5.0 if operation is Operation.HOLE else 2.0)
     face = _face_index(opts["face_choice"])
+    dialect = load_dialect(opts["dialect_name"])
+    if not 1 <= opts["tool_number"] <= dialect.tool_number_max:       # both bounds, one message
+        raise click.BadParameter(
+            f"must be 1..{dialect.tool_number_max} with dialect {dialect.name} (its words.tool_number_max), "
+            f"got {opts['tool_number']}", param_hint="'--tool-number'")
     cutting = Cutting(
         tool_diameter=opts["tool_diameter"], feed=opts["feed"], plunge_feed=opts["plunge_feed"],
         spindle_rpm=opts["spindle"], coolant=Coolant(opts["coolant"]), tool_number=opts["tool_number"],
@@ -720,11 +725,6 @@ def _job_spec(part: str, opts: dict[str, Any]) -> JobSpec:
             entry=Entry(opts["entry"]), ramp_angle=math.radians(opts["ramp_angle"]), clearance=opts["clearance"],
             retract=opts["retract"],
         ))
-    dialect = load_dialect(opts["dialect_name"])
-    if cutting.tool_number > dialect.tool_number_max:
-        raise click.BadParameter(
-            f"must be 1..{dialect.tool_number_max} with dialect {dialect.name} (its words.tool_number_max), "
-            f"got {cutting.tool_number}", param_hint="'--tool-number'")
     wrap = dialect.line_numbers.wrap_after
     start = dialect.line_numbers.start if opts.get("line_start") is None else opts["line_start"]
     step = dialect.line_numbers.step if opts.get("line_step") is None else opts["line_step"]
