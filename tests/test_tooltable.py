@@ -54,3 +54,8 @@ def test_gauge_offset_beyond_the_tool_is_refused(tmp_path):
         load_machine(str(bad))
     assert str(caught.value) == (f"{bad}: geometry.gauge_offset_mm: the gauge line must be between the platform "
                                  "centre and the tool tip: expected < tool_length_mm = 175 mm, got 175")
+
+
+def test_exponents_are_numbers():
+    table = parse_tool_table("T1 D6e0 Z5.23E1 I-1.5e2\n", path="t.tbl")
+    assert table.tools == (Tool(1, None, 6.0, 52.3, "", 1),)

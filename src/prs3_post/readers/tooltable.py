@@ -17,7 +17,9 @@ What LinuxCNC writes and reads there (its ``tooldata`` format): ``T`` tool numbe
 - An offset on ``X Y A B C U V W`` other than 0 is refused: the tip is on the spindle axis here,
   and U, V, W are this machine's actuators.
 - ``T0`` is refused: it means "no tool" to LinuxCNC, and a job's tool numbers start at 1.
-- ``I J Q`` (lathe tool angles and orientation) are read and ignored.
+- ``I J Q`` (lathe tool angles and orientation) are range-checked (±360°, 0 to 9) and ignored.
+- Numbers may have an exponent (``Z5.23e1``). Each value must lie in its range (a length or a
+  diameter at most 10 m, a tool or pocket number at most 99999999); a word is at most 32 characters.
 
 Blank lines and lines with only a comment are skipped. Lengths are in mm (the programs are G21).
 Every problem is an :class:`~prs3_post.errors.InputError` naming ``file:line``.
@@ -39,8 +41,15 @@ ZERO_OFFSETS = "XYABCUVW"
 MAX_TOOL_NUMBER = 99_999_999
 #: mm, the largest length or diameter read (a metre is already no tool).
 MAX_LENGTH_MM = 1e4
+#: Degrees, the largest front or back angle (``I``, ``J``) of a lathe tool.
+MAX_ANGLE_DEG = 360.0
+#: The largest orientation ``Q`` (LinuxCNC's lathe tool orientations are 0 to 9).
+MAX_ORIENTATION = 9
+#: Characters in the longest word read (a letter and its number): no value a tool table means needs more.
+MAX_WORD = 32
 
-_NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)")
+#: A decimal number as LinuxCNC's reader takes it, with an optional exponent (``52.3``, ``+.5``, ``1e2``).
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _INTEGER = re.compile(r"[+-]?[0-9]+")
 
 
@@ -126,19 +135,36 @@ def parse_tool_table(text: str, *, path: str) -> ToolTable:
     return ToolTable(path=path, tools=tuple(tools))
 
 
+#: A valid value of each letter, for messages.
+_EXAMPLE = {"T": "1", "P": "1", "D": "6.0", "Z": "6.0", "I": "95.0", "J": "155.0", "Q": "1"} | dict.fromkeys(
+    ZERO_OFFSETS, "0")
+#: The lathe letters' ranges (low, high, what), read only to be checked.
+_LATHE_RANGES = {"I": (-MAX_ANGLE_DEG, MAX_ANGLE_DEG, "front angle in degrees"),
+                 "J": (-MAX_ANGLE_DEG, MAX_ANGLE_DEG, "back angle in degrees"),
+                 "Q": (0.0, float(MAX_ORIENTATION), "orientation")}
+
+
+def _cut(word: str) -> str:
+    """A word for a message: at most 24 characters (``Z100000000000000000000…``)."""
+    return word if len(word) <= 24 else word[:23] + "…"
+
+
 def _tool(code: str, comment: str, path: str, line: int) -> Tool:
     words: dict[str, str] = {}
     for word in code.split():
         letter, value = word[0].upper(), word[1:]
         if letter not in LETTERS:
-            raise InputError(f"unknown letter {word[0]!r} in {word!r} (allowed: {' '.join(LETTERS)}, and ; before "
-                             "a comment)", path=path, line=line)
+            raise InputError(f"unknown letter {word[0]!r} in {_cut(word)!r} (allowed: {' '.join(LETTERS)}, and ; "
+                             "before a comment)", path=path, line=line)
+        if len(word) > MAX_WORD:
+            raise InputError(f"{_cut(word)!r} ({len(word)} characters): a tool table's word is at most {MAX_WORD} "
+                             f"characters (like {letter}{_EXAMPLE[letter]})", path=path, line=line)
         if letter in words:
             raise InputError(f"{letter} given twice ({letter}{words[letter]} and {word})", path=path, line=line)
         integer = letter in "TP"
         if not (_INTEGER if integer else _NUMBER).fullmatch(value):
             raise InputError(f"{word!r}: expected {letter} and {'a whole number' if integer else 'a number'} "
-                             f"(like {letter}{'1' if integer else '6.0'})", path=path, line=line)
+                             f"(like {letter}{_EXAMPLE[letter]})", path=path, line=line)
         words[letter] = value
     for letter, what in (("T", "tool number"), ("D", "diameter"), ("Z", "length")):
         if letter not in words:
@@ -149,8 +175,8 @@ def _tool(code: str, comment: str, path: str, line: int) -> Tool:
         raise InputError(f"T{words['T']}: tool numbers are 1 to {MAX_TOOL_NUMBER} (T0 is LinuxCNC's 'no tool')",
                          path=path, line=line)
     pocket = int(words["P"]) if "P" in words else None
-    if pocket is not None and pocket < 0:
-        raise InputError(f"P{words['P']}: a pocket number is ≥ 0", path=path, line=line)
+    if pocket is not None and not 0 <= pocket <= MAX_TOOL_NUMBER:
+        raise InputError(f"P{words['P']}: pocket numbers are 0 to {MAX_TOOL_NUMBER}", path=path, line=line)
     diameter, length = float(words["D"]), float(words["Z"])
     if not 0.0 <= diameter <= MAX_LENGTH_MM:
         raise InputError(f"D{words['D']}: the diameter must be 0 to {MAX_LENGTH_MM:g} mm", path=path, line=line)
@@ -165,4 +191,8 @@ def _tool(code: str, comment: str, path: str, line: int) -> Tool:
             raise InputError(f"{letter}{words[letter]}: a tool offset on {letter} makes no sense on a 3-PRS head "
                              f"(the tip is on the spindle axis; U, V, W are its actuators): only Z may be nonzero",
                              path=path, line=line)
+    for letter, (low, high, what) in _LATHE_RANGES.items():
+        if letter in words and not low <= float(words[letter]) <= high:
+            raise InputError(f"{letter}{words[letter]}: the {what} must be {low:g} to {high:g} (read and ignored "
+                             "here, but no tool has such a value)", path=path, line=line)
     return Tool(number=tool, pocket=pocket, diameter=diameter, length=length, comment=comment, line=line)
