@@ -108,6 +108,8 @@ SAFETY = 2.0
 TRANSLATION_SPREAD = 0.01
 #: Rows replayed at a time (memory: a few kB per row at most; the report does not depend on it).
 CHUNK_ROWS = 16384
+#: mm: the stroke step of the rounding allowance's central differences.
+_ROUNDING_STEP = 1e-3
 #: mm/min: the rapid rate used for program time: the longest joint travel of a G0 at this rate
 #: (a nominal value: the real one depends on the machine's axis settings).
 NOMINAL_RAPID_RATE = 5000.0
@@ -196,18 +198,48 @@ def _poses(machine: Machine, joints: FloatArray, *, keys: tuple[FloatArray, IntA
     ``keys``: :func:`_shift_keys` of the strokes, if at hand; ``condition``: False skips the exact IK
     (the condition numbers are NaN).
     """
-    geometry = machine.geometry
     canonical, index = _shift_keys(joints[:, 2:]) if keys is None else keys
-    fk = forward(geometry, canonical)
-    cond = (inverse(geometry, fk.tip, fk.axis, model=IKModel.EXACT).condition if condition
-            else np.full(len(canonical), np.nan))
-    tip = fk.tip[index]
+    (fk,) = _forward_parts(machine, [canonical])
+    return _expand(fk, _condition(machine, fk) if condition else None, index, joints)
+
+
+#: FK of distinct head poses: tip, axis, link angle (each (K, 3)) and converged (K,).
+_KeyFK = tuple[FloatArray, FloatArray, FloatArray, BoolArray]
+
+
+def _forward_parts(machine: Machine, parts: list[FloatArray]) -> list[_KeyFK]:
+    """FK of several (K_i, 3) stroke arrays in one call: FK solves every row on its own, so each part
+    gets the values a call of its own would give, without that call's fixed cost."""
+    sizes = [len(part) for part in parts]
+    fk = forward(machine.geometry, np.concatenate(parts) if len(parts) > 1 else parts[0])
+    out, at = [], 0
+    for size in sizes:
+        rows = slice(at, at + size)
+        out.append((fk.tip[rows], fk.axis[rows], fk.link_angle[rows], fk.converged[rows]))
+        at += size
+    return out
+
+
+def _condition(machine: Machine, fk: _KeyFK) -> FloatArray:
+    """(K,) the actuator-Jacobian condition number of FK poses (exact IK; NaN where FK failed)."""
+    return inverse(machine.geometry, fk[0], fk[1], model=IKModel.EXACT).condition
+
+
+def _expand(fk: _KeyFK, condition: FloatArray | None, index: IntArray, joints: FloatArray) -> _Poses:
+    """The poses of (N, 5) joints from the FK of their distinct head poses (``index``: each row's)."""
+    key_tip, key_axis, key_angle, key_converged = fk
+    tip = np.take(key_tip, index, axis=0)
     tip[:, :2] += joints[:, :2]
     tip[:, 2] -= joints[:, 2]                            # the common shift T1: the head moves by −T1 along z
-    converged = fk.converged[index] & np.isfinite(tip).all(axis=1)
-    tip[~converged] = np.nan
-    return _Poses(tip=tip, axis=fk.axis[index], link_angle=fk.link_angle[index], converged=converged,
-                  condition=cond[index])
+    converged = np.take(key_converged, index)
+    converged &= np.isfinite(tip[:, 0])
+    converged &= np.isfinite(tip[:, 1])
+    converged &= np.isfinite(tip[:, 2])
+    if not converged.all():
+        tip[~converged] = np.nan
+    cond = np.full(len(index), np.nan) if condition is None else np.take(condition, index)
+    return _Poses(tip=tip, axis=np.take(key_axis, index, axis=0), link_angle=np.take(key_angle, index, axis=0),
+                  converged=converged, condition=cond)
 
 
 def _interleave(at_end: BoolArray, ends: _Poses, inner: _Poses) -> _Poses:
@@ -229,8 +261,8 @@ def _sample_moves(joints: FloatArray, intervals: IntArray) -> tuple[IntArray, Fl
     first = np.cumsum(intervals) - intervals
     step = np.arange(len(row)) - first[row] + 1
     fraction = step / intervals[row]
-    start = joints[np.maximum(row - 1, 0)]
-    sampled = start + fraction[:, None] * (joints[row] - start)
+    start = np.take(joints, np.maximum(row - 1, 0), axis=0)
+    sampled = start + fraction[:, None] * (np.take(joints, row, axis=0) - start)
     sampled[first + intervals - 1] = joints            # end points exactly as programmed
     return row, fraction, sampled, first
 
@@ -248,10 +280,40 @@ def _curvature(row: IntArray, intervals: IntArray, tip: FloatArray, link_angle: 
     return SAFETY * out
 
 
-def _translation_bound(machine: Machine, joints: FloatArray, ends: _Poses) -> FloatArray:
+@dataclass(frozen=True, slots=True)
+class _Translations:
+    """The moves whose strokes change alike (within TRANSLATION_SPREAD): their rows (≥ 1), each one's
+    mean stroke change ``common`` and the joints ``back`` = q_{k-1} − d (the mirror point of its rest)."""
+
+    rows: IntArray
+    common: FloatArray
+    back: FloatArray
+
+
+def _translations(joints: FloatArray) -> _Translations:
+    """The translation candidates of (N, 5) joints (:func:`_translation_bound`)."""
+    n = len(joints)
+    if n < 2:
+        return _Translations(rows=np.zeros(0, dtype=np.int64), common=np.zeros(0), back=np.zeros((0, 5)))
+    # column by column (numpy's reductions along a row of three are slow; the same sums, in the same order)
+    d0, d1, d2 = (np.subtract(joints[1:, j], joints[:-1, j]) for j in (2, 3, 4))
+    common = (d0 + d1 + d2) / 3.0
+    s0, s1, s2 = d0 - common, d1 - common, d2 - common
+    widest = np.maximum(np.maximum(np.abs(s0), np.abs(s1)), np.abs(s2))
+    moves = np.flatnonzero(widest <= TRANSLATION_SPREAD)
+    back = np.take(joints, moves, axis=0)                # q_{k-1} of each such move k = moves + 1
+    back[:, 2] -= s0[moves]
+    back[:, 3] -= s1[moves]
+    back[:, 4] -= s2[moves]
+    return _Translations(rows=moves + 1, common=common[moves], back=back)
+
+
+def _translation_bound(machine: Machine, joints: FloatArray, ends: _Poses, moves: _Translations | None = None,
+                       mirror: _Poses | None = None) -> FloatArray:
     """(N,) mm — the sampling bound of each move whose strokes change alike (within TRANSLATION_SPREAD)
     when it is sampled at its end point only; NaN for the other moves, row 0, and where the head
-    does not assemble.
+    does not assemble. ``moves`` (:func:`_translations`) and ``mirror`` (the poses of its ``back``
+    joints, no condition numbers needed), if at hand.
 
     Move k: q(t) = q_{k-1} + t (c·(1, 1, 1) + d), c the mean stroke change, |d_i| ≤ TRANSLATION_SPREAD.
     The common part only shifts the head along z (linear in t), so the tip's deviation from its
@@ -261,30 +323,35 @@ def _translation_bound(machine: Machine, joints: FloatArray, ends: _Poses) -> Fl
     """
     n = len(joints)
     bound = np.full(n, np.nan)
-    if n < 2:
-        return bound
-    delta = np.diff(joints[:, 2:], axis=0)
-    # column by column (numpy's reductions along a row of three are slow; the same sums, in the same order)
-    common = (delta[:, 0] + delta[:, 1] + delta[:, 2]) / 3.0
-    spread = delta - common[:, None]
-    widest = np.maximum(np.maximum(np.abs(spread[:, 0]), np.abs(spread[:, 1])), np.abs(spread[:, 2]))
-    rows = np.flatnonzero(widest <= TRANSLATION_SPREAD) + 1
+    moves = _translations(joints) if moves is None else moves
+    rows = moves.rows
     if not len(rows):
         return bound
-    back = joints[rows - 1]                              # fancy indexing: copies
-    back[:, 2:] -= spread[rows - 1]
-    mirror = _poses(machine, back, condition=False)      # the shape of the move only: no limits here
-    head_end = ends.tip[rows]
-    head_end[:, :2] -= joints[rows, :2]
-    head_end[:, 2] += common[rows - 1]                   # g(1) = FK(q_{k-1} + d) = FK(q_k) + c e_z
-    head_start = ends.tip[rows - 1]
-    head_start[:, :2] -= joints[rows - 1, :2]
-    head_back = mirror.tip                               # the mirror's own array: nothing else reads it
-    head_back[:, :2] -= back[:, :2]
-    second = head_end - 2.0 * head_start + head_back
-    tip2 = np.sqrt(second[:, 0] * second[:, 0] + second[:, 1] * second[:, 1] + second[:, 2] * second[:, 2])
-    turn = np.abs(ends.link_angle[rows] - 2.0 * ends.link_angle[rows - 1] + mirror.link_angle)
-    angle2 = machine.geometry.link_length * np.maximum(np.maximum(turn[:, 0], turn[:, 1]), turn[:, 2])
+    back = moves.back
+    if mirror is None:
+        mirror = _poses(machine, back, condition=False)      # the shape of the move only: no limits here
+    before = rows - 1
+    tip, angle = ends.tip, ends.link_angle
+    # g(1) = FK(q_{k-1} + d) = FK(q_k) + c e_z, g(0), g(−1): the head's tip without the stage, column by column
+    second_sq = np.zeros(len(rows))
+    for j in range(3):
+        head_end = np.take(tip[:, j], rows)
+        head_start = np.take(tip[:, j], before)
+        head_back = mirror.tip[:, j]
+        if j < 2:
+            head_end -= np.take(joints[:, j], rows)
+            head_start -= np.take(joints[:, j], before)
+            head_back = head_back - back[:, j]
+        else:
+            head_end += moves.common
+        second = head_end - 2.0 * head_start + head_back
+        second_sq = second * second if j == 0 else second_sq + second * second
+    tip2 = np.sqrt(second_sq)
+    turn = np.zeros(len(rows))
+    for j in range(3):
+        bend = np.abs(np.take(angle[:, j], rows) - 2.0 * np.take(angle[:, j], before) + mirror.link_angle[:, j])
+        turn = bend if j == 0 else np.maximum(turn, bend)
+    angle2 = machine.geometry.link_length * turn
     bound[rows] = SAFETY * np.maximum(tip2, angle2) / 8.0     # NaN stays NaN: no assembly, sample it
     return bound
 
@@ -309,21 +376,25 @@ def replay(machine: Machine, program: JointProgram, *, tolerance: float = DEFAUL
 
 
 def _replay_joints(machine: Machine, joints: FloatArray, *, tolerance: float, translations: bool,
-                   ends: _Poses | None = None) -> Replay:
+                   ends: _Poses | None = None, flat_bound: FloatArray | None = None) -> Replay:
     """:func:`replay` of (N, 5) joints; row 0 is sampled at its end only (its start is unknown, or it is
     the previous chunk's last row, replayed again to start the next move from). ``ends``: the poses
-    of the rows, if at hand."""
+    of the rows, and ``flat_bound``: :func:`_translation_bound` (with ``translations``), if at hand."""
     geometry = machine.geometry
     n = len(joints)
     epsilon = tolerance * EPSILON_FRACTION
     ends = _poses(machine, joints) if ends is None else ends
-    flat_bound = _translation_bound(machine, joints, ends) if translations else np.full(n, np.nan)
+    if flat_bound is None:
+        flat_bound = _translation_bound(machine, joints, ends) if translations else np.full(n, np.nan)
     flat = flat_bound <= epsilon                        # NaN: False
     intervals = np.where(flat, 1, PROBE_INTERVALS).astype(np.int64)
     if n:
         intervals[0] = 1
 
     def run() -> tuple[IntArray, FloatArray, FloatArray, IntArray, _Poses, FloatArray]:
+        if bool((intervals == 1).all()):             # every move at its end point only: the samples are the rows
+            rows = np.arange(n)
+            return rows, np.ones(n), joints, rows, ends, np.zeros(n)
         row, fraction, sampled, first = _sample_moves(joints, intervals)
         at_end = np.zeros(len(row), dtype=bool)
         at_end[first + intervals - 1] = True
@@ -354,7 +425,8 @@ def _replay_joints(machine: Machine, joints: FloatArray, *, tolerance: float, tr
     )
 
 
-def rounding_allowance(machine: Machine, program: JointProgram, decimals: int, *, step: float = 1e-3) -> FloatArray:
+def rounding_allowance(machine: Machine, program: JointProgram, decimals: int, *,
+                       step: float = _ROUNDING_STEP) -> FloatArray:
     """(N,) float — mm, the most the tip of each row can move when every axis word is off by half a
     unit of its last decimal: ½·10^-decimals · Σ_j |∂tip/∂q_j| (FK Jacobian by central differences,
     once per distinct head pose: it does not change with a common stroke shift)."""
@@ -362,29 +434,38 @@ def rounding_allowance(machine: Machine, program: JointProgram, decimals: int, *
     return _rounding_of_keys(machine, canonical, decimals, step=step)[index]
 
 
-def _rounding_of_keys(machine: Machine, canonical: FloatArray, decimals: int, *, step: float = 1e-3) -> FloatArray:
+def _rounding_of_keys(machine: Machine, canonical: FloatArray, decimals: int, *,
+                      step: float = _ROUNDING_STEP) -> FloatArray:
     """:func:`rounding_allowance` of the distinct head poses of :func:`_shift_keys`."""
-    half = 0.5 * 10.0 ** (-decimals)
-    total = np.full(len(canonical), 2.0 if machine.stage.present else 0.0)   # ∂tip/∂X, ∂tip/∂Y: unit vectors
+    return _rounding_from(machine, _forward_parts(machine, _rounding_strokes(canonical, step)), decimals, step=step)
+
+
+def _rounding_strokes(canonical: FloatArray, step: float) -> list[FloatArray]:
+    """The strokes whose FK :func:`_rounding_from` needs: each pose with one stroke ± ``step``."""
+    out = []
     for leg in range(3):
         delta = np.zeros(3)
         delta[leg] = step
-        plus = forward(machine.geometry, canonical + delta).tip
-        minus = forward(machine.geometry, canonical - delta).tip
+        out += [canonical + delta, canonical - delta]
+    return out
+
+
+def _rounding_from(machine: Machine, fk: list[_KeyFK], decimals: int, *, step: float = _ROUNDING_STEP) -> FloatArray:
+    """:func:`_rounding_of_keys` from the FK of :func:`_rounding_strokes` (in its order)."""
+    half = 0.5 * 10.0 ** (-decimals)
+    total = np.full(len(fk[0][0]), 2.0 if machine.stage.present else 0.0)   # ∂tip/∂X, ∂tip/∂Y: unit vectors
+    for leg in range(3):
+        plus, minus = fk[2 * leg][0], fk[2 * leg + 1][0]
         total += np.linalg.norm(plus - minus, axis=1) / (2.0 * step)
     return half * total
 
 
-def row_times(program: JointProgram, *, rapid_rate: float = NOMINAL_RAPID_RATE,
-              dynamics: Dynamics | None = None) -> tuple[FloatArray, FloatArray]:
-    """Start and end time of every row's move, min (G1: 1/F; G0: longest joint travel / rapid_rate;
-    G4 dwells before a row delay it; row 0 starts and ends at 0, its start being unknown). With the
-    machine's ``dynamics``: each move's trapezoidal time (:func:`prs3_post.dynamics.move_times`).
-
-    Returns
-    -------
-    start, end : (N,) float — min
-    """
+def move_durations(program: JointProgram, *, rapid_rate: float = NOMINAL_RAPID_RATE,
+                   dynamics: Dynamics | None = None) -> FloatArray:
+    """(N,) min, the time of every row's move from the row before (G1: 1/F; G0: longest joint travel /
+    rapid_rate; row 0: 0, its start being unknown); with the machine's ``dynamics``, each move's
+    trapezoidal time (:func:`prs3_post.dynamics.move_times`). Row by row: the rows of a chunk that
+    starts with the row before them get their values in the whole program."""
     n = len(program)
     duration = np.zeros(n)
     if dynamics is not None:
@@ -399,6 +480,20 @@ def row_times(program: JointProgram, *, rapid_rate: float = NOMINAL_RAPID_RATE,
         feed = np.flatnonzero(program.kind[1:] == MoveKind.FEED) + 1
         with np.errstate(divide="ignore"):
             duration[feed] = 1.0 / program.inverse_time[feed]      # G1: 1/F
+    return duration
+
+
+def row_times(program: JointProgram, *, rapid_rate: float = NOMINAL_RAPID_RATE,
+              dynamics: Dynamics | None = None, durations: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
+    """Start and end time of every row's move, min: :func:`move_durations` (``durations``, if at hand),
+    and G4 dwells before a row delay it (row 0 starts and ends at 0).
+
+    Returns
+    -------
+    start, end : (N,) float — min
+    """
+    n = len(program)
+    duration = move_durations(program, rapid_rate=rapid_rate, dynamics=dynamics) if durations is None else durations
     end = duration.copy()
     for event in program.events:                       # a dwell before a row delays it (after the last: nothing)
         if event.kind is EventKind.DWELL and event.before < n:
@@ -533,6 +628,9 @@ class VerifyReport:
     dynamics : Dynamics | None — the machine's axis speeds (None: the file has none; times at a nominal rapid rate)
     fastest : (ratio, line, axis) — the G1 whose axis runs closest to (or over) its top speed: speed /
         top speed, its line, the axis (0, 0, '' without dynamics or G1)
+    duration : (N,) float | None — min, each move's time (:func:`move_durations` with ``dynamics``, at the
+        nominal rapid rate without), computed chunk by chunk: the text report needs no pass over the whole
+        program for it (None: not computed)
     """
 
     program: JointProgram
@@ -557,6 +655,7 @@ class VerifyReport:
     warnings: tuple[Problem, ...]
     dynamics: Dynamics | None = None
     fastest: tuple[float, int, str] = (0.0, 0, "")
+    duration: FloatArray | None = None
 
     @property
     def ok(self) -> bool:
@@ -704,14 +803,27 @@ class Verifier:
         skip = 1 if carried else 0
         offset = self.rows - skip                              # global row of local row 0
         joints = joints_of(rows)
-        canonical, index = keys = _shift_keys(joints[:, 2:])         # shared by the poses and the rounding
-        rep = _replay_joints(self.machine, joints, tolerance=self.tolerance, translations=self.intended is None,
-                             ends=_poses(self.machine, joints, keys=keys))
+        machine = self.machine
+        # every FK the chunk needs before sampling, in one call: the rows' distinct head poses, the
+        # mirror points of the translation moves (their sampling bound), the rounding's differences
+        canonical, index = _shift_keys(joints[:, 2:])
+        translations = self.intended is None
+        moves = _translations(joints) if translations else None
+        mirror_keys = _shift_keys(moves.back[:, 2:]) if moves is not None and len(moves.rows) else None
+        parts = [canonical] + ([mirror_keys[0]] if mirror_keys is not None else [])
+        fk = _forward_parts(machine, parts + _rounding_strokes(canonical, _ROUNDING_STEP))
+        ends = _expand(fk[0], _condition(machine, fk[0]), index, joints)
+        flat_bound = None
+        if moves is not None:
+            mirror = _expand(fk[1], None, mirror_keys[1], moves.back) if mirror_keys is not None else None
+            flat_bound = _translation_bound(machine, joints, ends, moves, mirror)
+        rep = _replay_joints(machine, joints, tolerance=self.tolerance, translations=translations, ends=ends,
+                             flat_bound=flat_bound)
         if self.tool_lengths:                                  # each row's tip with the tool in the spindle
             lengths = self._row_tool_lengths(chunk, carried)
             shift = (self.machine.geometry.tool_length - lengths)[rep.row]
             rep = dataclasses.replace(rep, tip=rep.tip + shift[:, None] * rep.axis)
-        rounding = _rounding_of_keys(self.machine, canonical, self.length_decimals)[index]
+        rounding = np.take(_rounding_from(machine, fk[len(parts):], self.length_decimals, step=_ROUNDING_STEP), index)
         self.last = _rows_of(chunk, len(chunk) - 1, len(chunk))
         self.rows += len(chunk)
         self._check(rows, rep, rounding, skip, offset)
@@ -740,7 +852,7 @@ class Verifier:
         own = slice(int(rep.first[skip]), len(rep.row))       # the chunk's own samples
 
         # ---- assembly and limits
-        bad_rows = np.unique(rep.row[~rep.converged])
+        bad_rows = np.zeros(0, dtype=np.int64) if rep.converged.all() else np.unique(rep.row[~rep.converged])
         for r in bad_rows[bad_rows >= skip].tolist():
             i = int(rep.first[r] + np.flatnonzero(~rep.converged[rep.first[r]:rep.end[r] + 1])[0])
             strokes = ", ".join(f"{v:.4f}" for v in rep.joints[i, 2:])
@@ -749,7 +861,7 @@ class Verifier:
         limits = rep.limits
         with np.errstate(invalid="ignore"):
             outside = limits.margin < 0.0
-        for col in range(len(limits.names)):
+        for col in np.flatnonzero(outside.any(axis=0)).tolist():
             bad = np.unique(rep.row[outside[:, col]])
             for r in bad[bad >= skip].tolist():
                 i = int(rep.first[r] + np.nanargmin(limits.margin[rep.first[r]:rep.end[r] + 1, col]))
@@ -769,10 +881,9 @@ class Verifier:
 
         # ---- straightness of G1 moves
         end = rep.end
-        start_tip = rep.tip[end[np.maximum(rep.row - 1, 0)]]
-        chord_point = start_tip + rep.fraction[:, None] * (rep.tip[end[rep.row]] - start_tip)
+        ends_only = len(rep.row) == n                   # one sample per row: its end point
         on_feed = feed_row[rep.row] & (rep.row > 0)
-        straightness = np.where(on_feed, np.linalg.norm(rep.tip - chord_point, axis=1), np.nan)
+        straightness = np.where(on_feed, _off_chord(rep, ends_only), np.nan)
         worst, worst_at = _row_max(straightness, rep.first)
         # No tip where the head does not assemble, so no chord to measure from (NaN): the reach
         # problem of this line, or of the previous one (the move's start point), already says so.
@@ -790,7 +901,8 @@ class Verifier:
         # ---- feeds
         chord = np.full(n, np.nan)
         if n > 1:
-            chord[1:] = np.linalg.norm(rep.tip[end[1:]] - rep.tip[end[:-1]], axis=1)
+            tip_end = rep.tip if ends_only else np.take(rep.tip, end, axis=0)
+            chord[1:] = _norm3(tip_end[1:] - tip_end[:-1])
         inverse_time = np.asarray(rows.inverse_time)
         implied = np.where(feed_row, chord * inverse_time, np.nan)
         half_f = 0.5 * 10.0 ** (-self.feed_decimals)
@@ -825,7 +937,8 @@ class Verifier:
             _against_problems(against, rep, rows, local_intended, self.axis_tolerance, problems, skip)
 
         self.per_move.append({name: values[skip:] for name, values in zip(
-            _PER_MOVE, (rounding, chord, implied, slack, worst, rep.intervals, rep.bound), strict=True)})
+            _PER_MOVE, (rounding, chord, implied, slack, worst, rep.intervals, rep.bound,
+                        move_durations(rows, dynamics=self.machine.dynamics)), strict=True)})
         self.samples += len(rep.row) - own.start
         if self.keep_samples:
             self.kept.append((_replay_from(rep, own, skip, offset), straightness[own],
@@ -895,7 +1008,7 @@ class Verifier:
             intervals=per_move["intervals"], bound=per_move["bound"], samples=self.samples,
             epsilon=self.tolerance * EPSILON_FRACTION, feed_groups=groups, closest=self._closest_table(),
             against=against, problems=tuple(problems), warnings=tuple(warnings),
-            dynamics=self.machine.dynamics, fastest=self.fastest,
+            dynamics=self.machine.dynamics, fastest=self.fastest, duration=per_move["duration"],
         )
 
     def _closest_table(self) -> tuple[Closest, ...]:
@@ -951,7 +1064,8 @@ class Verifier:
 #: The per-move values a Verifier keeps (dtype, row shape).
 _PER_MOVE: dict[str, tuple[type, tuple[int, ...]]] = {
     "rounding": (np.float64, ()), "chord": (np.float64, ()), "implied": (np.float64, ()), "slack": (np.float64, ()),
-    "straightness": (np.float64, ()), "intervals": (np.int64, ()), "bound": (np.float64, ())}
+    "straightness": (np.float64, ()), "intervals": (np.int64, ()), "bound": (np.float64, ()),
+    "duration": (np.float64, ())}
 #: A program's rows as a Verifier keeps them.
 _ROW_COLUMNS: dict[str, tuple[type, tuple[int, ...]]] = {
     "kind": (np.int64, ()), "stage": (np.float64, (2,)), "strokes": (np.float64, (3,)),
@@ -982,11 +1096,33 @@ class _Columns:
         return {name: array[:self.size] for name, array in self.arrays.items()}
 
 
+def _norm3(vectors: FloatArray) -> FloatArray:
+    """(N,) the length of each row of (N, 3) ``vectors``: np.linalg.norm(vectors, axis=1), the same
+    sum in the same order, column by column (numpy's reductions along a row of three are slow)."""
+    x, y, z = vectors[:, 0], vectors[:, 1], vectors[:, 2]
+    return np.sqrt(x * x + y * y + z * z)
+
+
+def _off_chord(rep: Replay, ends_only: bool) -> FloatArray:
+    """(S,) mm, each sample's distance from the straight chord of its move: |tip − (start + t (end − start))|."""
+    end = rep.end
+    if ends_only:                                       # sample s is row s's end point (t = 1)
+        start_tip = np.take(rep.tip, np.maximum(np.arange(len(end)) - 1, 0), axis=0)
+        end_tip = rep.tip
+    else:
+        start_tip = np.take(rep.tip, np.take(end, np.maximum(rep.row - 1, 0)), axis=0)
+        end_tip = np.take(rep.tip, np.take(end, rep.row), axis=0)
+    chord_point = start_tip + rep.fraction[:, None] * (end_tip - start_tip)
+    return _norm3(rep.tip - chord_point)
+
+
 def _row_max(values: FloatArray, first: IntArray) -> tuple[FloatArray, IntArray]:
     """Per row (samples ``first[r]:first[r + 1]``): the largest value, NaN ignored (NaN: none), and the
     first sample that has it."""
     if not len(first):
         return np.zeros(0), np.zeros(0, dtype=np.int64)
+    if len(first) == len(values):                       # one sample per row
+        return values.copy(), np.where(np.isnan(values), len(values) - 1, np.arange(len(values)))
     top = np.fmax.reduceat(values, first)
     row = np.repeat(np.arange(len(first)), np.diff(np.append(first, len(values))))
     at = np.minimum.reduceat(np.where(values == top[row], np.arange(len(values)), len(values)), first)

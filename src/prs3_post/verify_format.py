@@ -57,7 +57,9 @@ def summary(report: VerifyReport, *, rapid_rate: float = NOMINAL_RAPID_RATE) -> 
     """Headline numbers shared by the text and JSON reports (from the per-move values: no samples needed)."""
     program = report.program
     feed_row = program.kind == MoveKind.FEED
-    start, end = row_times(program, rapid_rate=rapid_rate, dynamics=report.dynamics)
+    known = report.duration is not None and (report.dynamics is not None or rapid_rate == NOMINAL_RAPID_RATE)
+    start, end = row_times(program, rapid_rate=rapid_rate, dynamics=report.dynamics,
+                           durations=report.duration if known else None)
     durations = end - start
     dwell = sum(e.value for e in program.events if e.kind is EventKind.DWELL) / 60.0
     straight, straight_line, _ = _worst(report.straightness, np.arange(len(program)), program.source)
