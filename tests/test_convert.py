@@ -132,6 +132,30 @@ def test_golden_conversion(name: str, tmp_path: Path, update_golden: bool, rs274
     assert verified.output.splitlines()[-1] == "OK: within every limit and tolerance"
 
 
+#: Synthesized 3+2 G-code programs (fixtures/gcode) with their golden programs: the options after the input.
+GCODE_GOLDEN = {
+    "g68-peck-arc.ngc": ("--part-origin=-60.9,-10.9,-745",),
+    "wedge-face-3axis.ngc": ("--part-origin=-77.8,-190.9,-1030.2",
+                             "--work-plane", str(REPO / "fixtures" / "parts" / "wedge.stl") + ":4"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(GCODE_GOLDEN))
+def test_golden_3_plus_2_conversion(name: str, tmp_path: Path, update_golden: bool, rs274_check) -> None:
+    """A G68.2 program (a G83 peck cycle, a G2 arc in G18) and a 3-axis program put on the wedge's face 4,
+    byte for byte; LinuxCNC accepts them and verify --against their G-code rebuilds them."""
+    src = REPO / "fixtures" / "gcode" / name
+    result = CliRunner().invoke(main, ["convert", str(src), "-o", str(tmp_path), "--jobs", "1", *GCODE_GOLDEN[name]])
+    assert result.exit_code == 0, result.output
+    out = tmp_path / name
+    compare_golden(out.read_text(), GOLDEN / f"convert-{name}", update_golden)
+    code, text = rs274_check(out)
+    assert code == 0, text
+    verified = CliRunner().invoke(main, ["verify", str(out), "--against", str(src)])
+    assert verified.exit_code == 0, verified.output
+    assert verified.output.splitlines()[-1] == "OK: within every limit and tolerance"
+
+
 def test_every_placed_output_passes_linuxcnc(tmp_path: Path, rs274_check) -> None:
     for name, origin in PLACED.items():
         result = CliRunner().invoke(main, ["convert", str(CORPUS / name), "-o", str(tmp_path), "--jobs", "1",
