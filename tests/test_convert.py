@@ -26,7 +26,8 @@ from numpy.testing import assert_allclose
 from prs3_post.cli import main
 from prs3_post.config import load_dialect, load_machine
 from prs3_post.convert import ConvertSettings, collect_inputs, convert_batch, convert_file, write_conversion
-from prs3_post.kinematics import forward
+from prs3_post.errors import PoseError
+from prs3_post.kinematics import forward, unit_axes
 from prs3_post.pipeline import place_toolpath
 from prs3_post.readers.apt import read_cl
 from prs3_post.readers.header import SourceHeader, read_header
@@ -54,7 +55,7 @@ _NO_TURN = "; a setup turns the part about z only, so no setup turns these tool 
 #: down in the part frame, and a setup turns the part about z only; ust_a also tilts 86°, past the limit).
 UNPLACEABLE = {
     "humman_1_KONTUR_NAR_40_N2.cls":
-        "lines 9, 12, 15, 16, 18, 19, 19, 19, 19, 19, ...: the axis points away from the spindle (axis z must be "
+        "lines 9, 12, 15, 16, 18, 19, 20, 21, 22, 23, ...: the axis points away from the spindle (axis z must be "
         "> 0)" + _NO_TURN,
     "humman_4_SVERL_63_N2.cls":
         "lines 8, 10, 12, 15, 18, 21, 23, 26, 29, 31, ...: the axis points away from the spindle (axis z must be "
@@ -529,3 +530,17 @@ def test_the_counts_head_the_program_in_a_file_and_in_a_fifo(tmp_path: Path) -> 
     reader.join(timeout=30)
     assert received == [regular.read_bytes()]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc", "f.ngc"]
+
+
+# ----------------------------------------------------------------------------- QA sweep: input and option errors
+
+
+def test_rows_of_one_line_are_named_once() -> None:
+    tip = np.zeros((5, 3))
+    axis = np.array([[0, 0, 1], [0, 0, -1], [0, 0, -1], [0, 0, -1], [0, 0, -1.0]])
+    with pytest.raises(PoseError) as caught:
+        unit_axes(tip, axis, row_name="line", row_numbers=np.array([3, 7, 7, 7, 9]))
+    assert str(caught.value) == "lines 7, 9: the axis points away from the spindle (axis z must be > 0)"
+    with pytest.raises(PoseError) as caught:
+        unit_axes(tip[:3], axis[:3], row_name="line", row_numbers=np.array([3, 7, 7]))
+    assert str(caught.value) == "line 7: the axis points away from the spindle (axis z must be > 0)"

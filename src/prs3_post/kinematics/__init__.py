@@ -54,7 +54,7 @@ def unit_axes(
     Raises
     ------
     PoseError
-        Naming the offending rows (at most 10 listed) for each problem.
+        Naming the offending rows (at most 10 listed, each number once) for each problem.
 
     >>> unit_axes(np.zeros((1, 3)), np.array([[0.0, 0.0, 2.0]])).tolist()
     [[0.0, 0.0, 1.0]]
@@ -76,8 +76,10 @@ def unit_axes(
         rows = np.flatnonzero(mask)
         if len(rows):
             numbers = rows if row_numbers is None else np.asarray(row_numbers)[rows]
-            shown = ", ".join(str(r) for r in numbers[:10]) + (", ..." if len(rows) > 10 else "")
-            problems.append(f"{row_name}{'s' if len(rows) > 1 else ''} {shown}: {what}")
+            _, first = np.unique(numbers, return_index=True)     # several rows of one line: the line once
+            numbers = numbers[np.sort(first)]
+            shown = ", ".join(str(r) for r in numbers[:10]) + (", ..." if len(numbers) > 10 else "")
+            problems.append(f"{row_name}{'s' if len(numbers) > 1 else ''} {shown}: {what}")
     if problems:
         raise PoseError("; ".join(problems))
     return unit
