@@ -222,8 +222,8 @@ def test_a_subnormal_step_is_refused(tmp_path: Path, args: list[str], message: s
 def test_a_limit_message_shows_a_huge_value_in_a_few_digits(tmp_path: Path) -> None:
     """A CL point at 1e300 mm breaks the stage limit: the message says 1e+300, not 301 digits."""
     cl = tmp_path / "far.cls"
-    cl.write_text("UNITS/MM\nFEDRAT/MMPM,100\nGOTO/1e300,0,0\nFINI\n")
+    cl.write_text("UNITS/MM\nFEDRAT/MMPM,100\nRAPID\nGOTO/1e300,0,0\nFINI\n")       # RAPID: a feed cannot come first
     result = invoke("convert", str(cl), "-o", str(tmp_path / "out"), "--part-origin", "0,0,-680")
     assert result.exit_code == 1
-    assert f"{cl}:3: stage X 1e+300 mm is above the maximum 300.0000 mm by 1e+300 mm; " in result.stderr
+    assert f"{cl}:4: stage X 1e+300 mm is above the maximum 300.0000 mm by 1e+300 mm; " in result.stderr
     assert "Traceback" not in result.output and not (tmp_path / "out" / "far.ngc").exists()

@@ -535,6 +535,25 @@ def test_the_counts_head_the_program_in_a_file_and_in_a_fifo(tmp_path: Path) -> 
 # ----------------------------------------------------------------------------- QA sweep: input and option errors
 
 
+@pytest.mark.parametrize(("name", "text", "valid"), [
+    ("feed.cls", "FEDRAT/100\nGOTO/0,0,0\nGOTO/10,0,0\n",
+     "start with FROM/x,y,z, or RAPID and a GOTO/ to the start point, before the first feed"),
+    ("feed.nc", "G21 G90\nG1 X0 Y0 Z0 F100\nG1 X10\nM30\n", "move to the start point with G0 before the first G1"),
+])
+@pytest.mark.parametrize("origin", ["--part-origin=0,0,-850", "--part-origin=auto"])
+def test_a_feed_as_first_motion_is_an_input_error(tmp_path: Path, name: str, text: str, valid: str,
+                                                  origin: str) -> None:
+    """An input property, named at its line with what would be valid: exit 2, no setup or placement advice."""
+    src = tmp_path / name
+    src.write_text(text)
+    out = tmp_path / "out"
+    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(out), origin)
+    assert code == 2
+    assert stdout == (f"failed\t{src}\t-\t{src}:2: the first motion is a feed move, so its start point is unknown: "
+                      f"{valid}\n")
+    assert list(out.iterdir()) == []
+
+
 def test_rows_of_one_line_are_named_once() -> None:
     tip = np.zeros((5, 3))
     axis = np.array([[0, 0, 1], [0, 0, -1], [0, 0, -1], [0, 0, -1], [0, 0, -1.0]])

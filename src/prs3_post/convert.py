@@ -52,7 +52,7 @@ from prs3_post.readers.header import SourceCounts, SourceHeader, file_sha256, so
 from prs3_post.readers.stl import load_part
 from prs3_post.setup import Setup
 from prs3_post.source import SourceConvention
-from prs3_post.toolpath import Event, EventKind, Toolpath
+from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
 from prs3_post.workplane import WorkPlane, WorkPlaneError
 
 #: Input formats: ``auto`` decides by content (:func:`prs3_post.readers.detect.detect_format`).
@@ -314,6 +314,20 @@ def _refuse_tilt(machine: Machine, chunk: Toolpath, run: _Run) -> None:
                      f"({100.0 * beyond / total:.1f}%) tilt beyond it, and a setup turns the part about z only")
 
 
+#: What would be valid instead of a feed move first, by input format.
+_FIRST_MOVE = {
+    "cl": "start with FROM/x,y,z, or RAPID and a GOTO/ to the start point, before the first feed",
+    "gcode": "move to the start point with G0 before the first G1",
+}
+
+
+def _refuse_feed_first(chunk: Toolpath, fmt: str) -> None:
+    """A first motion that is a feed has no start point: an input property (no setup helps)."""
+    if len(chunk) and chunk.kind[0] == MoveKind.FEED:
+        raise InputError(f"the first motion is a feed move, so its start point is unknown: {_FIRST_MOVE[fmt]}",
+                         path=chunk.source_file, line=int(chunk.source[0]))
+
+
 class AxisError(ReachError):
     """A tool axis that points away from the spindle (or is zero) in the part frame: no setup, which
     turns the part about z only, can fix it, so no part origin is suggested."""
@@ -362,6 +376,8 @@ class _Run:
                 if not self.rows:
                     chunk = dataclasses.replace(chunk, events=(
                         Event(before=0, kind=EventKind.COMMENT, text=_five_axis_text(self.reader)), *chunk.events))
+            if not self.rows:
+                _refuse_feed_first(chunk, self.fmt)
             if len(chunk):
                 axes = np.vstack([chunk.axis if last_axis is None else [last_axis], chunk.axis])
                 turning = np.ptp(axes, axis=0).max() > 0.0   # an axis change: subdivision needs reachable ends
@@ -397,6 +413,7 @@ def _start(path: str, settings: ConvertSettings) -> _Run:
         whole = source_stream(path, settings, fmt).whole()
         if not len(whole.toolpath):
             raise InputError("no moves in the file: nothing to convert", path=path)
+        _refuse_feed_first(whole.toolpath, fmt)
         _check_poses(settings.ik_machine, whole.toolpath, settings.setup, limits=False)   # axes by input line
         chosen = place(settings.ik_machine, whole.toolpath,
                        origin=None if settings.auto_origin else settings.setup.origin,
