@@ -563,3 +563,17 @@ def test_rows_of_one_line_are_named_once() -> None:
     with pytest.raises(PoseError) as caught:
         unit_axes(tip[:3], axis[:3], row_name="line", row_numbers=np.array([3, 7, 7]))
     assert str(caught.value) == "line 7: the axis points away from the spindle (axis z must be > 0)"
+
+
+@pytest.mark.parametrize(("name", "text", "forced", "message"), [
+    ("empty.cls", "", (), "the file is empty (0 bytes): nothing to convert"),
+    ("empty.cls", "", ("--format", "cl"), "the file is empty (0 bytes): nothing to convert"),
+    ("empty.nc", "", ("--format", "gcode"), "the file is empty (0 bytes): nothing to convert"),
+    ("blank.cls", "\n  \n\n", (), "the file has only blank lines: nothing to convert"),
+])
+def test_an_empty_file_is_said_to_be_empty(tmp_path: Path, name: str, text: str, forced: tuple[str, ...],
+                                           message: str) -> None:
+    src = tmp_path / name
+    src.write_text(text)
+    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(tmp_path / "out"), *forced)
+    assert (code, stdout) == (2, f"failed\t{src}\t-\t{src}: {message}\n")

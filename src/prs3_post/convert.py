@@ -247,16 +247,18 @@ def input_format(path: str, requested: str = "auto") -> str:
     Raises
     ------
     InputError
-        The file cannot be opened (missing, a folder, a FIFO, unreadable).
+        The file cannot be opened (missing, a folder, a FIFO, unreadable), or it is empty (in any format).
     """
-    if requested != "auto":
-        return requested
     with open_input(path, "a file") as stream:
         try:
             head = stream.read(DETECT_BYTES)
         except OSError as exc:
             raise InputError(f"cannot read the file: {exc.strerror or exc}", path=path) from exc
-    return detect_format(head)
+    if not head:
+        raise InputError("the file is empty (0 bytes): nothing to convert", path=path)
+    if len(head) < DETECT_BYTES and not head.strip():
+        raise InputError("the file has only blank lines: nothing to convert", path=path)
+    return requested if requested != "auto" else detect_format(head)
 
 
 def source_stream(path: str, settings: ConvertSettings, fmt: str) -> ClStream | GcodeStream:
