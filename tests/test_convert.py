@@ -577,3 +577,14 @@ def test_an_empty_file_is_said_to_be_empty(tmp_path: Path, name: str, text: str,
     src.write_text(text)
     code, stdout, _ = _cli(tmp_path, str(src), "-o", str(tmp_path / "out"), *forced)
     assert (code, stdout) == (2, f"failed\t{src}\t-\t{src}: {message}\n")
+
+
+@pytest.mark.parametrize("kind", ["source", "machine", "dialect"])
+def test_a_folder_given_as_a_config_file_is_named_a_folder(tmp_path: Path, kind: str) -> None:
+    folder = tmp_path / "dir.stl"
+    folder.mkdir()
+    result = CliRunner().invoke(main, ["convert", str(tmp_path / "a.nc"), "-o", str(tmp_path / "out"),
+                                       f"--{kind}", str(folder)])
+    assert result.exit_code == 2
+    assert result.stderr.startswith(f"prs3-post: error: {folder}: is a folder, not a {kind} file: give a {kind} TOML "
+                                    "file or a shipped name (shipped: ")

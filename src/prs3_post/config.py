@@ -86,7 +86,8 @@ def resolve(kind: str, name_or_path: str) -> Path:
     Raises
     ------
     ConfigError
-        When it is neither a shipped name nor an existing file; the message lists the shipped names.
+        When it is neither a shipped name nor an existing file (a folder or a FIFO is named as such);
+        the message lists the shipped names.
     """
     shipped = postproc_dir() / kind / f"{name_or_path}.toml"
     if shipped.is_file():
@@ -95,6 +96,10 @@ def resolve(kind: str, name_or_path: str) -> Path:
     if path.is_file():
         return path
     names = ", ".join(shipped_names(kind)) or "none"
+    if path.exists():
+        what = f"a folder, not a {kind[:-1]} file" if path.is_dir() else "not a regular file"
+        raise ConfigError(f"is {what}: give a {kind[:-1]} TOML file or a shipped name (shipped: {names})",
+                          path=name_or_path)
     raise ConfigError(f"no such {kind[:-1]} file or shipped name (shipped: {names})", path=name_or_path)
 
 
