@@ -579,6 +579,17 @@ def test_an_empty_file_is_said_to_be_empty(tmp_path: Path, name: str, text: str,
     assert (code, stdout) == (2, f"failed\t{src}\t-\t{src}: {message}\n")
 
 
+def test_one_tcp_code_for_on_and_off_is_an_option_error(tmp_path: Path) -> None:
+    """Refused once, before any file is read (the files are not even looked at)."""
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["convert", str(tmp_path / "a.nc"), str(tmp_path / "b.nc"), "-o", str(out),
+                                       "--source", "head-ab", "--tcp-on", "G43.4", "--tcp-off", "G43.4"])
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr.splitlines()[-1] == ("Error: Invalid value for '--tcp-on' / '--tcp-off': tcp: G43.4 both "
+                                              "switches TCP on and off (source head-ab)")
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("kind", ["source", "machine", "dialect"])
 def test_a_folder_given_as_a_config_file_is_named_a_folder(tmp_path: Path, kind: str) -> None:
     folder = tmp_path / "dir.stl"

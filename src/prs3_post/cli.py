@@ -35,7 +35,7 @@ from prs3_post.convert import (
     output_path,
     work_plane_from_text,
 )
-from prs3_post.errors import FeatureError, InputError, Prs3Error, Prs3Warning, ReachError
+from prs3_post.errors import ConfigError, FeatureError, InputError, Prs3Error, Prs3Warning, ReachError
 from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
 from prs3_post.job import HoleJob, JobProgram, JobSpec, Operation, ProfileJob, check_job, check_operations
 from prs3_post.jobfile import JobFile, read_job_file
@@ -1353,14 +1353,21 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
             plane = work_plane_from_text(work_plane_text) if work_plane_text is not None else None
         except WorkPlaneError as error:
             raise click.BadParameter(str(error), param_hint="'--work-plane'") from error
-        settings = ConvertSettings(
-            machine=machine, dialect=dialect, setup=resolve_setup(machine, part_origin, part_rotation),
-            tolerance=tolerance, angle_tolerance_deg=angle_tolerance_deg, tool_length=tool_length,
-            input_format=input_format, units=units, ignore=tuple(w.upper() for w in ignore_words), work_plane=plane,
-            source=None if source_name is None else load_source(source_name),
-            tcp_on=_codes_option(tcp_on, "--tcp-on"), tcp_off=_codes_option(tcp_off, "--tcp-off"),
-            line_numbers=line_numbers, line_start=line_start, line_step=line_step,
-            auto_origin=part_origin == AUTO, auto_rotation=part_rotation == AUTO)
+        source = None if source_name is None else load_source(source_name)
+        codes_on, codes_off = _codes_option(tcp_on, "--tcp-on"), _codes_option(tcp_off, "--tcp-off")
+        try:
+            settings = ConvertSettings(
+                machine=machine, dialect=dialect, setup=resolve_setup(machine, part_origin, part_rotation),
+                tolerance=tolerance, angle_tolerance_deg=angle_tolerance_deg, tool_length=tool_length,
+                input_format=input_format, units=units, ignore=tuple(w.upper() for w in ignore_words),
+                work_plane=plane, source=source, tcp_on=codes_on, tcp_off=codes_off,
+                line_numbers=line_numbers, line_start=line_start, line_step=line_step,
+                auto_origin=part_origin == AUTO, auto_rotation=part_rotation == AUTO)
+        except ConfigError as error:                     # the TCP codes given do not work with the source
+            given = [f"'{flag}'" for flag, codes in (("--tcp-on", codes_on), ("--tcp-off", codes_off)) if codes]
+            if source is None or not given:
+                raise
+            raise click.BadParameter(f"{error.args[0]} (source {source.name})", param_hint=" / ".join(given)) from error
         files = collect_inputs(inputs, exclude=outdir, exclude_suffix=dialect.extension)
         if report_path is not None:
             refuse_overwriting({"--report": report_path}, {f"{i + 1} ({f})": f for i, f in enumerate(files)})

@@ -46,7 +46,7 @@ from prs3_post.placement import place, placement_error
 from prs3_post.readers.apt import ClStream, join_toolpaths
 from prs3_post.readers.detect import DETECT_BYTES, detect_format
 from prs3_post.readers.files import open_input
-from prs3_post.readers.fivex import FivexStream
+from prs3_post.readers.fivex import FivexStream, check_tcp_codes
 from prs3_post.readers.gcode import GcodeStream
 from prs3_post.readers.header import SourceCounts, SourceHeader, file_sha256, source_header_entries
 from prs3_post.readers.stl import load_part
@@ -80,7 +80,8 @@ class ConvertSettings:
     ignore : tuple of str — CL major words skipped (and counted) instead of refused
     work_plane : WorkPlane | None — where a G-code program's X, Y, Z are in the part (None: the part frame)
     source : SourceConvention | None — G-code is a 5-axis program of this source machine (None: 3+2 G-code)
-    tcp_on, tcp_off : tuple of str | None — the codes that switch its TCP on and off (None: the source's)
+    tcp_on, tcp_off : tuple of str | None — the codes that switch its TCP on and off (None: the source's);
+        codes the reader would read as something else, or one code in both, are a ConfigError here
     line_numbers, line_start, line_step : block numbering overrides (None: the dialect's)
     auto_origin, auto_rotation : bool — choose the part origin / the rotation about z for each file
         (:func:`prs3_post.placement.place`: the largest worst-case margin); ``setup`` holds the values kept
@@ -111,6 +112,9 @@ class ConvertSettings:
         if self.tool_length is not None and not (math.isfinite(self.tool_length) and self.tool_length > 0):
             raise InputError(f"tool length: must be a number > 0 mm, got {self.tool_length:g}",
                              path=self.machine.source)
+        if self.source is not None:                     # refused once, before any file is read
+            check_tcp_codes(self.source, self.source.tcp_on if self.tcp_on is None else self.tcp_on,
+                            self.source.tcp_off if self.tcp_off is None else self.tcp_off)
 
     @property
     def ik_machine(self) -> Machine:

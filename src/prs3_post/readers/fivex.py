@@ -81,7 +81,7 @@ from prs3_post.toolpath import EventKind, Toolpath
 from prs3_post.types import FloatArray
 from prs3_post.workplane import WorkPlane
 
-__all__ = ["FivexCounts", "FivexFile", "FivexStream", "parse_fivex", "read_fivex"]
+__all__ = ["FivexCounts", "FivexFile", "FivexStream", "check_tcp_codes", "parse_fivex", "read_fivex"]
 
 _XYZ = "XYZ"
 #: A LinuxCNC expression or parameter somewhere in a line (checked on the code without comments).
@@ -192,7 +192,7 @@ class FivexStream(GcodeStream):
         self.source = source
         self.tcp_on = source.tcp_on if tcp_on is None else tuple(tcp_on)
         self.tcp_off = source.tcp_off if tcp_off is None else tuple(tcp_off)
-        _check_codes(source, self.tcp_on, self.tcp_off)
+        check_tcp_codes(source, self.tcp_on, self.tcp_off)
         self.fivex: FivexFile | None = None
         self._percents = 0                             # '%' lines seen by _scan (the second closes the program)
         self._five: _FivexReader | None = None
@@ -236,8 +236,15 @@ class FivexStream(GcodeStream):
         return replace(self.fivex, gcode=replace(self.fivex.gcode, toolpath=join_toolpaths(chunks)))
 
 
-def _check_codes(source: SourceConvention, tcp_on: tuple[str, ...], tcp_off: tuple[str, ...]) -> None:
-    """TCP codes must be G/M codes the reader does not read as something else (G49 may switch TCP off)."""
+def check_tcp_codes(source: SourceConvention, tcp_on: tuple[str, ...], tcp_off: tuple[str, ...]) -> None:
+    """TCP codes must be G/M codes the reader does not read as something else (G49 may switch TCP off),
+    and no code may switch TCP both on and off.
+
+    Raises
+    ------
+    ConfigError
+        ``tcp.on: G1 is read as itself (motion group), it cannot switch TCP``, ``tcp: G43.4 both switches ...``.
+    """
     for name, codes in (("tcp.on", tcp_on), ("tcp.off", tcp_off)):
         if not codes:
             raise ConfigError(f"{name}: give at least one code", path=source.source)
