@@ -579,6 +579,17 @@ def test_an_empty_file_is_said_to_be_empty(tmp_path: Path, name: str, text: str,
     assert (code, stdout) == (2, f"failed\t{src}\t-\t{src}: {message}\n")
 
 
+def test_a_report_in_a_missing_folder_is_refused_before_any_work(tmp_path: Path) -> None:
+    name = "humman_deep_drill.clsf"
+    out = tmp_path / "out"
+    report = tmp_path / "no" / "r.json"
+    code, stdout, stderr = _cli(tmp_path, str(CORPUS / name), "-o", str(out), _origin_option(PLACED[name]),
+                                "--report", str(report))
+    assert (code, stdout) == (2, "")
+    assert stderr == f"prs3-post: error: {report}: cannot write the output here: No such file or directory\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == []                 # not even OUTDIR
+
+
 def test_one_tcp_code_for_on_and_off_is_an_option_error(tmp_path: Path) -> None:
     """Refused once, before any file is read (the files are not even looked at)."""
     out = tmp_path / "out"

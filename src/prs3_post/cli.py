@@ -33,6 +33,7 @@ from prs3_post.convert import (
     default_jobs,
     outcome_line,
     output_path,
+    prepare_outdir,
     work_plane_from_text,
 )
 from prs3_post.errors import ConfigError, FeatureError, InputError, Prs3Error, Prs3Warning, ReachError
@@ -43,7 +44,7 @@ from prs3_post.kinematics import IKModel, forward, inverse, unit_axes
 from prs3_post.limits import check_limits
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
 from prs3_post.ops.common import require_tolerance
-from prs3_post.output import is_stdout, refuse_overwriting, stdout_error, write_atomic, write_outputs
+from prs3_post.output import check_writable, is_stdout, refuse_overwriting, stdout_error, write_atomic, write_outputs
 from prs3_post.placement import AUTO, Placement
 from prs3_post.readers.header import ProgramHeader, SourceHeader
 from prs3_post.readers.lexer import code_name
@@ -1374,6 +1375,11 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
             for file in files:                           # the report must not replace a program either
                 refuse_overwriting({f"the program of {file}": output_path(file, outdir, dialect),
                                     "--report": report_path}, {})
+            # before any work: a report that cannot be written (its folder may be OUTDIR, made by the batch)
+            folder, made = Path(report_path).resolve().parent, Path(outdir).resolve()
+            if folder == made or folder in made.parents:
+                prepare_outdir(outdir)
+            check_writable(report_path)
         count = jobs or default_jobs()
         terminal = sys.stderr.isatty()
         if terminal:

@@ -79,6 +79,23 @@ def write_atomic(path: str, data: Output) -> None:
     write_outputs([(path, data)])
 
 
+def check_writable(path: str) -> None:
+    """Fail now, as :func:`write_atomic` would at the end, when ``path`` cannot be written (no such
+    folder, no permission, a folder, a name too long), so that a command can refuse before any work.
+    A probe temp file is made in the folder and removed at once; a FIFO or device is not opened.
+
+    Raises
+    ------
+    InputError
+        As :func:`write_atomic`.
+    """
+    if is_stdout(path):
+        return
+    stage = _stage(path, b"")
+    if stage.tmp is not None:
+        stage.tmp.unlink(missing_ok=True)
+
+
 def write_outputs(items: Sequence[tuple[str | None, Output]]) -> None:
     """Write several outputs, all or none: ``(path, data)`` pairs; a path of None or ``-`` is standard output.
 
