@@ -232,8 +232,10 @@ def test_existing_output_is_kept_unless_forced(tmp_path: Path) -> None:
     kept.write_text("mine\n")
     code, stdout, _ = _cli(tmp_path, str(CORPUS / name), "-o", str(out), _origin_option(PLACED[name]))
     assert code == 2
-    assert stdout == (f"failed\t{CORPUS / name}\t-\t{kept}: exists already: kept (convert with force to replace "
-                      "it)\n")
+    assert stdout == f"failed\t{CORPUS / name}\t-\t{kept}: exists already: kept (convert with --force to replace it)\n"
+    # the library names no option: its outcome says so neutrally
+    outcome = convert_batch([str(CORPUS / name)], str(out), _settings(PLACED[name])).outcomes[0]
+    assert (outcome.error, outcome.exists) == (f"{kept}: exists already: kept (it is replaced only when forced)", True)
     assert kept.read_text() == "mine\n"
     code, _, _ = _cli(tmp_path, str(CORPUS / name), "-o", str(out), _origin_option(PLACED[name]), "--force")
     assert code == 0

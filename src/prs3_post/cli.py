@@ -25,8 +25,10 @@ import numpy as np
 from prs3_post import __version__
 from prs3_post.config import Machine, load_dialect, load_machine, load_source, postproc_dir, shipped_names
 from prs3_post.convert import (
+    EXISTS,
     FORMATS,
     ConvertSettings,
+    FileOutcome,
     batch_summary,
     collect_inputs,
     convert_batch,
@@ -1388,7 +1390,8 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
                                        on_done=lambda outcome: bar.update(1))
         else:
             result = convert_batch(files, outdir, settings, jobs=count, fail_fast=fail_fast, force=force,
-                                   on_done=lambda outcome: click.echo(outcome_line(outcome)))
+                                   on_done=lambda outcome: click.echo(outcome_line(_flag_named(outcome))))
+        result = dataclasses.replace(result, outcomes=tuple(_flag_named(o) for o in result.outcomes))
         if report_path is not None:
             write_atomic(report_path, json.dumps(result.record(), indent=1, allow_nan=False) + "\n")
         click.echo(batch_summary(result), err=True, nl=False)
@@ -1398,6 +1401,13 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
         return max(codes, default=0)
 
     run_reported(body)
+
+
+def _flag_named(outcome: FileOutcome) -> FileOutcome:
+    """A kept program's failure says which option replaces it (the library names no option)."""
+    if not outcome.exists:
+        return outcome
+    return dataclasses.replace(outcome, error=f"{outcome.output}: {EXISTS} (convert with --force to replace it)")
 
 
 if __name__ == "__main__":

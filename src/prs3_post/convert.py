@@ -567,6 +567,7 @@ class FileOutcome:
     exit_code : int — the error's (0 when ok): 2 unreadable input or output, 1 limit or reach
     report : ConvertReport | None — None when it failed
     seconds : float — wall time of this file
+    exists : bool — it failed because its program exists already (kept: see ``force``)
     """
 
     input: str
@@ -576,6 +577,7 @@ class FileOutcome:
     exit_code: int = 0
     report: ConvertReport | None = None
     seconds: float = 0.0
+    exists: bool = False
 
     def record(self) -> dict[str, object]:
         """JSON-ready data."""
@@ -706,17 +708,25 @@ def prepare_outdir(outdir: str) -> None:
         raise InputError("cannot write in the output folder: permission denied", path=outdir)
 
 
+#: What a file whose program exists already (and is kept) fails with.
+EXISTS = "exists already: kept"
+
+
+class OutputExists(InputError):
+    """The program exists already and replacing it was not asked for."""
+
+
 def convert_one(input_path: str, output: str, settings: ConvertSettings, *, force: bool = False) -> FileOutcome:
     """Convert one file and write its program atomically; every :class:`Prs3Error` becomes a failed outcome."""
     start = time.perf_counter()
     try:
         refuse_overwriting({"its program": output}, {"being converted": input_path})
         if not force and os.path.lexists(output):
-            raise InputError("exists already: kept (convert with force to replace it)", path=output)
+            raise OutputExists(f"{EXISTS} (it is replaced only when forced)", path=output)
         report = write_conversion(input_path, output, settings)
     except Prs3Error as error:
         return FileOutcome(input=input_path, output=output, ok=False, error=str(error), exit_code=error.exit_code,
-                           seconds=time.perf_counter() - start)
+                           seconds=time.perf_counter() - start, exists=isinstance(error, OutputExists))
     return FileOutcome(input=input_path, output=output, ok=True, report=report,
                        seconds=time.perf_counter() - start)
 
