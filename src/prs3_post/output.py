@@ -348,12 +348,19 @@ class _Interrupted(BaseException):
 def _cleanup_on_signals() -> Iterator[None]:
     """Turn SIGTERM/SIGINT/SIGHUP into an exception while writing, so that ``finally`` removes the
     temp files; afterwards the signal is raised again with its previous handler (the default ends
-    the process as the signal would). Signals the process ignores stay ignored."""
+    the process as the signal would). Signals the process ignores stay ignored. A signal that comes
+    while the first one unwinds is let go (the first one is acted on): raised inside an ``except`` or
+    ``finally`` block it would cut the removal of a temp file short (a busy machine delivers a
+    terminal's SIGINT and the batch's SIGTERM together)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    unwinding: list[int] = []
 
     def handler(signum: int, frame: object) -> None:
+        if unwinding:
+            return
+        unwinding.append(signum)
         raise _Interrupted(signum)
 
     previous = {s: signal.getsignal(s) for s in _SIGNALS}
