@@ -154,7 +154,7 @@ def test_a_missing_entry_is_an_error(tmp_path):
     with pytest.raises(InputError) as caught:
         read_header(str(bad))
     assert str(caught.value) == (
-        f"{bad}:10: header: no 'tool' entry (a prs3-post header has program, machine, dialect, part, face, setup, "
+        f"{bad}:12: header: no 'tool' entry (a prs3-post header has program, machine, dialect, part, face, setup, "
         "operation, parameters, tool, tolerance, units)")
 
 

@@ -310,7 +310,7 @@ def test_verify_replays_each_row_with_the_tool_in_the_spindle(example) -> None:
      "(1 to 9999), got '0'"),
     ("IK length 191.250 mm)", "IK length x mm)", "p.ngc:6: header: tools: expected 'TN diameter D mm[, length L mm], "
      "IK length TL mm' for each tool (joined by 'and'), got 'T2 diameter 8.000 mm, length 71.250 mm, IK length x mm'"),
-    ("(tools: ", "(toolz: ", "p.ngc:17: header: no 'tools' entry (a prs3-post header has program, machine, dialect, "
+    ("(tools: ", "(toolz: ", "p.ngc:19: header: no 'tools' entry (a prs3-post header has program, machine, dialect, "
      "part, setup, tools, operations, tolerance, units)"),
     ("(operation 2 tool: T2", "(operation 2 tool: X2", "p.ngc:15: header: operation 2 tool: expected 'TN diameter "
      ".. mm, feed .. mm/min, ...', got 'X2 diameter 8.000 mm, feed 400.0 mm/min, plunge 100.0 mm/min, spindle 3000 "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import sys
 from pathlib import Path
@@ -77,11 +78,13 @@ def test_the_other_panels_show_program_data(drawn):
     ax3d, ax_t, ax_xy, ax_bar = figure.axes
     assert [c.get_label() for c in ax3d.collections] == ["face 4", "start"]
     assert [ln.get_label() for ln in ax3d.get_lines()] == ["part edges", "G1 (feed)", "G0 (rapid)", "tool axis"]
-    _start, end = row_times(moves)
+    _start, end = row_times(moves, dynamics=MACHINE.dynamics)     # the machine's cycle time, not a nominal rate
     for leg, line in enumerate(ax_t.get_lines()[:3]):
         assert line.get_label() == f"T{leg + 1}"
         assert_allclose(line.get_xdata()[1::2], end, atol=0)
         assert_allclose(line.get_ydata()[1::2], moves.strokes[:, leg], atol=0)
+    assert ax_xy.get_xlabel() == ("cycle time (min), each move's slowest axis at the machine's [dynamics] speeds "
+                                  "and accelerations; G0 shaded grey")
     x_line = ax_xy.get_lines()[0]
     assert x_line.get_label() == "X"
     assert_allclose(x_line.get_ydata()[1::2], moves.stage[:, 0], atol=0)
@@ -190,3 +193,26 @@ def test_stage_panel_draws_each_axis_travel_in_its_own_colour(tmp_path):
     # out to Y −24 on line 12; line 13 comes back from there: its start is line 12's end point, reported
     # there, and the head only translates on it (stage and equal strokes), so it is sampled at its end
     assert [(p.line, p.kind) for p in report.problems] == [(12, "limit")]
+
+
+def test_without_dynamics_the_time_axis_says_its_nominal_rapid_rate(drawn):
+    from prs3_post.preview import render_preview
+
+    moves, report, _ = drawn
+    plain = dataclasses.replace(MACHINE, dynamics=None)
+    figure = render_preview(dataclasses.replace(report, dynamics=None), plain, rapid_rate=2500.0)
+    ax_xy = figure.axes[2]
+    assert ax_xy.get_xlabel() == ("program time (min), G1 at 1/F, G0 timed at 2500 mm/min (no [dynamics]); "
+                                  "G0 shaded grey")
+    _start, end = row_times(moves, rapid_rate=2500.0)
+    assert_allclose(ax_xy.get_lines()[0].get_xdata()[1::2], end, atol=0)
+    assert end[-1] != row_times(moves, dynamics=MACHINE.dynamics)[1][-1]
+
+
+def test_rapid_rate_is_refused_on_a_machine_with_dynamics(tmp_path):
+    result = run("preview", VERIFY / "small.ngc", "-o", tmp_path / "s.png", "--rapid-rate", "3000")
+    assert result.exit_code == 2
+    assert result.output.splitlines()[-1] == ("Error: Invalid value for '--rapid-rate': machine patel2020 has "
+                                             "[dynamics]: the time axis shows its cycle time (each axis's top "
+                                             "speed); leave it out")
+    assert not (tmp_path / "s.png").exists()

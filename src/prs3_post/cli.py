@@ -1230,7 +1230,8 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
 @part_origin_option
 @part_rotation_option
 @click.option("--rapid-rate", type=Decimal(FEED, low=0.0, low_open=True), default=5000.0, show_default=True,
-              help="Joint-space rate of G0 moves for the time axis, mm/min (the longest joint travel at this rate).")
+              help="Joint-space rate of G0 moves for the time axis, mm/min (the longest joint travel at this rate), "
+                   "for a machine without [dynamics]; with them the axis shows the cycle time.")
 def preview(program_path: str, out_path: str, part_path: str | None, face_choice: str, units: str, up: str,
             machine_name: str, dialect_name: str, part_origin: tuple[float, ...] | None, part_rotation: float | None,
             rapid_rate: float) -> None:
@@ -1238,8 +1239,9 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
 
     One figure: (a) 3D view in part coordinates of the part mesh (--part), its face (highlighted)
     and the tool-tip path replayed through forward kinematics (G1 solid, G0 dashed) with the tool
-    axis at a few points; (b) the strokes T1..T3 and stage X, Y over program time (G1: 1/F min,
-    G0: the longest joint travel at --rapid-rate), the machine's limits shaded; (c) the worst margin
+    axis at a few points; (b) the strokes T1..T3 and stage X, Y over program time (the cycle time
+    of the machine's [dynamics]; without them G1: 1/F min, G0: the longest joint travel at
+    --rapid-rate), the machine's limits shaded; (c) the worst margin
     of every limit as a fraction of its range. Needs matplotlib: pip install 'prs3-post[plot]'.
     The machine, dialect and setup (and the part's units, up axis and face) come from the program's
     header when it has one; an option that says otherwise is an error.
@@ -1257,6 +1259,9 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
         fmt = _image_format(out_path)
         context = _open_program(ctx, program_path, machine_name, dialect_name, part_origin, part_rotation,
                                 open_program)
+        if context.machine.dynamics is not None and _given(ctx, "rapid_rate"):
+            raise click.BadParameter(f"machine {context.machine.name} has [dynamics]: the time axis shows its cycle "
+                                     "time (each axis's top speed); leave it out", param_hint="'--rapid-rate'")
         mesh = face = None
         if part_path is not None:
             choice, part_units, part_up = _face_index(face_choice), units, up

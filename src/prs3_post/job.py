@@ -772,9 +772,10 @@ def specs_from_header(header: ProgramHeader, part: str, machine: Machine, dialec
             for t in header.tools))
     records = header.operations or (OperationRecord(face=header.face, face_index=header.face_index,
                                                     work=header.work, at_uv=header.at_uv, at_xyz=header.at_xyz,
-                                                    cutting=header.cutting),)
+                                                    cutting=header.cutting, collision_check=header.collision_check,
+                                                    clearance_min=header.clearance_min),)
     return tuple(JobSpec(
         part=part, units=header.units, face=r.face, work=r.work, at_uv=r.at_uv, at_xyz=r.at_xyz, cutting=r.cutting,
         machine=machine, dialect=dialect, setup=header.setup, tolerance=header.tolerance,
         line_numbers=header.line_numbers, line_start=header.line_start, line_step=header.line_step, up=header.up,
-        tool_table=table) for r in records)
+        tool_table=table, collision_check=r.collision_check, clearance_min=r.clearance_min) for r in records)

@@ -7,11 +7,15 @@ Panels
 (a) 3D, part coordinates: the part's edges (clipped to the view, which frames the face and the
     path), the selected face (highlighted), the FK tool-tip path (every replay sample: G1 moves
     solid, G0 moves dashed, each move a separate piece) and the tool axis at a few G1 end points.
-(b) The actuator strokes T1..T3 and the stage X, Y over program time: G1 moves take 1/F min (G93),
-    G0 moves the longest joint travel at a nominal rapid rate (``rapid_rate``, 5000 mm/min unless
-    given), G4 dwells their time. The axes move linearly in time within a move, so the end points
-    draw them exactly. G0 intervals are shaded grey; beyond the stroke limits is shaded red, beyond
-    each stage axis' travel in that axis' colour (dotted lines at its bounds).
+(b) The actuator strokes T1..T3 and the stage X, Y over program time: with the machine's
+    ``[dynamics]``, each move's cycle time (the slowest axis's trapezoidal profile, rapids at the
+    axes' top speeds: :func:`prs3_post.dynamics.move_times`); without it, G1 moves take 1/F min
+    (G93) and G0 moves the longest joint travel at a nominal rapid rate (``rapid_rate``, 5000
+    mm/min unless given). G4 dwells take their time. The time axis's label says which. Each move is
+    drawn from its start to its end point (a straight line in joint space; in time, linear without
+    dynamics, trapezoidal with them: the line is then the chord of the S-shaped curve). G0 intervals
+    are shaded grey; beyond the stroke limits is shaded red, beyond each stage axis' travel in that
+    axis' colour (dotted lines at its bounds).
 (c) The worst margin of every limit over the replay, as a fraction of the limit's range
     (:func:`prs3_post.verify.margin_fraction`): red below 0, orange below 10 %.
 
@@ -38,7 +42,7 @@ from prs3_post.verify import NOMINAL_RAPID_RATE, VerifyReport, joints_of, row_ti
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["FORMATS", "clip_segments", "feature_edges", "figure_bytes", "path_segments", "render_preview"]
+__all__ = ["FORMATS", "clip_segments", "feature_edges", "figure_bytes", "path_segments", "render_preview", "time_label"]
 
 #: Image formats by file suffix.
 FORMATS = {".png": "png", ".svg": "svg"}
@@ -194,7 +198,8 @@ def render_preview(
     face_triangles : (F,) int, optional — indices into ``mesh`` of the face to highlight
     face_label : str — legend text of the face
     title : str — the figure's title
-    rapid_rate : float — mm/min, joint-space rate of G0 moves for the time axis
+    rapid_rate : float — mm/min, joint-space rate of G0 moves for the time axis (a machine without
+        ``[dynamics]``; with it, the moves' cycle times)
     axis_marks : int — how many G1 end points get a tool-axis mark
 
     Returns
@@ -259,7 +264,7 @@ def render_preview(
     ax3d.legend(loc="upper left", fontsize=8)
 
     # ---- (b) axes over time
-    start_t, end_t = row_times(report.program, rapid_rate=rapid_rate)
+    start_t, end_t = row_times(report.program, rapid_rate=rapid_rate, dynamics=report.dynamics)
     joints = joints_of(report.program)
     previous = np.vstack([joints[:1], joints[:-1]])
     times = np.column_stack([start_t, end_t]).ravel()
@@ -292,7 +297,7 @@ def render_preview(
     else:
         ax_xy.set_title("stage X, Y: this machine has no stage", fontsize=10)
     ax_xy.set_ylabel("stage (mm)")
-    ax_xy.set_xlabel(f"program time (min); G0 shaded grey, timed at {rapid_rate:g} mm/min")
+    ax_xy.set_xlabel(time_label(report, rapid_rate))
     for ax in (ax_t, ax_xy):
         ax.grid(True, linewidth=0.3)
         if len(times) and times[-1] > 0:
@@ -314,6 +319,14 @@ def render_preview(
     ax_bar.set_title("(c) closest approach to each limit", fontsize=10)
     ax_bar.grid(True, axis="x", linewidth=0.3)
     return fig
+
+
+def time_label(report: VerifyReport, rapid_rate: float = NOMINAL_RAPID_RATE) -> str:
+    """The time axis's label: how the moves were timed (the machine's dynamics, or a nominal rapid rate)."""
+    if report.dynamics is not None:
+        return ("cycle time (min), each move's slowest axis at the machine's [dynamics] speeds and "
+                "accelerations; G0 shaded grey")
+    return f"program time (min), G1 at 1/F, G0 timed at {rapid_rate:g} mm/min (no [dynamics]); G0 shaded grey"
 
 
 def _limit_view(values: FloatArray, *bounds: tuple[float, float]) -> tuple[float, float]:

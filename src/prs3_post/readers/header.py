@@ -38,6 +38,7 @@ dialect's comment delimiters); :func:`parse_header` reads them back from comment
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import re
@@ -75,6 +76,8 @@ class OperationRecord:
     at_uv: FloatArray
     at_xyz: FloatArray
     cutting: Cutting
+    collision_check: bool = True
+    clearance_min: float = 1.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -133,6 +136,10 @@ class ProgramHeader(_HeaderLines):
     operations : tuple of OperationRecord — every operation of a job of several (the fields above are
         the first's); empty for a job of one
     tools : tuple of ToolRecord — the tools used, with their lengths (empty: one operation, no tool table)
+    collision_check : bool — the tool, holder and nose were checked against the part (the ``collision``
+        entry; False: ``not checked (asked not to)``; an old header without it: True)
+    clearance_min : float — mm, the clearance they were checked with (``clear of the part by at least
+        1.000 mm: ...``; 1.0 where the entry does not state one)
     lines : tuple of (key, line) — where each key was read (1-based program lines; empty when written)
     path : str — the program it was read from (empty when written)
     """
@@ -161,6 +168,8 @@ class ProgramHeader(_HeaderLines):
     tools: tuple[ToolRecord, ...] = ()
     lines: tuple[tuple[str, int], ...] = ()
     path: str = ""
+    collision_check: bool = True
+    clearance_min: float = 1.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -505,7 +514,7 @@ _VECTOR = rf"\[\s*{_NUMBER}(?:\s*,\s*{_NUMBER})*\s*\]"
 _ENTRY = re.compile(r"^\s*([a-z][a-z0-9 ]*?)\s*:\s?(.*?)\s*$", re.IGNORECASE)
 _KEYS = ("program", "machine", "machine file", "dialect", "dialect file", "part", "face", "setup", "operation",
          "parameters", "tool", "tools", "operations", "tolerance", "units", "source", "ignore", "work plane",
-         "tool length", "five axis", "counts")
+         "tool length", "five axis", "counts", "collision")
 _REQUIRED = ("program", "machine", "dialect", "part", "face", "setup", "operation", "parameters", "tool", "tolerance",
              "units")
 #: The keys of a job of several operations (and ``operation K ...`` for each).
@@ -720,6 +729,13 @@ def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHe
         tolerance = float(_match(_TOLERANCE, found["tolerance"][1]).group(1))
         if not (math.isfinite(tolerance) and 0.0 < tolerance <= MAX_POSITION_MM):
             raise _Bad(f"expected a tolerance > 0 mm, got {found['tolerance'][1]!r}")
+        checks = [(True, 1.0)] * max(1, len(operations))
+        if "collision" in found:
+            key = "collision"
+            checks = _collision(found["collision"][1], len(checks))
+        if several:
+            operations = tuple(dataclasses.replace(r, collision_check=c, clearance_min=m)
+                               for r, (c, m) in zip(operations, checks, strict=True))
     except _Bad as bad:
         key = getattr(bad, "key", key)                  # the entry of an operation that failed
         raise InputError(f"header: {key}: {bad}", path=path, line=found[key][0]) from bad
@@ -732,7 +748,45 @@ def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHe
         at_uv=first.at_uv, at_xyz=first.at_xyz, cutting=first.cutting,
         tolerance=tolerance, line_numbers=numbers, line_start=start, line_step=step, operations=operations,
         tools=tools, lines=tuple((k, v[0]) for k, v in found.items()), path=path,
+        collision_check=checks[0][0], clearance_min=checks[0][1],
     )
+
+
+_CLEAR = rf"clear of the part by at least ({_NUMBER}) mm: .*"
+_ASKED_NOT_TO = r"not checked [(\[]asked not to[)\]]"
+
+
+def _collision(text: str, count: int) -> list[tuple[bool, float]]:
+    """Whether each of ``count`` operations was checked against the part, and with what clearance (mm),
+    from the ``collision`` entry the main job writes: ``not checked (asked not to)`` (none was; a
+    dialect may have turned the parentheses into brackets), ``clear of the part by at least 1.000 mm:
+    ...``, ``not checked: WHY`` (asked, but not done: the clearance is not stated), or for several
+    operations ``operation 1: ...; operation 2: not checked`` (``not checked`` alone: asked not to; a
+    dialect may have turned the semicolons into commas)."""
+    if re.fullmatch(_ASKED_NOT_TO, text, re.IGNORECASE):
+        return [(False, 1.0)] * count
+    pieces = [text]
+    if count > 1:
+        pieces = re.split(r"[;,]\s*(?=operation \d+:)", text, flags=re.IGNORECASE)
+        numbered = [re.fullmatch(r"operation (\d+): (.*)", p, re.IGNORECASE | re.DOTALL) for p in pieces]
+        if [None if n is None else int(n.group(1)) for n in numbered] != list(range(1, count + 1)):
+            raise _Bad(f"expected 'operation 1: ...; operation 2: ...' for the {count} operations, got {text!r}")
+        pieces = [n.group(2) for n in numbered if n is not None]
+    out = []
+    for piece in pieces:
+        if count > 1 and re.fullmatch(r"not checked", piece, re.IGNORECASE):
+            out.append((False, 1.0))
+        elif found := re.fullmatch(_CLEAR, piece, re.IGNORECASE | re.DOTALL):
+            clearance = float(found.group(1))
+            if not (math.isfinite(clearance) and 0.0 <= clearance <= MAX_POSITION_MM):
+                raise _Bad(f"expected a clearance of 0 to {MAX_POSITION_MM:g} mm, got {found.group(1)!r}")
+            out.append((True, clearance))
+        elif re.match(r"not checked\b", piece, re.IGNORECASE):
+            out.append((True, 1.0))
+        else:
+            raise _Bad(f"expected 'clear of the part by at least D mm: ...', 'not checked: WHY' or 'not checked "
+                       f"(asked not to)', got {piece!r}")
+    return out
 
 
 def _operation_record(found: dict[str, tuple[int, str]], prefix: str) -> tuple[OperationRecord, str]:

@@ -1,0 +1,96 @@
+"""What `verify --against PART.stl` and `preview --part` say about the tool, holder and spindle nose
+against the part, and the header's ``collision`` entry read back (issue 10 §3), on
+fixtures/parts/wall30.stl: a 30° face falling towards a wall 5 mm thick."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from prs3_post.cli import main
+from prs3_post.config import load_dialect, load_machine
+from prs3_post.errors import InputError
+from prs3_post.job import run_operations, specs_from_header
+from prs3_post.readers.header import ProgramHeader, header_comments, parse_header, read_header
+
+WALL = Path(__file__).resolve().parents[1] / "fixtures" / "parts" / "wall30.stl"
+
+
+def invoke(*args: object):
+    return CliRunner().invoke(main, [str(a) for a in args], prog_name="prs3-post")
+
+
+def _make(path: Path, *options: str) -> str:
+    result = invoke("run", WALL, "--profile", "hole", *options, "-o", path)
+    assert result.exit_code == 0, result.output
+    return path.read_text(encoding="utf-8")
+
+
+def _rebuilt(path: Path) -> str:
+    header = read_header(str(path))
+    assert header is not None
+    return run_operations(specs_from_header(header, str(WALL), load_machine(header.machine),
+                                            load_dialect(header.dialect))).text
+
+
+@pytest.mark.parametrize(("options", "checked", "clearance"), [
+    (("--at", "8.1,0", "--no-collision-check"), False, 1.0),
+    (("--at", "30,0", "--no-collision-check"), False, 1.0),    # the holder would hit the wall: not asked
+    (("--at", "8.1,0", "--clearance-min", "0.5"), True, 0.5),
+])
+def test_the_collision_setting_round_trips_through_the_header(tmp_path, options, checked, clearance):
+    out = tmp_path / "p.ngc"
+    text = _make(out, *options)
+    header = read_header(str(out))
+    assert header is not None
+    assert (header.collision_check, header.clearance_min) == (checked, clearance)
+    assert _rebuilt(out) == text                                # byte for byte
+
+
+def test_a_program_made_without_the_check_is_verified_against_its_part_with_no_options(tmp_path):
+    out = tmp_path / "far.ngc"
+    text = _make(out, "--at", "8.1,0", "--no-collision-check")
+    assert "(collision: not checked [asked not to])" in text.split("\n")
+    result = invoke("verify", out, "--against", WALL)
+    assert result.exit_code == 0, result.output
+    assert result.output.splitlines()[-1] == "OK: within every limit and tolerance"
+    assert _rebuilt(out) == text
+
+
+GOLDEN = Path(__file__).resolve().parents[1] / "fixtures" / "golden"
+
+
+def test_each_operation_of_a_job_reads_its_own_collision_setting():
+    text = (GOLDEN / "twofaces-job-example.ngc").read_text(encoding="utf-8")
+    line = "\n".join(ln for ln in text.split("\n") if ln.startswith(("(collision: ", "(  10.846")))
+    assert line.endswith("spindle nose over)\n(  10.846 mm)")      # the entry, wrapped over two lines
+    mixed = text.replace(line, "(collision: operation 1: clear of the part by at least 0.250 mm: tool over 14.371 mm,"
+                               " holder over 4.062 mm, spindle nose over 11.383 mm, operation 2: not checked)")
+    header = parse_header(header_comments(mixed), path="p.ngc")
+    assert isinstance(header, ProgramHeader)
+    assert [(op.collision_check, op.clearance_min) for op in header.operations] == [(True, 0.25), (False, 1.0)]
+    assert (header.collision_check, header.clearance_min) == (True, 0.25)
+
+
+@pytest.mark.parametrize(("entry", "message"), [
+    ("(collision: clear by 1 mm)", "p.ngc:13: header: collision: expected 'clear of the part by at least D mm: ...', "
+     "'not checked: WHY' or 'not checked (asked not to)', got 'clear by 1 mm'"),
+    ("(collision: clear of the part by at least -1 mm: tool 2.000 mm)",
+     "p.ngc:13: header: collision: expected a clearance of 0 to 100000 mm, got '-1'"),
+])
+def test_a_malformed_collision_entry_names_its_line(entry, message):
+    text = (GOLDEN / "wedge-round.ngc").read_text(encoding="utf-8")
+    line = next(ln for ln in text.split("\n") if ln.startswith("(collision: "))
+    with pytest.raises(InputError) as caught:
+        parse_header(header_comments(text.replace(line, entry)), path="p.ngc")
+    assert str(caught.value) == message
+
+
+def test_an_old_header_without_the_entry_was_checked_at_one_mm():
+    text = (GOLDEN / "wedge-round.ngc").read_text(encoding="utf-8")
+    old = "\n".join(ln for ln in text.split("\n") if not ln.startswith("(collision: "))
+    header = parse_header(header_comments(old), path="p.ngc")
+    assert isinstance(header, ProgramHeader)
+    assert (header.collision_check, header.clearance_min) == (True, 1.0)
