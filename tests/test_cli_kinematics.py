@@ -73,6 +73,15 @@ def test_ik_batch_round_trip(tmp_path):
     ("tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n1,2,3,0,0\n",
      "{p}:2: expected 6 values (tip_x,tip_y,tip_z,axis_x,axis_y,axis_z), got 5"),
     ("tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n1,2,3,0,0,1\n1,2,abc,0,0,1\n", "{p}:3: not a number: 'abc'"),
+    # values beyond what --tip and --axis allow, NaN and infinity: the line, the column and the range
+    ("tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n1,2,3,0,0,1\n\n1e308,2,3,0,0,1\n",
+     "{p}:4: tip_x = 1e+308 mm is out of range (allowed: within ±1e+06 mm)"),
+    ("tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n1,2,3,0,0,1\n1,2,-2000000,0,0,1\n",
+     "{p}:3: tip_z = -2e+06 mm is out of range (allowed: within ±1e+06 mm)"),
+    ("tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n1,2,3,0,0,1\n1,2,3,0,nan,1\n",
+     "{p}:3: axis_y = nan is out of range (allowed: within ±1e+06)"),
+    ("tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n1,2,3,0,0,1\n1,2,3,0,0,-inf\n",
+     "{p}:3: axis_z = -inf is out of range (allowed: within ±1e+06)"),
     ("tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n1,2,3,0,0,1\n\n1,2,3,0,0,0\n1,2,3,0,0,-1\n",
      "{p}: line 4: the axis has zero length; line 5: the axis points away from the spindle (axis z must be > 0)"),
 ])

@@ -14,6 +14,9 @@ from prs3_post.readers.files import open_input
 from prs3_post.types import FloatArray, IntArray
 
 POSE_COLUMNS = ("tip_x", "tip_y", "tip_z", "axis_x", "axis_y", "axis_z")
+#: The magnitude each column may have, and its unit: what ``ik --tip``/``--axis`` allow (a kilometre;
+#: direction components, normalized later). Beyond, and NaN or infinity, a value is an input error.
+POSE_LIMITS = ((1e6, "mm"),) * 3 + ((1e6, ""),) * 3
 
 
 @dataclass(frozen=True, slots=True)
@@ -35,7 +38,8 @@ class PoseTable:
 def read_poses(path: str) -> PoseTable:
     """Read a CSV with the header ``tip_x,tip_y,tip_z,axis_x,axis_y,axis_z`` (that order, mm).
 
-    Blank lines are ignored; anything else that is not six numbers is an error naming the line.
+    Blank lines are ignored; anything else that is not six numbers within POSE_LIMITS is an error
+    naming the line.
     The whole table at once (:func:`iter_poses` reads it in chunks).
 
     Raises
@@ -79,10 +83,34 @@ def iter_poses(path: str, *, chunk_lines: int = 65536) -> Iterator[PoseTable]:
                     raise InputError(f"expected the header {expected}, got {','.join(header)!r}", path=path, line=1)
                 lines, number = lines[1:], 1
             fast = _parse_fast(lines, number)
-            yield fast if fast is not None else _parse_careful(lines, number, path)
+            table = fast if fast is not None else _parse_careful(lines, number, path)
+            _check_range(table, path)
+            yield table
             offset, number = offset + len(data), number + len(lines)
         if number == 0:
             raise InputError(f"expected the header {expected}, got an empty file", path=path, line=1)
+
+
+def _check_range(table: PoseTable, path: str) -> None:
+    """Refuse a value beyond POSE_LIMITS (or NaN, infinity): the first such line, its column and the range.
+
+    Raises
+    ------
+    InputError
+        ``poses.csv:7: tip_x = 1e+308 mm is out of range (allowed: within ±1e+06 mm)``.
+    """
+    values = np.column_stack([table.tip, table.axis])
+    limits = np.array([limit for limit, _ in POSE_LIMITS])
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.abs(values) <= limits)               # NaN too
+    rows = np.flatnonzero(bad.any(axis=1))
+    if rows.size:
+        row = int(rows[0])
+        column = int(np.argmax(bad[row]))
+        limit, unit = POSE_LIMITS[column]
+        unit = f" {unit}" if unit else ""
+        raise InputError(f"{POSE_COLUMNS[column]} = {float(values[row, column]):.6g}{unit} is out of range (allowed: "
+                         f"within ±{limit:.6g}{unit})", path=path, line=int(table.line[row]))
 
 
 def _parse_careful(lines: list[str], before: int, path: str) -> PoseTable:
