@@ -72,3 +72,38 @@ def test_render_rows_joins_the_words(seed: int, rows: int, block_rows: int, sepa
 def test_render_rows_refuses_a_row_without_words() -> None:
     with pytest.raises(ValueError, match="a row without any word"):
         render_rows([(b"X", scale_column(np.array([1.0]), 1))], np.array([[False]]))
+
+
+@settings(max_examples=150, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), rows=st.integers(1, 60), block_rows=st.integers(1, 64),
+       decimals=st.lists(st.integers(0, 12), min_size=3, max_size=3),
+       prefixes=st.lists(st.sampled_from([b"", b"X", b"AB", b"ABC"]), min_size=3, max_size=3),
+       density=st.floats(0.05, 1.0), ending=st.sampled_from([b"\n", b"\r\n"]))
+def test_render_rows_from_tables_is_the_digit_by_digit_text(seed: int, rows: int, block_rows: int,
+                                                            decimals: list[int], prefixes: list[bytes],
+                                                            density: float, ending: bytes) -> None:
+    """The table writer (words stored a few bytes at a time, straight to their place) against the
+    digit-by-digit writer and Python's text: whole parts of 1 to 12 digits, short lines of one word
+    in the same column as the line before's last (the head stores reach back), odd rows (nan)."""
+    from prs3_post import fixed as fixed_module
+
+    rng = np.random.default_rng(seed)
+    values = rng.uniform(-1, 1, (rows, 3)) * 10.0 ** rng.integers(-3, 12, (rows, 3))
+    values[rng.random((rows, 3)) < 0.05] = np.nan
+    columns = [scale_column(values[:, j], d) for j, d in enumerate(decimals)]
+    choice = ChoiceColumn(rng.integers(0, 3, rows), (b"G0", b"G1", b"falsity"))
+    present = rng.random((rows, 4)) < density
+    empty = ~present.any(axis=1)
+    present[empty, rng.integers(0, 4, int(empty.sum()))] = True
+    spec = [choice, *((p, c) for p, c in zip(prefixes, columns, strict=True))]
+    buffer, ends = render_rows(spec, present, ending=ending, block_rows=block_rows)
+    expected = []
+    for row in range(rows):
+        words = [choice.texts[choice.choice[row]].decode()] + [
+            p.decode() + _python(values[row, j], d) for j, (p, d) in enumerate(zip(prefixes, decimals, strict=True))]
+        expected.append(" ".join(w for w, on in zip(words, present[row], strict=True) if on) + ending.decode())
+    assert buffer.tobytes().decode("ascii") == "".join(expected)
+    assert np.diff(ends).tolist() == [len(line) for line in expected]
+    digits = [fixed_module._render_block_digits(spec, present, lo, min(rows, lo + block_rows), b" ", ending)
+              for lo in range(0, rows, block_rows)]
+    assert b"".join(d.tobytes() for d, _ in digits) == buffer.tobytes()

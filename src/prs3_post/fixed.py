@@ -217,13 +217,244 @@ def render_rows(columns: Sequence[Column], present: BoolArray, *, separator: byt
     ends = np.zeros(rows + 1, dtype=np.int64)
     if blocks:
         np.cumsum(np.concatenate([length for _, length in blocks]), out=ends[1:])
-    buffer = np.concatenate([text for text, _ in blocks]) if blocks else np.zeros(0, dtype=np.uint8)
+    if len(blocks) == 1:
+        buffer = blocks[0][0]
+    else:
+        buffer = np.concatenate([text for text, _ in blocks]) if blocks else np.zeros(0, dtype=np.uint8)
     return buffer, ends
 
 
 def _render_block(columns: Sequence[Column], present: BoolArray, lo: int, hi: int, separator: bytes,
                   ending: bytes) -> tuple[np.ndarray, IntArray]:
     """Rows ``lo:hi`` of :func:`render_rows`: (their bytes, each line's length with its ending).
+
+    Every word goes straight to its place in the output, a few bytes at a time from tables
+    (:class:`_Layout`), where the columns allow it; else the words are written digit by digit
+    (:func:`_render_block_digits`).
+
+    Words are written column by column, each right-aligned so that it ends where it must: a head
+    (separator, prefix, sign and whole digits) is one 8-byte store whose leading NUL bytes keep
+    what is already there (the word before), four decimals are one 4-byte store; the first word's
+    separator falls on the line before's last byte, and the line endings are written last.
+    """
+    m = hi - lo
+    on_all = present[lo:hi]
+    layouts = [_Layout.of(column, lo, hi) for column in columns]
+    if not m or any(layout is None for layout in layouts):
+        return _render_block_digits(columns, present, lo, hi, separator, ending)
+    words = np.zeros((m, len(layouts)), dtype=np.int64)     # width of each word with its separator
+    for j, layout in enumerate(layouts):
+        words[:, j] = np.where(on_all[:, j], layout.lengths + 1, 0)   # type: ignore[union-attr]
+    lengths = words.sum(axis=1) - 1 + len(ending)
+    line_end = np.cumsum(lengths)
+    word_end = (line_end - lengths - 1 + _FRONT)[:, None] + np.cumsum(words, axis=1)
+    out = np.zeros(_FRONT + int(line_end[-1]), dtype=np.uint8)
+    for j, layout in enumerate(layouts):
+        on = on_all[:, j]
+        if not layout.write(out, word_end[:, j], None if on.all() else np.flatnonzero(on),  # type: ignore[union-attr]
+                            separator):
+            return _render_block_digits(columns, present, lo, hi, separator, ending)
+    for k, byte in enumerate(ending):
+        out[_FRONT + line_end - len(ending) + k] = byte
+    return out[_FRONT:], lengths
+
+
+#: Bytes before a block's output: a line's first head store may reach 8 bytes before the line.
+_FRONT = 8
+
+
+def _digit_table() -> np.ndarray:
+    """(10000,) little-endian uint32: the four ASCII digits of k with leading zeros (``0042``)."""
+    k = np.arange(10_000)
+    digits = np.column_stack([k // 1000, k // 100 % 10, k // 10 % 10, k % 10]).astype(np.uint8) + ord("0")
+    return np.ascontiguousarray(digits).view("<u4").reshape(-1)
+
+
+_DIGITS4 = _digit_table()
+#: (10000,) int64: the decimal digits of k (no leading zeros; 0 has one).
+_COUNT4 = 1 + (np.arange(10_000) >= 10) + (np.arange(10_000) >= 100) + (np.arange(10_000) >= 1000)
+_HEAD_TABLES: dict[tuple[bytes, bytes], tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _head_table(prefix: bytes, separator: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """(20000,) little-endian uint64 each: entry ``10000·negative + k`` of the first is the separator,
+    ``prefix``, a minus sign when negative and the digits of k (no leading zeros), right-aligned in
+    8 bytes (NUL before them); of the second, the mask of those NUL bytes (what a store keeps).
+    ``prefix`` has at most 2 bytes."""
+    key = (prefix, separator)
+    if key not in _HEAD_TABLES:
+        k = np.tile(np.arange(10_000), 2)
+        negative = np.repeat([0, 1], 10_000)
+        table = np.zeros((20_000, 8), dtype=np.uint8)
+        rows = np.arange(20_000)
+        count = _digit_count(k)
+        remaining = k.copy()
+        for place in range(4):                            # the digits, units in byte 7
+            has = place < count
+            table[rows[has], 7 - place] = remaining[has] % 10 + ord("0")
+            remaining //= 10
+        head = 7 - count                                  # the byte before the first digit
+        table[rows[negative == 1], head[negative == 1]] = ord("-")
+        head = head - negative
+        for byte in reversed(prefix):
+            table[rows, head] = byte
+            head = head - 1
+        table[rows, head] = separator[0]
+        keep = (table == 0).astype(np.uint8) * np.uint8(255)
+        _HEAD_TABLES[key] = (table.view("<u8").reshape(-1), keep.view("<u8").reshape(-1))
+    return _HEAD_TABLES[key]
+
+
+def _choice_table(texts: tuple[bytes, ...], separator: bytes) -> np.ndarray:
+    """(K,) little-endian uint64: the separator and each text right-aligned in 8 bytes (NUL before)."""
+    table = np.zeros((len(texts), 8), dtype=np.uint8)
+    for k, text in enumerate(texts):
+        word = separator + text
+        table[k, 8 - len(word):] = np.frombuffer(word, dtype=np.uint8)
+    return table.view("<u8").reshape(-1)
+
+
+def _merge(out: np.ndarray, at: IntArray, values: np.ndarray, keep: np.ndarray) -> None:
+    """Store 8 bytes at each ``at`` (byte offsets into ``out``), keeping the existing bytes where
+    ``keep`` has its bits set (the leading NUL bytes of each value)."""
+    view = np.ndarray((len(out) - 7,), dtype="<u8", buffer=out, strides=(1,))
+    old = view[at]
+    old &= keep
+    old |= values
+    view[at] = old
+
+
+def _store4(out: np.ndarray, at: IntArray, values: np.ndarray) -> None:
+    """Store the 4 bytes of each uint32 value at byte offset ``at`` of ``out``."""
+    view = np.ndarray((len(out) - 3,), dtype="<u4", buffer=out, strides=(1,))
+    view[at] = values
+
+
+@dataclass(slots=True)
+class _Layout:
+    """One column's words for a block of rows, stored from tables (:meth:`write`).
+
+    A number word is its head (separator, prefix, sign, whole digits: one 8-byte store, or a store
+    of the top digits and a 4-byte one of the last four when the whole part has 5 to 8 digits),
+    then the point and the decimals (4-byte stores of four digits, from the right); a choice is
+    one 8-byte store. Rows whose text could not be made from integers (``ScaledColumn.odd``) are
+    copied as they are.
+    """
+
+    column: Column
+    lengths: IntArray            # (m,) bytes of each row's word, without the separator
+    tail: int                    # bytes after the head: the point and the decimals
+    lo: int
+    hi: int
+    head: IntArray | None        # (m,) index of each row's head in the head table (10000·negative + top digits)
+    low: IntArray | None         # (m,) the last four whole digits (5 to 8 digits), else −1
+    fraction: IntArray | None    # (m,) the decimals as an integer
+
+    @classmethod
+    def of(cls, column: Column, lo: int, hi: int) -> _Layout | None:
+        """The layout, or None where the tables do not serve (a prefix over 2 bytes, a whole part
+        over 8 digits, a choice over 7 bytes)."""
+        if isinstance(column, ChoiceColumn):
+            sizes = np.array([len(t) for t in column.texts], dtype=np.int64)
+            if sizes.max(initial=0) > 7:
+                return None
+            return cls(column, sizes[column.choice[lo:hi]], 0, lo, hi, None, None, None)
+        prefix, numbers = column
+        if len(prefix) > 2:
+            return None
+        scaled = numbers.scaled[lo:hi]
+        magnitude = np.abs(scaled)
+        unit = 10**numbers.decimals
+        whole = magnitude // unit
+        fraction = magnitude - whole * unit
+        if numbers.decimals <= 9:
+            fraction = fraction.astype(np.int32)     # its divisions are several times faster
+        top = int(whole.max(initial=0))
+        negative = scaled < 0
+        if top < 10_000:
+            head, low = whole, None
+            count = _COUNT4[whole]
+        elif top < 10**8:
+            big = whole >= 10_000
+            head = np.where(big, whole // 10_000, whole)
+            low = np.where(big, whole - head * 10_000, -1)
+            count = _COUNT4[head] + 4 * big
+        else:
+            return None
+        tail = numbers.decimals + 1 if numbers.decimals else 0
+        lengths = len(prefix) + negative + count + tail
+        first, last = np.searchsorted(numbers.odd, [lo, hi])
+        for row, text in zip((numbers.odd[first:last] - lo).tolist(), numbers.odd_text[first:last], strict=True):
+            lengths[row] = len(prefix) + len(text)
+        return cls(column, lengths, tail, lo, hi, head + negative * 10_000, low, fraction)
+
+    def write(self, out: np.ndarray, end: IntArray, rows: IntArray | None, separator: bytes) -> bool:
+        """Each row's word with the separator before it, ending at ``end`` (m,) in ``out``; only
+        ``rows`` (None: all). False, with nothing written, where one row's head store would reach
+        the head of the row before (short lines: the caller writes the block digit by digit)."""
+        column = self.column
+        if isinstance(column, ChoiceColumn):
+            choice = column.choice[self.lo:self.hi]
+            if rows is not None:
+                choice, end = choice[rows], end[rows]
+            if (end[1:] - 8 < end[:-1]).any():
+                return False
+            table = _choice_table(column.texts, separator)
+            _merge(out, end - 8, table[choice], _keep_of(table)[choice])
+            return True
+        assert self.head is not None and self.fraction is not None
+        prefix, numbers = column
+        first, last = np.searchsorted(numbers.odd, [self.lo, self.hi])
+        odd = numbers.odd[first:last] - self.lo
+        odd_end = end[odd]
+        head, low, fraction = self.head, self.low, self.fraction
+        if rows is not None or len(odd):
+            written = np.zeros(len(end), dtype=bool) if rows is not None else np.ones(len(end), dtype=bool)
+            if rows is not None:
+                written[rows] = True
+            odd_written = written[odd]
+            written[odd] = False                      # copied below: their placeholder 0 is not their text
+            rows = np.flatnonzero(written)
+            end, head, fraction = end[rows], head[rows], fraction[rows]
+            low = None if low is None else low[rows]
+        else:
+            odd_written = np.zeros(0, dtype=bool)
+        point = end - self.tail                       # where the decimal point goes (or the word ends)
+        head_end = point                              # the head store ends here (4 digits before for 5 to 8)
+        big = None
+        if low is not None:
+            big = np.flatnonzero(low >= 0)
+            head_end = point.copy()
+            head_end[big] -= 4
+        if (head_end[1:] - 8 < head_end[:-1]).any():
+            return False
+        if numbers.decimals:
+            remaining = fraction
+            for group_end in range(numbers.decimals, 0, -4):   # four digits at a time, from the right; the
+                remaining, group = np.divmod(remaining, 10_000)  # last (leftmost) store reaches back onto
+                _store4(out, point + (group_end - 3), _DIGITS4[group])   # the point and head, stored after it
+            out[point] = ord(".")
+        if big is not None and low is not None and len(big):
+            _store4(out, head_end[big], _DIGITS4[low[big]])
+        values, keep = _head_table(prefix, separator)
+        _merge(out, head_end - 8, values[head], keep[head])
+        for stop, on, odd_text in zip(odd_end.tolist(), odd_written.tolist(), numbers.odd_text[first:last],
+                                      strict=True):
+            if on:
+                word = separator + prefix + odd_text.encode("ascii")
+                out[stop - len(word):stop] = np.frombuffer(word, dtype=np.uint8)
+        return True
+
+
+def _keep_of(table: np.ndarray) -> np.ndarray:
+    """The mask of the NUL bytes of each uint64 of ``table``."""
+    return ((table.view(np.uint8) == 0).astype(np.uint8) * np.uint8(255)).view("<u8")
+
+
+def _render_block_digits(columns: Sequence[Column], present: BoolArray, lo: int, hi: int, separator: bytes,
+                  ending: bytes) -> tuple[np.ndarray, IntArray]:
+    """Rows ``lo:hi`` of :func:`render_rows` (the general way, for any column): (their bytes, each
+    line's length with its ending).
 
     Each word goes right-aligned, with one separator byte before it, into its own field of a
     NUL-filled grid with a fixed byte column per character position; absent words stay NUL;

@@ -376,30 +376,50 @@ def _ends(first: Toolpath, last: Toolpath) -> Toolpath:
                     source=np.array([first.source[0], last.source[-1]]))
 
 
-def _post_operation(machine: Machine, path_part: Toolpath, spec: JobSpec, decimals: int, *, keep: bool) -> _Posted:
-    """``path_part`` post-processed whole (``keep``) or POST_ROWS rows at a time into its joint program
-    only; the same program, and the same first error: a chunk that fails has the whole path post-processed
-    again, for the error :func:`post_process` raises (its count of bad points is of every row)."""
-    if keep:
-        return _Posted.of(post_process(machine, path_part, spec.setup, tolerance=spec.tolerance,
-                                       length_decimals=decimals, clamp=spec.clamp))
-    stream = PostStream(machine, spec.setup, tolerance=spec.tolerance, length_decimals=decimals, clamp=spec.clamp)
-    programs: list[JointProgram] = []
-    first = last = None
+def _post_operation(machine: Machine, paths: list[Toolpath], k: int, spec: JobSpec, decimals: int, *, keep: bool,
+                    several: bool) -> _Posted:
+    """Operation ``k``'s toolpath ``paths[k]`` post-processed whole (``keep``), or POST_ROWS rows at a
+    time into its joint program only, taking the toolpath out of ``paths`` (freed before the program's
+    pieces are joined). The same program, and the same first error: a chunk that fails has the whole
+    path post-processed again, for the error :func:`post_process` raises (its count of bad points is
+    of every row).
+
+    Raises
+    ------
+    PlacementLimitError, PlacementReachError, LimitError, ReachError
+        As :func:`run_operations` (the setup, and a part origin that fits where there is one).
+    """
+    path_part = paths[k]
+    if not keep:
+        paths[k] = _NO_ROWS
     try:
-        for chunk in toolpath_chunks(path_part, POST_ROWS):
-            result = stream.feed(chunk)
-            programs.append(result.program)
-            if len(result.path):
-                first = result.path if first is None else first
-                last = result.path
-    except (LimitError, ReachError):
-        post_process(machine, path_part, spec.setup, tolerance=spec.tolerance, length_decimals=decimals,
-                     clamp=spec.clamp)
-        raise                                          # (not reached: the whole path fails too)
-    program = join_programs(programs, source_labels=path_part.source_labels, source_file=path_part.source_file)
-    ends = _ends(first, last) if first is not None and last is not None else path_part.take(np.zeros(0, bool))
-    return _Posted(program, ends, stream.dynamics, None)
+        if keep:
+            return _Posted.of(post_process(machine, path_part, spec.setup, tolerance=spec.tolerance,
+                                           length_decimals=decimals, clamp=spec.clamp))
+        stream = PostStream(machine, spec.setup, tolerance=spec.tolerance, length_decimals=decimals,
+                            clamp=spec.clamp)
+        programs: list[JointProgram] = []
+        first = last = None
+        try:
+            for chunk in toolpath_chunks(path_part, POST_ROWS):
+                result = stream.feed(chunk)
+                programs.append(result.program)
+                if len(result.path):
+                    first = result.path if first is None else first
+                    last = result.path
+        except (LimitError, ReachError):
+            post_process(machine, path_part, spec.setup, tolerance=spec.tolerance, length_decimals=decimals,
+                         clamp=spec.clamp)
+            raise                                      # (not reached: the whole path fails too)
+    except (LimitError, ReachError) as error:          # say the setup, and one that fits if there is one
+        if several:                                    # a suggestion would fit this operation alone
+            raise _operation_error(error, machine, path_part, spec, decimals) from error
+        raise placement_error(error, machine, path_part, spec.setup, tolerance=spec.tolerance,
+                              length_decimals=decimals) from error
+    labels, file = path_part.source_labels, path_part.source_file
+    ends = _ends(first, last) if first is not None and last is not None else _NO_ROWS
+    del path_part, first, last, result                # the toolpath goes before the program is joined
+    return _Posted(join_programs(programs, source_labels=labels, source_file=file), ends, stream.dynamics, None)
 
 
 def _check(specs: tuple[JobSpec, ...], *, keep: bool
@@ -433,18 +453,13 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
     specs, placement = choose_setup(specs, done, triangles)
     first = specs[0]
     posts: list[_Posted] = []
+    paths = [operation.path_part for operation in done]
+    if not keep:                                           # only `paths` holds them, until each is posted
+        done = [replace(operation, path_part=_NO_ROWS) for operation in done]
     for k, spec in enumerate(specs):
         operation = done[k]
         machine = _with_tool_length(spec.machine, operation.tool_length)
-        try:
-            posted = _post_operation(machine, operation.path_part, spec, decimals, keep=keep)
-        except (LimitError, ReachError) as error:          # say the setup, and one that fits if there is one
-            if several:                                    # a suggestion would fit this operation alone
-                raise _operation_error(error, machine, operation.path_part, spec, decimals) from error
-            raise placement_error(error, machine, operation.path_part, spec.setup, tolerance=spec.tolerance,
-                                  length_decimals=decimals) from error
-        if not keep:                                       # posted: its toolpath is no longer needed
-            done[k] = operation = replace(operation, path_part=_NO_ROWS)
+        posted = _post_operation(machine, paths, k, spec, decimals, keep=keep, several=several)
         collisions.append(check_program(machine, posted.program, spec.setup, triangles, operation.face,
                                         spec.cutting.tool_diameter, clearance_min=spec.clearance_min)
                           if spec.collision_check else "")

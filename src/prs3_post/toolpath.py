@@ -279,6 +279,34 @@ def program_from_columns(columns: dict[str, np.ndarray], events: list[Event] | t
     return program
 
 
+def toolpath_from_columns(*, kind: IntArray, tip: FloatArray, axis: FloatArray, feed: FloatArray, source: IntArray,
+                          events: tuple[Event, ...] = (), source_labels: tuple[str, ...] = (),
+                          source_file: str = "") -> Toolpath:
+    """A Toolpath of columns made for it (int64 ``kind`` and ``source``, float64 ``tip``, ``axis``
+    (N, 3) and ``feed``), frozen in place instead of copied: the caller gives them up (a long
+    toolpath is then held once). Checks as the constructor does.
+
+    Raises
+    ------
+    ValueError
+        A column of another dtype, row shape or row count.
+    """
+    path = object.__new__(Toolpath)
+    rows = len(kind)
+    for name, column, dtype, tail in (("kind", kind, np.int64, ()), ("tip", tip, np.float64, (3,)),
+                                      ("axis", axis, np.float64, (3,)), ("feed", feed, np.float64, ()),
+                                      ("source", source, np.int64, ())):
+        if column.dtype != dtype or column.shape != (rows, *tail):
+            raise ValueError(f"{name}: expected {np.dtype(dtype).name} of shape {(rows, *tail)}, got "
+                             f"{column.dtype.name} of shape {column.shape}")
+        column.flags.writeable = False
+        object.__setattr__(path, name, column)
+    object.__setattr__(path, "events", tuple(sorted(events, key=lambda e: e.before)))
+    object.__setattr__(path, "source_labels", tuple(source_labels))
+    object.__setattr__(path, "source_file", source_file)
+    return path
+
+
 def _events_of_rows(events: tuple[Event, ...], lo: int, hi: int, last: bool) -> tuple[Event, ...]:
     """The events before rows ``lo:hi``, counted from ``lo`` (with ``last``: also those after row ``hi − 1``)."""
     return tuple(replace(e, before=e.before - lo) for e in events if lo <= e.before < hi or (last and e.before == hi))

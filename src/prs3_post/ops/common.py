@@ -28,7 +28,7 @@ import numpy as np
 from prs3_post.errors import FeatureError
 from prs3_post.face import Face
 from prs3_post.fixed import fixed
-from prs3_post.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath
+from prs3_post.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath, toolpath_from_columns
 from prs3_post.types import FloatArray
 
 if TYPE_CHECKING:                      # imported where used: `ik`, `fk`, `verify` never plan a feature
@@ -417,20 +417,26 @@ class ToolpathBuilder:
         uvw = np.concatenate(self._points) if self._points else np.zeros((0, 3))
         runs = np.array(self._runs, dtype=np.float64).reshape(-1, 4)        # n, kind, feed, step
         counts = runs[:, 0].astype(np.int64)
-        kind = np.repeat(runs[:, 1].astype(np.int64), counts)
-        feed = np.repeat(runs[:, 2], counts)
-        source = np.repeat(runs[:, 3].astype(np.int64), counts)
-        tip = self._face.to_part(uvw).reshape(-1, 3)
-        axis = np.tile(np.asarray(self._face.normal, dtype=np.float64), (len(uvw), 1))
-        return Toolpath(
-            kind=kind,
+        n = len(uvw)
+        # in blocks: one (N, 3) @ (3, 3) product of a long path spends most of its time in the BLAS
+        # threads' waiting on a busy machine; each row's result is the same either way
+        tip = np.empty((n, 3))
+        for lo in range(0, n, _BLOCK_ROWS):
+            tip[lo:lo + _BLOCK_ROWS] = self._face.to_part(uvw[lo:lo + _BLOCK_ROWS]).reshape(-1, 3)
+        del uvw
+        return toolpath_from_columns(
+            kind=np.repeat(runs[:, 1].astype(np.int64), counts),
             tip=tip,
-            axis=axis,
-            feed=feed,
-            source=source,
+            axis=np.tile(np.asarray(self._face.normal, dtype=np.float64), (n, 1)),
+            feed=np.repeat(runs[:, 2], counts),
+            source=np.repeat(runs[:, 3].astype(np.int64), counts),
             events=tuple(self._events),
             source_labels=tuple(self._labels),
         )
+
+
+#: Rows of a toolpath carried into the part frame together (:meth:`ToolpathBuilder.build`).
+_BLOCK_ROWS = 32768
 
 
 def _at(uv: FloatArray, w: float) -> FloatArray:
