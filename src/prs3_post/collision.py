@@ -1,29 +1,45 @@
-"""Clearance of the tool, the holder and the spindle nose from the part, at sampled poses.
+"""Clearance of the tool, the holder and the spindle nose from the part, along a program's motion.
 
 The bodies are cylinders on the tool axis (:class:`~prs3_post.machine.Holder`): from the tip up
 the tool (the operation's diameter, up to the holder), the holder (to the spindle's gauge line:
-the tool's length is the machine's, or the tool table's), the spindle nose. Each
-is represented by points on its surface: rings every ``RING_SPACING_MM`` along it (and at both
-ends), ``AZIMUTHS`` points per ring, and rings on its end discs. The clearance of a pose is the
-smallest signed distance of those points to the part's triangles (exact point–triangle distance,
-negative inside the part: ray parity along a fixed direction), so a penetration is reported by
-its depth. The sampling makes a cylinder facing a plane at most ``r (1 − cos(π / AZIMUTHS))``
-(0.19 mm for the holder) closer than the points say.
+the tool's length is the machine's, or the tool table's), the spindle nose. The clearance of a pose
+is the smallest signed distance of a body to the part's triangles (negative inside the part: ray
+parity along a fixed direction), so a penetration is reported by its depth.
 
 Only the tool may be in the part, and only where it cuts: while the tip is within the feature's
-swept region (the tool radius around the feed moves' tips, in the face's plane), its points below
-the worked face are not checked and the others are measured from the part without that face (the
-tool touches it where it enters). Everything else must stay ``clearance_min`` clear.
+swept region (the tool radius around the feed moves' tips, in the face's plane), its part below
+the worked face is not checked and the rest is measured from the part without that face (the tool
+touches it where it enters). Everything else must stay ``clearance_min`` clear.
 
-Cost: every pose is first bounded cheaply: points on each body's axis every ``AXIS_STEP_MM``, each
-the centre of a sphere holding the cylinder's slice around it, give a lower bound of its clearance.
-The poses are then sampled on the surface in order of their bound, until the next bound is no
-lower than the smallest distance found (the minimum over all poses), or, once every pose whose
-bound is under ``clearance_min`` has been, after ``refine_max`` more (the minimum is then stated
-as at least the next bound).
+How, in three stages (numpy only):
 
-No library beyond numpy: trimesh's proximity queries need rtree (not installed), python-fcl would be
-a compiled dependency for what is, here, a few thousand exact point–triangle distances.
+1. **Bounds, coarse to fine.** Each body is cut into pieces (at most ``max(radius, PIECE_MM)``
+   long). Poses are grouped ``LEVELS`` at a time (4096, 256, 16, then one): a group's piece is
+   bounded by a sphere round its first pose's piece, widened by how far the group moves it, and a
+   (group, piece, triangle) pair is dropped as soon as that sphere is ``REACH_MM`` beyond
+   ``clearance_min`` from the triangle; the pairs left are split into the next level's groups. For
+   one pose and a triangle the bound is the larger of the gap between the cylinder and the
+   triangle's plane (tight for the holder's end over the face) and the exact distance between the
+   cylinder's axis segment and the triangle less its radius (tight beside a wall). Most poses are
+   far from most triangles, so most pairs go at the first levels: the cost follows the poses that
+   are near the part, not poses × triangles.
+2. **Exact where it matters.** A pose whose bound is under ``clearance_min`` is measured on its
+   bodies' surfaces: rings every ``RING_SPACING_MM`` along each, ``AZIMUTHS`` points per ring, and
+   rings on its end discs, against the triangles near them (exact point–triangle distances); the
+   sampling makes a cylinder facing a plane at most ``r (1 − cos(π / AZIMUTHS))`` (0.19 mm for the
+   holder) closer than the points say.
+3. **Between poses.** When the poses are the samples of one motion (``connected``), a body moves at
+   most δ = |Δtip| + ρ·θ between two of them (ρ: its farthest point from the tip, θ: the axis's
+   turn), so its clearance there is at least (c₀ + c₁ − δ) / 2 from the two poses' clearances c₀,
+   c₁. Where that is under ``clearance_min`` − ``SWEEP_SLACK_MM`` the interval is halved (the tip
+   straight between them, the axis on its great circle: exact for a move that translates the head,
+   which verify samples at its end only) and the halves checked the same way. A rapid through the
+   part between two features is caught there.
+
+Why not a library: trimesh's proximity queries need rtree (not installed), and scipy (for a k-d tree)
+is not installed either; python-fcl or manifold3d would be a compiled dependency for what the
+staged bounds above do in numpy at 10⁵ poses a second or more on the demo parts
+(``bench/bench_dynamics.py``).
 """
 
 from __future__ import annotations
@@ -35,20 +51,31 @@ import numpy as np
 
 from prs3_post.face import Face
 from prs3_post.machine import Holder, Machine
+from prs3_post.meshdist import inside, point_triangle_distance, segment_triangle_distance, triangle_distance
 from prs3_post.setup import Setup
 from prs3_post.toolpath import JointProgram
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
-__all__ = ["BODY_NAMES", "Clearance", "body_cylinders", "check_program", "clearance"]
+__all__ = ["BODY_NAMES", "Clearance", "body_cylinders", "check_program", "clearance", "inside",
+           "point_triangle_distance"]
 
 #: The bodies, bottom up.
 BODY_NAMES = ("tool", "holder", "spindle nose")
 AZIMUTHS = 24
 RING_SPACING_MM = 2.0
-AXIS_STEP_MM = 2.0
-#: Poses beyond which the main job does not run the check (it says so in the header).
-MAX_POSES = 20000
-_RAY = np.array([0.5773502691896258, 0.4082482904638631, 0.7071067811865476])   # no axis-aligned edges hit
+#: mm, the longest piece a body is cut into for the bounds (or its radius, if longer).
+PIECE_MM = 10.0
+#: Poses per group at each level of the bounds.
+LEVELS = (4096, 256, 16, 1)
+#: mm beyond ``clearance_min``: a body farther than this from the part is reported as "over" it.
+REACH_MM = 10.0
+#: mm: the motion between two poses may come this much closer than ``clearance_min`` unseen (the
+#: halving stops there).
+SWEEP_SLACK_MM = 0.05
+#: mm: minima this close are the same (the report's rounding); the earliest pose is named.
+_TIE_MM = 5e-4
+#: Pairs measured at a time (memory).
+_CHUNK = 1 << 17
 
 
 def body_cylinders(tool_diameter: float, tool_length: float, holder: Holder) -> FloatArray:
@@ -86,182 +113,42 @@ def _frames(axis: FloatArray) -> tuple[FloatArray, FloatArray]:
     return x, np.cross(axis, x)
 
 
-def point_triangle_distance(points: FloatArray, triangles: FloatArray) -> FloatArray:
-    """(P, T) mm: exact distance from each point (P, 3) to each triangle (T, 3, 3) (Ericson's regions)."""
-    p = points[:, None, :]
-    a, b, c = (triangles[None, :, k, :] for k in range(3))
-    ab, ac, ap = b - a, c - a, p - a
-    d1, d2 = (ab * ap).sum(-1), (ac * ap).sum(-1)
-    bp = p - b
-    d3, d4 = (ab * bp).sum(-1), (ac * bp).sum(-1)
-    cp = p - c
-    d5, d6 = (ab * cp).sum(-1), (ac * cp).sum(-1)
-    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        denom = va + vb + vc
-        v = vb / denom
-        w = vc / denom
-        closest = a + ab * v[..., None] + ac * w[..., None]                  # inside the face
-        t_ab = np.clip(d1 / (d1 - d3), 0, 1)
-        t_ac = np.clip(d2 / (d2 - d6), 0, 1)
-        t_bc = np.clip((d4 - d3) / ((d4 - d3) + (d5 - d6)), 0, 1)
-    on_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-    on_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-    on_bc = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
-    closest = np.where(on_bc[..., None], b + (c - b) * t_bc[..., None], closest)
-    closest = np.where(on_ac[..., None], a + ac * t_ac[..., None], closest)
-    closest = np.where(on_ab[..., None], a + ab * t_ab[..., None], closest)
-    closest = np.where(((d6 >= 0) & (d5 <= d6))[..., None], c, closest)
-    closest = np.where(((d3 >= 0) & (d4 <= d3))[..., None], b, closest)
-    closest = np.where(((d1 <= 0) & (d2 <= 0))[..., None], a, closest)
-    return np.linalg.norm(p - closest, axis=-1)
-
-
-def inside(points: FloatArray, triangles: FloatArray) -> BoolArray:
-    """(P,) bool: the point is inside the closed mesh (crossings of a ray in a fixed direction, odd)."""
-    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]        # Möller–Trumbore, all pairs
-    e1, e2 = b - a, c - a
-    h = np.cross(_RAY, e2)
-    det = (e1 * h).sum(-1)
-    ok = np.abs(det) > 1e-12
-    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-    s = points[:, None, :] - a[None]
-    u = (s * h).sum(-1) * inv
-    q = np.cross(s, e1[None])
-    v = (q @ _RAY) * inv
-    t = (q * e2[None]).sum(-1) * inv
-    hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
-    return (hit.sum(axis=1) % 2) == 1
-
-
 @dataclass(frozen=True, slots=True)
-class Clearance:
-    """The closest approach of each body to the part over the poses checked.
+class _Region:
+    """The feature's swept region: cells of a grid in the face's (u, v) plane (none: no region)."""
 
-    Attributes
-    ----------
-    distance : (3,) float — mm, per body (tool, holder, nose): smallest signed distance (negative:
-        penetration depth); inf: no pose (or the tool always below the face it cuts)
-    sample : (3,) int — the pose of that minimum (-1: none)
-    point : (3, 3) float — mm, part frame, the body point of that minimum
-    exact : (3,) bool — the minimum over the surface points of every pose (False: a lower bound,
-        which happens only above ``clearance_min``: the poses that could be closer were all sampled)
-    """
+    face: Face
+    cells: BoolArray
+    low: FloatArray
+    cell: float
 
-    distance: FloatArray
-    sample: IntArray
-    point: FloatArray
-    exact: BoolArray
-
-    def worst(self) -> int:
-        """The body with the smallest clearance."""
-        return int(np.argmin(self.distance))
-
-
-def _signed(points: FloatArray, triangles: FloatArray, others: BoolArray, face: Face,
-            cutting: BoolArray | None) -> FloatArray:
-    """(P,) mm: signed distance of points to the part (negative inside); where ``cutting`` (the tool
-    in its swept region) a point below the worked face is not counted (inf) and the others are
-    measured from the part without that face."""
-    every = point_triangle_distance(points, triangles)
-    inner = inside(points, triangles)
-    dist = np.where(inner, -1.0, 1.0) * every.min(axis=1)
-    if cutting is not None and cutting.any():
-        height = (points - face.origin) @ face.normal
-        off_face = every[:, others].min(axis=1, initial=np.inf)
-        dist = np.where(cutting, np.where(height < 0.0, np.inf, np.where(inner, -off_face, off_face)), dist)
-    return dist
-
-
-def _signed_min(tip: FloatArray, axis: FloatArray, stations: FloatArray, triangles: FloatArray, others: BoolArray,
-                face: Face, swept: BoolArray | None, block: int, *, radius: float, slack: float,
-                near_mm: float, group: int = 128) -> FloatArray:
-    """(S,) mm: a lower bound of the smallest :func:`_signed` distance of the axis points ``stations``
-    (mm from the tip) at each pose.
-
-    Consecutive poses are taken ``group`` at a time first: the stations of the group's first pose,
-    less how far any pose of the group moves any station from there, bound the whole group; only
-    the groups whose bound is under ``near_mm`` are measured pose by pose.
-    """
-    n = len(tip)
-    out = np.zeros(n)
-    if not n:
+    def contains(self, tip: FloatArray) -> BoolArray:
+        """(S,) bool: the tips (S, 3) mm, part frame, lie over the region."""
+        out = np.zeros(len(tip), dtype=bool)
+        if not self.cells.size or not len(tip):
+            return out
+        uv = (tip - self.face.origin) @ np.stack([self.face.u, self.face.v], axis=1)
+        at = np.floor((uv - self.low) / self.cell).astype(np.int64)
+        ok = (at >= 0).all(axis=1) & (at < self.cells.shape).all(axis=1)
+        out[ok] = self.cells[at[ok, 0], at[ok, 1]]
         return out
-    first = np.arange(0, n, group)
-    owner = np.arange(n) // group
-    reach = float(np.abs(stations).max())
-    spread = (np.linalg.norm(tip - tip[first][owner], axis=1)
-              + reach * np.linalg.norm(axis - axis[first][owner], axis=1))
-    spread = np.maximum.reduceat(spread, first)                                  # (G,) mm
-    cutting = None
-    if swept is not None:
-        cutting = np.logical_and.reduceat(swept, first)                          # every pose of the group cuts
-    coarse = _station_min(tip[first], axis[first], stations, triangles, others, face, cutting, block,
-                          radius=radius, slack=slack) - spread
-    out[:] = coarse[owner]
-    near = np.flatnonzero(coarse[owner] < near_mm)
-    if len(near):
-        out[near] = _station_min(tip[near], axis[near], stations, triangles, others, face,
-                                 None if swept is None else swept[near], block, radius=radius, slack=slack)
-    return out
 
 
-def _station_min(tip: FloatArray, axis: FloatArray, stations: FloatArray, triangles: FloatArray, others: BoolArray,
-                 face: Face, swept: BoolArray | None, block: int, *, radius: float = 0.0,
-                 slack: float = 0.0) -> FloatArray:
-    """(S,) mm: a lower bound of each pose's cylinder distance to the part (-inf: an axis point inside it).
-
-    Per triangle, the larger of two bounds: the axis points' distances less ``slack`` (the radius of
-    the spheres round them that hold the cylinder), and the gap between the cylinder and the
-    triangle's plane when the cylinder is all on one side of it (what keeps a wide holder's bound
-    tight over the face below it). Where ``swept`` (the tool cutting): axis points below the worked
-    face do not count, nor do the face's own triangles.
-    """
-    out = np.zeros(len(tip))
-    normal = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
-    offset = (normal * triangles[:, 0]).sum(axis=1)                             # (T,)
-    rows_per = max(1, block * 8)
-    for start in range(0, len(tip), rows_per):
-        rows = slice(start, start + rows_per)
-        t, a = tip[rows], axis[rows]
-        n = len(t)
-        world = t[:, None] + stations[None, :, None] * a[:, None]                # (n, k, 3)
-        flat = world.reshape(-1, 3)
-        every = point_triangle_distance(flat, triangles).reshape(n, len(stations), -1)   # (n, k, T)
-        if swept is not None and swept[rows].any():
-            height = ((world - face.origin) @ face.normal)                       # (n, k)
-            below = swept[rows][:, None] & (height < 0.0)
-            every = np.where(below[..., None], np.inf, every)
-            every = np.where(swept[rows][:, None, None] & ~others[None, None, :], np.inf, every)
-        spheres = every.min(axis=1) - slack                                      # (n, T)
-        ends = (t @ normal.T)[:, None, :] + stations[[0, -1]][None, :, None] * (a @ normal.T)[:, None, :]
-        ends = ends - offset                                                     # (n, 2, T) signed heights
-        bulge = radius * np.sqrt(np.clip(1.0 - (a @ normal.T) ** 2, 0.0, 1.0))   # (n, T)
-        gap = np.maximum(np.maximum(ends.min(axis=1) - bulge, -ends.max(axis=1) - bulge), 0.0)
-        if swept is not None:
-            gap = np.where(swept[rows][:, None] & ~others[None, :], np.inf, gap)
-        bound = np.maximum(spheres, gap).min(axis=1)
-        inner = inside(flat, triangles).reshape(n, -1)
-        if swept is not None and swept[rows].any():
-            inner &= ~below
-        out[rows] = np.where(inner.any(axis=1), -np.inf, bound)
-    return out
-
-
-def _swept(tip_uv: FloatArray, feed_uv: FloatArray, radius: float, *, cell: float = 0.25) -> BoolArray:
-    """(S,) bool: the tip (in face u, v) is within about ``radius`` of the polyline of the feed tips (M, 2).
+def _swept(face: Face, feed_tips: FloatArray, radius: float, *, cell: float = 0.25) -> _Region:
+    """The region within about ``radius`` of the polyline of the feed tips (M, 3) in the face's (u, v).
 
     The polyline is drawn on a grid of ``cell`` mm (points every half cell along each segment),
     widened by ``radius`` plus a cell, and each tip looks up its cell: a region a cell or two wider
     than the exact one, at a cost linear in the rows.
     """
-    if len(feed_uv) == 0 or len(tip_uv) == 0:
-        return np.zeros(len(tip_uv), dtype=bool)
+    feed_uv = (np.asarray(feed_tips, dtype=np.float64).reshape(-1, 3) - face.origin) @ np.stack([face.u, face.v], 1)
+    none = _Region(face=face, cells=np.zeros((0, 0), dtype=bool), low=np.zeros(2), cell=cell)
+    if len(feed_uv) == 0:
+        return none
     low = feed_uv.min(axis=0) - radius - 2 * cell
     size = np.ceil((feed_uv.max(axis=0) + radius + 2 * cell - low) / cell).astype(np.int64) + 1
     if size.prod() > 4e7:                               # a region too large to draw: no exemption
-        return np.zeros(len(tip_uv), dtype=bool)
+        return none
     grid = np.zeros(tuple(size), dtype=bool)
     ends = feed_uv[:-1], feed_uv[1:]
     length = np.linalg.norm(ends[1] - ends[0], axis=1) if len(feed_uv) > 1 else np.zeros(0)
@@ -279,17 +166,230 @@ def _swept(tip_uv: FloatArray, feed_uv: FloatArray, radius: float, *, cell: floa
                 continue
             wide[max(du, 0):size[0] + min(du, 0), max(dv, 0):size[1] + min(dv, 0)] |= \
                 grid[max(-du, 0):size[0] + min(-du, 0), max(-dv, 0):size[1] + min(-dv, 0)]
-    cells = np.floor((tip_uv - low) / cell).astype(np.int64)
-    ok = (cells >= 0).all(axis=1) & (cells < size).all(axis=1)
-    out = np.zeros(len(tip_uv), dtype=bool)
-    out[ok] = wide[cells[ok, 0], cells[ok, 1]]
+    return _Region(face=face, cells=wide, low=low, cell=cell)
+
+
+@dataclass(frozen=True, slots=True)
+class Clearance:
+    """The closest approach of each body to the part over the poses checked.
+
+    Attributes
+    ----------
+    distance : (3,) float — mm, per body (tool, holder, nose): smallest signed distance (negative:
+        penetration depth); inf: no pose (or the tool always below the face it cuts)
+    sample : (3,) int — the pose of that minimum (-1: none); a minimum between two connected poses
+        is the later pose's
+    point : (3, 3) float — mm, part frame, the body point of that minimum
+    exact : (3,) bool — the minimum over the surface points (False: a lower bound, which happens only
+        above ``clearance_min``: the poses that could be closer were all measured)
+    """
+
+    distance: FloatArray
+    sample: IntArray
+    point: FloatArray
+    exact: BoolArray
+
+    def worst(self) -> int:
+        """The body with the smallest clearance."""
+        return int(np.argmin(self.distance))
+
+
+@dataclass(frozen=True, slots=True)
+class _Part:
+    """The part's triangles with what the bounds need of them (part frame, mm)."""
+
+    triangles: FloatArray          # (T, 3, 3)
+    normal: FloatArray             # (T, 3) unit (0 for a degenerate triangle)
+    offset: FloatArray             # (T,) normal · a point of the plane
+    low: FloatArray                # (T, 3) bounding boxes
+    high: FloatArray
+    others: BoolArray              # (T,) not a triangle of the worked face
+    face: Face                     # the worked face
+
+    @classmethod
+    def of(cls, triangles: FloatArray, face: Face) -> _Part:
+        normal = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+        others = np.ones(len(triangles), dtype=bool)
+        others[np.asarray(face.triangles, dtype=np.int64)] = False
+        return cls(triangles=triangles, normal=normal, offset=(normal * triangles[:, 0]).sum(axis=1),
+                   low=triangles.min(axis=1), high=triangles.max(axis=1), others=others, face=face)
+
+
+def _pieces(cylinders: FloatArray) -> FloatArray:
+    """(Q, 4): radius, start, end (mm along the axis from the tip) and body of each piece."""
+    out = []
+    for b, (radius, z0, z1) in enumerate(cylinders):
+        n = max(1, math.ceil((z1 - z0) / max(radius, PIECE_MM)))
+        edges = np.linspace(z0, z1, n + 1)
+        out += [(radius, edges[k], edges[k + 1], b) for k in range(n)]
+    return np.array(out, dtype=np.float64)
+
+
+def _pose_pairs(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, pieces: FloatArray,
+                s: IntArray, q: IntArray, t: IntArray, near: float) -> FloatArray:
+    """(K,) mm: a lower bound of the distance of piece ``q`` at pose ``s`` from triangle ``t``, pair by
+    pair (inf: a pair that does not count: the cutting tool's part below the face, or the face)."""
+    radius, a, p = pieces[q, 0], axis[s], tip[s]
+    lo, hi = pieces[q, 1].copy(), pieces[q, 2]
+    cut = cutting[s] & (pieces[q, 3] == 0)
+    gone = cut & ~part.others[t]
+    if cut.any():                                   # keep only what is above the face (less the tilt's reach)
+        face = part.face
+        along = a @ face.normal
+        height = (p - face.origin) @ face.normal
+        tilt = radius * np.sqrt(np.clip(1.0 - along ** 2, 0.0, 1.0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            below = np.where(along > 1e-9, (-tilt - height) / along, -np.inf)
+        lo = np.where(cut, np.maximum(lo, below), lo)
+        gone |= cut & (lo >= hi)
+    e0, e1 = p + lo[:, None] * a, p + hi[:, None] * a
+    normal = part.normal[t]
+    h0 = (e0 * normal).sum(axis=1) - part.offset[t]
+    h1 = (e1 * normal).sum(axis=1) - part.offset[t]
+    bulge = radius * np.sqrt(np.clip(1.0 - (a * normal).sum(axis=1) ** 2, 0.0, 1.0))
+    bound = np.maximum(np.maximum(np.minimum(h0, h1) - bulge, -np.maximum(h0, h1) - bulge), 0.0)
+    need = np.flatnonzero((bound < near) & ~gone)
+    if len(need):
+        axial = segment_triangle_distance(e0[need], e1[need], part.triangles[t[need]]) - radius[need]
+        bound[need] = np.maximum(bound[need], axial)
+    return np.where(gone, np.inf, bound)
+
+
+def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, pieces: FloatArray, *,
+            reach: float, near: float) -> FloatArray:
+    """(S, 3) mm: a lower bound of each body's clearance at each pose (at most ``reach``), coarse to
+    fine (module docstring, stage 1)."""
+    n_pose, n_piece, n_tri = len(tip), len(pieces), len(part.triangles)
+    out = np.full((n_pose, 3), reach)
+    if not n_pose or not n_tri:
+        return out
+    centre = 0.5 * (pieces[:, 1] + pieces[:, 2])
+    half = np.hypot(pieces[:, 0], 0.5 * (pieces[:, 2] - pieces[:, 1]))
+    tool = pieces[:, 3] == 0
+    body = pieces[:, 3].astype(np.int64)
+    size = LEVELS[0]
+    groups = -(-n_pose // size)
+    g = np.repeat(np.arange(groups), n_piece * n_tri)
+    q = np.tile(np.repeat(np.arange(n_piece), n_tri), groups)
+    t = np.tile(np.arange(n_tri), groups * n_piece)
+    for level, size in enumerate(LEVELS):
+        if size == 1:
+            for k in range(0, len(g), _CHUNK):
+                s_, q_, t_ = g[k:k + _CHUNK], q[k:k + _CHUNK], t[k:k + _CHUNK]
+                np.minimum.at(out, (s_, body[q_]), _pose_pairs(part, tip, axis, cutting, pieces, s_, q_, t_, near))
+            break
+        first = np.arange(0, n_pose, size)
+        owner = np.arange(n_pose) // size
+        moved = np.maximum.reduceat(np.linalg.norm(tip - tip[first][owner], axis=1), first)
+        turned = np.maximum.reduceat(np.linalg.norm(axis - axis[first][owner], axis=1), first)
+        all_cut = np.logical_and.reduceat(cutting, first)
+        keep = np.zeros(len(g), dtype=bool)
+        for k in range(0, len(g), _CHUNK):
+            g_, q_, t_ = g[k:k + _CHUNK], q[k:k + _CHUNK], t[k:k + _CHUNK]
+            at = g_ * size
+            ball = tip[at] + centre[q_, None] * axis[at]
+            widen = half[q_] + moved[g_] + np.abs(centre[q_]) * turned[g_]
+            tri = part.triangles[t_]
+            gap = triangle_distance(ball, tri[:, 0], tri[:, 1], tri[:, 2]) - widen
+            keep[k:k + _CHUNK] = (gap < reach) & ~(all_cut[g_] & tool[q_] & ~part.others[t_])
+        ratio = size // LEVELS[level + 1]
+        g = (g[keep][:, None] * ratio + np.arange(ratio)).ravel()
+        q, t = np.repeat(q[keep], ratio), np.repeat(t[keep], ratio)
+        fits = g * LEVELS[level + 1] < n_pose
+        g, q, t = g[fits], q[fits], t[fits]
     return out
 
 
+def _signed(points: FloatArray, part: _Part, cutting: BoolArray, face: Face, reach: float) -> FloatArray:
+    """(P,) mm: signed distance of points to the part (negative inside; at most ``reach``: farther is
+    not measured); where ``cutting`` (the tool in its swept region) a point below the worked face is
+    not counted (inf) and the others are measured from the part without that face."""
+    lo, hi = points.min(axis=0) - reach, points.max(axis=0) + reach
+    near = np.flatnonzero(((part.high >= lo) & (part.low <= hi)).all(axis=1))
+    every = point_triangle_distance(points, part.triangles[near])
+    inner = inside(points, part.triangles)
+    dist = np.minimum(every.min(axis=1, initial=np.inf), reach)
+    deep = np.flatnonzero(inner & (dist >= reach))
+    if len(deep):                                   # inside, and deeper than the near triangles say
+        dist[deep] = point_triangle_distance(points[deep], part.triangles).min(axis=1)
+    dist = np.where(inner, -dist, dist)
+    if cutting.any():
+        height = (points - face.origin) @ face.normal
+        off_face = np.minimum(every[:, part.others[near]].min(axis=1, initial=np.inf), reach)
+        if len(deep):
+            off_face[deep] = point_triangle_distance(points[deep], part.triangles[part.others]).min(
+                axis=1, initial=np.inf)
+        dist = np.where(cutting, np.where(height < 0.0, np.inf, np.where(inner, -off_face, off_face)), dist)
+    return dist
+
+
+class _Poses:
+    """The poses checked so far (the given ones, then the midpoints of intervals), with each body's
+    clearance: a lower bound, or measured on its surface (``exact``)."""
+
+    def __init__(self, part: _Part, face: Face, region: _Region, cylinders: FloatArray, clearance_min: float):
+        self.part, self.face, self.region, self.clearance_min = part, face, region, clearance_min
+        self.pieces = _pieces(cylinders)
+        self.local, self.body = _surface_points(cylinders)
+        self.reach = clearance_min + REACH_MM
+        self.tip = np.zeros((0, 3))
+        self.axis = np.zeros((0, 3))
+        self.cutting = np.zeros(0, dtype=bool)
+        self.origin = np.zeros(0, dtype=np.int64)       # the given pose each one reports as
+        self.value = np.zeros((0, 3))
+        self.exact = np.zeros((0, 3), dtype=bool)
+        self.point = np.zeros((0, 3, 3))
+
+    def add(self, tip: FloatArray, axis: FloatArray, origin: IntArray, *, starts: BoolArray) -> IntArray:
+        """Add poses, bound them and measure those that may be too close; their indices. ``starts``:
+        the poses that no checked motion leads to (a body inside the part there is looked for)."""
+        cutting = self.region.contains(tip)
+        value = _bounds(self.part, tip, axis, cutting, self.pieces, reach=self.reach,
+                        near=self.clearance_min + 2.0)
+        first = np.flatnonzero(starts)
+        if len(first):                                  # a body inside the part with nothing near it
+            centre = 0.5 * (self.pieces[:, 1] + self.pieces[:, 2])
+            points = (tip[first, None] + centre[None, :, None] * axis[first, None]).reshape(-1, 3)
+            hit = inside(points, self.part.triangles).reshape(len(first), -1)
+            hit &= ~(cutting[first, None] & (self.pieces[None, :, 3] == 0))
+            for k in range(len(self.pieces)):
+                value[first[hit[:, k]], int(self.pieces[k, 3])] = -np.inf
+        at = len(self.tip)
+        self.tip, self.axis = np.concatenate([self.tip, tip]), np.concatenate([self.axis, axis])
+        self.cutting = np.concatenate([self.cutting, cutting])
+        self.origin = np.concatenate([self.origin, origin])
+        self.value = np.concatenate([self.value, value])
+        self.exact = np.concatenate([self.exact, np.zeros((len(tip), 3), dtype=bool)])
+        self.point = np.concatenate([self.point, np.repeat(tip[:, None, :], 3, axis=1)])
+        mine = np.arange(at, at + len(tip))
+        for b in range(3):
+            self.measure(mine[value[:, b] < self.clearance_min], b)
+        return mine
+
+    def measure(self, rows: IntArray, b: int, block: int = 64, *, reach: float | None = None) -> None:
+        """Measure body ``b`` at poses ``rows`` on its surface points (as far as ``reach``, default the
+        check's: a body farther from the part is at least that far)."""
+        reach = self.reach if reach is None else reach
+        mine = self.local[self.body == b]
+        x, y = _frames(self.axis[rows]) if len(rows) else (np.zeros((0, 3)), np.zeros((0, 3)))
+        for k in range(0, len(rows), block):
+            r = rows[k:k + block]
+            xr, yr = x[k:k + block], y[k:k + block]
+            world = (self.tip[r, None] + mine[None, :, :1] * xr[:, None] + mine[None, :, 1:2] * yr[:, None]
+                     + mine[None, :, 2:] * self.axis[r, None])                    # (s, p, 3)
+            cut = np.repeat(self.cutting[r], len(mine)) if b == 0 else np.zeros(len(r) * len(mine), dtype=bool)
+            dist = _signed(world.reshape(-1, 3), self.part, cut, self.face, reach).reshape(len(r), -1)
+            best = np.argmin(dist, axis=1)
+            self.value[r, b] = dist[np.arange(len(r)), best]
+            self.point[r, b] = world[np.arange(len(r)), best]
+            self.exact[r, b] = self.value[r, b] < reach
+
+
 def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinders: FloatArray, face: Face,
-              feed_tips: FloatArray, *, clearance_min: float = 1.0, block: int = 64,
-              refine_max: int = 0) -> Clearance:
-    """The clearance of the bodies from the part at every pose (part frame).
+              feed_tips: FloatArray, *, clearance_min: float = 1.0, block: int = 64, refine_max: int = 0,
+              connected: BoolArray | None = None) -> Clearance:
+    """The clearance of the bodies from the part at every pose (part frame), and between connected ones.
 
     Parameters
     ----------
@@ -299,62 +399,79 @@ def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinder
     face : Face — the worked face (its plane bounds the tool's exempt part)
     feed_tips : (M, 3) float — mm, the tips of the feed moves in order (the swept region)
     clearance_min : float — mm
-    block : int — poses sampled at a time
-    refine_max : int — poses sampled beyond those whose bound is under ``clearance_min``, to sharpen
+    block : int — poses measured at a time
+    refine_max : int — poses measured beyond those whose bound is under ``clearance_min``, to sharpen
         the reported minimum (where it stays a bound, ``exact`` says so)
+    connected : (S,) bool, optional — pose k is reached from pose k − 1 by a motion to check (the tip
+        straight, the axis on its great circle between them); default: the poses alone
     """
     tip = np.asarray(tip, dtype=np.float64).reshape(-1, 3)
     axis = np.asarray(axis, dtype=np.float64).reshape(-1, 3)
     triangles = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
-    local, body = _surface_points(cylinders)
-    to_uv = np.stack([face.u, face.v], axis=1)
-    swept = _swept((tip - face.origin) @ to_uv, (np.asarray(feed_tips).reshape(-1, 3) - face.origin) @ to_uv,
-                   float(cylinders[0, 0]) + 1e-6)
+    part = _Part.of(triangles, face)
+    poses = _Poses(part, face, _swept(face, feed_tips, float(cylinders[0, 0]) + 1e-6), cylinders, clearance_min)
+    linked = np.zeros(len(tip), dtype=bool) if connected is None else np.asarray(connected, dtype=bool).copy()
+    if len(linked):
+        linked[0] = False
+    poses.add(tip, axis, np.arange(len(tip)), starts=~linked)
+    _between(poses, cylinders, np.flatnonzero(linked))
+    _refine(poses, refine_max, block)
     best = np.full(3, np.inf)
     where = np.full(3, -1, dtype=np.int64)
     point = np.zeros((3, 3))
     exact = np.ones(3, dtype=bool)
-    x, y = _frames(axis)
-    others = np.ones(len(triangles), dtype=bool)
-    others[np.asarray(face.triangles, dtype=np.int64)] = False
     for b in range(3):
-        radius, z0, z1 = cylinders[b]
-        if not len(tip):
-            break
-        # a lower bound at every pose: points on the axis every AXIS_STEP_MM, each a sphere that holds
-        # the cylinder's slice around it
-        stations = np.linspace(z0, z1, max(2, math.ceil((z1 - z0) / AXIS_STEP_MM) + 1))
-        slack = math.hypot(radius, 0.5 * (stations[1] - stations[0]))
-        bound = _signed_min(tip, axis, stations, triangles, others, face, swept if b == 0 else None, block,
-                            radius=float(radius), slack=slack, near_mm=clearance_min)
-        # the surface points, poses in order of their bound, until no bound is below the best found:
-        # the minimum over the surface points of every pose, without sampling most of them
-        order = np.argsort(bound, kind="stable")
-        mine = local[body == b]
-        must = int(np.searchsorted(bound[order], clearance_min))      # poses that may be too close: all
-        start = 0
-        for start in range(0, len(order), block):
-            rows = order[start:start + block]
-            if bound[rows[0]] >= best[b] or (start >= must + refine_max and bound[rows[0]] >= clearance_min):
-                break
-            world = (tip[rows, None] + mine[None, :, :1] * x[rows, None] + mine[None, :, 1:2] * y[rows, None]
-                     + mine[None, :, 2:] * axis[rows, None])                    # (s, p, 3)
-            dist = _signed(world.reshape(-1, 3), triangles, others, face,
-                           np.repeat(swept[rows], len(mine)) if b == 0 else None).reshape(len(rows), -1)
-            k = int(np.argmin(dist))
-            s_, p_ = divmod(k, dist.shape[1])
-            if dist[s_, p_] < best[b]:
-                best[b], where[b], point[b] = dist[s_, p_], rows[s_], world[s_, p_]
-        else:
-            start = len(order)
-        if start < len(order) and bound[order[start]] < best[b]:      # stopped early: a lower bound
-            i = int(order[start])
-            best[b], where[b], point[b], exact[b] = bound[i], i, tip[i] + axis[i] * 0.5 * (z0 + z1), False
+        value = poses.value[:, b]
+        if len(value) and value.min() < np.inf:          # the earliest pose as close as the closest
+            tied = np.flatnonzero(value <= value.min() + _TIE_MM)
+            k = int(tied[np.lexsort((value[tied], poses.origin[tied]))[0]])
+            best[b], where[b], point[b], exact[b] = value[k], poses.origin[k], poses.point[k, b], poses.exact[k, b]
     return Clearance(distance=best, sample=where, point=point, exact=exact)
 
 
+def _between(poses: _Poses, cylinders: FloatArray, later: IntArray) -> None:
+    """Check the motion between each pose ``later`` and the one before it (module docstring, stage 3)."""
+    farthest = np.array([max(math.hypot(r, z0), math.hypot(r, z1)) for r, z0, z1 in cylinders])
+    start, end = later - 1, later
+    floor = poses.clearance_min - SWEEP_SLACK_MM
+    while len(start):
+        moved = np.linalg.norm(poses.tip[end] - poses.tip[start], axis=1)
+        chord = np.linalg.norm(poses.axis[end] - poses.axis[start], axis=1)
+        turn = 2.0 * np.arcsin(np.clip(0.5 * chord, 0.0, 1.0))
+        delta = moved[:, None] + turn[:, None] * farthest[None, :]                   # (I, 3)
+        low = 0.5 * (poses.value[start] + poses.value[end] - delta)
+        found = (poses.exact[start] & (poses.value[start] < poses.clearance_min)) | (
+            poses.exact[end] & (poses.value[end] < poses.clearance_min))              # already too close there
+        bad = ((low < floor) & (delta > 2.0 * SWEEP_SLACK_MM) & ~found).any(axis=1)
+        if not bad.any():
+            return
+        start, end = start[bad], end[bad]
+        half = poses.axis[start] + poses.axis[end]
+        norm = np.linalg.norm(half, axis=1, keepdims=True)
+        half = np.where(norm > 1e-9, half / np.maximum(norm, 1e-300), poses.axis[start])
+        mid = poses.add(0.5 * (poses.tip[start] + poses.tip[end]), half, poses.origin[end],
+                        starts=np.zeros(len(start), dtype=bool))
+        start, end = np.concatenate([start, mid]), np.concatenate([mid, end])
+
+
+def _refine(poses: _Poses, refine_max: int, block: int) -> None:
+    """Measure up to ``refine_max`` more poses per body, in order of their bound, while a bound is
+    below the smallest clearance measured."""
+    for b in range(3):
+        spent = 0
+        order = np.argsort(np.where(poses.exact[:, b], np.inf, poses.value[:, b]), kind="stable")
+        order = order[~poses.exact[order, b]]
+        while spent < refine_max and spent < len(order):
+            rows = order[spent:spent + block]
+            measured = poses.value[poses.exact[:, b], b]
+            if len(measured) and poses.value[rows[0], b] >= measured.min() - _TIE_MM:
+                break
+            poses.measure(rows, b, block, reach=np.inf)
+            spent += len(rows)
+
+
 def check_program(machine: Machine, program: JointProgram, setup: Setup, triangles: FloatArray, face: Face,
-                  tool_diameter: float, *, clearance_min: float = 1.0, max_poses: int = MAX_POSES) -> str:
+                  tool_diameter: float, *, clearance_min: float = 1.0) -> str:
     """Replay ``program`` (verify's FK samples) and check the bodies' clearance from the part.
 
     Returns
@@ -379,14 +496,12 @@ def check_program(machine: Machine, program: JointProgram, setup: Setup, triangl
                          f"length {machine.holder.holder_length:.3f} mm: the holder would cut (a longer tool, or "
                          "a shorter holder in the machine file)")
     rep = replay(machine, program)
-    if len(rep.row) > max_poses:
-        return (f"not checked: {len(rep.row)} poses, more than the check's limit of {max_poses} (it costs about "
-                "60 us a pose: a long program would take minutes)")
     tip, axis = setup.points_to_part(rep.tip), setup.axes_to_part(rep.axis)
-    ok = np.isfinite(tip).all(axis=1)
+    ok: BoolArray = np.isfinite(tip).all(axis=1) & np.isfinite(axis).all(axis=1)
+    linked = ok & np.concatenate([[False], ok[:-1]])          # the motion from the sample before, both known
     feed_rows = np.flatnonzero(program.kind == MoveKind.FEED)
     result = clearance(triangles, tip[ok], axis[ok], body_cylinders(tool_diameter, length, machine.holder), face,
-                       tip[rep.end[feed_rows]], clearance_min=clearance_min)
+                       tip[rep.end[feed_rows]], clearance_min=clearance_min, connected=linked[ok])
     b = result.worst()
     if result.distance[b] < clearance_min:
         row = int(rep.row[np.flatnonzero(ok)[result.sample[b]]])
