@@ -497,7 +497,7 @@ def check_program(machine: Machine, program: JointProgram, setup: Setup, triangl
                          "a shorter holder in the machine file)")
     rep = replay(machine, program)
     tip, axis = setup.points_to_part(rep.tip), setup.axes_to_part(rep.axis)
-    ok: BoolArray = np.isfinite(tip).all(axis=1) & np.isfinite(axis).all(axis=1)
+    ok = np.asarray(np.isfinite(tip).all(axis=1) & np.isfinite(axis).all(axis=1), dtype=bool)
     linked = ok & np.concatenate([[False], ok[:-1]])          # the motion from the sample before, both known
     feed_rows = np.flatnonzero(program.kind == MoveKind.FEED)
     result = clearance(triangles, tip[ok], axis[ok], body_cylinders(tool_diameter, length, machine.holder), face,
