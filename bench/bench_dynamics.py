@@ -5,8 +5,10 @@
 In one process, alternately, ``--repeat`` times: the demo round pocket (``--step-down 0.1``, about
 96,000 rows) post-processed on the shipped machine and on the same machine without ``[dynamics]``
 (no clamping, no timing): the ratio of the CPU times is what clamping and timing cost, whatever the
-machine's load. Then the collision check of a 5,000-row program (the 30° face beside a wall,
-fixtures/parts/wall30.stl) against its post-processing: poses per CPU second.
+machine's load. Then the collision check (verify's replay and the clearance of tool, holder and
+nose along it) of that pocket and of a 5,000-row program (the 30° face beside a wall,
+fixtures/parts/wall30.stl), against their post-processing: poses per CPU second, and the ratio of
+the check's CPU time to post_process's (same process, so the load cancels).
 """
 
 from __future__ import annotations
@@ -18,9 +20,11 @@ import time
 from pathlib import Path
 
 import numpy as np
+import trimesh
 
 from prs3_post.collision import check_program
 from prs3_post.config import load_dialect, load_machine
+from prs3_post.face import Face
 from prs3_post.geometry import find_faces, select_face
 from prs3_post.job import JobSpec, plan
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, ProfileParams, RoundShape, Side
@@ -28,6 +32,7 @@ from prs3_post.ops.work import ProfileJob
 from prs3_post.pipeline import post_process
 from prs3_post.readers.stl import load_part
 from prs3_post.setup import Setup
+from prs3_post.toolpath import Toolpath
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -61,18 +66,27 @@ def main() -> None:
     print(f"post_process of {len(post.program)} rows: with [dynamics] {statistics.median(with_dyn):.3f} s CPU, "
           f"without {statistics.median(without):.3f} s (median of {args.repeat}); ratio "
           f"{statistics.median(w / o for w, o in zip(with_dyn, without, strict=True)):.3f}")
+    collision(job, mesh, face, path, args.repeat)
     wall = spec(str(REPO / "fixtures" / "parts" / "wall30.stl"), 1.0, 0.2)
     mesh = load_part(wall.part)
     face, _ = select_face(find_faces(mesh), None, min_width=6.0)
-    path = plan(dataclasses.replace(wall, at_uv=np.array([[-20.0, 0.0]])), face)
-    start = time.process_time()
-    post = post_process(wall.machine, path, wall.setup, tolerance=wall.tolerance, length_decimals=4)
-    posting = time.process_time() - start
-    start = time.process_time()
-    text = check_program(wall.machine, post.program, wall.setup, np.asarray(mesh.triangles), face, 6.0)
-    checking = time.process_time() - start
-    print(f"collision check of {len(post.program)} rows: {checking:.3f} s CPU ({len(post.program) / checking:.0f} "
-          f"rows/s; post_process {posting:.3f} s); {text}")
+    collision(wall, mesh, face, plan(dataclasses.replace(wall, at_uv=np.array([[-20.0, 0.0]])), face), args.repeat)
+
+
+def collision(job: JobSpec, mesh: trimesh.Trimesh, face: Face, path: Toolpath, repeat: int) -> None:
+    """The collision check of ``path``'s program, alternately with its post_process, ``repeat`` times."""
+    posting, checking = [], []
+    for _ in range(repeat):
+        start = time.process_time()
+        post = post_process(job.machine, path, job.setup, tolerance=job.tolerance, length_decimals=4)
+        posting.append(time.process_time() - start)
+        start = time.process_time()
+        text = check_program(job.machine, post.program, job.setup, np.asarray(mesh.triangles), face, 6.0)
+        checking.append(time.process_time() - start)
+    rows, check = len(post.program), statistics.median(checking)
+    print(f"collision check of {rows} rows ({Path(job.part).name}): {check:.3f} s CPU, {rows / check:.0f} rows/s "
+          f"(median of {repeat}); check / post_process {statistics.median(checking) / statistics.median(posting):.2f}"
+          f"; {text}")
 
 
 if __name__ == "__main__":

@@ -39,7 +39,7 @@ def test_hole_forty_mm_from_the_wall_passes_and_the_header_says_the_clearances(t
     assert result.exit_code == 0, result.output
     assert [ln for ln in out.read_text().split("\n") if ln.startswith("(collision:")] == [
         "(collision: clear of the part by at least 1.000 mm: tool over 11.000 mm, holder over 4.799 mm, "
-        "spindle nose over 2.425 mm)"]
+        "spindle nose over 11.000 mm)"]
 
 
 def test_no_collision_check_is_stated_in_the_header(tmp_path):
@@ -92,3 +92,55 @@ def test_point_triangle_distance_and_inside_against_plain_cases():
     np.testing.assert_allclose(point_triangle_distance(points, tri)[:, 0], expected, atol=1e-12)
     assert inside(np.array([[0.0, 200.0, 100.0], [0.0, 200.0, 400.0], [52.0, 200.0, 310.0]]), TRIANGLES).tolist() == [
         True, False, True]
+
+
+def test_a_rapid_given_by_its_end_poses_only_is_checked_along_its_length():
+    # verify samples a move that translates the head at its end only: the motion between is bounded
+    # (a slim holder and nose, so that the first pose, beside the wall, is clear of it)
+    slim = np.array([[3.0, 0.0, 15.0], [4.0, 15.0, 20.0], [4.0, 20.0, 22.0]])
+    tip, axis, features = _sweep(FACE.origin[2] + 30.0 * FACE.u[2] + 10.0 * FACE.normal[2])
+    ends = [0, len(tip) - 1]
+    alone = clearance(TRIANGLES, tip[ends], axis[ends], slim, FACE, features, refine_max=10)
+    assert alone.distance.round(3).tolist() == [8.921, 5.555, 4.555] and alone.exact.all()
+    moving = clearance(TRIANGLES, tip[ends], axis[ends], slim, FACE, features, connected=np.array([False, True]))
+    assert moving.distance[0] == pytest.approx(-2.108, abs=1e-3) and moving.exact[0]   # through the 5 mm wall
+    assert moving.sample[0] == 1                              # named by the pose the motion ends at
+
+
+def _round_pocket(depth: float):
+    """The demo wedge's round profile (36 mm, 0.1 mm steps down): 24,027 rows at 2.5 mm deep."""
+    from prs3_post.config import load_dialect
+    from prs3_post.job import JobSpec, plan
+    from prs3_post.ops import Coolant, Cutting, Direction, Entry, ProfileParams, RoundShape, Side
+    from prs3_post.ops.work import ProfileJob
+    from prs3_post.pipeline import post_process
+    from prs3_post.setup import Setup
+
+    part = str(Path(__file__).resolve().parents[1] / "postproc" / "parts" / "patel2020-wedge.stl")
+    work = ProfileJob(RoundShape(diameter=36.0), ProfileParams(
+        side=Side.ON, depth=depth, step_down=0.1, direction=Direction.CLIMB, entry=Entry.RAMP,
+        ramp_angle=np.radians(3.0), clearance=2.0, retract=10.0))
+    spec = JobSpec(part=part, units="mm", face=None, work=work, at_uv=np.zeros((0, 2)), at_xyz=np.zeros((0, 3)),
+                   cutting=Cutting(tool_diameter=6.0, feed=300.0, plunge_feed=100.0, spindle_rpm=3000.0,
+                                   coolant=Coolant.FLOOD, tool_number=1),
+                   machine=MACHINE, dialect=load_dialect("linuxcnc"), setup=Setup.resolve(MACHINE), tolerance=0.0001)
+    mesh = load_part(part)
+    face, _ = select_face(find_faces(mesh), None, min_width=6.0)
+    post = post_process(MACHINE, plan(spec, face), spec.setup, tolerance=spec.tolerance, length_decimals=4)
+    return post.program, spec.setup, np.asarray(mesh.triangles), face
+
+
+def test_a_program_of_more_than_20000_poses_is_checked():
+    from prs3_post.collision import check_program
+    from prs3_post.errors import LimitError
+
+    program, setup, triangles, face = _round_pocket(2.5)
+    assert len(program) == 24027                              # once beyond the check's pose limit: 'not checked'
+    assert check_program(MACHINE, program, setup, triangles, face, 6.0) == (
+        "clear of the part by at least 1.000 mm: tool over 11.000 mm, holder over 11.000 mm, "
+        "spindle nose over 11.000 mm")
+    # the holder's end is 20 − 2.5 mm above the face on the last pass: an 18 mm clearance refuses it there
+    with pytest.raises(LimitError) as error:
+        check_program(MACHINE, program, setup, triangles, face, 6.0, clearance_min=18.0)
+    assert str(error.value) == ("round pass 25/25 lap: the holder comes within 17.500 mm of the part "
+                                "(clearance min 18.000 mm)")

@@ -27,7 +27,9 @@ How, in three stages (numpy only):
    bodies' surfaces: rings every ``RING_SPACING_MM`` along each, ``AZIMUTHS`` points per ring, and
    rings on its end discs, against the triangles near them (exact point–triangle distances); the
    sampling makes a cylinder facing a plane at most ``r (1 − cos(π / AZIMUTHS))`` (0.19 mm for the
-   holder) closer than the points say.
+   holder) closer than the points say. Poses are measured closest bound first; once a body is
+   found too close, ``AFTER_HIT`` more blocks at most (its depth is the deepest of those), and the
+   motion between poses is not checked further (the program is refused already).
 3. **Between poses.** When the poses are the samples of one motion (``connected``), a body moves at
    most δ = |Δtip| + ρ·θ between two of them (ρ: its farthest point from the tip, θ: the axis's
    turn), so its clearance there is at least (c₀ + c₁ − δ) / 2 from the two poses' clearances c₀,
@@ -72,6 +74,9 @@ REACH_MM = 10.0
 #: mm: the motion between two poses may come this much closer than ``clearance_min`` unseen (the
 #: halving stops there).
 SWEEP_SLACK_MM = 0.05
+#: Blocks of 64 poses measured, closest bound first, once a body is found too close (the depth
+#: reported is the deepest of those: the lowest bounds are where it is).
+AFTER_HIT = 4
 #: mm: minima this close are the same (the report's rounding); the earliest pose is named.
 _TIE_MM = 5e-4
 #: Pairs measured at a time (memory).
@@ -301,14 +306,18 @@ def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, 
     return out
 
 
-def _signed(points: FloatArray, part: _Part, cutting: BoolArray, face: Face, reach: float) -> FloatArray:
+def _signed(points: FloatArray, part: _Part, cutting: BoolArray, face: Face, reach: float,
+            outside: BoolArray) -> FloatArray:
     """(P,) mm: signed distance of points to the part (negative inside; at most ``reach``: farther is
     not measured); where ``cutting`` (the tool in its swept region) a point below the worked face is
-    not counted (inf) and the others are measured from the part without that face."""
+    not counted (inf) and the others are measured from the part without that face. ``outside``: points
+    known to be outside (not tested)."""
     lo, hi = points.min(axis=0) - reach, points.max(axis=0) + reach
     near = np.flatnonzero(((part.high >= lo) & (part.low <= hi)).all(axis=1))
     every = point_triangle_distance(points, part.triangles[near])
-    inner = inside(points, part.triangles)
+    inner = np.zeros(len(points), dtype=bool)
+    unknown = np.flatnonzero(~outside)
+    inner[unknown] = inside(points[unknown], part.triangles)
     dist = np.minimum(every.min(axis=1, initial=np.inf), reach)
     deep = np.flatnonzero(inner & (dist >= reach))
     if len(deep):                                   # inside, and deeper than the near triangles say
@@ -340,6 +349,7 @@ class _Poses:
         self.value = np.zeros((0, 3))
         self.exact = np.zeros((0, 3), dtype=bool)
         self.point = np.zeros((0, 3, 3))
+        self.found = np.full(3, np.inf)                 # the smallest clearance measured, per body
 
     def add(self, tip: FloatArray, axis: FloatArray, origin: IntArray, *, starts: BoolArray) -> IntArray:
         """Add poses, bound them and measure those that may be too close; their indices. ``starts``:
@@ -363,8 +373,17 @@ class _Poses:
         self.exact = np.concatenate([self.exact, np.zeros((len(tip), 3), dtype=bool)])
         self.point = np.concatenate([self.point, np.repeat(tip[:, None, :], 3, axis=1)])
         mine = np.arange(at, at + len(tip))
-        for b in range(3):
-            self.measure(mine[value[:, b] < self.clearance_min], b)
+        for b in range(3):                              # closest bound first, until one is too close
+            order = mine[np.argsort(value[:, b], kind="stable")]
+            after = 0
+            for k in range(0, len(order), 64):
+                rows = order[k:k + 64]
+                lowest = self.value[rows[0], b]
+                if lowest >= self.clearance_min or (self.found[b] < self.clearance_min and (
+                        lowest >= self.found[b] or after >= AFTER_HIT)):
+                    break
+                after += self.found[b] < self.clearance_min
+                self.measure(rows, b)
         return mine
 
     def measure(self, rows: IntArray, b: int, block: int = 64, *, reach: float | None = None) -> None:
@@ -379,11 +398,13 @@ class _Poses:
             world = (self.tip[r, None] + mine[None, :, :1] * xr[:, None] + mine[None, :, 1:2] * yr[:, None]
                      + mine[None, :, 2:] * self.axis[r, None])                    # (s, p, 3)
             cut = np.repeat(self.cutting[r], len(mine)) if b == 0 else np.zeros(len(r) * len(mine), dtype=bool)
-            dist = _signed(world.reshape(-1, 3), self.part, cut, self.face, reach).reshape(len(r), -1)
+            outside = np.repeat(self.value[r, b] > 0.0, len(mine))          # the bound says: all outside
+            dist = _signed(world.reshape(-1, 3), self.part, cut, self.face, reach, outside).reshape(len(r), -1)
             best = np.argmin(dist, axis=1)
             self.value[r, b] = dist[np.arange(len(r)), best]
             self.point[r, b] = world[np.arange(len(r)), best]
             self.exact[r, b] = self.value[r, b] < reach
+            self.found[b] = min(self.found[b], float(self.value[r, b].min()))
 
 
 def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinders: FloatArray, face: Face,
@@ -414,7 +435,8 @@ def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinder
     if len(linked):
         linked[0] = False
     poses.add(tip, axis, np.arange(len(tip)), starts=~linked)
-    _between(poses, cylinders, np.flatnonzero(linked))
+    if (poses.found >= clearance_min).all():            # else refused already: the motion adds nothing
+        _between(poses, cylinders, np.flatnonzero(linked))
     _refine(poses, refine_max, block)
     best = np.full(3, np.inf)
     where = np.full(3, -1, dtype=np.int64)
@@ -422,6 +444,8 @@ def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinder
     exact = np.ones(3, dtype=bool)
     for b in range(3):
         value = poses.value[:, b]
+        if poses.found[b] < clearance_min:              # too close: what was measured (the rest are bounds)
+            value = np.where(poses.exact[:, b], value, np.inf)
         if len(value) and value.min() < np.inf:          # the earliest pose as close as the closest
             tied = np.flatnonzero(value <= value.min() + _TIE_MM)
             k = int(tied[np.lexsort((value[tied], poses.origin[tied]))[0]])
@@ -446,6 +470,8 @@ def _between(poses: _Poses, cylinders: FloatArray, later: IntArray) -> None:
         if not bad.any():
             return
         start, end = start[bad], end[bad]
+        if (poses.found < poses.clearance_min).any():
+            return
         half = poses.axis[start] + poses.axis[end]
         norm = np.linalg.norm(half, axis=1, keepdims=True)
         half = np.where(norm > 1e-9, half / np.maximum(norm, 1e-300), poses.axis[start])
