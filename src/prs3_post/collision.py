@@ -8,8 +8,10 @@ parity along a fixed direction), so a penetration is reported by its depth.
 
 Only the tool may be in the part, and only where it cuts: while the tip is within the feature's
 swept region (the tool radius around the feed moves' tips, in the face's plane), its part below
-the worked face is not checked and the rest is measured from the part without that face (the tool
-touches it where it enters). Everything else must stay ``clearance_min`` clear.
+``clearance_min`` above the worked face is not checked and the rest is measured from the part
+without that face (the tool touches the face where it enters, and the face's edges where a feature
+runs over them: a point that high is that far from both; a wall beside the face rises higher, and
+is measured). Everything else must stay ``clearance_min`` clear.
 
 How, in three stages (numpy only):
 
@@ -210,15 +212,17 @@ class _Part:
     high: FloatArray
     others: BoolArray              # (T,) not a triangle of the worked face
     face: Face                     # the worked face
+    band: float                    # mm above the face: the cutting tool's part below this may touch the part
 
     @classmethod
-    def of(cls, triangles: FloatArray, face: Face) -> _Part:
+    def of(cls, triangles: FloatArray, face: Face, band: float) -> _Part:
         normal = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
         others = np.ones(len(triangles), dtype=bool)
         others[np.asarray(face.triangles, dtype=np.int64)] = False
         return cls(triangles=triangles, normal=normal, offset=(normal * triangles[:, 0]).sum(axis=1),
-                   low=triangles.min(axis=1), high=triangles.max(axis=1), others=others, face=face)
+                   low=triangles.min(axis=1), high=triangles.max(axis=1), others=others, face=face,
+                   band=band)
 
 
 def _pieces(cylinders: FloatArray) -> FloatArray:
@@ -234,18 +238,18 @@ def _pieces(cylinders: FloatArray) -> FloatArray:
 def _pose_pairs(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, pieces: FloatArray,
                 s: IntArray, q: IntArray, t: IntArray, near: float) -> FloatArray:
     """(K,) mm: a lower bound of the distance of piece ``q`` at pose ``s`` from triangle ``t``, pair by
-    pair (inf: a pair that does not count: the cutting tool's part below the face, or the face)."""
+    pair (inf: a pair that does not count: the cutting tool's part below the band, or the face)."""
     radius, a, p = pieces[q, 0], axis[s], tip[s]
     lo, hi = pieces[q, 1].copy(), pieces[q, 2]
     cut = cutting[s] & (pieces[q, 3] == 0)
     gone = cut & ~part.others[t]
-    if cut.any():                                   # keep only what is above the face (less the tilt's reach)
+    if cut.any():                                   # keep only what is above the band (less the tilt's reach)
         face = part.face
         along = a @ face.normal
         height = (p - face.origin) @ face.normal
         tilt = radius * np.sqrt(np.clip(1.0 - along ** 2, 0.0, 1.0))
         with np.errstate(divide="ignore", invalid="ignore"):
-            below = np.where(along > 1e-9, (-tilt - height) / along, -np.inf)
+            below = np.where(along > 1e-9, (part.band - tilt - height) / along, -np.inf)
         lo = np.where(cut, np.maximum(lo, below), lo)
         gone |= cut & (lo >= hi)
     e0, e1 = p + lo[:, None] * a, p + hi[:, None] * a
@@ -309,7 +313,7 @@ def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, 
 def _signed(points: FloatArray, part: _Part, cutting: BoolArray, face: Face, reach: float,
             outside: BoolArray) -> FloatArray:
     """(P,) mm: signed distance of points to the part (negative inside; at most ``reach``: farther is
-    not measured); where ``cutting`` (the tool in its swept region) a point below the worked face is
+    not measured); where ``cutting`` (the tool in its swept region) a point below ``part.band`` over the face is
     not counted (inf) and the others are measured from the part without that face. ``outside``: points
     known to be outside (not tested)."""
     lo, hi = points.min(axis=0) - reach, points.max(axis=0) + reach
@@ -329,7 +333,7 @@ def _signed(points: FloatArray, part: _Part, cutting: BoolArray, face: Face, rea
         if len(deep):
             off_face[deep] = point_triangle_distance(points[deep], part.triangles[part.others]).min(
                 axis=1, initial=np.inf)
-        dist = np.where(cutting, np.where(height < 0.0, np.inf, np.where(inner, -off_face, off_face)), dist)
+        dist = np.where(cutting, np.where(height < part.band, np.inf, np.where(inner, -off_face, off_face)), dist)
     return dist
 
 
@@ -429,7 +433,7 @@ def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinder
     tip = np.asarray(tip, dtype=np.float64).reshape(-1, 3)
     axis = np.asarray(axis, dtype=np.float64).reshape(-1, 3)
     triangles = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
-    part = _Part.of(triangles, face)
+    part = _Part.of(triangles, face, clearance_min)
     poses = _Poses(part, face, _swept(face, feed_tips, float(cylinders[0, 0]) + 1e-6), cylinders, clearance_min)
     linked = np.zeros(len(tip), dtype=bool) if connected is None else np.asarray(connected, dtype=bool).copy()
     if len(linked):
