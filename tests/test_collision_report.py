@@ -64,8 +64,8 @@ GOLDEN = Path(__file__).resolve().parents[1] / "fixtures" / "golden"
 
 def test_each_operation_of_a_job_reads_its_own_collision_setting():
     text = (GOLDEN / "twofaces-job-example.ngc").read_text(encoding="utf-8")
-    line = "\n".join(ln for ln in text.split("\n") if ln.startswith(("(collision: ", "(  10.846")))
-    assert line.endswith("spindle nose over)\n(  10.846 mm)")      # the entry, wrapped over two lines
+    line = "\n".join(ln for ln in text.split("\n") if ln.startswith(("(collision: ", "(  11.000")))
+    assert line.endswith("spindle nose over)\n(  11.000 mm)")      # the entry, wrapped over two lines
     mixed = text.replace(line, "(collision: operation 1: clear of the part by at least 0.250 mm: tool over 14.371 mm,"
                                " holder over 4.062 mm, spindle nose over 11.383 mm, operation 2: not checked)")
     header = parse_header(header_comments(mixed), path="p.ngc")
