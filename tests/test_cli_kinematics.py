@@ -163,6 +163,26 @@ def test_pose_reader_fast_and_careful_paths_agree(tmp_path):
     assert str(caught.value) == f"{commented}:2: not a number: '#1'"
 
 
+@pytest.mark.parametrize("body", [
+    "1.5,2,-680,0,0,1\n-3,4e1,-690.25,0.1,0,1\n",            # plain: numpy reads the bytes
+    "1.5,2,-680,0,0,1\n-3,4e1,-690.25,0.1,0,1",               # no newline at the end
+    "1.5, 2,-680,0,0,1\n  \n-3,4e1,-690.25,0.1,0,1\n",        # spaces, a line of spaces (blank)
+    "1.5,2,-680,0,0,1\r\n-3,4e1,-690.25,0.1,0,1\r\n",        # CRLF
+    "1.5,2,-680,0,0,1\n\t\n-3,4e1,-690.25,0.1,0,1\n",        # a tab line (blank)
+])
+def test_pose_reader_counts_lines_alike_whatever_path_reads_them(tmp_path, body):
+    """The plain-bytes reader and the line readers give the same values and the same line numbers."""
+    from prs3_post.readers.poses import read_poses
+
+    path = tmp_path / "poses.csv"
+    path.write_bytes(("tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n" + body).encode("ascii"))
+    table = read_poses(str(path))
+    assert table.tip.tolist() == [[1.5, 2.0, -680.0], [-3.0, 40.0, -690.25]]
+    assert table.axis.tolist() == [[0.0, 0.0, 1.0], [0.1, 0.0, 1.0]]
+    blank = 1 if ("  \n" in body or "\t" in body) else 0
+    assert table.line.tolist() == [2, 3 + blank]
+
+
 def _pose_file(tmp_path: Path, rows: int, *, bad_line: int | None = None) -> Path:
     rng = np.random.default_rng(7)
     tilt, azimuth = np.radians(rng.uniform(0, 60, rows)), rng.uniform(0, 2 * np.pi, rows)   # some beyond limits

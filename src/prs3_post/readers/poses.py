@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import csv
+import io
 import itertools
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -70,25 +72,69 @@ def iter_poses(path: str, *, chunk_lines: int = 65536) -> Iterator[PoseTable]:
             raw = list(itertools.islice(stream, chunk_lines))
             if not raw:
                 break
-            data = b"".join(raw)
-            try:
-                lines = data.decode("utf-8").splitlines()
-            except UnicodeDecodeError as exc:
-                raise InputError(f"not UTF-8 text: {exc.reason} at byte {offset + exc.start}", path=path) from exc
             if number == 0:
-                if lines:                                # a spreadsheet's byte order mark is not the header's
-                    lines[0] = lines[0].removeprefix("\ufeff")
-                header = next(csv.reader(lines[:1]), [])
-                if [h.strip() for h in header] != list(POSE_COLUMNS):
-                    raise InputError(f"expected the header {expected}, got {','.join(header)!r}", path=path, line=1)
-                lines, number = lines[1:], 1
-            fast = _parse_fast(lines, number)
-            table = fast if fast is not None else _parse_careful(lines, number, path)
+                _check_header(raw[0], path)
+                offset, number = len(raw[0]), 1
+                raw = raw[1:]
+            data = b"".join(raw)
+            table, count = _parse_plain(data, number)
+            if table is None:
+                try:
+                    lines = data.decode("utf-8").splitlines()
+                except UnicodeDecodeError as exc:
+                    raise InputError(f"not UTF-8 text: {exc.reason} at byte {offset + exc.start}", path=path) from exc
+                table = _parse_fast(lines, number) or _parse_careful(lines, number, path)
+                count = len(lines)
             _check_range(table, path)
             yield table
-            offset, number = offset + len(data), number + len(lines)
+            offset, number = offset + len(data), number + count
         if number == 0:
             raise InputError(f"expected the header {expected}, got an empty file", path=path, line=1)
+
+
+def _check_header(line: bytes, path: str) -> None:
+    """The first line must be the header (after a spreadsheet's byte order mark, if any).
+
+    Raises
+    ------
+    InputError
+    """
+    try:
+        text = line.decode("utf-8").removeprefix("\ufeff")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not UTF-8 text: {exc.reason} at byte {exc.start}", path=path) from exc
+    header = next(csv.reader(text.splitlines()[:1]), [])
+    if [h.strip() for h in header] != list(POSE_COLUMNS):
+        raise InputError(f"expected the header {','.join(POSE_COLUMNS)}, got {','.join(header)!r}", path=path,
+                         line=1)
+
+
+#: The bytes of a plain table: printable ASCII and ``\n`` (other line breaks, tabs, UTF-8: read by the others).
+_PLAIN_BYTES = bytes(range(0x20, 0x7F)) + b"\n"
+
+
+def _plain(data: bytes) -> bool:
+    """Only printable ASCII and ``\n`` line ends, and no blank line (spaces at most)."""
+    if data.translate(None, _PLAIN_BYTES) or b"\n\n" in data or data.startswith(b"\n"):
+        return False
+    return b" " not in data or re.search(rb"(?:^|\n) *(?:\n|$)", data) is None
+
+
+def _parse_plain(data: bytes, before: int) -> tuple[PoseTable | None, int]:
+    """The lines of ``data`` (``before`` lines of the file come before them) read by numpy's C parser
+    straight from the bytes, when they are plain (printable ASCII, ``\n`` line ends, no blank line)
+    and six numbers each: (the table, the line count); (None, 0) otherwise."""
+    if not data or not _plain(data):
+        return None, 0
+    try:
+        table = np.loadtxt(io.BytesIO(data), delimiter=",", dtype=np.float64, ndmin=2, comments=None)
+    except ValueError:
+        return None, 0
+    count = data.count(b"\n") + (not data.endswith(b"\n"))
+    if table.shape != (count, 6):
+        return None, 0
+    return PoseTable(tip=table[:, :3], axis=table[:, 3:],
+                     line=np.arange(before + 1, before + 1 + count, dtype=np.int64)), count
 
 
 def _check_range(table: PoseTable, path: str) -> None:
