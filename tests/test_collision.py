@@ -144,3 +144,28 @@ def test_a_program_of_more_than_20000_poses_is_checked():
         check_program(MACHINE, program, setup, triangles, face, 6.0, clearance_min=18.0)
     assert str(error.value) == ("round pass 25/25 lap: the holder comes within 17.500 mm of the part "
                                 "(clearance min 18.000 mm)")
+
+
+def test_a_job_transition_through_the_part_is_refused(tmp_path):
+    # a 20 mm block hangs 160 mm above the face's origin along its normal: beyond the nose over the
+    # first hole, but in the way of the lift to the job's safe height (which it raises)
+    import trimesh
+
+    roof = trimesh.creation.box(extents=(20.0, 20.0, 10.0))
+    roof.apply_translation((80.0, 200.0, 440.0))
+    trimesh.util.concatenate([trimesh.load(str(WALL)), roof]).export(str(tmp_path / "roofed.stl"))
+    origin = "-100,-200,-1000"
+    for u in ("0", "-40"):                                    # each hole alone is clear
+        alone = CliRunner().invoke(main, ["run", str(tmp_path / "roofed.stl"), "--profile", "hole", "--at", f"{u},0",
+                                          "--depth", "3", "--part-origin", origin, "-o", str(tmp_path / f"{u}.ngc")])
+        assert alone.exit_code == 0, alone.output
+    (tmp_path / "job.toml").write_text(
+        'part = "roofed.stl"\nunits = "mm"\n\n[setup]\npart_origin = [-100.0, -200.0, -1000.0]\n\n'
+        '[[operation]]\nprofile = "hole"\nat = [[0.0, 0.0]]\ndepth = 3.0\n\n'
+        '[[operation]]\nprofile = "hole"\nat = [[-40.0, 0.0]]\ndepth = 3.0\n', encoding="utf-8")
+    out = tmp_path / "job.ngc"
+    result = CliRunner().invoke(main, ["job", str(tmp_path / "job.toml"), "-o", str(out)])
+    assert (result.exit_code, result.output) == (1, "prs3-post: error: operation 1 (hole on face 4), lift to the safe "
+                                                    "height: the holder hits the part, 3.498 mm deep (clearance min "
+                                                    "1.000 mm)\n")
+    assert not out.exists()

@@ -465,7 +465,7 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
                           if spec.collision_check else "")
         posts.append(posted)
     if several:
-        pieces, lengths = _assemble(specs, done, posts, safe_height(triangles, first.setup, specs))
+        pieces, lengths = _assemble(specs, done, posts, safe_height(triangles, first.setup, specs), triangles)
         program = _join_programs([p.program for p in pieces])
     else:
         pieces, lengths, program = posts, [done[0].tool_length], posts[0].program
@@ -547,8 +547,8 @@ def with_placement(entries: tuple[tuple[str, str], ...],
 
 
 def _collision_entry(specs: tuple[JobSpec, ...], found: list[str]) -> str:
-    """The header's ``collision`` entry: each operation's clearances (the moves between operations, at
-    the job's safe height, are not checked)."""
+    """The header's ``collision`` entry: each operation's clearances (the moves between operations are
+    checked too, :func:`_check_transition`, and refused when too close; not reported here)."""
     if not any(spec.collision_check for spec in specs):
         return "not checked (asked not to)"
     if len(found) == 1:
@@ -663,8 +663,9 @@ MACHINE_FRAME = Setup((0.0, 0.0, 0.0), 0.0)
 
 
 def _assemble(specs: tuple[JobSpec, ...], done: list[OperationResult], posts: list[_Posted],
-              height: float) -> tuple[list[_Posted], list[float]]:
-    """The operations and the transitions between them, in program order, and each piece's tool length."""
+              height: float, triangles: FloatArray | None = None) -> tuple[list[_Posted], list[float]]:
+    """The operations and the transitions between them, in program order, and each piece's tool length
+    (with ``triangles``, the part: each transition is checked against it, :func:`_check_transition`)."""
     pieces: list[_Posted] = [posts[0]]
     lengths: list[float] = [done[0].tool_length]
     decimals = specs[0].dialect.decimals.length
@@ -675,6 +676,9 @@ def _assemble(specs: tuple[JobSpec, ...], done: list[OperationResult], posts: li
             spec.machine, posts[k - 1].ends, posts[k].ends, pair, height, tolerance=spec.tolerance,
             length_decimals=decimals, labels=(f"{done[k - 1].label}, lift to the safe height",
                                               f"{done[k].label}, turn the tool axis at the safe height"))
+        if triangles is not None and (previous.collision_check or spec.collision_check):
+            _check_transition(specs[k - 1:k + 1], done[k - 1:k + 1], posts[k - 1].program, lifted, turned,
+                              posts[k].program, triangles)
         if lifted is not None:
             pieces.append(_Posted.of(lifted))
             lengths.append(pair[0])
@@ -687,6 +691,36 @@ def _assemble(specs: tuple[JobSpec, ...], done: list[OperationResult], posts: li
                    _with_events(posts[k], tuple(e for e in body.events if e.before != 0))]
         lengths += [pair[1], pair[1]]
     return pieces, lengths
+
+
+def _check_transition(specs: tuple[JobSpec, ...], operations: list[OperationResult], before: JointProgram,
+                      lifted: PostResult | None, turned: PostResult, after: JointProgram, triangles: FloatArray) -> None:
+    """The moves between two operations against the part (:func:`~prs3_post.collision.check_program`,
+    the smaller ``clearance_min`` of the two that ask for the check): the lift with the first tool,
+    from the first operation's last row; the turn with the next tool, from the lift's end, and the
+    next operation's first row (its way down, from the turn's end: the operation's own check starts
+    at that row's end).
+
+    Raises
+    ------
+    LimitError
+        ``operation 2 (hole on face 5), lift to the safe height: the holder hits the part, ...``.
+    """
+    clearance_min = min(s.clearance_min for s in specs if s.collision_check)
+    checks = [] if lifted is None else [(0, [_rows(before, -1), lifted.program])]
+    checks.append((1, [_rows(before if lifted is None else lifted.program, -1), turned.program, _rows(after, 0)]))
+    for k, parts in checks:
+        spec, operation = specs[k], operations[k]
+        check_program(_with_tool_length(spec.machine, operation.tool_length), _join_programs(parts), specs[1].setup,
+                      triangles, operation.face, spec.cutting.tool_diameter, clearance_min=clearance_min)
+
+
+def _rows(program: JointProgram, row: int) -> JointProgram:
+    """Row ``row`` of ``program`` alone (its step label kept, no events)."""
+    at = slice(row, row + 1 if row != -1 else None)
+    return JointProgram(kind=program.kind[at], stage=program.stage[at], strokes=program.strokes[at],
+                        inverse_time=program.inverse_time[at], source=np.zeros(1, dtype=np.int64),
+                        source_labels=(program.describe(row % len(program)),))
 
 
 def _with_events(posted: _Posted, events: tuple[Event, ...]) -> _Posted:
