@@ -694,7 +694,8 @@ def _assemble(specs: tuple[JobSpec, ...], done: list[OperationResult], posts: li
 
 
 def _check_transition(specs: tuple[JobSpec, ...], operations: list[OperationResult], before: JointProgram,
-                      lifted: PostResult | None, turned: PostResult, after: JointProgram, triangles: FloatArray) -> None:
+                      lifted: PostResult | None, turned: PostResult, after: JointProgram,
+                      triangles: FloatArray) -> None:
     """The moves between two operations against the part (:func:`~prs3_post.collision.check_program`,
     the smaller ``clearance_min`` of the two that ask for the check): the lift with the first tool,
     from the first operation's last row; the turn with the next tool, from the lift's end, and the
