@@ -350,3 +350,33 @@ def test_the_same_hole_twice_is_refused_before_writing(tmp_path: Path) -> None:
                              "position once (--at, --at-xyz)\n")
     assert list(tmp_path.iterdir()) == []
 
+
+
+@pytest.mark.parametrize("target", ["file", "stdout"])
+def test_a_program_failing_while_it_is_written_leaves_nothing(tmp_path, monkeypatch, target):
+    """The main job writes its program chunk by chunk (a few rows at a time here); a chunk that fails
+    while it is formatted leaves the old file as it was and no temp file (standard output gets the
+    whole text or nothing: it is formatted before any of it is written)."""
+    import prs3_post.job as job_module
+    from prs3_post.emit.gcode import ProgramEmitter
+    from prs3_post.errors import LimitError
+
+    monkeypatch.setattr(job_module, "EMIT_ROWS", 2)
+    real = ProgramEmitter.row_pieces
+    calls = []
+
+    def failing(self, program):
+        calls.append(len(program))
+        if len(calls) == 3:
+            raise LimitError("row 9: made to fail")
+        return real(self, program)
+
+    monkeypatch.setattr(ProgramEmitter, "row_pieces", failing)
+    out = tmp_path / "old.ngc"
+    out.write_text("old\n")
+    args = ["demo", "--profile", "hole", "--depth", "4"] + (["-o", str(out)] if target == "file" else [])
+    result = CliRunner().invoke(main, args, prog_name="prs3-post")
+    assert result.exit_code == 1, result.output
+    assert result.output.splitlines()[-1] == "prs3-post: error: row 9: made to fail"
+    assert "G1" not in result.stdout
+    assert out.read_text() == "old\n" and sorted(p.name for p in tmp_path.iterdir()) == ["old.ngc"]

@@ -334,8 +334,8 @@ class JobProgram:
     placement: PlacementResult | None = None
     dynamics: str = ""
 
-    def chunks(self, rows: int = EMIT_ROWS) -> Iterator[str]:
-        """The program's text, ``rows`` rows at a time (the header first, the end blocks last): the
+    def chunks(self, rows: int | None = None) -> Iterator[str]:
+        """The program's text, ``rows`` (None: EMIT_ROWS) rows at a time (the header first, the end blocks last): the
         same text whatever ``rows`` is, as :func:`~prs3_post.emit.gcode.emit_program` writes it.
 
         Raises
@@ -347,7 +347,7 @@ class JobProgram:
         emitter = ProgramEmitter(self.dialect, stage=self.stage, line_numbers=self.line_numbers,
                                  line_start=self.line_start, line_step=self.line_step)
         yield emitter.begin(self.header)
-        for piece in program_chunks(self.program, rows):
+        for piece in program_chunks(self.program, EMIT_ROWS if rows is None else rows):
             yield from emitter.row_pieces(piece)
         yield emitter.end()
 
