@@ -169,3 +169,24 @@ def test_a_job_transition_through_the_part_is_refused(tmp_path):
                                                     "height: the holder hits the part, 3.498 mm deep (clearance min "
                                                     "1.000 mm)\n")
     assert not out.exists()
+
+
+SLOPE = Path(__file__).resolve().parents[2] / "shared" / "corpus" / "stl" / "ssg_slope.stl"
+V_NOTCH = "prs3-post: error: hole 1 approach: the tool hits the part, 4.890 mm deep (clearance min 1.000 mm)"
+
+
+@pytest.mark.skipif(not SLOPE.exists(), reason="the shared corpus is not here")
+def test_a_collision_with_the_part_is_the_same_in_every_setup_and_auto_placement_says_so(tmp_path):
+    # the tool axis is the face's normal and the part moves with the setup: the same depth everywhere
+    for origin, rotation in (("-18,-10,-688", "0"), ("-30,20,-700", "0"), ("-10,-5,-680", "90"), ("auto", "45")):
+        result = CliRunner().invoke(main, ["run", str(SLOPE), "--profile", "hole", "--part-origin", origin,
+                                           "--part-rotation", rotation, "-o", str(tmp_path / "s.ngc")])
+        assert result.exit_code == 1
+        assert result.output.startswith(V_NOTCH)
+    result = CliRunner().invoke(main, ["run", str(SLOPE), "--profile", "hole", "--part-origin", "auto",
+                                       "-o", str(tmp_path / "s.ngc")])
+    assert result.output == (
+        f"{V_NOTCH}; the setup was chosen automatically, but no placement changes this: the tool axis is the "
+        "face's normal and the part moves with the setup, so the tool and holder meet the part the same way in "
+        "every setup (change the tool or the holder, or the feature or its face)\n")
+    assert list(tmp_path.iterdir()) == []

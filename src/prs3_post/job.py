@@ -460,9 +460,14 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
         operation = done[k]
         machine = _with_tool_length(spec.machine, operation.tool_length)
         posted = _post_operation(machine, paths, k, spec, decimals, keep=keep, several=several)
-        collisions.append(check_program(machine, posted.program, spec.setup, triangles, operation.face,
-                                        spec.cutting.tool_diameter, clearance_min=spec.clearance_min)
-                          if spec.collision_check else "")
+        try:
+            collisions.append(check_program(machine, posted.program, spec.setup, triangles, operation.face,
+                                            spec.cutting.tool_diameter, clearance_min=spec.clearance_min)
+                              if spec.collision_check else "")
+        except LimitError as error:
+            if placement is None:
+                raise
+            raise LimitError(f"{error}; {PLACEMENT_CANNOT_FIX}") from error
         posts.append(posted)
     if several:
         pieces, lengths = _assemble(specs, done, posts, safe_height(triangles, first.setup, specs), triangles)
@@ -691,6 +696,15 @@ def _assemble(specs: tuple[JobSpec, ...], done: list[OperationResult], posts: li
                    _with_events(posts[k], tuple(e for e in body.events if e.before != 0))]
         lengths += [pair[1], pair[1]]
     return pieces, lengths
+
+
+#: Said after a collision in a setup chosen automatically: an operation's moves all keep the face's
+#: normal as the tool axis (each one translates the head), and the part moves with the setup, so the
+#: tool, holder and nose meet the part the same way in every setup (the tests check it on the corpus
+#: slope: the same depth at several origins and rotations).
+PLACEMENT_CANNOT_FIX = ("the setup was chosen automatically, but no placement changes this: the tool axis is the "
+                        "face's normal and the part moves with the setup, so the tool and holder meet the part the "
+                        "same way in every setup (change the tool or the holder, or the feature or its face)")
 
 
 def _check_transition(specs: tuple[JobSpec, ...], operations: list[OperationResult], before: JointProgram,
