@@ -190,3 +190,42 @@ def test_a_collision_with_the_part_is_the_same_in_every_setup_and_auto_placement
         "face's normal and the part moves with the setup, so the tool and holder meet the part the same way in "
         "every setup (change the tool or the holder, or the feature or its face)\n")
     assert list(tmp_path.iterdir()) == []
+
+
+def _convert(tmp_path: Path, x: str, *options: str) -> tuple[object, Path]:
+    """A 3+2 G-code hole at X ``x`` in the 30° face's frame (the tool along its normal), converted."""
+    source = tmp_path / f"hole{x}.ngc"
+    source.write_text(f"G21 G90 G17\nG0 X{x} Y0 Z10\nG1 Z-3 F100\nG0 Z10\nM30\n", encoding="utf-8")
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["convert", str(source), "-o", str(out), "--work-plane", f"{WALL}:4",
+                                       "--jobs", "1", *options])
+    return result, out / source.name
+
+
+def _collision_line(program: Path) -> list[str]:
+    return [ln for ln in program.read_text(encoding="utf-8").split("\n") if ln.startswith("(collision:")]
+
+
+def test_convert_with_part_checks_the_holder_and_nose_before_writing(tmp_path):
+    result, program = _convert(tmp_path, "8.1", "--part", str(WALL))
+    assert result.exit_code == 0, result.output
+    assert _collision_line(program) == [
+        "(collision: clear of the part by at least 1.000 mm: tool not checked [it cuts what the CAM program removes], "
+        "holder over 3.799 mm, spindle nose over 11.000 mm)"]
+
+
+def test_convert_with_part_refuses_a_holder_in_the_wall_naming_file_line_body_and_depth(tmp_path):
+    result, program = _convert(tmp_path, "30", "--part", str(WALL))
+    assert result.exit_code == 1
+    assert f"  {tmp_path / 'hole30.ngc'}:2: the holder hits the part, 2.446 mm deep (clearance min 1.000 mm)\n" in (
+        result.output)
+    assert not program.exists()
+    result, program = _convert(tmp_path, "30", "--part", str(WALL), "--no-collision-check")
+    assert result.exit_code == 0, result.output
+    assert _collision_line(program) == ["(collision: not checked [asked not to])"]
+
+
+def test_convert_without_part_says_so(tmp_path):
+    result, program = _convert(tmp_path, "30")
+    assert result.exit_code == 0, result.output
+    assert _collision_line(program) == ["(collision: not checked [no part given])"]

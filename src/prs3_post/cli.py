@@ -1324,6 +1324,16 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
               help="Codes that switch the source's TCP on, comma-separated (e.g. G43.4).  [default: the source's]")
 @click.option("--tcp-off", "tcp_off", default=None, metavar="CODES",
               help="Codes that switch the source's TCP off, comma-separated (e.g. G49).  [default: the source's]")
+@click.option("--part", "part_path", type=click.Path(exists=True, dir_okay=False), default=None, metavar="PART.stl",
+              help="The part: every program is checked against it before it is written (the holder and the "
+                   "spindle nose; the tool cuts what the CAM program removes).  [default: not checked]")
+@click.option("--part-units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True,
+              help="Length unit of the --part STL (--units is the CL files').")
+@up_option
+@click.option("--collision-check/--no-collision-check", default=True, show_default=True,
+              help="With --part: check the holder and spindle nose against it; the header says when it was skipped.")
+@click.option("--clearance-min", type=Decimal(LENGTH), default=1.0, show_default=True,
+              help="With --part: least distance the holder and spindle nose keep from it, mm.")
 @machine_option
 @job_part_origin_option
 @job_part_rotation_option
@@ -1335,7 +1345,8 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
 def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: bool, force: bool, input_format: str,
             report_path: str | None, tool_length: float | None, angle_tolerance_deg: float, units: str | None,
             work_plane_text: str | None, ignore_words: tuple[str, ...], source_name: str | None,
-            tcp_on: str | None, tcp_off: str | None, machine_name: str,
+            tcp_on: str | None, tcp_off: str | None, part_path: str | None, part_units: str, up: str,
+            collision_check: bool, clearance_min: float, machine_name: str,
             part_origin: tuple[float, ...] | str | None, part_rotation: float | str | None, dialect_name: str,
             line_numbers: bool | None, line_start: int | None, line_step: int | None, tolerance: float) -> None:
     """Convert CAM output (APT CL files, 3+2 G-code) into programs for this machine.
@@ -1370,7 +1381,8 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
                 input_format=input_format, units=units, ignore=tuple(w.upper() for w in ignore_words),
                 work_plane=plane, source=source, tcp_on=codes_on, tcp_off=codes_off,
                 line_numbers=line_numbers, line_start=line_start, line_step=line_step,
-                auto_origin=part_origin == AUTO, auto_rotation=part_rotation == AUTO)
+                auto_origin=part_origin == AUTO, auto_rotation=part_rotation == AUTO, part=part_path,
+                part_units=part_units, part_up=up, collision_check=collision_check, clearance_min=clearance_min)
         except ConfigError as error:                     # the TCP codes given do not work with the source
             given = [f"'{flag}'" for flag, codes in (("--tcp-on", codes_on), ("--tcp-off", codes_off)) if codes]
             if source is None or not given:

@@ -124,7 +124,7 @@ def _frames(axis: FloatArray) -> tuple[FloatArray, FloatArray]:
 class _Region:
     """The feature's swept region: cells of a grid in the face's (u, v) plane (none: no region)."""
 
-    face: Face
+    face: Face | None
     cells: BoolArray
     low: FloatArray
     cell: float
@@ -132,7 +132,7 @@ class _Region:
     def contains(self, tip: FloatArray) -> BoolArray:
         """(S,) bool: the tips (S, 3) mm, part frame, lie over the region."""
         out = np.zeros(len(tip), dtype=bool)
-        if not self.cells.size or not len(tip):
+        if self.face is None or not self.cells.size or not len(tip):
             return out
         uv = (tip - self.face.origin) @ np.stack([self.face.u, self.face.v], axis=1)
         at = np.floor((uv - self.low) / self.cell).astype(np.int64)
@@ -141,17 +141,17 @@ class _Region:
         return out
 
 
-def _swept(face: Face, feed_tips: FloatArray, radius: float, *, cell: float = 0.25) -> _Region:
+def _swept(face: Face | None, feed_tips: FloatArray, radius: float, *, cell: float = 0.25) -> _Region:
     """The region within about ``radius`` of the polyline of the feed tips (M, 3) in the face's (u, v).
 
     The polyline is drawn on a grid of ``cell`` mm (points every half cell along each segment),
     widened by ``radius`` plus a cell, and each tip looks up its cell: a region a cell or two wider
     than the exact one, at a cost linear in the rows.
     """
-    feed_uv = (np.asarray(feed_tips, dtype=np.float64).reshape(-1, 3) - face.origin) @ np.stack([face.u, face.v], 1)
     none = _Region(face=face, cells=np.zeros((0, 0), dtype=bool), low=np.zeros(2), cell=cell)
-    if len(feed_uv) == 0:
+    if face is None or not len(feed_tips):
         return none
+    feed_uv = (np.asarray(feed_tips, dtype=np.float64).reshape(-1, 3) - face.origin) @ np.stack([face.u, face.v], 1)
     low = feed_uv.min(axis=0) - radius - 2 * cell
     size = np.ceil((feed_uv.max(axis=0) + radius + 2 * cell - low) / cell).astype(np.int64) + 1
     if size.prod() > 4e7:                               # a region too large to draw: no exemption
@@ -211,15 +211,16 @@ class _Part:
     low: FloatArray                # (T, 3) bounding boxes
     high: FloatArray
     others: BoolArray              # (T,) not a triangle of the worked face
-    face: Face                     # the worked face
+    face: Face | None              # the worked face (None: none, no tool cuts)
     band: float                    # mm above the face: the cutting tool's part below this may touch the part
 
     @classmethod
-    def of(cls, triangles: FloatArray, face: Face, band: float) -> _Part:
+    def of(cls, triangles: FloatArray, face: Face | None, band: float) -> _Part:
         normal = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
         others = np.ones(len(triangles), dtype=bool)
-        others[np.asarray(face.triangles, dtype=np.int64)] = False
+        if face is not None:
+            others[np.asarray(face.triangles, dtype=np.int64)] = False
         return cls(triangles=triangles, normal=normal, offset=(normal * triangles[:, 0]).sum(axis=1),
                    low=triangles.min(axis=1), high=triangles.max(axis=1), others=others, face=face,
                    band=band)
@@ -229,6 +230,8 @@ def _pieces(cylinders: FloatArray) -> FloatArray:
     """(Q, 4): radius, start, end (mm along the axis from the tip) and body of each piece."""
     out = []
     for b, (radius, z0, z1) in enumerate(cylinders):
+        if z1 <= z0:                                    # a body not checked
+            continue
         n = max(1, math.ceil((z1 - z0) / max(radius, PIECE_MM)))
         edges = np.linspace(z0, z1, n + 1)
         out += [(radius, edges[k], edges[k + 1], b) for k in range(n)]
@@ -245,6 +248,7 @@ def _pose_pairs(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArr
     gone = cut & ~part.others[t]
     if cut.any():                                   # keep only what is above the band (less the tilt's reach)
         face = part.face
+        assert face is not None                     # a tool cuts only with a face (_swept)
         along = a @ face.normal
         height = (p - face.origin) @ face.normal
         tilt = radius * np.sqrt(np.clip(1.0 - along ** 2, 0.0, 1.0))
@@ -310,7 +314,7 @@ def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, 
     return out
 
 
-def _signed(points: FloatArray, part: _Part, cutting: BoolArray, face: Face, reach: float,
+def _signed(points: FloatArray, part: _Part, cutting: BoolArray, face: Face | None, reach: float,
             outside: BoolArray) -> FloatArray:
     """(P,) mm: signed distance of points to the part (negative inside; at most ``reach``: farther is
     not measured); where ``cutting`` (the tool in its swept region) a point below ``part.band`` over the face is
@@ -327,7 +331,7 @@ def _signed(points: FloatArray, part: _Part, cutting: BoolArray, face: Face, rea
     if len(deep):                                   # inside, and deeper than the near triangles say
         dist[deep] = point_triangle_distance(points[deep], part.triangles).min(axis=1)
     dist = np.where(inner, -dist, dist)
-    if cutting.any():
+    if cutting.any() and face is not None:
         height = (points - face.origin) @ face.normal
         off_face = np.minimum(every[:, part.others[near]].min(axis=1, initial=np.inf), reach)
         if len(deep):
@@ -341,9 +345,10 @@ class _Poses:
     """The poses checked so far (the given ones, then the midpoints of intervals), with each body's
     clearance: a lower bound, or measured on its surface (``exact``)."""
 
-    def __init__(self, part: _Part, face: Face, region: _Region, cylinders: FloatArray, clearance_min: float):
+    def __init__(self, part: _Part, face: Face | None, region: _Region, cylinders: FloatArray, clearance_min: float):
         self.part, self.face, self.region, self.clearance_min = part, face, region, clearance_min
         self.pieces = _pieces(cylinders)
+        self.unchecked = cylinders[:, 2] <= cylinders[:, 1]      # bodies given no length
         self.local, self.body = _surface_points(cylinders)
         self.reach = clearance_min + REACH_MM
         self.tip = np.zeros((0, 3))
@@ -361,6 +366,7 @@ class _Poses:
         cutting = self.region.contains(tip)
         value = _bounds(self.part, tip, axis, cutting, self.pieces, reach=self.reach,
                         near=self.clearance_min + 2.0)
+        value[:, self.unchecked] = np.inf
         first = np.flatnonzero(starts)
         if len(first):                                  # a body inside the part with nothing near it
             centre = 0.5 * (self.pieces[:, 1] + self.pieces[:, 2])
@@ -411,7 +417,7 @@ class _Poses:
             self.found[b] = min(self.found[b], float(self.value[r, b].min()))
 
 
-def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinders: FloatArray, face: Face,
+def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinders: FloatArray, face: Face | None,
               feed_tips: FloatArray, *, clearance_min: float = 1.0, block: int = 64, refine_max: int = 0,
               connected: BoolArray | None = None) -> Clearance:
     """The clearance of the bodies from the part at every pose (part frame), and between connected ones.
@@ -421,7 +427,8 @@ def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinder
     triangles : (T, 3, 3) float — mm, the part
     tip, axis : (S, 3) float — mm, unit: the poses (samples of the program's moves)
     cylinders : (3, 3) float — :func:`body_cylinders`
-    face : Face — the worked face (its plane bounds the tool's exempt part)
+    face : Face | None — the worked face (its plane bounds the tool's exempt part; None: no face, the
+        tool is checked like the other bodies, unless it is given no length in ``cylinders``)
     feed_tips : (M, 3) float — mm, the tips of the feed moves in order (the swept region)
     clearance_min : float — mm
     block : int — poses measured at a time
@@ -500,9 +507,13 @@ def _refine(poses: _Poses, refine_max: int, block: int) -> None:
             spent += len(rows)
 
 
-def check_program(machine: Machine, program: JointProgram, setup: Setup, triangles: FloatArray, face: Face,
+def check_program(machine: Machine, program: JointProgram, setup: Setup, triangles: FloatArray, face: Face | None,
                   tool_diameter: float, *, clearance_min: float = 1.0) -> str:
     """Replay ``program`` (verify's FK samples) and check the bodies' clearance from the part.
+
+    ``face`` None: a CAM program's (``convert --part``), whose tool cuts what the CAM program
+    removes, where it removes it: the tool is not checked (its gouges are the CAM system's to
+    check), the holder and the nose are.
 
     Returns
     -------
@@ -530,8 +541,11 @@ def check_program(machine: Machine, program: JointProgram, setup: Setup, triangl
     ok = np.asarray(np.isfinite(tip).all(axis=1) & np.isfinite(axis).all(axis=1), dtype=bool)
     linked = ok & np.concatenate([[False], ok[:-1]])          # the motion from the sample before, both known
     feed_rows = np.flatnonzero(program.kind == MoveKind.FEED)
-    result = clearance(triangles, tip[ok], axis[ok], body_cylinders(tool_diameter, length, machine.holder), face,
-                       tip[rep.end[feed_rows]], clearance_min=clearance_min, connected=linked[ok])
+    bodies = body_cylinders(tool_diameter, length, machine.holder)
+    if face is None:
+        bodies[0, 2] = bodies[0, 1]                             # the tool: not checked
+    result = clearance(triangles, tip[ok], axis[ok], bodies, face, tip[rep.end[feed_rows]],
+                       clearance_min=clearance_min, connected=linked[ok])
     b = result.worst()
     if result.distance[b] < clearance_min:
         row = int(rep.row[np.flatnonzero(ok)[result.sample[b]]])
@@ -540,4 +554,6 @@ def check_program(machine: Machine, program: JointProgram, setup: Setup, triangl
         raise LimitError(f"{program.describe(row)}: the {BODY_NAMES[b]} {what} (clearance min {clearance_min:.3f} mm)")
     shown = ", ".join(f"{name} {'over ' if not exact else ''}{d:.3f} mm" for name, d, exact in zip(
         BODY_NAMES, result.distance.tolist(), result.exact.tolist(), strict=True))
+    if face is None:
+        shown = "tool not checked (it cuts what the CAM program removes), " + shown.split(", ", 1)[1]
     return f"clear of the part by at least {clearance_min:.3f} mm: {shown}"

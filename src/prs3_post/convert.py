@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from prs3_post import __version__
+from prs3_post.collision import check_program
 from prs3_post.config import Dialect, Machine
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.errors import FeatureError, InputError, LimitError, PoseError, Prs3Error, ReachError
@@ -52,7 +53,8 @@ from prs3_post.readers.header import SourceCounts, SourceHeader, file_sha256, so
 from prs3_post.readers.stl import load_part
 from prs3_post.setup import Setup
 from prs3_post.source import SourceConvention
-from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
+from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpath, join_programs
+from prs3_post.types import FloatArray
 from prs3_post.workplane import WorkPlane, WorkPlaneError
 
 #: Input formats: ``auto`` decides by content (:func:`prs3_post.readers.detect.detect_format`).
@@ -85,6 +87,10 @@ class ConvertSettings:
     line_numbers, line_start, line_step : block numbering overrides (None: the dialect's)
     auto_origin, auto_rotation : bool — choose the part origin / the rotation about z for each file
         (:func:`prs3_post.placement.place`: the largest worst-case margin); ``setup`` holds the values kept
+    part : str | None — the part's STL, to check the holder and nose against (None: not checked)
+    part_units, part_up : str — its length unit and up axis (as :func:`prs3_post.readers.stl.load_part`)
+    collision_check : bool — with ``part``, check every program before it is written
+    clearance_min : float — mm, the least distance the holder and nose must keep from the part
     """
 
     machine: Machine
@@ -105,6 +111,11 @@ class ConvertSettings:
     line_step: int | None = None
     auto_origin: bool = False
     auto_rotation: bool = False
+    part: str | None = None
+    part_units: str = "mm"
+    part_up: str = "z"
+    collision_check: bool = True
+    clearance_min: float = 1.0
 
     def __post_init__(self) -> None:
         if self.input_format not in FORMATS:
@@ -370,6 +381,7 @@ class _Run:
     post: PostStream
     rows: int = 0
     results: list[PostResult] = field(default_factory=list)   # each chunk's, when kept (convert_file)
+    programs: list[JointProgram] = field(default_factory=list)   # each chunk's, for the collision check
     placeable: bool = True                              # False: no setup can help the error raised
 
     def chunks(self) -> Iterator[Toolpath]:
@@ -478,12 +490,16 @@ def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) 
     head and the body). The run's :meth:`_Run.report` follows the body."""
     run = _start(path, settings)
     stream = run.post
-    if keep:                                            # keep each chunk's result (tests, verify --against)
-        feed = stream.feed
+    triangles = _part_triangles(settings)
+    if keep or triangles is not None:                   # keep each chunk's result (tests, verify --against)
+        feed = stream.feed                              # or program (the collision check)
 
         def kept(chunk: Toolpath) -> PostResult:
             result = feed(chunk)
-            run.results.append(result)
+            if keep:
+                run.results.append(result)
+            if triangles is not None:
+                run.programs.append(result.program)
             return result
 
         stream.feed = kept  # type: ignore[method-assign]  # a wrapper with the same signature
@@ -501,7 +517,9 @@ def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) 
 
     def head() -> str:
         counts = run.report(stream.finish()).counts()
-        entries = source_header_entries(dataclasses.replace(header, counts=counts), description=description)
+        collision = _collision(run, triangles)
+        entries = source_header_entries(dataclasses.replace(header, counts=counts, collision=collision),
+                                        description=description)
         # the same opening as program_text's (its comments have no block numbers: the body's agree)
         emitter = ProgramEmitter(settings.dialect, stage=settings.ik_machine.stage.present,
                                  line_numbers=settings.line_numbers, line_start=settings.line_start,
@@ -509,6 +527,35 @@ def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) 
         return emitter.begin(entries)
 
     return run, HeadLast(body=body(), head=head)
+
+
+def _part_triangles(settings: ConvertSettings) -> FloatArray | None:
+    """The part's triangles when its programs are to be checked against it (None: not checked)."""
+    if settings.part is None or not settings.collision_check:
+        return None
+    mesh = load_part(settings.part, units=settings.part_units, up=settings.part_up)
+    return np.asarray(mesh.triangles, dtype=np.float64)
+
+
+def _collision(run: _Run, triangles: FloatArray | None) -> str:
+    """The header's ``collision`` entry, the program checked (the holder and the nose: the tool cuts
+    what the CAM program removes, :func:`prs3_post.collision.check_program` with no face).
+
+    Raises
+    ------
+    LimitError
+        ``part.cls:41: the holder hits the part, 2.100 mm deep (clearance min 1.000 mm)``.
+    """
+    settings = run.settings
+    if settings.part is None:
+        return "not checked (no part given)"
+    if triangles is None:
+        return "not checked (asked not to)"
+    parts, run.programs = run.programs, []
+    file = parts[0].source_file if parts else run.path
+    program = join_programs(parts, source_file=file)
+    return check_program(settings.ik_machine, program, settings.setup, triangles, None, 0.0,
+                         clearance_min=settings.clearance_min)
 
 
 def _with_placement(text: Iterator[str], run: _Run) -> Iterator[str]:

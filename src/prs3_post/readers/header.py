@@ -245,6 +245,7 @@ class SourceHeader(_HeaderLines):
     tcp_on, tcp_off : tuple of str — the codes that switched its TCP on and off
     counts : SourceCounts | None — what the input held and the program has (None: a program written
         before the header had them, or a header not yet complete)
+    collision : str — the ``collision`` entry convert writes (written, not read back: "" when read)
     """
 
     version: str
@@ -272,6 +273,7 @@ class SourceHeader(_HeaderLines):
     tcp_on: tuple[str, ...] = ()
     tcp_off: tuple[str, ...] = ()
     counts: SourceCounts | None = None
+    collision: str = ""
 
 
 def file_sha256(path: str) -> str:
@@ -496,6 +498,7 @@ def source_header_entries(header: SourceHeader, *, description: str = "") -> tup
                         f"{'as given' if header.tool_length_given else 'the machine' + chr(39) + 's'}"),
         ("tolerance", f"{exact_text(header.tolerance, 3)} mm, angle {exact_text(header.angle_tolerance_deg, 2)} deg"),
         *([] if header.counts is None else [("counts", header.counts.text())]),
+        *([("collision", header.collision)] if header.collision else []),
         ("units", "mm, G93 inverse time: F = 1/minutes of each move"),
     ]
     return tuple(entries)
