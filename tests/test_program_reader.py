@@ -114,3 +114,42 @@ def test_bulk_rows_keep_modal_state_across_chunks():
         assert np.column_stack([m.stage, m.strokes]).tolist() == [
             [1, 2, 3, 4, 5], [2, 2, 3, 4, 5], [2, 2, 4, 4, 5], [2, 2, 4, 5, 5], [2, 2, 4, 5, 1]]
         assert m.inverse_time.tolist() == [0, 0, 2, 3, 0]
+
+
+def _variants() -> dict[str, bytes]:
+    """wedge-round.ngc with CRLF line ends (all, or a few), a non-ASCII comment, no final line end, a
+    motion line over the dialect's length limit, lower-case words."""
+    lines = (REPO / "fixtures" / "golden" / "wedge-round.ngc").read_bytes().split(b"\n")[:-1]
+    g1 = [i for i, ln in enumerate(lines) if ln.startswith(b"G1 ")]
+    mixed = [ln + b"\r" if i in g1[5:9] or i == 3 else ln for i, ln in enumerate(lines)]
+    accented = [*lines[:g1[20]], "(passe d'ébauche)".encode(), *lines[g1[20]:]]
+    long_line = list(lines)
+    long_line[g1[30]] += b" " * 300
+    lower = list(lines)
+    lower[g1[40]] = lower[g1[40]].lower()
+    return {"crlf": b"\r\n".join(lines) + b"\r\n", "mixed-crlf": b"\n".join(mixed) + b"\n",
+            "non-ascii-no-final-lf": b"\n".join(accented), "too-long": b"\n".join(long_line) + b"\n",
+            "lower-case": b"\n".join(lower) + b"\n"}
+
+
+@pytest.mark.parametrize("name", list(_variants()))
+@pytest.mark.parametrize(("chunk_lines", "piece_bytes"), [(1, 5), (7, 100), (64, 1000), (10_000, 1 << 22)])
+def test_stream_reads_bytes_as_the_whole_read_reads_text(tmp_path, name, chunk_lines, piece_bytes):
+    """The stream lexes undecoded bytes; line ends, CRs, non-ASCII text and errors come out as from the text."""
+    path = tmp_path / f"{name}.ngc"
+    path.write_bytes(_variants()[name])
+    dialect = load_dialect("linuxcnc")
+    stream = ProgramStream(str(path), dialect, chunk_lines=chunk_lines, piece_bytes=piece_bytes)
+    try:
+        whole = load_program(str(path), dialect)
+    except InputError as error:
+        with pytest.raises(InputError) as streamed:
+            list(stream)
+        assert str(streamed.value) == str(error)
+        assert name == "too-long"
+        assert str(error) == f"{path}:57: the line is 360 characters, dialect linuxcnc allows 252"
+        return
+    chunks = list(stream)
+    assert _rows(join_programs(chunks)) == _rows(whole.moves) and len(whole.moves) > 190
+    assert (stream.end_line, stream.blending_lines, stream.line_count) == (whole.end_line, whole.blending_lines,
+                                                                           len(whole.lines))

@@ -49,11 +49,11 @@ import numpy as np
 import numpy.typing as npt
 
 from prs3_post.errors import LexError
-from prs3_post.types import BoolArray, FloatArray
+from prs3_post.types import BoolArray, FloatArray, IntArray
 
 __all__ = [
     "BYTE_ORDER_MARK", "EMPTY", "LINUXCNC_COMMENTS", "NUMBER", "Word", "code_name", "column_pattern", "decode",
-    "forward_fill", "lex_columns", "lex_line",
+    "forward_fill", "lex_column_block", "lex_columns", "lex_line",
     "lex_words", "quote", "split_comments",
 ]
 
@@ -278,26 +278,61 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
     by numpy's text reader (``float`` of the same text: correctly rounded).
     """
     column_pattern(letters)                              # checks the letters
-    n, width = len(lines), len(letters)
-    values = np.full((n, width), np.nan)
-    if not n:
-        return values, np.zeros(0, dtype=bool)
-    byte_class, rank_of, bad_pair, delimiter, dot, blank = _tables(letters)
+    if not lines:
+        return np.full((0, len(letters)), np.nan), np.zeros(0, dtype=bool)
     text = ("\n" + "\n".join(lines) + "\n").encode("ascii", errors="replace")    # byte 0: the line start
+    values, read, _ = _lex_text(text, letters)
+    return values, read
+
+
+def lex_column_block(block: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArray]:
+    """:func:`lex_columns` of the lines of a piece of a file, as bytes: the same values and lines read,
+    without decoding the text and splitting it into lines first.
+
+    Parameters
+    ----------
+    block : bytes — whole lines, each ending in LF (the last one may end at the end of the block); a
+        CR or a non-ASCII byte is not of the regular shape (its line is not read)
+    letters : str — as :func:`lex_columns`
+
+    Returns
+    -------
+    values, read : as :func:`lex_columns`, one row per line (``block.split(b"\\n")`` without the empty
+        piece after a final LF)
+    bounds : (N + 1,) int — line k is ``block[bounds[k]:bounds[k + 1] - 1]`` (without its LF)
+
+    >>> values, read, bounds = lex_column_block(b"G1 X1.5\\n(note)\\nX2", "GX")
+    >>> values.tolist(), read.tolist(), bounds.tolist()
+    ([[1.0, 1.5], [nan, nan], [nan, 2.0]], [True, False, True], [0, 8, 15, 18])
+    """
+    column_pattern(letters)                              # checks the letters
+    if not block:
+        return np.full((0, len(letters)), np.nan), np.zeros(0, dtype=bool), np.zeros(1, dtype=np.int64)
+    return _lex_text(b"\n" + block + (b"" if block.endswith(b"\n") else b"\n"), letters)
+
+
+def _lex_text(text: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArray]:
+    """lex_columns of ``text``: LF, then each line and its LF (every byte not ASCII already one of the
+    bytes that no line of the regular shape has); returns values, read and the LF positions (N + 1,)."""
+    byte_class, rank_of, bad_pair, delimiter, dot, blank = _tables(letters)
     size = len(text)
     data = np.frombuffer(text, dtype=np.uint8)
     delimiters = np.flatnonzero(np.frombuffer(text.translate(delimiter), dtype=np.bool_))    # letters, spaces, ends
     kind = byte_class[data[delimiters]]
     ends = delimiters[kind == _NEWLINE]                  # ends[k + 1] ends line k
+    n, width = len(ends) - 1, len(letters)
+    values = np.full((n, width), np.nan)
     at = np.flatnonzero(kind == _LETTER)
     start = delimiters[at]                               # a word: its letter up to the next delimiter
     stop = delimiters[np.minimum(at + 1, len(delimiters) - 1)]
-    word_line = np.searchsorted(ends, start) - 1
+    # the line of each word: the line ends before its letter (a running count over the delimiters)
+    word_line = (np.cumsum(kind == _NEWLINE) - 1)[at]
     bad = np.zeros(n, dtype=bool)
     # every byte after byte 0 allowed after the one before it (a line end belongs to the line it ends)
     even = np.flatnonzero(bad_pair[np.frombuffer(text, dtype="<u2", count=size // 2)])
     odd = np.flatnonzero(bad_pair[np.frombuffer(text, dtype="<u2", count=(size - 1) // 2, offset=1)])
-    bad[np.searchsorted(ends, np.concatenate([2 * even + 1, 2 * odd + 2])) - 1] = True
+    if len(even) or len(odd):
+        bad[np.searchsorted(ends, np.concatenate([2 * even + 1, 2 * odd + 2])) - 1] = True
     # a dot has a digit beside it, and its word no other dot (a dot outside every word is on a line
     # with a byte not allowed where it is: not read already)
     dots = np.flatnonzero(np.frombuffer(text.translate(dot), dtype=np.bool_))
@@ -316,18 +351,19 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
     ordered[1:] = (word_line[1:] != word_line[:-1]) | (rank[1:] > rank[:-1])
     bad[word_line[(digits > 15) | ~ordered]] = True
     read = ~bad
-    keep = read[word_line]
     # the values: the letters blanked (and the lines not read), the numbers read by numpy's text reader
     numbers = text.translate(blank)
     if bad.any():
+        keep = read[word_line]
         masked = np.frombuffer(numbers, dtype=np.uint8).copy()
         masked[1:][np.repeat(bad, np.diff(ends))] = _SPACE_BYTE
         numbers = masked.tobytes()
-    value = np.fromstring(numbers, sep=" ") if keep.any() else np.zeros(0)
-    if len(value) != int(keep.sum()):
-        raise AssertionError(f"lex_columns: {len(value)} numbers for {int(keep.sum())} words")
-    values[word_line[keep], rank[keep] - 1] = value
-    return values, read
+        word_line, rank = word_line[keep], rank[keep]
+    value = np.fromstring(numbers, sep=" ") if len(word_line) else np.zeros(0)
+    if len(value) != len(word_line):
+        raise AssertionError(f"lex_columns: {len(value)} numbers for {len(word_line)} words")
+    values[word_line, rank - 1] = value
+    return values, read, ends
 
 
 #: Byte classes of lex_columns.

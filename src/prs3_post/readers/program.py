@@ -40,7 +40,7 @@ Every move keeps its 1-based line number (``JointProgram.source``), for the repo
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -55,13 +55,14 @@ from prs3_post.readers.lexer import (
     code_name,
     decode,
     forward_fill,
+    lex_column_block,
     lex_columns,
     lex_words,
     quote,
     split_comments,
 )
 from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind, join_programs
-from prs3_post.types import FloatArray, IntArray
+from prs3_post.types import BoolArray, FloatArray, IntArray
 
 __all__ = ["ALLOWED_G", "ALLOWED_M", "CHUNK_LINES", "ProgramFile", "ProgramStream", "load_program", "read_program"]
 
@@ -83,6 +84,8 @@ MAX_AXIS_MM = 1e6
 CHUNK_LINES = 16384
 #: Bytes read from the file at a time.
 _PIECE_BYTES = 1 << 20
+#: The line feed byte.
+_LF = 10
 
 
 @dataclass(frozen=True, slots=True)
@@ -143,6 +146,14 @@ def text_from_bytes(data: bytes, path: str) -> str:
     """
     try:
         return decode(data)
+    except LexError as exc:
+        raise InputError(str(exc), path=path) from exc
+
+
+def text_from_bytes_at(data: bytes, path: str, offset: int) -> str:
+    """:func:`text_from_bytes` of a piece of a file that starts at ``offset`` (a line start)."""
+    try:
+        return decode(data, offset=offset)
     except LexError as exc:
         raise InputError(str(exc), path=path) from exc
 
@@ -251,21 +262,24 @@ class ProgramStream:
         self.check()
         reader = _Reader(self.dialect, self.path, self.stage)
         number = 1
-        pending: list[str] = []
-        pending_crlf: list[bool] = []
-        for offset, piece in self._pieces():
-            lines, crlf = _split_lines(decode(piece, offset=offset))
-            pending += lines
-            pending_crlf += crlf
-            while len(pending) >= self.chunk_lines:
-                reader.lines(number, pending[:self.chunk_lines], pending_crlf[:self.chunk_lines])
-                number += self.chunk_lines
-                del pending[:self.chunk_lines], pending_crlf[:self.chunk_lines]
+        size = self.chunk_lines
+        pending, pending_at = b"", 0                   # whole lines not handed out yet, and their offset
+        for offset, piece in self._pieces():           # bytes: lines of the regular shape are read undecoded
+            block = pending + piece if pending else piece
+            at = offset - len(pending)
+            line_ends = np.flatnonzero(np.frombuffer(block, dtype=np.uint8) == _LF)
+            cut, used = 0, 0
+            while len(line_ends) - used >= size:
+                stop = int(line_ends[used + size - 1]) + 1
+                reader.block(number, block[cut:stop], at + cut)
+                number += size
+                used += size
+                cut = stop
                 if len(chunk := reader.take()) or chunk.events:
                     yield chunk
+            pending, pending_at = block[cut:], at + cut
         if pending:
-            reader.lines(number, pending, pending_crlf)
-            number += len(pending)
+            number += reader.block(number, pending, pending_at)
         chunk = reader.take()
         reader.finish(number - 1)
         if len(chunk) or chunk.events:
@@ -329,16 +343,41 @@ class _Reader:
             return
         values, fast = lex_columns(lines, self.bulk_letters)
         fast &= np.fromiter(map(len, lines), dtype=np.int64, count=len(lines)) < self.dialect.max_line_length
+        self.runs(first, values, fast, lambda a, b: lines[a:b], lambda a, b: crlf[a:b])
+
+    def block(self, first: int, data: bytes, offset: int) -> int:
+        """Lines ``first``, ``first + 1``, ... as the file's bytes from ``offset`` on (whole lines; the last
+        may end at the end of the file), as :meth:`lines` reads them decoded; returns their number.
+
+        Runs of lines of the emitter's motion shape go to :meth:`bulk` without being decoded; the
+        others are decoded (:func:`~prs3_post.readers.lexer.decode`) and read by :meth:`line`. A
+        piece with a CR goes to :meth:`lines` whole (its CRLF line ends count towards the lengths).
+        """
+        if b"\r" in data:
+            lines, crlf = _split_lines(text_from_bytes_at(data, self.path, offset))
+            self.lines(first, lines, crlf)
+            return len(lines)
+        values, fast, bounds = lex_column_block(data, self.bulk_letters)
+        fast &= np.diff(bounds) - 1 < self.dialect.max_line_length      # ASCII where read: bytes are characters
+        self.runs(first, values, fast, lambda a, b: _split_lines(text_from_bytes_at(
+            data[bounds[a]:bounds[b]], self.path, offset + int(bounds[a])))[0], lambda a, b: [False] * (b - a))
+        return len(fast)
+
+    def runs(self, first: int, values: FloatArray, fast: BoolArray, text: Callable[[int, int], list[str]],
+             crlf: Callable[[int, int], list[bool]]) -> None:
+        """Lines ``first``... from :func:`~prs3_post.readers.lexer.lex_columns` (``values``, ``fast``: read
+        and short enough): runs of the motion shape to :meth:`bulk`, the others (and a run it refuses)
+        to :meth:`line`, with the text of lines ``a:b`` from ``text(a, b)``, their CRLF flags from ``crlf``."""
         g = values[:, 1]
         fast &= np.isnan(g) | (g == 0.0) | (g == 1.0)
         fast &= ~np.isnan(values[:, 1:]).all(axis=1)   # a G0/G1 or an axis word (not only N, nor blank)
         edges = np.flatnonzero(np.diff(fast.astype(np.int8))) + 1
-        bounds = [0, *edges.tolist(), len(lines)]
+        bounds = [0, *edges.tolist(), len(fast)]
         for a, b in itertools.pairwise(bounds):
             ended = self.end_line is not None or self.percent >= 2      # the careful reader says what is wrong
             if not (fast[a] and not ended and self.bulk(first + a, values[a:b])):
-                for i in range(a, b):
-                    self.line(first + i, lines[i], crlf=crlf[i])
+                for i, (line, cr) in enumerate(zip(text(a, b), crlf(a, b), strict=True)):
+                    self.line(first + a + i, line, crlf=cr)
 
     def bulk(self, first: int, values: FloatArray) -> bool:
         """Lines ``first``... of the motion shape (``values`` (k, 8): N, G, the five axes, F, NaN where
