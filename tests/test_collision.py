@@ -38,8 +38,8 @@ def test_hole_forty_mm_from_the_wall_passes_and_the_header_says_the_clearances(t
     result = CliRunner().invoke(main, ["run", str(WALL), "--profile", "hole", "--at", "8.1,0", "-o", str(out)])
     assert result.exit_code == 0, result.output
     assert [ln for ln in out.read_text().split("\n") if ln.startswith("(collision:")] == [
-        "(collision: clear of the part by at least 1.000 mm: tool over 11.000 mm, holder over 4.799 mm, "
-        "spindle nose over 11.000 mm)"]
+        "(collision: clear of the part by at least 1.000 mm: tool over 11.000 mm, holder over 3.049 mm, "
+        "spindle nose over 3.000 mm)"]
 
 
 def test_no_collision_check_is_stated_in_the_header(tmp_path):
@@ -211,7 +211,7 @@ def test_convert_with_part_checks_the_holder_and_nose_before_writing(tmp_path):
     assert result.exit_code == 0, result.output
     assert _collision_line(program) == [
         "(collision: clear of the part by at least 1.000 mm: tool not checked [it cuts what the CAM program removes], "
-        "holder over 3.799 mm, spindle nose over 11.000 mm)"]
+        "holder over 3.799 mm, spindle nose over 3.000 mm)"]
 
 
 def test_convert_with_part_refuses_a_holder_in_the_wall_naming_file_line_body_and_depth(tmp_path):

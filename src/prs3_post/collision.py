@@ -27,7 +27,8 @@ How, in three stages (numpy only):
    are near the part, not poses × triangles.
 2. **Exact where it matters.** A pose whose bound is under ``clearance_min`` is measured on its
    bodies' surfaces: rings every ``RING_SPACING_MM`` along each, ``AZIMUTHS`` points per ring, and
-   rings on its end discs, against the triangles near them (exact point–triangle distances); the
+   rings on its end discs, against the triangles whose pair bound was under ``clearance_min`` + 2 mm
+   (exact point–triangle distances; farther, the body is "over" that); the
    sampling makes a cylinder facing a plane at most ``r (1 − cos(π / AZIMUTHS))`` (0.19 mm for the
    holder) closer than the points say. Poses are measured closest bound first; once a body is
    found too close, ``AFTER_HIT`` more blocks at most (its depth is the deepest of those), and the
@@ -270,13 +271,16 @@ def _pose_pairs(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArr
 
 
 def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, pieces: FloatArray, *,
-            reach: float, near: float) -> FloatArray:
+            reach: float, near: float) -> tuple[FloatArray, IntArray, IntArray]:
     """(S, 3) mm: a lower bound of each body's clearance at each pose (at most ``reach``), coarse to
-    fine (module docstring, stage 1)."""
+    fine (module docstring, stage 1); and the (pose × 3 + body, triangle) pairs whose bound is under
+    ``near`` (the triangles a measurement of that body there needs: the others are that far), sorted."""
     n_pose, n_piece, n_tri = len(tip), len(pieces), len(part.triangles)
     out = np.full((n_pose, 3), reach)
+    keys: list[IntArray] = []
+    tris: list[IntArray] = []
     if not n_pose or not n_tri:
-        return out
+        return out, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     centre = 0.5 * (pieces[:, 1] + pieces[:, 2])
     half = np.hypot(pieces[:, 0], 0.5 * (pieces[:, 2] - pieces[:, 1]))
     tool = pieces[:, 3] == 0
@@ -290,7 +294,11 @@ def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, 
         if size == 1:
             for k in range(0, len(g), _CHUNK):
                 s_, q_, t_ = g[k:k + _CHUNK], q[k:k + _CHUNK], t[k:k + _CHUNK]
-                np.minimum.at(out, (s_, body[q_]), _pose_pairs(part, tip, axis, cutting, pieces, s_, q_, t_, near))
+                bound = _pose_pairs(part, tip, axis, cutting, pieces, s_, q_, t_, near)
+                np.minimum.at(out, (s_, body[q_]), bound)
+                close = bound < near
+                keys.append(s_[close] * 3 + body[q_[close]])
+                tris.append(t_[close])
             break
         first = np.arange(0, n_pose, size)
         owner = np.arange(n_pose) // size
@@ -311,7 +319,10 @@ def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, 
         q, t = np.repeat(q[keep], ratio), np.repeat(t[keep], ratio)
         fits = g * LEVELS[level + 1] < n_pose
         g, q, t = g[fits], q[fits], t[fits]
-    return out
+    key = np.concatenate([np.zeros(0, dtype=np.int64), *keys])
+    tri = np.concatenate([np.zeros(0, dtype=np.int64), *tris])
+    pair = np.unique(key * n_tri + tri).astype(np.int64)
+    return out, (pair // n_tri).astype(np.int64), (pair % n_tri).astype(np.int64)
 
 
 def _signed(points: FloatArray, part: _Part, cutting: BoolArray, face: Face | None, reach: float,
@@ -359,13 +370,14 @@ class _Poses:
         self.exact = np.zeros((0, 3), dtype=bool)
         self.point = np.zeros((0, 3, 3))
         self.found = np.full(3, np.inf)                 # the smallest clearance measured, per body
+        self.near = clearance_min + 2.0                 # measured as far as this (farther: "over" it)
+        self.pairs: list[tuple[IntArray, IntArray]] = []   # per add(): (pose × 3 + body, triangle), sorted
 
     def add(self, tip: FloatArray, axis: FloatArray, origin: IntArray, *, starts: BoolArray) -> IntArray:
         """Add poses, bound them and measure those that may be too close; their indices. ``starts``:
         the poses that no checked motion leads to (a body inside the part there is looked for)."""
         cutting = self.region.contains(tip)
-        value = _bounds(self.part, tip, axis, cutting, self.pieces, reach=self.reach,
-                        near=self.clearance_min + 2.0)
+        value, key, tri = _bounds(self.part, tip, axis, cutting, self.pieces, reach=self.reach, near=self.near)
         value[:, self.unchecked] = np.inf
         first = np.flatnonzero(starts)
         if len(first):                                  # a body inside the part with nothing near it
@@ -376,6 +388,7 @@ class _Poses:
             for k in range(len(self.pieces)):
                 value[first[hit[:, k]], int(self.pieces[k, 3])] = -np.inf
         at = len(self.tip)
+        self.pairs.append((key + 3 * at, tri))
         self.tip, self.axis = np.concatenate([self.tip, tip]), np.concatenate([self.axis, axis])
         self.cutting = np.concatenate([self.cutting, cutting])
         self.origin = np.concatenate([self.origin, origin])
@@ -396,10 +409,42 @@ class _Poses:
                 self.measure(rows, b)
         return mine
 
+    def triangles_near(self, row: int, b: int) -> IntArray:
+        """The triangles within :attr:`near` of body ``b`` at pose ``row``, as the bounds found them."""
+        key = 3 * row + b
+        for keys, tris in self.pairs:
+            if len(keys) and keys[0] <= key <= keys[-1]:
+                return tris[np.searchsorted(keys, key, "left"):np.searchsorted(keys, key, "right")]
+        return np.zeros(0, dtype=np.int64)
+
+    def measure_near(self, r: int, b: int, world: FloatArray) -> FloatArray:
+        """(P,) mm: :func:`_signed` of body ``b``'s points ``world`` at pose ``r``, against the
+        triangles near it only (at most :attr:`near`: the others are farther)."""
+        part, near = self.part, self.near
+        tris = self.triangles_near(r, b)
+        cut = bool(self.cutting[r]) and b == 0
+        if cut:
+            tris = tris[part.others[tris]]
+        box = ((world[:, None, :] >= part.low[tris] - near) & (world[:, None, :] <= part.high[tris] + near)).all(-1)
+        point, pair = np.nonzero(box)                   # outside a triangle's box widened by near: that far
+        corner = part.triangles[tris[pair]]
+        dist = np.full(len(world), near)
+        np.minimum.at(dist, point, triangle_distance(world[point], corner[:, 0], corner[:, 1], corner[:, 2]))
+        if self.value[r, b] <= 0.0:                     # the bound does not say all outside
+            inner = inside(world, part.triangles)
+            deep = np.flatnonzero(inner & (dist >= near))
+            if len(deep):
+                pool = part.triangles[part.others] if cut else part.triangles
+                dist[deep] = point_triangle_distance(world[deep], pool).min(axis=1, initial=np.inf)
+            dist = np.where(inner, -dist, dist)
+        if cut and self.face is not None:
+            dist = np.where((world - self.face.origin) @ self.face.normal < part.band, np.inf, dist)
+        return dist
+
     def measure(self, rows: IntArray, b: int, block: int = 64, *, reach: float | None = None) -> None:
-        """Measure body ``b`` at poses ``rows`` on its surface points (as far as ``reach``, default the
-        check's: a body farther from the part is at least that far)."""
-        reach = self.reach if reach is None else reach
+        """Measure body ``b`` at poses ``rows`` on its surface points, against the triangles near it (as
+        far as :attr:`near`: a body farther is at least that far), or with ``reach`` against every
+        triangle as far as that."""
         mine = self.local[self.body == b]
         x, y = _frames(self.axis[rows]) if len(rows) else (np.zeros((0, 3)), np.zeros((0, 3)))
         for k in range(0, len(rows), block):
@@ -407,13 +452,18 @@ class _Poses:
             xr, yr = x[k:k + block], y[k:k + block]
             world = (self.tip[r, None] + mine[None, :, :1] * xr[:, None] + mine[None, :, 1:2] * yr[:, None]
                      + mine[None, :, 2:] * self.axis[r, None])                    # (s, p, 3)
-            cut = np.repeat(self.cutting[r], len(mine)) if b == 0 else np.zeros(len(r) * len(mine), dtype=bool)
-            outside = np.repeat(self.value[r, b] > 0.0, len(mine))          # the bound says: all outside
-            dist = _signed(world.reshape(-1, 3), self.part, cut, self.face, reach, outside).reshape(len(r), -1)
+            if reach is None:
+                dist = np.stack([self.measure_near(int(i), b, w) for i, w in zip(r, world, strict=True)])
+            else:
+                cut = np.repeat(self.cutting[r], len(mine)) if b == 0 else np.zeros(len(r) * len(mine), dtype=bool)
+                outside = np.repeat(self.value[r, b] > 0.0, len(mine))          # the bound says: all outside
+                dist = _signed(world.reshape(-1, 3), self.part, cut, self.face, reach, outside).reshape(len(r), -1)
             best = np.argmin(dist, axis=1)
-            self.value[r, b] = dist[np.arange(len(r)), best]
-            self.point[r, b] = world[np.arange(len(r)), best]
-            self.exact[r, b] = self.value[r, b] < reach
+            measured = dist[np.arange(len(r)), best]
+            exact = measured < (self.near if reach is None else reach)
+            self.value[r, b] = np.where(exact, measured, np.maximum(measured, self.value[r, b]))  # two bounds
+            self.point[r, b] = np.where(exact[:, None], world[np.arange(len(r)), best], self.point[r, b])
+            self.exact[r, b] = exact
             self.found[b] = min(self.found[b], float(self.value[r, b].min()))
 
 
