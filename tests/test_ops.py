@@ -270,7 +270,12 @@ def test_check_fits_far_outside_and_inside() -> None:
         (dict(retract=1.0), "--retract must be ≥ --clearance (got --retract 1.000 mm < --clearance 2.000 mm)"),
         (
             dict(peck=0.5),
-            "--reapproach-gap must be < --peck when pecking (got --reapproach-gap 0.500 mm ≥ --peck 0.500 mm; "
+            "--reapproach-gap must be < --peck when pecking (got --reapproach-gap 0.5 mm ≥ --peck 0.5 mm; "
+            "use a smaller gap, a larger peck, or --peck 0 for no pecking)",
+        ),
+        (
+            dict(peck=1e-9),                       # was printed as '--peck 0.000 mm'
+            "--reapproach-gap must be < --peck when pecking (got --reapproach-gap 0.5 mm ≥ --peck 1e-09 mm; "
             "use a smaller gap, a larger peck, or --peck 0 for no pecking)",
         ),
         (dict(reapproach_gap=-0.1), "--reapproach-gap must be ≥ 0 mm (got -0.1)"),

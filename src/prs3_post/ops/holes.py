@@ -83,7 +83,7 @@ class HoleParams:
         if self.peck > 0 and self.reapproach_gap >= self.peck:
             raise FeatureError(
                 f"--reapproach-gap must be < --peck when pecking "
-                f"(got --reapproach-gap {self.reapproach_gap:.3f} mm ≥ --peck {self.peck:.3f} mm; "
+                f"(got --reapproach-gap {self.reapproach_gap:.6g} mm ≥ --peck {self.peck:.6g} mm; "
                 f"use a smaller gap, a larger peck, or --peck 0 for no pecking)"
             )
 
