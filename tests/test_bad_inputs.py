@@ -167,7 +167,7 @@ def test_numbers_are_plain_decimals_of_meaningful_size(tmp_path: Path, monkeypat
 
 @pytest.mark.parametrize("value", ["12.5", "-0.25", ".5", "5.", "+3", "1e-3", "2E+1"])
 def test_plain_decimals_are_accepted(value: str) -> None:
-    result = invoke(*DEMO_ARGS, "--rotation", value, "--dwell", "0.5")
+    result = invoke("demo", "--profile", "square", "--rotation", value, "--ramp-angle", "2.5")
     assert result.exit_code == 0, result.stderr
 
 

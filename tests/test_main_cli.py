@@ -380,3 +380,66 @@ def test_a_program_failing_while_it_is_written_leaves_nothing(tmp_path, monkeypa
     assert result.output.splitlines()[-1] == "prs3-post: error: row 9: made to fail"
     assert "G1" not in result.stdout
     assert out.read_text() == "old\n" and sorted(p.name for p in tmp_path.iterdir()) == ["old.ngc"]
+
+
+COMMANDS = "convert, demo, faces, fk, ik, job, machines, preview, run, sources, verify"
+
+
+@pytest.mark.parametrize(("word", "hint"), [("verfy", "did you mean 'verify'? "), ("nosuchcommand", "")])
+def test_a_mistyped_command_is_not_read_as_a_part(word: str, hint: str) -> None:
+    result = invoke(word, "x.ngc")
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == ("Usage: prs3-post [OPTIONS] COMMAND [ARGS]...\nTry 'prs3-post --help' for help.\n\n"
+                             f"Error: no such command or file '{word}' ({hint}commands: {COMMANDS}; or a part file: "
+                             "prs3-post PART.stl --profile ...)\n")
+
+
+def test_a_negative_clearance_min_is_refused(tmp_path: Path) -> None:
+    out = tmp_path / "p.ngc"
+    result = invoke("demo", "--profile", "hole", "--clearance-min", "-1", "-o", str(out))
+    assert (result.exit_code, result.stderr) == (2, _usage(
+        "Invalid value for '--clearance-min': -1 mm is out of range (allowed: 0 to 1e+06 mm)", "demo", ""))
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(("lines", "message"), [
+    ('[[operation]]\nprofile = "hole"\ntool = 0\n',
+     "operation[1].tool: must be 1..99999 with dialect linuxcnc (its words.tool_number_max), got 0"),
+    ('line_numbers = true\nline_start = 99999\nline_step = 5\n[[operation]]\nprofile = "hole"\n',
+     "line_start: line_start 99999 + line_step 5 passes dialect linuxcnc's largest block number 99999: every block "
+     "would get the same number"),
+])
+def test_a_job_files_value_is_named_by_its_key(tmp_path: Path, lines: str, message: str) -> None:
+    job = tmp_path / "job.toml"
+    job.write_text(f'part = "{REPO / WEDGE}"\n{lines}', encoding="utf-8")
+    out = tmp_path / "p.ngc"
+    result = invoke("job", str(job), "-o", str(out))
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == f"prs3-post: error: {job}: {message}\n"
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--profile", "square", "--diameter", "20"],
+     "--profile square does not use --diameter (round only): leave it out"),
+    (["--profile", "round", "--peck", "1", "--dwell", "2"],
+     "--profile round does not use --peck (hole only), --dwell (hole only): leave them out"),
+    (["--profile", "hole", "--step-down", "1"], "--profile hole does not use --step-down (square and round only): "
+                                                "leave it out"),
+])
+def test_an_option_the_profile_ignores_is_refused(tmp_path: Path, args: list[str], message: str) -> None:
+    out = tmp_path / "p.ngc"
+    result = invoke("demo", *args, "-o", str(out))
+    assert (result.exit_code, result.stderr) == (2, _usage(message, "demo", ""))
+    assert not out.exists()
+
+
+def test_a_job_files_key_the_profile_ignores_is_refused(tmp_path: Path) -> None:
+    job = tmp_path / "job.toml"
+    job.write_text(f'part = "{REPO / WEDGE}"\n[[operation]]\nprofile = "round"\npeck = 2.0\n', encoding="utf-8")
+    out = tmp_path / "p.ngc"
+    result = invoke("job", str(job), "-o", str(out))
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == (f"prs3-post: error: {job}: operation[1]: profile round does not use peck (hole only): "
+                             "remove it\n")
+    assert not out.exists()

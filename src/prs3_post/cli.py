@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import difflib
 import json
 import math
 import os
@@ -41,7 +42,7 @@ from prs3_post.convert import (
 from prs3_post.errors import ConfigError, FeatureError, InputError, Prs3Error, Prs3Warning, ReachError
 from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
 from prs3_post.job import HoleJob, JobProgram, JobSpec, Operation, ProfileJob, check_job, check_operations
-from prs3_post.jobfile import JobFile, read_job_file
+from prs3_post.jobfile import OPERATION_KEYS, JobFile, read_job_file
 from prs3_post.kinematics import IKModel, forward, inverse, unit_axes
 from prs3_post.limits import check_limits
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
@@ -349,6 +350,12 @@ class _MainGroup(click.Group):
 
     def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
         if args and not args[0].startswith("-") and args[0] not in self.commands:
+            first = args[0]
+            if not (Path(first).suffix or os.sep in first or os.path.lexists(first)):    # a word, not a file
+                near = difflib.get_close_matches(first, list(self.commands), n=1)
+                hint = f"did you mean '{near[0]}'? " if near else ""
+                ctx.fail(f"no such command or file {_shown(first)} ({hint}commands: {', '.join(sorted(self.commands))};"
+                         " or a part file: prs3-post PART.stl --profile ...)")
             args = ["run", *args]
         return super().parse_args(ctx, args)
 
@@ -605,7 +612,7 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
         click.option("--collision-check/--no-collision-check", default=True, show_default=True,
                      help="Check that the tool, holder and spindle nose stay clear of the part (the machine's "
                           "[holder]) before writing; the header says when it was skipped."),
-        click.option("--clearance-min", type=Decimal(LENGTH), default=1.0, show_default=True,
+        click.option("--clearance-min", type=Decimal(LENGTH, low=0.0), default=1.0, show_default=True,
                      help="Least distance the tool, holder and spindle nose keep from the part, mm."),
         click.option("-o", "--output", "out_path", type=OutputPath(),
                      help="Program file (written to a temp file, then renamed). Default: standard output."),
@@ -618,8 +625,38 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
     return func
 
 
+#: The main job's options that only some profiles use: given with another, they would be ignored.
+_PROFILE_ONLY = {
+    "peck": ("hole",), "reapproach_gap": ("hole",), "dwell": ("hole",), "size": ("square",),
+    "corner_radius": ("square",), "rotation": ("square",), "diameter": ("round",),
+    "side": ("square", "round"), "step_down": ("square", "round"), "direction": ("square", "round"),
+    "entry": ("square", "round"), "ramp_angle": ("square", "round"),
+}
+
+
+def _unused_by(profile: str, names: list[str]) -> list[str]:
+    """Of the option names given, those ``--profile profile`` does not use."""
+    return [name for name in names if profile not in _PROFILE_ONLY.get(name, (profile,))]
+
+
+def _for_profiles(name: str) -> str:
+    """``(hole only)``, ``(square and round only)``: the profiles that use an option."""
+    return f"({' and '.join(_PROFILE_ONLY[name])} only)"
+
+
+def _refuse_unused_options(profile: str) -> None:
+    """A usage error for options the main job was given that ``--profile`` ignores (``--diameter`` on a square)."""
+    ctx = click.get_current_context()
+    unused = _unused_by(profile, [name for name in _PROFILE_ONLY if _given(ctx, name)])
+    if unused:
+        flags = ", ".join(f"--{name.replace('_', '-')} {_for_profiles(name)}" for name in unused)
+        raise click.UsageError(f"--profile {profile} does not use {flags}: leave {'it' if len(unused) == 1 else 'them'}"
+                               " out")
+
+
 def _run_job(part: str, **opts: Any) -> int:
     """Build the JobSpec from the options, check the job, write the program (and its preview)."""
+    _refuse_unused_options(opts["profile"])
     spec = _job_spec(part, opts)
     fmt = _image_format(opts["preview_path"]) if opts["preview_path"] else None
     try:
@@ -832,6 +869,11 @@ def _job_specs(job: JobFile) -> tuple[JobSpec, ...]:
     for number, operation in enumerate(job.operations, start=1):
         opts = dict(base)
         where = f"operation[{number}]"
+        unused = _unused_by(str(operation["profile"]), [key for key in operation if key in _PROFILE_ONLY])
+        if unused:
+            raise InputError(f"{where}: profile {operation['profile']} does not use "
+                             f"{', '.join(f'{key} {_for_profiles(key)}' for key in unused)}: remove "
+                             f"{'it' if len(unused) == 1 else 'them'}", path=job.path)
         for key, value in operation.items():
             name = _JOB_KEY_OPTION.get(key, key)
             try:
@@ -844,14 +886,23 @@ def _job_specs(job: JobFile) -> tuple[JobSpec, ...]:
                 opts["tool_diameter"] = tool.diameter
         try:
             spec = _job_spec(job.part, opts)
+        except click.BadParameter as error:            # one option's value: name the job file's key
+            key = _job_keys(error.param_hint.strip("'")) if isinstance(error.param_hint, str) else ""
+            at = f"{where}.{key}" if key in OPERATION_KEYS else key if key in _JOB_SETTING_OPTION else ""
+            if at:
+                raise InputError(f"{at}: {_job_keys(error.message)}", path=job.path) from error
+            raise InputError(f"{where}: {error.format_message()}", path=job.path) from error
         except click.ClickException as error:
             raise InputError(f"{where}: {error.format_message()}", path=job.path) from error
         except FeatureError as error:                  # worded for the options: say the job file's keys
-            named = re.sub(r"--([a-z-]+)", lambda m: _JOB_KEY_OF.get(m.group(1), m.group(1).replace("-", "_")),
-                           str(error))
-            raise InputError(f"{where}: {named}", path=job.path) from error
+            raise InputError(f"{where}: {_job_keys(str(error))}", path=job.path) from error
         specs.append(dataclasses.replace(spec, tool_table=table))
     return tuple(specs)
+
+
+def _job_keys(text: str) -> str:
+    """A message worded for the options, with the job file's keys instead (``--tool-number`` → ``tool``)."""
+    return re.sub(r"--([a-z-]+)", lambda m: _JOB_KEY_OF.get(m.group(1), m.group(1).replace("-", "_")), text)
 
 
 def _option_default(ctx: click.Context, param: click.Parameter) -> Any:
