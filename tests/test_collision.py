@@ -146,6 +146,21 @@ def test_a_program_of_more_than_20000_poses_is_checked():
                                 "(clearance min 18.000 mm)")
 
 
+def test_the_replay_in_pieces_gives_the_samples_of_one_replay(monkeypatch):
+    import prs3_post.collision as collision
+    from prs3_post.toolpath import MoveKind
+    from prs3_post.verify import replay
+
+    program = _round_pocket(0.5)[0]
+    whole = replay(MACHINE, program)
+    monkeypatch.setattr(collision, "REPLAY_ROWS", 1000)
+    row, tip, axis, feed = collision._replayed(MACHINE, program)
+    assert len(program) > 3000 and row.tolist() == whole.row.tolist()
+    np.testing.assert_array_equal(tip, whole.tip)
+    np.testing.assert_array_equal(axis, whole.axis)
+    np.testing.assert_array_equal(feed, whole.tip[whole.end[program.kind == MoveKind.FEED]])
+
+
 def test_a_job_transition_through_the_part_is_refused(tmp_path):
     # a 20 mm block hangs 160 mm above the face's origin along its normal: beyond the nose over the
     # first hole, but in the way of the lift to the job's safe height (which it raises)

@@ -576,8 +576,6 @@ def check_program(machine: Machine, program: JointProgram, setup: Setup, triangl
         ``...: the tool comes within 0.400 mm of the part (clearance min 1.000 mm)``.
     """
     from prs3_post.errors import LimitError
-    from prs3_post.toolpath import MoveKind
-    from prs3_post.verify import replay
 
     if machine.holder is None:
         return "not checked: no [holder] in the machine file"
@@ -586,19 +584,18 @@ def check_program(machine: Machine, program: JointProgram, setup: Setup, triangl
         raise LimitError(f"the tool sticks out {length:.3f} mm below the gauge line, not more than the holder's "
                          f"length {machine.holder.holder_length:.3f} mm: the holder would cut (a longer tool, or "
                          "a shorter holder in the machine file)")
-    rep = replay(machine, program)
-    tip, axis = setup.points_to_part(rep.tip), setup.axes_to_part(rep.axis)
+    sample_row, tip, axis, feed_tips = _replayed(machine, program)
+    tip, axis = setup.points_to_part(tip), setup.axes_to_part(axis)
     ok = np.asarray(np.isfinite(tip).all(axis=1) & np.isfinite(axis).all(axis=1), dtype=bool)
     linked = ok & np.concatenate([[False], ok[:-1]])          # the motion from the sample before, both known
-    feed_rows = np.flatnonzero(program.kind == MoveKind.FEED)
     bodies = body_cylinders(tool_diameter, length, machine.holder)
     if face is None:
         bodies[0, 2] = bodies[0, 1]                             # the tool: not checked
-    result = clearance(triangles, tip[ok], axis[ok], bodies, face, tip[rep.end[feed_rows]],
+    result = clearance(triangles, tip[ok], axis[ok], bodies, face, setup.points_to_part(feed_tips),
                        clearance_min=clearance_min, connected=linked[ok])
     b = result.worst()
     if result.distance[b] < clearance_min:
-        row = int(rep.row[np.flatnonzero(ok)[result.sample[b]]])
+        row = int(sample_row[np.flatnonzero(ok)[result.sample[b]]])
         d = float(result.distance[b])
         what = (f"hits the part, {-d:.3f} mm deep" if d < 0 else f"comes within {d:.3f} mm of the part")
         raise LimitError(f"{program.describe(row)}: the {BODY_NAMES[b]} {what} (clearance min {clearance_min:.3f} mm)")
@@ -607,3 +604,32 @@ def check_program(machine: Machine, program: JointProgram, setup: Setup, triangl
     if face is None:
         shown = "tool not checked (it cuts what the CAM program removes), " + shown.split(", ", 1)[1]
     return f"clear of the part by at least {clearance_min:.3f} mm: {shown}"
+
+
+#: Program rows replayed at a time by :func:`check_program` (the replay's limit tables are what
+#: costs memory; the check keeps only the samples' tips and axes).
+REPLAY_ROWS = 65536
+
+
+def _replayed(machine: Machine, program: JointProgram) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
+    """verify's FK samples of ``program`` (machine frame), REPLAY_ROWS program rows at a time, each piece
+    from the previous one's last row (its end is where the piece's first move starts: the samples are
+    those of one replay): the row, tip and axis of each sample, and the end tips of the FEED rows."""
+    from prs3_post.toolpath import MoveKind, program_from_columns
+    from prs3_post.verify import replay
+
+    out_row, out_tip, out_axis, out_feed = [], [], [], []
+    n, rows = len(program), REPLAY_ROWS
+    for lo in range(0, max(n, 1), rows):
+        start, hi = max(lo - 1, 0), min(n, lo + rows)
+        columns = {name: getattr(program, name)[start:hi] for name in ("kind", "stage", "strokes", "inverse_time",
+                                                                      "source")}
+        rep = replay(machine, program_from_columns(columns))
+        mine = rep.row >= lo - start                     # not the previous piece's last row again
+        out_row.append(rep.row[mine] + start)
+        out_tip.append(rep.tip[mine])
+        out_axis.append(rep.axis[mine])
+        feed = np.flatnonzero(program.kind[lo:hi] == MoveKind.FEED) + (lo - start)
+        out_feed.append(rep.tip[rep.end[feed]])
+    return (np.concatenate(out_row), np.concatenate(out_tip), np.concatenate(out_axis),
+            np.concatenate(out_feed).reshape(-1, 3))
