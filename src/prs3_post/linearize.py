@@ -161,9 +161,11 @@ def linearize(
         round costs as much as the rows it bisects, which double with every round on such a move.
     """
     head = 0 if start is None else 1
+    if start is not None and len(start) != 1:
+        raise ValueError(f"subdivide_axis_changes: start must be one row, got {len(start)}")
+    if not _turns(path, start):                            # nothing to subdivide: the rows as they are
+        return Linearized(path=path, tip_before=0.0, angle_before=0.0, tip_after=0.0, angle_after=0.0)
     if start is not None:
-        if len(start) != 1:
-            raise ValueError(f"subdivide_axis_changes: start must be one row, got {len(start)}")
         joined = [start, path]
         kind = np.concatenate([p.kind for p in joined])
         tip, axis = np.concatenate([p.tip for p in joined]), np.concatenate([p.axis for p in joined])
@@ -221,3 +223,19 @@ def linearize(
     before, after = (worst[0], worst[-1]) if worst else ((0.0, 0.0), (0.0, 0.0))
     return Linearized(path=out, tip_before=before[0], angle_before=before[1], tip_after=after[0],
                       angle_after=after[1])
+
+
+def _turns(path: Toolpath, start: Toolpath | None) -> bool:
+    """Whether any FEED move of ``path`` (the first one from ``start``) changes the tool axis: the
+    first round of :func:`linearize`'s test, without joining the rows."""
+    if not len(path):
+        return False
+    feed = path.kind == MoveKind.FEED
+    if start is not None and feed[0] and np.abs(path.axis[0] - start.axis[0]).max() > 1e-12:
+        return True
+    if len(path) < 2 or not feed[1:].any():
+        return False
+    axis = path.axis
+    if (axis[1:] == axis[:-1]).all():                      # constant axis (3-axis, 3+2): no move turns
+        return False
+    return bool(((np.abs(axis[1:] - axis[:-1]).max(axis=1) > 1e-12) & feed[1:]).any())

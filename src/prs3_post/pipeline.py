@@ -176,24 +176,34 @@ class PostStream:
 
     def _post(self, chunk: Toolpath, *, scope: str) -> PostResult:
         machine, model = self.machine, self.model
-        path = _unit_path(place_toolpath(chunk, self.setup), self._input_rows)
-        _check_end_points(machine, path, model, self._counted(scope, len(path)))
-        linear = linearize(machine.geometry, path, tolerance=self.tolerance, angle_tolerance=self.angle_tolerance,
+        given = _unit_path(place_toolpath(chunk, self.setup), self._input_rows)
+        ik, report = _check_end_points(machine, given, model, self._counted(scope, len(given)))
+        linear = linearize(machine.geometry, given, tolerance=self.tolerance, angle_tolerance=self.angle_tolerance,
                            start=self._last_pose)
         path = linear.path
         subdivided = len(path)
-        ik = inverse(machine.geometry, path.tip, path.axis, model=model)
-        _raise_unreachable(machine, path, ik, model, self._counted(scope, len(path)))
+        checked = path is given                       # nothing inserted: the rows checked above, as they are
+        if not checked:
+            ik = inverse(machine.geometry, path.tip, path.axis, model=model)
+            _raise_unreachable(machine, path, ik, model, self._counted(scope, len(path)))
         stage = ik.stage if model is IKModel.EXACT else np.zeros_like(ik.stage)
-        last_pose = path.take(np.arange(len(path)) == len(path) - 1) if len(path) else self._last_pose
+        last_pose = self._last_pose
+        if len(path):                                  # the last row, for the move to the next chunk's first
+            last_pose = Toolpath(kind=path.kind[-1:], tip=path.tip[-1:], axis=path.axis[-1:], feed=path.feed[-1:],
+                                 source=path.source[-1:], source_labels=path.source_labels,
+                                 source_file=path.source_file)
         if self._visible is not None:                  # no move the program cannot show (a G1 without a word)
             keep = self._visible.keep(np.column_stack([stage, ik.strokes]), tip=path.tip, axis=path.axis)
             if not keep.all():
                 path, stage = path.take(keep), stage[keep]
                 ik = IKResult(stage=ik.stage[keep], strokes=ik.strokes[keep], link_angle=ik.link_angle[keep],
                               condition=ik.condition[keep], reachable=ik.reachable[keep])
-        report = check_limits(machine, ik, path.axis)
-        raise_first_violation(report, path.describe, scope=self._counted(scope, len(path)))
+                if checked:                            # every row is within the limits: so are those kept
+                    report = replace(report, value=report.value[keep], margin=report.margin[keep],
+                                     ok=report.ok[keep])
+        if not checked:
+            report = check_limits(machine, ik, path.axis)
+            raise_first_violation(report, path.describe, scope=self._counted(scope, len(path)))
         feeds = inverse_time(path, start=self._last_tip)
         self._input_rows += len(chunk)
         self._inserted += subdivided - len(chunk)
@@ -295,7 +305,7 @@ def program_text(machine: Machine, chunks: Iterable[Toolpath], setup: Setup, dia
     yield emitter.end()
 
 
-def _check_end_points(machine: Machine, path: Toolpath, model: IKModel, scope: str) -> None:
+def _check_end_points(machine: Machine, path: Toolpath, model: IKModel, scope: str) -> tuple[IKResult, LimitReport]:
     """Reach and limits of the rows as given, before their moves are subdivided.
 
     A move whose end point is out of reach or past the tilt limit (the singularity lies not far
@@ -305,6 +315,11 @@ def _check_end_points(machine: Machine, path: Toolpath, model: IKModel, scope: s
     points keep it (the axes within a tilt of the vertical are a convex cap: the great circle between
     two of them stays in it); they are checked with the rest after subdivision.
 
+    Returns
+    -------
+    (IKResult, LimitReport) — of the rows as given (all reachable, all within the limits): the
+    pipeline's when the subdivision inserts nothing
+
     Raises
     ------
     ReachError, LimitError
@@ -312,7 +327,9 @@ def _check_end_points(machine: Machine, path: Toolpath, model: IKModel, scope: s
     """
     ik = inverse(machine.geometry, path.tip, path.axis, model=model)
     _raise_unreachable(machine, path, ik, model, scope)
-    raise_first_violation(check_limits(machine, ik, path.axis), path.describe, scope=scope)
+    report = check_limits(machine, ik, path.axis)
+    raise_first_violation(report, path.describe, scope=scope)
+    return ik, report
 
 
 def _raise_unreachable(machine: Machine, path: Toolpath, ik: IKResult, model: IKModel, scope: str) -> None:

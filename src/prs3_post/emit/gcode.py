@@ -113,6 +113,8 @@ def sanitize_comment(text: str, style: CommentStyle) -> str:
     >>> sanitize_comment(" msg, stop here", load_dialect("linuxcnc").comments)
     ' msg. stop here'
     """
+    if text.isascii() and text.isprintable() and not any(key in text for key, _ in style.replace):
+        return inert(text.upper() if style.uppercase else text, style)   # nothing to replace: the usual case
     replace = dict(style.replace)
     out: list[str] = []
     for char in text:
@@ -190,12 +192,11 @@ class _Blocks:
         style = self.dialect.comments
         width = self.limit - len(style.open) - len(style.close)
         # Sanitizing first: it can lengthen the text, and it leaves one line of printable ASCII.
-        parts = textwrap.wrap(
-            sanitize_comment(text, style),
-            width=width,
-            subsequent_indent=_CONTINUATION,
-            break_on_hyphens=False,
-        ) or [""]
+        safe = sanitize_comment(text, style)
+        if len(safe) <= width:                 # one line: what textwrap makes of it (trailing spaces dropped)
+            parts = [safe.rstrip(" ")]
+        else:
+            parts = textwrap.wrap(safe, width=width, subsequent_indent=_CONTINUATION, break_on_hyphens=False) or [""]
         # a continuation line could start with an active word again: guard every line
         self.lines.extend(f"{style.open}{inert(part, style)}{style.close}" for part in parts)
 
@@ -436,20 +437,29 @@ class ProgramEmitter:
             if b < hi:
                 count = sum(e.kind is not EventKind.COMMENT for e in chunk.events.get(b, ()))
                 blocks_before[b - lo:] += count + (b == g93)
-        lines = self._render(chunk, axes, lo, hi, present, motion, np.arange(hi - lo) + blocks_before)
+        buffer, ends = self._render(chunk, axes, lo, hi, present, motion, np.arange(hi - lo) + blocks_before)
+        text = str(buffer.data, "ascii")             # every row's line; ASCII: a byte offset is a character's
+        long = np.flatnonzero(np.diff(ends) - len(self.dialect.line_ending) > out.limit)
+        too_long = int(long[0]) if long.size else hi - lo      # the first over-long line (hi - lo: none)
+        offsets = ends.tolist()
         pieces = []
         previous = lo                                # the first row not yet written
+        events = chunk.events
         for b in breaks:
             if b > previous:                         # the rows up to this break, as one piece
-                pieces += [out.take(), self._rows_text(chunk, lines, lo, previous - lo, b - lo)]
+                if out.lines:
+                    pieces.append(out.take())
+                pieces.append(self._rows_text(chunk, buffer, text, offsets, too_long, lo, previous - lo, b - lo))
                 previous = b
-            for event in chunk.events.get(b, ()):
+            for event in events.get(b, ()):
                 self._event(program, event)
             if b == g93:
                 out.block("G93", self._where(program, b))
                 modal.inverse_time = True
         if hi > previous:
-            pieces += [out.take(), self._rows_text(chunk, lines, lo, previous - lo, hi - lo)]
+            if out.lines:
+                pieces.append(out.take())
+            pieces.append(self._rows_text(chunk, buffer, text, offsets, too_long, lo, previous - lo, hi - lo))
         pieces.append(out.take())
         self._remember(chunk, axes, hi, kind)
         return pieces
@@ -514,22 +524,19 @@ class ProgramEmitter:
         return render_rows(columns, np.column_stack(shown) if m else np.zeros((0, len(columns)), dtype=bool),
                            ending=self.dialect.line_ending.encode("ascii"))
 
-    def _rows_text(self, chunk: _Chunk, lines: tuple[np.ndarray, IntArray], lo: int, a: int, b: int) -> str:
-        """Lines ``a:b`` of those rendered for the rows from ``lo`` on, as text; the first over-long
-        one is a LimitError naming its row."""
-        buffer, ends = lines
+    def _rows_text(self, chunk: _Chunk, buffer: np.ndarray, text: str, offsets: list[int], too_long: int, lo: int,
+                   a: int, b: int) -> str:
+        """Lines ``a:b`` of those rendered for the rows from ``lo`` on (``buffer`` and its ``text``,
+        ``offsets``: where each line starts), as text; the first over-long one (``too_long``) is a
+        LimitError naming its row."""
         out = self._out
-        ending = len(self.dialect.line_ending)
-        lengths = np.diff(ends[a:b + 1]) - ending
-        long = np.flatnonzero(lengths > out.limit)
-        text = str(buffer[ends[a]:ends[b]].data, "ascii")
-        if long.size:
-            row = a + int(long[0])
-            line = buffer[ends[row]:ends[row + 1] - ending].tobytes().decode("ascii")
-            out.check_length(line, self._where(chunk.program, lo + row))
+        if a <= too_long < b:
+            ending = len(self.dialect.line_ending)
+            line = buffer[offsets[too_long]:offsets[too_long + 1] - ending].tobytes().decode("ascii")
+            out.check_length(line, self._where(chunk.program, lo + too_long))
         if out.numbered:
             out.number = int(out.numbers_after(b - a)[0])
-        return text
+        return text[offsets[a]:offsets[b]]
 
     def _remember(self, chunk: _Chunk, axes: list[tuple[bytes, ScaledColumn]], hi: int, kind: IntArray) -> None:
         """The modal state after the rows up to ``hi`` (``axes``, ``kind``: the last rows') and the

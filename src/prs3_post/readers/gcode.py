@@ -355,7 +355,7 @@ class GcodeStream:
     def _scan(self, text: str, first: int) -> None:
         """Refuse what no line of the file may have (here: a rotary word) in a piece whose first line is
         line ``first`` (a hook: the 5-axis reader refuses expressions and parameters instead)."""
-        if _ROTARY_HINT.search(text):
+        if _rotary_hint(text):
             for number, line in enumerate(text.split("\n"), start=first):
                 if _ROTARY_HINT.search(line):
                     _refuse_rotary(line, number, self.path)
@@ -384,6 +384,23 @@ class GcodeStream:
         s = self.summary
         return GcodeFile(path=s.path, units=s.units, toolpath=join_toolpaths(chunks), counts=s.counts,
                          work_plane=s.work_plane, planes=s.planes, cycles=s.cycles, end_lines=s.end_lines)
+
+
+#: Bytes of :data:`_ROTARY_HINT`: the letters, and what may follow a letter in a rotary word.
+_ROTARY_LETTER = bytes(int(b in b"ABCabc") for b in range(256))       # a bytes.translate table: 1 at a letter
+_ROTARY_NEXT = np.zeros(256, dtype=bool)
+_ROTARY_NEXT[list(b" \t-.0123456789")] = True
+_ROTARY_HINT_BYTES = re.compile(_ROTARY_HINT.pattern.encode("ascii"))
+
+
+def _rotary_hint(text: str) -> bool:
+    """``_ROTARY_HINT.search(text) is not None``, in bulk: only the letters followed by a byte that can
+    continue a rotary word (a letter in a comment's word, ``pass``, is followed by another letter)
+    are tried with the pattern."""
+    data = text.encode("utf-8") + b"\n"
+    letters = np.flatnonzero(np.frombuffer(data.translate(_ROTARY_LETTER), dtype=np.bool_))
+    maybe = letters[_ROTARY_NEXT[np.frombuffer(data, dtype=np.uint8)[letters + 1]]].tolist()
+    return any(_ROTARY_HINT_BYTES.match(data, at) is not None for at in maybe)
 
 
 def _refuse_rotary(line: str, number: int, path: str) -> None:
