@@ -36,6 +36,7 @@ import math
 import textwrap
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -113,7 +114,7 @@ def sanitize_comment(text: str, style: CommentStyle) -> str:
     >>> sanitize_comment(" msg, stop here", load_dialect("linuxcnc").comments)
     ' msg. stop here'
     """
-    if text.isascii() and text.isprintable() and not any(key in text for key, _ in style.replace):
+    if text.isascii() and text.isprintable() and _replaced(style.replace).isdisjoint(text):
         return inert(text.upper() if style.uppercase else text, style)   # nothing to replace: the usual case
     replace = dict(style.replace)
     out: list[str] = []
@@ -130,6 +131,12 @@ def sanitize_comment(text: str, style: CommentStyle) -> str:
     return inert(safe.upper() if style.uppercase else safe, style)
 
 
+@lru_cache(maxsize=8)
+def _replaced(replace: tuple[tuple[str, str], ...]) -> frozenset[str]:
+    """The characters a comment style replaces."""
+    return frozenset(key for key, _ in replace)
+
+
 def inert(text: str, style: CommentStyle) -> str:
     """``text``, with the comma after a leading active word made a period so the controller does
     not act on it (``MSG, x`` → ``MSG. x``: a plain comment, and the same length).
@@ -138,6 +145,8 @@ def inert(text: str, style: CommentStyle) -> str:
     >>> inert("  Debug, x", load_dialect("linuxcnc").comments), inert("debugging, x", load_dialect("linuxcnc").comments)
     ('  Debug. x', 'debugging, x')
     """
+    if "," not in text:
+        return text
     head = text.lstrip().split(",", 1)
     if len(head) == 2 and head[0].strip().upper() in style.active_words:
         return text.replace(",", ".", 1)

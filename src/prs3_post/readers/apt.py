@@ -70,6 +70,7 @@ overflow are errors.
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from array import array
@@ -128,6 +129,11 @@ _RAPID, _FEED = int(MoveKind.RAPID), int(MoveKind.FEED)
 _DECIMAL = r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)"
 _PLAIN_GOTO = re.compile(
     rf"GOTO/({_DECIMAL}),({_DECIMAL}),({_DECIMAL})(?:,({_DECIMAL}),({_DECIMAL}),({_DECIMAL}))?\r?\Z")
+#: Records read inside a bulk run of GOTOs (:meth:`_Reader.lines`): a PPRINT (its text: a comment event
+#: between the rows) and a FEDRAT (read by :meth:`_Reader.fedrat` where it stands), neither with a
+#: ``$`` (continuation or comment).
+_PLAIN_PPRINT = re.compile(r"PPRINT/([^$]*)")
+_PLAIN_FEDRAT = re.compile(r"FEDRAT/[^$]*")
 _CYCLE_KINDS = {"DRILL": Pecking.NONE, "DEEP": Pecking.FULL_RETRACT, "BRKCHP": Pecking.CHIP_BREAK}
 
 
@@ -487,7 +493,7 @@ def _unit_records(pieces: Iterator[str], path: str) -> list[_Record]:
         if carry:
             first_line, carry = carry_line, ""
         number, counted_to = first_line, 0
-        for match in _UNIT_LINE.finditer(text):
+        for match in _unit_lines(text):
             # line numbers and lines are taken from the match on, never from the piece's start: a piece
             # with many FEDRAT/ records costs linear, not quadratic, time
             number += text.count("\n", counted_to, match.start())
@@ -504,6 +510,26 @@ def _unit_records(pieces: Iterator[str], path: str) -> list[_Record]:
         if not carry:
             first_line += text.count("\n")
     return found
+
+
+def _unit_lines(text: str) -> Iterator[re.Match[str]]:
+    """``_UNIT_LINE.finditer(text)``, faster: in ASCII text only the lines where ``units`` or ``fedrat``
+    (any case) occurs are tried (the pattern's scan of every line start is what the reader's first pass
+    would spend its time on)."""
+    if not text.isascii():                          # lower() keeps every position only in ASCII
+        yield from _UNIT_LINE.finditer(text)
+        return
+    lower = text.lower()
+    starts: set[int] = set()
+    for word in ("units", "fedrat"):
+        at = lower.find(word)
+        while at >= 0:
+            starts.add(text.rfind("\n", 0, at) + 1)
+            at = lower.find(word, at + len(word))
+    for start in sorted(starts):
+        match = _UNIT_LINE.match(text, start)
+        if match is not None:
+            yield match
 
 
 def _lines_from(text: str, start: int) -> Iterator[str]:
@@ -1068,12 +1094,15 @@ class _Reader:
         """Read ``lines`` (without line ends), the first of which is line ``first`` of the file.
 
         Runs of plain GOTO lines (:data:`_PLAIN_GOTO`) are read in bulk; plain ``PAINT/`` lines
-        between them (display only, no comment, no continuation) are counted without ending the run.
+        between them (display only, no comment, no continuation) are counted without ending the run,
+        and plain ``PPRINT/`` and ``FEDRAT/`` lines (:data:`_PLAIN_PPRINT`, :data:`_PLAIN_FEDRAT`)
+        are read where they stand in it.
         """
         assembler = self.assembler
-        plain = _PLAIN_GOTO.match
+        plain, pprint, fedrat = _PLAIN_GOTO.match, _PLAIN_PPRINT.fullmatch, _PLAIN_FEDRAT.fullmatch
         run: list[tuple[str | None, ...]] = []
         run_index: list[int] = []
+        marks: list[tuple[int, int]] = []              # (rows of the run before it, line index): PPRINT, FEDRAT
         paints = 0
         bulk = self.arc is None and self.cycle is None and not self.finished and not assembler.pending
         for index, raw in enumerate(lines):
@@ -1086,22 +1115,29 @@ class _Reader:
                 if raw.startswith("PAINT/") and "$" not in raw:
                     paints += 1
                     continue
+                if run and (pprint(raw.rstrip("\r")) or fedrat(raw.rstrip("\r"))):
+                    marks.append((len(run), index))
+                    continue
             if run:
-                self.goto_run(first, lines, run, run_index)
-                run, run_index = [], []
+                self.goto_run(first, lines, run, run_index, marks)
+                run, run_index, marks = [], [], []
             record = assembler.push(first + index, raw)
             if record is not None:
                 self.record(record)
             bulk = self.arc is None and self.cycle is None and not self.finished and not assembler.pending
         if run:
-            self.goto_run(first, lines, run, run_index)
+            self.goto_run(first, lines, run, run_index, marks)
         if paints:
             self.records += paints
             self.by_word["PAINT"] += paints
             self.skipped["PAINT"] += paints
 
-    def goto_run(self, first: int, lines: list[str], run: list[tuple[str | None, ...]], run_index: list[int]) -> None:
-        """Plain GOTO lines ``lines[run_index]`` in bulk: the same rows, counts and errors as one by one."""
+    def goto_run(self, first: int, lines: list[str], run: list[tuple[str | None, ...]], run_index: list[int],
+                 marks: list[tuple[int, int]] | None = None) -> None:
+        """Plain GOTO lines ``lines[run_index]`` in bulk, with the PPRINT and FEDRAT lines ``marks``
+        ((GOTOs before it, index into ``lines``)) among them: the same rows, events, counts and errors
+        as record by record."""
+        marks = marks or []
         with_axis = np.array([groups[3] is not None for groups in run])
         tip = np.array([groups[:3] for groups in run], dtype=np.float64) * self.scale
         given = np.array([groups[3:] for groups in run if groups[3] is not None], dtype=np.float64).reshape(-1, 3)
@@ -1109,9 +1145,10 @@ class _Reader:
         length = np.sqrt(i * i + j * j + k * k)
         if (not np.isfinite(tip).all() or (with_axis.any() and self.multax_on is False)
                 or np.any(np.abs(length - 1.0) > AXIS_LENGTH_TOLERANCE) or np.any(length == 0.0)):
-            for index in run_index:                                  # one by one, for the exact error
+            order = sorted([*run_index, *(index for _, index in marks)])
+            for index in order:                                      # one by one, for the exact error
                 record = self.assembler.push(first + index, lines[index])
-                assert record is not None  # a plain GOTO line is a whole record
+                assert record is not None  # a plain GOTO, PPRINT or FEDRAT line is a whole record
                 self.record(record)
             return
         given = np.where((length == 1.0)[:, None], given, given / length[:, None])
@@ -1125,9 +1162,14 @@ class _Reader:
             kind[0] = _RAPID
             self.rapid_next = False
         feed = np.zeros(len(run))
-        if len(run) > 1 or kind[0] == _FEED:
-            self.line = first + run_index[1 if kind[0] == _RAPID else 0]
-            feed[kind == _FEED] = self.current_feed()
+        # the feed of the rows between the marks: the FEDRAT before them (read in order, for its errors)
+        for (a, _), (b, index) in itertools.pairwise([(0, -1), *marks, (len(run), -1)]):
+            rows = range(max(a, 1) if kind[0] == _RAPID else a, b)
+            if len(rows):
+                self.line = first + run_index[rows[0]]
+                feed[rows.start:b] = self.current_feed()
+            if index >= 0:
+                self.mark(first + index, lines[index], self.rows + b)
         count = len(run)
         self.records += count
         self.by_word["GOTO"] += count
@@ -1138,6 +1180,21 @@ class _Reader:
         self.add_rows(tip, axes, kind, feed, np.array(run_index, dtype=np.int64) + first)
         x, y, z = axes[-1].tolist()
         self.tool_axis = (x, y, z)
+
+    def mark(self, number: int, raw: str, before: int) -> None:
+        """A plain PPRINT or FEDRAT line inside a bulk run, read as :meth:`record` reads it, its comment
+        event before row ``before`` (counted from the file's start: the run's rows are added after)."""
+        record = self.assembler.push(number, raw)
+        assert record is not None and record.comment is None  # no '$' on the line: a whole record
+        if record.word != "PPRINT":
+            self.record(record)                            # FEDRAT: no rows, no events
+            return
+        self.line = number
+        self.records += 1
+        self.by_word["PPRINT"] += 1
+        self.after_end = False
+        self.comments += 1
+        self.events.append(Event(before=before, kind=EventKind.COMMENT, text=record.rest or ""))
 
     def close(self) -> None:
         """The end of the file: nothing may be left open."""

@@ -144,6 +144,8 @@ _CYCLES = {81.0: Pecking.NONE, 82.0: Pecking.NONE, 83.0: Pecking.FULL_RETRACT, 7
 _BULK_LETTERS = "NGXYZF"
 #: A blank line, or one with only comments (closed, not nested), which the bulk path passes as events.
 _QUIET = re.compile(r"[ \t]*(?:\([^()]*\)[ \t]*)*(?:;.*)?")
+#: A line that is one comment in parentheses, nothing else: its text (what split_comments reads there).
+_ONE_COMMENT = re.compile(r"\(([^()]*)\)")
 #: A rotary word (A, B, C and a number) somewhere in a line: a 5-axis program (checked on the code
 #: without comments).
 _ROTARY = re.compile(r"(?<![A-Za-z_<\[#])([ABCabc])[ \t]*(-?[ \t]*[0-9.][0-9. \t]*)")
@@ -517,7 +519,7 @@ class _Reader:
         return InputError(message, path=self.path, line=self.number)
 
     def event(self, kind: EventKind, value: float = 0.0, text: str = "") -> None:
-        self.events.append(Event(before=self.rows, kind=kind, value=value, text=text))
+        self.events.append(Event(before=self.rows - self.chunk_start, kind=kind, value=value, text=text))
 
     def add_rows(self, tip: FloatArray, kind: int | np.ndarray, feed: float | np.ndarray,
                  source: int | np.ndarray) -> None:
@@ -579,9 +581,12 @@ class _Reader:
             return False
         k = len(values)
         if len(others):                                  # the comments, each before the next move's row
-            before = self.rows + np.cumsum(moves)[others]
+            before = self.rows - self.chunk_start + np.cumsum(moves)[others]
+            one_comment = _ONE_COMMENT.fullmatch
             for index, row in zip(others.tolist(), before.tolist(), strict=True):
-                texts = split_comments(lines[index])[1]
+                line = lines[index]
+                match = one_comment(line)                # the usual comment line: split_comments' answer
+                texts = (match[1],) if match is not None else split_comments(line)[1]
                 if texts:
                     self.comment_lines += 1
                 else:
@@ -607,14 +612,17 @@ class _Reader:
         """The rows and events since the last take, in the PART frame (events count from the chunk's start)."""
         local = np.frombuffer(self.tip, dtype=np.float64).reshape(-1, 3)
         plane_of = np.frombuffer(self.plane_of, dtype=np.int64)
-        tip = np.zeros_like(local)
-        axis = np.zeros_like(local)
-        for index in np.unique(plane_of):              # one transform per plane, all its rows at once
-            rows = plane_of == index
-            tip[rows] = self.frames[index].to_part(local[rows])
-            axis[rows] = self.frames[index].normal
-        events = tuple(Event(before=e.before - self.chunk_start, kind=e.kind, value=e.value, text=e.text)
-                       for e in self.events)
+        if len(plane_of) and plane_of[0] == plane_of[-1] and (plane_of == plane_of[0]).all():   # one plane
+            frame = self.frames[int(plane_of[0])]
+            tip, axis = frame.to_part(local), np.broadcast_to(frame.normal, local.shape)
+        else:
+            tip = np.zeros_like(local)
+            axis = np.zeros_like(local)
+            for index in np.unique(plane_of):          # one transform per plane, all its rows at once
+                rows = plane_of == index
+                tip[rows] = self.frames[index].to_part(local[rows])
+                axis[rows] = self.frames[index].normal
+        events = tuple(self.events)                    # counted from the chunk's start already
         chunk = Toolpath(kind=np.frombuffer(self.kind, dtype=np.int64), tip=tip, axis=axis,
                          feed=np.frombuffer(self.feed, dtype=np.float64),
                          source=np.frombuffer(self.source, dtype=np.int64), events=events,
@@ -1149,7 +1157,8 @@ class _Reader:
         first = self.rows
         self.add_rows(rows, kinds, np.where(kinds == _FEED, feed, 0.0), self.number)
         if drill.dwell > 0:
-            self.events.append(Event(before=first + len(before) + int(bottom[0]) + 1, kind=EventKind.DWELL,
+            self.events.append(Event(before=first - self.chunk_start + len(before) + int(bottom[0]) + 1,
+                                     kind=EventKind.DWELL,
                                      value=drill.dwell))
         cycle.holes += 1
         self.cycle_holes += 1
