@@ -394,11 +394,13 @@ def test_a_mistyped_command_is_not_read_as_a_part(word: str, hint: str) -> None:
                              "prs3-post PART.stl --profile ...)\n")
 
 
-def test_a_negative_clearance_min_is_refused(tmp_path: Path) -> None:
+@pytest.mark.parametrize(("command", "arguments"), [("demo", ["--profile", "hole"]), ("convert", ["x.cls"])])
+def test_a_negative_clearance_min_is_refused(tmp_path: Path, command: str, arguments: list[str]) -> None:
     out = tmp_path / "p.ngc"
-    result = invoke("demo", "--profile", "hole", "--clearance-min", "-1", "-o", str(out))
+    result = invoke(command, *arguments, "--clearance-min", "-1", "-o", str(out))
     assert (result.exit_code, result.stderr) == (2, _usage(
-        "Invalid value for '--clearance-min': -1 mm is out of range (allowed: 0 to 1e+06 mm)", "demo", ""))
+        "Invalid value for '--clearance-min': -1 mm is out of range (allowed: 0 to 1e+06 mm)", command,
+        "" if command == "demo" else " INPUT..."))
     assert not out.exists()
 
 

@@ -138,6 +138,10 @@ class Decimal(click.ParamType):
         return number
 
 
+#: ``--clearance-min`` (the main job and convert): a distance kept from the part, so never negative.
+CLEARANCE_MIN = Decimal(LENGTH, low=0.0)
+
+
 class Integer(click.ParamType):
     """A plain whole number (``12``, ``-3``; not ``1_0``, ``1e3``, ``٣`` or ``+ 1``) within ``[low, high]``.
 
@@ -612,7 +616,7 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
         click.option("--collision-check/--no-collision-check", default=True, show_default=True,
                      help="Check that the tool, holder and spindle nose stay clear of the part (the machine's "
                           "[holder]) before writing; the header says when it was skipped."),
-        click.option("--clearance-min", type=Decimal(LENGTH, low=0.0), default=1.0, show_default=True,
+        click.option("--clearance-min", type=CLEARANCE_MIN, default=1.0, show_default=True,
                      help="Least distance the tool, holder and spindle nose keep from the part, mm."),
         click.option("-o", "--output", "out_path", type=OutputPath(),
                      help="Program file (written to a temp file, then renamed). Default: standard output."),
@@ -1383,7 +1387,7 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
 @up_option
 @click.option("--collision-check/--no-collision-check", default=True, show_default=True,
               help="With --part: check the holder and spindle nose against it; the header says when it was skipped.")
-@click.option("--clearance-min", type=Decimal(LENGTH), default=1.0, show_default=True,
+@click.option("--clearance-min", type=CLEARANCE_MIN, default=1.0, show_default=True,
               help="With --part: least distance the holder and spindle nose keep from it, mm.")
 @machine_option
 @job_part_origin_option
