@@ -469,6 +469,8 @@ def load_dialect(name_or_path: str) -> Dialect:
             raise com._error(key, f"must be printable ASCII without spaces, got {value!r}")
     if not c_open:
         raise com._error("open", "must not be empty")
+    if set(c_open) & set(c_close):              # '(' ... '(' is a nested comment, not a closed one
+        raise com._error("close", f"must not share a character with comments.open = {c_open!r}, got {c_close!r}")
     uppercase = com.boolean("uppercase")
     control = com.text("control")
     non_ascii = com.text("non_ascii")
