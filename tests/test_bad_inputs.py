@@ -227,3 +227,17 @@ def test_a_limit_message_shows_a_huge_value_in_a_few_digits(tmp_path: Path) -> N
     assert result.exit_code == 1
     assert f"{cl}:4: stage X 1e+300 mm is above the maximum 300.0000 mm by 1e+300 mm; " in result.stderr
     assert "Traceback" not in result.output and not (tmp_path / "out" / "far.ngc").exists()
+
+
+@pytest.mark.parametrize("number", ["1_0", "\u0661", "1,5"])
+def test_an_stl_number_is_a_plain_decimal(tmp_path: Path, number: str) -> None:
+    """float() reads '1_0' as 10 and '١' as 1: an STL coordinate so written was read as that number."""
+    part = _ascii_stl(tmp_path / "part.stl", *HUGE)
+    text = part.read_text(encoding="utf-8").replace("vertex 0.0 10.0 0.0", f"vertex 0.0 {number} 0.0", 1)
+    part.write_text(text, encoding="utf-8")
+    line = text.splitlines().index(f"vertex 0.0 {number} 0.0") + 1
+    result = invoke("faces", str(part))
+    shown = number.encode("utf-8").decode("latin-1").lower()  # an ASCII STL is read byte for byte, lowered
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == (f"prs3-post: error: {part}:{line}: '{shown}' is not a plain decimal number "
+                             "(like -12.5 or 1.25e+01)\n")

@@ -284,6 +284,13 @@ def _triangles_from_ascii(text: str, where: str) -> FloatArray:
             line=_line_of_token(body, len(tokens) - 1),
         )
     # 3. Numbers: the facet normal is checked (strictness) but not used; the vertices are the data.
+    # float() also takes '1_0' (10) and other scripts' digits ('١'): only plain decimals are numbers here.
+    odd = _NOT_IN_A_NUMBER.search(body)
+    if odd is not None:
+        start = max(body.rfind(blank, 0, odd.start()) for blank in " \t\r\n\f\v") + 1
+        token = re.match(r"\S+", body[start:])
+        raise InputError(f"{_quote(token.group() if token else odd.group(), 20)} is not a plain decimal number "
+                         "(like -12.5 or 1.25e+01)", path=where, line=body.count("\n", 0, odd.start()) + 1)
     numeric = [column for column, keyword in enumerate(_ASCII_RECORD) if keyword is None]
     try:
         values = records[:, numeric].astype(np.float64)  # (F, 12)
@@ -305,6 +312,10 @@ def _triangles_from_ascii(text: str, where: str) -> FloatArray:
             line=_line_of_token(body, row * per_record + numeric[col]),
         )
     return triangles
+
+
+#: A character that is in no keyword of a facet record and in no plain decimal number.
+_NOT_IN_A_NUMBER = re.compile(r"[^a-z0-9+\-.\s]")
 
 
 def _first_non_number(cells: np.ndarray) -> tuple[int, int]:
