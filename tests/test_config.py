@@ -63,3 +63,16 @@ def test_bad_machine_file_cli_exit_2(path, monkeypatch):
     result = CliRunner().invoke(main, ["fk", "--strokes", "0,0,0", "--machine", f"machines/{path.name}"])
     assert result.exit_code == 2
     assert result.output == f"prs3-post: error: {expected}\n"
+
+
+@pytest.mark.parametrize("kind", ["machine", "job"])
+def test_toml_nested_too_deeply_is_a_config_error(tmp_path: Path, kind: str) -> None:
+    """tomllib recurses per nesting level: 500 nested arrays were a RecursionError traceback."""
+    path = tmp_path / f"{kind}.toml"
+    path.write_text("x = " + "[" * 500 + "]" * 500 + "\n", encoding="utf-8")
+    args = ["demo", "--profile", "hole", "--machine", str(path)] if kind == "machine" else ["job", str(path)]
+    result = CliRunner().invoke(main, [*args, "-o", str(tmp_path / "p.ngc")], prog_name="prs3-post")
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == (f"prs3-post: error: {path}: not valid TOML here: arrays or inline tables nested too "
+                             "deeply\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]

@@ -210,8 +210,9 @@ def _read_toml(path: Path) -> dict[str, Any]:
     Raises
     ------
     ConfigError
-        ``not valid TOML: <reason>``; the reading errors of :func:`~prs3_post.readers.files.read_text`
-        (``line 3: not UTF-8 text (byte 0xe9): save the file as UTF-8``) as ConfigError too.
+        ``not valid TOML: <reason>``; arrays nested too deeply; the reading errors of
+        :func:`~prs3_post.readers.files.read_text` (``line 3: not UTF-8 text (byte 0xe9): save the file as
+        UTF-8``) as ConfigError too.
     """
     try:
         text = read_text(str(path), "a TOML file")
@@ -221,6 +222,8 @@ def _read_toml(path: Path) -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"not valid TOML: {exc}", path=str(path)) from exc
+    except RecursionError as exc:                 # tomllib recurses once per nested array or inline table
+        raise ConfigError("not valid TOML here: arrays or inline tables nested too deeply", path=str(path)) from exc
 
 
 def _display(path: Path) -> str:
