@@ -445,3 +445,13 @@ def test_a_job_files_key_the_profile_ignores_is_refused(tmp_path: Path) -> None:
     assert result.stderr == (f"prs3-post: error: {job}: operation[1]: profile round does not use peck (hole only): "
                              "remove it\n")
     assert not out.exists()
+
+
+def test_verify_against_a_part_refuses_an_option_the_profile_ignores(tmp_path: Path) -> None:
+    made = invoke("demo", "--profile", "hole")
+    program = tmp_path / "p.ngc"
+    program.write_text("".join(line + "\n" for line in made.stdout.splitlines() if not line.startswith("(")))
+    result = invoke("verify", str(program), "--against", str(REPO / WEDGE), "--profile", "hole", "--diameter", "20")
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr.splitlines()[-1] == ("Error: --profile hole does not use --diameter (round only): leave it "
+                                              "out")

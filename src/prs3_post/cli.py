@@ -1172,6 +1172,7 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext, opts: d
             raise click.UsageError("--against PART.stl needs --profile and the other operation options the "
                                    "program was made with (it has no prs3-post header that records them)")
         else:
+            _refuse_unused_options(opts["profile"])
             spec = _job_spec(against, opts)
         return intended_from_job(spec)
     if suffix == ".csv":
