@@ -4,8 +4,10 @@ fixtures/parts/wall30.stl: a 30° face falling towards a wall 5 mm thick."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -94,3 +96,70 @@ def test_an_old_header_without_the_entry_was_checked_at_one_mm():
     header = parse_header(header_comments(old), path="p.ngc")
     assert isinstance(header, ProgramHeader)
     assert (header.collision_check, header.clearance_min) == (True, 1.0)
+
+
+@pytest.fixture(scope="module")
+def wall_programs(tmp_path_factory) -> dict[str, Path]:
+    """The hole beside the wall (made without the check: the holder hits it) and the one 40 mm away."""
+    folder = tmp_path_factory.mktemp("wall")
+    made = {"near": ("--at", "30,0", "--no-collision-check"), "far": ("--at", "8.1,0")}
+    for name, options in made.items():
+        _make(folder / f"{name}.ngc", *options)
+    return {name: folder / f"{name}.ngc" for name in made}
+
+
+_ALLOWANCE = "not counted: the tool below the worked face, within the feature's swept region"
+
+
+def test_verify_against_the_part_reports_the_holder_in_the_wall_on_its_line(wall_programs):
+    result = invoke("verify", wall_programs["near"], "--against", WALL)
+    assert result.exit_code == 1, result.output
+    assert result.output.splitlines()[-6:] == [
+        f"  clearance from the part (min 1.000 mm; {_ALLOWANCE}):",
+        "    tool                6.421 mm  line 24 (hole 1 approach)",
+        "    holder             -2.488 mm  line 27 (hole 1 feed)",      # half the 5 mm wall: the deepest there is
+        "    spindle nose       12.859 mm  line 27 (hole 1 feed)",
+        "FAIL: 1 problem",
+        "  line 27 (hole 1 feed): the holder hits the part, 2.488 mm deep (clearance min 1.000 mm)",
+    ]
+
+
+def test_verify_against_the_part_states_every_clearance_in_json(wall_programs):
+    result = invoke("verify", wall_programs["far"], "--against", WALL, "--json")
+    assert result.exit_code == 0, result.output
+    record = json.loads(result.output)["clearance"]
+    assert (record["measured"], record["closest"]) == (True, "holder")
+    bodies = {b["body"]: b for b in record["bodies"]}
+    assert [(b["line"], b["at"], b["step"], b["exact"], b["ok"], b["clearance_min_mm"]) for b in bodies.values()] == [
+        (24, 1.0, "hole 1 approach", True, True, 1.0), (25, 0.875, "hole 1 approach", True, True, 1.0),
+        (27, 1.0, "hole 1 feed", True, True, 1.0)]
+    assert [b["distance_mm"] for b in bodies.values()] == pytest.approx([27.036, 8.635, 12.859], abs=5e-4)
+    # the main job's header: holder over 8.613 mm (its lower bound), spindle nose 12.859 mm
+    assert bodies["holder"]["distance_mm"] > 8.613 and round(bodies["spindle nose"]["distance_mm"], 3) == 12.859
+    holder = np.array(bodies["holder"]["point_part_mm"])
+    assert holder == pytest.approx([42.535, 200.0, 319.340], abs=1e-3)
+
+
+def test_a_larger_clearance_min_fails_the_same_program_on_the_holders_line(wall_programs):
+    result = invoke("verify", wall_programs["far"], "--against", WALL, "--clearance-min", "9")
+    assert result.exit_code == 1
+    assert result.output.splitlines()[-6:-1] == [
+        f"  clearance from the part (min 9.000 mm; {_ALLOWANCE}):",
+        "    tool               27.036 mm  line 24 (hole 1 approach)",
+        "    holder              8.635 mm  line 25 (hole 1 approach)",
+        "    spindle nose       12.859 mm  line 27 (hole 1 feed)",
+        "FAIL: 1 problem",
+    ]
+    assert result.output.splitlines()[-1] == (
+        "  line 25 (hole 1 approach): the holder comes within 8.635 mm of the part (clearance min 9.000 mm)")
+
+
+def test_verify_can_be_asked_not_to_measure_the_clearance(wall_programs):
+    result = invoke("verify", wall_programs["near"], "--against", WALL, "--no-collision-check")
+    assert result.exit_code == 0, result.output
+    assert result.output.splitlines()[-2:] == ["  clearance from the part: not measured (asked not to)",
+                                               "OK: within every limit and tolerance"]
+    alone = invoke("verify", wall_programs["near"], "--clearance-min", "2")
+    assert alone.exit_code == 2
+    assert alone.output.splitlines()[-1] == ("Error: --clearance-min: the operation options are only used with "
+                                             "--against PART.stl")

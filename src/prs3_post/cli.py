@@ -63,19 +63,22 @@ from prs3_post.verify_job import (
     DEFAULT_DIALECT,
     DEFAULT_MACHINE,
     HeaderConflict,
+    PartClearance,
     ProgramContext,
     ProgramSetting,
+    RebuiltJob,
     check_part,
     header_job,
-    intended_from_job,
     intended_from_poses,
     intended_from_source,
     open_program,
     open_setting,
     preview_bytes,
+    rebuild_job,
     tool_lengths_of,
     verify_file,
     verify_loaded,
+    with_clearance,
 )
 from prs3_post.workplane import WorkPlaneError
 
@@ -1150,13 +1153,14 @@ def _refuse_contradictions(wrong: list[str]) -> None:
                                "header's values")
 
 
-def _intended(ctx: click.Context, against: str, context: ProgramContext, opts: dict[str, Any]) -> Intended:
+def _intended(ctx: click.Context, against: str, context: ProgramContext,
+              opts: dict[str, Any]) -> tuple[Intended, RebuiltJob | None]:
     """The intended path of `verify --against`: the job rebuilt from PART.stl and the program's header
-    (or, without a header, the options), or POSES.csv."""
+    (or, without a header, the options), with that job (for the clearance from the part), or POSES.csv."""
     suffix = Path(against).suffix.lower()
     if isinstance(context.header, SourceHeader):            # a converted program: its CAM source
         try:
-            return intended_from_source(context, against)
+            return intended_from_source(context, against), None
         except HeaderConflict as error:
             raise InputError(f"--against: {error.args[0]}", path=error.path, line=error.line) from error
     if suffix == ".stl":
@@ -1167,16 +1171,16 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext, opts: d
                 raise InputError(f"--against: {error.args[0]}", path=error.path, line=error.line) from error
             for spec in specs:                         # an option given must be what every operation says
                 _check_operation_options(ctx, spec, opts)
-            return intended_from_job(specs)
+            rebuilt = rebuild_job(specs)
         elif not opts["profile"]:
             raise click.UsageError("--against PART.stl needs --profile and the other operation options the "
                                    "program was made with (it has no prs3-post header that records them)")
         else:
             _refuse_unused_options(opts["profile"])
-            spec = _job_spec(against, opts)
-        return intended_from_job(spec)
+            rebuilt = rebuild_job(_job_spec(against, opts))
+        return rebuilt.intended, rebuilt
     if suffix == ".csv":
-        return intended_from_poses(against, context.program)
+        return intended_from_poses(against, context.program), None
     raise InputError("--against takes PART.stl (with the operation options the program was made with), "
                      "POSES.csv (one pose per motion line), or the CAM file a program was converted from (its "
                      "header names it)", path=against)
@@ -1239,7 +1243,8 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
             raise click.BadParameter(f"must be a number ≥ 0 degrees, got {axis_tolerance_deg:g}",
                                      param_hint="'--axis-tolerance'")
         if not (against_path and Path(against_path).suffix.lower() == ".stl"):
-            given = [f"--{name.replace('_', '-')}" for name in _OPERATION_OPTIONS if _given(ctx, name)]
+            given = [f"--{name.replace('_', '-')}" for name in (*_OPERATION_OPTIONS, "collision_check", "clearance_min")
+                     if _given(ctx, name)]
             if given:
                 raise click.UsageError(f"{', '.join(_option_flags(ctx, given))}: the operation options are only "
                                        "used with --against PART.stl")
@@ -1250,19 +1255,27 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
         # the check's tolerance: as given, else the one the program was made with
         tolerance = (setting.header.tolerance if setting.header is not None and not _given(ctx, "tolerance")
                      else opts["tolerance"])
+        clearance: PartClearance | str | None = None
         if as_json or against_path:
             context = _open_program(*where, open_program)
-            intended = _intended(ctx, against_path, context, opts) if against_path else None
+            intended, rebuilt = _intended(ctx, against_path, context, opts) if against_path else (None, None)
             report = verify_loaded(context.program, context.machine, context.setup, context.dialect,
                                    tolerance=tolerance, axis_tolerance_deg=axis_tolerance_deg, intended=intended,
                                    tool_lengths=tool_lengths_of(context.header))
+            if rebuilt is not None and not opts["collision_check"]:
+                clearance = "not measured (asked not to)"
+            elif rebuilt is not None:                  # the clearance min: as given, else each operation's
+                report, clearance = with_clearance(
+                    report, context.machine, rebuilt,
+                    clearance_min=opts["clearance_min"] if _given(ctx, "clearance_min") else None)
         else:
             report = verify_file(setting, tolerance=tolerance, axis_tolerance_deg=axis_tolerance_deg)
         dialect = setting.dialect.name
         if as_json:
-            click.echo(json.dumps(report_record(report, path=program_path, dialect=dialect), allow_nan=False))
+            click.echo(json.dumps(report_record(report, path=program_path, dialect=dialect, clearance=clearance),
+                                  allow_nan=False))
         else:
-            click.echo(report_text(report, path=program_path, dialect=dialect), nl=False)
+            click.echo(report_text(report, path=program_path, dialect=dialect, clearance=clearance), nl=False)
         return 0 if report.ok else 1
 
     run_reported(body)

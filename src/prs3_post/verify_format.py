@@ -7,10 +7,11 @@ Pure formatting of a :class:`~prs3_post.verify.VerifyReport`; the numbers are co
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from prs3_post.collision import BODY_NAMES
 from prs3_post.tables import fixed
 from prs3_post.toolpath import EventKind, MoveKind
 from prs3_post.types import FloatArray, IntArray
@@ -23,7 +24,10 @@ from prs3_post.verify import (
     row_times,
 )
 
-__all__ = ["against_summary", "report_record", "report_text", "summary"]
+__all__ = ["against_summary", "clearance_record", "report_record", "report_text", "summary"]
+
+if TYPE_CHECKING:
+    from prs3_post.verify_job import PartClearance
 
 #: Rows of the text report's problem list.
 SHOWN_PROBLEMS = 10
@@ -108,9 +112,53 @@ def against_summary(report: VerifyReport) -> dict[str, Any] | None:
     }
 
 
+def clearance_record(clearance: PartClearance | str | None) -> dict[str, Any] | None:
+    """The clearance of the tool, holder and spindle nose from the part (``verify --against PART.stl``):
+    each body's minimum (mm, negative: a penetration's depth), its line, the fraction along that move,
+    the job's step, the body's point there (part frame), whether it is exact or a lower bound, the
+    clearance min it was held to; ``closest``: the body nearest its clearance min. A text: why it was
+    not measured. None: not asked (no part)."""
+    if clearance is None:
+        return None
+    if isinstance(clearance, str):
+        return {"measured": False, "note": clearance}
+    bodies = [
+        {"body": name, "distance_mm": _num(clearance.distance[b]), "exact": bool(clearance.exact[b]),
+         "line": int(clearance.line[b]) or None, "at": _num(clearance.at[b]) if clearance.line[b] else None,
+         "step": clearance.step[b] or None,
+         "point_part_mm": _nums(clearance.point[b]) if clearance.line[b] else None,
+         "clearance_min_mm": float(clearance.clearance_min[b]),
+         "ok": not clearance.distance[b] < clearance.clearance_min[b]}
+        for b, name in enumerate(BODY_NAMES)]
+    return {"measured": True, "allowance": clearance.allowance, "bodies": bodies,
+            "closest": BODY_NAMES[clearance.worst()]}
+
+
+def _clearance_lines(clearance: PartClearance | str | None) -> list[str]:
+    """The text report's lines on the clearance from the part."""
+    if clearance is None:
+        return []
+    if isinstance(clearance, str):
+        return [f"  clearance from the part: {clearance}"]
+    asked = sorted(set(clearance.clearance_min.tolist()))
+    out = [f"  clearance from the part (min {', '.join(f'{v:.3f}' for v in asked)} mm; not counted: "
+           f"{clearance.allowance}):"]
+    for b, name in enumerate(BODY_NAMES):
+        if not clearance.line[b]:
+            out.append(f"    {name:<12}  not near the part at any pose")
+            continue
+        d = float(clearance.distance[b])
+        shown = f"{'over ' if not clearance.exact[b] else ''}{d:.3f} mm"
+        step = f" ({clearance.step[b]})" if clearance.step[b] else ""
+        out.append(f"    {name:<12}  {shown:>14}  line {clearance.line[b]}{step}")
+    return out
+
+
 def report_record(report: VerifyReport, *, path: str = "", dialect: str = "",
-                  rapid_rate: float = NOMINAL_RAPID_RATE) -> dict[str, Any]:
-    """The complete report as JSON-ready data (angles in degrees where the key says ``_deg``)."""
+                  rapid_rate: float = NOMINAL_RAPID_RATE,
+                  clearance: PartClearance | str | None = None) -> dict[str, Any]:
+    """The complete report as JSON-ready data (angles in degrees where the key says ``_deg``);
+    ``clearance``: :func:`clearance_record`."""
     program, rep = report.program, report.samples_kept
     head = summary(report, rapid_rate=rapid_rate)
     lines = program.source
@@ -159,6 +207,7 @@ def report_record(report: VerifyReport, *, path: str = "", dialect: str = "",
                        for g in report.feed_groups],
         },
         "against": against_summary(report),
+        "clearance": clearance_record(clearance),
         "problems": [{"line": p.line, "kind": p.kind, "message": p.message} for p in report.problems],
         "warnings": [{"line": p.line, "kind": p.kind, "message": p.message} for p in report.warnings],
         "moves_detail": rows,
@@ -171,8 +220,8 @@ def report_record(report: VerifyReport, *, path: str = "", dialect: str = "",
 
 
 def report_text(report: VerifyReport, *, path: str = "", dialect: str = "",
-                rapid_rate: float = NOMINAL_RAPID_RATE) -> str:
-    """A short readable report: headline, limits, feeds, deviation, result."""
+                rapid_rate: float = NOMINAL_RAPID_RATE, clearance: PartClearance | str | None = None) -> str:
+    """A short readable report: headline, limits, feeds, deviation, clearance from the part, result."""
     head = summary(report, rapid_rate=rapid_rate)
     out = [
         f"{path}: {head['moves']} moves ({head['feed_moves']} G1, {head['rapid_moves']} G0), dialect {dialect}, "
@@ -211,6 +260,7 @@ def report_text(report: VerifyReport, *, path: str = "", dialect: str = "",
         out.append(f"  against {rec['label']}: tip max {fixed(rec['tip_max_mm'], 6)} mm at line {rec['tip_max_line']}"
                    f" (mean {fixed(rec['tip_mean_mm'], 6)}), axis max {fixed(rec['axis_max_deg'])}° at line "
                    f"{rec['axis_max_line']} (mean {fixed(rec['axis_mean_deg'])}°)")
+    out += _clearance_lines(clearance)
     for w in report.warnings[:SHOWN_PROBLEMS]:
         out.append(f"  warning: {w.message}")
     if len(report.warnings) > SHOWN_PROBLEMS:

@@ -27,10 +27,11 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from prs3_post.collision import BODY_NAMES, body_cylinders, clearance
 from prs3_post.config import Dialect, Machine, load_dialect, load_machine, load_source
 from prs3_post.errors import ConfigError, InputError, PoseError
 from prs3_post.face import Face
-from prs3_post.job import JobSpec, run_operations, specs_from_header
+from prs3_post.job import JobResult, JobSpec, run_operations, specs_from_header
 from prs3_post.kinematics import unit_axes
 from prs3_post.readers.header import ProgramHeader, SourceHeader, file_sha256, read_header
 from prs3_post.readers.poses import read_poses
@@ -38,8 +39,8 @@ from prs3_post.readers.program import CHUNK_LINES, ProgramFile, ProgramStream, l
 from prs3_post.setup import Setup
 from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_TOLERANCE
 from prs3_post.toolpath import MoveKind
-from prs3_post.types import FloatArray
-from prs3_post.verify import Intended, Verifier, VerifyReport, verify_program
+from prs3_post.types import BoolArray, FloatArray, IntArray
+from prs3_post.verify import Intended, Problem, Verifier, VerifyReport, verify_program
 
 _Config = TypeVar("_Config", Machine, Dialect)
 
@@ -243,13 +244,172 @@ def intended_from_job(specs: JobSpec | tuple[JobSpec, ...]) -> Intended:
     Each row's tip is where its operation's tool tip should be (``verify`` replays each row with the
     length of the tool in the spindle, from the program's header).
     """
+    return rebuild_job(specs).intended
+
+
+@dataclass(frozen=True, slots=True)
+class RebuiltJob:
+    """A job made again (without its collision check) to verify a program against: its path, and
+    what the clearance of the tool and holder from the part is measured with.
+
+    Attributes
+    ----------
+    intended : Intended — the path the program should make
+    specs : tuple of JobSpec — the operations
+    result : JobResult — the job made again (its faces, part triangles, the rows' step labels)
+    """
+
+    intended: Intended
+    specs: tuple[JobSpec, ...]
+    result: JobResult
+
+
+def rebuild_job(specs: JobSpec | tuple[JobSpec, ...]) -> RebuiltJob:
+    """The job ``specs`` describe made again, without its collision check (the program's own check,
+    or its absence, is in its header; :func:`part_clearance` measures the program itself)."""
     specs = specs if isinstance(specs, tuple) else (specs,)
-    # the path only: the program's own collision check (or its absence) is in its header
-    path = run_operations(tuple(replace(s, collision_check=False) for s in specs)).post.path
+    result = run_operations(tuple(replace(s, collision_check=False) for s in specs))
+    path = result.post.path
     feed = np.where(path.kind == MoveKind.FEED, path.feed, np.nan)
     what = "+".join(dict.fromkeys(s.operation.value for s in specs))
-    return Intended(tip=path.tip, axis=path.axis, feed=feed, kind=path.kind,
-                    label=f"{Path(specs[0].part).name} ({what})")
+    intended = Intended(tip=path.tip, axis=path.axis, feed=feed, kind=path.kind,
+                        label=f"{Path(specs[0].part).name} ({what})")
+    return RebuiltJob(intended=intended, specs=specs, result=result)
+
+
+@dataclass(frozen=True, slots=True)
+class PartClearance:
+    """The closest approach of the tool, the holder and the spindle nose to the part over a program's
+    replay (``verify --against PART.stl``).
+
+    Attributes
+    ----------
+    distance : (3,) float — mm, per body (:data:`~prs3_post.collision.BODY_NAMES`): the smallest signed
+        distance (negative: penetration depth); inf where nothing was measured
+    line : (3,) int — the program line of each minimum (0: none)
+    at : (3,) float — the fraction along that line's move
+    step : tuple of str — the step of each minimum as the job names it (``hole 1 approach``; "" for none)
+    point : (3, 3) float — mm, part frame: the body's point of each minimum
+    exact : (3,) bool — the minimum over every pose (False: a lower bound, stated as ``over``)
+    clearance_min : (3,) float — mm, the clearance each minimum's operation asks
+    allowance : str — what of the tool may be in the part (it cuts there), for the report
+    """
+
+    distance: FloatArray
+    line: IntArray
+    at: FloatArray
+    step: tuple[str, ...]
+    point: FloatArray
+    exact: BoolArray
+    clearance_min: FloatArray
+    allowance: str
+
+    def worst(self) -> int:
+        """The body closest to the part (relative to its clearance min)."""
+        return int(np.argmin(self.distance - self.clearance_min))
+
+    def problems(self) -> tuple[Problem, ...]:
+        """A ``collision`` problem for each body closer to the part than its clearance min, on its line."""
+        out = []
+        for b, name in enumerate(BODY_NAMES):
+            d, line = float(self.distance[b]), int(self.line[b])
+            if not d < self.clearance_min[b]:
+                continue
+            what = f"hits the part, {-d:.3f} mm deep" if d < 0 else f"comes within {d:.3f} mm of the part"
+            step = f" ({self.step[b]})" if self.step[b] else ""
+            out.append(Problem(line, "collision", f"line {line}{step}: the {name} {what} (clearance min "
+                                                  f"{self.clearance_min[b]:.3f} mm)"))
+        return tuple(sorted(out, key=lambda p: p.line))
+
+
+#: Poses measured on the bodies' surfaces beyond those the check needs (whose lower bound is under the
+#: clearance min), nearest first, to sharpen the reported minimum; beyond them it is stated as a bound.
+REFINE_POSES = 256
+
+#: What the main job's check lets the tool do in the part (and so does ``verify --against PART.stl``).
+FACE_ALLOWANCE = "the tool below the worked face, within the feature's swept region"
+
+
+def part_clearance(report: VerifyReport, machine: Machine, rebuilt: RebuiltJob, *,
+                   clearance_min: float | None = None) -> PartClearance:
+    """The clearance of the tool, the holder and the spindle nose from the part at every replay sample
+    of a program (``report``, its samples kept), each operation's rows as the main job checked them:
+    its face, tool (diameter, length below the gauge line), the tips of its G1 moves (the swept
+    region) and clearance min (``clearance_min`` when given). The moves between the operations of a
+    job, at its safe height, are measured with the tool in the spindle and no exemption (none cuts).
+
+    Raises
+    ------
+    ValueError
+        The machine has no ``[holder]`` (nothing to measure: :func:`with_clearance` says so).
+    InputError
+        The program has another number of moves than the job.
+    """
+    if machine.holder is None:
+        raise ValueError(f"machine {machine.name} has no [holder]")
+    rep, result = report.samples_kept, rebuilt.result
+    program = result.post.program
+    if len(program) != len(report.program):
+        raise InputError(f"the program has {len(report.program)} moves, the job {len(program)}",
+                         path=rebuilt.specs[0].part)
+    group = _operation_of_rows(result)
+    tip_all, axis_all = report.tip_part, report.axis_part
+    finite = np.isfinite(tip_all).all(axis=1) & np.isfinite(axis_all).all(axis=1)
+    best = np.full(3, np.inf)
+    sample = np.full(3, -1, dtype=np.int64)
+    point = np.zeros((3, 3))
+    exact = np.ones(3, dtype=bool)
+    asked = np.full(3, 1.0 if clearance_min is None else clearance_min)
+    for k, (spec, operation) in enumerate(zip(rebuilt.specs, result.operations, strict=True)):
+        rows = group == k
+        mine = np.flatnonzero(rows[rep.row] & finite)
+        if not len(mine):
+            continue
+        wanted = spec.clearance_min if clearance_min is None else clearance_min
+        length = operation.tool_length - machine.geometry.gauge_offset          # gauge line to tip
+        feed_rows = np.flatnonzero(rows & (report.program.kind == MoveKind.FEED))
+        found = clearance(result.triangles, tip_all[mine], axis_all[mine],
+                          body_cylinders(spec.cutting.tool_diameter, length, machine.holder), operation.face,
+                          tip_all[rep.end[feed_rows]], clearance_min=wanted, refine_max=REFINE_POSES)
+        closer = found.distance - wanted < best - asked
+        for b in np.flatnonzero(closer).tolist():
+            best[b], sample[b], point[b] = found.distance[b], mine[found.sample[b]], found.point[b]
+            exact[b], asked[b] = found.exact[b], wanted
+    lines = report.program.source
+    where = np.maximum(sample, 0)
+    row = rep.row[where]
+    return PartClearance(
+        distance=best, line=np.where(sample >= 0, lines[row], 0), at=np.where(sample >= 0, rep.fraction[where], 0.0),
+        step=tuple(program.describe(int(r)) if s >= 0 and program.source_labels else ""
+                   for r, s in zip(row.tolist(), sample.tolist(), strict=True)),
+        point=point, exact=exact, clearance_min=asked, allowance=FACE_ALLOWANCE)
+
+
+def with_clearance(report: VerifyReport, machine: Machine, rebuilt: RebuiltJob, *,
+                   clearance_min: float | None = None) -> tuple[VerifyReport, PartClearance | str]:
+    """The report with a ``collision`` problem for each body closer to the part than its clearance
+    min (problems in line order), and the clearance (:func:`part_clearance`); a machine without
+    ``[holder]``: the report as it is, and why nothing was measured."""
+    if machine.holder is None:
+        return report, f"not measured: machine {machine.name} has no [holder]"
+    found = part_clearance(report, machine, rebuilt, clearance_min=clearance_min)
+    problems = tuple(sorted(report.problems + found.problems(), key=lambda p: p.line))
+    return replace(report, problems=problems), found
+
+
+def _operation_of_rows(result: JobResult) -> IntArray:
+    """(N,) int: the operation each row of a job's program belongs to (its step label starts with the
+    operation's label; a job of one operation: all 0). The lift after an operation is the one before's,
+    the turn to the next face the next one's."""
+    post = result.post
+    group = np.zeros(len(post.path), dtype=np.int64)
+    if len(result.operations) < 2:
+        return group
+    labels = post.path.source_labels
+    owner = np.zeros(len(labels), dtype=np.int64)
+    for k, operation in enumerate(result.operations):
+        owner[[i for i, text in enumerate(labels) if text.startswith(f"{operation.label}, ")]] = k
+    return owner[post.path.source]
 
 
 def intended_from_source(context: ProgramContext, source: str) -> Intended:
