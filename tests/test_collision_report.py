@@ -163,3 +163,59 @@ def test_verify_can_be_asked_not_to_measure_the_clearance(wall_programs):
     assert alone.exit_code == 2
     assert alone.output.splitlines()[-1] == ("Error: --clearance-min: the operation options are only used with "
                                              "--against PART.stl")
+
+
+def test_preview_on_the_part_marks_the_closest_approach_where_verify_finds_it(wall_programs):
+    pytest.importorskip("matplotlib")
+    from prs3_post.geometry import find_faces, select_face
+    from prs3_post.readers.stl import load_part
+    from prs3_post.verify_job import header_job, open_program, preview_figure, rebuild_job
+
+    context = open_program(str(wall_programs["near"]))
+    mesh = load_part(str(WALL))
+    face, _ = select_face(find_faces(mesh), None, min_width=6.0)
+    figure = preview_figure(context.program, context.machine, context.setup, dialect=context.dialect,
+                            mesh=mesh.triangles, face=face, rebuilt=rebuild_job(header_job(context, str(WALL))))
+    ax3d = figure.axes[0]
+    marker = next(c for c in ax3d.collections if c.get_label().startswith("closest: "))
+    assert marker.get_label() == "closest: holder 2.488 mm deep in the part, line 27"
+    assert np.asarray(marker._offsets3d).ravel() == pytest.approx([52.488, 189.500, 298.406], abs=1e-3)
+    assert [t.get_text() for t in ax3d.texts] == ["  holder"]
+    assert figure.get_suptitle() == "near.ngc, machine patel2020, 5 moves (1 problem)"
+
+
+def test_preview_of_the_part_from_the_command_line_draws_the_mark(wall_programs, tmp_path):
+    pytest.importorskip("matplotlib")
+    image = tmp_path / "near.png"
+    result = invoke("preview", wall_programs["far"], "--part", WALL, "-o", image)
+    assert result.exit_code == 0, result.output
+    assert image.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def converted(tmp_path_factory) -> Path:
+    """A 3+2 G-code hole at X 30 in the 30° face's frame, converted without a part (nothing checked)."""
+    folder = tmp_path_factory.mktemp("cam")
+    source = folder / "hole30.ngc"
+    source.write_text("G21 G90 G17\nG0 X30 Y0 Z10\nG1 Z-3 F100\nG0 Z10\nM30\n", encoding="utf-8")
+    result = invoke("convert", source, "-o", folder / "out", "--work-plane", f"{WALL}:4", "--jobs", "1")
+    assert result.exit_code == 0, result.output
+    return folder / "out" / "hole30.ngc"
+
+
+def test_a_converted_program_against_its_part_reports_the_holder_and_nose(converted):
+    result = invoke("verify", converted, "--against", WALL)
+    assert result.exit_code == 1, result.output
+    assert result.output.splitlines()[-6:] == [
+        "  clearance from the part (min 1.000 mm; not counted: the tool (it cuts what the CAM program removes: its "
+        "gouges are the CAM system's to check)):",
+        "    tool          not measured at any pose",
+        "    holder             -2.446 mm  line 16",                  # as convert --part finds it
+        "    spindle nose       14.859 mm  line 18",
+        "FAIL: 1 problem",
+        "  line 16: the holder hits the part, 2.446 mm deep (clearance min 1.000 mm)",
+    ]
+    lowered = invoke("verify", converted, "--against", WALL, "--clearance-min", "0", "--json")
+    record = json.loads(lowered.output)
+    assert record["ok"] is False and [p["kind"] for p in record["problems"]] == ["collision"]   # in the wall: still
+    assert record["clearance"]["bodies"][0]["distance_mm"] is None

@@ -83,8 +83,7 @@ def test_the_other_panels_show_program_data(drawn):
         assert line.get_label() == f"T{leg + 1}"
         assert_allclose(line.get_xdata()[1::2], end, atol=0)
         assert_allclose(line.get_ydata()[1::2], moves.strokes[:, leg], atol=0)
-    assert ax_xy.get_xlabel() == ("cycle time (min), each move's slowest axis at the machine's [dynamics] speeds "
-                                  "and accelerations; G0 shaded grey")
+    assert ax_xy.get_xlabel() == "cycle time (min), the machine's [dynamics]; G0 shaded grey"
     x_line = ax_xy.get_lines()[0]
     assert x_line.get_label() == "X"
     assert_allclose(x_line.get_ydata()[1::2], moves.stage[:, 0], atol=0)
@@ -202,8 +201,7 @@ def test_without_dynamics_the_time_axis_says_its_nominal_rapid_rate(drawn):
     plain = dataclasses.replace(MACHINE, dynamics=None)
     figure = render_preview(dataclasses.replace(report, dynamics=None), plain, rapid_rate=2500.0)
     ax_xy = figure.axes[2]
-    assert ax_xy.get_xlabel() == ("program time (min), G1 at 1/F, G0 timed at 2500 mm/min (no [dynamics]); "
-                                  "G0 shaded grey")
+    assert ax_xy.get_xlabel() == "program time (min), G1 1/F, G0 at 2500 mm/min (no [dynamics]); G0 shaded grey"
     _start, end = row_times(moves, rapid_rate=2500.0)
     assert_allclose(ax_xy.get_lines()[0].get_xdata()[1::2], end, atol=0)
     assert end[-1] != row_times(moves, dynamics=MACHINE.dynamics)[1][-1]

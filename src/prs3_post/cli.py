@@ -62,6 +62,7 @@ from prs3_post.verify_format import report_record, report_text
 from prs3_post.verify_job import (
     DEFAULT_DIALECT,
     DEFAULT_MACHINE,
+    CamPart,
     HeaderConflict,
     PartClearance,
     ProgramContext,
@@ -1154,10 +1155,15 @@ def _refuse_contradictions(wrong: list[str]) -> None:
 
 
 def _intended(ctx: click.Context, against: str, context: ProgramContext,
-              opts: dict[str, Any]) -> tuple[Intended, RebuiltJob | None]:
+              opts: dict[str, Any]) -> tuple[Intended | None, RebuiltJob | CamPart | None]:
     """The intended path of `verify --against`: the job rebuilt from PART.stl and the program's header
-    (or, without a header, the options), with that job (for the clearance from the part), or POSES.csv."""
+    (or, without a header, the options), with that job (for the clearance from the part), or POSES.csv;
+    a converted program's CAM input, or its part (PART.stl: the clearance only, no path)."""
     suffix = Path(against).suffix.lower()
+    if isinstance(context.header, SourceHeader) and suffix == ".stl":   # the part a CAM program cuts
+        mesh = load_part(against, units=opts["units"], up=opts["up"])
+        return None, CamPart(triangles=np.asarray(mesh.triangles, dtype=np.float64),
+                             tool_length=context.header.tool_length)
     if isinstance(context.header, SourceHeader):            # a converted program: its CAM source
         try:
             return intended_from_source(context, against), None
@@ -1332,6 +1338,7 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
             raise click.BadParameter(f"machine {context.machine.name} has [dynamics]: the time axis shows its cycle "
                                      "time (each axis's top speed); leave it out", param_hint="'--rapid-rate'")
         mesh = face = None
+        rebuilt: RebuiltJob | None = None
         if part_path is not None:
             choice, part_units, part_up = _face_index(face_choice), units, up
             header = context.header
@@ -1348,12 +1355,14 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
                                                                          "up": up}[name]) != recorded[name]]
                 _refuse_contradictions(wrong)
                 choice, part_units, part_up = header.face, header.units, header.up
+                # the job it was made by: where its tool, holder and nose come closest to the part
+                rebuilt = rebuild_job(header_job(context, part_path)) if context.machine.holder is not None else None
             loaded = load_part(part_path, units=part_units, up=part_up)
             face, _ = select_face(find_faces(loaded), choice)
             mesh = loaded.triangles
         image = preview_bytes(context.program, context.machine, context.setup, fmt, dialect=context.dialect,
                               mesh=mesh, face=face, rapid_rate=rapid_rate, tool_lengths=tool_lengths_of(context.header),
-                              title=Path(part_path).name if part_path else "")
+                              title=Path(part_path).name if part_path else "", rebuilt=rebuilt)
         write_atomic(out_path, image)
         click.echo(f"prs3-post: wrote {out_path}", err=True)
         return 0

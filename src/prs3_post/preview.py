@@ -6,7 +6,9 @@ Panels
 ------
 (a) 3D, part coordinates: the part's edges (clipped to the view, which frames the face and the
     path), the selected face (highlighted), the FK tool-tip path (every replay sample: G1 moves
-    solid, G0 moves dashed, each move a separate piece) and the tool axis at a few G1 end points.
+    solid, G0 moves dashed, each move a separate piece) and the tool axis at a few G1 end points;
+    given the closest approach of the tool, holder or spindle nose to the part, a marker there
+    with the body, its clearance and line (red when closer than allowed).
 (b) The actuator strokes T1..T3 and the stage X, Y over program time: with the machine's
     ``[dynamics]``, each move's cycle time (the slowest axis's trapezoidal profile, rapids at the
     axes' top speeds: :func:`prs3_post.dynamics.move_times`); without it, G1 moves take 1/F min
@@ -187,6 +189,7 @@ def render_preview(
     title: str = "",
     rapid_rate: float = NOMINAL_RAPID_RATE,
     axis_marks: int = 6,
+    closest: tuple[FloatArray, str, bool] | None = None,
 ) -> Figure:
     """Draw the preview figure (module docstring).
 
@@ -201,6 +204,9 @@ def render_preview(
     rapid_rate : float — mm/min, joint-space rate of G0 moves for the time axis (a machine without
         ``[dynamics]``; with it, the moves' cycle times)
     axis_marks : int — how many G1 end points get a tool-axis mark
+    closest : (point, label, collision), optional — the closest approach of the tool, holder or nose
+        to the part: (3,) mm part frame, its text (body, clearance, line), whether it is closer than
+        allowed (drawn red, else purple): a marker, the text its legend entry (the body's name beside it)
 
     Returns
     -------
@@ -233,6 +239,8 @@ def render_preview(
         if face_triangles is not None:
             on_face[np.asarray(face_triangles, dtype=np.int64)] = True
         frame.append((mesh[on_face] if on_face.any() else mesh).reshape(-1, 3))
+    if closest is not None:
+        frame.append(np.asarray(closest[0], dtype=np.float64).reshape(1, 3))
     frame_points = np.concatenate(frame)
     finite = frame_points[np.isfinite(frame_points).all(axis=1)]
     extent = float((finite.max(axis=0) - finite.min(axis=0)).max()) if len(finite) else 1.0
@@ -252,6 +260,12 @@ def render_preview(
                   label="G0 (rapid)", zorder=5)
     start = report.tip_part[report.samples_kept.end[0]] if len(report.program) else np.zeros(3)
     ax3d.scatter([start[0]], [start[1]], [start[2]], color="black", s=18, label="start", depthshade=False, zorder=6)
+    if closest is not None:
+        point, text, hit = np.asarray(closest[0], dtype=np.float64).reshape(3), closest[1], closest[2]
+        colour = _LIMIT_COLOUR if hit else "#9467bd"
+        ax3d.scatter([point[0]], [point[1]], [point[2]], color=colour, marker="X", s=60, label=text,
+                     depthshade=False, zorder=7)
+        ax3d.text(point[0], point[1], point[2], "  " + text.split(" ")[1], color=colour, fontsize=8, zorder=8)
     ax3d.plot(marks[:, 0], marks[:, 1], marks[:, 2], color=_AXIS_COLOUR, linewidth=1.6, alpha=0.8, label="tool axis",
               zorder=3)
     ax3d.set_xlabel("x (mm)")
@@ -324,9 +338,8 @@ def render_preview(
 def time_label(report: VerifyReport, rapid_rate: float = NOMINAL_RAPID_RATE) -> str:
     """The time axis's label: how the moves were timed (the machine's dynamics, or a nominal rapid rate)."""
     if report.dynamics is not None:
-        return ("cycle time (min), each move's slowest axis at the machine's [dynamics] speeds and "
-                "accelerations; G0 shaded grey")
-    return f"program time (min), G1 at 1/F, G0 timed at {rapid_rate:g} mm/min (no [dynamics]); G0 shaded grey"
+        return "cycle time (min), the machine's [dynamics]; G0 shaded grey"
+    return f"program time (min), G1 1/F, G0 at {rapid_rate:g} mm/min (no [dynamics]); G0 shaded grey"
 
 
 def _limit_view(values: FloatArray, *bounds: tuple[float, float]) -> tuple[float, float]:

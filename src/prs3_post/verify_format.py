@@ -145,7 +145,7 @@ def _clearance_lines(clearance: PartClearance | str | None) -> list[str]:
            f"{clearance.allowance}):"]
     for b, name in enumerate(BODY_NAMES):
         if not clearance.line[b]:
-            out.append(f"    {name:<12}  not near the part at any pose")
+            out.append(f"    {name:<12}  not measured at any pose")
             continue
         d = float(clearance.distance[b])
         shown = f"{'over ' if not clearance.exact[b] else ''}{d:.3f} mm"

@@ -23,7 +23,7 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 from queue import Full, Queue
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
@@ -41,6 +41,9 @@ from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_TOLERANCE
 from prs3_post.toolpath import MoveKind
 from prs3_post.types import BoolArray, FloatArray, IntArray
 from prs3_post.verify import Intended, Problem, Verifier, VerifyReport, verify_program
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 _Config = TypeVar("_Config", Machine, Dialect)
 
@@ -333,10 +336,10 @@ FACE_ALLOWANCE = "the tool below the worked face, within the feature's swept reg
 def part_clearance(report: VerifyReport, machine: Machine, rebuilt: RebuiltJob, *,
                    clearance_min: float | None = None) -> PartClearance:
     """The clearance of the tool, the holder and the spindle nose from the part at every replay sample
-    of a program (``report``, its samples kept), each operation's rows as the main job checked them:
-    its face, tool (diameter, length below the gauge line), the tips of its G1 moves (the swept
-    region) and clearance min (``clearance_min`` when given). The moves between the operations of a
-    job, at its safe height, are measured with the tool in the spindle and no exemption (none cuts).
+    of a program (``report``, its samples kept) and along the motion between them, each operation's
+    rows as the main job checked them: its face, tool (diameter, length below the gauge line), the
+    tips of its G1 moves (the swept region) and clearance min (``clearance_min`` when given). The
+    moves between the operations of a job belong to the operation whose tool is in the spindle.
 
     Raises
     ------
@@ -345,14 +348,52 @@ def part_clearance(report: VerifyReport, machine: Machine, rebuilt: RebuiltJob, 
     InputError
         The program has another number of moves than the job.
     """
-    if machine.holder is None:
-        raise ValueError(f"machine {machine.name} has no [holder]")
-    rep, result = report.samples_kept, rebuilt.result
+    result = rebuilt.result
     program = result.post.program
     if len(program) != len(report.program):
         raise InputError(f"the program has {len(report.program)} moves, the job {len(program)}",
                          path=rebuilt.specs[0].part)
     group = _operation_of_rows(result)
+    pieces = [_Piece(rows=group == k, face=operation.face, tool_diameter=spec.cutting.tool_diameter,
+                     tool_length=operation.tool_length, clearance_min=spec.clearance_min)
+              for k, (spec, operation) in enumerate(zip(rebuilt.specs, result.operations, strict=True))]
+    return _measure(report, machine, result.triangles, pieces, clearance_min=clearance_min,
+                    describe=program.describe if program.source_labels else None, allowance=FACE_ALLOWANCE)
+
+
+#: What the check lets the tool do in the part of a program converted from CAM input (no face).
+CAM_ALLOWANCE = "the tool (it cuts what the CAM program removes: its gouges are the CAM system's to check)"
+
+
+def cam_part_clearance(report: VerifyReport, machine: Machine, triangles: FloatArray, tool_length: float, *,
+                       clearance_min: float = 1.0) -> PartClearance:
+    """The clearance of the holder and the spindle nose from the part (``triangles``, part frame) of a
+    program converted from CAM input, as ``convert --part`` checks it: no face, so the tool is not
+    measured (it cuts what the CAM program removes); ``tool_length`` is the IK's "TL"."""
+    piece = _Piece(rows=np.ones(len(report.program), dtype=bool), face=None, tool_diameter=0.0,
+                   tool_length=tool_length, clearance_min=clearance_min)
+    return _measure(report, machine, triangles, [piece], clearance_min=clearance_min, describe=None,
+                    allowance=CAM_ALLOWANCE)
+
+
+@dataclass(frozen=True, slots=True)
+class _Piece:
+    """Rows measured alike: (N,) bool rows, the face (None: no tool), the tool, the clearance min (mm)."""
+
+    rows: BoolArray
+    face: Face | None
+    tool_diameter: float
+    tool_length: float
+    clearance_min: float
+
+
+def _measure(report: VerifyReport, machine: Machine, triangles: FloatArray, pieces: list[_Piece], *,
+             clearance_min: float | None, describe: Callable[[int], str] | None, allowance: str) -> PartClearance:
+    """Each piece's samples through :func:`~prs3_post.collision.clearance` as
+    :func:`~prs3_post.collision.check_program` calls it; the closest per body (relative to its clearance min)."""
+    if machine.holder is None:
+        raise ValueError(f"machine {machine.name} has no [holder]")
+    rep = report.samples_kept
     tip_all, axis_all = report.tip_part, report.axis_part
     finite = np.isfinite(tip_all).all(axis=1) & np.isfinite(axis_all).all(axis=1)
     best = np.full(3, np.inf)
@@ -360,18 +401,20 @@ def part_clearance(report: VerifyReport, machine: Machine, rebuilt: RebuiltJob, 
     point = np.zeros((3, 3))
     exact = np.ones(3, dtype=bool)
     asked = np.full(3, 1.0 if clearance_min is None else clearance_min)
-    for k, (spec, operation) in enumerate(zip(rebuilt.specs, result.operations, strict=True)):
-        rows = group == k
-        mine = np.flatnonzero(rows[rep.row] & finite)
+    for piece in pieces:
+        mine = np.flatnonzero(piece.rows[rep.row] & finite)
         if not len(mine):
             continue
-        wanted = spec.clearance_min if clearance_min is None else clearance_min
-        length = operation.tool_length - machine.geometry.gauge_offset          # gauge line to tip
-        feed_rows = np.flatnonzero(rows & (report.program.kind == MoveKind.FEED))
-        found = clearance(result.triangles, tip_all[mine], axis_all[mine],
-                          body_cylinders(spec.cutting.tool_diameter, length, machine.holder), operation.face,
-                          tip_all[rep.end[feed_rows]], clearance_min=wanted, refine_max=REFINE_POSES)
+        wanted = piece.clearance_min if clearance_min is None else clearance_min
+        bodies = body_cylinders(piece.tool_diameter, piece.tool_length - machine.geometry.gauge_offset, machine.holder)
+        if piece.face is None:
+            bodies[0, 2] = bodies[0, 1]                                          # the tool: not measured
+        feed_rows = np.flatnonzero(piece.rows & (report.program.kind == MoveKind.FEED))
+        connected = np.concatenate([[False], np.diff(mine) == 1])               # from the sample before
+        found = clearance(triangles, tip_all[mine], axis_all[mine], bodies, piece.face, tip_all[rep.end[feed_rows]],
+                          clearance_min=wanted, refine_max=REFINE_POSES, connected=connected)
         closer = found.distance - wanted < best - asked
+        closer[0] &= piece.face is not None                                      # a CAM program's tool: not counted
         for b in np.flatnonzero(closer).tolist():
             best[b], sample[b], point[b] = found.distance[b], mine[found.sample[b]], found.point[b]
             exact[b], asked[b] = found.exact[b], wanted
@@ -380,19 +423,33 @@ def part_clearance(report: VerifyReport, machine: Machine, rebuilt: RebuiltJob, 
     row = rep.row[where]
     return PartClearance(
         distance=best, line=np.where(sample >= 0, lines[row], 0), at=np.where(sample >= 0, rep.fraction[where], 0.0),
-        step=tuple(program.describe(int(r)) if s >= 0 and program.source_labels else ""
+        step=tuple(describe(int(r)) if s >= 0 and describe is not None else ""
                    for r, s in zip(row.tolist(), sample.tolist(), strict=True)),
-        point=point, exact=exact, clearance_min=asked, allowance=FACE_ALLOWANCE)
+        point=point, exact=exact, clearance_min=asked, allowance=allowance)
 
 
-def with_clearance(report: VerifyReport, machine: Machine, rebuilt: RebuiltJob, *,
+@dataclass(frozen=True, slots=True)
+class CamPart:
+    """The part a program converted from CAM input is verified against: (T, 3, 3) mm triangles (part
+    frame) and the tool length "TL" its IK used (mm, its header's)."""
+
+    triangles: FloatArray
+    tool_length: float
+
+
+def with_clearance(report: VerifyReport, machine: Machine, against: RebuiltJob | CamPart, *,
                    clearance_min: float | None = None) -> tuple[VerifyReport, PartClearance | str]:
     """The report with a ``collision`` problem for each body closer to the part than its clearance
-    min (problems in line order), and the clearance (:func:`part_clearance`); a machine without
-    ``[holder]``: the report as it is, and why nothing was measured."""
+    min (problems in line order), and the clearance (:func:`part_clearance` for a job made again,
+    :func:`cam_part_clearance` for a converted program); a machine without ``[holder]``: the report
+    as it is, and why nothing was measured."""
     if machine.holder is None:
         return report, f"not measured: machine {machine.name} has no [holder]"
-    found = part_clearance(report, machine, rebuilt, clearance_min=clearance_min)
+    if isinstance(against, CamPart):
+        found = cam_part_clearance(report, machine, against.triangles, against.tool_length,
+                                   clearance_min=1.0 if clearance_min is None else clearance_min)
+    else:
+        found = part_clearance(report, machine, against, clearance_min=clearance_min)
     problems = tuple(sorted(report.problems + found.problems(), key=lambda p: p.line))
     return replace(report, problems=problems), found
 
@@ -592,18 +649,48 @@ def read_ahead(items: Iterable[_Item], depth: int = 2) -> Iterator[_Item]:
 def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str, *,
                   dialect: Dialect, tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None,
                   face: Face | None = None, title: str = "", rapid_rate: float = 5000.0,
-                  tool_lengths: dict[int, float] | None = None) -> bytes:
-    """Replay a read program and draw it as ``png`` or ``svg`` bytes (matplotlib is imported here);
-    ``tool_lengths`` as :func:`~prs3_post.verify.verify_program`."""
-    from prs3_post.preview import figure_bytes, render_preview
+                  tool_lengths: dict[int, float] | None = None, rebuilt: RebuiltJob | None = None) -> bytes:
+    """Replay a read program and draw it as ``png`` or ``svg`` bytes (:func:`preview_figure`)."""
+    from prs3_post.preview import figure_bytes
 
-    report = verify_loaded(program, machine, setup, dialect, tolerance=tolerance, tool_lengths=tool_lengths)
+    return figure_bytes(preview_figure(program, machine, setup, dialect=dialect, tolerance=tolerance, mesh=mesh,
+                                       face=face, title=title, rapid_rate=rapid_rate, tool_lengths=tool_lengths,
+                                       rebuilt=rebuilt), fmt)
+
+
+def preview_figure(program: ProgramFile, machine: Machine, setup: Setup, *, dialect: Dialect,
+                   tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None, face: Face | None = None,
+                   title: str = "", rapid_rate: float = 5000.0, tool_lengths: dict[int, float] | None = None,
+                   rebuilt: RebuiltJob | None = None) -> Figure:
+    """Replay a read program and draw it (matplotlib is imported here); ``tool_lengths`` as
+    :func:`~prs3_post.verify.verify_program`. With the job it was made by (``rebuilt``) and a machine
+    with ``[holder]``, the body that comes closest to the part (:func:`part_clearance`, relative to
+    its clearance min) is marked where it does, with its clearance and line."""
+    from prs3_post.preview import render_preview
+
+    # against the job's path, as `verify --against` replays it: the same samples, the same closest approach
+    report = verify_loaded(program, machine, setup, dialect, tolerance=tolerance, tool_lengths=tool_lengths,
+                           intended=None if rebuilt is None else rebuilt.intended)
+    closest = None
+    if rebuilt is not None:
+        report, found = with_clearance(report, machine, rebuilt)
+        closest = None if isinstance(found, str) else closest_mark(found)
     label = "face" if face is None else f"face {face.index} ({math.degrees(face.inclination):.2f}°)"
     heading = f"{title}: " if title else ""
-    fig = render_preview(
+    return render_preview(
         report, machine, mesh=mesh, face_triangles=None if face is None else face.triangles, face_label=label,
         title=f"{heading}{Path(program.path).name}, machine {machine.name}, {len(program.moves)} moves "
-              f"({'ok' if report.ok else f'{len(report.problems)} problems'})",
-        rapid_rate=rapid_rate,
+              f"({'ok' if report.ok else f'{len(report.problems)} problem' + 's' * (len(report.problems) > 1)})",
+        rapid_rate=rapid_rate, closest=closest,
     )
-    return figure_bytes(fig, fmt)
+
+
+def closest_mark(found: PartClearance) -> tuple[FloatArray, str, bool] | None:
+    """Where the preview marks the closest approach (part frame, mm), its label, and whether it is a
+    collision (closer than the clearance min); None: no body near the part at any pose."""
+    b = found.worst()
+    if not found.line[b]:
+        return None
+    d, asked = float(found.distance[b]), float(found.clearance_min[b])
+    what = f"{-d:.3f} mm deep in the part" if d < 0 else f"{'over ' if not found.exact[b] else ''}{d:.3f} mm clear"
+    return (found.point[b].copy(), f"closest: {BODY_NAMES[b]} {what}, line {found.line[b]}", d < asked)
