@@ -47,9 +47,20 @@ def _rotated_origin(origin: np.ndarray, point: np.ndarray, rotation_deg: float) 
 
 @needs_corpus
 def test_verify_against_the_part_needs_no_options(slope_round):
-    result = invoke("verify", slope_round, "--against", SLOPE)
+    result = invoke("verify", slope_round, "--against", SLOPE, "--no-collision-check")   # the clearance: below
     assert result.exit_code == 0, result.stdout + result.stderr
     assert result.stdout.splitlines()[-1] == "OK: within every limit and tolerance"
+
+
+@needs_corpus
+def test_verify_against_the_part_finds_the_tunnel_the_program_was_made_in(slope_round):
+    """Made with --no-collision-check (the header says so): verify measures the clearance anyway."""
+    result = invoke("verify", slope_round, "--against", SLOPE)
+    assert result.exit_code == 1
+    assert result.stdout.splitlines()[-3:] == [
+        "FAIL: 2 problems",
+        "  line 31 (round pass 1/2 ramp): the holder hits the part, 4.999 mm deep (clearance min 1.000 mm)",
+        "  line 385 (round retract): the tool hits the part, 4.949 mm deep (clearance min 1.000 mm)"]
 
 
 @needs_corpus
@@ -86,7 +97,7 @@ def test_a_rotated_setup_round_trips_through_verify(tmp_path):
     setup_line = next(ln for ln in out.read_text().splitlines() if ln.startswith("(setup: "))
     assert setup_line == f"(setup: part origin at machine [{', '.join(f'{v:.4f}' for v in origin)}] mm, " \
                          "rotation 30.0000 deg about z)"
-    result = invoke("verify", out, "--against", SLOPE)
+    result = invoke("verify", out, "--against", SLOPE, "--no-collision-check")   # the slope: a tunnel
     assert result.exit_code == 0, result.stdout + result.stderr
     # the replay, taken back to part coordinates through the rotation, is on the part (not turned by 30°)
     context = open_program(str(out))
@@ -124,7 +135,7 @@ def test_an_option_that_contradicts_the_header_is_an_error(slope_round, args, me
 @needs_corpus
 def test_operation_options_must_agree_with_the_header(slope_round):
     same = invoke("verify", slope_round, "--against", SLOPE, *ROUND, ORIGIN, "--machine", "patel2020",
-                  "--depth", "2")
+                  "--depth", "2", "--no-collision-check")
     assert same.exit_code == 0, same.stdout + same.stderr
     wrong = invoke("verify", slope_round, "--against", SLOPE, "--diameter", "9", "--face", "10", "--feed", "300")
     assert wrong.exit_code == 2
@@ -147,7 +158,7 @@ def test_a_program_without_header_works_with_explicit_options(slope_round, tmp_p
     bare.write_text("\n".join(ln for ln in lines if not ln.startswith("(")) + "\n")
     without = invoke("verify", bare, "--against", SLOPE, *ROUND)
     assert without.exit_code == 1                      # the machine's default setup: not the intended path
-    result = invoke("verify", bare, "--against", SLOPE, *ROUND, ORIGIN)
+    result = invoke("verify", bare, "--against", SLOPE, *ROUND, ORIGIN, "--no-collision-check")
     assert result.exit_code == 0, result.stdout + result.stderr
     assert result.stdout.splitlines()[-1] == "OK: within every limit and tolerance"
     needs_profile = invoke("verify", bare, "--against", SLOPE)

@@ -327,7 +327,7 @@ class PartClearance:
 
 #: Poses measured on the bodies' surfaces beyond those the check needs (whose lower bound is under the
 #: clearance min), nearest first, to sharpen the reported minimum; beyond them it is stated as a bound.
-REFINE_POSES = 256
+REFINE_POSES = 32
 
 #: What the main job's check lets the tool do in the part (and so does ``verify --against PART.stl``).
 FACE_ALLOWANCE = "the tool below the worked face, within the feature's swept region"
