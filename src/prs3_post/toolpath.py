@@ -13,8 +13,9 @@ input file, so that an error says ``part.cl:12`` instead of ``line 12``.
 from __future__ import annotations
 
 import enum
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field, replace
+from typing import TypeVar
 
 import numpy as np
 
@@ -262,21 +263,10 @@ def program_from_columns(columns: dict[str, np.ndarray], events: list[Event] | t
     ValueError
         A column of another dtype, row shape or row count.
     """
-    program = object.__new__(JointProgram)
     fields = (("kind", np.int64, ()), ("stage", np.float64, (2,)), ("strokes", np.float64, (3,)),
               ("inverse_time", np.float64, ()), ("source", np.int64, ()))
-    rows = len(columns["kind"])
-    for name, dtype, tail in fields:
-        column = columns[name]
-        if column.dtype != dtype or column.shape != (rows, *tail):
-            raise ValueError(f"{name}: expected {np.dtype(dtype).name} of shape {(rows, *tail)}, got "
-                             f"{column.dtype.name} of shape {column.shape}")
-        column.flags.writeable = False
-        object.__setattr__(program, name, column)
-    object.__setattr__(program, "events", tuple(sorted(events, key=lambda e: e.before)))
-    object.__setattr__(program, "source_labels", tuple(source_labels))
-    object.__setattr__(program, "source_file", source_file)
-    return program
+    return _frozen_from_columns(JointProgram, [(name, columns[name], dtype, tail) for name, dtype, tail in fields],
+                                events, source_labels, source_file)
 
 
 def toolpath_from_columns(*, kind: IntArray, tip: FloatArray, axis: FloatArray, feed: FloatArray, source: IntArray,
@@ -291,20 +281,32 @@ def toolpath_from_columns(*, kind: IntArray, tip: FloatArray, axis: FloatArray, 
     ValueError
         A column of another dtype, row shape or row count.
     """
-    path = object.__new__(Toolpath)
-    rows = len(kind)
-    for name, column, dtype, tail in (("kind", kind, np.int64, ()), ("tip", tip, np.float64, (3,)),
-                                      ("axis", axis, np.float64, (3,)), ("feed", feed, np.float64, ()),
-                                      ("source", source, np.int64, ())):
-        if column.dtype != dtype or column.shape != (rows, *tail):
-            raise ValueError(f"{name}: expected {np.dtype(dtype).name} of shape {(rows, *tail)}, got "
+    return _frozen_from_columns(Toolpath, [("kind", kind, np.int64, ()), ("tip", tip, np.float64, (3,)),
+                                           ("axis", axis, np.float64, (3,)), ("feed", feed, np.float64, ()),
+                                           ("source", source, np.int64, ())],
+                                events, source_labels, source_file)
+
+
+_Framed = TypeVar("_Framed", "Toolpath", "JointProgram")
+
+
+def _frozen_from_columns(cls: type[_Framed], fields: list[tuple[str, np.ndarray, type, tuple[int, ...]]],
+                         events: Iterable[Event], source_labels: Iterable[str], source_file: str) -> _Framed:
+    """An instance of the frozen ``cls`` holding the checked columns ``fields`` (name, column, dtype,
+    row shape; the first column's length is the row count), frozen in place, not copied."""
+    made = object.__new__(cls)
+    rows = len(fields[0][1])
+    row_shape: tuple[int, ...]
+    for name, column, dtype, row_shape in fields:
+        if column.dtype != dtype or column.shape != (rows, *row_shape):
+            raise ValueError(f"{name}: expected {np.dtype(dtype).name} of shape {(rows, *row_shape)}, got "
                              f"{column.dtype.name} of shape {column.shape}")
         column.flags.writeable = False
-        object.__setattr__(path, name, column)
-    object.__setattr__(path, "events", tuple(sorted(events, key=lambda e: e.before)))
-    object.__setattr__(path, "source_labels", tuple(source_labels))
-    object.__setattr__(path, "source_file", source_file)
-    return path
+        object.__setattr__(made, name, column)
+    object.__setattr__(made, "events", tuple(sorted(events, key=lambda e: e.before)))
+    object.__setattr__(made, "source_labels", tuple(source_labels))
+    object.__setattr__(made, "source_file", source_file)
+    return made
 
 
 def _events_of_rows(events: tuple[Event, ...], lo: int, hi: int, last: bool) -> tuple[Event, ...]:
