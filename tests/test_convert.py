@@ -556,6 +556,20 @@ def test_a_feed_as_first_motion_is_an_input_error(tmp_path: Path, name: str, tex
     assert list(out.iterdir()) == []
 
 
+@pytest.mark.parametrize(("goto", "shown"), [("1e308,0,0", "value 1: '1e308'"),
+                                             ("0,0,2000000.0", "value 3: '2000000.0'")])
+def test_a_coordinate_beyond_a_kilometre_is_bad_input_not_out_of_reach(tmp_path: Path, goto: str, shown: str) -> None:
+    """It was exit 1, a stage X '1e+308 mm above the maximum' (the reach search ran on it)."""
+    src = tmp_path / "far.cls"
+    src.write_text(f"RAPID\nGOTO/0,0,0\nGOTO/{goto}\n")
+    out = tmp_path / "out"
+    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(out), "--part-origin", "0,0,-700")
+    assert code == 2
+    assert stdout == (f"failed\t{src}\t-\t{src}:3: GOTO/ {shown} is out of range (allowed: within ±1e+06 mm; is the "
+                      "file in the right units?)\n")
+    assert list(out.iterdir()) == []
+
+
 def test_rows_of_one_line_are_named_once() -> None:
     tip = np.zeros((5, 3))
     axis = np.array([[0, 0, 1], [0, 0, -1], [0, 0, -1], [0, 0, -1], [0, 0, -1.0]])
