@@ -958,7 +958,13 @@ def job(job_path: str, out_path: str | None) -> None:
         refuse_overwriting({"--output": out_path}, {f"{key} of {job_path}": path for key, path in named.items()
                                                     if isinstance(path, str)})
         specs = _job_specs(job_file)
-        job = check_operations(specs)
+        try:
+            job = check_operations(specs)
+        except FeatureError as error:                  # worded for the options: say the job file and its key
+            where = "" if error.operation is None else f"operation[{error.operation}]"
+            where += f".{error.key}" if where and error.key else ""
+            raise InputError(f"{where}: {_job_keys(str(error))}" if where else _job_keys(str(error)),
+                             path=job_path) from error
         text = _ProgramText(job, whole=not _streamable(out_path))
         write_outputs([(out_path, text.data())])
         _report_placement(job)
