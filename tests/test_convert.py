@@ -570,6 +570,17 @@ def test_a_coordinate_beyond_a_kilometre_is_bad_input_not_out_of_reach(tmp_path:
     assert list(out.iterdir()) == []
 
 
+@pytest.mark.parametrize("tolerance", ["100", "0.00001"])
+def test_a_tolerance_outside_its_range_is_refused_before_any_work(tmp_path: Path, tolerance: str) -> None:
+    out = tmp_path / "out"
+    code, stdout, stderr = _cli(tmp_path, str(CORPUS / "humman_deep_drill.clsf"), "-o", str(out), "--tolerance",
+                                tolerance)
+    assert (code, stdout) == (2, "")
+    assert stderr == (f"prs3-post: error: --tolerance must be from 0.0001 mm (the resolution of the program) to 1 mm "
+                      f"(got {float(tolerance):g})\n")
+    assert not out.exists()
+
+
 def test_rows_of_one_line_are_named_once() -> None:
     tip = np.zeros((5, 3))
     axis = np.array([[0, 0, 1], [0, 0, -1], [0, 0, -1], [0, 0, -1], [0, 0, -1.0]])

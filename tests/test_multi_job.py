@@ -213,6 +213,10 @@ def test_every_job_output_passes_linuxcnc(example, rs274_check, tmp_path: Path) 
     (("[[5.0, 5.0], [-5.0, -5.0]]", "[[5.0, 5.0], [5.0, 5.0]]"),
      "{job}: operation[1].at: hole 2 at (u 5.000, v 5.000) is hole 1 at (u 5.000, v 5.000) again (closer than the "
      "program's resolution, 0.0001 mm): it would be drilled twice; give each position once (at, at_xyz)"),
+    (('up = "z"', 'up = "z"\ntolerance = 100.0'),
+     "{job}: tolerance must be from 0.0001 mm (the resolution of the program) to 1 mm (got 100)"),
+    (("peck = 2.0", "peck = 2.0\ntool_diameter = 1e-9"),
+     "{job}: operation[1]: tool_diameter must be from 0.01 to 500 mm (got 1e-09)"),
     (("diameter = 20.0", 'diameter = 7.0\nside = "inside"'),
      "{job}: operation[2].side: side inside: the tool Ø8.000 mm does not fit inside the round Ø7.000 mm (use a tool "
      "smaller than Ø7.000)"),
