@@ -437,10 +437,6 @@ def _text_at(data: bytes, path: str, offset: int) -> str:
         raise InputError(str(exc), path=path) from exc
 
 
-#: bytes.translate's ``delete`` argument: printable ASCII and TAB (a line of nothing else is its ASCII text).
-_PLAIN_BYTES = bytes([9, *range(32, 127)])
-
-
 class _BlockLines(Sequence[str]):
     """The lines of a block of a file's bytes (:func:`~prs3_post.readers.lexer.lex_column_block`'s
     ``bounds``: line k is ``data[bounds[k]:bounds[k + 1] - 1]``), each decoded when first asked for
@@ -476,8 +472,9 @@ class _BlockLines(Sequence[str]):
         if text is None:
             begin = self.bounds[line]
             raw = self.data[begin:self.bounds[line + 1] - 1]
-            text = raw.decode("ascii") if not raw.translate(None, _PLAIN_BYTES) else _text_at(
-                raw, self.path, self.offset + begin)
+            text = raw.decode("latin-1")                 # one byte, one character: for the test below
+            if not (text.isascii() and text.isprintable()):      # else checked as decode does
+                text = _text_at(raw, self.path, self.offset + begin)
             self.texts[line] = text
         return text
 
