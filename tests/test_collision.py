@@ -38,8 +38,8 @@ def test_hole_forty_mm_from_the_wall_passes_and_the_header_says_the_clearances(t
     result = CliRunner().invoke(main, ["run", str(WALL), "--profile", "hole", "--at", "8.1,0", "-o", str(out)])
     assert result.exit_code == 0, result.output
     assert [ln for ln in out.read_text().split("\n") if ln.startswith("(collision:")] == [
-        "(collision: clear of the part by at least 1.000 mm: tool over 11.000 mm, holder over 3.049 mm, "
-        "spindle nose over 3.000 mm)"]
+        "(collision: clear of the part by at least 1.000 mm: tool over 11.000 mm, holder 8.637 mm, "
+        "spindle nose over 11.000 mm)"]             # the holder's minimum at the samples (verify: 8.635 between them)
 
 
 def test_no_collision_check_is_stated_in_the_header(tmp_path):
@@ -146,6 +146,27 @@ def test_a_program_of_more_than_20000_poses_is_checked():
                                 "(clearance min 18.000 mm)")
 
 
+@pytest.mark.parametrize(("replay_rows", "group_rows"), [(65536, 64), (7, 64), (7, 7), (65536, 10**9)])
+def test_the_streamed_check_gives_the_same_minima_and_messages_in_any_pieces(monkeypatch, replay_rows, group_rows):
+    # 10**9 rows a group: no group is bounded as a whole, every row is replayed and checked in order
+    import prs3_post.collision as collision
+    import prs3_post.collision_scan as scan
+    from prs3_post.errors import LimitError
+
+    program, setup, triangles, face = _round_pocket(0.3)
+    monkeypatch.setattr(collision, "REPLAY_ROWS", replay_rows)
+    monkeypatch.setattr(scan, "GROUP_ROWS", group_rows)
+    monkeypatch.setattr(scan, "SCAN_ROWS", 7 * group_rows if group_rows < 100 else 1 << 16)
+    # the holder's end is 20 − 0.3 mm above the face at the bottom: within a 10 mm clearance's horizon
+    found = collision.measure_program(MACHINE, program, setup, triangles, face, 6.0, clearance_min=10.0)
+    assert found.entry(10.0) == ("clear of the part by at least 10.000 mm: tool over 20.000 mm, holder 19.700 mm, "
+                                 "spindle nose over 20.000 mm")
+    with pytest.raises(LimitError) as error:
+        collision.check_program(MACHINE, program, setup, triangles, face, 6.0, clearance_min=19.75)
+    assert str(error.value) == ("round pass 3/3 lap: the holder comes within 19.700 mm of the part "
+                                "(clearance min 19.750 mm)")
+
+
 def test_the_replay_in_pieces_gives_the_samples_of_one_replay(monkeypatch):
     import prs3_post.collision as collision
     from prs3_post.toolpath import MoveKind
@@ -226,7 +247,7 @@ def test_convert_with_part_checks_the_holder_and_nose_before_writing(tmp_path):
     assert result.exit_code == 0, result.output
     assert _collision_line(program) == [
         "(collision: clear of the part by at least 1.000 mm: tool not checked [it cuts what the CAM program removes], "
-        "holder over 3.799 mm, spindle nose over 3.000 mm)"]
+        "holder 8.636 mm, spindle nose over 11.000 mm)"]
 
 
 def test_convert_with_part_refuses_a_holder_in_the_wall_naming_file_line_body_and_depth(tmp_path):

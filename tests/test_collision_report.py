@@ -41,6 +41,7 @@ def _rebuilt(path: Path) -> str:
     (("--at", "8.1,0", "--no-collision-check"), False, 1.0),
     (("--at", "30,0", "--no-collision-check"), False, 1.0),    # the holder would hit the wall: not asked
     (("--at", "8.1,0", "--clearance-min", "0.5"), True, 0.5),
+    (("--at", "8.1,0", "--clearance-min", "0.123456789"), True, 0.123456789),   # more than 3 decimals, exactly
 ])
 def test_the_collision_setting_round_trips_through_the_header(tmp_path, options, checked, clearance):
     out = tmp_path / "p.ngc"
@@ -49,6 +50,9 @@ def test_the_collision_setting_round_trips_through_the_header(tmp_path, options,
     assert header is not None
     assert (header.collision_check, header.clearance_min) == (checked, clearance)
     assert _rebuilt(out) == text                                # byte for byte
+    if checked:                                                 # 3 decimals at least, and all it takes
+        shown = {0.5: "0.500", 0.123456789: "0.123456789"}[clearance]
+        assert f"(collision: clear of the part by at least {shown} mm: " in text
 
 
 def test_a_program_made_without_the_check_is_verified_against_its_part_with_no_options(tmp_path):

@@ -61,8 +61,8 @@ from prs3_post.setup import Setup
 from prs3_post.toolpath import JointProgram
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
-__all__ = ["BODY_NAMES", "Clearance", "body_cylinders", "check_program", "clearance", "inside",
-           "point_triangle_distance"]
+__all__ = ["BODY_NAMES", "Clearance", "ProgramClearance", "body_cylinders", "check_program", "clearance", "inside",
+           "measure_program", "point_triangle_distance"]
 
 #: The bodies, bottom up.
 BODY_NAMES = ("tool", "holder", "spindle nose")
@@ -141,6 +141,24 @@ class _Region:
         out[ok] = self.cells[at[ok, 0], at[ok, 1]]
         return out
 
+    def covers(self, tip: FloatArray, radius: FloatArray) -> BoolArray:
+        """(S,) bool: every point within ``radius`` (S,) mm of the tips (S, 3), part frame, lies over the
+        region (:meth:`contains` of each is True: the square of cells round the disc is all in)."""
+        out = np.zeros(len(tip), dtype=bool)
+        if self.face is None or not self.cells.size or not len(tip):
+            return out
+        uv = (tip - self.face.origin) @ np.stack([self.face.u, self.face.v], axis=1)
+        reach = (np.asarray(radius, dtype=np.float64) + 1e-9)[:, None]
+        first = np.floor((uv - reach - self.low) / self.cell).astype(np.int64)
+        last = np.floor((uv + reach - self.low) / self.cell).astype(np.int64)
+        ok = (first >= 0).all(axis=1) & (last < self.cells.shape).all(axis=1)
+        table = np.zeros((self.cells.shape[0] + 1, self.cells.shape[1] + 1), dtype=np.int64)
+        table[1:, 1:] = self.cells.cumsum(axis=0).cumsum(axis=1)   # cells in [0, i) × [0, j)
+        f, e = first[ok], last[ok] + 1
+        count = table[e[:, 0], e[:, 1]] - table[f[:, 0], e[:, 1]] - table[e[:, 0], f[:, 1]] + table[f[:, 0], f[:, 1]]
+        out[ok] = count == (e - f).prod(axis=1)
+        return out
+
 
 def _swept(face: Face | None, feed_tips: FloatArray, radius: float, *, cell: float = 0.25) -> _Region:
     """The region within about ``radius`` of the polyline of the feed tips (M, 3) in the face's (u, v).
@@ -152,18 +170,23 @@ def _swept(face: Face | None, feed_tips: FloatArray, radius: float, *, cell: flo
     none = _Region(face=face, cells=np.zeros((0, 0), dtype=bool), low=np.zeros(2), cell=cell)
     if face is None or not len(feed_tips):
         return none
-    feed_uv = (np.asarray(feed_tips, dtype=np.float64).reshape(-1, 3) - face.origin) @ np.stack([face.u, face.v], 1)
-    low = feed_uv.min(axis=0) - radius - 2 * cell
-    size = np.ceil((feed_uv.max(axis=0) + radius + 2 * cell - low) / cell).astype(np.int64) + 1
+    u, v = _plane_coordinates(np.asarray(feed_tips, dtype=np.float64).reshape(-1, 3), face)
+    low = np.array([u.min(), v.min()]) - radius - 2 * cell
+    size = np.ceil((np.array([u.max(), v.max()]) + radius + 2 * cell - low) / cell).astype(np.int64) + 1
     if size.prod() > 4e7:                               # a region too large to draw: no exemption
         return none
     grid = np.zeros(tuple(size), dtype=bool)
-    ends = feed_uv[:-1], feed_uv[1:]
-    length = np.linalg.norm(ends[1] - ends[0], axis=1) if len(feed_uv) > 1 else np.zeros(0)
+    at_u = np.floor((u - low[0]) / cell).astype(np.int64)
+    at_v = np.floor((v - low[1]) / cell).astype(np.int64)
+    grid[at_u, at_v] = True                             # every tip; a segment within one cell adds no other
+    crossing = np.flatnonzero((at_u[1:] != at_u[:-1]) | (at_v[1:] != at_v[:-1]))
+    feed_uv = np.column_stack([u[crossing], v[crossing], u[crossing + 1], v[crossing + 1]])
+    ends = feed_uv[:, :2], feed_uv[:, 2:]
+    length = np.hypot(ends[1][:, 0] - ends[0][:, 0], ends[1][:, 1] - ends[0][:, 1])
     steps = np.maximum(1, np.ceil(length / (0.5 * cell)).astype(np.int64))
     seg = np.repeat(np.arange(len(steps)), steps + 1)
     t = (np.arange(len(seg)) - np.repeat(np.cumsum(steps + 1) - (steps + 1), steps + 1)) / np.repeat(steps, steps + 1)
-    points = np.concatenate([feed_uv[:1], ends[0][seg] + t[:, None] * (ends[1][seg] - ends[0][seg])])
+    points = ends[0][seg] + t[:, None] * (ends[1][seg] - ends[0][seg])
     index = np.floor((points - low) / cell).astype(np.int64)
     grid[index[:, 0], index[:, 1]] = True
     reach = math.ceil(radius / cell) + 1
@@ -175,6 +198,14 @@ def _swept(face: Face | None, feed_tips: FloatArray, radius: float, *, cell: flo
             wide[max(du, 0):size[0] + min(du, 0), max(dv, 0):size[1] + min(dv, 0)] |= \
                 grid[max(-du, 0):size[0] + min(-du, 0), max(-dv, 0):size[1] + min(-dv, 0)]
     return _Region(face=face, cells=wide, low=low, cell=cell)
+
+
+def _plane_coordinates(points: FloatArray, face: Face) -> tuple[FloatArray, FloatArray]:
+    """(N,), (N,) mm: the u and v of points (N, 3) in the face's plane (column by column: a matrix
+    product of a long (N, 3) array takes numpy's slow path)."""
+    d = [points[:, k] - face.origin[k] for k in range(3)]
+    u, v = (d[0] * axis[0] + d[1] * axis[1] + d[2] * axis[2] for axis in (face.u, face.v))
+    return u, v
 
 
 @dataclass(frozen=True, slots=True)
@@ -240,14 +271,21 @@ def _pieces(cylinders: FloatArray) -> FloatArray:
 
 
 def _pose_pairs(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, pieces: FloatArray,
-                s: IntArray, q: IntArray, t: IntArray, near: float) -> FloatArray:
+                s: IntArray, q: IntArray, t: IntArray, near: float, spread: _Spread | None = None) -> FloatArray:
     """(K,) mm: a lower bound of the distance of piece ``q`` at pose ``s`` from triangle ``t``, pair by
-    pair (inf: a pair that does not count: the cutting tool's part below the band, or the face)."""
+    pair (inf: a pair that does not count: the cutting tool's part below the band, or the face).
+
+    ``spread``: each pose stands for a group of poses (:class:`_Spread`): every body point of the
+    group is the representative cylinder's moved by a vector of the tip's box plus at most
+    ``(|z| + radius) · spread.turn`` (z: the piece's farthest station from the tip), so the plane
+    bound is lower by the box's reach along the plane's normal and the axial one by the box's half
+    diagonal (and both by the turn's); a cutting group's tool is not cut at the band (its poses'
+    heights differ), only spared the face."""
     radius, a, p = pieces[q, 0], axis[s], tip[s]
     lo, hi = pieces[q, 1].copy(), pieces[q, 2]
     cut = cutting[s] & (pieces[q, 3] == 0)
     gone = cut & ~part.others[t]
-    if cut.any():                                   # keep only what is above the band (less the tilt's reach)
+    if cut.any() and spread is None:                # keep only what is above the band (less the tilt's reach)
         face = part.face
         assert face is not None                     # a tool cuts only with a face (_swept)
         along = a @ face.normal
@@ -262,19 +300,51 @@ def _pose_pairs(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArr
     h0 = (e0 * normal).sum(axis=1) - part.offset[t]
     h1 = (e1 * normal).sum(axis=1) - part.offset[t]
     bulge = radius * np.sqrt(np.clip(1.0 - (a * normal).sum(axis=1) ** 2, 0.0, 1.0))
+    widen: FloatArray | float = 0.0
+    if spread is not None:                          # the box along the plane's normal; a ball round the axis
+        turned = (np.maximum(np.abs(lo), np.abs(hi)) + radius) * spread.turn[s]
+        bulge = bulge + (np.abs(normal @ spread.frame.T) * spread.half[s]).sum(axis=1) + turned
+        widen = np.linalg.norm(spread.half[s], axis=1) + turned
     bound = np.maximum(np.maximum(np.minimum(h0, h1) - bulge, -np.maximum(h0, h1) - bulge), 0.0)
     need = np.flatnonzero((bound < near) & ~gone)
     if len(need):
-        axial = segment_triangle_distance(e0[need], e1[need], part.triangles[t[need]]) - radius[need]
-        bound[need] = np.maximum(bound[need], axial)
+        corners = part.triangles[t[need]]
+        axial = segment_triangle_distance(e0[need], e1[need], corners) - radius[need]
+        # the slab: the triangle wholly below the piece's start or above its end, along the axis
+        along = ((corners - p[need, None, :]) * a[need, None, :]).sum(axis=2)                 # (k, 3)
+        slab = np.maximum(lo[need] - along.max(axis=1), along.min(axis=1) - hi[need])
+        if spread is not None:
+            axial -= np.asarray(widen)[need]
+            far = np.linalg.norm(corners - p[need, None, :], axis=2).max(axis=1)
+            slab -= (np.abs(a[need] @ spread.frame.T) * spread.half[s[need]]).sum(axis=1) + far * spread.turn[s[need]]
+        bound[need] = np.maximum(bound[need], np.maximum(axial, slab))
     return np.where(gone, np.inf, bound)
 
 
+@dataclass(frozen=True, slots=True)
+class _Spread:
+    """How far the poses a representative pose stands for may be from it (:func:`_pose_pairs`).
+
+    Attributes
+    ----------
+    frame : (3, 3) float — unit rows: the axes of the box (part frame; the worked face's u, v and normal)
+    half : (S, 3) float — mm, half the box's size along each: every tip of the group is in the box
+        round the representative tip
+    turn : (S,) float — the largest chord |a − a₀| between their unit axes and its axis (a body
+        point at z along the axis and r off it moves at most (|z| + r) times that)
+    """
+
+    frame: FloatArray
+    half: FloatArray
+    turn: FloatArray
+
+
 def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, pieces: FloatArray, *,
-            reach: float, near: float) -> tuple[FloatArray, IntArray, IntArray]:
+            reach: float, near: float, spread: _Spread | None = None) -> tuple[FloatArray, IntArray, IntArray]:
     """(S, 3) mm: a lower bound of each body's clearance at each pose (at most ``reach``), coarse to
     fine (module docstring, stage 1); and the (pose × 3 + body, triangle) pairs whose bound is under
-    ``near`` (the triangles a measurement of that body there needs: the others are that far), sorted."""
+    ``near`` (the triangles a measurement of that body there needs: the others are that far), sorted.
+    ``spread``: each pose stands for a group of poses (:func:`_pose_pairs`)."""
     n_pose, n_piece, n_tri = len(tip), len(pieces), len(part.triangles)
     out = np.full((n_pose, 3), reach)
     keys: list[IntArray] = []
@@ -285,6 +355,8 @@ def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, 
     half = np.hypot(pieces[:, 0], 0.5 * (pieces[:, 2] - pieces[:, 1]))
     tool = pieces[:, 3] == 0
     body = pieces[:, 3].astype(np.int64)
+    extra = None if spread is None else (                # a group's own spread, at the bodies' farthest point
+        np.linalg.norm(spread.half, axis=1) + (np.abs(pieces[:, 1:3]).max() + pieces[:, 0].max()) * spread.turn)
     size = LEVELS[0]
     groups = -(-n_pose // size)
     g = np.repeat(np.arange(groups), n_piece * n_tri)
@@ -294,7 +366,7 @@ def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, 
         if size == 1:
             for k in range(0, len(g), _CHUNK):
                 s_, q_, t_ = g[k:k + _CHUNK], q[k:k + _CHUNK], t[k:k + _CHUNK]
-                bound = _pose_pairs(part, tip, axis, cutting, pieces, s_, q_, t_, near)
+                bound = _pose_pairs(part, tip, axis, cutting, pieces, s_, q_, t_, near, spread)
                 np.minimum.at(out, (s_, body[q_]), bound)
                 close = bound < near
                 keys.append(s_[close] * 3 + body[q_[close]])
@@ -305,6 +377,8 @@ def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, 
         moved = np.maximum.reduceat(np.linalg.norm(tip - tip[first][owner], axis=1), first)
         turned = np.maximum.reduceat(np.linalg.norm(axis - axis[first][owner], axis=1), first)
         all_cut = np.logical_and.reduceat(cutting, first)
+        if extra is not None:
+            moved = moved + np.maximum.reduceat(extra, first)
         keep = np.zeros(len(g), dtype=bool)
         for k in range(0, len(g), _CHUNK):
             g_, q_, t_ = g[k:k + _CHUNK], q[k:k + _CHUNK], t[k:k + _CHUNK]
@@ -356,7 +430,8 @@ class _Poses:
     """The poses checked so far (the given ones, then the midpoints of intervals), with each body's
     clearance: a lower bound, or measured on its surface (``exact``)."""
 
-    def __init__(self, part: _Part, face: Face | None, region: _Region, cylinders: FloatArray, clearance_min: float):
+    def __init__(self, part: _Part, face: Face | None, region: _Region, cylinders: FloatArray, clearance_min: float,
+                 *, near: float | None = None):
         self.part, self.face, self.region, self.clearance_min = part, face, region, clearance_min
         self.pieces = _pieces(cylinders)
         self.unchecked = cylinders[:, 2] <= cylinders[:, 1]      # bodies given no length
@@ -370,7 +445,7 @@ class _Poses:
         self.exact = np.zeros((0, 3), dtype=bool)
         self.point = np.zeros((0, 3, 3))
         self.found = np.full(3, np.inf)                 # the smallest clearance measured, per body
-        self.near = clearance_min + 2.0                 # measured as far as this (farther: "over" it)
+        self.near = clearance_min + 2.0 if near is None else near   # measured as far as this (farther: "over" it)
         self.pairs: list[tuple[IntArray, IntArray]] = []   # per add(): (pose × 3 + body, triangle), sorted
 
     def add(self, tip: FloatArray, axis: FloatArray, origin: IntArray, *, starts: BoolArray) -> IntArray:
@@ -567,13 +642,62 @@ def check_program(machine: Machine, program: JointProgram, setup: Setup, triangl
 
     Returns
     -------
-    str — the header's ``collision`` entry (the clearance of each body)
+    str — the header's ``collision`` entry: each body's smallest clearance (:func:`measure_program`)
 
     Raises
     ------
     LimitError
         ``hole 1, peck 1: the holder hits the part, 2.498 mm deep (clearance min 1.000 mm)`` or
         ``...: the tool comes within 0.400 mm of the part (clearance min 1.000 mm)``.
+    """
+    found = measure_program(machine, program, setup, triangles, face, tool_diameter, clearance_min=clearance_min)
+    return found if isinstance(found, str) else found.entry(clearance_min, cam=face is None)
+
+
+@dataclass(frozen=True, slots=True)
+class ProgramClearance:
+    """Each body's smallest clearance over a program's motion (:func:`measure_program`).
+
+    Attributes
+    ----------
+    distance : (3,) float — mm, per body (tool, holder, nose): the smallest clearance measured on the
+        body's surface points, to the header's 0.001 mm, where it is under the horizon (``exact``);
+        else the horizon, ``clearance_min`` + ``REACH_MM`` (the body is farther than that everywhere)
+    exact : (3,) bool — the distance is the minimum (else: over the horizon)
+    """
+
+    distance: FloatArray
+    exact: BoolArray
+
+    def entry(self, clearance_min: float, *, cam: bool = False) -> str:
+        """The header's ``collision`` entry: ``clear of the part by at least 1.000 mm: tool 3.250 mm,
+        holder over 11.000 mm, spindle nose over 11.000 mm`` (``cam``: the tool is not checked)."""
+        from prs3_post.readers.header import exact_text
+
+        shown = [f"{name} {'' if exact else 'over '}{d:.3f} mm" for name, d, exact in zip(
+            BODY_NAMES, self.distance.tolist(), self.exact.tolist(), strict=True)]
+        if cam:
+            shown[0] = "tool not checked (it cuts what the CAM program removes)"
+        return f"clear of the part by at least {exact_text(clearance_min, 3)} mm: {', '.join(shown)}"
+
+
+def measure_program(machine: Machine, program: JointProgram, setup: Setup, triangles: FloatArray,
+                    face: Face | None, tool_diameter: float, *, clearance_min: float = 1.0) -> ProgramClearance | str:
+    """Each body's smallest clearance along ``program`` (verify's FK samples and the motion between
+    them), streamed: the groups of rows the scan bounds beyond the horizon as a whole
+    (:mod:`prs3_post.collision_scan`) are not replayed, the others are replayed and checked
+    ``REPLAY_ROWS`` rows at a time, keeping only each body's smallest clearance (:class:`_Stream`),
+    so the memory does not grow with the program. Once a body is found too close, the whole program
+    is checked as :func:`clearance` checks it, for the message (its line and depth).
+
+    Returns
+    -------
+    ProgramClearance, or str — ``not checked: no [holder] in the machine file``
+
+    Raises
+    ------
+    LimitError
+        A body closer than ``clearance_min`` (:func:`check_program`).
     """
     from prs3_post.errors import LimitError
 
@@ -584,13 +708,17 @@ def check_program(machine: Machine, program: JointProgram, setup: Setup, triangl
         raise LimitError(f"the tool sticks out {length:.3f} mm below the gauge line, not more than the holder's "
                          f"length {machine.holder.holder_length:.3f} mm: the holder would cut (a longer tool, or "
                          "a shorter holder in the machine file)")
+    bodies = body_cylinders(tool_diameter, length, machine.holder)
+    if face is None:
+        bodies[0, 2] = bodies[0, 1]                             # the tool: not checked
+    triangles = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+    streamed = _streamed(machine, program, setup, triangles, face, bodies, clearance_min)
+    if streamed is not None:
+        return streamed
     sample_row, tip, axis, feed_tips = _replayed(machine, program)
     tip, axis = setup.points_to_part(tip), setup.axes_to_part(axis)
     ok = np.asarray(np.isfinite(tip).all(axis=1) & np.isfinite(axis).all(axis=1), dtype=bool)
     linked = ok & np.concatenate([[False], ok[:-1]])          # the motion from the sample before, both known
-    bodies = body_cylinders(tool_diameter, length, machine.holder)
-    if face is None:
-        bodies[0, 2] = bodies[0, 1]                             # the tool: not checked
     result = clearance(triangles, tip[ok], axis[ok], bodies, face, setup.points_to_part(feed_tips),
                        clearance_min=clearance_min, connected=linked[ok])
     b = result.worst()
@@ -598,12 +726,174 @@ def check_program(machine: Machine, program: JointProgram, setup: Setup, triangl
         row = int(sample_row[np.flatnonzero(ok)[result.sample[b]]])
         d = float(result.distance[b])
         what = (f"hits the part, {-d:.3f} mm deep" if d < 0 else f"comes within {d:.3f} mm of the part")
-        raise LimitError(f"{program.describe(row)}: the {BODY_NAMES[b]} {what} (clearance min {clearance_min:.3f} mm)")
-    shown = ", ".join(f"{name} {'over ' if not exact else ''}{d:.3f} mm" for name, d, exact in zip(
-        BODY_NAMES, result.distance.tolist(), result.exact.tolist(), strict=True))
-    if face is None:
-        shown = "tool not checked (it cuts what the CAM program removes), " + shown.split(", ", 1)[1]
-    return f"clear of the part by at least {clearance_min:.3f} mm: {shown}"
+        raise LimitError(f"{program.describe(row)}: the {BODY_NAMES[b]} {what} (clearance min "
+                         f"{_exact(clearance_min)} mm)")
+    return ProgramClearance(distance=np.where(result.exact, result.distance, clearance_min + REACH_MM),
+                            exact=result.exact.copy())   # not reached: the stream found a body too close
+
+
+def _exact(value: float) -> str:
+    from prs3_post.readers.header import exact_text
+
+    return exact_text(value, 3)
+
+
+#: mm: the header's resolution; the streamed minima are found to it (:meth:`_Stream.minima`).
+RESOLUTION_MM = 1e-3
+
+
+def _streamed(machine: Machine, program: JointProgram, setup: Setup, triangles: FloatArray, face: Face | None,
+              bodies: FloatArray, clearance_min: float) -> ProgramClearance | None:
+    """:func:`measure_program`'s streamed check; None once a body is found closer than ``clearance_min``."""
+    from prs3_post.collision_scan import scan_program
+
+    frame = np.eye(3) if face is None else np.stack([face.u, face.v, face.normal])   # part frame, rows
+    scan = scan_program(machine, program, setup.axes_to_part(np.eye(3)) @ frame.T)
+    part = _Part.of(triangles, face, clearance_min)
+    region = _swept(face, _to_part(setup, scan.feed_tips), float(bodies[0, 0]) + 1e-6)
+    stream = _Stream(part, face, region, bodies, clearance_min)
+    bound = np.full((len(scan.flat), 3), -np.inf)        # each group's bound per body (−inf: none)
+    groups = np.flatnonzero(scan.flat)
+    if len(groups):                                      # each flat group bounded as a whole
+        tip, axis = setup.points_to_part(scan.tip[groups]), setup.axes_to_part(scan.axis[groups])
+        # a group of feed moves (and the row before) follows the feed tips' polyline, which the region
+        # is drawn round with the tool's radius and a cell more: every pose of it is over the region
+        cutting = scan.feeding[groups] & (region.cells.size > 0) & (scan.wobble[groups] < 0.2 * region.cell)
+        bound[groups] = _bounds(part, tip, axis, cutting, stream.pieces, reach=stream.reach, near=stream.reach,
+                                spread=_Spread(frame=frame, half=scan.half[groups], turn=scan.turn[groups]))[0]
+    del scan
+    bound[:, stream.unchecked] = np.inf
+    # safe: no pose, no motion of the group comes too close
+    safe: BoolArray = np.asarray((bound >= clearance_min).all(axis=1), dtype=np.bool_)
+    n = len(program)
+    for lo, hi in _runs(~safe, n):                       # the others in order: poses, then the motion between
+        for at in range(lo, hi, REPLAY_ROWS):
+            row, tip, axis = _replay_rows(machine, program, at, min(hi, at + REPLAY_ROWS))
+            if not stream.add(row, setup.points_to_part(tip), setup.axes_to_part(axis), carried=at > 0):
+                return None
+    for b in np.flatnonzero(~stream.unchecked).tolist():  # the safe groups' share of the minima, closest first
+        order = np.flatnonzero(safe & (bound[:, b] < stream.reach))
+        order = order[np.argsort(bound[order, b], kind="stable")]
+        k = 0
+        while k < len(order) and bound[order[k], b] < min(stream.reach, stream.best[b] - 0.5 * RESOLUTION_MM):
+            chosen: BoolArray = np.zeros(len(safe), dtype=np.bool_)
+            chosen[order[k:k + _GROUPS_AT_ONCE]] = True
+            for lo, hi in _runs(chosen, n):
+                row, tip, axis = _replay_rows(machine, program, lo, hi)
+                stream.measure(row, setup.points_to_part(tip), setup.axes_to_part(axis))
+            k += _GROUPS_AT_ONCE
+    return stream.result()
+
+
+#: Groups the minima of the safe ones replay at a time (closest bound first).
+_GROUPS_AT_ONCE = 8
+
+
+def _runs(groups: BoolArray, n: int) -> list[tuple[int, int]]:
+    """The row ranges [lo, hi) of the runs of consecutive True groups (GROUP_ROWS rows each, ``n`` rows)."""
+    from prs3_post.collision_scan import GROUP_ROWS
+
+    keep = np.repeat(groups, GROUP_ROWS)[:n]
+    edges = np.flatnonzero(np.diff(np.concatenate([[False], keep, [False]]).astype(np.int8)))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
+
+
+def _to_part(setup: Setup, points: FloatArray) -> FloatArray:
+    """:meth:`Setup.points_to_part` column by column (a matrix product of a long (N, 3) array takes
+    numpy's slow path)."""
+    d = [points[:, k] - setup.shift[k] for k in range(3)]
+    rotation = setup.rotation
+    return np.column_stack([d[0] * rotation[0, j] + d[1] * rotation[1, j] + d[2] * rotation[2, j] for j in range(3)])
+
+
+def _replay_rows(machine: Machine, program: JointProgram, lo: int, hi: int) -> tuple[IntArray, FloatArray, FloatArray]:
+    """verify's samples of rows ``lo`` .. ``hi`` replayed from the row before (its end is where row
+    ``lo``'s move starts, and the first sample): each sample's row, tip and axis (machine frame)."""
+    from prs3_post.toolpath import program_from_columns
+    from prs3_post.verify import replay
+
+    start = max(lo - 1, 0)
+    columns = {name: getattr(program, name)[start:hi] for name in ("kind", "stage", "strokes", "inverse_time",
+                                                                  "source")}
+    rep = replay(machine, program_from_columns(columns))
+    return rep.row + start, rep.tip, rep.axis
+
+
+class _Stream:
+    """The check of a program's samples, a piece at a time (:func:`_streamed`): what carries from one
+    piece to the next is each body's smallest clearance so far (``best``, to RESOLUTION_MM; the
+    smallest measured, ``found``).
+
+    Each piece starts with the end of the row before it (the previous piece's last sample, or the
+    last row of a group bounded as a whole): the motion from there is checked (stage 3), and it is
+    never a pose where a body is looked for inside the part (the motion to it was checked). In each
+    piece the poses are bounded and those under ``clearance_min`` measured as :func:`clearance` does;
+    then, per body, the poses under the horizon in order of their bound while the bound is under the
+    smallest clearance found (less half the resolution: a pose left out cannot round lower), so the
+    minimum does not depend on the pieces' sizes.
+    """
+
+    def __init__(self, part: _Part, face: Face | None, region: _Region, cylinders: FloatArray,
+                 clearance_min: float):
+        self.part, self.face, self.region, self.cylinders = part, face, region, cylinders
+        self.clearance_min = clearance_min
+        self.reach = clearance_min + REACH_MM
+        self.pieces = _pieces(cylinders)
+        self.unchecked = cylinders[:, 2] <= cylinders[:, 1]
+        self.found = np.full(3, np.inf)
+        self.best = np.full(3, np.inf)
+
+    def add(self, row: IntArray, tip: FloatArray, axis: FloatArray, *, carried: bool) -> bool:
+        """Check a piece's samples (part frame; the first one the end of the row before if ``carried``);
+        False: a body is closer than ``clearance_min``."""
+        ok: BoolArray = np.asarray(np.isfinite(tip).all(axis=1) & np.isfinite(axis).all(axis=1), dtype=np.bool_)
+        linked: BoolArray = ok & np.concatenate([[False], ok[:-1]])
+        starts = ~linked
+        if carried and len(starts):
+            starts[0] = False
+        poses = _Poses(self.part, self.face, self.region, self.cylinders, self.clearance_min)
+        poses.found = self.found.copy()
+        samples = poses.add(tip[ok], axis[ok], row[ok], starts=starts[ok])
+        if (poses.found >= self.clearance_min).all():
+            _between(poses, self.cylinders, np.flatnonzero(linked[ok]))
+        self.found = poses.found
+        if (poses.found < self.clearance_min).any():
+            return False
+        self.minima(poses, samples)
+        return True
+
+    def measure(self, row: IntArray, tip: FloatArray, axis: FloatArray) -> None:
+        """Lower ``best`` by the samples of groups whose every pose is ``clearance_min`` clear (their
+        bounds say so: nothing is measured under it, the motion is not checked further)."""
+        ok = np.isfinite(tip).all(axis=1) & np.isfinite(axis).all(axis=1)
+        poses = _Poses(self.part, self.face, self.region, self.cylinders, self.clearance_min)
+        self.minima(poses, poses.add(tip[ok], axis[ok], row[ok], starts=np.zeros(int(ok.sum()), dtype=bool)))
+
+    def minima(self, poses: _Poses, samples: IntArray, block: int = 64) -> None:
+        """Lower ``best`` by the ``samples`` of ``poses`` (not the midpoints the motion check added):
+        measure, body by body, in order of the bound (module docstring of :class:`_Stream`)."""
+        half = 0.5 * RESOLUTION_MM
+        for b in range(3):
+            if self.unchecked[b]:
+                continue
+            value, exact = poses.value[:, b], poses.exact[:, b]
+            self._lower(b, value[samples][exact[samples] & (value[samples] < self.reach)])
+            order = samples[~exact[samples] & (value[samples] < self.reach)]
+            order = order[np.argsort(value[order], kind="stable")]
+            for k in range(0, len(order), block):
+                rows = order[k:k + block]
+                if value[rows[0]] >= min(self.reach, self.best[b] - half):
+                    break
+                poses.measure(rows, b, block, reach=self.reach)
+                self._lower(b, poses.value[rows, b][poses.exact[rows, b]])
+
+    def _lower(self, b: int, measured: FloatArray) -> None:
+        if len(measured):
+            self.best[b] = min(self.best[b], float(np.round(measured.min() / RESOLUTION_MM) * RESOLUTION_MM))
+
+    def result(self) -> ProgramClearance:
+        exact = np.isfinite(self.best) & ~self.unchecked
+        return ProgramClearance(distance=np.where(exact, self.best, self.reach), exact=exact)
 
 
 #: Program rows replayed at a time by :func:`check_program` (the replay's limit tables are what
