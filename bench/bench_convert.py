@@ -1,7 +1,7 @@
 """End-to-end throughput and peak memory of `prs3-post convert`, against pygcode's parse loop (a script, not a test).
 
     python bench/bench_convert.py [--lines 1000000] [--repeat 3] [--pygcode-lines 100000]
-                                  [--only gcode|cl] [--keep DIR]
+                                  [--only gcode|cl] [--keep DIR] [--no-bytecode]
 
 Writes, in a temporary directory, a 3-axis program of ``--lines`` lines in a ``G68.2`` tilted work
 plane (``G68.2 X10 Y20 Z0 I30 J25 K0`` then ``G53.1``: the plane 25° from the part's z; ``G1 X Y Z``
@@ -11,7 +11,10 @@ has F and comments). Before timing, both are converted in this process at a smal
 programs' motion lines compared: the two inputs describe the same path.
 
 Then, ``--repeat`` times, alternately: ``prs3-post convert INPUT -o OUTDIR --jobs 1`` on each file
-in a fresh process (whole process: start-up, reader, setup, exact IK, limits, emitter, atomic write),
+in a fresh process (whole process: start-up, reader, setup, exact IK, limits, emitter, atomic write)
+with its modules' bytecode compiled, as an installed prs3-post has it (a cache in the temporary
+directory, filled by one small conversion first: without it, where ``PYTHONDONTWRITEBYTECODE`` is
+set, every run would also compile the package, about 0.3 CPU s; ``--no-bytecode`` measures that),
 measuring wall time, the child's CPU time and its peak resident memory (VmHWM), and, in this
 process, the reference: a loop that only parses the G-code's first ``--pygcode-lines`` lines with
 ``pygcode.Line`` (a sample: pygcode's rate is per line, and the whole file would take minutes).
@@ -119,6 +122,8 @@ def main() -> None:
     parser.add_argument("--pygcode-lines", type=int, default=100_000)
     parser.add_argument("--only", choices=["gcode", "cl"], help="convert only this input")
     parser.add_argument("--keep", type=Path, help="write the inputs and programs here and keep them")
+    parser.add_argument("--no-bytecode", action="store_true",
+                        help="run the children as the environment says (compiling each time where it forbids bytecode)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.keep or Path(tmp)
@@ -130,6 +135,15 @@ def main() -> None:
         for name, path in inputs.items():
             print(f"{name}: {lines[name]:,} lines, {moves:,} moves, {path.stat().st_size / 1e6:.0f} MB")
         print(f"convert --part-origin={PART_ORIGIN} --jobs 1 (linuxcnc); before: {load()}")
+        # the children's bytecode: cached in the folder, as an installed package has it (compiled once, here)
+        child_env = None if args.no_bytecode else {"PYTHONDONTWRITEBYTECODE": "",
+                                                   "PYTHONPYCACHEPREFIX": str(folder / "bytecode")}
+        warm = run_cli(["convert", str(folder / "small.ngc"), "-o", str(folder / "out-warm"),
+                        f"--part-origin={PART_ORIGIN}", "--jobs", "1", "--force"], env=child_env)
+        if warm.code != 0:
+            raise SystemExit(f"the warm-up conversion failed (exit {warm.code}): {warm.last}")
+        print("children run with " + ("the environment's bytecode setting" if args.no_bytecode else
+                                      f"compiled bytecode (cached in {folder / 'bytecode'})"))
         names = [args.only] if args.only else list(inputs)
         runs: dict[str, list] = {name: [] for name in names}
         reference: list[tuple[float, float]] = []
@@ -139,7 +153,7 @@ def main() -> None:
             for name in names:
                 out, report = folder / f"out-{name}", folder / f"report-{name}.json"
                 run = run_cli(["convert", str(inputs[name]), "-o", str(out), f"--part-origin={PART_ORIGIN}",
-                               "--jobs", "1", "--force", "--report", str(report)])
+                               "--jobs", "1", "--force", "--report", str(report)], env=child_env)
                 record = json.loads(report.read_text())["files"][0]["report"] if report.exists() else None
                 converted = record["input_moves"] if record and run.code == 0 else 0
                 if converted != moves:

@@ -375,13 +375,15 @@ def test_without_msys_the_points_stay_as_written() -> None:
     ("FEDRAT/100\nGOTO/0,0,0\nCIRCLE/0,0,0,0,0,1,0.005\nGOTO/0.005,0,0\n",
      "t.cls:4: arc start point lies on the axis of CIRCLE/ at line 3, where an arc has no direction; start and end "
      "must lie on the circle"),
-    ("FEDRAT/100\nGOTO/1e9,0,0\nCIRCLE/0,0,0,0,0,1,1e9\nGOTO/0,1e9,0\n",
-     "t.cls:4: the arc of CIRCLE/ at line 3 (radius 1e+09) needs 1,178,098 segments within 0.002 mm, more than "
+    ("FEDRAT/100\nGOTO/1e6,0,0\nCIRCLE/0,0,0,0,0,1,1e6\nGOTO/0,1e6,0\n",
+     "t.cls:4: the arc of CIRCLE/ at line 3 (radius 1e+06) needs 166,609 segments within 0.0001 mm, more than "
      "100,000: the circle is far larger than any part"),
+    ("FEDRAT/100\nGOTO/1e9,0,0\nCIRCLE/0,0,0,0,0,1,1e9\nGOTO/0,1e9,0\n",
+     "t.cls:2: GOTO/ value 1: '1e9' is out of range (allowed: within ±1e+06 mm; is the file in the right units?)"),
 ])
 def test_degenerate_arcs_are_input_errors(text: str, message: str) -> None:
     with pytest.raises(InputError) as info:
-        _parse(text)
+        parse_cl(text, path="t.cls", tolerance=0.0001)
     assert str(info.value) == message
 
 

@@ -219,14 +219,18 @@ def test_a_subnormal_step_is_refused(tmp_path: Path, args: list[str], message: s
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_limit_message_shows_a_huge_value_in_a_few_digits(tmp_path: Path) -> None:
-    """A CL point at 1e300 mm breaks the stage limit: the message says 1e+300, not 301 digits."""
+@pytest.mark.parametrize(("value", "shown"), [("1e300", "'1e300'"), ("1" + "0" * 400, "'1" + "0" * 39 + "...'")])
+def test_a_huge_cl_coordinate_is_bad_input_shown_in_a_few_digits(tmp_path: Path, value: str, shown: str) -> None:
+    """A CL point at 1e300 mm was a stage limit failure (exit 1), 400 digits a 'NaN or infinite' one: both are
+    input errors at the line, the value shown as written and cut to 40 characters."""
     cl = tmp_path / "far.cls"
-    cl.write_text("UNITS/MM\nFEDRAT/MMPM,100\nRAPID\nGOTO/1e300,0,0\nFINI\n")       # RAPID: a feed cannot come first
+    cl.write_text(f"UNITS/MM\nFEDRAT/MMPM,100\nRAPID\nGOTO/{value},0,0\nFINI\n")    # RAPID: a feed cannot come first
     result = invoke("convert", str(cl), "-o", str(tmp_path / "out"), "--part-origin", "0,0,-680")
-    assert result.exit_code == 1
-    assert f"{cl}:4: stage X 1e+300 mm is above the maximum 300.0000 mm by 1e+300 mm; " in result.stderr
-    assert "Traceback" not in result.output and not (tmp_path / "out" / "far.ngc").exists()
+    assert result.exit_code == 2
+    problem = "is out of range (allowed: within ±1e+06 mm; is the file in the right units?)" if len(value) < 300 \
+        else "is too large to be a finite number"
+    assert result.stdout == f"failed\t{cl}\t-\t{cl}:4: GOTO/ value 1: {shown} {problem}\n"
+    assert "Traceback" not in result.output and list((tmp_path / "out").iterdir()) == []
 
 
 @pytest.mark.parametrize("number", ["1_0", "\u0661", "1,5"])

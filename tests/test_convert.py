@@ -556,6 +556,31 @@ def test_a_feed_as_first_motion_is_an_input_error(tmp_path: Path, name: str, tex
     assert list(out.iterdir()) == []
 
 
+@pytest.mark.parametrize(("goto", "shown"), [("1e308,0,0", "value 1: '1e308'"),
+                                             ("0,0,2000000.0", "value 3: '2000000.0'")])
+def test_a_coordinate_beyond_a_kilometre_is_bad_input_not_out_of_reach(tmp_path: Path, goto: str, shown: str) -> None:
+    """It was exit 1, a stage X '1e+308 mm above the maximum' (the reach search ran on it)."""
+    src = tmp_path / "far.cls"
+    src.write_text(f"RAPID\nGOTO/0,0,0\nGOTO/{goto}\n")
+    out = tmp_path / "out"
+    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(out), "--part-origin", "0,0,-700")
+    assert code == 2
+    assert stdout == (f"failed\t{src}\t-\t{src}:3: GOTO/ {shown} is out of range (allowed: within ±1e+06 mm; is the "
+                      "file in the right units?)\n")
+    assert list(out.iterdir()) == []
+
+
+@pytest.mark.parametrize("tolerance", ["100", "0.00001"])
+def test_a_tolerance_outside_its_range_is_refused_before_any_work(tmp_path: Path, tolerance: str) -> None:
+    out = tmp_path / "out"
+    code, stdout, stderr = _cli(tmp_path, str(CORPUS / "humman_deep_drill.clsf"), "-o", str(out), "--tolerance",
+                                tolerance)
+    assert (code, stdout) == (2, "")
+    assert stderr == (f"prs3-post: error: --tolerance must be from 0.0001 mm (the resolution of the program) to 1 mm "
+                      f"(got {float(tolerance):g})\n")
+    assert not out.exists()
+
+
 def test_rows_of_one_line_are_named_once() -> None:
     tip = np.zeros((5, 3))
     axis = np.array([[0, 0, 1], [0, 0, -1], [0, 0, -1], [0, 0, -1], [0, 0, -1.0]])

@@ -89,7 +89,8 @@ def test_machine_without_dynamics_clamps_nothing():
     tally = DynamicsTally(replace(MACHINE, dynamics=None))
     post = post_process(replace(MACHINE, dynamics=None), plunge(1e6), SETUP)
     assert post.program.inverse_time[1] == pytest.approx(1e6 / 5.0, rel=1e-12)   # not clamped
-    assert tally.header_text() == "none in the machine file: feeds not checked against axis speeds, no cycle time"
+    assert tally.feed(post.program) is post.program.inverse_time
+    assert (tally.clamped, tally.worst_ratio, tally.worst_where) == (0, 1.0, "")
 
 
 def _program(kind: list[int], joints: list[list[float]], f: list[float]) -> JointProgram:

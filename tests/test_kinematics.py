@@ -203,6 +203,25 @@ def test_vectorized_ik_equals_scalar_reference(n):
         assert_allclose(result.condition[i], scalar_condition(tip[i], axis[i]), rtol=1e-5)
 
 
+@pytest.mark.parametrize(("n", "tilt_deg", "reachable"), [(2, 30.0, True), (5000, 30.0, True), (5, 100.0, False)])
+def test_constant_axis_block_gives_the_bits_of_row_by_row(n, tilt_deg, reachable):
+    """A block whose rows share one axis (3+2 programs) computes the axis terms once: every value
+    is the one each row gets alone, bit for bit (an axis pointing down: NaN, unreachable)."""
+    rng = np.random.default_rng(n)
+    tip, axis = poses_from(np.full(n, tilt_deg), np.full(n, 75.0),
+                           np.column_stack([rng.uniform(-150, 150, n), rng.uniform(-150, 150, n),
+                                            rng.uniform(-750, -600, n)]))
+    together = inverse_exact(GEO, tip, axis, block_rows=777)
+    mixed = axis.copy()
+    mixed[::2] = unit_axes(tip[::2], np.tile([0.1, 0.2, 1.0], (len(mixed[::2]), 1)))   # no constant block
+    alone = [inverse_exact(GEO, tip[i:i + 1], axis[i:i + 1]) for i in range(n)]
+    for name in ("stage", "strokes", "link_angle", "condition", "reachable"):
+        np.testing.assert_array_equal(getattr(together, name), np.concatenate([getattr(r, name) for r in alone]))
+    assert (together.reachable == reachable).all()
+    varying = inverse_exact(GEO, tip, mixed, block_rows=777)
+    np.testing.assert_array_equal(varying.strokes[1::2], together.strokes[1::2])
+
+
 def scalar_paper_ik(tip, axis):
     """The paper's method for one pose, as it reads: circle ∩ leg plane, with cross products."""
     rp, k, u = GEO.platform_radius, GEO.guide_radius, GEO.link_length

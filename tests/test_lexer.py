@@ -169,6 +169,27 @@ def test_columns_agree_with_the_careful_lexer(words):
         assert [w[0] for w in careful] == sorted((w[0] for w in careful), key=_LETTERS.index)
 
 
+_long_number = st.builds(lambda sign, digits, point: sign + (digits[:point] + "." + digits[point:] if point >= 0
+                                                                else digits),
+                         st.sampled_from(["", "-"]), st.from_regex(r"[0-9]{1,15}", fullmatch=True),
+                         st.integers(-1, 15))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.lists(_long_number, min_size=1, max_size=3), min_size=1, max_size=6))
+@example([["-0.000", "0", "-0"], ["123456789012345", "-.123456789012345", "99999999999999.9"]])
+@example([["5.", "-.5", "007"], ["1.0000000000001", "-12.3456", "0.00000000000001"]])
+def test_columns_read_each_number_as_float_does(numbers):
+    """Every value is float(text) to the bit, sign of zero included, for 1 to 15 digits with the point
+    anywhere (numbers of up to 8 bytes and longer ones in one chunk)."""
+    lines = [" ".join(f"{letter}{n}" for letter, n in zip("XYZ", row, strict=False)) for row in numbers]
+    values, read = lex_columns(lines, "XYZ")
+    assert read.all()
+    expected = np.array([[float(n) for n in row] + [np.nan] * (3 - len(row)) for row in numbers])
+    assert_array_equal(values, expected)
+    assert_array_equal(np.signbit(values), np.signbit(expected))
+
+
 _chunk_line = st.one_of(
     st.text(alphabet="NGXYUVWFx0123456789.- (", max_size=30),
     st.lists(st.tuples(st.sampled_from(_LETTERS), _number), max_size=8).map(

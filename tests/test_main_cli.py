@@ -309,7 +309,13 @@ def test_option_values_that_cannot_work_are_usage_errors(args, message):
     (["demo", "--profile", "hole", "--at-xyz", "18.9736,221.2132,280.5135"],
      "point (18.9736, 221.2132, 280.5135) is 8.9440 mm off the plane of face 4 (allowed: 0.0100 mm)"),
     (["demo", "--profile", "hole", "--tolerance", "0.00001"],
-     "--tolerance must be ≥ 0.0001 mm, the resolution of the program (got 1e-05)"),
+     "--tolerance must be from 0.0001 mm (the resolution of the program) to 1 mm (got 1e-05)"),
+    (["demo", "--profile", "hole", "--tolerance", "100"],
+     "--tolerance must be from 0.0001 mm (the resolution of the program) to 1 mm (got 100)"),
+    (["demo", "--profile", "hole", "--tool-diameter", "1e-9"],
+     "--tool-diameter must be from 0.01 to 500 mm (got 1e-09)"),
+    (["demo", "--profile", "round", "--tool-diameter", "600"],
+     "--tool-diameter must be from 0.01 to 500 mm (got 600)"),
     (["demo", "--profile", "hole", "-o", "sub/"], "sub/: is a folder or empty: give a file name"),
 ])
 def test_bad_values_are_refused_with_their_reason(args, message, tmp_path, monkeypatch):
@@ -334,7 +340,9 @@ def test_verify_refuses_operation_options_without_an_stl(tmp_path):
         "Error: --face, --depth, --size: the operation options are only used with --against PART.stl")
     for option, value, message in (
         ("--tolerance", "0",
-         "prs3-post: error: --tolerance must be ≥ 0.0001 mm, the resolution of the program (got 0)"),
+         "prs3-post: error: --tolerance must be from 0.0001 mm (the resolution of the program) to 1 mm (got 0)"),
+        ("--tolerance", "1.5",
+         "prs3-post: error: --tolerance must be from 0.0001 mm (the resolution of the program) to 1 mm (got 1.5)"),
         ("--axis-tolerance", "-1", "Error: Invalid value for '--axis-tolerance': must be a number ≥ 0 degrees, got -1"),
     ):
         result = CliRunner().invoke(main, ["verify", str(program), option, value])

@@ -206,6 +206,20 @@ def test_every_job_output_passes_linuxcnc(example, rs274_check, tmp_path: Path) 
     (("feed = 400.0", "feed = -1.0"), "{job}: operation[2]: feed must be > 0 mm/min (got -1)"),
     (("feed = 400.0", "feed = 1e9"), "{job}: operation[2].feed: 1e+09 mm/min is out of range (allowed: -1e+06 to "
                                      "1e+06 mm/min)"),
+
+    # planning errors: the file and the key, not the option (they were '--profile round ... --at' without a file)
+    (("feed = 400.0", "feed = 400.0\nat = [[0.0, 0.0], [1.0, 1.0]]"),
+     "{job}: operation[2].at: profile round cuts one feature: give one at or at_xyz (got 2)"),
+    (("[[5.0, 5.0], [-5.0, -5.0]]", "[[5.0, 5.0], [5.0, 5.0]]"),
+     "{job}: operation[1].at: hole 2 at (u 5.000, v 5.000) is hole 1 at (u 5.000, v 5.000) again (closer than the "
+     "program's resolution, 0.0001 mm): it would be drilled twice; give each position once (at, at_xyz)"),
+    (('up = "z"', 'up = "z"\ntolerance = 100.0'),
+     "{job}: tolerance must be from 0.0001 mm (the resolution of the program) to 1 mm (got 100)"),
+    (("peck = 2.0", "peck = 2.0\ntool_diameter = 1e-9"),
+     "{job}: operation[1]: tool_diameter must be from 0.01 to 500 mm (got 1e-09)"),
+    (("diameter = 20.0", 'diameter = 7.0\nside = "inside"'),
+     "{job}: operation[2].side: side inside: the tool Ø8.000 mm does not fit inside the round Ø7.000 mm (use a tool "
+     "smaller than Ø7.000)"),
 ])
 def test_bad_job_files(tmp_path: Path, edit: tuple[str, str], message: str) -> None:
     job = tmp_path / "job.toml"
@@ -266,8 +280,9 @@ def test_one_tool_number_is_one_tool(tmp_path: Path) -> None:
     text = text.replace('tool_table = "tools.tbl"\n', "").replace("tool = 2 ", "tool = 1 ")
     job.write_text(text.replace("diameter = 20.0", "diameter = 20.0\ntool_diameter = 8.0"), encoding="utf-8")
     result = run_cli("job", str(job), "-o", str(tmp_path / "out.ngc"))
-    assert (result.exit_code, result.stderr) == (2, "prs3-post: error: operation 2 uses T1 with diameter 8.000 mm, "
-                                                    "operation 1 with 6.000 mm: one tool number is one tool\n")
+    assert (result.exit_code, result.stderr) == (2, f"prs3-post: error: {job}: operation[2].tool_diameter: operation 2 "
+                                                    "uses T1 with diameter 8.000 mm, operation 1 with 6.000 mm: one "
+                                                    "tool number is one tool\n")
 
 
 def test_a_header_whose_tool_lengths_the_machine_no_longer_gives_is_refused(example) -> None:

@@ -328,7 +328,9 @@ def test_holes_one_output_unit_apart_are_two_holes() -> None:
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
-        (dict(tool_diameter=0.0), "--tool-diameter must be > 0 mm (got 0)"),
+        (dict(tool_diameter=0.0), "--tool-diameter must be from 0.01 to 500 mm (got 0)"),
+        (dict(tool_diameter=1e-9), "--tool-diameter must be from 0.01 to 500 mm (got 1e-09)"),
+        (dict(tool_diameter=float("nan")), "--tool-diameter must be from 0.01 to 500 mm (got nan)"),
         (dict(feed=0.0), "--feed must be > 0 mm/min (got 0)"),
         (dict(feed=-100.0), "--feed must be > 0 mm/min (got -100)"),
         (dict(feed=math.inf), "--feed must be > 0 mm/min (got inf)"),
@@ -635,7 +637,7 @@ def test_smallest_inside_round_still_plans() -> None:
          "--retract must be ≥ --clearance (got --retract 1.000 mm < --clearance 2.000 mm)"),
         (
             lambda: plan_profile(FACE, np.zeros(2), RoundShape(10.0), profile_params(), CUT, tolerance=0.0),
-            "--tolerance must be ≥ 0.0001 mm, the resolution of the program (got 0)",
+            "--tolerance must be from 0.0001 mm (the resolution of the program) to 1 mm (got 0)",
         ),
         (
             lambda: plan_profile(FACE, np.zeros(3), RoundShape(10.0), profile_params(), CUT),

@@ -346,7 +346,7 @@ line_number_options = (
 )
 tolerance_option = click.option(
     "--tolerance", type=Decimal(LENGTH), default=DEFAULT_TOLERANCE, show_default=True,
-    help="Chordal tolerance of arcs (and of moves that turn the tool axis), mm.",
+    help="Chordal tolerance of arcs (and of moves that turn the tool axis), mm (0.0001 to 1).",
 )
 
 
@@ -591,7 +591,7 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="Safe height above the face between features, mm (along the tool axis)."),
         # tool and cutting data
         click.option("--tool-diameter", type=Decimal(LENGTH), default=6.0, show_default=True,
-                     help="Tool diameter, mm."),
+                     help="Tool diameter, mm (0.01 to 500)."),
         click.option("--tool-number", type=Integer(), default=1, show_default=True,
                      help="Tool number (T word), 1 up to the dialect's words.tool_number_max (both shipped: 99999)."),
         click.option("--feed", type=Decimal(FEED), default=300.0, show_default=True,
@@ -958,7 +958,13 @@ def job(job_path: str, out_path: str | None) -> None:
         refuse_overwriting({"--output": out_path}, {f"{key} of {job_path}": path for key, path in named.items()
                                                     if isinstance(path, str)})
         specs = _job_specs(job_file)
-        job = check_operations(specs)
+        try:
+            job = check_operations(specs)
+        except FeatureError as error:                  # worded for the options: say the job file and its key
+            where = "" if error.operation is None else f"operation[{error.operation}]"
+            where += f".{error.key}" if where and error.key else ""
+            raise InputError(f"{where}: {_job_keys(str(error))}" if where else _job_keys(str(error)),
+                             path=job_path) from error
         text = _ProgramText(job, whole=not _streamable(out_path))
         write_outputs([(out_path, text.data())])
         _report_placement(job)
@@ -1025,8 +1031,8 @@ def _against_options(func: Callable[..., Any]) -> Callable[..., Any]:
             param.required = False
             param.help = "Operation the program was made with (only with --against PART.stl)."
         if param.name == "tolerance":
-            param.help = ("Allowed tip deviation, mm (plus the output rounding against a path); also the "
-                          "chordal tolerance the job is rebuilt with for --against PART.stl.")
+            param.help = ("Allowed tip deviation, mm (0.0001 to 1; plus the output rounding against a path); also "
+                          "the chordal tolerance the job is rebuilt with for --against PART.stl.")
         params.append(param)
     func.__click_params__ = params                   # type: ignore[attr-defined]
     return func

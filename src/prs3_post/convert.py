@@ -350,23 +350,25 @@ class AxisError(ReachError):
     turns the part about z only, can fix it, so no part origin is suggested."""
 
 
-def _check_poses(machine: Machine, chunk: Toolpath, setup: Setup, *, limits: bool = True) -> None:
+def _check_poses(machine: Machine, chunk: Toolpath, setup: Setup, *, limits: bool = True) -> Toolpath:
     """The tool axes of the points as read (by input line), and with ``limits`` their reach and limits,
     before any subdivision: a path outside the workspace is named at its first bad line at once
     (subdividing it first could not converge on moves that cross a singularity, and would only
-    multiply the bad rows)."""
+    multiply the bad rows). Returns the chunk placed on the machine with unit axes (what a
+    ``placed`` :class:`~prs3_post.pipeline.PostStream` takes: the chunk is transformed once)."""
     path = place_toolpath(chunk, setup)
     try:
         axis = unit_axes(path.tip, path.axis, row_name="line", row_numbers=path.source)
     except PoseError as error:
         raise AxisError(f"{chunk.source_file}: {error}; a setup turns the part about z only, so no setup turns "
                         "these tool axes toward the spindle") from error
+    path = dataclasses.replace(path, axis=axis)
     if not limits:
-        return
+        return path
     ik = inverse(machine.geometry, path.tip, axis, model=model_for(machine))
-    if not ik.reachable.all():
-        return                                          # the pipeline names the unreachable pose
-    raise_first_violation(check_limits(machine, ik, axis), path.describe)
+    if ik.reachable.all():                              # else the pipeline names the unreachable pose
+        raise_first_violation(check_limits(machine, ik, axis), path.describe)
+    return path
 
 
 @dataclass(slots=True)
@@ -385,7 +387,7 @@ class _Run:
     placeable: bool = True                              # False: no setup can help the error raised
 
     def chunks(self) -> Iterator[Toolpath]:
-        """The reader's chunks, checked as read."""
+        """The reader's chunks, checked as read, placed on the machine (unit axes: for the ``placed`` stream)."""
         machine = self.settings.ik_machine
         last_axis: np.ndarray | None = None
         for chunk in self.reader:
@@ -396,13 +398,14 @@ class _Run:
                         Event(before=0, kind=EventKind.COMMENT, text=_five_axis_text(self.reader)), *chunk.events))
             if not self.rows:
                 _refuse_feed_first(chunk, self.fmt)
+            placed = chunk
             if len(chunk):
                 axes = np.vstack([chunk.axis if last_axis is None else [last_axis], chunk.axis])
                 turning = np.ptp(axes, axis=0).max() > 0.0   # an axis change: subdivision needs reachable ends
-                _check_poses(machine, chunk, self.settings.setup, limits=bool(turning))
+                placed = _check_poses(machine, chunk, self.settings.setup, limits=bool(turning))
                 last_axis = chunk.axis[-1]
             self.rows += len(chunk)
-            yield chunk
+            yield placed
         if not self.rows:
             raise InputError("no moves in the file: nothing to convert", path=self.path)
 
@@ -442,7 +445,7 @@ def _start(path: str, settings: ConvertSettings) -> _Run:
     machine = settings.ik_machine
     post = PostStream(machine, settings.setup, tolerance=settings.tolerance,
                       angle_tolerance=math.radians(settings.angle_tolerance_deg),
-                      length_decimals=settings.dialect.decimals.length)
+                      length_decimals=settings.dialect.decimals.length, placed=True)
     return _Run(path=path, settings=settings, fmt=fmt, sha256=file_sha256(path), reader=reader, post=post)
 
 

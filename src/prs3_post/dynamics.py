@@ -204,10 +204,11 @@ def speed_excess(dynamics: Dynamics, program: JointProgram, *, first: int = 0, l
 
 
 class DynamicsTally:
-    """Feed clamping and timing of a program made in chunks (held by the pipeline's stream).
+    """Feed clamping of a program made in chunks (held by the pipeline's stream).
 
-    ``feed(...)`` clamps one chunk's F words and adds its time; the tally carries the last joint
-    position from chunk to chunk. With ``clamp=False`` a needed clamp is a LimitError naming the
+    ``feed(...)`` clamps one chunk's F words; the tally carries the last joint position from chunk
+    to chunk. (The cycle time is :func:`program_time` of the finished program: the header needs it
+    once, not per chunk.) With ``clamp=False`` a needed clamp is a LimitError naming the
     row. A machine without dynamics: F words pass unchanged and nothing is counted.
 
     Attributes
@@ -216,7 +217,6 @@ class DynamicsTally:
     worst_ratio : float — the largest requested / clamped feed (1: none slowed)
     worst_where : str — the line or step of that move ('' when none)
     worst_axis : str — the axis that limits it
-    time_min : float — min, moves and dwells so far
     """
 
     def __init__(self, machine: Machine, *, clamp: bool = True):
@@ -226,7 +226,6 @@ class DynamicsTally:
         self.worst_ratio = 1.0
         self.worst_where = ""
         self.worst_axis = ""
-        self.time_min = 0.0
         self._last: FloatArray | None = None
 
     def feed(self, program: JointProgram) -> FloatArray:
@@ -258,18 +257,8 @@ class DynamicsTally:
                 self.worst_ratio = float(result.ratio[row])
                 self.worst_where = program.describe(row)
                 self.worst_axis = AXIS_NAMES[int(result.axis[row])]
-        times = move_times(self.dynamics, program.kind, deltas, result.inverse_time)
-        dwell = sum(e.value for e in program.events if e.kind is EventKind.DWELL) / 60.0
-        self.time_min += float(times.sum()) + dwell
         self._last = joints[-1].copy()
         return result.inverse_time if len(over) else program.inverse_time
-
-    def header_text(self) -> str:
-        """The program header's ``dynamics`` entry for the rows so far."""
-        if self.dynamics is None:
-            return NO_DYNAMICS
-        return f"cycle time {format_minutes(self.time_min)}, {_clamp_text([self])}"
-
 
 #: The header's ``dynamics`` entry for a machine file without ``[dynamics]``.
 NO_DYNAMICS = "none in the machine file: feeds not checked against axis speeds, no cycle time"

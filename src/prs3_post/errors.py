@@ -46,9 +46,19 @@ class PoseError(Prs3Error):
 
 
 class FeatureError(Prs3Error):
-    """An operation cannot be placed as asked (does not fit the face, tool too big, bad size)."""
+    """An operation cannot be placed as asked (does not fit the face, tool too big, bad size).
+
+    Attributes
+    ----------
+    key : str | None — the operation's parameter at fault, as a job file's key (``at``, ``side``), if one is
+    operation : int | None — which operation of a job (1-based), once the job knows it
+    """
 
     exit_code = 2
+
+    def __init__(self, message: str, *, key: str | None = None, operation: int | None = None):
+        super().__init__(message)
+        self.key, self.operation = key, operation
 
 
 class Prs3Warning(UserWarning):

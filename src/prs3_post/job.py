@@ -186,7 +186,7 @@ def plan(spec: JobSpec, face: Face) -> Toolpath:
         return plan_holes(face, centres, work.params, spec.cutting, resolution=resolution)
     if len(centres) > 1:
         raise FeatureError(f"--profile {spec.operation.value} cuts one feature: give one --at or --at-xyz "
-                           f"(got {len(centres)})")
+                           f"(got {len(centres)})", key="at")
     return plan_profile(face, centres[0], work.shape, work.params, spec.cutting, tolerance=spec.tolerance,
                         resolution=resolution)
 
@@ -244,7 +244,8 @@ def _check_tools(specs: tuple[JobSpec, ...]) -> None:
         if first[1] != cut.tool_diameter:
             raise FeatureError(f"operation {number} uses T{cut.tool_number} with diameter "
                                f"{exact_text(cut.tool_diameter, 3)} mm, operation {first[0]} with "
-                               f"{exact_text(first[1], 3)} mm: one tool number is one tool")
+                               f"{exact_text(first[1], 3)} mm: one tool number is one tool", key="tool_diameter",
+                               operation=number)
 
 
 def operation_label(number: int, spec: JobSpec, face: Face) -> str:
@@ -443,7 +444,10 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
             face, note = select_face(faces, spec.face, min_width=max(MIN_FACE_WIDTH_MM, spec.cutting.tool_diameter))
         except FeatureError as error:                     # about this file's faces: say which file
             raise InputError(str(error), path=spec.part) from error
-        path_part = plan(spec, face)
+        try:
+            path_part = plan(spec, face)
+        except FeatureError as error:                     # say which operation (a job file names it)
+            raise FeatureError(str(error), key=error.key, operation=number) from error
         label = operation_label(number, spec, face) if several else ""
         if several:
             path_part = replace(path_part, source_labels=tuple(f"{label}, {t}" for t in path_part.source_labels))

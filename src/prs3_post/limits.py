@@ -92,18 +92,19 @@ def check_limits(machine: Machine, ik: IKResult, axis: FloatArray) -> LimitRepor
         columns.append(("stage Y", "mm", *machine.stage.travel_y, ik.stage[:, 1]))
     low = np.array([c[2] for c in columns])
     high = np.array([c[3] for c in columns])
-    value = np.column_stack([c[4] for c in columns]) if columns else np.zeros((0, 0))
-    value = value.reshape(len(ik.strokes), len(columns))
-    margin = np.minimum(value - low, high - value)
+    # one limit per row of (L, N) arrays: each step runs along a contiguous row (the report holds
+    # their (N, L) transposes, views)
+    value = np.stack([c[4] for c in columns]).reshape(len(columns), len(ik.strokes))
+    margin = np.minimum(value - low[:, None], high[:, None] - value)
     with np.errstate(invalid="ignore"):
-        ok = np.all(margin >= 0.0, axis=1)             # NaN (unreachable) is never ok
+        ok = np.logical_and.reduce(margin >= 0.0, axis=0)   # NaN (unreachable) is never ok
     return LimitReport(
         names=tuple(c[0] for c in columns),
         units=tuple(c[1] for c in columns),
         low=low,
         high=high,
-        value=value,
-        margin=margin,
+        value=value.T,
+        margin=margin.T,
         ok=ok,
     )
 

@@ -54,7 +54,7 @@ class PostResult:
     path : Toolpath — the machine-frame toolpath after subdivision (one row per program row)
     ik : IKResult — per row
     limits : LimitReport — per row (all ok)
-    dynamics : DynamicsTally | None — feeds slowed and time, of the rows so far (None: not counted)
+    dynamics : DynamicsTally | None — the feeds slowed, of the rows so far (None: not counted)
     """
 
     program: JointProgram
@@ -136,12 +136,15 @@ class PostStream:
     Parameters
     ----------
     machine, setup, tolerance, angle_tolerance, length_decimals, clamp : as :func:`post_process`
+    placed : bool — the chunks come placed already: in the machine frame with unit axes, as
+        :func:`place_toolpath` through ``setup`` and :func:`~prs3_post.kinematics.unit_axes` make
+        them (a caller that checked the axes by input line on the way; False: part frame)
     """
 
     def __init__(self, machine: Machine, setup: Setup, *, tolerance: float = DEFAULT_TOLERANCE,
                  angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, length_decimals: int | None = None,
-                 clamp: bool = True):
-        self.machine, self.setup = machine, setup
+                 clamp: bool = True, placed: bool = False):
+        self.machine, self.setup, self.placed = machine, setup, placed
         self.tolerance, self.angle_tolerance = tolerance, angle_tolerance
         self.model = model_for(machine)
         self._visible = None if length_decimals is None else VisibleMoves(length_decimals)
@@ -150,7 +153,7 @@ class PostStream:
         self._input_rows = self._inserted = self._dropped = self._program_rows = 0
         self._worst = np.zeros(4)                     # tip, angle before; tip, angle after
         self._failed = False
-        self.dynamics = DynamicsTally(machine, clamp=clamp)   # feeds clamped to the axis speeds, cycle time
+        self.dynamics = DynamicsTally(machine, clamp=clamp)   # feeds clamped to the axis speeds
 
     def feed(self, chunk: Toolpath) -> PostResult:
         """The next chunk of the part-frame toolpath, post-processed (see :func:`post_process`).
@@ -176,7 +179,7 @@ class PostStream:
 
     def _post(self, chunk: Toolpath, *, scope: str) -> PostResult:
         machine, model = self.machine, self.model
-        given = _unit_path(place_toolpath(chunk, self.setup), self._input_rows)
+        given = chunk if self.placed else _unit_path(place_toolpath(chunk, self.setup), self._input_rows)
         ik, report = _check_end_points(machine, given, model, self._counted(scope, len(given)))
         linear = linearize(machine.geometry, given, tolerance=self.tolerance, angle_tolerance=self.angle_tolerance,
                            start=self._last_pose)
@@ -283,7 +286,7 @@ def program_text(machine: Machine, chunks: Iterable[Toolpath], setup: Setup, dia
     Parameters
     ----------
     machine, setup, tolerance, angle_tolerance : as :func:`post_process`
-    chunks : iterable of Toolpath — the part-frame toolpath, in order
+    chunks : iterable of Toolpath — the part-frame toolpath, in order (placed already when ``stream`` is ``placed``)
     dialect, header, line_numbers, line_start, line_step : as :func:`~prs3_post.emit.gcode.emit_program`
     stream : PostStream, optional — the stream to feed (made here when None); pass one to read its
         :meth:`~PostStream.finish` counts afterwards (it must use the dialect's length decimals)

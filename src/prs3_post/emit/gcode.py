@@ -167,6 +167,9 @@ class _Blocks:
         # LinuxCNC counts the CR of a CRLF ending towards its limit.
         self.limit = dialect.max_line_length - (len(dialect.line_ending) - 1)
         self.lines: list[str] = []
+        style = dialect.comments
+        self._comment_width = self.limit - len(style.open) - len(style.close)
+        self._replaced = _replaced(style.replace)
 
     def raw(self, text: str) -> None:
         """A line written as it is, never numbered (``%``, the ``O`` line)."""
@@ -199,7 +202,11 @@ class _Blocks:
     def comment(self, text: str) -> None:
         """A comment, sanitized, split over as many unnumbered lines as it needs."""
         style = self.dialect.comments
-        width = self.limit - len(style.open) - len(style.close)
+        if (len(text) <= self._comment_width and text.isascii() and text.isprintable() and "," not in text
+                and self._replaced.isdisjoint(text)):      # the usual one: as it is, on one line (as below)
+            self.lines.append(f"{style.open}{(text.upper() if style.uppercase else text).rstrip(' ')}{style.close}")
+            return
+        width = self._comment_width
         # Sanitizing first: it can lengthen the text, and it leaves one line of printable ASCII.
         safe = sanitize_comment(text, style)
         if len(safe) <= width:                 # one line: what textwrap makes of it (trailing spaces dropped)
@@ -444,8 +451,9 @@ class ProgramEmitter:
         blocks_before = np.zeros(hi - lo, dtype=np.int64)
         for b in breaks:
             if b < hi:
-                count = sum(e.kind is not EventKind.COMMENT for e in chunk.events.get(b, ()))
-                blocks_before[b - lo:] += count + (b == g93)
+                count = sum(e.kind is not EventKind.COMMENT for e in chunk.events.get(b, ())) + (b == g93)
+                if count:                            # comments are not numbered
+                    blocks_before[b - lo:] += count
         buffer, ends = self._render(chunk, axes, lo, hi, present, motion, np.arange(hi - lo) + blocks_before)
         text = str(buffer.data, "ascii")             # every row's line; ASCII: a byte offset is a character's
         long = np.flatnonzero(np.diff(ends) - len(self.dialect.line_ending) > out.limit)

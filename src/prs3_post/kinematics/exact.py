@@ -140,7 +140,14 @@ def spherical_joints(geometry: Geometry, tip: FloatArray, axis: FloatArray) -> F
 
 
 def _inverse_block(geometry: Geometry, tip: FloatArray, axis: FloatArray, out: dict[str, FloatArray]) -> None:
-    """Exact IK of one block, written into the ``out`` views (see :func:`inverse`)."""
+    """Exact IK of one block, written into the ``out`` views (see :func:`inverse`).
+
+    A block whose rows all have one tool axis (a 3+2 program: one per work plane) computes the
+    terms of the axis alone once, for its first row, and broadcasts them where the tip comes in:
+    the same operations on the same operands as row by row, so the same bits.
+    """
+    if len(axis) > 1 and (axis == axis[0]).all():     # NaN rows are never equal: row by row
+        axis = axis[:1]
     cos_a, sin_a, c3, s3 = _leg_constants(geometry)
     rp, big_k, link, tool = (
         geometry.platform_radius, geometry.guide_radius, geometry.link_length, geometry.tool_length
@@ -157,10 +164,10 @@ def _inverse_block(geometry: Geometry, tip: FloatArray, axis: FloatArray, out: d
     out["stage"][:, 0] = tip[:, 0] - (mx - tool * ax)
     out["stage"][:, 1] = tip[:, 1] - (my - tool * ay)
 
-    gram = np.zeros((len(tip), 6))                    # J^T J upper triangle: 00 01 02 11 12 22
+    gram = np.zeros((len(axis), 6))                   # J^T J upper triangle: 00 01 02 11 12 22
     gram[:, 0] = 3.0
-    jac_x = np.zeros((3, len(tip)))
-    jac_y = np.zeros((3, len(tip)))
+    jac_x = np.zeros((3, len(axis)))
+    jac_y = np.zeros((3, len(axis)))
     c2_over_az = c * c / az
     reach = az > 0.0
     for leg in range(3):

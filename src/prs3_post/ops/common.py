@@ -125,14 +125,18 @@ def check_heights(clearance: float, retract: float) -> None:
 MAX_PASSES = 10_000
 #: mm, the finest chordal tolerance: the programs are written with 4 decimals (0.0001 mm).
 MIN_TOLERANCE = 1e-4
+#: mm, the coarsest: an arc or an axis turn a millimetre off is no longer the shape asked for.
+MAX_TOLERANCE = 1.0
+#: mm, the smallest and largest tool diameters: micro drills to face mills.
+TOOL_DIAMETER_RANGE = (0.01, 500.0)
 
 
 def require_tolerance(tolerance: float) -> None:
-    """Raise unless ``--tolerance`` is a finite number ≥ MIN_TOLERANCE (mm)."""
-    if not (math.isfinite(tolerance) and tolerance >= MIN_TOLERANCE):
+    """Raise unless ``--tolerance`` is a finite number from MIN_TOLERANCE to MAX_TOLERANCE (mm)."""
+    if not (math.isfinite(tolerance) and MIN_TOLERANCE <= tolerance <= MAX_TOLERANCE):
         raise FeatureError(
-            f"--tolerance must be ≥ {MIN_TOLERANCE:g} mm, the resolution of the program (got {tolerance:g})"
-        )
+            f"--tolerance must be from {MIN_TOLERANCE:g} mm (the resolution of the program) to {MAX_TOLERANCE:g} mm "
+            f"(got {tolerance:g})", key="tolerance")
 
 
 def pass_depths(depth: float, step: float, *, resolution: float = MIN_TOLERANCE, rel_tol: float = 1e-9,
@@ -225,7 +229,10 @@ class Cutting:
     tool_number: int
 
     def __post_init__(self) -> None:
-        require_positive("--tool-diameter", self.tool_diameter, "mm")
+        low, high = TOOL_DIAMETER_RANGE
+        if not (math.isfinite(self.tool_diameter) and low <= self.tool_diameter <= high):
+            raise FeatureError(f"--tool-diameter must be from {low:g} to {high:g} mm (got {self.tool_diameter:g})",
+                               key="tool_diameter")
         require_positive("--feed", self.feed, "mm/min")
         require_positive("--plunge-feed", self.plunge_feed, "mm/min")
         require_positive("--spindle", self.spindle_rpm, "rpm")

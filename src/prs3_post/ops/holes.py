@@ -112,7 +112,7 @@ def _refuse_repeated(centers: FloatArray, resolution: float) -> None:
                 raise FeatureError(
                     f"hole {index + 1} at {format_uv(centers[index])} is hole {j + 1} at {format_uv(centers[j])} "
                     f"again (closer than the program's resolution, {resolution:g} mm): it would be drilled twice; "
-                    f"give each position once (--at, --at-xyz)")
+                    f"give each position once (--at, --at-xyz)", key="at")
         cells.setdefault((ku, kv), []).append(index)
 
 

@@ -311,17 +311,17 @@ def tool_center_contour(
             if shape.size <= tool_diameter:
                 raise FeatureError(
                     f"--side inside: the tool Ø{tool_diameter:.3f} mm does not fit inside the {shape.describe()} "
-                    f"(use a tool smaller than Ø{shape.size:.3f})"
+                    f"(use a tool smaller than Ø{shape.size:.3f})", key="side"
                 )
             if shape.corner_radius < radius:
                 raise FeatureError(
                     f"--side inside: corner radius {shape.corner_radius:.3f} mm is smaller than the tool radius "
-                    f"{radius:.3f} mm (use --corner-radius ≥ {radius:.3f} or a smaller tool)"
+                    f"{radius:.3f} mm (use --corner-radius ≥ {radius:.3f} or a smaller tool)", key="side"
                 )
         elif shape.diameter <= tool_diameter:
             raise FeatureError(
                 f"--side inside: the tool Ø{tool_diameter:.3f} mm does not fit inside the {shape.describe()} "
-                f"(use a tool smaller than Ø{shape.diameter:.3f})"
+                f"(use a tool smaller than Ø{shape.diameter:.3f})", key="side"
             )
 
     if isinstance(shape, SquareShape):

@@ -75,7 +75,7 @@ import math
 import re
 from array import array
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -85,6 +85,7 @@ from prs3_post.arcs import MAX_ARC_SEGMENTS, arc_points_3d, arc_segment_count, a
 from prs3_post.cycles import MAX_PECKS, DrillCycle, Pecking, drill_rows, peck_count
 from prs3_post.errors import InputError
 from prs3_post.readers.files import iter_pieces, line_chunks
+from prs3_post.readers.stl import MAX_COORDINATE_MM
 from prs3_post.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath
 from prs3_post.types import FloatArray
 from prs3_post.workplane import rotate_rows
@@ -113,6 +114,8 @@ MM_PER_INCH = 25.4
 #: mm/min, the fastest feed per minute a CAM file may ask for (a kilometre a minute, as the command line's
 #: feeds): more is a typo, and would make a program whose moves the controller cannot follow.
 MAX_FEED_MM_MIN = 1e6
+# A coordinate or length (GOTO/, CIRCLE/, MSYS/, CYCLE/) must lie within ±MAX_COORDINATE_MM, as an STL part's:
+# a kilometre is far beyond any machine, so more is a typo or a unit error (bad input, not a point out of reach).
 
 _KNOWN_WORDS = ("GOTO", "FROM", "GOHOME", "RAPID", "FEDRAT", "MULTAX", "TLAXIS", "MSYS", "UNITS", "LOADTL",
                 "LOAD", "SELECT", "TLDATA", "SPINDL", "COOLNT", "CYCLE", "CIRCLE", "PPRINT", "END-OF-PATH",
@@ -581,7 +584,7 @@ def _number(text: str, what: str) -> float | str:
         return f"{what}: {text!r} is not a number (expected a decimal like -12.5, .5 or 1.5E+02)"
     value = float(text)
     if not math.isfinite(value):
-        return f"{what}: {text!r} is too large to be a finite number"
+        return f"{what}: {_quote(text, 40)} is too large to be a finite number"
     return value
 
 
@@ -654,7 +657,7 @@ class _Reader:
         rest = record.rest
         if args is None and rest is not None and _NUMBER_LIST.match(rest):   # the common case, checked at once
             values = [float(text) for text in rest.split(",")]
-            if "e" not in rest and "E" not in rest:                  # only an exponent can overflow
+            if "e" not in rest and "E" not in rest and len(rest) < 300:   # else it may overflow to inf
                 return values
             if all(math.isfinite(v) for v in values):
                 return values
@@ -667,6 +670,17 @@ class _Reader:
                 raise self.error(value)
             values.append(value)
         return values
+
+    def lengths(self, record: _Record, values: list[float], indices: Iterable[int]) -> None:
+        """Refuse a coordinate or length ``values[i]`` (file units) beyond :data:`MAX_COORDINATE_MM`."""
+        for index in indices:
+            if not abs(values[index]) * self.scale <= MAX_COORDINATE_MM:        # inf and nan too
+                raise self.error(self.length_message(record.args[index], f"{record.word}/ value {index + 1}"))
+
+    def length_message(self, text: str, what: str) -> str:
+        unit = "mm" if self.scale == 1.0 else "inch"
+        return (f"{what}: {_quote(text, 40)} is out of range (allowed: within ±{MAX_COORDINATE_MM / self.scale:g} "
+                f"{unit}; is the file in the right units?)")
 
     def unit_axis(self, values: list[float], what: str) -> tuple[float, float, float]:
         i, j, k = values
@@ -762,6 +776,7 @@ class _Reader:
                              f"found {_quote(record.text)}")
         if len(values) == 6 and self.multax_on is False:
             raise self.error(f"{record.word}/ with i,j,k under MULTAX/OFF: give x,y,z only, or MULTAX/ON first")
+        self.lengths(record, values, range(3))
         scale = self.scale
         point = (values[0] * scale, values[1] * scale, values[2] * scale)
         if len(values) == 6:
@@ -799,6 +814,7 @@ class _Reader:
         if len(values) < 7:
             raise self.error(f"CIRCLE/ has {len(values)} values: expected at least 7 (xc,yc,zc,i,j,k,r); found "
                              f"{_quote(record.text)}")
+        self.lengths(record, values, (0, 1, 2, 6))
         if self.cycle is not None:
             raise self.error(f"CIRCLE/ inside the CYCLE/ of line {self.cycle.line}: close it with CYCLE/OFF first")
         if self.rapid_next:
@@ -923,6 +939,7 @@ class _Reader:
                 f"MSYS/ axes are not orthogonal unit vectors: x axis ({', '.join(f'{v:g}' for v in values[3:6])}), "
                 f"y axis ({', '.join(f'{v:g}' for v in values[6:9])}) have |x| = {x_len:.6g}, |y| = {y_len:.6g}, "
                 f"x·y = {dot:.6g} (valid: |x| = |y| = 1 and x·y = 0 within {FRAME_TOLERANCE:g})")
+        self.lengths(record, values, range(3))
         x_axis = x_axis / x_len
         y_axis = y_axis - (y_axis @ x_axis) * x_axis
         y_axis = y_axis / np.linalg.norm(y_axis)
@@ -1039,6 +1056,8 @@ class _Reader:
                     if per_rev and not self.spindle_rpm > 0:
                         raise self.error(f"CYCLE/ feed in {word} before any spindle speed: give SPINDL/ first")
                 else:
+                    if word != "DWELL" and not abs(value) * self.scale <= MAX_COORDINATE_MM:
+                        raise self.error(self.length_message(record.args[index + 1], f"CYCLE/ {word}"))
                     params[word] = value
                 index += 2
                 continue
@@ -1143,7 +1162,7 @@ class _Reader:
         given = np.array([groups[3:] for groups in run if groups[3] is not None], dtype=np.float64).reshape(-1, 3)
         i, j, k = given[:, 0], given[:, 1], given[:, 2]
         length = np.sqrt(i * i + j * j + k * k)
-        if (not np.isfinite(tip).all() or (with_axis.any() and self.multax_on is False)
+        if (not (np.abs(tip) <= MAX_COORDINATE_MM).all() or (with_axis.any() and self.multax_on is False)
                 or np.any(np.abs(length - 1.0) > AXIS_LENGTH_TOLERANCE) or np.any(length == 0.0)):
             order = sorted([*run_index, *(index for _, index in marks)])
             for index in order:                                      # one by one, for the exact error

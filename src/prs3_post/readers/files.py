@@ -13,6 +13,8 @@ import stat
 from collections.abc import Iterable, Iterator
 from typing import BinaryIO
 
+import numpy as np
+
 from prs3_post.errors import InputError
 
 MB = 1_000_000
@@ -158,24 +160,48 @@ def iter_pieces(path: str, what: str, piece_bytes: int = 1 << 20) -> Iterator[tu
             yield offset, rest
 
 
-def line_chunks(texts: Iterable[str], chunk_lines: int, *, strip_cr: bool = False) -> Iterator[list[str]]:
+def line_chunks(texts: Iterable[str], chunk_lines: int) -> Iterator[list[str]]:
     """The lines of text pieces that end at line ends (as :func:`iter_pieces` cuts them, decoded), without
-    their line ends, ``chunk_lines`` at a time (the last chunk shorter); ``strip_cr``: a CR before the
-    LF is removed too.
+    their line ends, ``chunk_lines`` at a time (the last chunk shorter).
 
-    >>> list(line_chunks(["a\\nb\\r\\n", "c\\n", "d"], 2, strip_cr=True))
-    [['a', 'b'], ['c', 'd']]
+    >>> list(line_chunks(["a\\nb\\r\\n", "c\\n", "d"], 2))
+    [['a', 'b\\r'], ['c', 'd']]
     """
     pending: list[str] = []
     for text in texts:
         lines = text.split("\n")
         if lines[-1] == "":
             lines.pop()                                  # the piece's final line end
-        if strip_cr and "\r" in text:
-            lines = [line.removesuffix("\r") for line in lines]
         pending += lines
         while len(pending) >= chunk_lines:
             yield pending[:chunk_lines]
             del pending[:chunk_lines]
     if pending:
         yield pending
+
+
+def line_blocks(pieces: Iterable[tuple[int, bytes]], chunk_lines: int) -> Iterator[tuple[int, bytes]]:
+    """``(offset, bytes)`` blocks of ``chunk_lines`` whole lines each, with their LFs, from ``(offset,
+    bytes)`` pieces that end at line ends (as :func:`iter_pieces` cuts them); the last block holds
+    the lines left (fewer, and its last line may end at the end of the file, without an LF).
+
+    >>> list(line_blocks([(0, b"a\\nb\\n"), (4, b"c\\nd")], 3))
+    [(0, b'a\\nb\\nc\\n'), (6, b'd')]
+    """
+    pending, pending_at = b"", 0                       # whole lines not handed out yet, and their offset
+    for offset, piece in pieces:
+        block = pending + piece if pending else piece
+        at = offset - len(pending)
+        line_ends = np.flatnonzero(np.frombuffer(block, dtype=np.uint8) == _LF)
+        cut, used = 0, 0
+        while len(line_ends) - used >= chunk_lines:
+            stop = int(line_ends[used + chunk_lines - 1]) + 1
+            yield at + cut, block[cut:stop]
+            used += chunk_lines
+            cut = stop
+        pending, pending_at = block[cut:], at + cut
+    if pending:
+        yield pending_at, pending
+
+
+_LF = ord("\n")

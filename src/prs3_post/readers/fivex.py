@@ -56,7 +56,7 @@ import math
 import re
 from array import array
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -327,7 +327,7 @@ class _FivexReader(_Reader):
             return
         super().line(number, line)
 
-    def bulk(self, first: int, values: FloatArray, moves: np.ndarray, lines: list[str]) -> bool:
+    def bulk(self, first: int, values: FloatArray, moves: np.ndarray, lines: Sequence[str]) -> bool:
         # runs of X Y Z moves keep the orientation: read in bulk where the state is plain
         if self.axis_now is None or self.machine_line or not (self.tcp or self.at_zero()):
             return False

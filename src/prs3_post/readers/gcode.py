@@ -70,8 +70,9 @@ import math
 import re
 from array import array
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import overload
 
 import numpy as np
 
@@ -79,7 +80,7 @@ from prs3_post.arcs import MAX_ARC_SEGMENTS, arc_points_3d, arc_segment_count, a
 from prs3_post.cycles import MAX_PECKS, DrillCycle, Pecking, drill_rows, peck_count
 from prs3_post.errors import InputError, LexError
 from prs3_post.readers.apt import MAX_FEED_MM_MIN, join_toolpaths
-from prs3_post.readers.files import iter_pieces, line_chunks
+from prs3_post.readers.files import iter_pieces, line_blocks
 from prs3_post.readers.lexer import (
     BYTE_ORDER_MARK,
     EMPTY,
@@ -87,6 +88,7 @@ from prs3_post.readers.lexer import (
     code_name,
     decode,
     forward_fill,
+    lex_column_block,
     lex_columns,
     lex_words,
     quote,
@@ -366,13 +368,19 @@ class GcodeStream:
         """The interpreter of the lines (a hook: the 5-axis reader, :mod:`prs3_post.readers.fivex`, gives its own)."""
         return _Reader(self.path, self.work_plane, self.tolerance, self.circle_tolerance)
 
+    def _pieces(self) -> Iterator[tuple[int, bytes]]:
+        """The file's bytes in ``(offset, bytes)`` pieces that end at line ends (``text``: its UTF-8 bytes)."""
+        if self._text is not None:
+            yield 0, self._text.encode("utf-8")
+            return
+        yield from iter_pieces(self.path, "a G-code program", self.piece_bytes)
+
     def __iter__(self) -> Iterator[Toolpath]:
-        self._check()
+        self._check()                                   # the whole text checked: its bytes are read below
         reader = self._reader()
         number = 1
-        for lines in line_chunks(self._texts(), self.chunk_lines, strip_cr=True):
-            reader.lines(number, lines)
-            number += len(lines)
+        for offset, block in line_blocks(self._pieces(), self.chunk_lines):
+            number += reader.read_block(number, block, offset)
             chunk = reader.take()
             if len(chunk) or chunk.events:
                 yield chunk
@@ -418,6 +426,57 @@ def _refuse_rotary(line: str, number: int, path: str) -> None:
     raise InputError(f"5-axis program: rotary word '{word}' (A, B and C words turn rotary axes); the 3+2 reader "
                      "reads programs whose tool axis is set by G68.2/G53.1 or by the work plane, so it refuses this "
                      "program rather than misread it", path=path, line=number)
+
+
+def _text_at(data: bytes, path: str, offset: int) -> str:
+    """The text of the bytes of a file from ``offset`` (a line start) on, checked as
+    :func:`~prs3_post.readers.lexer.decode` checks it (its error names ``path``)."""
+    try:
+        return decode(data, offset=offset)
+    except LexError as exc:
+        raise InputError(str(exc), path=path) from exc
+
+
+class _BlockLines(Sequence[str]):
+    """The lines of a block of a file's bytes (:func:`~prs3_post.readers.lexer.lex_column_block`'s
+    ``bounds``: line k is ``data[bounds[k]:bounds[k + 1] - 1]``), each decoded when first asked for
+    (the lines read in bulk never are); a slice shares the block and the texts decoded."""
+
+    def __init__(self, data: bytes, bounds: list[int], offset: int, path: str, *, start: int = 0,
+                 stop: int | None = None, texts: dict[int, str] | None = None):
+        self.data, self.bounds, self.offset, self.path = data, bounds, offset, path
+        self.start, self.stop = start, len(bounds) - 1 if stop is None else stop
+        self.texts: dict[int, str] = {} if texts is None else texts        # line in the block → text
+
+    def __len__(self) -> int:
+        return self.stop - self.start
+
+    @overload
+    def __getitem__(self, index: int) -> str: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> _BlockLines: ...
+
+    def __getitem__(self, index: int | slice) -> str | _BlockLines:
+        size = self.stop - self.start
+        if isinstance(index, slice):
+            first, last, step = index.indices(size)
+            if step != 1:
+                raise ValueError("_BlockLines: only contiguous slices")
+            return _BlockLines(self.data, self.bounds, self.offset, self.path, start=self.start + first,
+                               stop=self.start + max(first, last), texts=self.texts)
+        if not -size <= index < size:
+            raise IndexError(index)
+        line = self.start + index % size
+        text = self.texts.get(line)
+        if text is None:
+            begin = self.bounds[line]
+            raw = self.data[begin:self.bounds[line + 1] - 1]
+            text = raw.decode("latin-1")                 # one byte, one character: for the test below
+            if not (text.isascii() and text.isprintable()):      # else checked as decode does
+                text = _text_at(raw, self.path, self.offset + begin)
+            self.texts[line] = text
+        return text
 
 
 # --------------------------------------------------------------------------------------------
@@ -547,6 +606,29 @@ class _Reader:
         if not lines:
             return
         values, fast = lex_columns(lines, _BULK_LETTERS)
+        self.runs(first, values, fast, lines)
+
+    def read_block(self, first: int, data: bytes, offset: int) -> int:
+        """Lines ``first``... as the file's bytes from ``offset`` on (whole lines, each with its LF; the
+        last may end at the end of the file), read as :meth:`lines` reads them decoded; returns their
+        number. The lines of the regular motion shape are read without being decoded; the others are
+        decoded when read (a block with a CR is decoded whole: its lines without the CR before the LF).
+        The file's text was checked before (:func:`~prs3_post.readers.lexer.decode`)."""
+        if b"\r" in data:
+            text = _text_at(data, self.path, offset)
+            lines = text.split("\n")
+            if lines[-1] == "":
+                lines.pop()                              # the block's final line end
+            lines = [line.removesuffix("\r") for line in lines]
+            self.lines(first, lines)
+            return len(lines)
+        values, fast, bounds = lex_column_block(data, _BULK_LETTERS)
+        self.runs(first, values, fast, _BlockLines(data, bounds.tolist(), offset, self.path))
+        return len(fast)
+
+    def runs(self, first: int, values: FloatArray, fast: BoolArray, lines: Sequence[str]) -> None:
+        """Lines ``first``... as lexed (``values``, ``fast``: :func:`~prs3_post.readers.lexer.lex_columns`)
+        with their texts ``lines``: runs to :meth:`bulk`, the rest to :meth:`line` (see :meth:`lines`)."""
         g = values[:, 1]
         fast &= np.isnan(g) | (g == 0.0) | (g == 1.0)
         fast &= ~np.isnan(values[:, 2:5]).all(axis=1)     # a move: an axis word
@@ -559,7 +641,7 @@ class _Reader:
                 for i in range(a, b):
                     self.line(first + i, lines[i])
 
-    def bulk(self, first: int, values: FloatArray, moves: BoolArray, lines: list[str]) -> bool:
+    def bulk(self, first: int, values: FloatArray, moves: BoolArray, lines: Sequence[str]) -> bool:
         """Lines ``first``... in bulk: where ``moves``, of the regular motion shape (``values`` (k, 6): N G X Y Z
         F, NaN where absent), elsewhere blank or comments only. True if done; False (state untouched)
         where any line would need the careful reader."""

@@ -274,8 +274,8 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
     a space or line end after a number, a space or a line start; any other byte (lower case, tab,
     ``(``, non-ASCII, ...) nowhere), so a line's number bytes follow its letters; then each ``.`` has a
     digit beside it and its word no other ``.``, a word has at most 15 digits, and letters are in order:
-    exactly :data:`NUMBER` words in the order of ``letters``. The values of the lines read are parsed
-    by numpy's text reader (``float`` of the same text: correctly rounded).
+    exactly :data:`NUMBER` words in the order of ``letters``. The values of the lines read are made
+    from their digits eight bytes at a time (:func:`_numbers`: ``float`` of the same text, to the bit).
     """
     column_pattern(letters)                              # checks the letters
     if not lines:
@@ -314,7 +314,7 @@ def lex_column_block(block: bytes, letters: str) -> tuple[FloatArray, BoolArray,
 def _lex_text(text: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArray]:
     """lex_columns of ``text``: LF, then each line and its LF (every byte not ASCII already one of the
     bytes that no line of the regular shape has); returns values, read and the LF positions (N + 1,)."""
-    byte_class, rank_of, bad_pair, delimiter, dot, blank = _tables(letters)
+    byte_class, rank_of, bad_pair, delimiter, dot = _tables(letters)
     size = len(text)
     data = np.frombuffer(text, dtype=np.uint8)
     delimiters = np.flatnonzero(np.frombuffer(text.translate(delimiter), dtype=np.bool_))    # letters, spaces, ends
@@ -351,24 +351,77 @@ def _lex_text(text: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArra
     ordered[1:] = (word_line[1:] != word_line[:-1]) | (rank[1:] > rank[:-1])
     bad[word_line[(digits > 15) | ~ordered]] = True
     read = ~bad
-    # the values: the letters blanked (and the lines not read), the numbers read by numpy's text reader
-    numbers = text.translate(blank)
+    # the values of the words of the lines read: each a plain decimal number of at most 15 digits
+    decimals = np.zeros(len(start), dtype=np.int64)     # digits after the point (0 without one)
+    decimals[dot_word] = stop[dot_word] - dots - 1
+    pointed = np.zeros(len(start), dtype=bool)
+    pointed[dot_word] = True
     if bad.any():
         keep = read[word_line]
-        masked = np.frombuffer(numbers, dtype=np.uint8).copy()
-        masked[1:][np.repeat(bad, np.diff(ends))] = _SPACE_BYTE
-        numbers = masked.tobytes()
+        start, stop, decimals, pointed = start[keep], stop[keep], decimals[keep], pointed[keep]
         word_line, rank = word_line[keep], rank[keep]
-    value = np.fromstring(numbers, sep=" ") if len(word_line) else np.zeros(0)
-    if len(value) != len(word_line):
-        raise AssertionError(f"lex_columns: {len(value)} numbers for {len(word_line)} words")
-    values[word_line, rank - 1] = value
+    values[word_line, rank - 1] = _numbers(text, start + 1, stop, decimals, pointed)
     return values, read, ends
+
+
+def _numbers(text: bytes, first: IntArray, stop: IntArray, decimals: IntArray, pointed: BoolArray) -> FloatArray:
+    """The numbers ``text[first[k]:stop[k]]``, each a plain decimal (:data:`NUMBER`) of at most 15
+    digits, ``decimals[k]`` of them after its point (``pointed[k]``: it has one): ``float`` of each text.
+
+    How (for all numbers at once, in C): each number's last 16 bytes (8 when none is longer) are
+    loaded right-aligned as two little-endian uint64 (unaligned views of the text), the bytes
+    before the number masked to ``0``, the sign and point read as ``0`` too; then 8 ASCII digits
+    become their integer in three multiply-shift-mask steps (SWAR). With the point read as a
+    ``0`` digit, that integer is ``whole·10^(d+1) + fraction``, so the digits without the point are
+    ``(a − fraction) / 10 + fraction``, fraction = ``a mod 10^d``. Last, that integer (< 10^15 < 2^53:
+    exact) divided by 10^d (exact for d ≤ 22): one correctly rounded division, so the value is
+    ``float(text)`` to the bit, as a correctly rounded reader gives it (a minus sign negates it,
+    ``-0.0`` included).
+    """
+    if not len(first):
+        return np.zeros(0)
+    length = stop - first
+    width = 8 if length.max() <= 8 else 16
+    digits = np.frombuffer(_ZEROS[:width] + text.translate(_SIGN_AND_POINT_AS_ZERO), dtype=np.uint8)
+    words = np.ndarray((len(digits) - 7,), dtype="<u8", buffer=digits, strides=(1,))   # words[i]: bytes i..i+7
+    integer = np.zeros(len(first), dtype=np.uint64)
+    for part in range(width // 8):                      # the last 8 bytes, then the 8 before them
+        loaded = words[stop + width - 8 * (part + 1)]
+        keep = _KEEP_BYTES[np.clip(8 * (part + 1) - length, 0, 8)]     # the number's bytes only
+        loaded &= keep
+        loaded |= _ASCII_ZEROS & ~keep
+        integer += _eight_digits(loaded) * _POWERS_OF_TEN_U8[part]
+    a = integer.astype(np.int64)
+    if pointed.any():
+        fraction = a % _POWERS_OF_TEN[decimals]
+        a = np.where(pointed, (a - fraction) // 10 + fraction, a)
+    value = a / _POWERS_OF_TEN_F8[decimals]
+    np.negative(value, out=value, where=np.frombuffer(text, dtype=np.uint8)[first] == _MINUS_BYTE)
+    return value
+
+
+def _eight_digits(words: npt.NDArray[np.uint64]) -> npt.NDArray[np.uint64]:
+    """The integer each uint64 of 8 ASCII digits spells (its first byte, the lowest, the most significant)."""
+    v = words - _ASCII_ZEROS
+    v = (v * np.uint64(10) + (v >> np.uint64(8))) & np.uint64(0x00FF00FF00FF00FF)      # pairs of digits
+    v = (v * np.uint64(100) + (v >> np.uint64(16))) & np.uint64(0x0000FFFF0000FFFF)    # fours
+    return (v * np.uint64(10000) + (v >> np.uint64(32))) & np.uint64(0x00000000FFFFFFFF)
+
+
+_ZEROS = b"0" * 16
+#: bytes.translate table: ``-`` and ``.`` read as the digit 0 (their values are taken apart).
+_SIGN_AND_POINT_AS_ZERO = bytes(ord("0") if b in b"-." else b for b in range(256))
+_ASCII_ZEROS = np.uint64(0x3030303030303030)
+#: _KEEP_BYTES[m]: the mask of the bytes of a uint64 from byte m on (m = 8: none).
+_KEEP_BYTES = np.array([(2**64 - 1) << (8 * m) & (2**64 - 1) for m in range(9)], dtype=np.uint64)
+_POWERS_OF_TEN = 10 ** np.arange(18, dtype=np.int64)
+_POWERS_OF_TEN_U8 = np.array([1, 10**8], dtype=np.uint64)
+_POWERS_OF_TEN_F8 = 10.0 ** np.arange(23)
 
 
 #: Byte classes of lex_columns.
 _LETTER, _DIGIT, _DOT, _MINUS, _SPACE, _NEWLINE, _OTHER = range(7)
-_MINUS_BYTE, _SPACE_BYTE = ord("-"), ord(" ")
+_MINUS_BYTE = ord("-")
 #: The classes each class may come right after (a line start is a line end).
 _AFTER = {_LETTER: (_DIGIT, _DOT, _SPACE, _NEWLINE), _DIGIT: (_LETTER, _MINUS, _DOT, _DIGIT),
             _DOT: (_LETTER, _MINUS, _DIGIT), _MINUS: (_LETTER,), _SPACE: (_DIGIT, _DOT, _SPACE, _NEWLINE),
@@ -376,10 +429,9 @@ _AFTER = {_LETTER: (_DIGIT, _DOT, _SPACE, _NEWLINE), _DIGIT: (_LETTER, _MINUS, _
 
 
 @lru_cache(maxsize=32)
-def _tables(letters: str) -> tuple[npt.NDArray[np.int8], npt.NDArray[np.int8], BoolArray, bytes, bytes, bytes]:
+def _tables(letters: str) -> tuple[npt.NDArray[np.int8], npt.NDArray[np.int8], BoolArray, bytes, bytes]:
     """lex_columns' tables: byte class, letter rank (column + 1), bad byte pairs (indexed by the pair
-    read as little-endian uint16: first byte low), and bytes.translate tables for delimiters, dots, and
-    the letters blanked."""
+    read as little-endian uint16: first byte low), and bytes.translate tables for delimiters and dots."""
     byte_class = np.full(256, _OTHER, dtype=np.int8)
     byte_class[ord("0"):ord("9") + 1] = _DIGIT
     byte_class[ord(".")], byte_class[ord("-")], byte_class[ord(" ")], byte_class[ord("\n")] = (
@@ -396,10 +448,9 @@ def _tables(letters: str) -> tuple[npt.NDArray[np.int8], npt.NDArray[np.int8], B
     classes = byte_class.tolist()
     delimiter = bytes(int(c in (_LETTER, _SPACE, _NEWLINE)) for c in classes)
     dot = bytes(int(b == ord(".")) for b in range(256))
-    blank = bytes(_SPACE_BYTE if c == _LETTER else b for b, c in enumerate(classes))
     for table in (byte_class, rank, bad_pair):
         table.flags.writeable = False
-    return byte_class, rank, bad_pair, delimiter, dot, blank
+    return byte_class, rank, bad_pair, delimiter, dot
 
 
 def forward_fill(values: FloatArray) -> FloatArray:
