@@ -353,8 +353,68 @@ tolerance_option = click.option(
 # ----------------------------------------------------------------------------- commands
 
 
+def _takes_value(option: click.Option) -> bool:
+    return not (option.is_flag or option.count)
+
+
+def _occurrences(params: list[click.Parameter], args: list[str]) -> Iterator[tuple[click.Option, str]]:
+    """``(option, value as written)`` for each option in ``args`` (a flag's value: its spelling), as
+    click reads them: ``--name VALUE``, ``--name=VALUE``, ``-o VALUE``, ``-oVALUE``, grouped short
+    flags, and nothing after ``--``. An unknown option is passed over (click reports it)."""
+    named = {name: p for p in params if isinstance(p, click.Option) for name in (*p.opts, *p.secondary_opts)}
+    i = 0
+    while i < len(args):
+        arg = args[i]
+        i += 1
+        if arg == "--":
+            return
+        if not arg.startswith("-") or arg == "-":
+            continue
+        if arg.startswith("--"):
+            name, equals, value = arg.partition("=")
+            option = named.get(name)
+            if option is None:
+                continue
+            if _takes_value(option) and not equals:
+                value = " ".join(args[i:i + option.nargs])
+                i += option.nargs
+            yield option, value if _takes_value(option) else name
+            continue
+        for at in range(1, len(arg)):                     # -o VALUE, -oVALUE, -ab (flags)
+            option = named.get("-" + arg[at])
+            if option is None:
+                break
+            if _takes_value(option):
+                value = arg[at + 1:]
+                if not value:
+                    value = " ".join(args[i:i + option.nargs])
+                    i += option.nargs
+                yield option, value
+                break
+            yield option, "-" + arg[at]
+
+
+class _Command(click.Command):
+    """A command whose single-valued options may be given once: ``--profile hole --profile square``
+    (or ``-o a -o b``, ``--collision-check --no-collision-check``) is refused, naming both, instead
+    of click's silent last-one-wins. Options made to repeat (``multiple``, ``count``) may repeat."""
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        first: dict[str, str] = {}
+        for option, value in _occurrences(self.get_params(ctx), args):
+            if option.multiple or option.count or option.is_eager or option.name is None:
+                continue
+            if option.name in first:
+                names = "/".join(sorted((*option.opts, *option.secondary_opts), key=lambda n: (len(n) > 2, n)))
+                ctx.fail(f"{names} given twice ({_shown(first[option.name])} and {_shown(value)}): give it once")
+            first[option.name] = value
+        return super().parse_args(ctx, args)
+
+
 class _MainGroup(click.Group):
     """A group whose first argument may be a part file: ``prs3-post PART.stl ...`` means ``run``."""
+
+    command_class = _Command
 
     def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
         if args and not args[0].startswith("-") and args[0] not in self.commands:

@@ -1,0 +1,73 @@
+"""Hostile input, round two (issue 7 §3-§5, issue 8 §2): options given twice, standard input as a
+file, option values that are neither a file nor numbers. Each is refused with a message that says
+what is wrong and what is valid, exit 2, and no output file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from prs3_post.cli import main
+
+REPO = Path(__file__).resolve().parents[1]
+WEDGE = REPO / "fixtures" / "parts" / "wedge.stl"
+PROGRAM_3AXIS = "G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F100\nG1 X5\nM2\n"
+
+
+def invoke(*args: str):
+    return CliRunner().invoke(main, list(args), prog_name="prs3-post")
+
+
+def _usage_error(result) -> str:
+    """The last line of a click usage error (``Error: ...``), after checking exit 2 and no output."""
+    assert (result.exit_code, result.stdout) == (2, ""), result.stderr
+    return result.stderr.splitlines()[-1]
+
+
+# ----------------------------------------------------------------------------- options given twice
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["demo", "--profile", "hole", "--profile", "square", "-o", "d.ngc"],
+     "Error: --profile given twice ('hole' and 'square'): give it once"),
+    (["demo", "--profile", "hole", "-o", "a.ngc", "-o", "b.ngc"],
+     "Error: -o/--output given twice ('a.ngc' and 'b.ngc'): give it once"),
+    (["demo", "--profile", "hole", "-oa.ngc", "--output=b.ngc"],
+     "Error: -o/--output given twice ('a.ngc' and 'b.ngc'): give it once"),
+    (["run", str(WEDGE), "--profile=hole", "--depth", "3", "--depth", "4", "-o", "d.ngc"],
+     "Error: --depth given twice ('3' and '4'): give it once"),
+    ([str(WEDGE), "--profile", "hole", "--part-origin", "-100,-200,-970", "--part-origin=0,0,0", "-o", "d.ngc"],
+     "Error: --part-origin given twice ('-100,-200,-970' and '0,0,0'): give it once"),
+    (["demo", "--profile", "hole", "--collision-check", "--no-collision-check", "-o", "d.ngc"],
+     "Error: --collision-check/--no-collision-check given twice ('--collision-check' and "
+     "'--no-collision-check'): give it once"),
+    (["convert", "in.ngc", "-o", "out", "--report", "a.json", "--report", "b.json"],
+     "Error: --report given twice ('a.json' and 'b.json'): give it once"),
+    (["verify", "p.ngc", "--machine", "patel2020", "--machine", "patel2020-head"],
+     "Error: --machine given twice ('patel2020' and 'patel2020-head'): give it once"),
+    (["faces", str(WEDGE), "--json", "--json"], "Error: --json given twice ('--json' and '--json'): give it once"),
+    (["fk", "--strokes", "1,2,3", "--strokes", "4,5,6"],
+     "Error: --strokes given twice ('1,2,3' and '4,5,6'): give it once"),
+    (["preview", "p.ngc", "-o", "a.png", "--rapid-rate", "1", "--rapid-rate", "2"],
+     "Error: --rapid-rate given twice ('1' and '2'): give it once"),
+])
+def test_an_option_given_twice_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, args: list[str],
+                                          message: str) -> None:
+    """It used to be the last one, silently (``--profile hole --profile square`` cut a square)."""
+    monkeypatch.chdir(tmp_path)
+    assert _usage_error(invoke(*args)) == message
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_repeatable_option_and_a_value_that_looks_like_an_option_are_not_repeats(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
+    result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", "0,0,0,0,0,1", "--ignore", "PAINT",
+                    "--ignore", "FOO", "--", "-o")              # '-o' after '--' is an input file, not an option
+    assert result.exit_code == 2, result.stderr                 # an input that is not there is bad input
+    lines = result.stdout.splitlines()
+    assert sorted(line.split("\t")[:3] for line in lines) == [["failed", "-o", "-"], ["ok", "a.ngc", "out/a.ngc"]]
+    assert [line.split("\t")[3] for line in lines if line.startswith("failed")] == ["-o: file not found"]
