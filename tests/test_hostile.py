@@ -71,3 +71,60 @@ def test_a_repeatable_option_and_a_value_that_looks_like_an_option_are_not_repea
     lines = result.stdout.splitlines()
     assert sorted(line.split("\t")[:3] for line in lines) == [["failed", "-o", "-"], ["ok", "a.ngc", "out/a.ngc"]]
     assert [line.split("\t")[3] for line in lines if line.startswith("failed")] == ["-o: file not found"]
+
+
+# ----------------------------------------------------------------------------- standard input, --work-plane
+
+
+@pytest.mark.parametrize(("args", "what"), [
+    (["run", "-", "--profile", "hole", "-o", "x.ngc"], "an STL file"),
+    (["faces", "-"], "an STL file"),
+    (["verify", "-"], "a G-code program"),
+    (["preview", "-", "-o", "x.png"], "a G-code program"),
+    (["ik", "--batch", "-"], "a CSV file"),
+    (["job", "-"], "a TOML file"),
+])
+def test_standard_input_is_refused_as_an_input_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                    args: list[str], what: str) -> None:
+    """It said ``-: file not found``, as if a file named '-' were missing."""
+    monkeypatch.chdir(tmp_path)
+    result = invoke(*args)
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == f"prs3-post: error: -: standard input is not read: give the path of {what} " \
+                            "(a file named '-' is ./-)\n"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_convert_refuses_standard_input_and_reads_a_file_named_dash(tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    result = invoke("convert", "-", "-o", "out", "--work-plane", "0,0,0,0,0,1")
+    assert result.exit_code == 2
+    assert result.stdout == "failed\t-\t-\t-: standard input is not read: give the path of a file (a file named '-' " \
+                            "is ./-)\n"
+    assert not (tmp_path / "out" / "-.ngc").exists()
+    (tmp_path / "-").write_text(PROGRAM_3AXIS)
+    result = invoke("convert", "./-", "-o", "out", "--work-plane", "0,0,0,0,0,1")
+    assert result.exit_code == 0, result.stderr
+    assert (tmp_path / "out" / "-.ngc").is_file()
+
+
+@pytest.mark.parametrize("text", ["nan", "1,2,3,0,0,nan", "inf,0,0,0,0,1", "0x1p3,0,0,0,0,1", "nowhere.stl:2"])
+def test_a_work_plane_that_is_neither_numbers_nor_a_file_says_what_is_valid(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, text: str) -> None:
+    """`--work-plane nan` said only ``nan: file not found``."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
+    result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", text)
+    assert _usage_error(result) == (f"Error: Invalid value for '--work-plane': {text}: file not found, and not 6 or 9 "
+                                    "plain decimal numbers: a work plane is PART.stl[:FACE] or "
+                                    "OX,OY,OZ,NX,NY,NZ[,XX,XY,XZ] (mm)")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc"]
+
+
+def test_a_work_plane_face_that_does_not_face_up_is_an_option_error(tmp_path: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
+    result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", f"{WEDGE}:5")
+    assert _usage_error(result).startswith("Error: Invalid value for '--work-plane': face 5 does not face up")

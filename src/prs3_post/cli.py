@@ -37,7 +37,6 @@ from prs3_post.convert import (
     outcome_line,
     output_path,
     prepare_outdir,
-    work_plane_from_text,
 )
 from prs3_post.errors import ConfigError, FeatureError, InputError, Prs3Error, Prs3Warning, ReachError
 from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
@@ -81,7 +80,7 @@ from prs3_post.verify_job import (
     verify_loaded,
     with_clearance,
 )
-from prs3_post.workplane import WorkPlaneError
+from prs3_post.workplane import WorkPlaneError, work_plane_from_text
 
 #: What _open_program opens: the whole program, or only what it was made for.
 _Opened = TypeVar("_Opened", ProgramContext, ProgramSetting)
@@ -1513,8 +1512,8 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
         machine = load_machine(machine_name)
         dialect = load_dialect(dialect_name)
         try:
-            plane = work_plane_from_text(work_plane_text) if work_plane_text is not None else None
-        except WorkPlaneError as error:
+            plane = work_plane_from_text(work_plane_text)[0] if work_plane_text is not None else None
+        except (WorkPlaneError, InputError, FeatureError) as error:
             raise click.BadParameter(str(error), param_hint="'--work-plane'") from error
         source = None if source_name is None else load_source(source_name)
         codes_on, codes_off = _codes_option(tcp_on, "--tcp-on"), _codes_option(tcp_off, "--tcp-off")

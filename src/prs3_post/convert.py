@@ -20,7 +20,6 @@ import glob
 import math
 import multiprocessing
 import os
-import re
 import signal
 import stat
 import time
@@ -35,8 +34,7 @@ from prs3_post import __version__
 from prs3_post.collision import check_program
 from prs3_post.config import Dialect, Machine
 from prs3_post.emit.gcode import ProgramEmitter
-from prs3_post.errors import FeatureError, InputError, LimitError, PoseError, Prs3Error, ReachError
-from prs3_post.geometry import find_faces, select_face
+from prs3_post.errors import InputError, LimitError, PoseError, Prs3Error, ReachError
 from prs3_post.job import file_given
 from prs3_post.kinematics import inverse, unit_axes
 from prs3_post.kinematics.blocks import THREADS_VARIABLE
@@ -55,7 +53,7 @@ from prs3_post.setup import Setup
 from prs3_post.source import SourceConvention
 from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpath, join_programs
 from prs3_post.types import FloatArray
-from prs3_post.workplane import WorkPlane, WorkPlaneError
+from prs3_post.workplane import WorkPlane
 
 #: Input formats: ``auto`` decides by content (:func:`prs3_post.readers.detect.detect_format`).
 FORMATS = ("auto", "cl", "gcode")
@@ -218,39 +216,6 @@ class Conversion:
     text: str
     report: ConvertReport
     path: Toolpath
-
-
-# ----------------------------------------------------------------------------- settings
-
-
-_NUMBER_LIST = re.compile(r"\s*[-+0-9.eE]+\s*(?:,\s*[-+0-9.eE]+\s*)*")
-
-
-def work_plane_from_text(text: str) -> WorkPlane:
-    """A work plane from ``OX,OY,OZ,NX,NY,NZ[,XX,XY,XZ]`` (mm, normal, x direction) or ``PART.stl[:FACE]``
-    (the face frame of the main job on that face; without FACE its automatic choice).
-
-    Raises
-    ------
-    InputError, WorkPlaneError
-        An unreadable part, no such face, or numbers that do not make a plane.
-    """
-    if _NUMBER_LIST.fullmatch(text):
-        try:
-            values = [float(v) for v in text.split(",")]
-        except ValueError as exc:
-            raise WorkPlaneError(f"work plane: expected plain decimal numbers, got {text!r}") from exc
-        if not all(math.isfinite(v) for v in values):
-            raise WorkPlaneError(f"work plane: expected finite numbers, got {text!r}")
-        return WorkPlane.from_values(values)
-    part, _, face_text = text.rpartition(":") if re.search(r":[0-9]+\Z", text) else (text, "", "")
-    mesh = load_part(part)
-    faces = find_faces(mesh)
-    try:
-        face, _ = select_face(faces, int(face_text) if face_text else None)
-    except FeatureError as error:
-        raise InputError(str(error), path=part) from error
-    return WorkPlane.from_face(face, name=f"face {face.index} of {Path(part).name}")
 
 
 # ----------------------------------------------------------------------------- one file

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prs3_post.errors import Prs3Error
+from prs3_post.errors import InputError, Prs3Error
 from prs3_post.face import Face, frame_from_normal
 from prs3_post.types import FloatArray
 
@@ -242,7 +242,8 @@ def work_plane_from_text(text: str, *, units: str = "mm", up: str = "z") -> tupl
     WorkPlaneError
         Numbers that make no plane (:meth:`WorkPlane.from_values`).
     InputError, FeatureError
-        As :func:`work_plane_from_part`.
+        As :func:`work_plane_from_part`; ``TEXT: file not found, and not 6 or 9 plain decimal numbers: ...``
+        for text that is neither numbers nor a file (``nan``).
 
     >>> work_plane_from_text("0,0,5,0,0,1")[0].origin.tolist()
     [0.0, 0.0, 5.0]
@@ -251,6 +252,9 @@ def work_plane_from_text(text: str, *, units: str = "mm", up: str = "z") -> tupl
         plane = WorkPlane.from_values([float(v) for v in text.split(",")])
         return plane, f"{plane.name}: origin {_shown(plane.origin)} mm, normal {_shown(plane.normal)}"
     path, colon, index = text.rpartition(":")
-    if colon and index.strip().isdigit() and index.strip().isascii():
-        return work_plane_from_part(path, int(index), units=units, up=up)
-    return work_plane_from_part(text, None, units=units, up=up)
+    if not (colon and index.strip().isdigit() and index.strip().isascii()):
+        path, index = text, ""
+    if not os.path.lexists(path):                     # `nan`, `1,2,x`: say what a work plane is, not only "no file"
+        raise InputError("file not found, and not 6 or 9 plain decimal numbers: a work plane is PART.stl[:FACE] or "
+                         "OX,OY,OZ,NX,NY,NZ[,XX,XY,XZ] (mm)", path=text)
+    return work_plane_from_part(path, int(index) if index else None, units=units, up=up)

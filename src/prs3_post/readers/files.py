@@ -54,10 +54,13 @@ def open_input(path: str, what: str) -> BinaryIO:
     Raises
     ------
     InputError
+        ``standard input is not read: give the path of <what> ...`` (for ``-``),
         ``file not found``, ``is a directory, not <what>``, ``permission denied``,
         ``is a FIFO (named pipe), not a regular file: give <what>``,
         ``is 1.2 GB, more than the 500 MB limit for <what>`` or ``cannot read the file: <reason>``.
     """
+    if path == "-":                 # read twice (header, body), hashed, size-checked: it must be a file
+        raise InputError(f"standard input is not read: give the path of {what} (a file named '-' is ./-)", path=path)
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))   # a FIFO must not block the open
     except FileNotFoundError as exc:
