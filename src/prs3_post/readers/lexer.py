@@ -268,14 +268,18 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
     >>> values[0].tolist(), read.tolist()
     ([1.0, 1.5, 2.0], [True, False, False])
 
-    How (a few passes over the chunk's bytes, in C): every byte must be allowed after the one before
-    it (a table of byte pairs: a letter of ``letters`` after a number, a space or a line start; a digit
-    after a letter, ``-``, ``.`` or a digit; ``.`` after a letter, ``-`` or a digit; ``-`` after a letter;
-    a space or line end after a number, a space or a line start; any other byte (lower case, tab,
-    ``(``, non-ASCII, ...) nowhere), so a line's number bytes follow its letters; then each ``.`` has a
-    digit beside it and its word no other ``.``, a word has at most 15 digits, and letters are in order:
-    exactly :data:`NUMBER` words in the order of ``letters``. The values of the lines read are made
-    from their digits eight bytes at a time (:func:`_numbers`: ``float`` of the same text, to the bit).
+    How (a few passes over the chunk's bytes, in C): each byte is mapped to a code (one
+    ``bytes.translate``: digit, ``-``, ``.``, space, line end, the column of a letter of ``letters``,
+    or other), and every byte must be allowed after the one before it (a table of code pairs: a letter
+    of ``letters`` after a number, a space or a line start; a digit after a letter, ``-``, ``.`` or a
+    digit; ``.`` after a letter, ``-`` or a digit; ``-`` after a letter; a space or line end after a
+    number, a space or a line start; any other byte (lower case, tab, ``(``, non-ASCII, ...) nowhere),
+    so a line's number bytes follow its letters. The delimiters (``.``, spaces, line ends, letters) are
+    then found in one pass, in order: a word is a letter up to the next delimiter other than a point,
+    its point (if any) the delimiter right after its letter; each ``.`` has a digit beside it and its
+    word no other ``.``, a word has at most 15 digits, and letters are in order: exactly
+    :data:`NUMBER` words in the order of ``letters``. The values are made from their digits eight
+    bytes at a time (:func:`_numbers`: ``float`` of the same text, to the bit).
     """
     column_pattern(letters)                              # checks the letters
     if not lines:
@@ -314,90 +318,92 @@ def lex_column_block(block: bytes, letters: str) -> tuple[FloatArray, BoolArray,
 def _lex_text(text: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArray]:
     """lex_columns of ``text``: LF, then each line and its LF (every byte not ASCII already one of the
     bytes that no line of the regular shape has); returns values, read and the LF positions (N + 1,)."""
-    byte_class, rank_of, bad_pair, delimiter, dot = _tables(letters)
+    code_table, pair_bad = _tables(letters)
     size = len(text)
-    data = np.frombuffer(text, dtype=np.uint8)
-    delimiters = np.flatnonzero(np.frombuffer(text.translate(delimiter), dtype=np.bool_))    # letters, spaces, ends
-    kind = byte_class[data[delimiters]]
-    ends = delimiters[kind == _NEWLINE]                  # ends[k + 1] ends line k
+    classes = text.translate(code_table)                 # one byte a byte: its class (_CODE_*)
+    code = np.frombuffer(classes + b"\0", dtype=np.uint8)         # + a byte after the last line end
+    # the delimiters: dots, spaces, line ends, letters (the codes from _CODE_DOT on), in order
+    delimiters = np.flatnonzero(code >= _CODE_DOT)
+    kind = code[delimiters]
+    line_end = kind == _CODE_NEWLINE
+    ends = delimiters[line_end]                          # ends[k + 1] ends line k
     n, width = len(ends) - 1, len(letters)
-    values = np.full((n, width), np.nan)
-    at = np.flatnonzero(kind == _LETTER)
-    start = delimiters[at]                               # a word: its letter up to the next delimiter
-    stop = delimiters[np.minimum(at + 1, len(delimiters) - 1)]
-    # the line of each word: the line ends before its letter (a running count over the delimiters)
-    word_line = (np.cumsum(kind == _NEWLINE) - 1)[at]
     bad = np.zeros(n, dtype=bool)
-    # every byte after byte 0 allowed after the one before it (a line end belongs to the line it ends)
-    even = np.flatnonzero(bad_pair[np.frombuffer(text, dtype="<u2", count=size // 2)])
-    odd = np.flatnonzero(bad_pair[np.frombuffer(text, dtype="<u2", count=(size - 1) // 2, offset=1)])
+    # every byte after byte 0 allowed after the one before it (a line end belongs to the line it ends):
+    # the pairs of codes, read as little-endian uint16 (first byte low)
+    even = np.flatnonzero(pair_bad[np.frombuffer(classes, dtype="<u2", count=size // 2)])
+    odd = np.flatnonzero(pair_bad[np.frombuffer(classes, dtype="<u2", count=(size - 1) // 2, offset=1)])
     if len(even) or len(odd):
         bad[np.searchsorted(ends, np.concatenate([2 * even + 1, 2 * odd + 2])) - 1] = True
-    # a dot has a digit beside it, and its word no other dot (a dot outside every word is on a line
-    # with a byte not allowed where it is: not read already)
-    dots = np.flatnonzero(np.frombuffer(text.translate(dot), dtype=np.bool_))
-    dot_word = np.searchsorted(start, dots) - 1
-    own = dot_word >= 0
-    own[own] = dots[own] < stop[dot_word[own]]
-    dots, dot_word = dots[own], dot_word[own]
-    lonely = (byte_class[data[dots - 1]] != _DIGIT) & (byte_class[data[dots + 1]] != _DIGIT)
-    bad[word_line[dot_word[lonely]]] = True
-    bad[word_line[dot_word[1:][dot_word[1:] == dot_word[:-1]]]] = True
-    dotted = np.zeros(len(start), dtype=np.int64)
-    dotted[dot_word] = 1
-    digits = stop - start - 1 - (data[start + 1] == _MINUS_BYTE) - dotted
-    rank = rank_of[data[start]]
+    at = np.flatnonzero(kind >= _CODE_LETTER)           # the words: a letter up to the next delimiter but a dot
+    word_line = (np.cumsum(line_end, dtype=np.int32) - 1)[at]
+    start = delimiters[at]
+    # With every byte allowed after the one before it, a number's bytes follow its letter (digits, a
+    # minus, dots): a dot of a word is the delimiter right after its letter, and a second dot the next.
+    pointed = kind[at + 1] == _CODE_DOT                   # (the last delimiter is a line end: no letter is)
+    after = at + 1 + pointed
+    stop = delimiters[after]
+    dot = delimiters[at + 1]                             # where pointed: the word's point
+    bad[word_line[pointed & (kind[after] == _CODE_DOT)]] = True                        # a second point
+    # a point has a digit beside it
+    lonely = pointed & (code[dot - 1] != _CODE_DIGIT) & (code[dot + 1] != _CODE_DIGIT)
+    bad[word_line[lonely]] = True
+    minus = code[start + 1] == _CODE_MINUS
+    digits = stop - start - 1 - minus - pointed
+    rank = kind[at] - _CODE_LETTER                        # the letter's column
     ordered = np.ones(len(start), dtype=bool)
     ordered[1:] = (word_line[1:] != word_line[:-1]) | (rank[1:] > rank[:-1])
     bad[word_line[(digits > 15) | ~ordered]] = True
     read = ~bad
-    # the values of the words of the lines read: each a plain decimal number of at most 15 digits
-    decimals = np.zeros(len(start), dtype=np.int64)     # digits after the point (0 without one)
-    decimals[dot_word] = stop[dot_word] - dots - 1
-    pointed = np.zeros(len(start), dtype=bool)
-    pointed[dot_word] = True
+    # the values of the words, each a plain decimal number of at most 15 digits on the lines read (the
+    # words of the other lines are made into something, then their lines set back to NaN)
+    first = start + 1 + minus
     if bad.any():
         keep = read[word_line]
-        start, stop, decimals, pointed = start[keep], stop[keep], decimals[keep], pointed[keep]
-        word_line, rank = word_line[keep], rank[keep]
-    values[word_line, rank - 1] = _numbers(text, start + 1, stop, decimals, pointed)
+        pointed &= keep
+        first = np.where(keep, first, stop)             # no bytes: 0
+    values = np.full((n, width), np.nan)
+    values.reshape(-1)[word_line * width + rank] = _numbers(text, first, stop, dot, pointed, minus)
+    values[bad] = np.nan
     return values, read, ends
 
 
-def _numbers(text: bytes, first: IntArray, stop: IntArray, decimals: IntArray, pointed: BoolArray) -> FloatArray:
-    """The numbers ``text[first[k]:stop[k]]``, each a plain decimal (:data:`NUMBER`) of at most 15
-    digits, ``decimals[k]`` of them after its point (``pointed[k]``: it has one): ``float`` of each text.
+def _numbers(text: bytes, first: IntArray, stop: IntArray, dot: IntArray, pointed: BoolArray,
+             minus: BoolArray) -> FloatArray:
+    """The numbers ``text[first[k]:stop[k]]``, each plain decimal digits of at most 15 with at most one
+    point (at ``dot[k]`` where ``pointed[k]``), negated where ``minus[k]``: ``float`` of each text.
 
     How (for all numbers at once, in C): each number's last 16 bytes (8 when none is longer) are
     loaded right-aligned as two little-endian uint64 (unaligned views of the text), the bytes
-    before the number masked to ``0``, the sign and point read as ``0`` too; then 8 ASCII digits
-    become their integer in three multiply-shift-mask steps (SWAR). With the point read as a
-    ``0`` digit, that integer is ``whole·10^(d+1) + fraction``, so the digits without the point are
-    ``(a − fraction) / 10 + fraction``, fraction = ``a mod 10^d``. Last, that integer (< 10^15 < 2^53:
-    exact) divided by 10^d (exact for d ≤ 22): one correctly rounded division, so the value is
-    ``float(text)`` to the bit, as a correctly rounded reader gives it (a minus sign negates it,
-    ``-0.0`` included).
+    before the number masked to ``0``, the point read as ``0`` too (by adding 2 to its byte); then 8
+    ASCII digits become their integer in three multiply-shift-mask steps (SWAR). With the point read
+    as a ``0`` digit, that integer is ``whole·10^(d+1) + fraction`` (d digits after the point), so
+    the digits without the point are ``(a − fraction) / 10 + fraction``, fraction = ``a mod 10^d``.
+    Last, that integer (< 10^15 < 2^53: exact) divided by ±10^d (exact for d ≤ 22): one correctly
+    rounded division, so the value is ``float(text)`` to the bit, as a correctly rounded reader gives
+    it (a minus sign negates it, ``-0.0`` included).
     """
     if not len(first):
         return np.zeros(0)
     length = stop - first
+    decimals = np.where(pointed, stop - dot - 1, 0)
     width = 8 if length.max() <= 8 else 16
-    digits = np.frombuffer(_ZEROS[:width] + text.translate(_SIGN_AND_POINT_AS_ZERO), dtype=np.uint8)
-    words = np.ndarray((len(digits) - 7,), dtype="<u8", buffer=digits, strides=(1,))   # words[i]: bytes i..i+7
+    data = np.frombuffer(_ZEROS[:width] + text, dtype=np.uint8)
+    words = np.ndarray((len(data) - 7,), dtype="<u8", buffer=data, strides=(1,))   # words[i]: bytes i..i+7
     integer = np.zeros(len(first), dtype=np.uint64)
+    point_at = decimals + 16 * pointed                  # index of the point's fix-up (none: 0 to 15)
     for part in range(width // 8):                      # the last 8 bytes, then the 8 before them
         loaded = words[stop + width - 8 * (part + 1)]
         keep = _KEEP_BYTES[np.clip(8 * (part + 1) - length, 0, 8)]     # the number's bytes only
         loaded &= keep
         loaded |= _ASCII_ZEROS & ~keep
+        loaded += _POINT_TO_ZERO[part][point_at]        # '.' + 2 is '0'
         integer += _eight_digits(loaded) * _POWERS_OF_TEN_U8[part]
     a = integer.astype(np.int64)
     if pointed.any():
         fraction = a % _POWERS_OF_TEN[decimals]
         a = np.where(pointed, (a - fraction) // 10 + fraction, a)
-    value = a / _POWERS_OF_TEN_F8[decimals]
-    np.negative(value, out=value, where=np.frombuffer(text, dtype=np.uint8)[first] == _MINUS_BYTE)
-    return value
+    return a / _SIGNED_POWERS_OF_TEN[decimals + 23 * minus]
 
 
 def _eight_digits(words: npt.NDArray[np.uint64]) -> npt.NDArray[np.uint64]:
@@ -409,19 +415,26 @@ def _eight_digits(words: npt.NDArray[np.uint64]) -> npt.NDArray[np.uint64]:
 
 
 _ZEROS = b"0" * 16
-#: bytes.translate table: ``-`` and ``.`` read as the digit 0 (their values are taken apart).
-_SIGN_AND_POINT_AS_ZERO = bytes(ord("0") if b in b"-." else b for b in range(256))
 _ASCII_ZEROS = np.uint64(0x3030303030303030)
 #: _KEEP_BYTES[m]: the mask of the bytes of a uint64 from byte m on (m = 8: none).
 _KEEP_BYTES = np.array([(2**64 - 1) << (8 * m) & (2**64 - 1) for m in range(9)], dtype=np.uint64)
 _POWERS_OF_TEN = 10 ** np.arange(18, dtype=np.int64)
 _POWERS_OF_TEN_U8 = np.array([1, 10**8], dtype=np.uint64)
-_POWERS_OF_TEN_F8 = 10.0 ** np.arange(23)
+#: 10^d for d = 0 … 22, then −10^d (index d + 23: a negative number's divisor).
+_SIGNED_POWERS_OF_TEN = np.concatenate([10.0 ** np.arange(23), -(10.0 ** np.arange(23))])
+#: _POINT_TO_ZERO[part][d + 16]: what turns the point of a number with d decimals into ``0`` in the
+#: part-th uint64 from its end (2 added to its byte: ``'.' + 2 == '0'``); 0 where the point is not
+#: in that part, and for the numbers without a point (index d < 16).
+_POINT_TO_ZERO = np.zeros((2, 32), dtype=np.uint64)
+for _d in range(16):
+    _POINT_TO_ZERO[_d // 8, 16 + _d] = 2 << (8 * (7 - _d % 8))
 
 
-#: Byte classes of lex_columns.
+#: Byte codes of lex_columns (a bytes.translate table maps each byte to its code); the delimiters of
+#: words are the codes from _CODE_DOT on, the letters of the columns from _CODE_LETTER on (+ column).
+_CODE_OTHER, _CODE_DIGIT, _CODE_MINUS, _CODE_DOT, _CODE_SPACE, _CODE_NEWLINE, _CODE_LETTER = range(7)
+#: Byte classes of the pair check.
 _LETTER, _DIGIT, _DOT, _MINUS, _SPACE, _NEWLINE, _OTHER = range(7)
-_MINUS_BYTE = ord("-")
 #: The classes each class may come right after (a line start is a line end).
 _AFTER = {_LETTER: (_DIGIT, _DOT, _SPACE, _NEWLINE), _DIGIT: (_LETTER, _MINUS, _DOT, _DIGIT),
             _DOT: (_LETTER, _MINUS, _DIGIT), _MINUS: (_LETTER,), _SPACE: (_DIGIT, _DOT, _SPACE, _NEWLINE),
@@ -429,28 +442,24 @@ _AFTER = {_LETTER: (_DIGIT, _DOT, _SPACE, _NEWLINE), _DIGIT: (_LETTER, _MINUS, _
 
 
 @lru_cache(maxsize=32)
-def _tables(letters: str) -> tuple[npt.NDArray[np.int8], npt.NDArray[np.int8], BoolArray, bytes, bytes]:
-    """lex_columns' tables: byte class, letter rank (column + 1), bad byte pairs (indexed by the pair
-    read as little-endian uint16: first byte low), and bytes.translate tables for delimiters and dots."""
-    byte_class = np.full(256, _OTHER, dtype=np.int8)
-    byte_class[ord("0"):ord("9") + 1] = _DIGIT
-    byte_class[ord(".")], byte_class[ord("-")], byte_class[ord(" ")], byte_class[ord("\n")] = (
-        _DOT, _MINUS, _SPACE, _NEWLINE)
-    rank = np.zeros(256, dtype=np.int8)
+def _tables(letters: str) -> tuple[bytes, BoolArray]:
+    """lex_columns' tables: the bytes.translate table of each byte's code, and the bad pairs of codes
+    (indexed by the pair read as little-endian uint16: first code low)."""
+    code = np.full(256, _CODE_OTHER, dtype=np.uint8)
+    code[ord("0"):ord("9") + 1] = _CODE_DIGIT
+    code[ord("-")], code[ord(".")], code[ord(" ")], code[ord("\n")] = _CODE_MINUS, _CODE_DOT, _CODE_SPACE, _CODE_NEWLINE
     for column, letter in enumerate(letters):
-        byte_class[ord(letter)] = _LETTER
-        rank[ord(letter)] = column + 1
+        code[ord(letter)] = _CODE_LETTER + column
+    class_of = np.full(256, _OTHER, dtype=np.int8)      # the class of each code
+    class_of[[_CODE_DIGIT, _CODE_MINUS, _CODE_DOT, _CODE_SPACE, _CODE_NEWLINE]] = _DIGIT, _MINUS, _DOT, _SPACE, _NEWLINE
+    class_of[_CODE_LETTER:_CODE_LETTER + len(letters)] = _LETTER
     allowed = np.zeros((7, 7), dtype=bool)               # allowed[before, this]
     for this, before in _AFTER.items():
         allowed[list(before), this] = True
-    pair = np.arange(65536)
-    bad_pair = ~allowed[byte_class[pair & 255], byte_class[pair >> 8]]
-    classes = byte_class.tolist()
-    delimiter = bytes(int(c in (_LETTER, _SPACE, _NEWLINE)) for c in classes)
-    dot = bytes(int(b == ord(".")) for b in range(256))
-    for table in (byte_class, rank, bad_pair):
-        table.flags.writeable = False
-    return byte_class, rank, bad_pair, delimiter, dot
+    pair = np.arange(256 * (_CODE_LETTER + len(letters)))
+    pair_bad = ~allowed[class_of[pair & 255], class_of[pair >> 8]]
+    pair_bad.flags.writeable = False
+    return bytes(code.tolist()), pair_bad
 
 
 def forward_fill(values: FloatArray) -> FloatArray:
