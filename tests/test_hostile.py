@@ -128,3 +128,37 @@ def test_a_work_plane_face_that_does_not_face_up_is_an_option_error(tmp_path: Pa
     (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
     result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", f"{WEDGE}:5")
     assert _usage_error(result).startswith("Error: Invalid value for '--work-plane': face 5 does not face up")
+
+
+# ----------------------------------------------------------------------------- a header is input
+
+
+def _demo_program(tmp_path: Path) -> list[str]:
+    result = invoke("demo", "--profile", "hole", "-o", str(tmp_path / "h.ngc"))
+    assert result.exit_code == 0, result.stderr
+    return (tmp_path / "h.ngc").read_text().splitlines()
+
+
+@pytest.mark.parametrize(("machine", "problem"), [
+    ("/dev/zero", "'/dev/zero') cannot be loaded here (is not a regular file: give a machine TOML file or a shipped "
+                  "name (shipped: patel2020, patel2020-head)"),
+    ("a" * 3000, f"'{'a' * 39}…') cannot be loaded here (cannot read the file: File name too long"),
+])
+def test_a_header_machine_is_checked_as_a_given_one_and_shown_short(tmp_path: Path, machine: str,
+                                                                    problem: str) -> None:
+    """A 3000-character machine name in a header was an OSError traceback (name too long)."""
+    lines = _demo_program(tmp_path)
+    assert lines[1].startswith("(machine: patel2020 ")
+    lines[1] = f"(machine: {machine} [x])"
+    program = tmp_path / "m.ngc"
+    program.write_text("\n".join(lines) + "\n")
+    result = invoke("verify", str(program))
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == (f"prs3-post: error: {program}:2: header: the machine it names ({problem}; a header's "
+                             "machine is read as a given one is): give the machine explicitly\n")
+
+
+def test_a_machine_name_too_long_for_the_system_is_a_config_error() -> None:
+    result = invoke("fk", "--strokes", "0,0,0", "--machine", "b" * 3000)
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == f"prs3-post: error: {'b' * 3000}: cannot read the file: File name too long\n"

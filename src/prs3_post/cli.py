@@ -38,7 +38,7 @@ from prs3_post.convert import (
     output_path,
     prepare_outdir,
 )
-from prs3_post.errors import ConfigError, FeatureError, InputError, Prs3Error, Prs3Warning, ReachError
+from prs3_post.errors import ConfigError, FeatureError, InputError, Prs3Error, Prs3Warning, ReachError, quoted
 from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
 from prs3_post.job import HoleJob, JobProgram, JobSpec, Operation, ProfileJob, check_job, check_operations
 from prs3_post.jobfile import OPERATION_KEYS, JobFile, read_job_file
@@ -106,11 +106,6 @@ def compact(value: float) -> str:
     return f"{value:.6g}"
 
 
-def _shown(text: str, limit: int = 40) -> str:
-    """The user's text in a message, quoted and cut to ``limit`` characters."""
-    return repr(text if len(text) <= limit else text[: limit - 1] + "…")
-
-
 def _plain_decimal(text: str) -> float | None:
     """``text`` as a float if it is a plain decimal number, else None."""
     return float(text) if _PLAIN_DECIMAL.fullmatch(text) else None
@@ -131,7 +126,7 @@ class Decimal(click.ParamType):
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> float:
         number = float(value) if isinstance(value, (int, float)) else _plain_decimal(str(value))
         if number is None:
-            self.fail(f"expected a plain decimal number (like 12.5 or -0.25), got {_shown(str(value))}", param, ctx)
+            self.fail(f"expected a plain decimal number (like 12.5 or -0.25), got {quoted(str(value))}", param, ctx)
         too_low = number <= self.low if self.low_open else number < self.low
         if too_low or not number <= self.limit:          # `not <=`: also NaN from a default
             unit = f" {self.unit}" if self.unit else ""
@@ -162,7 +157,7 @@ class Integer(click.ParamType):
         elif _PLAIN_INTEGER.fullmatch(str(value)):
             number = int(str(value))
         else:
-            self.fail(f"expected a whole number (like 12), got {_shown(str(value))}", param, ctx)
+            self.fail(f"expected a whole number (like 12), got {quoted(str(value))}", param, ctx)
         low = -_INTEGER_LIMIT if self.low is None else self.low
         high = _INTEGER_LIMIT if self.high is None else self.high
         if not low <= number <= high:
@@ -191,7 +186,7 @@ class Numbers(click.ParamType):
             return value
         parts = [_plain_decimal(p) for p in str(value).split(",")]
         if len(parts) != self.count or None in parts:
-            self.fail(f"expected {self.count} plain decimal numbers {self.names}, got {_shown(str(value))}",
+            self.fail(f"expected {self.count} plain decimal numbers {self.names}, got {quoted(str(value))}",
                       param, ctx)
         numbers = tuple(float(p) for p in parts if p is not None)
         for name, number in zip(self.names.split(","), numbers, strict=True):
@@ -405,7 +400,7 @@ class _Command(click.Command):
                 continue
             if option.name in first:
                 names = "/".join(sorted((*option.opts, *option.secondary_opts), key=lambda n: (len(n) > 2, n)))
-                ctx.fail(f"{names} given twice ({_shown(first[option.name])} and {_shown(value)}): give it once")
+                ctx.fail(f"{names} given twice ({quoted(first[option.name])} and {quoted(value)}): give it once")
             first[option.name] = value
         return super().parse_args(ctx, args)
 
@@ -421,7 +416,7 @@ class _MainGroup(click.Group):
             if not (Path(first).suffix or os.sep in first or os.path.lexists(first)):    # a word, not a file
                 near = difflib.get_close_matches(first, list(self.commands), n=1)
                 hint = f"did you mean '{near[0]}'? " if near else ""
-                ctx.fail(f"no such command or file {_shown(first)} ({hint}commands: {', '.join(sorted(self.commands))};"
+                ctx.fail(f"no such command or file {quoted(first)} ({hint}commands: {', '.join(sorted(self.commands))};"
                          " or a part file: prs3-post PART.stl --profile ...)")
             args = ["run", *args]
         return super().parse_args(ctx, args)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import re
+import stat
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -36,7 +37,7 @@ from prs3_post.dialect import (
     Dialect,
     LineNumbers,
 )
-from prs3_post.errors import ConfigError, InputError
+from prs3_post.errors import ConfigError, InputError, quoted
 from prs3_post.machine import Dynamics, Geometry, Holder, Limits, Machine, Stage
 from prs3_post.readers.files import read_text
 from prs3_post.readers.lexer import code_name
@@ -90,17 +91,28 @@ def resolve(kind: str, name_or_path: str) -> Path:
         the message lists the shipped names.
     """
     shipped = postproc_dir() / kind / f"{name_or_path}.toml"
-    if shipped.is_file():
+    if stat.S_ISREG(_mode(shipped, name_or_path)):
         return shipped
     path = Path(name_or_path)
-    if path.is_file():
+    mode = _mode(path, name_or_path)
+    if stat.S_ISREG(mode):
         return path
     names = ", ".join(shipped_names(kind)) or "none"
-    if path.exists():
-        what = f"a folder, not a {kind[:-1]} file" if path.is_dir() else "not a regular file"
+    if mode:
+        what = f"a folder, not a {kind[:-1]} file" if stat.S_ISDIR(mode) else "not a regular file"
         raise ConfigError(f"is {what}: give a {kind[:-1]} TOML file or a shipped name (shipped: {names})",
                           path=name_or_path)
     raise ConfigError(f"no such {kind[:-1]} file or shipped name (shipped: {names})", path=name_or_path)
+
+
+def _mode(path: Path, given: str) -> int:
+    """``st_mode`` of ``path`` (0 when nothing is there); a name the system cannot look up is a ConfigError."""
+    try:
+        return path.stat().st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        return 0
+    except OSError as exc:                             # a name too long, a loop of symlinks, no permission
+        raise ConfigError(f"cannot read the file: {exc.strerror or exc}", path=given) from exc
 
 
 # ----------------------------------------------------------------------------- strict reading
@@ -138,32 +150,37 @@ class _Table:
     def text(self, key: str, default: Any = ...) -> str:
         value = self._get(key, default)
         if not isinstance(value, str):
-            raise self._error(key, f"expected a string, got {value!r}")
+            raise self._error(key, f"expected a string, got {quoted(value)}")
         return value
 
     def boolean(self, key: str, default: Any = ...) -> bool:
         value = self._get(key, default)
         if not isinstance(value, bool):
-            raise self._error(key, f"expected true or false, got {value!r}")
+            raise self._error(key, f"expected true or false, got {quoted(value)}")
         return value
 
     def integer(self, key: str, default: Any = ..., *, minimum: int | None = None) -> int:
         value = self._get(key, default)
         if isinstance(value, bool) or not isinstance(value, int):
-            raise self._error(key, f"expected an integer, got {value!r}")
+            raise self._error(key, f"expected an integer, got {quoted(value)}")
         if minimum is not None and value < minimum:
             raise self._error(key, f"must be ≥ {minimum}, got {value}")
         return value
 
-    def number(self, key: str, default: Any = ..., *, unit: str = "", positive: bool = False) -> float:
+    def number(self, key: str, default: Any = ..., *, unit: str = "", positive: bool = False,
+               within: tuple[float, float] | None = None) -> float:
+        """A finite number within ±:data:`MAX_MAGNITUDE`; ``positive``: > 0; ``within``: also in ``[low, high]``."""
         value = self._get(key, default)
         if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-            raise self._error(key, f"expected a number{' in ' + unit if unit else ''}, got {value!r}")
+            raise self._error(key, f"expected a number{' in ' + unit if unit else ''}, got {quoted(value)}")
         if abs(value) > MAX_MAGNITUDE:
             raise self._error(key, f"{value:.6g}{' ' + unit if unit else ''} is out of range "
                                    f"(allowed: within ±{MAX_MAGNITUDE:.6g}{' ' + unit if unit else ''})")
         if positive and value <= 0:
             raise self._error(key, f"must be > 0{' ' + unit if unit else ''}, got {value}")
+        if within is not None and not within[0] <= value <= within[1]:
+            raise self._error(key, f"{value:.6g}{' ' + unit if unit else ''} is out of range "
+                                   f"(allowed: {within[0]:g} to {within[1]:g}{' ' + unit if unit else ''})")
         return float(value)
 
     def numbers(self, key: str, count: int, what: str, default: Any = ...) -> tuple[float, ...]:
@@ -172,7 +189,7 @@ class _Table:
             isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value
         )
         if not ok:
-            raise self._error(key, f"expected {what}, got {value!r}")
+            raise self._error(key, f"expected {what}, got {quoted(value)}")
         for v in value:
             if abs(v) > MAX_MAGNITUDE:
                 raise self._error(key, f"{v:.6g} is out of range (allowed: within ±{MAX_MAGNITUDE:.6g})")
@@ -187,7 +204,7 @@ class _Table:
     def strings(self, key: str, default: Any = ...) -> tuple[str, ...]:
         value = self._get(key, default)
         if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
-            raise self._error(key, f"expected a list of strings, got {value!r}")
+            raise self._error(key, f"expected a list of strings, got {quoted(value)}")
         return tuple(value)
 
     def optional_table(self, key: str) -> _Table | None:
@@ -331,25 +348,35 @@ def load_machine(name_or_path: str) -> Machine:
     )
 
 
+#: The values a machine's drives and tool holder may have: physically meaningful, with room to spare
+#: (the shipped machine files' comments state them).
+AXIS_SPEED_RANGE = (1.0, 200_000.0)
+"""mm/min, ``[dynamics]`` top speeds: 1 mm/min to 200 m/min (a linear motor reaches some 120 m/min)."""
+AXIS_ACCEL_RANGE = (1.0, 100_000.0)
+"""mm/s², ``[dynamics]`` accelerations: up to some 10 g."""
+HOLDER_SIZE_RANGE = (1.0, 1000.0)
+"""mm, ``[holder]`` diameters and lengths."""
+
+
 def _dynamics(table: _Table | None) -> Dynamics | None:
-    """The ``[dynamics]`` table (all four keys, each > 0), or None without one."""
+    """The ``[dynamics]`` table (all four keys, each within its range), or None without one."""
     if table is None:
         return None
     out = Dynamics(
-        stroke_speed=table.number("stroke_speed_mm_min", unit="mm/min", positive=True),
-        stroke_accel=table.number("stroke_accel_mm_s2", unit="mm/s²", positive=True),
-        stage_speed=table.number("stage_speed_mm_min", unit="mm/min", positive=True),
-        stage_accel=table.number("stage_accel_mm_s2", unit="mm/s²", positive=True),
+        stroke_speed=table.number("stroke_speed_mm_min", unit="mm/min", positive=True, within=AXIS_SPEED_RANGE),
+        stroke_accel=table.number("stroke_accel_mm_s2", unit="mm/s²", positive=True, within=AXIS_ACCEL_RANGE),
+        stage_speed=table.number("stage_speed_mm_min", unit="mm/min", positive=True, within=AXIS_SPEED_RANGE),
+        stage_accel=table.number("stage_accel_mm_s2", unit="mm/s²", positive=True, within=AXIS_ACCEL_RANGE),
     )
     table.finish()
     return out
 
 
 def _holder(table: _Table | None) -> Holder | None:
-    """The ``[holder]`` table (all four keys, each > 0 mm), or None without one."""
+    """The ``[holder]`` table (all four keys, each within :data:`HOLDER_SIZE_RANGE`), or None without one."""
     if table is None:
         return None
-    out = Holder(**{key: table.number(f"{key}_mm", unit="mm", positive=True) for key in (
+    out = Holder(**{key: table.number(f"{key}_mm", unit="mm", positive=True, within=HOLDER_SIZE_RANGE) for key in (
         "holder_diameter", "holder_length", "nose_diameter", "nose_length")})
     table.finish()
     return out
@@ -375,7 +402,7 @@ def _decimals(table: _Table, key: str, minimum: int) -> int:
 def _letter(table: _Table, key: str) -> str:
     value = table.text(key)
     if len(value) != 1 or not "A" <= value <= "Z":
-        raise table._error(key, f"expected one upper-case letter A-Z, got {value!r}")
+        raise table._error(key, f"expected one upper-case letter A-Z, got {quoted(value)}")
     return value
 
 
@@ -389,15 +416,15 @@ def _blocks(table: _Table, key: str, room: int, comment: tuple[str, str], tool_n
         if not line.strip():
             problem = "is empty (remove it)"
         elif not _printable(line):
-            problem = f"must be one line of printable ASCII, got {line!r}"
+            problem = f"must be one line of printable ASCII, got {quoted(line)}"
         elif "%" in line:
-            problem = f"must not contain '%' (the program start/end is program.percent), got {line!r}"
+            problem = f"must not contain '%' (the program start/end is program.percent), got {quoted(line)}"
         elif line != line.strip():
-            problem = f"has leading or trailing spaces, got {line!r}"
+            problem = f"has leading or trailing spaces, got {quoted(line)}"
         elif len(line) > room:
             problem = f"is {len(line)} characters, at most {room} fit on a numbered line"
         elif (wrong := block_problem(line, comment, tool_number_max=tool_number_max)) is not None:
-            problem = f"{wrong}, got {line!r}"
+            problem = f"{wrong}, got {quoted(line)}"
         if problem:
             raise table._error(f"{key}[{i}]", problem)
     return lines
@@ -433,10 +460,10 @@ def load_dialect(name_or_path: str) -> Dialect:
     for key in ("x", "y", "t1", "t2", "t3"):
         letter = _letter(ax, key)
         if letter not in AXIS_LETTERS:
-            raise ax._error(key, f"{letter!r} is not an axis letter (use one of {' '.join(AXIS_LETTERS)})")
+            raise ax._error(key, f"{quoted(letter)} is not an axis letter (use one of {' '.join(AXIS_LETTERS)})")
         for other, used in letters.items():
             if used == letter:
-                raise ax._error(key, f"{letter!r} is already the letter of axes.{other}")
+                raise ax._error(key, f"{quoted(letter)} is already the letter of axes.{other}")
         letters[key] = letter
     ax.finish()
     axes = AxisLetters(**letters)
@@ -455,7 +482,7 @@ def load_dialect(name_or_path: str) -> Dialect:
     n_letter = num.text("letter")
     if n_letter != "N":
         # Every other letter is an axis letter or a word of its own (G M F S T P O D E H I J K L Q R).
-        raise num._error("letter", f"RS-274 block numbers are written with 'N', got {n_letter!r}")
+        raise num._error("letter", f"RS-274 block numbers are written with 'N', got {quoted(n_letter)}")
     start = num.integer("start", minimum=0)
     step = num.integer("step", minimum=1)
     wrap_after = num.integer("wrap_after", minimum=1)
@@ -469,17 +496,18 @@ def load_dialect(name_or_path: str) -> Dialect:
     c_close = com.text("close")
     for key, value in (("open", c_open), ("close", c_close)):
         if not _printable(value) or value != value.strip():
-            raise com._error(key, f"must be printable ASCII without spaces, got {value!r}")
+            raise com._error(key, f"must be printable ASCII without spaces, got {quoted(value)}")
     if not c_open:
         raise com._error("open", "must not be empty")
     if set(c_open) & set(c_close):              # '(' ... '(' is a nested comment, not a closed one
-        raise com._error("close", f"must not share a character with comments.open = {c_open!r}, got {c_close!r}")
+        raise com._error("close", f"must not share a character with comments.open = {quoted(c_open)}, "
+                                  f"got {quoted(c_close)}")
     uppercase = com.boolean("uppercase")
     control = com.text("control")
     non_ascii = com.text("non_ascii")
     for key, value in (("control", control), ("non_ascii", non_ascii)):
         if not _printable(value):
-            raise com._error(key, f"must be printable ASCII, got {value!r}")
+            raise com._error(key, f"must be printable ASCII, got {quoted(value)}")
     rep = com.table("replace")
     replace: list[tuple[str, str]] = []
     # The keys of this table are data (characters), not a fixed schema: walk them all. Each is
@@ -490,7 +518,7 @@ def load_dialect(name_or_path: str) -> Dialect:
             raise com._error(full_key, "keys must be single characters")
         value = rep.text(char)
         if not _printable(value):
-            raise com._error(full_key, f"must be printable ASCII, got {value!r}")
+            raise com._error(full_key, f"must be printable ASCII, got {quoted(value)}")
         replace.append((char, value))
     rep.finish()
     replaced = dict(replace)
@@ -499,15 +527,15 @@ def load_dialect(name_or_path: str) -> Dialect:
     delimiters = sorted(set(c_open + c_close))
     for char in delimiters:
         if char not in replaced:
-            raise com._error("replace", f"must replace {char!r} (a comment delimiter character)")
+            raise com._error("replace", f"must replace {quoted(char)} (a comment delimiter character)")
     for key, value in (*((f'replace."{c}"', v) for c, v in replace), ("control", control), ("non_ascii", non_ascii)):
         bad = sorted(set(value) & set(delimiters))
         if bad:
-            raise com._error(key, f"must not contain the comment delimiter {bad[0]!r}, got {value!r}")
+            raise com._error(key, f"must not contain the comment delimiter {quoted(bad[0])}, got {quoted(value)}")
     active_words = com.strings("active_words", default=[])
     for word in active_words:
         if not (word.isascii() and word.isalpha()):
-            raise com._error("active_words", f"expected words of letters A-Z, got {word!r}")
+            raise com._error("active_words", f"expected words of letters A-Z, got {quoted(word)}")
     com.finish()
     comments = CommentStyle(c_open, c_close, uppercase, tuple(replace), control, non_ascii,
                             tuple(w.upper() for w in active_words))
@@ -519,21 +547,23 @@ def load_dialect(name_or_path: str) -> Dialect:
         raise prog._error("number", f"must be 0 (no O line) or 1..99999999, got {program_number}")
     program_name = prog.text("name")
     if not _printable(program_name) or set(program_name) & set(c_open + c_close):
-        raise prog._error("name", f"must be printable ASCII without {c_open!r} or {c_close!r}, got {program_name!r}")
+        raise prog._error("name", f"must be printable ASCII without {quoted(c_open)} or {quoted(c_close)}, "
+                                  f"got {quoted(program_name)}")
     if program_name and not program_number:
         raise prog._error("name", "needs program.number > 0 (the name is a comment on the O line)")
     end_code = prog.text("end_code")
     if end_code not in _END_CODES:
-        raise prog._error("end_code", f"expected one of {', '.join(_END_CODES)}, got {end_code!r}")
+        raise prog._error("end_code", f"expected one of {', '.join(_END_CODES)}, got {quoted(end_code)}")
     line_ending = prog.text("line_ending")
     if line_ending not in _LINE_ENDINGS:
-        raise prog._error("line_ending", f'expected "\\n" or "\\r\\n", got {line_ending!r}')
+        raise prog._error("line_ending", f'expected "\\n" or "\\r\\n", got {quoted(line_ending)}')
     max_line_length = prog.integer("max_line_length", minimum=40)
     if max_line_length > 252:
         raise prog._error("max_line_length", f"must be 40..252 (LinuxCNC's limit), got {max_line_length}")
     extension = prog.text("extension")
     if not re.fullmatch(r"\.[A-Za-z0-9]{1,8}", extension):
-        raise prog._error("extension", f"expected a dot and 1 to 8 letters or digits (\".ngc\"), got {extension!r}")
+        raise prog._error("extension", f"expected a dot and 1 to 8 letters or digits (\".ngc\"), "
+                                       f"got {quoted(extension)}")
     prog.finish()
 
     # A literal block must fit behind the longest block number, e.g. "N99999 ", whether or not
@@ -547,7 +577,7 @@ def load_dialect(name_or_path: str) -> Dialect:
     modal_motion = words.boolean("modal_motion")
     dwell_unit = words.text("dwell_unit")
     if dwell_unit not in _DWELL_UNITS:
-        raise words._error("dwell_unit", f"expected one of {', '.join(_DWELL_UNITS)}, got {dwell_unit!r}")
+        raise words._error("dwell_unit", f"expected one of {', '.join(_DWELL_UNITS)}, got {quoted(dwell_unit)}")
     tool_number_max = words.integer("tool_number_max", minimum=1)
     if tool_number_max > TOOL_NUMBER_LIMIT:
         raise words._error("tool_number_max", f"must be 1..{TOOL_NUMBER_LIMIT}, got {tool_number_max}")
@@ -601,7 +631,7 @@ def _codes(table: _Table, key: str, letters: str = "GM") -> tuple[str, ...]:
         match = _CODE.fullmatch(text.strip().upper())
         if match is None or match[1] not in letters:
             raise table._error(f"{key}[{i}]", f"expected a {' or '.join(letters)} code such as "
-                               f"{'G43.4' if 'G' in letters else 'M10'}, got {text!r}")
+                               f"{'G43.4' if 'G' in letters else 'M10'}, got {quoted(text)}")
         out.append(code_name(match[1], float(match[2])))
     return tuple(out)
 
@@ -610,7 +640,7 @@ def _rotary(table: _Table, is_table: bool) -> Rotary:
     word = table.text("word")
     if word not in ("A", "B", "C"):
         table.finish()
-        raise table._error("word", f"expected \"A\", \"B\" or \"C\", got {word!r}")
+        raise table._error("word", f"expected \"A\", \"B\" or \"C\", got {quoted(word)}")
     axis = np.array(table.numbers("axis", 3, "[x, y, z], a unit vector"))
     length = float(np.linalg.norm(axis))
     if abs(length - 1.0) > 1e-6:
@@ -639,7 +669,7 @@ def load_source(name_or_path: str) -> SourceConvention:
     description = top.text("description")
     kind = top.text("orientation")
     if kind not in ("rotary", "vector"):
-        raise top._error("orientation", f"expected \"rotary\" or \"vector\", got {kind!r}")
+        raise top._error("orientation", f"expected \"rotary\" or \"vector\", got {quoted(kind)}")
     orientation = Orientation(kind)
     tcp = top.table("tcp")
     tcp_on, tcp_off = _codes(tcp, "on"), _codes(tcp, "off")

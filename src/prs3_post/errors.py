@@ -6,6 +6,22 @@ as ``where: message`` and exits non-zero, never with a traceback.
 
 from __future__ import annotations
 
+ECHO_LIMIT = 40
+"""Characters of a user's value that a message shows (a longer one is cut, with ``…``)."""
+
+
+def quoted(value: object, limit: int = ECHO_LIMIT) -> str:
+    """A value from the user's input for a message: ``repr``, cut to ``limit`` characters plus ``…``, so that a
+    10,000-character TOML string or header line is not printed back in full.
+
+    >>> quoted("G0 X1"), quoted("x" * 50), quoted([1.5, "a" * 60], limit=12)
+    ("'G0 X1'", "'xxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxx…'", "[1.5, 'aaaa…")
+    """
+    if isinstance(value, str):
+        return repr(value if len(value) <= limit else value[:limit - 1] + "…")
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit - 1] + "…"
+
 
 class Prs3Error(Exception):
     """Reported by the CLI as `where: message`; never a traceback."""

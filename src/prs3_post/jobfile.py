@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from prs3_post.config import _read_toml
-from prs3_post.errors import InputError
+from prs3_post.errors import InputError, quoted
 from prs3_post.placement import AUTO
 
 #: The keys of an ``[[operation]]`` table: the main job's option names with ``_`` for ``-``
@@ -111,13 +111,13 @@ def read_job_file(path: str) -> JobFile:
         if key not in TOP_KEYS:
             raise bad(key, f"unknown key (a job file has {', '.join(TOP_KEYS)})")
         if not _kind(value, TOP_KEYS[key]):
-            raise bad(key, f"expected {_NAMES[TOP_KEYS[key]]}, got {value!r}")
+            raise bad(key, f"expected {_NAMES[TOP_KEYS[key]]}, got {quoted(value)}")
     for key in ("part", "operation"):
         if key not in data:
             raise bad(key, "missing" + (" (at least one [[operation]] table)" if key == "operation" else ""))
     settings = {k: v for k, v in data.items() if k not in ("part", "setup", "operation")}
     if "tolerance" in settings and not math.isfinite(settings["tolerance"]):
-        raise bad("tolerance", f"expected a finite number in mm, got {settings['tolerance']!r}")
+        raise bad("tolerance", f"expected a finite number in mm, got {quoted(settings['tolerance'])}")
     for key in ("machine", "dialect"):
         if key in settings and settings[key].endswith(".toml"):       # a file, not a shipped name
             settings[key] = _relative(base, settings[key])
@@ -130,7 +130,7 @@ def read_job_file(path: str) -> JobFile:
     for number, table in enumerate(operations, start=1):
         where = f"operation[{number}]"
         if not isinstance(table, dict):
-            raise bad(where, f"expected a table ([[operation]]), got {table!r}")
+            raise bad(where, f"expected a table ([[operation]]), got {quoted(table)}")
         for key in table:
             if key not in OPERATION_KEYS:
                 raise bad(f"{where}.{key}", f"unknown key (an operation has {', '.join(OPERATION_KEYS)})")
@@ -149,8 +149,8 @@ def _setup(table: dict[str, Any], bad: Any) -> tuple[tuple[float, float, float] 
     rotation = table.get("part_rotation_deg")
     if origin not in (None, AUTO) and not (isinstance(origin, list) and len(origin) == 3
                                            and all(_kind(v, float) and math.isfinite(v) for v in origin)):
-        raise bad("setup.part_origin", f'expected [x, y, z] in mm or "auto", got {origin!r}')
+        raise bad("setup.part_origin", f'expected [x, y, z] in mm or "auto", got {quoted(origin)}')
     if rotation not in (None, AUTO) and not (_kind(rotation, float) and math.isfinite(rotation)):
-        raise bad("setup.part_rotation_deg", f'expected a number of degrees or "auto", got {rotation!r}')
+        raise bad("setup.part_rotation_deg", f'expected a number of degrees or "auto", got {quoted(rotation)}')
     return (origin if origin in (None, AUTO) else (float(origin[0]), float(origin[1]), float(origin[2])),
             rotation if rotation in (None, AUTO) else float(rotation))

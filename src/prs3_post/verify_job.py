@@ -29,7 +29,7 @@ import numpy as np
 
 from prs3_post.collision import BODY_NAMES, body_cylinders, clearance
 from prs3_post.config import Dialect, Machine, load_dialect, load_machine, load_source
-from prs3_post.errors import ConfigError, InputError, PoseError
+from prs3_post.errors import ConfigError, InputError, PoseError, quoted
 from prs3_post.face import Face
 from prs3_post.job import JobResult, JobSpec, run_operations, specs_from_header
 from prs3_post.kinematics import unit_axes
@@ -96,14 +96,18 @@ def _load_recorded(header: ProgramHeader | SourceHeader, kind: str, load: Callab
     dialect may have upper-cased the comment: its lower-case spelling is tried too)."""
     name, file = (header.machine, header.machine_file) if kind == "machine" else (header.dialect, header.dialect_file)
     tries = [file] if file is not None else list(dict.fromkeys([name, name.lower()]))
-    problem: ConfigError | None = None
+    problems: list[ConfigError] = []
     for ref in tries:
         try:
             return load(ref)
         except ConfigError as error:
-            problem = error
-    raise InputError(f"header: the {kind} it names ({tries[0]}) cannot be loaded here ({problem}): give the "
-                     f"{kind} explicitly", path=header.path, line=header.line(f"{kind} file" if file else kind))
+            problems.append(error)
+    problem = problems[0]                            # the name as written (tries is never empty)
+    detail = problem.args[0] if problem.line is None else f"line {problem.line}: {problem.args[0]}"
+    # the file is opened as an explicit one is (a regular file within the TOML size limit): a header is input
+    raise InputError(f"header: the {kind} it names ({quoted(tries[0])}) cannot be loaded here ({detail}; a header's "
+                     f"{kind} is read as a given one is): give the {kind} explicitly", path=header.path,
+                     line=header.line(f"{kind} file" if file else kind))
 
 
 def _same(a: Machine | Dialect, b: Machine | Dialect) -> bool:

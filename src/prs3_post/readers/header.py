@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from prs3_post.emit.gcode import _CONTINUATION  # the indent of a wrapped comment's continuation lines
-from prs3_post.errors import InputError, Prs3Error
+from prs3_post.errors import InputError, Prs3Error, quoted
 from prs3_post.face import Face
 from prs3_post.fixed import fixed as _fixed
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
@@ -64,6 +64,9 @@ PROGRAM_KEY = "program"
 MAX_POSITION_MM = 1e5
 #: How many bytes of a program's start :func:`read_header` looks at (a header is about 1 KB).
 HEAD_BYTES = 64 * 1024
+#: Characters of a header value a message shows: a header line holds up to 252, and the part that is
+#: wrong is often at its end; a longer value (a header is input) is cut.
+HEADER_ECHO = 160
 
 
 @dataclass(frozen=True, slots=True)
@@ -534,14 +537,14 @@ class _Bad(Exception):
 def _vector(text: str, count: int) -> tuple[float, ...]:
     values = tuple(float(v) for v in re.findall(_NUMBER, text, re.IGNORECASE))
     if len(values) != count:
-        raise _Bad(f"expected [{count} numbers], got {text!r}")
+        raise _Bad(f"expected [{count} numbers], got {quoted(text, HEADER_ECHO)}")
     return values
 
 
 def _match(pattern: str, text: str) -> re.Match[str]:
     found = re.fullmatch(pattern, text, re.IGNORECASE)
     if found is None:
-        raise _Bad(f"expected {_FORMS.get(pattern, 'the header form')}, got {text!r}")
+        raise _Bad(f"expected {_FORMS.get(pattern, 'the header form')}, got {quoted(text, HEADER_ECHO)}")
     return found
 
 
@@ -574,14 +577,14 @@ def _items(text: str, items: tuple[tuple[str, str], ...]) -> list[str]:
         found = re.fullmatch(rf"{re.escape(name)} (\S+)" + (rf" {re.escape(unit)}" if unit else ""), part,
                              re.IGNORECASE)
         if found is None:
-            raise _Bad(f"expected '{name} VALUE{' ' + unit if unit else ''}', got {part!r}")
+            raise _Bad(f"expected '{name} VALUE{' ' + unit if unit else ''}', got {quoted(part, HEADER_ECHO)}")
         values.append(found.group(1))
     return values
 
 
 def _float(text: str) -> float:
     if not re.fullmatch(_NUMBER, text, re.IGNORECASE):
-        raise _Bad(f"expected a number, got {text!r}")
+        raise _Bad(f"expected a number, got {quoted(text, HEADER_ECHO)}")
     return float(text)
 
 
@@ -651,7 +654,7 @@ def _dialect(text: str) -> tuple[str, bool | None, int | None, int | None]:
             step = int(found.group(1))
         else:
             raise _Bad(f"expected 'NAME[, line numbers on|off][, first line number N][, line number step N]', "
-                       f"got {text!r}")
+                       f"got {quoted(text, HEADER_ECHO)}")
     return name, numbers, start, step
 
 
@@ -731,7 +734,7 @@ def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHe
         key = "tolerance"
         tolerance = float(_match(_TOLERANCE, found["tolerance"][1]).group(1))
         if not (math.isfinite(tolerance) and 0.0 < tolerance <= MAX_POSITION_MM):
-            raise _Bad(f"expected a tolerance > 0 mm, got {found['tolerance'][1]!r}")
+            raise _Bad(f"expected a tolerance > 0 mm, got {quoted(found['tolerance'][1], HEADER_ECHO)}")
         checks = [(True, 1.0)] * max(1, len(operations))
         if "collision" in found:
             key = "collision"
@@ -773,7 +776,8 @@ def _collision(text: str, count: int) -> list[tuple[bool, float]]:
         pieces = re.split(r"[;,]\s*(?=operation \d+:)", text, flags=re.IGNORECASE)
         numbered = [re.fullmatch(r"operation (\d+): (.*)", p, re.IGNORECASE | re.DOTALL) for p in pieces]
         if [None if n is None else int(n.group(1)) for n in numbered] != list(range(1, count + 1)):
-            raise _Bad(f"expected 'operation 1: ...; operation 2: ...' for the {count} operations, got {text!r}")
+            raise _Bad(f"expected 'operation 1: ...; operation 2: ...' for the {count} operations, "
+                       f"got {quoted(text, HEADER_ECHO)}")
         pieces = [n.group(2) for n in numbered if n is not None]
     out = []
     for piece in pieces:
@@ -782,13 +786,14 @@ def _collision(text: str, count: int) -> list[tuple[bool, float]]:
         elif found := re.fullmatch(_CLEAR, piece, re.IGNORECASE | re.DOTALL):
             clearance = float(found.group(1))
             if not (math.isfinite(clearance) and 0.0 <= clearance <= MAX_POSITION_MM):
-                raise _Bad(f"expected a clearance of 0 to {MAX_POSITION_MM:g} mm, got {found.group(1)!r}")
+                raise _Bad(f"expected a clearance of 0 to {MAX_POSITION_MM:g} mm, "
+                           f"got {quoted(found.group(1), HEADER_ECHO)}")
             out.append((True, clearance))
         elif re.match(r"not checked\b", piece, re.IGNORECASE):
             out.append((True, 1.0))
         else:
             raise _Bad(f"expected 'clear of the part by at least D mm: ...', 'not checked: WHY' or 'not checked "
-                       f"(asked not to)', got {piece!r}")
+                       f"(asked not to)', got {quoted(piece, HEADER_ECHO)}")
     return out
 
 
@@ -829,11 +834,12 @@ def _tools(text: str) -> tuple[ToolRecord, ...]:
         found = _TOOL_RECORD.fullmatch(part.strip())
         if found is None:
             raise _Bad(f"expected 'TN diameter D mm[, length L mm], IK length TL mm' for each tool (joined by "
-                       f"'and'), got {part.strip()!r}")
+                       f"'and'), got {quoted(part.strip(), HEADER_ECHO)}")
         number, diameter, length, ik_length = found.groups()
         values = [float(diameter), float(ik_length), *([] if length is None else [float(length)])]
         if not all(0.0 <= v <= MAX_POSITION_MM for v in values):
-            raise _Bad(f"tool lengths and diameters must be within 0 to {MAX_POSITION_MM:g} mm, got {part.strip()!r}")
+            raise _Bad(f"tool lengths and diameters must be within 0 to {MAX_POSITION_MM:g} mm, "
+                       f"got {quoted(part.strip(), HEADER_ECHO)}")
         records.append(ToolRecord(number=int(number), diameter=float(diameter),
                                   length=None if length is None else float(length), ik_length=float(ik_length)))
     return tuple(records)
@@ -878,7 +884,8 @@ def _counts(text: str) -> SourceCounts:
         for piece in pieces:
             word = _SKIPPED.fullmatch(piece.strip())
             if word is None:
-                raise _Bad(f"expected 'skipped none' or 'WORD N' for each skipped word, got {piece.strip()!r}")
+                raise _Bad(f"expected 'skipped none' or 'WORD N' for each skipped word, "
+                           f"got {quoted(piece.strip(), HEADER_ECHO)}")
             skipped.append((word.group(1), int(word.group(2))))
     return SourceCounts(records=records, moves=moves, arcs=arcs, arc_rows=arc_rows, cycle_holes=holes,
                         cycle_rows=hole_rows, comments=comments, program_moves=program_moves,
@@ -904,7 +911,7 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
             key = "ignore"
             ignore = tuple(w.strip().upper() for w in found["ignore"][1].split(","))
             if not all(re.fullmatch(r"[A-Z][A-Z0-9 _-]*", w) for w in ignore):
-                raise _Bad(f"expected major words separated by commas, got {found['ignore'][1]!r}")
+                raise _Bad(f"expected major words separated by commas, got {quoted(found['ignore'][1], HEADER_ECHO)}")
         five_axis, tcp_on, tcp_off = "", (), ()
         if "five axis" in found:
             key = "five axis"
@@ -925,7 +932,7 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
         length = _match(_TOOL_LENGTH, found["tool length"][1])
         tool_length = float(length.group(1))
         if not (math.isfinite(tool_length) and 0.0 < tool_length <= MAX_POSITION_MM):
-            raise _Bad(f"expected a length > 0 mm, got {length.group(1)!r}")
+            raise _Bad(f"expected a length > 0 mm, got {quoted(length.group(1), HEADER_ECHO)}")
         counts = None
         if "counts" in found:
             key = "counts"
@@ -935,7 +942,8 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
         tolerance, angle = float(tolerances.group(1)), float(tolerances.group(2))
         if not (math.isfinite(tolerance) and 0.0 < tolerance <= MAX_POSITION_MM and math.isfinite(angle)
                 and 0.0 < angle <= 90.0):
-            raise _Bad(f"expected a tolerance > 0 mm and an angle in (0, 90] deg, got {found['tolerance'][1]!r}")
+            raise _Bad(f"expected a tolerance > 0 mm and an angle in (0, 90] deg, "
+                       f"got {quoted(found['tolerance'][1], HEADER_ECHO)}")
     except _Bad as bad:
         raise InputError(f"header: {key}: {bad}", path=path, line=found[key][0]) from bad
     return SourceHeader(
