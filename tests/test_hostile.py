@@ -162,3 +162,32 @@ def test_a_machine_name_too_long_for_the_system_is_a_config_error() -> None:
     result = invoke("fk", "--strokes", "0,0,0", "--machine", "b" * 3000)
     assert (result.exit_code, result.stdout) == (2, "")
     assert result.stderr == f"prs3-post: error: {'b' * 3000}: cannot read the file: File name too long\n"
+
+
+# ----------------------------------------------------------------------------- feeds
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["demo", "--profile", "square", "--feed", "0.0000001"], "--feed must be from 0.1 to 1e+06 mm/min (got 1e-07)"),
+    (["demo", "--profile", "hole", "--plunge-feed", "0.05"],
+     "--plunge-feed must be from 0.1 to 1e+06 mm/min (got 0.05)"),
+])
+def test_a_feed_too_slow_to_mean_anything_is_bad_input(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                       args: list[str], message: str) -> None:
+    """--feed 0.0000001 was a limit error (exit 1) about an inverse-time F printing as 0 (the same feed in a
+    G-code input too: see fixtures/bad/gcode/feed_too_slow*.ngc, fixtures/bad/cl/feed_*too_slow.cls)."""
+    monkeypatch.chdir(tmp_path)
+    result = invoke(*args, "-o", "x.ngc")
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == f"prs3-post: error: {message}\n"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_job_file_feed_too_slow_names_its_key(tmp_path: Path) -> None:
+    job = tmp_path / "j.toml"
+    job.write_text(f'part = "{WEDGE}"\n[[operation]]\nprofile = "hole"\nplunge_feed = 0.001\n')
+    result = invoke("job", str(job), "-o", str(tmp_path / "j.ngc"))
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == f"prs3-post: error: {job}: operation[1]: plunge_feed must be from 0.1 to 1e+06 mm/min " \
+                            "(got 0.001)\n"
+    assert not (tmp_path / "j.ngc").exists()

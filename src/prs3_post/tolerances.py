@@ -1,4 +1,5 @@
-"""The default tolerances, defined once (library defaults, the CLI's option defaults, the header's).
+"""The default tolerances, defined once (library defaults, the CLI's option defaults, the header's), and
+the range of feeds any input may ask for.
 
 A tolerance a user gives overrides these; a program header records the one used.
 """
@@ -7,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["DEFAULT_ANGLE_TOLERANCE", "DEFAULT_ANGLE_TOLERANCE_DEG", "DEFAULT_TOLERANCE"]
+__all__ = ["DEFAULT_ANGLE_TOLERANCE", "DEFAULT_ANGLE_TOLERANCE_DEG", "DEFAULT_TOLERANCE", "FEED_RANGE_MM_MIN"]
 
 DEFAULT_TOLERANCE = 0.002
 """mm: chordal error of expanded arcs, tip deviation of subdivided axis-changing moves, replay tolerance."""
@@ -17,3 +18,8 @@ DEFAULT_ANGLE_TOLERANCE_DEG = 0.01
 
 DEFAULT_ANGLE_TOLERANCE = math.radians(DEFAULT_ANGLE_TOLERANCE_DEG)
 """rad: :data:`DEFAULT_ANGLE_TOLERANCE_DEG` in code units."""
+
+FEED_RANGE_MM_MIN = (0.1, 1e6)
+"""mm/min, the tip feeds an option, a job file, a CAM file (FEDRAT/, CYCLE/, G-code F) may ask for: from 6 mm an
+hour (slower is a typo or a unit error, and a long move's inverse-time F would print as 0) to a kilometre a
+minute (faster is a typo; the controller could not follow)."""

@@ -28,6 +28,7 @@ import numpy as np
 from prs3_post.errors import FeatureError
 from prs3_post.face import Face
 from prs3_post.fixed import fixed
+from prs3_post.tolerances import FEED_RANGE_MM_MIN
 from prs3_post.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath, toolpath_from_columns
 from prs3_post.types import FloatArray
 
@@ -83,6 +84,20 @@ def require_positive(option: str, value: float, unit: str = "") -> None:
     if not (math.isfinite(value) and value > 0):
         raise FeatureError(f"{option} must be > 0{_unit_suffix(unit)} (got {value:g})")
     _require_plausible_length(option, value, unit)
+
+
+def require_feed(option: str, value: float, key: str) -> None:
+    """Raise unless ``value`` is a feed within :data:`~prs3_post.tolerances.FEED_RANGE_MM_MIN` (mm/min).
+
+    Raises
+    ------
+    FeatureError
+        ``--feed must be > 0 mm/min (got 0)``, ``--feed must be from 0.1 to 1e+06 mm/min (got 1e-07)``.
+    """
+    require_positive(option, value, "mm/min")
+    low, high = FEED_RANGE_MM_MIN
+    if not low <= value <= high:
+        raise FeatureError(f"{option} must be from {low:g} to {high:g} mm/min (got {value:g})", key=key)
 
 
 def _require_plausible_length(option: str, value: float, unit: str) -> None:
@@ -233,8 +248,8 @@ class Cutting:
         if not (math.isfinite(self.tool_diameter) and low <= self.tool_diameter <= high):
             raise FeatureError(f"--tool-diameter must be from {low:g} to {high:g} mm (got {self.tool_diameter:g})",
                                key="tool_diameter")
-        require_positive("--feed", self.feed, "mm/min")
-        require_positive("--plunge-feed", self.plunge_feed, "mm/min")
+        require_feed("--feed", self.feed, "feed")
+        require_feed("--plunge-feed", self.plunge_feed, "plunge_feed")
         require_positive("--spindle", self.spindle_rpm, "rpm")
         number_ok = isinstance(self.tool_number, numbers.Integral) and not isinstance(self.tool_number, bool)
         if not (number_ok and self.tool_number >= 1):

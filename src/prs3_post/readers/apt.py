@@ -86,6 +86,7 @@ from prs3_post.cycles import MAX_PECKS, DrillCycle, Pecking, drill_rows, peck_co
 from prs3_post.errors import InputError
 from prs3_post.readers.files import iter_pieces, line_chunks
 from prs3_post.readers.stl import MAX_COORDINATE_MM
+from prs3_post.tolerances import FEED_RANGE_MM_MIN
 from prs3_post.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath
 from prs3_post.types import FloatArray
 from prs3_post.workplane import rotate_rows
@@ -113,7 +114,7 @@ AXIS_LENGTH_TOLERANCE = 1e-3
 MM_PER_INCH = 25.4
 #: mm/min, the fastest feed per minute a CAM file may ask for (a kilometre a minute, as the command line's
 #: feeds): more is a typo, and would make a program whose moves the controller cannot follow.
-MAX_FEED_MM_MIN = 1e6
+MIN_FEED_MM_MIN, MAX_FEED_MM_MIN = FEED_RANGE_MM_MIN
 # A coordinate or length (GOTO/, CIRCLE/, MSYS/, CYCLE/) must lie within ±MAX_COORDINATE_MM, as an STL part's:
 # a kilometre is far beyond any machine, so more is a typo or a unit error (bad input, not a point out of reach).
 
@@ -734,7 +735,15 @@ class _Reader:
         if not (self.spindle_on and self.spindle_rpm > 0):
             raise self.error("feed per revolution (MMPR/IPR) while the spindle is off: the feed rate is unknown "
                              "(give SPINDL/ with a speed first, or a feed per minute)")
-        return self.feed_value * self.spindle_rpm
+        return self.feed_per_minute(self.feed_value * self.spindle_rpm,
+                                    f"the feed per revolution at {self.spindle_rpm:g} rpm")
+
+    def feed_per_minute(self, feed: float, what: str) -> float:
+        """``feed`` (mm/min) if within :data:`FEED_RANGE_MM_MIN`, else the error naming ``what`` made it."""
+        if not MIN_FEED_MM_MIN <= feed <= MAX_FEED_MM_MIN:
+            raise self.error(f"{what} is {feed:.6g} mm/min (allowed: "
+                             f"{MIN_FEED_MM_MIN:g} to {MAX_FEED_MM_MIN:g} mm/min)")
+        return feed
 
     # ---- dispatch
     def record(self, record: _Record) -> None:
@@ -914,6 +923,9 @@ class _Reader:
         if not self.per_rev and self.feed_value > MAX_FEED_MM_MIN:
             raise self.error(f"FEDRAT/ {values[0]} is {self.feed_value:.6g} mm/min, "
                              f"more than {MAX_FEED_MM_MIN:g} mm/min")
+        if not self.per_rev and self.feed_value < MIN_FEED_MM_MIN:
+            raise self.error(f"FEDRAT/ {values[0]} is {self.feed_value:.6g} mm/min, less than {MIN_FEED_MM_MIN:g} "
+                             f"mm/min (allowed: {MIN_FEED_MM_MIN:g} to {MAX_FEED_MM_MIN:g} mm/min)")
 
     def multax(self, record: _Record) -> None:
         setting = record.args[0].upper() if record.args else "ON"
@@ -1075,6 +1087,7 @@ class _Reader:
             feed = self.current_feed()
         if not feed > 0:
             raise self.error("CYCLE/ feed must be > 0")
+        feed = self.feed_per_minute(feed, "CYCLE/ feed")
         peck = params.get("STEP", 0.0) * self.scale
         if pecking is not Pecking.NONE and "STEP" in params and not peck > 0:
             raise self.error(f"CYCLE/ STEP must be > 0, got {params['STEP']:g}")

@@ -79,7 +79,7 @@ import numpy as np
 from prs3_post.arcs import MAX_ARC_SEGMENTS, arc_points_3d, arc_segment_count, arc_sweep
 from prs3_post.cycles import MAX_PECKS, DrillCycle, Pecking, drill_rows, peck_count
 from prs3_post.errors import InputError, LexError
-from prs3_post.readers.apt import MAX_FEED_MM_MIN, join_toolpaths
+from prs3_post.readers.apt import MAX_FEED_MM_MIN, MIN_FEED_MM_MIN, join_toolpaths
 from prs3_post.readers.files import iter_pieces, line_blocks
 from prs3_post.readers.lexer import (
     BYTE_ORDER_MARK,
@@ -659,6 +659,7 @@ class _Reader:
         has_f = ~np.isnan(feed)
         if (((motion != 0.0) & (motion != 1.0)).any() or not (feed[has_f] > 0).all()
                 or not (feed[has_f] * self.scale <= MAX_FEED_MM_MIN).all()   # the careful reader words it
+                or not (feed[has_f] * self.scale >= MIN_FEED_MM_MIN).all()
                 or np.isnan(given_feed[feeding]).any() or not np.isfinite(position).all()):
             return False
         k = len(values)
@@ -839,6 +840,10 @@ class _Reader:
             if not self.inverse_time and feed * self.scale > MAX_FEED_MM_MIN:
                 raise self.error(f"{block.values['F'][1]} is {feed * self.scale:.6g} mm/min, more than "
                                  f"{MAX_FEED_MM_MIN:g} mm/min")
+            if not self.inverse_time and feed * self.scale < MIN_FEED_MM_MIN:
+                raise self.error(f"{block.values['F'][1]} is {feed * self.scale:.6g} mm/min, less than "
+                                 f"{MIN_FEED_MM_MIN:g} mm/min (allowed: {MIN_FEED_MM_MIN:g} to {MAX_FEED_MM_MIN:g} "
+                                 "mm/min)")
             self.feed_word = feed
         speed = block.take("S")
         if speed is not None:
@@ -1063,7 +1068,11 @@ class _Reader:
         if length == 0.0:
             raise self.error(f"{code_name('G', self.motion or 0.0)} of zero length under G93 (inverse time): its "
                              "time 1/F cannot be kept by a move that goes nowhere")
-        return word[0] * length
+        feed = word[0] * length
+        if not MIN_FEED_MM_MIN <= feed <= MAX_FEED_MM_MIN:       # what F means for this move, in mm/min
+            raise self.error(f"{word[1]} under G93 (inverse time) makes this {length:.6g} mm move {feed:.6g} mm/min "
+                             f"(allowed: {MIN_FEED_MM_MIN:g} to {MAX_FEED_MM_MIN:g} mm/min)")
+        return feed
 
     def move(self, block: _Block) -> None:
         end = self.target(block)
