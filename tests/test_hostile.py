@@ -191,3 +191,50 @@ def test_a_job_file_feed_too_slow_names_its_key(tmp_path: Path) -> None:
     assert result.stderr == f"prs3-post: error: {job}: operation[1]: plunge_feed must be from 0.1 to 1e+06 mm/min " \
                             "(got 0.001)\n"
     assert not (tmp_path / "j.ngc").exists()
+
+
+# ----------------------------------------------------------------------------- short lines
+
+
+CL_SOURCE = Path("/work/shared/corpus/cl/mech491_APT_SimpleMillPlane.cls")
+
+
+def _short_dialect(tmp_path: Path, length: int, ending: str = "\\n") -> Path:
+    text = (REPO / "postproc" / "dialects" / "linuxcnc.toml").read_text(encoding="utf-8")
+    text = text.replace("max_line_length = 252", f"max_line_length = {length}", 1)
+    text = text.replace('line_ending = "\\n"', f'line_ending = "{ending}"', 1)
+    path = tmp_path / f"short{length}.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("ending", ["\\n", "\\r\\n"], ids=["lf", "crlf"])
+def test_a_header_wrapped_at_the_shortest_line_reads_back(tmp_path: Path, ending: str) -> None:
+    """A 60-character line limit split the part's SHA-256 over two lines: verify could not read its own
+    program back. At the shortest limit allowed (80) every fixed field keeps its words whole."""
+    from prs3_post.readers.header import file_sha256, read_header
+
+    dialect = _short_dialect(tmp_path, 80, ending)
+    program = tmp_path / "p.ngc"
+    made = invoke("demo", "--profile", "square", "--dialect", str(dialect), "-o", str(program))
+    assert made.exit_code == 0, made.stderr
+    lines = program.read_bytes().decode().split("\r\n" if ending == "\\r\\n" else "\n")
+    assert max(len(line) for line in lines) <= (79 if ending == "\\r\\n" else 80)
+    assert any(line.startswith("(  ") for line in lines)           # the header did wrap
+    header = read_header(str(program))
+    assert header is not None and header.part_sha256 == file_sha256(str(REPO / "postproc" / "parts" /
+                                                                         "patel2020-wedge.stl"))
+    checked = invoke("verify", str(program))
+    assert (checked.exit_code, checked.stdout.splitlines()[-1]) == (0, "OK: within every limit and tolerance")
+
+
+@pytest.mark.skipif(not CL_SOURCE.is_file(), reason="the shared corpus is not here")
+def test_a_converted_program_with_short_lines_verifies_against_its_input(tmp_path: Path) -> None:
+    dialect = _short_dialect(tmp_path, 80)
+    made = invoke("convert", str(CL_SOURCE), "-o", str(tmp_path / "out"), "--part-origin", "0,-17.2,-856",
+                  "--dialect", str(dialect))
+    assert made.exit_code == 0, made.stdout + made.stderr
+    program = tmp_path / "out" / "mech491_APT_SimpleMillPlane.ngc"
+    assert max(len(line) for line in program.read_text().splitlines()) <= 80
+    checked = invoke("verify", str(program), "--against", str(CL_SOURCE))
+    assert (checked.exit_code, checked.stdout.splitlines()[-1]) == (0, "OK: within every limit and tolerance")

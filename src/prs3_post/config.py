@@ -37,6 +37,7 @@ from prs3_post.dialect import (
     Dialect,
     LineNumbers,
 )
+from prs3_post.emit.gcode import _CONTINUATION  # the indent of a wrapped comment's continuation lines
 from prs3_post.errors import ConfigError, InputError, quoted
 from prs3_post.machine import Dynamics, Geometry, Holder, Limits, Machine, Stage
 from prs3_post.readers.files import read_text
@@ -113,6 +114,13 @@ def _mode(path: Path, given: str) -> int:
         return 0
     except OSError as exc:                             # a name too long, a loop of symlinks, no permission
         raise ConfigError(f"cannot read the file: {exc.strerror or exc}", path=given) from exc
+
+
+#: The shortest ``program.max_line_length`` of a dialect: a header line must hold its fixed fields' words
+#: whole (verify reads them back), and a motion block its five axis words and F.
+MIN_LINE_LENGTH = 80
+#: Hex digits of a SHA-256, the longest word of a header's fixed fields.
+SHA256_DIGITS = 64
 
 
 # ----------------------------------------------------------------------------- strict reading
@@ -557,9 +565,17 @@ def load_dialect(name_or_path: str) -> Dialect:
     line_ending = prog.text("line_ending")
     if line_ending not in _LINE_ENDINGS:
         raise prog._error("line_ending", f'expected "\\n" or "\\r\\n", got {quoted(line_ending)}')
-    max_line_length = prog.integer("max_line_length", minimum=40)
-    if max_line_length > 252:
-        raise prog._error("max_line_length", f"must be 40..252 (LinuxCNC's limit), got {max_line_length}")
+    max_line_length = prog.integer("max_line_length")
+    if not MIN_LINE_LENGTH <= max_line_length <= 252:
+        raise prog._error("max_line_length", f"must be {MIN_LINE_LENGTH}..252 ({MIN_LINE_LENGTH}: a header line holds "
+                                             f"a SHA-256 whole; 252: LinuxCNC's limit), got {max_line_length}")
+    # A header's fixed fields are read back by verify: a wrapped comment breaks only at spaces, unless a word
+    # is longer than a line, so the longest fixed word (a SHA-256, 64 hex digits) must fit a continuation line.
+    sha_room = (max_line_length - (len(line_ending) - 1) - len(c_open) - len(c_close) - len(_CONTINUATION))
+    if sha_room < SHA256_DIGITS:
+        raise prog._error("max_line_length", f"{max_line_length} leaves {sha_room} characters for a wrapped header "
+                                             f"comment line with comments.open {quoted(c_open)} and close "
+                                             f"{quoted(c_close)}: the header's SHA-256 needs {SHA256_DIGITS}")
     extension = prog.text("extension")
     if not re.fullmatch(r"\.[A-Za-z0-9]{1,8}", extension):
         raise prog._error("extension", f"expected a dot and 1 to 8 letters or digits (\".ngc\"), "
