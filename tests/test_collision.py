@@ -182,6 +182,25 @@ def test_the_replay_in_pieces_gives_the_samples_of_one_replay(monkeypatch):
     np.testing.assert_array_equal(feed, whole.tip[whole.end[program.kind == MoveKind.FEED]])
 
 
+@pytest.mark.parametrize("rows", [1, 7, 1000])
+def test_the_swept_region_drawn_in_pieces_is_the_region_drawn_at_once(monkeypatch, rows):
+    # the main job draws its feed tips a piece at a time (memory), in the machine frame with the setup
+    import prs3_post.collision as collision
+    from prs3_post.toolpath import MoveKind
+    from prs3_post.verify import replay
+
+    program, setup, _, face = _round_pocket(0.5)
+    whole = replay(MACHINE, program)
+    tips = whole.tip[whole.end[program.kind == MoveKind.FEED]]          # machine frame
+    at_once = collision._swept(face, collision._to_part(setup, tips), 3.0)
+    assert len(tips) > 3000 and 0 < at_once.cells.sum() < at_once.cells.size
+    monkeypatch.setattr(collision, "_SWEPT_ROWS", rows)
+    in_part = collision._to_part(setup, tips)
+    for pieces in (collision._swept(face, tips, 3.0, setup=setup), collision._swept(face, in_part, 3.0)):
+        np.testing.assert_array_equal(pieces.low, at_once.low)
+        np.testing.assert_array_equal(pieces.cells, at_once.cells)
+
+
 def test_a_job_transition_through_the_part_is_refused(tmp_path):
     # a 20 mm block hangs 160 mm above the face's origin along its normal: beyond the nose over the
     # first hole, but in the way of the lift to the job's safe height (which it raises)

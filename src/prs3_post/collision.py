@@ -160,22 +160,56 @@ class _Region:
         return out
 
 
-def _swept(face: Face | None, feed_tips: FloatArray, radius: float, *, cell: float = 0.25) -> _Region:
+#: Feed tips drawn into the swept region at a time (memory: a few arrays of this many rows).
+_SWEPT_ROWS = 1 << 16
+
+
+def _swept(face: Face | None, feed_tips: FloatArray, radius: float, *, cell: float = 0.25,
+           setup: Setup | None = None) -> _Region:
     """The region within about ``radius`` of the polyline of the feed tips (M, 3) in the face's (u, v).
 
     The polyline is drawn on a grid of ``cell`` mm (points every half cell along each segment),
     widened by ``radius`` plus a cell, and each tip looks up its cell: a region a cell or two wider
-    than the exact one, at a cost linear in the rows.
+    than the exact one, at a cost linear in the rows. ``setup``: the tips are in the machine frame
+    (taken to the part's as :func:`_to_part` does). The tips are taken ``_SWEPT_ROWS`` at a time
+    (the grid's extent first, then each piece drawn from the last tip of the one before): the same
+    cells as all at once, without arrays as long as the program.
     """
     none = _Region(face=face, cells=np.zeros((0, 0), dtype=bool), low=np.zeros(2), cell=cell)
     if face is None or not len(feed_tips):
         return none
-    u, v = _plane_coordinates(np.asarray(feed_tips, dtype=np.float64).reshape(-1, 3), face)
-    low = np.array([u.min(), v.min()]) - radius - 2 * cell
-    size = np.ceil((np.array([u.max(), v.max()]) + radius + 2 * cell - low) / cell).astype(np.int64) + 1
+    tips = np.asarray(feed_tips, dtype=np.float64).reshape(-1, 3)
+    plane_of = face
+
+    def plane(lo: int, hi: int) -> tuple[FloatArray, FloatArray]:
+        return _plane_coordinates(tips[lo:hi] if setup is None else _to_part(setup, tips[lo:hi]), plane_of)
+
+    pieces = range(0, len(tips), _SWEPT_ROWS)
+    least, most = np.full(2, np.inf), np.full(2, -np.inf)
+    for lo in pieces:
+        u, v = plane(lo, lo + _SWEPT_ROWS)
+        least, most = np.minimum(least, [u.min(), v.min()]), np.maximum(most, [u.max(), v.max()])
+    low = least - radius - 2 * cell
+    size = np.ceil((most + radius + 2 * cell - low) / cell).astype(np.int64) + 1
     if size.prod() > 4e7:                               # a region too large to draw: no exemption
         return none
     grid = np.zeros(tuple(size), dtype=bool)
+    for lo in pieces:                                   # each piece from the tip before: its segment too
+        _draw(grid, *plane(max(lo - 1, 0), lo + _SWEPT_ROWS), low, cell)
+    reach = math.ceil(radius / cell) + 1
+    wide = np.zeros_like(grid)
+    for du in range(-reach, reach + 1):
+        for dv in range(-reach, reach + 1):
+            if (abs(du) - 1) ** 2 + (abs(dv) - 1) ** 2 > (radius / cell) ** 2 and (du or dv):
+                continue
+            wide[max(du, 0):size[0] + min(du, 0), max(dv, 0):size[1] + min(dv, 0)] |= \
+                grid[max(-du, 0):size[0] + min(-du, 0), max(-dv, 0):size[1] + min(-dv, 0)]
+    return _Region(face=face, cells=wide, low=low, cell=cell)
+
+
+def _draw(grid: BoolArray, u: FloatArray, v: FloatArray, low: FloatArray, cell: float) -> None:
+    """Mark the cells of ``grid`` (corner ``low``, ``cell`` mm) that the polyline of (u, v) (N,), (N,)
+    mm passes through: every point's, and points every half cell along each segment between cells."""
     at_u = np.floor((u - low[0]) / cell).astype(np.int64)
     at_v = np.floor((v - low[1]) / cell).astype(np.int64)
     grid[at_u, at_v] = True                             # every tip; a segment within one cell adds no other
@@ -189,15 +223,6 @@ def _swept(face: Face | None, feed_tips: FloatArray, radius: float, *, cell: flo
     points = ends[0][seg] + t[:, None] * (ends[1][seg] - ends[0][seg])
     index = np.floor((points - low) / cell).astype(np.int64)
     grid[index[:, 0], index[:, 1]] = True
-    reach = math.ceil(radius / cell) + 1
-    wide = np.zeros_like(grid)
-    for du in range(-reach, reach + 1):
-        for dv in range(-reach, reach + 1):
-            if (abs(du) - 1) ** 2 + (abs(dv) - 1) ** 2 > (radius / cell) ** 2 and (du or dv):
-                continue
-            wide[max(du, 0):size[0] + min(du, 0), max(dv, 0):size[1] + min(dv, 0)] |= \
-                grid[max(-du, 0):size[0] + min(-du, 0), max(-dv, 0):size[1] + min(-dv, 0)]
-    return _Region(face=face, cells=wide, low=low, cell=cell)
 
 
 def _plane_coordinates(points: FloatArray, face: Face) -> tuple[FloatArray, FloatArray]:
@@ -750,18 +775,19 @@ def _streamed(machine: Machine, program: JointProgram, setup: Setup, triangles: 
     frame = np.eye(3) if face is None else np.stack([face.u, face.v, face.normal])   # part frame, rows
     scan = scan_program(machine, program, setup.axes_to_part(np.eye(3)) @ frame.T)
     part = _Part.of(triangles, face, clearance_min)
-    region = _swept(face, _to_part(setup, scan.feed_tips), float(bodies[0, 0]) + 1e-6)
+    region = _swept(face, scan.feed_tips, float(bodies[0, 0]) + 1e-6, setup=setup)
     stream = _Stream(part, face, region, bodies, clearance_min)
     bound = np.full((len(scan.flat), 3), -np.inf)        # each group's bound per body (−inf: none)
     groups = np.flatnonzero(scan.flat)
+    tip, axis = setup.points_to_part(scan.tip[groups]), setup.axes_to_part(scan.axis[groups])
+    # a group of feed moves (and the row before) follows the feed tips' polyline, which the region
+    # is drawn round with the tool's radius and a cell more: every pose of it is over the region
+    cutting = scan.feeding[groups] & (region.cells.size > 0) & (scan.wobble[groups] < 0.2 * region.cell)
+    spread = _Spread(frame=frame, half=scan.half[groups], turn=scan.turn[groups])
+    del scan                                             # its feed tips (a row each) before the bounds
     if len(groups):                                      # each flat group bounded as a whole
-        tip, axis = setup.points_to_part(scan.tip[groups]), setup.axes_to_part(scan.axis[groups])
-        # a group of feed moves (and the row before) follows the feed tips' polyline, which the region
-        # is drawn round with the tool's radius and a cell more: every pose of it is over the region
-        cutting = scan.feeding[groups] & (region.cells.size > 0) & (scan.wobble[groups] < 0.2 * region.cell)
         bound[groups] = _bounds(part, tip, axis, cutting, stream.pieces, reach=stream.reach, near=stream.reach,
-                                spread=_Spread(frame=frame, half=scan.half[groups], turn=scan.turn[groups]))[0]
-    del scan
+                                spread=spread)[0]
     bound[:, stream.unchecked] = np.inf
     # safe: no pose, no motion of the group comes too close
     safe: BoolArray = np.asarray((bound >= clearance_min).all(axis=1), dtype=np.bool_)

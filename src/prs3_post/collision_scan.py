@@ -82,18 +82,20 @@ def scan_program(machine: Machine, program: JointProgram, frame: FloatArray) -> 
     n = len(program)
     rows = max(GROUP_ROWS, SCAN_ROWS - SCAN_ROWS % GROUP_ROWS)
     parts: list[tuple[FloatArray, ...]] = []
-    feeds: list[FloatArray] = []
+    feed_tips = np.zeros((int(np.count_nonzero(program.kind == MoveKind.FEED)), 3))   # filled, not joined (memory)
+    filled = 0
     for lo in range(0, n, rows):
         hi = min(n, lo + rows)
         feed, *group = _scan_rows(machine, program, lo, hi, frame)
-        feeds.append(feed)
+        feed_tips[filled:filled + len(feed)] = feed
+        filled += len(feed)
         parts.append(tuple(group))
     shapes = ((0, 3), (0, 3), (0, 3), (0,), (0,), (0,), (0,))
     columns = [np.concatenate([p[k] for p in parts]) if parts else np.zeros(shape) for k, shape in enumerate(shapes)]
     flat = columns[6].astype(bool)
     if len(flat):
         flat[0] = False
-    return Scan(feed_tips=np.concatenate([np.zeros((0, 3)), *feeds]), tip=columns[0], axis=columns[1],
+    return Scan(feed_tips=feed_tips, tip=columns[0], axis=columns[1],
                 half=columns[2], turn=columns[3], wobble=columns[4], feeding=columns[5].astype(bool), flat=flat)
 
 
