@@ -95,7 +95,7 @@ from prs3_post.readers.lexer import (
     split_comments,
 )
 from prs3_post.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath
-from prs3_post.types import BoolArray, FloatArray
+from prs3_post.types import BoolArray, FloatArray, IntArray
 from prs3_post.workplane import WorkPlane, euler_zxz_deg
 
 __all__ = [
@@ -396,8 +396,7 @@ class GcodeStream:
                          work_plane=s.work_plane, planes=s.planes, cycles=s.cycles, end_lines=s.end_lines)
 
 
-#: Bytes of :data:`_ROTARY_HINT`: the letters, and what may follow a letter in a rotary word.
-_ROTARY_LETTER = bytes(int(b in b"ABCabc") for b in range(256))       # a bytes.translate table: 1 at a letter
+#: Bytes of :data:`_ROTARY_HINT`: what may follow a letter in a rotary word.
 _ROTARY_NEXT = np.zeros(256, dtype=bool)
 _ROTARY_NEXT[list(b" \t-.0123456789")] = True
 _ROTARY_HINT_BYTES = re.compile(_ROTARY_HINT.pattern.encode("ascii"))
@@ -408,8 +407,11 @@ def _rotary_hint(text: str) -> bool:
     continue a rotary word (a letter in a comment's word, ``pass``, is followed by another letter)
     are tried with the pattern."""
     data = text.encode("utf-8") + b"\n"
-    letters = np.flatnonzero(np.frombuffer(data.translate(_ROTARY_LETTER), dtype=np.bool_))
-    maybe = letters[_ROTARY_NEXT[np.frombuffer(data, dtype=np.uint8)[letters + 1]]].tolist()
+    codes = np.frombuffer(data, dtype=np.uint8)
+    lower = codes | np.uint8(0x20)                      # A B C a b c: a b c (and no other byte)
+    lower -= np.uint8(ord("a"))
+    letters = np.flatnonzero(lower < 3)
+    maybe = letters[_ROTARY_NEXT[codes[letters + 1]]].tolist()
     return any(_ROTARY_HINT_BYTES.match(data, at) is not None for at in maybe)
 
 
@@ -442,7 +444,7 @@ class _BlockLines(Sequence[str]):
     ``bounds``: line k is ``data[bounds[k]:bounds[k + 1] - 1]``), each decoded when first asked for
     (the lines read in bulk never are); a slice shares the block and the texts decoded."""
 
-    def __init__(self, data: bytes, bounds: list[int], offset: int, path: str, *, start: int = 0,
+    def __init__(self, data: bytes, bounds: IntArray, offset: int, path: str, *, start: int = 0,
                  stop: int | None = None, texts: dict[int, str] | None = None):
         self.data, self.bounds, self.offset, self.path = data, bounds, offset, path
         self.start, self.stop = start, len(bounds) - 1 if stop is None else stop
@@ -470,8 +472,8 @@ class _BlockLines(Sequence[str]):
         line = self.start + index % size
         text = self.texts.get(line)
         if text is None:
-            begin = self.bounds[line]
-            raw = self.data[begin:self.bounds[line + 1] - 1]
+            begin, end = self.bounds[line:line + 2].tolist()      # (the bounds stay an array: few lines are asked for)
+            raw = self.data[begin:end - 1]
             text = raw.decode("latin-1")                 # one byte, one character: for the test below
             if not (text.isascii() and text.isprintable()):      # else checked as decode does
                 text = _text_at(raw, self.path, self.offset + begin)
@@ -623,7 +625,7 @@ class _Reader:
             self.lines(first, lines)
             return len(lines)
         values, fast, bounds = lex_column_block(data, _BULK_LETTERS)
-        self.runs(first, values, fast, _BlockLines(data, bounds.tolist(), offset, self.path))
+        self.runs(first, values, fast, _BlockLines(data, bounds, offset, self.path))
         return len(fast)
 
     def runs(self, first: int, values: FloatArray, fast: BoolArray, lines: Sequence[str]) -> None:
@@ -631,7 +633,7 @@ class _Reader:
         with their texts ``lines``: runs to :meth:`bulk`, the rest to :meth:`line` (see :meth:`lines`)."""
         g = values[:, 1]
         fast &= np.isnan(g) | (g == 0.0) | (g == 1.0)
-        fast &= ~np.isnan(values[:, 2:5]).all(axis=1)     # a move: an axis word
+        fast &= ~np.isnan(np.fmax(np.fmax(values[:, 2], values[:, 3]), values[:, 4]))   # a move: an axis word
         quiet = np.zeros(len(lines), dtype=bool)          # blank or only comments: nothing but events
         quiet[~fast] = [_QUIET.fullmatch(lines[i]) is not None for i in np.flatnonzero(~fast).tolist()]
         span = fast | quiet

@@ -472,4 +472,9 @@ def forward_fill(values: FloatArray) -> FloatArray:
     rows = np.arange(len(values)).reshape((-1,) + (1,) * (values.ndim - 1))
     last = np.where(np.isnan(values), 0, rows)
     np.maximum.accumulate(last, axis=0, out=last)
+    if values.ndim == 1:
+        return values[last]
+    if values.ndim == 2:                                 # a flat gather (take_along_axis' general path is slower)
+        width = values.shape[1]
+        return np.ascontiguousarray(values).reshape(-1)[last * width + np.arange(width)]
     return np.take_along_axis(values, last, axis=0)
