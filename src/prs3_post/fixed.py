@@ -179,7 +179,7 @@ def _digit_count(magnitude: IntArray) -> IntArray:
 
 
 def render_rows(columns: Sequence[Column], present: BoolArray, *, separator: bytes = b" ",
-                ending: bytes = b"\n", block_rows: int = 8192) -> tuple[np.ndarray, IntArray]:
+                ending: bytes = b"\n", block_rows: int = 16384) -> tuple[np.ndarray, IntArray]:
     """Lines of words as ASCII bytes, for all rows at once.
 
     Row r is the words of the columns where ``present[r, j]`` (in column order) joined by

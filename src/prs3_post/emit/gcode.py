@@ -584,7 +584,7 @@ def _rows_of(column: ScaledColumn, lo: int, hi: int) -> ScaledColumn:
 def _check_rows(program: JointProgram) -> None:
     """Mistakes no caller should make: a kind that is not a MoveKind, an event outside ``0 ..= N``."""
     n = len(program)
-    unknown = np.flatnonzero(~np.isin(program.kind, [MoveKind.RAPID, MoveKind.FEED]))
+    unknown = np.flatnonzero((program.kind != MoveKind.RAPID) & (program.kind != MoveKind.FEED))
     if unknown.size:
         raise ValueError(f"row {int(unknown[0])}: kind {int(program.kind[unknown[0]])} is not a MoveKind")
     for event in program.events:
