@@ -378,7 +378,10 @@ def inverse_time(path: Toolpath, *, start: FloatArray | None = None) -> FloatArr
         raise LimitError(f"{path.describe(0)}: the program starts with a feed move; its start point is unknown")
     before = path.tip if start is None else np.concatenate([np.asarray(start, dtype=np.float64)[None, :], path.tip])
     offset = 0 if start is None else 1
-    length = np.linalg.norm(path.tip[feed_rows] - before[feed_rows - 1 + offset], axis=1)
+    if len(feed_rows) == len(path) and offset:           # every row a feed move: the steps as slices
+        length = np.linalg.norm(path.tip - before[:-1], axis=1)
+    else:
+        length = np.linalg.norm(path.tip[feed_rows] - before[feed_rows - 1 + offset], axis=1)
     zero = np.flatnonzero(length < 1e-9)
     if len(zero):
         raise LimitError(f"{path.describe(int(feed_rows[zero[0]]))}: feed move of zero length")
