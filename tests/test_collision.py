@@ -265,8 +265,9 @@ def test_convert_with_part_checks_the_holder_and_nose_before_writing(tmp_path):
     result, program = _convert(tmp_path, "8.1", "--part", str(WALL))
     assert result.exit_code == 0, result.output
     assert _collision_line(program) == [
-        "(collision: clear of the part by at least 1.000 mm: tool not checked [it cuts what the CAM program removes], "
-        "holder 8.636 mm, spindle nose over 11.000 mm)"]
+        "(collision: clear of the part by at least 1.000 mm: tool in rapids none to check [diameter unknown: its axis, "
+        "0 mm radius], not in feeds [it cuts what the CAM program removes], holder 8.636 mm, spindle nose over "
+        "11.000 mm)"]                               # its only rapid after the first move retracts along the axis
 
 
 def test_convert_with_part_refuses_a_holder_in_the_wall_naming_file_line_body_and_depth(tmp_path):
@@ -284,3 +285,83 @@ def test_convert_without_part_says_so(tmp_path):
     result, program = _convert(tmp_path, "30")
     assert result.exit_code == 0, result.output
     assert _collision_line(program) == ["(collision: not checked [no part given])"]
+
+
+def _convert_text(tmp_path: Path, name: str, text: str, *options: str) -> tuple[object, Path]:
+    """A 3+2 G-code program in the 30° face's frame (Z along its normal), converted against the part."""
+    source = tmp_path / name
+    source.write_text(text, encoding="utf-8")
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["convert", str(source), "-o", str(out), "--work-plane", f"{WALL}:4",
+                                       "--jobs", "1", "--part", str(WALL), *options])
+    return result, out / source.name
+
+
+#: Two holes 3 mm deep, 30 mm apart; between them the G0 of line 4 stays at the first one's depth (through the part).
+THROUGH = "G21 G90 G17\nG0 X8.1 Y-15 Z10\nG1 Z-3 F100\nG0 Y15\nG1 Z-4 F100\nG0 Z10\nM30\n"
+#: The same holes, the G0 between them above the face (line 5), after a retract along the tool axis (line 4).
+ABOVE = "G21 G90 G17\nG0 X8.1 Y-15 Z10\nG1 Z-3 F100\nG0 Z10\nG0 Y15\nG1 Z-3 F100\nG0 Z10\nM30\n"
+
+
+def test_convert_refuses_a_rapid_that_sweeps_the_tool_through_the_part(tmp_path):
+    result, program = _convert_text(tmp_path, "through.ngc", THROUGH)
+    assert result.exit_code == 1
+    assert result.output.split("\n")[-2] == (
+        f"  {tmp_path / 'through.ngc'}:4: the tool hits the part in a rapid, 3.000 mm deep (a rapid may touch the "
+        "part, not cut it: 0.050 mm at most; diameter unknown: its axis, 0 mm radius)")
+    assert not program.exists()
+    assert not (tmp_path / "out").exists() or list((tmp_path / "out").iterdir()) == []
+
+
+def test_convert_passes_the_rapid_above_the_part_and_states_the_tool_clearance_in_rapids(tmp_path):
+    result, program = _convert_text(tmp_path, "above.ngc", ABOVE)
+    assert result.exit_code == 0, result.output
+    assert _collision_line(program) == [
+        "(collision: clear of the part by at least 1.000 mm: tool in rapids 10.000 mm [diameter unknown: its axis, "
+        "0 mm radius], not in feeds [it cuts what the CAM program removes], holder 8.636 mm, spindle nose over "
+        "11.000 mm)"]
+
+
+def _cl(points: list[tuple[str, float, float]]) -> str:
+    """A CL file in the part's frame, the tool along the 30° face's normal: each point (RAPID or FEED,
+    v, height above the face) at u = 8.1 (40 mm from the wall)."""
+    lines = ["UNITS/MM", "MULTAX/ON", "TLDATA/MILL,6.0000,0.0000,50.0000,0.0000,0.0000", "LOAD/TOOL,1"]
+    for kind, v, height in points:
+        tip = FACE.origin + 8.1 * FACE.u + v * FACE.v + height * FACE.normal
+        lines += ["RAPID"] if kind == "RAPID" else ["FEDRAT/MMPM,100.0000"]
+        lines.append("GOTO/" + ",".join(f"{c:.4f}" for c in tip) + "," + ",".join(f"{c:.7f}" for c in FACE.normal))
+    return "\n".join([*lines, "FINI", ""])
+
+
+def test_convert_of_cl_checks_the_rapids_with_the_tldata_diameter(tmp_path):
+    through = _cl([("RAPID", -15, 10), ("FEED", -15, -3), ("RAPID", 15, -3), ("FEED", 15, -4), ("RAPID", 15, 10)])
+    source = tmp_path / "through.cls"
+    source.write_text(through, encoding="utf-8")
+    result = CliRunner().invoke(main, ["convert", str(source), "-o", str(tmp_path / "out"), "--jobs", "1",
+                                       "--part", str(WALL)])
+    assert result.exit_code == 1, result.output
+    assert result.output.split("\n")[-2] == (
+        f"  {source}:10: the tool hits the part in a rapid, 3.000 mm deep (a rapid may touch the part, not cut it: "
+        "0.050 mm at most; 6.000 mm diameter)")
+    assert not (tmp_path / "out" / "through.ngc").exists()
+    above = _cl([("RAPID", -15, 10), ("FEED", -15, -3), ("RAPID", -15, 10), ("RAPID", 15, 10), ("FEED", 15, -3),
+                 ("RAPID", 15, 10)])
+    source = tmp_path / "above.cls"
+    source.write_text(above, encoding="utf-8")
+    result = CliRunner().invoke(main, ["convert", str(source), "-o", str(tmp_path / "out"), "--jobs", "1",
+                                       "--part", str(WALL)])
+    assert result.exit_code == 0, result.output
+    assert _collision_line(tmp_path / "out" / "above.ngc") == [
+        "(collision: clear of the part by at least 1.000 mm: tool in rapids 10.000 mm [6.000 mm diameter], "
+        "not in feeds [it cuts what the CAM program removes], holder 8.636 mm, spindle nose over 11.000 mm)"]
+
+
+def test_convert_lets_a_rapid_leave_the_face_the_tool_touches_and_states_zero(tmp_path):
+    # line 3 leaves the tool's tip on the face; the rapid of line 4 moves it up and sideways from there
+    result, program = _convert_text(tmp_path, "touch.ngc", "G21 G90 G17\nG0 X8.1 Y-15 Z10\nG1 Z0 F100\nG0 Y-5 Z5\n"
+                                                           "G0 Z10\nM30\n")
+    assert result.exit_code == 0, result.output
+    assert _collision_line(program) == [
+        "(collision: clear of the part by at least 1.000 mm: tool in rapids 0.000 mm [diameter unknown: its axis, "
+        "0 mm radius], not in feeds [it cuts what the CAM program removes], holder 8.635 mm, spindle nose over "
+        "11.000 mm)"]

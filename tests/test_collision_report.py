@@ -211,9 +211,9 @@ def test_a_converted_program_against_its_part_reports_the_holder_and_nose(conver
     result = invoke("verify", converted, "--against", WALL)
     assert result.exit_code == 1, result.output
     assert result.output.splitlines()[-6:] == [
-        "  clearance from the part (min 1.000 mm; not counted: the tool (it cuts what the CAM program removes: its "
-        "gouges are the CAM system's to check)):",
-        "    tool          not measured at any pose",
+        "  clearance from the part (min 1.000 mm; not counted: the tool in feeds (it cuts what the CAM program "
+        "removes: its gouges are the CAM system's to check)):",
+        "    tool, rapids  none to check (a retract along the tool axis is not)",
         "    holder             -2.446 mm  line 16",                  # as convert --part finds it
         "    spindle nose       14.859 mm  line 18",
         "FAIL: 1 problem",
@@ -223,3 +223,38 @@ def test_a_converted_program_against_its_part_reports_the_holder_and_nose(conver
     record = json.loads(lowered.output)
     assert record["ok"] is False and [p["kind"] for p in record["problems"]] == ["collision"]   # in the wall: still
     assert record["clearance"]["bodies"][0]["distance_mm"] is None
+
+
+def test_verify_of_a_converted_program_reports_the_tool_in_its_rapids(tmp_path):
+    """Two holes 30 mm apart in the 30° face's frame: the G0 between them above the face (converted with
+    the check: its header states the tool's 10.000 mm), or at the first hole's depth (converted without)."""
+    above = tmp_path / "above.ngc"
+    above.write_text("G21 G90 G17\nG0 X8.1 Y-15 Z10\nG1 Z-3 F100\nG0 Z10\nG0 Y15\nG1 Z-3 F100\nG0 Z10\nM30\n",
+                     encoding="utf-8")
+    through = tmp_path / "through.ngc"
+    through.write_text("G21 G90 G17\nG0 X8.1 Y-15 Z10\nG1 Z-3 F100\nG0 Y15\nG1 Z-4 F100\nG0 Z10\nM30\n",
+                       encoding="utf-8")
+    for source, check in ((above, "--part"), (through, "--no-collision-check")):
+        options = [check, WALL] if check == "--part" else [check]
+        result = invoke("convert", source, "-o", tmp_path / "out", "--work-plane", f"{WALL}:4", "--jobs", "1",
+                        *options)
+        assert result.exit_code == 0, result.output
+    result = invoke("verify", tmp_path / "out" / "above.ngc", "--against", WALL)
+    assert result.exit_code == 0, result.output
+    assert result.output.splitlines()[-5:-1] == [
+        "  clearance from the part (min 1.000 mm; not counted: the tool in feeds (it cuts what the CAM program "
+        "removes: its gouges are the CAM system's to check)):",
+        "    tool, rapids       10.000 mm  line 20",                 # as the header's collision entry states it
+        "    holder              8.636 mm  line 18",
+        "    spindle nose       14.859 mm  line 18",
+    ]
+    result = invoke("verify", tmp_path / "out" / "through.ngc", "--against", WALL)
+    assert result.exit_code == 1, result.output
+    assert result.output.splitlines()[-5:] == [
+        "    tool, rapids       -3.000 mm  line 19",
+        "    holder              8.635 mm  line 21",
+        "    spindle nose       13.859 mm  line 20",
+        "FAIL: 1 problem",
+        "  line 19: the tool hits the part in a rapid, 3.000 mm deep (a rapid may touch the part, not cut it: "
+        "0.050 mm at most)",
+    ]

@@ -24,6 +24,7 @@ import click
 import numpy as np
 
 from prs3_post import __version__
+from prs3_post.collision import rapid_diameter_from_entry
 from prs3_post.config import Machine, load_dialect, load_machine, load_source, postproc_dir, shipped_names
 from prs3_post.convert import (
     EXISTS,
@@ -1223,7 +1224,8 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext,
     if isinstance(context.header, SourceHeader) and suffix == ".stl":   # the part a CAM program cuts
         mesh = load_part(against, units=opts["units"], up=opts["up"])
         return None, CamPart(triangles=np.asarray(mesh.triangles, dtype=np.float64),
-                             tool_length=context.header.tool_length)
+                             tool_length=context.header.tool_length, setup=context.header.setup,
+                             tool_diameter=rapid_diameter_from_entry(context.header.collision))
     if isinstance(context.header, SourceHeader):            # a converted program: its CAM source
         try:
             return intended_from_source(context, against), None

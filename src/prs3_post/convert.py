@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from prs3_post import __version__
-from prs3_post.collision import check_program
+from prs3_post.collision import check_rapids, measure_program
 from prs3_post.config import Dialect, Machine
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.errors import InputError, LimitError, PoseError, Prs3Error, ReachError
@@ -42,7 +42,7 @@ from prs3_post.limits import check_limits, raise_first_violation
 from prs3_post.output import HeadLast, refuse_overwriting, write_atomic
 from prs3_post.pipeline import PostCounts, PostResult, PostStream, model_for, place_toolpath, program_text
 from prs3_post.placement import place, placement_error
-from prs3_post.readers.apt import ClStream, join_toolpaths
+from prs3_post.readers.apt import ClFile, ClStream, join_toolpaths
 from prs3_post.readers.detect import DETECT_BYTES, detect_format
 from prs3_post.readers.files import open_input
 from prs3_post.readers.fivex import FivexStream, check_tcp_codes
@@ -506,13 +506,16 @@ def _part_triangles(settings: ConvertSettings) -> FloatArray | None:
 
 
 def _collision(run: _Run, triangles: FloatArray | None) -> str:
-    """The header's ``collision`` entry, the program checked (the holder and the nose: the tool cuts
-    what the CAM program removes, :func:`prs3_post.collision.check_program` with no face).
+    """The header's ``collision`` entry, the program checked: the holder and the nose everywhere
+    (:func:`prs3_post.collision.measure_program` with no face: the tool cuts what the CAM program
+    removes), and the tool in the rapids (:func:`prs3_post.collision.check_rapids`: a rapid must not
+    cut), with the diameter of the CAM input's tool data (:func:`tool_diameter_of`).
 
     Raises
     ------
     LimitError
-        ``part.cls:41: the holder hits the part, 2.100 mm deep (clearance min 1.000 mm)``.
+        ``part.cls:41: the holder hits the part, 2.100 mm deep (clearance min 1.000 mm)``, or
+        ``part.cls:12: the tool hits the part in a rapid, 4.950 mm deep (...)``.
     """
     settings = run.settings
     if settings.part is None:
@@ -522,8 +525,30 @@ def _collision(run: _Run, triangles: FloatArray | None) -> str:
     parts, run.programs = run.programs, []
     file = parts[0].source_file if parts else run.path
     program = join_programs(parts, source_file=file)
-    return check_program(settings.ik_machine, program, settings.setup, triangles, None, 0.0,
-                         clearance_min=settings.clearance_min)
+    machine = settings.ik_machine
+    found = measure_program(machine, program, settings.setup, triangles, None, 0.0,
+                            clearance_min=settings.clearance_min)
+    if isinstance(found, str):
+        return found
+    rapids = check_rapids(machine, program, settings.setup, triangles, tool_diameter_of(run.reader))
+    return found.entry(settings.clearance_min, rapids=rapids)
+
+
+def tool_diameter_of(reader: ClStream | GcodeStream) -> float:
+    """mm: the tool diameter a CAM input states, once read: the smallest of a CL file's ``TLDATA/``
+    records (its first number, in the file's units: ``TLDATA/MILL,10.0,0.0,50.0``), the one a rapid
+    of the thinnest tool must clear; 0 where none is stated (G-code carries none: the tool is then
+    checked as its axis, and the header says so)."""
+    summary = reader.summary
+    if not isinstance(summary, ClFile):
+        return 0.0
+    scale = 25.4 if summary.units == "inch" else 1.0
+    found = []
+    for record in summary.tool_data:
+        numbers = [w for w in record.words if re.fullmatch(r"[+-]?(\d+\.?\d*|\.\d+)", w.strip())]
+        if numbers and 0.0 < float(numbers[0]) < math.inf:
+            found.append(float(numbers[0]) * scale)
+    return min(found, default=0.0)
 
 
 def _with_placement(text: Iterator[str], run: _Run) -> Iterator[str]:

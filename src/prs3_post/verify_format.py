@@ -123,7 +123,8 @@ def clearance_record(clearance: PartClearance | str | None) -> dict[str, Any] | 
     if isinstance(clearance, str):
         return {"measured": False, "note": clearance}
     bodies = [
-        {"body": name, "distance_mm": _num(clearance.distance[b]), "exact": bool(clearance.exact[b]),
+        {"body": name, "rapids_only": b == 0 and clearance.tool_in_rapids,
+         "distance_mm": _num(clearance.distance[b]), "exact": bool(clearance.exact[b]),
          "line": int(clearance.line[b]) or None, "at": _num(clearance.at[b]) if clearance.line[b] else None,
          "step": clearance.step[b] or None,
          "point_part_mm": _nums(clearance.point[b]) if clearance.line[b] else None,
@@ -140,10 +141,16 @@ def _clearance_lines(clearance: PartClearance | str | None) -> list[str]:
         return []
     if isinstance(clearance, str):
         return [f"  clearance from the part: {clearance}"]
-    asked = sorted(set(clearance.clearance_min.tolist()))
+    held = clearance.clearance_min[1:] if clearance.tool_in_rapids else clearance.clearance_min
+    asked = sorted(set(held.tolist()))
     out = [f"  clearance from the part (min {', '.join(f'{v:.3f}' for v in asked)} mm; not counted: "
            f"{clearance.allowance}):"]
     for b, name in enumerate(BODY_NAMES):
+        if b == 0 and clearance.tool_in_rapids:         # a converted program's tool: held out of the part in rapids
+            name = "tool, rapids"
+            if not clearance.line[b]:
+                out.append(f"    {name:<12}  none to check (a retract along the tool axis is not)")
+                continue
         if not clearance.line[b]:
             out.append(f"    {name:<12}  not measured at any pose")
             continue

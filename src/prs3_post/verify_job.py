@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
-from prs3_post.collision import BODY_NAMES, body_cylinders, clearance
+from prs3_post.collision import BODY_NAMES, RAPID_TOUCH_MM, body_cylinders, clearance, rapid_tool_clearance
 from prs3_post.config import Dialect, Machine, load_dialect, load_machine, load_source
 from prs3_post.errors import ConfigError, InputError, PoseError, quoted
 from prs3_post.face import Face
@@ -298,8 +298,11 @@ class PartClearance:
     step : tuple of str — the step of each minimum as the job names it (``hole 1 approach``; "" for none)
     point : (3, 3) float — mm, part frame: the body's point of each minimum
     exact : (3,) bool — the minimum over every pose (False: a lower bound, stated as ``over``)
-    clearance_min : (3,) float — mm, the clearance each minimum's operation asks
+    clearance_min : (3,) float — mm, the clearance each minimum's operation asks (a converted
+        program's tool in its rapids: −RAPID_TOUCH_MM, the depth it may touch the part to)
     allowance : str — what of the tool may be in the part (it cuts there), for the report
+    tool_in_rapids : bool — the tool's entry is a converted program's tool in its rapids
+        (:func:`~prs3_post.collision.rapid_tool_clearance`)
     """
 
     distance: FloatArray
@@ -310,6 +313,7 @@ class PartClearance:
     exact: BoolArray
     clearance_min: FloatArray
     allowance: str
+    tool_in_rapids: bool = False
 
     def worst(self) -> int:
         """The body closest to the part (relative to its clearance min)."""
@@ -324,6 +328,11 @@ class PartClearance:
                 continue
             what = f"hits the part, {-d:.3f} mm deep" if d < 0 else f"comes within {d:.3f} mm of the part"
             step = f" ({self.step[b]})" if self.step[b] else ""
+            if b == 0 and self.tool_in_rapids:
+                out.append(Problem(line, "collision", f"line {line}: the tool hits the part in a rapid, {-d:.3f} mm "
+                                                      f"deep (a rapid may touch the part, not cut it: "
+                                                      f"{RAPID_TOUCH_MM:.3f} mm at most)"))
+                continue
             out.append(Problem(line, "collision", f"line {line}{step}: the {name} {what} (clearance min "
                                                   f"{self.clearance_min[b]:.3f} mm)"))
         return tuple(sorted(out, key=lambda p: p.line))
@@ -366,18 +375,29 @@ def part_clearance(report: VerifyReport, machine: Machine, rebuilt: RebuiltJob, 
 
 
 #: What the check lets the tool do in the part of a program converted from CAM input (no face).
-CAM_ALLOWANCE = "the tool (it cuts what the CAM program removes: its gouges are the CAM system's to check)"
+CAM_ALLOWANCE = "the tool in feeds (it cuts what the CAM program removes: its gouges are the CAM system's to check)"
 
 
-def cam_part_clearance(report: VerifyReport, machine: Machine, triangles: FloatArray, tool_length: float, *,
+def cam_part_clearance(report: VerifyReport, machine: Machine, against: CamPart, *,
                        clearance_min: float = 1.0) -> PartClearance:
-    """The clearance of the holder and the spindle nose from the part (``triangles``, part frame) of a
-    program converted from CAM input, as ``convert --part`` checks it: no face, so the tool is not
-    measured (it cuts what the CAM program removes); ``tool_length`` is the IK's "TL"."""
+    """The clearance from the part (``against.triangles``, part frame) of a program converted from CAM
+    input, as ``convert --part`` checks it: the holder and the spindle nose at every sample (no face),
+    the tool in the rapids only (:func:`~prs3_post.collision.rapid_tool_clearance`, with the diameter
+    the program's header states; its feeds cut what the CAM program removes); ``machine``: with the
+    IK's tool length "TL"."""
     piece = _Piece(rows=np.ones(len(report.program), dtype=bool), face=None, tool_diameter=0.0,
-                   tool_length=tool_length, clearance_min=clearance_min)
-    return _measure(report, machine, triangles, [piece], clearance_min=clearance_min, describe=None,
-                    allowance=CAM_ALLOWANCE)
+                   tool_length=against.tool_length, clearance_min=clearance_min)
+    found = _measure(report, machine, against.triangles, [piece], clearance_min=clearance_min, describe=None,
+                     allowance=CAM_ALLOWANCE)
+    rapids = rapid_tool_clearance(machine, report.program, against.setup, against.triangles, against.tool_diameter)
+    if rapids.row < 0:                                          # no rapid to check
+        return replace(found, tool_in_rapids=True)
+    distance, line, at = found.distance.copy(), found.line.copy(), found.at.copy()
+    point, exact, asked = found.point.copy(), found.exact.copy(), found.clearance_min.copy()
+    distance[0], line[0], at[0] = rapids.distance, int(report.program.source[rapids.row]), rapids.fraction
+    point[0], exact[0], asked[0] = rapids.point, rapids.exact, -RAPID_TOUCH_MM
+    return replace(found, distance=distance, line=line, at=at, point=point, exact=exact, clearance_min=asked,
+                   tool_in_rapids=True)
 
 
 @dataclass(frozen=True, slots=True)
@@ -435,10 +455,13 @@ def _measure(report: VerifyReport, machine: Machine, triangles: FloatArray, piec
 @dataclass(frozen=True, slots=True)
 class CamPart:
     """The part a program converted from CAM input is verified against: (T, 3, 3) mm triangles (part
-    frame) and the tool length "TL" its IK used (mm, its header's)."""
+    frame), the tool length "TL" its IK used (mm, its header's), its setup, and the tool diameter
+    (mm) its header's ``collision`` entry says its rapids were checked with (0: unknown, the axis)."""
 
     triangles: FloatArray
     tool_length: float
+    setup: Setup
+    tool_diameter: float
 
 
 def with_clearance(report: VerifyReport, machine: Machine, against: RebuiltJob | CamPart, *,
@@ -450,7 +473,7 @@ def with_clearance(report: VerifyReport, machine: Machine, against: RebuiltJob |
     if machine.holder is None:
         return report, f"not measured: machine {machine.name} has no [holder]"
     if isinstance(against, CamPart):
-        found = cam_part_clearance(report, machine, against.triangles, against.tool_length,
+        found = cam_part_clearance(report, machine, against,
                                    clearance_min=1.0 if clearance_min is None else clearance_min)
     else:
         found = part_clearance(report, machine, against, clearance_min=clearance_min)

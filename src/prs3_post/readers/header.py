@@ -248,7 +248,8 @@ class SourceHeader(_HeaderLines):
     tcp_on, tcp_off : tuple of str — the codes that switched its TCP on and off
     counts : SourceCounts | None — what the input held and the program has (None: a program written
         before the header had them, or a header not yet complete)
-    collision : str — the ``collision`` entry convert writes (written, not read back: "" when read)
+    collision : str — the ``collision`` entry convert writes (read back as written, its parentheses as the
+        dialect left them: verify takes the tool diameter its rapids were checked with from it)
     """
 
     version: str
@@ -955,6 +956,7 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
         tool_length_given=length.group(2).lower() == "as given", tolerance=tolerance, angle_tolerance_deg=angle,
         line_numbers=numbers, line_start=start, line_step=step, lines=tuple((k, v[0]) for k, v in found.items()),
         path=path, five_axis=five_axis, tcp_on=tcp_on, tcp_off=tcp_off, counts=counts,
+        collision=found["collision"][1] if "collision" in found else "",
     )
 
 
