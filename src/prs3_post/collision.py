@@ -571,7 +571,7 @@ class _Poses:
 
 def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinders: FloatArray, face: Face | None,
               feed_tips: FloatArray, *, clearance_min: float = 1.0, block: int = 64, refine_max: int = 0,
-              connected: BoolArray | None = None) -> Clearance:
+              connected: BoolArray | None = None, near: float | None = None) -> Clearance:
     """The clearance of the bodies from the part at every pose (part frame), and between connected ones.
 
     Parameters
@@ -588,12 +588,16 @@ def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinder
         the reported minimum (where it stays a bound, ``exact`` says so)
     connected : (S,) bool, optional — pose k is reached from pose k − 1 by a motion to check (the tip
         straight, the axis on its great circle between them); default: the poses alone
+    near : float, optional — mm: the bounds are the exact axis-segment distances (less the radius) from
+        the triangles nearer than this, and the poses are measured against those (default
+        ``clearance_min`` + 2: farther, a body is "over" that)
     """
     tip = np.asarray(tip, dtype=np.float64).reshape(-1, 3)
     axis = np.asarray(axis, dtype=np.float64).reshape(-1, 3)
     triangles = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
     part = _Part.of(triangles, face, clearance_min)
-    poses = _Poses(part, face, _swept(face, feed_tips, float(cylinders[0, 0]) + 1e-6), cylinders, clearance_min)
+    poses = _Poses(part, face, _swept(face, feed_tips, float(cylinders[0, 0]) + 1e-6), cylinders, clearance_min,
+                   near=near)
     linked = np.zeros(len(tip), dtype=bool) if connected is None else np.asarray(connected, dtype=bool).copy()
     if len(linked):
         linked[0] = False
@@ -609,9 +613,9 @@ def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinder
         value = poses.value[:, b]
         if poses.found[b] < clearance_min:              # too close: what was measured (the rest are bounds)
             value = np.where(poses.exact[:, b], value, np.inf)
-        if len(value) and value.min() < np.inf:          # the earliest pose as close as the closest
-            tied = np.flatnonzero(value <= value.min() + _TIE_MM)
-            k = int(tied[np.lexsort((value[tied], poses.origin[tied]))[0]])
+        if len(value) and value.min() < np.inf:          # the earliest pose as close as the closest, a measured
+            tied = np.flatnonzero(value <= value.min() + _TIE_MM)   # one before a bound
+            k = int(tied[np.lexsort((value[tied], poses.origin[tied], ~poses.exact[tied, b]))[0]])
             best[b], where[b], point[b], exact[b] = value[k], poses.origin[k], poses.point[k, b], poses.exact[k, b]
     return Clearance(distance=best, sample=where, point=point, exact=exact)
 
@@ -1093,7 +1097,8 @@ def rapid_tool_clearance(machine: Machine, program: JointProgram, setup: Setup, 
     mine = mine[ok]
     connected = np.concatenate([[False], sampled[mine[1:]] & (np.diff(mine) == 1)])
     found = clearance(triangles, tip[mine], axis[mine], cylinders, None, np.zeros((0, 3)),
-                      clearance_min=RAPID_TOUCH_MM, refine_max=_RAPID_REFINE, connected=connected)
+                      clearance_min=RAPID_TOUCH_MM, refine_max=_RAPID_REFINE, connected=connected,
+                      near=RAPID_TOUCH_MM + REACH_MM)
     if not np.isfinite(found.distance[0]):
         return replace(none, rapids=int(checked.sum()))
     k = int(mine[found.sample[0]])
