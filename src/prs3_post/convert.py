@@ -20,6 +20,7 @@ import glob
 import math
 import multiprocessing
 import os
+import re
 import signal
 import stat
 import time
