@@ -467,3 +467,33 @@ def test_subdividing_a_move_through_the_singularity_stops_at_the_row_cap_naming_
                                  "inserted points: it still strays 134.6 mm / 42.32 deg from the intended one after 9 "
                                  "rounds of bisection (allowed: 0.002 mm, 0.01 deg); the tool axis may pass a "
                                  "singularity")
+
+
+def test_plain_gotos_read_in_bulk_are_the_lines_the_pattern_matches():
+    """The byte pass reads exactly the plain GOTO lines of at most 15 digits a number, each value
+    float(text) to the bit; the rest (longer numbers, spaces, a second CR, 4 numbers) are left to the pattern."""
+    from prs3_post.readers.apt import _PLAIN_GOTO, _plain_gotos
+
+    lines = ["GOTO/1,-2.5,+.5", "GOTO/1.,2,3,0,0,1\r", "GOTO/-0,0.000,5,-0.6,0,0.8", "GOTO/1,2,3,4",
+             "GOTO/1,2,3\r\r", "GOTO /1,2,3", "GOTO/1,2,-.", "GOTO/1.5.2,2,3", "FEDRAT/MMPM,600",
+             "GOTO/1,2,1234567890123456", "GOTO/1,2,123456789012345", ""]
+    values, read = _plain_gotos(lines)
+    assert read.tolist() == [True, True, True, False, False, False, False, False, False, False, True, False]
+    assert [_PLAIN_GOTO.match(line) is not None for line in lines][:10] == [True, True, True, False, False,
+                                                                              False, False, False, False, True]
+    expected = [[1, -2.5, 0.5], [1, 2, 3, 0, 0, 1], [-0.0, 0, 5, -0.6, 0, 0.8], [1, 2, 123456789012345]]
+    for row, want in zip(values[read], expected, strict=True):
+        want = np.array(want + [np.nan] * (6 - len(want)))
+        np.testing.assert_array_equal(row, want)
+        np.testing.assert_array_equal(np.signbit(row), np.signbit(want))
+    assert np.isnan(values[~read]).all()
+
+
+def test_a_goto_of_long_numbers_reads_as_one_of_short_ones():
+    """A plain GOTO whose numbers have more than 15 digits goes through the pattern: the same rows."""
+    head = "MULTAX\nFEDRAT/MMPM,600\nGOTO/0,0,0,0,0,1\n"
+    long = parse_cl(head + "GOTO/1.0000000000000000,2,3,0.6000000000000000,0,0.8\n", path="a.cls", tolerance=0.002)
+    short = parse_cl(head + "GOTO/1,2,3,0.6,0,0.8\n", path="a.cls", tolerance=0.002)
+    np.testing.assert_array_equal(long.toolpath.tip, short.toolpath.tip)
+    np.testing.assert_array_equal(long.toolpath.axis, short.toolpath.axis)
+    np.testing.assert_array_equal(long.toolpath.tip[-1], [1.0, 2.0, 3.0])

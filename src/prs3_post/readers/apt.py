@@ -85,10 +85,11 @@ from prs3_post.arcs import MAX_ARC_SEGMENTS, arc_points_3d, arc_segment_count, a
 from prs3_post.cycles import MAX_PECKS, DrillCycle, Pecking, drill_rows, peck_count
 from prs3_post.errors import InputError
 from prs3_post.readers.files import iter_pieces, line_chunks
+from prs3_post.readers.lexer import decimal_numbers
 from prs3_post.readers.stl import MAX_COORDINATE_MM
 from prs3_post.tolerances import FEED_RANGE_MM_MIN
 from prs3_post.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath
-from prs3_post.types import FloatArray
+from prs3_post.types import BoolArray, FloatArray
 from prs3_post.workplane import rotate_rows
 
 __all__ = [
@@ -133,6 +134,107 @@ _RAPID, _FEED = int(MoveKind.RAPID), int(MoveKind.FEED)
 _DECIMAL = r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)"
 _PLAIN_GOTO = re.compile(
     rf"GOTO/({_DECIMAL}),({_DECIMAL}),({_DECIMAL})(?:,({_DECIMAL}),({_DECIMAL}),({_DECIMAL}))?\r?\Z")
+#: Byte codes of :func:`_plain_gotos` (the delimiters of numbers from _GC_DOT on).
+_GC_OTHER, _GC_DIGIT, _GC_SIGN, _GC_PREFIX, _GC_DOT, _GC_COMMA, _GC_SLASH, _GC_CR, _GC_NEWLINE = range(9)
+#: The codes each code may come right after, on a plain GOTO line (a line start is a line end).
+_GOTO_AFTER = {_GC_PREFIX: (_GC_NEWLINE, _GC_PREFIX), _GC_SLASH: (_GC_PREFIX,), _GC_SIGN: (_GC_SLASH, _GC_COMMA),
+               _GC_DIGIT: (_GC_SLASH, _GC_COMMA, _GC_SIGN, _GC_DOT, _GC_DIGIT),
+               _GC_DOT: (_GC_SLASH, _GC_COMMA, _GC_SIGN, _GC_DIGIT), _GC_COMMA: (_GC_DIGIT, _GC_DOT),
+               _GC_CR: (_GC_DIGIT, _GC_DOT), _GC_NEWLINE: (_GC_DIGIT, _GC_DOT, _GC_CR)}
+
+
+def _goto_tables() -> tuple[bytes, BoolArray]:
+    code = np.full(256, _GC_OTHER, dtype=np.uint8)
+    code[ord("0"):ord("9") + 1] = _GC_DIGIT
+    for chars, value in ((b"+-", _GC_SIGN), (b"GOT", _GC_PREFIX), (b".", _GC_DOT), (b",", _GC_COMMA),
+                         (b"/", _GC_SLASH), (b"\r", _GC_CR), (b"\n", _GC_NEWLINE)):
+        code[list(chars)] = value
+    allowed = np.zeros((9, 9), dtype=bool)               # allowed[before, this]
+    for this, before in _GOTO_AFTER.items():
+        allowed[list(before), this] = True
+    pair = np.arange(256 * 9)
+    low, high = pair & 255, pair >> 8
+    pair_bad = np.ones(len(pair), dtype=bool)           # a code pair read as little-endian uint16
+    pair_bad[low < 9] = ~allowed[low[low < 9], high[low < 9]]
+    pair_bad.flags.writeable = False
+    return bytes(code.tolist()), pair_bad
+
+
+_GOTO_CODES, _GOTO_PAIR_BAD = _goto_tables()
+_GOTO_PREFIX = int.from_bytes(b"GOTO/", "little")
+
+
+def _plain_gotos(lines: list[str]) -> tuple[FloatArray, BoolArray]:
+    """The plain GOTO lines of a chunk (:data:`_PLAIN_GOTO`, numbers of at most 15 digits), read in bulk.
+
+    Returns
+    -------
+    values : (N, 6) float — x, y, z, i, j, k of each line read (NaN: no i, j, k; and on lines not read)
+    read : (N,) bool — the line matches :data:`_PLAIN_GOTO` with numbers of at most 15 digits (a plain
+        GOTO with longer numbers is not read here: :data:`_PLAIN_GOTO` reads it)
+
+    How (a few passes over the chunk's bytes, in C, as :func:`~prs3_post.readers.lexer.lex_columns`):
+    each byte is coded (digit, sign, point, comma, slash, CR, line end, a letter of ``GOTO``, other);
+    every byte must be allowed after the one before it on a plain GOTO line (``GOT`` letters after a
+    line start or each other, ``/`` after them; a sign after ``/`` or ``,``; a digit after ``/``, ``,``,
+    a sign, a point or a digit; a point after ``/``, ``,``, a sign or a digit; ``,``, CR and the line
+    end after a digit or a point; a line end also after a CR); the line starts with ``GOTO/``; a
+    number is what follows ``/`` or ``,`` up to the next ``,``, CR or line end: at most one point,
+    with a digit beside it, at most 15 digits; 3 or 6 numbers. Their values: ``float`` of the text.
+    """
+    n = len(lines)
+    if not n:
+        return np.full((0, 6), np.nan), np.zeros(0, dtype=bool)
+    text = ("\n" + "\n".join(lines) + "\n").encode("utf-8", errors="replace")
+    size = len(text)
+    classes = text.translate(_GOTO_CODES)
+    code = np.frombuffer(classes + b"\0", dtype=np.uint8)
+    delimiters = np.flatnonzero(code >= _GC_DOT)
+    kind = code[delimiters]
+    line_end = kind == _GC_NEWLINE
+    ends = delimiters[line_end]                          # ends[k + 1] ends line k
+    padded = np.frombuffer(text + bytes(8), dtype=np.uint8)
+    heads = np.ndarray((size + 1,), dtype="<u8", buffer=padded, strides=(1,))[ends[:-1] + 1]
+    read = (heads & np.uint64(0xFFFFFFFFFF)) == np.uint64(_GOTO_PREFIX)
+    bad = np.zeros(n, dtype=bool)
+    even = np.flatnonzero(_GOTO_PAIR_BAD[np.frombuffer(classes, dtype="<u2", count=size // 2)])
+    odd = np.flatnonzero(_GOTO_PAIR_BAD[np.frombuffer(classes, dtype="<u2", count=(size - 1) // 2, offset=1)])
+    if len(even) or len(odd):
+        bad[np.searchsorted(ends, np.concatenate([2 * even + 1, 2 * odd + 2])) - 1] = True
+    at = np.flatnonzero((kind == _GC_SLASH) | (kind == _GC_COMMA))   # a number follows each
+    word_line = (np.cumsum(line_end, dtype=np.int32) - 1)[at]
+    start = delimiters[at]
+    pointed = kind[at + 1] == _GC_DOT
+    after = at + 1 + pointed
+    stop = delimiters[after]
+    dot = delimiters[at + 1]
+    bad[word_line[pointed & (kind[after] == _GC_DOT)]] = True                          # a second point
+    bad[word_line[pointed & (code[dot - 1] != _GC_DIGIT) & (code[dot + 1] != _GC_DIGIT)]] = True   # a lone point
+    signed = code[start + 1] == _GC_SIGN
+    bad[word_line[stop - start - 1 - signed - pointed > 15]] = True
+    count = np.bincount(word_line, minlength=n)
+    read &= ~bad & ((count == 3) | (count == 6))
+    keep = read[word_line]
+    start, stop, dot, pointed, signed, word_line = (start[keep], stop[keep], dot[keep], pointed[keep], signed[keep],
+                                                    word_line[keep])
+    first_word = np.cumsum(count[read]) - count[read]   # each line read: its first number's index
+    rank = np.arange(len(start)) - np.repeat(first_word, count[read])
+    values = np.full((n, 6), np.nan)
+    minus = np.frombuffer(text, dtype=np.uint8)[start + 1] == ord("-")
+    values.reshape(-1)[word_line * 6 + rank] = decimal_numbers(text, start + 1 + signed, stop, dot, pointed, minus)
+    return values, read
+
+
+def _goto_values(values: FloatArray, run: list[tuple[str | None, ...] | None], run_index: list[int]) -> FloatArray:
+    """(k, 6) the numbers of a run of plain GOTO lines: from ``values`` (:func:`_plain_gotos`) where read
+    in bulk (``run``: None), else ``float`` of the numbers as written (NaN for no i, j, k)."""
+    rows = values[run_index]
+    for k, groups in enumerate(run):
+        if groups is not None:
+            rows[k] = [math.nan if g is None else float(g) for g in groups]
+    return rows
+
+
 #: Records read inside a bulk run of GOTOs (:meth:`_Reader.lines`): a PPRINT (its text: a comment event
 #: between the rows) and a FEDRAT (read by :meth:`_Reader.fedrat` where it stands), neither with a
 #: ``$`` (continuation or comment).
@@ -1132,14 +1234,20 @@ class _Reader:
         """
         assembler = self.assembler
         plain, pprint, fedrat = _PLAIN_GOTO.match, _PLAIN_PPRINT.fullmatch, _PLAIN_FEDRAT.fullmatch
-        run: list[tuple[str | None, ...]] = []
+        values, read = _plain_gotos(lines)
+        is_read = read.tolist()
+        run: list[tuple[str | None, ...] | None] = []  # a GOTO's numbers as written (None: read in bulk)
         run_index: list[int] = []
         marks: list[tuple[int, int]] = []              # (rows of the run before it, line index): PPRINT, FEDRAT
         paints = 0
         bulk = self.arc is None and self.cycle is None and not self.finished and not assembler.pending
         for index, raw in enumerate(lines):
             if bulk:
-                match = plain(raw)
+                if is_read[index]:
+                    run.append(None)
+                    run_index.append(index)
+                    continue
+                match = plain(raw)                       # a plain GOTO of longer numbers
                 if match is not None:
                     run.append(match.groups())
                     run_index.append(index)
@@ -1151,28 +1259,29 @@ class _Reader:
                     marks.append((len(run), index))
                     continue
             if run:
-                self.goto_run(first, lines, run, run_index, marks)
+                self.goto_run(first, lines, _goto_values(values, run, run_index), run_index, marks)
                 run, run_index, marks = [], [], []
             record = assembler.push(first + index, raw)
             if record is not None:
                 self.record(record)
             bulk = self.arc is None and self.cycle is None and not self.finished and not assembler.pending
         if run:
-            self.goto_run(first, lines, run, run_index, marks)
+            self.goto_run(first, lines, _goto_values(values, run, run_index), run_index, marks)
         if paints:
             self.records += paints
             self.by_word["PAINT"] += paints
             self.skipped["PAINT"] += paints
 
-    def goto_run(self, first: int, lines: list[str], run: list[tuple[str | None, ...]], run_index: list[int],
+    def goto_run(self, first: int, lines: list[str], run: FloatArray, run_index: list[int],
                  marks: list[tuple[int, int]] | None = None) -> None:
-        """Plain GOTO lines ``lines[run_index]`` in bulk, with the PPRINT and FEDRAT lines ``marks``
+        """Plain GOTO lines ``lines[run_index]`` in bulk (``run``: (k, 6) their x, y, z, i, j, k as
+        written, NaN where a GOTO has no i, j, k), with the PPRINT and FEDRAT lines ``marks``
         ((GOTOs before it, index into ``lines``)) among them: the same rows, events, counts and errors
         as record by record."""
         marks = marks or []
-        with_axis = np.array([groups[3] is not None for groups in run])
-        tip = np.array([groups[:3] for groups in run], dtype=np.float64) * self.scale
-        given = np.array([groups[3:] for groups in run if groups[3] is not None], dtype=np.float64).reshape(-1, 3)
+        with_axis = ~np.isnan(run[:, 3])
+        tip = run[:, :3] * self.scale
+        given = run[with_axis, 3:]
         i, j, k = given[:, 0], given[:, 1], given[:, 2]
         length = np.sqrt(i * i + j * j + k * k)
         if (not (np.abs(tip) <= MAX_COORDINATE_MM).all() or (with_axis.any() and self.multax_on is False)

@@ -52,7 +52,8 @@ from prs3_post.errors import LexError
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
 __all__ = [
-    "BYTE_ORDER_MARK", "EMPTY", "LINUXCNC_COMMENTS", "NUMBER", "Word", "code_name", "column_pattern", "decode",
+    "BYTE_ORDER_MARK", "EMPTY", "LINUXCNC_COMMENTS", "NUMBER", "Word", "code_name", "column_pattern", "decimal_numbers",
+    "decode",
     "forward_fill", "lex_column_block", "lex_columns", "lex_line",
     "lex_words", "quote", "split_comments",
 ]
@@ -279,7 +280,7 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
     its point (if any) the delimiter right after its letter; each ``.`` has a digit beside it and its
     word no other ``.``, a word has at most 15 digits, and letters are in order: exactly
     :data:`NUMBER` words in the order of ``letters``. The values are made from their digits eight
-    bytes at a time (:func:`_numbers`: ``float`` of the same text, to the bit).
+    bytes at a time (:func:`decimal_numbers`: ``float`` of the same text, to the bit).
     """
     column_pattern(letters)                              # checks the letters
     if not lines:
@@ -363,12 +364,12 @@ def _lex_text(text: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArra
         pointed &= keep
         first = np.where(keep, first, stop)             # no bytes: 0
     values = np.full((n, width), np.nan)
-    values.reshape(-1)[word_line * width + rank] = _numbers(text, first, stop, dot, pointed, minus)
+    values.reshape(-1)[word_line * width + rank] = decimal_numbers(text, first, stop, dot, pointed, minus)
     values[bad] = np.nan
     return values, read, ends
 
 
-def _numbers(text: bytes, first: IntArray, stop: IntArray, dot: IntArray, pointed: BoolArray,
+def decimal_numbers(text: bytes, first: IntArray, stop: IntArray, dot: IntArray, pointed: BoolArray,
              minus: BoolArray) -> FloatArray:
     """The numbers ``text[first[k]:stop[k]]``, each plain decimal digits of at most 15 with at most one
     point (at ``dot[k]`` where ``pointed[k]``), negated where ``minus[k]``: ``float`` of each text.
