@@ -238,3 +238,54 @@ def test_a_converted_program_with_short_lines_verifies_against_its_input(tmp_pat
     assert max(len(line) for line in program.read_text().splitlines()) <= 80
     checked = invoke("verify", str(program), "--against", str(CL_SOURCE))
     assert (checked.exit_code, checked.stdout.splitlines()[-1]) == (0, "OK: within every limit and tolerance")
+
+
+# ----------------------------------------------------------------------------- a converted program's counts
+
+
+@pytest.fixture(scope="module")
+def converted(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
+    if not CL_SOURCE.is_file():
+        pytest.skip("the shared corpus is not here")
+    out = tmp_path_factory.mktemp("converted")
+    made = invoke("convert", str(CL_SOURCE), "-o", str(out), "--part-origin", "0,-17.2,-856")
+    assert made.exit_code == 0, made.stdout + made.stderr
+    return (out / "mech491_APT_SimpleMillPlane.ngc").read_text().splitlines()
+
+
+def _edited(tmp_path: Path, lines: list[str], old: str, new: str | None) -> tuple[Path, int]:
+    """The program with the first line starting with ``old`` replaced (or removed: None); the counts' line."""
+    at = next(i for i, line in enumerate(lines) if line.startswith(old))
+    edited = [*lines[:at], *([] if new is None else [lines[at].replace(old, new, 1)]), *lines[at + 1:]]
+    path = tmp_path / "edited.ngc"
+    path.write_text("\n".join(edited) + "\n")
+    return path, next(i for i, line in enumerate(lines) if line.startswith("(counts: ")) + 1
+
+
+@pytest.mark.parametrize("against", [True, False], ids=["against", "alone"])
+def test_a_converted_program_whose_body_lost_a_line_fails_on_its_counts(tmp_path: Path, converted: list[str],
+                                                                       against: bool) -> None:
+    """A G1 line deleted (M2 still there): verify --against blamed the options; verify alone said OK."""
+    path, line = _edited(tmp_path, converted, "G1 X-272.3120", None)
+    result = invoke("verify", str(path), *(["--against", str(CL_SOURCE)] if against else []))
+    assert (result.exit_code, result.stdout) == (1, "")
+    assert result.stderr == (f"prs3-post: error: {path}:{line}: header: counts: 103 program moves, but the program "
+                             "has 102 motion lines (G0/G1): its body was cut short or edited after it was written\n")
+
+
+@pytest.mark.parametrize(("old", "new", "entry", "again"), [
+    ("(counts: 82 records", "(counts: 81 records", "81 records", "82"),
+    ("(counts: 82 records, 33 moves", "(counts: 82 records, 34 moves", "34 moves", "33"),
+    ("(counts: 82 records, 33 moves, 2 arcs to 70 rows", "(counts: 82 records, 33 moves, 2 arcs to 71 rows",
+     "71 arc rows", "70"),
+    ("(counts: 82 records, 33 moves, 2 arcs to 70 rows, 0 cycle holes to 0 rows, 1 comments",
+     "(counts: 82 records, 33 moves, 2 arcs to 70 rows, 0 cycle holes to 0 rows, 2 comments", "2 comments", "1"),
+])
+def test_a_converted_program_whose_counts_were_edited_fails_against_its_input(
+        tmp_path: Path, converted: list[str], old: str, new: str, entry: str, again: str) -> None:
+    path, line = _edited(tmp_path, converted, old, new)
+    result = invoke("verify", str(path), "--against", str(CL_SOURCE))
+    assert (result.exit_code, result.stdout) == (1, "")
+    assert result.stderr == (f"prs3-post: error: {path}:{line}: header: counts: {entry}, but "
+                             f"mech491_APT_SimpleMillPlane.cls converted again gives {again}: the header was edited, "
+                             "or the program was made from another input or by another version\n")

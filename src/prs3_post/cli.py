@@ -69,6 +69,7 @@ from prs3_post.verify_job import (
     ProgramSetting,
     RebuiltJob,
     check_part,
+    check_program_moves,
     header_job,
     intended_from_poses,
     intended_from_source,
@@ -1326,6 +1327,7 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
         clearance: PartClearance | str | None = None
         if as_json or against_path:
             context = _open_program(*where, open_program)
+            check_program_moves(context.header, len(context.program.moves))
             intended, rebuilt = _intended(ctx, against_path, context, opts) if against_path else (None, None)
             report = verify_loaded(context.program, context.machine, context.setup, context.dialect,
                                    tolerance=tolerance, axis_tolerance_deg=axis_tolerance_deg, intended=intended,

@@ -29,11 +29,19 @@ import numpy as np
 
 from prs3_post.collision import BODY_NAMES, RAPID_TOUCH_MM, body_cylinders, clearance, rapid_tool_clearance
 from prs3_post.config import Dialect, Machine, load_dialect, load_machine, load_source
-from prs3_post.errors import ConfigError, InputError, PoseError, quoted
+from prs3_post.emit.gcode import sanitize_comment
+from prs3_post.errors import ConfigError, InputError, PoseError, Prs3Error, quoted
 from prs3_post.face import Face
 from prs3_post.job import JobResult, JobSpec, run_operations, specs_from_header
 from prs3_post.kinematics import unit_axes
-from prs3_post.readers.header import ProgramHeader, SourceHeader, file_sha256, read_header
+from prs3_post.readers.header import (
+    ProgramHeader,
+    SourceCounts,
+    SourceHeader,
+    file_sha256,
+    read_counts,
+    read_header,
+)
 from prs3_post.readers.poses import read_poses
 from prs3_post.readers.program import CHUNK_LINES, ProgramFile, ProgramStream, load_program
 from prs3_post.setup import Setup
@@ -523,9 +531,49 @@ def intended_from_source(context: ProgramContext, source: str) -> Intended:
         source=load_source(header.five_axis) if header.five_axis else None, tcp_on=header.tcp_on or None,
         tcp_off=header.tcp_off or None,
         line_start=header.line_start, line_step=header.line_step)
-    path = convert_file(source, settings).path
+    check_program_moves(header, len(context.program.moves))
+    conversion = convert_file(source, settings)
+    # the counts as the program's dialect wrote them (a skipped word's comment is sanitized: '%' may read 'PCT')
+    written = read_counts(sanitize_comment(conversion.report.counts().text(), context.dialect.comments))
+    _check_counts(header, written, Path(source).name)
+    path = conversion.path
     feed = np.where(path.kind == MoveKind.FEED, path.feed, np.nan)
     return Intended(tip=path.tip, axis=path.axis, feed=feed, kind=path.kind, label=Path(source).name)
+
+
+def check_program_moves(header: ProgramHeader | SourceHeader | None, moves: int) -> None:
+    """Raise when a converted program's header counts other motion lines than the program has (a body cut
+    short or edited after it was written).
+
+    Raises
+    ------
+    Prs3Error
+        ``PROG:8: header: counts: 103 program moves, but the program has 102 motion lines ...`` (exit 1).
+    """
+    if not isinstance(header, SourceHeader) or header.counts is None:
+        return
+    if header.counts.program_moves != moves:
+        raise Prs3Error(f"{header.path}:{header.line('counts')}: header: counts: {header.counts.program_moves} program "
+                        f"moves, but the program has {moves} motion lines (G0/G1): its body was cut short or edited "
+                        "after it was written")
+
+
+def _check_counts(header: SourceHeader, again: SourceCounts, source_name: str) -> None:
+    """Every count of the header's ``counts`` entry against the same input converted again."""
+    recorded = header.counts
+    if recorded is None or recorded == again:
+        return
+    for field in dataclasses.fields(SourceCounts):
+        said, found = getattr(recorded, field.name), getattr(again, field.name)
+        if said != found:
+            if field.name == "skipped":              # as the entry writes them: "skipped PAINT 36, TOOL PATH 1"
+                said, found = (", ".join(f"{w} {n}" for w, n in v) or "none" for v in (said, found))
+                entry = f"skipped {said}"
+            else:
+                entry = f"{said} {field.name.replace('_', ' ')}"
+            raise Prs3Error(f"{header.path}:{header.line('counts')}: header: counts: {entry}, but {source_name} "
+                            f"converted again gives {found}: the header was edited, or the program was made from "
+                            "another input or by another version")
 
 
 def intended_from_poses(path: str, program: ProgramFile) -> Intended:
@@ -600,6 +648,7 @@ def verify_file(setting: ProgramSetting, *, tolerance: float, axis_tolerance_deg
         verifier.add(chunk)
     if not verifier.rows:
         raise InputError("no moves (G0/G1 lines) in the program", path=setting.path)
+    check_program_moves(setting.header, verifier.rows)
     return verifier.report(blending_lines=stream.blending_lines)
 
 

@@ -865,7 +865,7 @@ _FORMS |= {
 }
 
 
-def _counts(text: str) -> SourceCounts:
+def read_counts(text: str) -> SourceCounts:
     """The ``counts`` entry: the skipped words are split at the commas outside brackets (a word may
     hold a bracketed remark with commas)."""
     found = _match(_COUNTS, text)
@@ -937,7 +937,7 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
         counts = None
         if "counts" in found:
             key = "counts"
-            counts = _counts(found["counts"][1])
+            counts = read_counts(found["counts"][1])
         key = "tolerance"
         tolerances = _match(_SOURCE_TOLERANCE, found["tolerance"][1])
         tolerance, angle = float(tolerances.group(1)), float(tolerances.group(2))
