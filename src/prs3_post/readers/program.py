@@ -61,7 +61,7 @@ from prs3_post.readers.lexer import (
     quote,
     split_comments,
 )
-from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind, join_programs
+from prs3_post.toolpath import Coolant, Event, EventKind, JointProgram, MoveKind, join_programs
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
 __all__ = ["ALLOWED_G", "ALLOWED_M", "CHUNK_LINES", "ProgramFile", "ProgramStream", "load_program", "read_program"]
@@ -615,7 +615,7 @@ class _Reader:
             self.event(EventKind.SPINDLE_OFF)
         coolant = m_codes.get("coolant")
         if coolant in (7, 8):
-            self.event(EventKind.COOLANT_ON, 0.0, "mist" if coolant == 7 else "flood")
+            self.event(EventKind.COOLANT_ON, 0.0, Coolant.from_m_code(coolant).value)
         elif coolant == 9:
             self.event(EventKind.COOLANT_OFF)
         if "dwell" in block.g_codes:
