@@ -10,11 +10,11 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import select
 import signal
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 
 import numpy as np
@@ -462,32 +462,69 @@ def test_the_corpus_folder_with_automatic_placement(tmp_path: Path) -> None:
         assert verified.output.splitlines()[-1] == "OK: within every limit and tolerance", verified.output
 
 
+#: The batch, with each worker's program write held after its first chunk: the worker says so on the
+#: readiness pipe (fd argv[1]) and waits for a signal, so the test interrupts both writes mid-file
+#: every time (it used to poll for temp files with sleeps, and under load a file could finish first).
+_HELD_BATCH = """
+import os, signal, sys
+from prs3_post import convert
+from prs3_post.cli import main
+from prs3_post.output import HeadLast
+
+ready, write_atomic = int(sys.argv[1]), convert.write_atomic
+
+def held(chunks):
+    for number, chunk in enumerate(chunks):
+        yield chunk
+        if number == 0:
+            os.write(ready, b"w")
+            while True:
+                signal.pause()
+
+def holding_write(path, data):
+    if isinstance(data, HeadLast):
+        data = HeadLast(body=held(data.body), head=data.head)
+    else:
+        data = held(data)
+    write_atomic(path, data)
+
+convert.write_atomic = holding_write
+sys.argv[1:] = sys.argv[2:]
+main()
+"""
+
+
 def test_ctrl_c_leaves_no_program_and_no_temp_file(tmp_path: Path) -> None:
-    """SIGINT to the batch's process group (what a terminal's Ctrl-C does) once both workers are writing:
-    no temp file is left, and no program is cut short."""
-    rows = 300_000
-    t = np.arange(rows)
-    lines = np.char.add(np.char.add("GOTO/", np.char.mod("%.4f", 40 * np.sin(t * 1e-3))),
-                        np.char.mod(",%.4f,-1\n", 40 * np.cos(t * 1e-3)))
-    text = "UNITS/MM\nFEDRAT/MMPM,500\nRAPID\nGOTO/0,40,10\n" + "".join(lines.tolist())
+    """SIGINT to the batch's process group (what a terminal's Ctrl-C does) while both workers are writing:
+    no temp file is left, and no program (none was finished)."""
+    text = "UNITS/MM\nFEDRAT/MMPM,500\nRAPID\nGOTO/0,40,10\n" + "".join(
+        f"GOTO/{40 * np.sin(t * 1e-2):.4f},{40 * np.cos(t * 1e-2):.4f},-1\n" for t in range(2000))
     for name in ("a.cls", "b.cls"):
         (tmp_path / name).write_text(text)
     out = tmp_path / "out"
     env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
-    process = subprocess.Popen(
-        [sys.executable, "-c", "from prs3_post.cli import main; main()", "convert", "a.cls", "b.cls", "-o", "out",
-         "--part-origin=0,0,-850", "--jobs", "2"],
-        cwd=tmp_path, env=env, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.monotonic() + 30
-    while time.monotonic() < deadline and len(list(out.glob(".*.tmp")) if out.exists() else []) < 2:
-        time.sleep(0.02)
-    assert process.poll() is None, "the batch ended before it could be interrupted"
+    ready_read, ready_write = os.pipe()
+    try:
+        process = subprocess.Popen(
+            [sys.executable, "-c", _HELD_BATCH, str(ready_write), "convert", "a.cls", "b.cls", "-o", "out",
+             "--part-origin=0,0,-850", "--jobs", "2"],
+            cwd=tmp_path, env=env, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+            pass_fds=(ready_write,))
+        os.close(ready_write)
+        said = b""
+        while len(said) < 2:                           # both workers are inside their write (no timing)
+            if not select.select([ready_read], [], [], 300)[0]:
+                process.kill()
+                pytest.fail("the batch neither wrote nor ended in 300 s")
+            piece = os.read(ready_read, 2 - len(said))
+            assert piece, "the batch ended before both workers were writing: " + process.communicate()[1].decode()
+            said += piece
+    finally:
+        os.close(ready_read)
+    assert len(list(out.glob(".*.tmp"))) == 2          # what the signal must clean up
     os.killpg(process.pid, signal.SIGINT)
-    assert process.wait(timeout=30) != 0
-    left = sorted(os.listdir(out))
-    assert not [name for name in left if name.endswith(".tmp")]
-    # a file that finished in the moment before the signal is whole; none is cut short
-    assert all((out / name).read_text().endswith("\nG94\nM2\n") for name in left)
+    assert process.wait(timeout=60) != 0
+    assert sorted(os.listdir(out)) == []
 
 
 def test_a_report_named_like_a_program_is_refused_before_any_work(tmp_path: Path,
