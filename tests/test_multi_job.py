@@ -259,7 +259,14 @@ def test_job_file_reader_resolves_paths_against_the_file() -> None:
         read_job_file(str(JOBS / "tools.tbl"))
 
 
-def test_a_limit_error_names_the_operation_and_a_placement_for_it_alone(tmp_path: Path) -> None:
+@pytest.mark.parametrize("post_rows", [None, 2])
+def test_a_limit_error_names_the_operation_and_a_placement_for_it_alone(tmp_path: Path, monkeypatch,
+                                                                         post_rows: int | None) -> None:
+    # posted 2 rows at a time, the pieces posted are gone when the error comes: the operation is planned again
+    import prs3_post.job as job_module
+
+    if post_rows is not None:
+        monkeypatch.setattr(job_module, "POST_ROWS", post_rows)
     job = tmp_path / "job.toml"
     text = EXAMPLE.read_text(encoding="utf-8").replace('"../parts/twofaces.stl"', f'"{TWOFACES}"')
     job.write_text(text.replace('"tools.tbl"', f'"{JOBS / "tools.tbl"}"').replace("feed = 400.0", "feed = 400.0\n"

@@ -263,3 +263,22 @@ def test_a_cam_file_streamed_names_its_line_in_a_limit_error(name: str, text: st
         for chunk in reader(name, tolerance=0.002, text=text, chunk_lines=1):
             stream.feed(chunk)
     assert str(caught.value) == f"{name}:5: T1 stroke -524.4730 mm is below the minimum -100.0000 mm by 424.4730 mm"
+
+
+@pytest.mark.parametrize("size", [1, 7, 61, 5000])
+def test_toolpath_pieces_are_the_chunks_owning_their_rows(path: Toolpath, size: int):
+    # the main job cuts its toolpath into pieces that own their rows and drops each once posted
+    from prs3_post.toolpath import toolpath_chunks, toolpath_pieces
+
+    names = ("kind", "tip", "axis", "feed", "source")
+    columns = {name: getattr(path, name).copy() for name in names}
+    pieces = toolpath_pieces(columns, size, events=path.events, source_file=CL)
+    chunks = list(toolpath_chunks(path, size))
+    assert columns == {} and len(pieces) == len(chunks) == math.ceil(len(path) / (size))
+    for piece, chunk in zip(pieces, chunks, strict=True):
+        for name in names:
+            np.testing.assert_array_equal(getattr(piece, name), getattr(chunk, name))
+            assert getattr(piece, name).base is None and not getattr(piece, name).flags.writeable   # owned, frozen
+        assert piece.events == chunk.events and piece.source_file == CL
+    empty = toolpath_pieces({name: getattr(path, name)[:0] for name in names}, 7)
+    assert len(empty) == 1 and len(empty[0]) == 0 and empty[0].tip.shape == (0, 3)

@@ -18,8 +18,9 @@ as text for the CLI to write.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -53,7 +54,7 @@ from prs3_post.toolpath import (
     Toolpath,
     join_programs,
     program_chunks,
-    toolpath_chunks,
+    toolpath_pieces,
 )
 from prs3_post.types import FloatArray
 
@@ -378,12 +379,14 @@ def _ends(first: Toolpath, last: Toolpath) -> Toolpath:
 
 
 def _post_operation(machine: Machine, paths: list[Toolpath], k: int, spec: JobSpec, decimals: int, *, keep: bool,
-                    several: bool) -> _Posted:
+                    several: bool, replan: Callable[[], Toolpath]) -> _Posted:
     """Operation ``k``'s toolpath ``paths[k]`` post-processed whole (``keep``), or POST_ROWS rows at a
-    time into its joint program only, taking the toolpath out of ``paths`` (freed before the program's
-    pieces are joined). The same program, and the same first error: a chunk that fails has the whole
-    path post-processed again, for the error :func:`post_process` raises (its count of bad points is
-    of every row).
+    time into its joint program only: the toolpath is taken out of ``paths`` and cut into pieces that
+    own their rows (:func:`~prs3_post.toolpath.toolpath_pieces`), each dropped once posted, so that
+    the toolpath and its program are not held whole at once. The same program, and the same first
+    error: a chunk that fails has the whole path planned again (``replan``: the toolpath ``paths[k]``
+    was) and post-processed, for the error :func:`post_process` raises (its count of bad points is of
+    every row).
 
     Raises
     ------
@@ -391,36 +394,61 @@ def _post_operation(machine: Machine, paths: list[Toolpath], k: int, spec: JobSp
         As :func:`run_operations` (the setup, and a part origin that fits where there is one).
     """
     path_part = paths[k]
-    if not keep:
-        paths[k] = _NO_ROWS
+    whole = path_part if keep else None                # the toolpath an error is told of (None: planned again)
     try:
         if keep:
             return _Posted.of(post_process(machine, path_part, spec.setup, tolerance=spec.tolerance,
                                            length_decimals=decimals, clamp=spec.clamp))
+        paths[k] = _NO_ROWS
+        labels, file, events = path_part.source_labels, path_part.source_file, path_part.events
+        columns = {name: getattr(path_part, name) for name in ("kind", "tip", "axis", "feed", "source")}
+        del path_part                                  # only `columns` holds the rows: each freed once cut
+        pieces = toolpath_pieces(columns, POST_ROWS, events=events, source_labels=labels, source_file=file)
+        pieces.reverse()                               # popped in order, each freed once posted
         stream = PostStream(machine, spec.setup, tolerance=spec.tolerance, length_decimals=decimals,
                             clamp=spec.clamp)
         programs: list[JointProgram] = []
         first = last = None
         try:
-            for chunk in toolpath_chunks(path_part, POST_ROWS):
-                result = stream.feed(chunk)
+            while pieces:
+                result = stream.feed(pieces.pop())
                 programs.append(result.program)
                 if len(result.path):
                     first = result.path if first is None else first
                     last = result.path
         except (LimitError, ReachError):
-            post_process(machine, path_part, spec.setup, tolerance=spec.tolerance, length_decimals=decimals,
+            whole = replan()
+            post_process(machine, whole, spec.setup, tolerance=spec.tolerance, length_decimals=decimals,
                          clamp=spec.clamp)
             raise                                      # (not reached: the whole path fails too)
     except (LimitError, ReachError) as error:          # say the setup, and one that fits if there is one
+        whole = replan() if whole is None else whole
         if several:                                    # a suggestion would fit this operation alone
-            raise _operation_error(error, machine, path_part, spec, decimals) from error
-        raise placement_error(error, machine, path_part, spec.setup, tolerance=spec.tolerance,
+            raise _operation_error(error, machine, whole, spec, decimals) from error
+        raise placement_error(error, machine, whole, spec.setup, tolerance=spec.tolerance,
                               length_decimals=decimals) from error
-    labels, file = path_part.source_labels, path_part.source_file
     ends = _ends(first, last) if first is not None and last is not None else _NO_ROWS
-    del path_part, first, last, result                # the toolpath goes before the program is joined
+    del first, last, result
     return _Posted(join_programs(programs, source_labels=labels, source_file=file), ends, stream.dynamics, None)
+
+
+def _planned(spec: JobSpec, face: Face, number: int, several: bool) -> Toolpath:
+    """Operation ``number``'s toolpath in part coordinates (:func:`plan`; in a job of ``several``, its
+    steps' labels start with the operation's).
+
+    Raises
+    ------
+    FeatureError
+        As :func:`plan`, naming the operation.
+    """
+    try:
+        path_part = plan(spec, face)
+    except FeatureError as error:                     # say which operation (a job file names it)
+        raise FeatureError(str(error), key=error.key, operation=number) from error
+    if several:
+        label = operation_label(number, spec, face)
+        path_part = replace(path_part, source_labels=tuple(f"{label}, {t}" for t in path_part.source_labels))
+    return path_part
 
 
 def _check(specs: tuple[JobSpec, ...], *, keep: bool
@@ -444,16 +472,12 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
             face, note = select_face(faces, spec.face, min_width=max(MIN_FACE_WIDTH_MM, spec.cutting.tool_diameter))
         except FeatureError as error:                     # about this file's faces: say which file
             raise InputError(str(error), path=spec.part) from error
-        try:
-            path_part = plan(spec, face)
-        except FeatureError as error:                     # say which operation (a job file names it)
-            raise FeatureError(str(error), key=error.key, operation=number) from error
+        path_part = _planned(spec, face, number, several)
         label = operation_label(number, spec, face) if several else ""
-        if several:
-            path_part = replace(path_part, source_labels=tuple(f"{label}, {t}" for t in path_part.source_labels))
         done.append(OperationResult(face=face, face_note=note, path_part=path_part, tool_length=tool_length_of(spec),
                                     label=label))
         del path_part
+    planned = specs                                        # as planned (a toolpath is planned again for an error)
     specs, placement = choose_setup(specs, done, triangles)
     first = specs[0]
     posts: list[_Posted] = []
@@ -463,7 +487,8 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
     for k, spec in enumerate(specs):
         operation = done[k]
         machine = _with_tool_length(spec.machine, operation.tool_length)
-        posted = _post_operation(machine, paths, k, spec, decimals, keep=keep, several=several)
+        posted = _post_operation(machine, paths, k, spec, decimals, keep=keep, several=several,
+                                 replan=partial(_planned, planned[k], done[k].face, k + 1, several))
         try:
             collisions.append(check_program(machine, posted.program, spec.setup, triangles, operation.face,
                                             spec.cutting.tool_diameter, clearance_min=spec.clearance_min)

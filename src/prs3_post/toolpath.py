@@ -326,6 +326,27 @@ def toolpath_chunks(path: Toolpath, rows: int) -> Iterator[Toolpath]:
                        source_labels=path.source_labels, source_file=path.source_file)
 
 
+def toolpath_pieces(columns: dict[str, np.ndarray], rows: int, *, events: tuple[Event, ...] = (),
+                    source_labels: tuple[str, ...] = (), source_file: str = "") -> list[Toolpath]:
+    """The toolpath of ``columns`` (``kind``, ``tip``, ``axis``, ``feed``, ``source``, as
+    :func:`toolpath_from_columns` takes them) cut as :func:`toolpath_chunks` cuts it, each piece
+    owning its rows: the columns are taken out of ``columns`` (left empty) one at a time and freed
+    once cut, so that a long toolpath is held about once, and a caller that drops each piece once
+    it is used frees the toolpath as it goes."""
+    n = len(columns["kind"])
+    spans = [(lo, min(n, lo + rows)) for lo in range(0, max(n, 1), rows)]
+    cut: list[dict[str, np.ndarray]] = [{} for _ in spans]
+    for name in ("kind", "tip", "axis", "feed", "source"):
+        column = columns.pop(name)
+        for piece, (lo, hi) in zip(cut, spans, strict=True):
+            piece[name] = column[lo:hi].copy()
+        del column
+    return [toolpath_from_columns(kind=piece["kind"], tip=piece["tip"], axis=piece["axis"], feed=piece["feed"],
+                                  source=piece["source"], events=_events_of_rows(events, lo, hi, hi == n),
+                                  source_labels=source_labels, source_file=source_file)
+            for piece, (lo, hi) in zip(cut, spans, strict=True)]
+
+
 def program_chunks(program: JointProgram, rows: int) -> Iterator[JointProgram]:
     """``program`` as consecutive pieces of at most ``rows`` rows (at least one piece), events as in
     :func:`toolpath_chunks`; the pieces' columns are views of the program's (nothing is copied), so
