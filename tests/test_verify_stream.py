@@ -12,13 +12,14 @@ from prs3_post.config import load_machine
 from prs3_post.readers.poses import read_poses
 from prs3_post.verify import Intended, verify_program
 from prs3_post.verify_format import report_record, report_text
-from prs3_post.verify_job import open_program, open_setting, read_ahead, verify_file, verify_loaded
+from prs3_post.verify_job import open_program, open_setting, read_ahead, tool_lengths_of, verify_file, verify_loaded
 
 REPO = Path(__file__).resolve().parents[1]
 VERIFY = REPO / "fixtures" / "verify"
 GOLDEN = REPO / "fixtures" / "golden"
 PROGRAMS = [VERIFY / "small.ngc", VERIFY / "tilt_midmove.ngc", VERIFY / "paper_2a_2b.ngc",
-            GOLDEN / "wedge-hole-peck-dwell.ngc", GOLDEN / "wedge-round.ngc", GOLDEN / "twofaces-face6-round-fanuc.nc"]
+            GOLDEN / "wedge-hole-peck-dwell.ngc", GOLDEN / "wedge-round.ngc", GOLDEN / "twofaces-face6-round-fanuc.nc",
+            GOLDEN / "twofaces-job-example.ngc"]
 
 
 def _edited(tmp_path: Path) -> Path:
@@ -42,7 +43,8 @@ def test_text_report_is_the_same_in_chunks_of_1_7_and_10000_lines(name, tmp_path
     path = _edited(tmp_path) if name == "edited" else next(p for p in PROGRAMS if p.name == name)
     setting = open_setting(str(path))
     context = open_program(str(path))
-    whole = verify_loaded(context.program, context.machine, context.setup, context.dialect, tolerance=0.002)
+    whole = verify_loaded(context.program, context.machine, context.setup, context.dialect, tolerance=0.002,
+                          tool_lengths=tool_lengths_of(context.header))     # as verify_file takes them
     expected = report_text(whole, path="p", dialect=context.dialect.name)
     if name == "edited":
         assert not whole.ok and whole.warnings and "FAIL" in expected        # the case has something to say
@@ -113,3 +115,24 @@ def test_read_ahead_stops_its_producer_when_the_consumer_stops():
             break
     count = len(produced)
     assert 6 <= count <= 9                                # at most depth + 2 ahead, and then no more
+
+
+@pytest.mark.parametrize("name", ["twofaces-job-example.ngc", "twofaces-face6-round-fanuc.nc", "wedge-round.ngc"])
+def test_json_report_of_a_job_program_is_the_same_in_chunks_of_7_and_65536_rows(name):
+    """verify --json of the two-face job program (two tools: a tool length per row, as its header says) and of
+    the programs the test above leaves out: every per-move array and value the same for any chunk size."""
+    context = open_program(str(GOLDEN / name))
+    decimals = context.dialect.decimals
+
+    def record(rows: int) -> str:
+        report = verify_program(context.machine, context.program.moves, setup=context.setup, chunk_rows=rows,
+                                blending_lines=context.program.blending_lines,
+                                tool_lengths=tool_lengths_of(context.header), length_decimals=decimals.length,
+                                feed_decimals=decimals.inverse_time)
+        return json.dumps(report_record(report, path="p", dialect=context.dialect.name), allow_nan=False)
+
+    if name == "twofaces-job-example.ngc":
+        assert len(set(tool_lengths_of(context.header).values())) == 2      # the case has two tool lengths
+    expected = record(65536)
+    assert record(7) == expected
+    assert record(1) == expected

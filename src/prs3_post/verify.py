@@ -773,6 +773,7 @@ class Verifier:
         self.machine, self.setup, self.tolerance, self.axis_tolerance = machine, setup, tolerance, axis_tolerance
         self.tool_lengths = tool_lengths or {}
         self.tool_length = machine.geometry.tool_length    # mm, "TL" of the tool in the spindle (before any M6)
+        self.last_tool_length = self.tool_length             # mm, "TL" the previous chunk's last row was cut with
         self.length_decimals, self.feed_decimals, self.intended = length_decimals, feed_decimals, intended
         self.keep_samples = keep_samples or intended is not None
         self.rows = 0                                        # rows added so far
@@ -796,7 +797,8 @@ class Verifier:
                             for e in chunk.events]
             self.program_rows.append({"kind": chunk.kind, "stage": chunk.stage, "strokes": chunk.strokes,
                                       "inverse_time": chunk.inverse_time, "source": chunk.source})
-        if not len(chunk):
+        if not len(chunk):                               # events only (an M6 T line read alone): the tool in
+            self._row_tool_lengths(chunk, carried=False)  # the spindle changes all the same
             return
         carried = self.last is not None
         rows = _rows_of(chunk, 0, len(chunk)) if self.last is None else _join_rows(self.last, chunk)
@@ -839,8 +841,10 @@ class Verifier:
             current = self.tool_lengths.get(int(event.value), self.machine.geometry.tool_length)
             at = min(event.before, len(chunk))
         lengths[at:] = current
-        before = [self.tool_length] if carried else []
+        before = [self.last_tool_length] if carried else []   # an M6 after that row does not move it
         self.tool_length = current
+        if len(lengths):
+            self.last_tool_length = float(lengths[-1])
         return np.concatenate([before, lengths])
 
     def _check(self, rows: JointProgram, rep: Replay, rounding: FloatArray, skip: int, offset: int) -> None:
@@ -1112,7 +1116,10 @@ def _off_chord(rep: Replay, ends_only: bool) -> FloatArray:
     else:
         start_tip = np.take(rep.tip, np.take(end, np.maximum(rep.row - 1, 0)), axis=0)
         end_tip = np.take(rep.tip, np.take(end, rep.row), axis=0)
-    chord_point = start_tip + rep.fraction[:, None] * (end_tip - start_tip)
+    # (1 − t)·start + t·end, not start + t·(end − start): exact at t = 1 (and t = 0), so that a move's end
+    # sample is 0 off its chord whether its chunk has one sample per row or more (chunk sizes agree)
+    fraction = rep.fraction[:, None]
+    chord_point = (1.0 - fraction) * start_tip + fraction * end_tip
     return _norm3(rep.tip - chord_point)
 
 
