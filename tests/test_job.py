@@ -33,7 +33,6 @@ from click.testing import CliRunner
 from conftest import compare_golden
 from numpy.testing import assert_allclose
 
-import prs3_post.cli as cli_module
 import prs3_post.job as job_module
 from prs3_post.cli import main
 from prs3_post.config import Geometry, load_dialect, load_machine
@@ -133,7 +132,7 @@ def invoke_capturing(args: list[str]) -> tuple[object, list[JobResult]]:
     writes chunk by chunk), the JobResult of ``run_job`` on the same spec (every row's pose, IK and
     limits), whose program and text must be the CLI's."""
     captured: list[JobResult] = []
-    real = cli_module.check_job
+    real = job_module.check_job                # the CLI imports it when the main job runs
 
     def spy(spec: JobSpec) -> JobProgram:
         with mock.patch.object(job_module, "POST_ROWS", 7):        # posted 7 rows at a time: the same program
@@ -144,7 +143,7 @@ def invoke_capturing(args: list[str]) -> tuple[object, list[JobResult]]:
         captured.append(result)
         return job
 
-    with mock.patch.object(cli_module, "check_job", spy):
+    with mock.patch.object(job_module, "check_job", spy):
         outcome = CliRunner().invoke(main, args, prog_name="prs3-post")
     return outcome, captured
 

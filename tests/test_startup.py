@@ -1,8 +1,11 @@
 """Every command starts fast: the heavy libraries load only in the commands that need them.
 
 trimesh (with networkx and PIL) takes about 200 ms to import, matplotlib 300 ms, shapely 60 ms:
-`ik`, `fk` and `machines` need none of them, and `verify` reads no STL. Each check runs in a fresh
-interpreter, since this test process has long imported everything.
+`ik`, `fk` and `machines` need none of them, and `verify` reads no STL. The package's own heavy
+modules load where they are used too: the main job (with the placement search and the collision
+check) and `convert` (with multiprocessing) cost about 0.1 s of start-up each, which `ik`, `fk`
+and a plain `verify` never need. Each check runs in a fresh interpreter, since this test process
+has long imported everything.
 """
 
 from __future__ import annotations
@@ -10,6 +13,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
@@ -17,6 +21,10 @@ from click.testing import CliRunner
 from prs3_post.cli import main
 
 HEAVY = ("trimesh", "networkx", "PIL", "shapely", "matplotlib", "pygcode")
+#: The package's modules (and the standard library's) that only the main job, convert and
+#: verify --against need.
+JOB_MODULES = ("prs3_post.convert", "prs3_post.job", "prs3_post.placement", "prs3_post.collision",
+               "prs3_post.geometry", "prs3_post.jobfile", "multiprocessing")
 
 _PROBE = """
 import json, sys
@@ -26,13 +34,13 @@ args = json.loads(sys.argv[1])
 if args:
     result = CliRunner().invoke(prs3_post.cli.main, args)
     assert result.exit_code == 0, result.output
-print(json.dumps(sorted({name.split('.')[0] for name in sys.modules} & set(json.loads(sys.argv[2])))))
+print(json.dumps(sorted(set(sys.modules) & set(json.loads(sys.argv[2])))))
 """
 
 
-def _loaded_after(args: list[str]) -> list[str]:
-    """The HEAVY top-level packages a fresh interpreter holds after importing the CLI and running ``args``."""
-    done = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(args), json.dumps(HEAVY)],
+def _loaded_after(args: list[str], modules: tuple[str, ...] = HEAVY) -> list[str]:
+    """The ``modules`` a fresh interpreter holds after importing the CLI and running ``args``."""
+    done = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(args), json.dumps(modules)],
                           capture_output=True, text=True, check=False)
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout)
@@ -48,11 +56,18 @@ def test_importing_the_cli_loads_no_heavy_library():
     ["machines"],
 ], ids=["ik", "fk", "machines"])
 def test_kinematics_commands_load_no_heavy_library(args):
-    assert _loaded_after(args) == []
+    assert _loaded_after(args, HEAVY + JOB_MODULES) == []
 
 
 def test_verify_loads_no_heavy_library(tmp_path):
     program = tmp_path / "hole.ngc"
     made = CliRunner().invoke(main, ["demo", "--profile", "hole", "-o", str(program)])
     assert made.exit_code == 0, made.output
-    assert _loaded_after(["verify", str(program)]) == []
+    assert _loaded_after(["verify", str(program)], HEAVY + JOB_MODULES) == []
+
+
+def test_convert_loads_no_plotting_or_mesh_library(tmp_path):
+    """A G-code file converted without a part: no matplotlib, trimesh or shapely."""
+    source = Path(__file__).resolve().parents[1] / "fixtures" / "gcode" / "wedge-face-3axis.ngc"
+    args = ["convert", str(source), "-o", str(tmp_path), "--part-origin=-60.9,-10.9,-745.0", "--jobs", "1"]
+    assert _loaded_after(args) == []

@@ -18,74 +18,48 @@ import sys
 import warnings
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 import numpy as np
 
 from prs3_post import __version__
-from prs3_post.collision import rapid_diameter_from_entry
-from prs3_post.config import Machine, load_dialect, load_machine, load_source, postproc_dir, shipped_names
-from prs3_post.convert import (
-    EXISTS,
-    FORMATS,
-    ConvertSettings,
-    FileOutcome,
-    batch_summary,
-    collect_inputs,
-    convert_batch,
-    default_jobs,
-    outcome_line,
-    output_path,
-    prepare_outdir,
+from prs3_post.config import (
+    DEFAULT_DIALECT,
+    DEFAULT_MACHINE,
+    Machine,
+    load_dialect,
+    load_machine,
+    load_source,
+    postproc_dir,
+    shipped_names,
 )
 from prs3_post.errors import ConfigError, FeatureError, InputError, Prs3Error, Prs3Warning, ReachError, quoted
-from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
-from prs3_post.job import HoleJob, JobProgram, JobSpec, Operation, ProfileJob, check_job, check_operations
-from prs3_post.jobfile import OPERATION_KEYS, JobFile, read_job_file
 from prs3_post.kinematics import IKModel, forward, inverse, unit_axes
 from prs3_post.limits import check_limits
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
 from prs3_post.ops.common import require_tolerance
+from prs3_post.ops.work import HoleJob, Operation, ProfileJob
 from prs3_post.output import check_writable, is_stdout, refuse_overwriting, stdout_error, write_atomic, write_outputs
-from prs3_post.placement import AUTO, Placement
-from prs3_post.readers.header import ProgramHeader, SourceHeader
+from prs3_post.readers.detect import FORMATS
 from prs3_post.readers.lexer import code_name
-from prs3_post.readers.program import read_program
 from prs3_post.readers.stl import UP_ROTATION, load_part
-from prs3_post.readers.tooltable import ToolTable, read_tool_table
-from prs3_post.setup import Setup, SetupError
+from prs3_post.setup import AUTO, Setup, SetupError
 from prs3_post.tables import fk_records, fk_text, ik_records, ik_text
 from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_TOLERANCE
-from prs3_post.verify import Intended
-from prs3_post.verify_format import report_record, report_text
-from prs3_post.verify_job import (
-    DEFAULT_DIALECT,
-    DEFAULT_MACHINE,
-    CamPart,
-    HeaderConflict,
-    PartClearance,
-    ProgramContext,
-    ProgramSetting,
-    RebuiltJob,
-    check_part,
-    check_program_moves,
-    header_job,
-    intended_from_poses,
-    intended_from_source,
-    open_program,
-    open_setting,
-    preview_bytes,
-    rebuild_job,
-    tool_lengths_of,
-    verify_file,
-    verify_loaded,
-    with_clearance,
-)
-from prs3_post.workplane import WorkPlaneError, work_plane_from_text
+
+# What only some commands need is imported where it is used (the main job, convert, verify, preview,
+# faces: each about 0.1 s of imports), so that `ik`, `fk` and a small `verify` start fast.
+if TYPE_CHECKING:
+    from prs3_post.convert import FileOutcome
+    from prs3_post.job import JobProgram, JobSpec
+    from prs3_post.jobfile import JobFile
+    from prs3_post.readers.tooltable import ToolTable
+    from prs3_post.verify import Intended
+    from prs3_post.verify_job import CamPart, ProgramContext, ProgramSetting, RebuiltJob
 
 #: What _open_program opens: the whole program, or only what it was made for.
-_Opened = TypeVar("_Opened", ProgramContext, ProgramSetting)
+_Opened = TypeVar("_Opened", "ProgramContext", "ProgramSetting")
 
 # ----------------------------------------------------------------------------- helpers
 
@@ -720,6 +694,11 @@ def _refuse_unused_options(profile: str) -> None:
 
 def _run_job(part: str, **opts: Any) -> int:
     """Build the JobSpec from the options, check the job, write the program (and its preview)."""
+    from prs3_post.job import check_job
+    from prs3_post.placement import Placement
+    from prs3_post.readers.program import read_program
+    from prs3_post.verify_job import preview_bytes
+
     _refuse_unused_options(opts["profile"])
     spec = _job_spec(part, opts)
     fmt = _image_format(opts["preview_path"]) if opts["preview_path"] else None
@@ -801,6 +780,9 @@ def _face_index(choice: str) -> int | None:
 
 def _job_spec(part: str, opts: dict[str, Any]) -> JobSpec:
     """The JobSpec the main job's options describe (also rebuilt by `verify --against PART.stl`)."""
+    from prs3_post.job import JobSpec
+    from prs3_post.readers.tooltable import read_tool_table
+
     operation = Operation(opts["profile"])
     depth = opts["depth"] if opts["depth"] is not None else (5.0 if operation is Operation.HOLE else 2.0)
     face = _face_index(opts["face_choice"])
@@ -920,6 +902,9 @@ def _job_value(param: click.Parameter, value: Any) -> Any:
 def _job_specs(job: JobFile) -> tuple[JobSpec, ...]:
     """Each operation of a job file as the JobSpec its options make (the main job's defaults, then the
     file's top-level settings, then the operation's keys)."""
+    from prs3_post.jobfile import OPERATION_KEYS
+    from prs3_post.readers.tooltable import read_tool_table
+
     params = {p.name: p for p in _job_options(lambda **_: None).__click_params__}  # type: ignore[attr-defined]
     table: ToolTable | None = read_tool_table(job.settings["tool_table"]) if "tool_table" in job.settings else None
     ctx = click.Context(main)
@@ -1006,6 +991,9 @@ def job(job_path: str, out_path: str | None) -> None:
     Example:
       prs3-post job fixtures/jobs/example.toml -o example.ngc
     """
+    from prs3_post.job import check_operations
+    from prs3_post.jobfile import read_job_file
+
 
     def body() -> int:
         job_file = read_job_file(job_path)
@@ -1053,6 +1041,8 @@ def faces(part: str, units: str, up: str, as_json: bool) -> None:
       prs3-post faces part.stl --json
       prs3-post faces angle_block.STL --units inch --up y
     """
+    from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
+
 
     def body() -> int:
         found = find_faces(load_part(part, units=units, up=up))
@@ -1131,6 +1121,8 @@ def _open_program(ctx: click.Context, path: str, machine_name: str, dialect_name
                   opener: Callable[..., _Opened]) -> _Opened:
     """The program (``open_program``), or its setting only (``open_setting``), with the machine, dialect and setup
     of its header, or those given."""
+    from prs3_post.verify_job import HeaderConflict
+
     for value, flag in ((part_origin, "--part-origin"), (part_rotation, "--part-rotation")):
         if value == AUTO:
             raise click.BadParameter("auto chooses the setup when a program is made; a program is read with the "
@@ -1221,6 +1213,17 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext,
     """The intended path of `verify --against`: the job rebuilt from PART.stl and the program's header
     (or, without a header, the options), with that job (for the clearance from the part), or POSES.csv;
     a converted program's CAM input, or its part (PART.stl: the clearance only, no path)."""
+    from prs3_post.collision import rapid_diameter_from_entry
+    from prs3_post.readers.header import SourceHeader
+    from prs3_post.verify_job import (
+        CamPart,
+        HeaderConflict,
+        header_job,
+        intended_from_poses,
+        intended_from_source,
+        rebuild_job,
+    )
+
     suffix = Path(against).suffix.lower()
     if isinstance(context.header, SourceHeader) and suffix == ".stl":   # the part a CAM program cuts
         mesh = load_part(against, units=opts["units"], up=opts["up"])
@@ -1304,6 +1307,18 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
       prs3-post verify sq.ngc --against postproc/parts/patel2020-wedge.stl --json
       prs3-post verify paper_2a_2b.ngc --against paper_2a_2b.csv
     """
+    from prs3_post.verify_format import report_record, report_text
+    from prs3_post.verify_job import (
+        PartClearance,
+        check_program_moves,
+        open_program,
+        open_setting,
+        tool_lengths_of,
+        verify_file,
+        verify_loaded,
+        with_clearance,
+    )
+
 
     def body() -> int:
         ctx = click.get_current_context()
@@ -1392,6 +1407,18 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
       prs3-post preview sq.ngc --part postproc/parts/patel2020-wedge.stl -o sq.png
       prs3-post demo --profile round -o round.ngc --preview round.svg
     """
+    from prs3_post.geometry import find_faces, select_face
+    from prs3_post.readers.header import ProgramHeader
+    from prs3_post.verify_job import (
+        HeaderConflict,
+        check_part,
+        header_job,
+        open_program,
+        preview_bytes,
+        rebuild_job,
+        tool_lengths_of,
+    )
+
 
     def body() -> int:
         ctx = click.get_current_context()
@@ -1505,6 +1532,17 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
       prs3-post convert ../shared/corpus/cl/mech491_APT_SimpleMillPlane.cls -o out --part-origin 0,-17.2,-856
       prs3-post convert cam/ -o out --part-origin auto --jobs 2 --report out/report.json
     """
+    from prs3_post.convert import (
+        ConvertSettings,
+        batch_summary,
+        collect_inputs,
+        convert_batch,
+        default_jobs,
+        outcome_line,
+        output_path,
+        prepare_outdir,
+    )
+    from prs3_post.workplane import WorkPlaneError, work_plane_from_text
 
     def body() -> int:
         require_tolerance(tolerance)
@@ -1564,6 +1602,8 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
 
 def _flag_named(outcome: FileOutcome) -> FileOutcome:
     """A kept program's failure says which option replaces it (the library names no option)."""
+    from prs3_post.convert import EXISTS
+
     if not outcome.exists:
         return outcome
     return dataclasses.replace(outcome, error=f"{outcome.output}: {EXISTS} (convert with --force to replace it)")

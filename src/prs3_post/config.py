@@ -46,6 +46,8 @@ from prs3_post.source import Orientation, Rotary, SourceConvention
 
 __all__ = [
     "AXIS_LETTERS",
+    "DEFAULT_DIALECT",
+    "DEFAULT_MACHINE",
     "TOOL_NUMBER_LIMIT",
     "AxisLetters",
     "CommentStyle",
@@ -67,6 +69,11 @@ __all__ = [
 ]
 
 # ----------------------------------------------------------------------------- shipped files
+
+#: The machine a command uses when none is given (``--machine``; a program without a header is read for it).
+DEFAULT_MACHINE = "patel2020"
+#: The dialect a command uses when none is given (``--dialect``; a program without a header is read in it).
+DEFAULT_DIALECT = "linuxcnc"
 
 
 def postproc_dir() -> Path:

@@ -44,7 +44,7 @@ from prs3_post.output import HeadLast, refuse_overwriting, write_atomic
 from prs3_post.pipeline import PostCounts, PostResult, PostStream, model_for, place_toolpath, program_text
 from prs3_post.placement import place, placement_error
 from prs3_post.readers.apt import ClFile, ClStream, join_toolpaths
-from prs3_post.readers.detect import DETECT_BYTES, detect_format
+from prs3_post.readers.detect import DETECT_BYTES, FORMATS, detect_format
 from prs3_post.readers.files import open_input
 from prs3_post.readers.fivex import FivexStream, check_tcp_codes
 from prs3_post.readers.gcode import GcodeStream
@@ -56,8 +56,6 @@ from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpat
 from prs3_post.types import FloatArray
 from prs3_post.workplane import WorkPlane
 
-#: Input formats: ``auto`` decides by content (:func:`prs3_post.readers.detect.detect_format`).
-FORMATS = ("auto", "cl", "gcode")
 #: File name endings taken from a directory (other files there are left alone). Files named
 #: one by one are read whatever their name.
 CL_SUFFIXES = (".cls", ".clsf", ".cl", ".apt", ".aptsource", ".cldata")

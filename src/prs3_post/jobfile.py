@@ -35,7 +35,7 @@ from typing import Any
 
 from prs3_post.config import _read_toml
 from prs3_post.errors import InputError, quoted
-from prs3_post.placement import AUTO
+from prs3_post.setup import AUTO
 
 #: The keys of an ``[[operation]]`` table: the main job's option names with ``_`` for ``-``
 #: (``face`` for ``--face``, ``tool`` for ``--tool-number``, ``at`` for ``--at``).

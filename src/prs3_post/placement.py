@@ -50,8 +50,6 @@ from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.toolpath import Toolpath
 from prs3_post.types import BoolArray, FloatArray
 
-#: The setup value (an option's or a job file's) that asks :func:`place` to choose the part origin or rotation.
-AUTO = "auto"
 #: A value that moves by less than this (per mm of shift) does not depend on that shift direction.
 _INDEPENDENT = 1e-6
 #: The rotation search, in tenths of a degree: the coarse step, the candidates refined, the steps.

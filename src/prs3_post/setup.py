@@ -21,6 +21,9 @@ from prs3_post.fixed import fixed as _fixed
 from prs3_post.machine import Machine
 from prs3_post.types import FloatArray
 
+#: The setup value (an option's or a job file's) that asks :func:`prs3_post.placement.place` to choose
+#: the part origin or rotation.
+AUTO = "auto"
 #: Largest |origin| component accepted, mm (100 m: no machine of this kind is larger).
 MAX_ORIGIN_MM = 1e5
 #: Largest |rotation| accepted, degrees (a few turns at most is a typo, not a setup).

@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from prs3_post.collision import BODY_NAMES
 from prs3_post.tables import fixed
 from prs3_post.toolpath import EventKind, MoveKind
 from prs3_post.types import FloatArray, IntArray
@@ -122,6 +121,7 @@ def clearance_record(clearance: PartClearance | str | None) -> dict[str, Any] | 
         return None
     if isinstance(clearance, str):
         return {"measured": False, "note": clearance}
+    from prs3_post.collision import BODY_NAMES  # measured: the collision module is loaded already
     bodies = [
         {"body": name, "rapids_only": b == 0 and clearance.tool_in_rapids,
          "distance_mm": _num(clearance.distance[b]), "exact": bool(clearance.exact[b]),
@@ -141,6 +141,7 @@ def _clearance_lines(clearance: PartClearance | str | None) -> list[str]:
         return []
     if isinstance(clearance, str):
         return [f"  clearance from the part: {clearance}"]
+    from prs3_post.collision import BODY_NAMES  # measured: the collision module is loaded already
     held = clearance.clearance_min[1:] if clearance.tool_in_rapids else clearance.clearance_min
     asked = sorted(set(held.tolist()))
     out = [f"  clearance from the part (min {', '.join(f'{v:.3f}' for v in asked)} mm; not counted: "

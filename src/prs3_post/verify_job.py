@@ -27,12 +27,10 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
-from prs3_post.collision import BODY_NAMES, RAPID_TOUCH_MM, body_cylinders, clearance, rapid_tool_clearance
-from prs3_post.config import Dialect, Machine, load_dialect, load_machine, load_source
+from prs3_post.config import DEFAULT_DIALECT, DEFAULT_MACHINE, Dialect, Machine, load_dialect, load_machine, load_source
 from prs3_post.emit.gcode import sanitize_comment
 from prs3_post.errors import ConfigError, InputError, PoseError, Prs3Error, quoted
 from prs3_post.face import Face
-from prs3_post.job import JobResult, JobSpec, run_operations, specs_from_header
 from prs3_post.kinematics import unit_axes
 from prs3_post.readers.header import (
     ProgramHeader,
@@ -50,15 +48,14 @@ from prs3_post.toolpath import MoveKind
 from prs3_post.types import BoolArray, FloatArray, IntArray
 from prs3_post.verify import Intended, Problem, Verifier, VerifyReport, verify_program
 
+# The main job (to rebuild one) and the collision measure load only for `verify --against` and
+# `preview --part`: a plain verify starts without them.
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-_Config = TypeVar("_Config", Machine, Dialect)
+    from prs3_post.job import JobResult, JobSpec
 
-#: The machine a program without a header is read for when none is given.
-DEFAULT_MACHINE = "patel2020"
-#: The dialect a program without a header is read in when none is given.
-DEFAULT_DIALECT = "linuxcnc"
+_Config = TypeVar("_Config", Machine, Dialect)
 
 
 class HeaderConflict(InputError):
@@ -244,6 +241,8 @@ def header_job(context: ProgramContext, part: str) -> tuple[JobSpec, ...]:
     InputError
         No header (the operation must then be given), or not the recorded part.
     """
+    from prs3_post.job import specs_from_header
+
     header = context.header
     if header is None:
         raise InputError("the program has no prs3-post header: the operation it was made with must be given",
@@ -282,6 +281,8 @@ class RebuiltJob:
 def rebuild_job(specs: JobSpec | tuple[JobSpec, ...]) -> RebuiltJob:
     """The job ``specs`` describe made again, without its collision check (the program's own check,
     or its absence, is in its header; :func:`part_clearance` measures the program itself)."""
+    from prs3_post.job import run_operations
+
     specs = specs if isinstance(specs, tuple) else (specs,)
     result = run_operations(tuple(replace(s, collision_check=False) for s in specs))
     path = result.post.path
@@ -329,6 +330,8 @@ class PartClearance:
 
     def problems(self) -> tuple[Problem, ...]:
         """A ``collision`` problem for each body closer to the part than its clearance min, on its line."""
+        from prs3_post.collision import BODY_NAMES, RAPID_TOUCH_MM
+
         out = []
         for b, name in enumerate(BODY_NAMES):
             d, line = float(self.distance[b]), int(self.line[b])
@@ -393,6 +396,8 @@ def cam_part_clearance(report: VerifyReport, machine: Machine, against: CamPart,
     the tool in the rapids only (:func:`~prs3_post.collision.rapid_tool_clearance`, with the diameter
     the program's header states; its feeds cut what the CAM program removes); ``machine``: with the
     IK's tool length "TL"."""
+    from prs3_post.collision import RAPID_TOUCH_MM, rapid_tool_clearance
+
     piece = _Piece(rows=np.ones(len(report.program), dtype=bool), face=None, tool_diameter=0.0,
                    tool_length=against.tool_length, clearance_min=clearance_min)
     found = _measure(report, machine, against.triangles, [piece], clearance_min=clearance_min, describe=None,
@@ -423,6 +428,8 @@ def _measure(report: VerifyReport, machine: Machine, triangles: FloatArray, piec
              clearance_min: float | None, describe: Callable[[int], str] | None, allowance: str) -> PartClearance:
     """Each piece's samples through :func:`~prs3_post.collision.clearance` as
     :func:`~prs3_post.collision.check_program` calls it; the closest per body (relative to its clearance min)."""
+    from prs3_post.collision import body_cylinders, clearance
+
     if machine.holder is None:
         raise ValueError(f"machine {machine.name} has no [holder]")
     rep = report.samples_kept
@@ -764,6 +771,8 @@ def preview_figure(program: ProgramFile, machine: Machine, setup: Setup, *, dial
 def closest_mark(found: PartClearance) -> tuple[FloatArray, str, bool] | None:
     """Where the preview marks the closest approach (part frame, mm), its label, and whether it is a
     collision (closer than the clearance min); None: no body near the part at any pose."""
+    from prs3_post.collision import BODY_NAMES
+
     b = found.worst()
     if not found.line[b]:
         return None

@@ -12,7 +12,10 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["DETECT_BYTES", "detect_format"]
+__all__ = ["DETECT_BYTES", "FORMATS", "detect_format"]
+
+#: Input formats: ``auto`` decides by content (:func:`detect_format`).
+FORMATS = ("auto", "cl", "gcode")
 
 #: Bytes of a file's start that :func:`detect_format` needs at most (callers read this many).
 DETECT_BYTES = 65_536
