@@ -4,6 +4,7 @@ towards a wall 5 mm thick that rises 40 mm above the face's low edge)."""
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -365,3 +366,17 @@ def test_convert_lets_a_rapid_leave_the_face_the_tool_touches_and_states_zero(tm
         "(collision: clear of the part by at least 1.000 mm: tool in rapids 0.000 mm [diameter unknown: its axis, "
         "0 mm radius], not in feeds [it cuts what the CAM program removes], holder 8.635 mm, spindle nose over "
         "11.000 mm)"]
+
+
+def test_the_main_jobs_preview_marks_the_closest_approach_its_check_found(tmp_path):
+    pytest.importorskip("matplotlib")
+    out, image = tmp_path / "far.ngc", tmp_path / "far.svg"
+    result = CliRunner().invoke(main, ["run", str(WALL), "--profile", "hole", "--at", "8.1,0", "-o", str(out),
+                                       "--preview", str(image)])
+    assert result.exit_code == 0, result.output
+    assert _collision_line(out) == ["(collision: clear of the part by at least 1.000 mm: tool over 11.000 mm, "
+                                    "holder 8.637 mm, spindle nose over 11.000 mm)"]
+    assert out.read_text(encoding="utf-8").split("\n")[26] == "G1 X-7.9852 U31.1204 V181.1204 W87.7686 F14.2857"
+    # the SVG's text is drawn as paths, each with its words in a comment: the header's minimum, its line 27
+    assert re.findall(r"<!-- (closest: [^>]*) -->", image.read_text(encoding="utf-8")) == [
+        "closest: holder 8.637 mm clear, line 27"]

@@ -344,3 +344,37 @@ def test_a_bad_job_header_names_its_line_and_entry(old: str, new: str, message: 
     with pytest.raises(InputError) as caught:
         parse_header(header_comments(text.replace(old, new)), path="p.ngc")
     assert str(caught.value) == message
+
+
+def test_the_moves_between_operations_count_in_the_header_of_the_operation_whose_tool_makes_them(tmp_path, monkeypatch):
+    # the example's lift and turn clear the part by more than the 11 mm horizon (each body over it, as the
+    # golden says); here each transition check reports its holder 3 mm and its nose 4 mm from the part
+    # (rows 1 and 2 of its program), as if something stood there: the lift is operation 1's (its tool),
+    # the turn and the way down operation 2's, and each operation's entry is its bodies' minima over both
+    import prs3_post.job as job_module
+    from prs3_post.collision import ProgramClearance
+
+    checked = job_module._check_transition
+    seen = []
+
+    def nearer(*args, **kwargs):
+        found = checked(*args, **kwargs)
+        seen.extend(owner for owner, _ in found)
+        return [(owner, ProgramClearance(distance=np.array([c.distance[0], 3.0 + owner, 4.0 + owner]),
+                                         exact=np.array([c.exact[0], True, True]), row=np.array([c.row[0], 1, 2]),
+                                         point=c.point)) for owner, c in found]
+
+    monkeypatch.setattr(job_module, "_check_transition", nearer)
+    out = tmp_path / "job.ngc"
+    result = run_cli("job", str(EXAMPLE), "-o", str(out))
+    assert result.exit_code == 0, result.output
+    assert seen == [0, 1]                              # the lift (operation 1's tool), the turn and the way down
+    lines = out.read_text(encoding="utf-8").split("\n")
+    at = next(k for k, line in enumerate(lines) if line.startswith("(collision: "))
+    wrapped = [lines[at]] + [line for line in lines[at + 1:at + 3] if line.startswith("(  ")]
+    assert " ".join(line.strip("()").strip() for line in wrapped) == (
+        "collision: operation 1: clear of the part by at least 1.000 mm: tool over 11.000 mm, holder 3.000 mm, "
+        "spindle nose 4.000 mm, operation 2: clear of the part by at least 1.000 mm: tool 9.274 mm, holder 4.000 mm, "
+        "spindle nose 5.000 mm")
+    header = parse_header(header_comments("\n".join(lines)), path=str(out))
+    assert [(op.collision_check, op.clearance_min) for op in header.operations] == [(True, 1.0), (True, 1.0)]

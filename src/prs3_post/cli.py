@@ -718,7 +718,8 @@ def _run_job(part: str, **opts: Any) -> int:
                                stage=spec.machine.stage.present)
         lengths = None if spec.tool_table is None else {spec.cutting.tool_number: job.tool_lengths[0]}
         image = preview_bytes(program, spec.machine, job.setup, fmt, tolerance=spec.tolerance, tool_lengths=lengths,
-                              mesh=job.triangles, face=job.face, title=Path(part).name, dialect=spec.dialect)
+                              mesh=job.triangles, face=job.face, title=Path(part).name, dialect=spec.dialect,
+                              closest=job.closest)
     write_outputs([(out_path, text.data())] + ([] if image is None else [(opts["preview_path"], image)]))
     _report_placement(job)
     if not is_stdout(out_path):

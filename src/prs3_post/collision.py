@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -62,9 +62,9 @@ from prs3_post.setup import Setup
 from prs3_post.toolpath import JointProgram
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
-__all__ = ["BODY_NAMES", "RAPID_TOUCH_MM", "Clearance", "ProgramClearance", "RapidClearance", "body_cylinders",
-           "check_program", "check_rapids", "clearance", "inside", "measure_program", "point_triangle_distance",
-           "rapid_diameter_from_entry", "rapid_tool_clearance"]
+__all__ = ["BODY_NAMES", "RAPID_TOUCH_MM", "Approach", "Clearance", "ProgramClearance", "RapidClearance",
+           "approach_label", "body_cylinders", "check_program", "check_rapids", "clearance", "feed_tips_of",
+           "inside", "measure_program", "point_triangle_distance", "rapid_diameter_from_entry", "rapid_tool_clearance"]
 
 #: The bodies, bottom up.
 BODY_NAMES = ("tool", "holder", "spindle nose")
@@ -695,10 +695,35 @@ class ProgramClearance:
         body's surface points, to the header's 0.001 mm, where it is under the horizon (``exact``);
         else the horizon, ``clearance_min`` + ``REACH_MM`` (the body is farther than that everywhere)
     exact : (3,) bool — the distance is the minimum (else: over the horizon)
+    row : (3,) int — the program row of each exact minimum (its earliest sample; -1: over the horizon)
+    point : (3, 3) float — mm, part frame: the body's point there (zeros where ``row`` is -1)
     """
 
     distance: FloatArray
     exact: BoolArray
+    row: IntArray = field(default_factory=lambda: np.full(3, -1, dtype=np.int64))
+    point: FloatArray = field(default_factory=lambda: np.zeros((3, 3)))
+
+    def merged(self, other: ProgramClearance) -> ProgramClearance:
+        """Each body's smaller clearance of this and ``other`` (rows of the same program; a measured
+        one before a bound it ties)."""
+        take = (other.distance < self.distance) | ((other.distance == self.distance) & other.exact & ~self.exact)
+        return ProgramClearance(distance=np.where(take, other.distance, self.distance),
+                                exact=np.where(take, other.exact, self.exact), row=np.where(take, other.row, self.row),
+                                point=np.where(take[:, None], other.point, self.point))
+
+    def shifted(self, rows: int) -> ProgramClearance:
+        """The same minima in a program where this one's rows start at row ``rows``."""
+        return replace(self, row=np.where(self.row >= 0, self.row + rows, -1))
+
+    def approach(self) -> Approach | None:
+        """The closest of the bodies measured (None: every body over the horizon, or not checked)."""
+        measured = np.flatnonzero(self.exact & (self.row >= 0))
+        if not len(measured):
+            return None
+        b = int(measured[np.argmin(self.distance[measured])])
+        return Approach(body=b, distance=float(self.distance[b]), exact=True, row=int(self.row[b]),
+                        point=self.point[b].copy())
 
     def entry(self, clearance_min: float, *, cam: bool = False, rapids: RapidClearance | None = None) -> str:
         """The header's ``collision`` entry: ``clear of the part by at least 1.000 mm: tool 3.250 mm,
@@ -715,14 +740,49 @@ class ProgramClearance:
         return f"clear of the part by at least {exact_text(clearance_min, 3)} mm: {', '.join(shown)}"
 
 
+@dataclass(frozen=True, slots=True)
+class Approach:
+    """A body's closest approach to the part, where a preview marks it.
+
+    Attributes
+    ----------
+    body : int — index in :data:`BODY_NAMES`
+    distance : float — mm (negative: depth in the part)
+    exact : bool — measured (False: a lower bound, stated as ``over``)
+    row : int — the program row (move) of that pose
+    point : (3,) float — mm, part frame: the body's point there
+    """
+
+    body: int
+    distance: float
+    exact: bool
+    row: int
+    point: FloatArray
+
+    def label(self, line: int) -> str:
+        """``closest: holder 8.637 mm clear, line 27`` (``line``: the program line of :attr:`row`)."""
+        return approach_label(self.body, self.distance, self.exact, line)
+
+
+def approach_label(body: int, distance: float, exact: bool, line: int) -> str:
+    """The preview's words on a closest approach: ``closest: holder 8.637 mm clear, line 27``,
+    ``closest: tool 2.000 mm deep in the part, line 9``."""
+    what = f"{-distance:.3f} mm deep in the part" if distance < 0 else \
+        f"{'over ' if not exact else ''}{distance:.3f} mm clear"
+    return f"closest: {BODY_NAMES[body]} {what}, line {line}"
+
+
 def measure_program(machine: Machine, program: JointProgram, setup: Setup, triangles: FloatArray,
-                    face: Face | None, tool_diameter: float, *, clearance_min: float = 1.0) -> ProgramClearance | str:
+                    face: Face | None, tool_diameter: float, *, clearance_min: float = 1.0,
+                    feed_tips: FloatArray | None = None) -> ProgramClearance | str:
     """Each body's smallest clearance along ``program`` (verify's FK samples and the motion between
     them), streamed: the groups of rows the scan bounds beyond the horizon as a whole
     (:mod:`prs3_post.collision_scan`) are not replayed, the others are replayed and checked
     ``REPLAY_ROWS`` rows at a time, keeping only each body's smallest clearance (:class:`_Stream`),
     so the memory does not grow with the program. Once a body is found too close, the whole program
-    is checked as :func:`clearance` checks it, for the message (its line and depth).
+    is checked as :func:`clearance` checks it, for the message (its line and depth). ``feed_tips``
+    (M, 3) mm, machine frame: the feed tips whose swept region spares the cutting tool (default:
+    this program's; a job's moves between operations: the operation's, :func:`feed_tips_of`).
 
     Returns
     -------
@@ -746,10 +806,11 @@ def measure_program(machine: Machine, program: JointProgram, setup: Setup, trian
     if face is None:
         bodies[0, 2] = bodies[0, 1]                             # the tool: not checked
     triangles = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
-    streamed = _streamed(machine, program, setup, triangles, face, bodies, clearance_min)
+    streamed = _streamed(machine, program, setup, triangles, face, bodies, clearance_min, feed_tips)
     if streamed is not None:
         return streamed
-    sample_row, tip, axis, feed_tips = _replayed(machine, program)
+    sample_row, tip, axis, own_tips = _replayed(machine, program)
+    feed_tips = own_tips if feed_tips is None else feed_tips
     tip, axis = setup.points_to_part(tip), setup.axes_to_part(axis)
     ok = np.asarray(np.isfinite(tip).all(axis=1) & np.isfinite(axis).all(axis=1), dtype=bool)
     linked = ok & np.concatenate([[False], ok[:-1]])          # the motion from the sample before, both known
@@ -766,6 +827,14 @@ def measure_program(machine: Machine, program: JointProgram, setup: Setup, trian
                             exact=result.exact.copy())   # not reached: the stream found a body too close
 
 
+def feed_tips_of(machine: Machine, program: JointProgram) -> FloatArray:
+    """(M, 3) mm, machine frame: the end tips of ``program``'s FEED rows, as :func:`measure_program`
+    draws its swept region from them."""
+    from prs3_post.collision_scan import scan_program
+
+    return scan_program(machine, program, np.eye(3)).feed_tips
+
+
 def _exact(value: float) -> str:
     from prs3_post.readers.header import exact_text
 
@@ -777,14 +846,16 @@ RESOLUTION_MM = 1e-3
 
 
 def _streamed(machine: Machine, program: JointProgram, setup: Setup, triangles: FloatArray, face: Face | None,
-              bodies: FloatArray, clearance_min: float) -> ProgramClearance | None:
+              bodies: FloatArray, clearance_min: float, feed_tips: FloatArray | None = None
+              ) -> ProgramClearance | None:
     """:func:`measure_program`'s streamed check; None once a body is found closer than ``clearance_min``."""
     from prs3_post.collision_scan import scan_program
 
     frame = np.eye(3) if face is None else np.stack([face.u, face.v, face.normal])   # part frame, rows
     scan = scan_program(machine, program, setup.axes_to_part(np.eye(3)) @ frame.T)
     part = _Part.of(triangles, face, clearance_min)
-    region = _swept(face, scan.feed_tips, float(bodies[0, 0]) + 1e-6, setup=setup)
+    region = _swept(face, scan.feed_tips if feed_tips is None else feed_tips, float(bodies[0, 0]) + 1e-6,
+                    setup=setup)
     stream = _Stream(part, face, region, bodies, clearance_min)
     bound = np.full((len(scan.flat), 3), -np.inf)        # each group's bound per body (−inf: none)
     groups = np.flatnonzero(scan.flat)
@@ -877,6 +948,8 @@ class _Stream:
         self.unchecked = cylinders[:, 2] <= cylinders[:, 1]
         self.found = np.full(3, np.inf)
         self.best = np.full(3, np.inf)
+        self.row = np.full(3, -1, dtype=np.int64)         # the row and body point of each ``best``
+        self.point = np.zeros((3, 3))
 
     def add(self, row: IntArray, tip: FloatArray, axis: FloatArray, *, carried: bool) -> bool:
         """Check a piece's samples (part frame; the first one the end of the row before if ``carried``);
@@ -912,7 +985,7 @@ class _Stream:
             if self.unchecked[b]:
                 continue
             value, exact = poses.value[:, b], poses.exact[:, b]
-            self._lower(b, value[samples][exact[samples] & (value[samples] < self.reach)])
+            self._lower(b, poses, samples[exact[samples] & (value[samples] < self.reach)])
             order = samples[~exact[samples] & (value[samples] < self.reach)]
             order = order[np.argsort(value[order], kind="stable")]
             for k in range(0, len(order), block):
@@ -920,15 +993,25 @@ class _Stream:
                 if value[rows[0]] >= min(self.reach, self.best[b] - half):
                     break
                 poses.measure(rows, b, block, reach=self.reach)
-                self._lower(b, poses.value[rows, b][poses.exact[rows, b]])
+                self._lower(b, poses, rows[poses.exact[rows, b]])
 
-    def _lower(self, b: int, measured: FloatArray) -> None:
-        if len(measured):
-            self.best[b] = min(self.best[b], float(np.round(measured.min() / RESOLUTION_MM) * RESOLUTION_MM))
+    def _lower(self, b: int, poses: _Poses, measured: IntArray) -> None:
+        """Lower ``best`` of body ``b`` by the poses ``measured`` (their values exact), keeping the row and
+        the body's point of the minimum: the earliest row of those that round to it."""
+        if not len(measured):
+            return
+        rounded = np.round(poses.value[measured, b] / RESOLUTION_MM) * RESOLUTION_MM
+        low = float(rounded.min())
+        at = measured[rounded == low]
+        k = int(at[np.argmin(poses.origin[at])])
+        row = int(poses.origin[k])
+        if low < self.best[b] or (low == self.best[b] and (self.row[b] < 0 or row < self.row[b])):
+            self.best[b], self.row[b], self.point[b] = low, row, poses.point[k, b]
 
     def result(self) -> ProgramClearance:
         exact = np.isfinite(self.best) & ~self.unchecked
-        return ProgramClearance(distance=np.where(exact, self.best, self.reach), exact=exact)
+        return ProgramClearance(distance=np.where(exact, self.best, self.reach), exact=exact,
+                                row=np.where(exact, self.row, -1), point=np.where(exact[:, None], self.point, 0.0))
 
 
 #: Program rows replayed at a time by :func:`check_program` (the replay's limit tables are what

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from prs3_post import __version__
-from prs3_post.collision import check_program
+from prs3_post.collision import Approach, ProgramClearance, feed_tips_of, measure_program
 from prs3_post.config import Dialect, Machine
 from prs3_post.dynamics import DynamicsTally, dynamics_entry
 from prs3_post.emit.gcode import ProgramEmitter
@@ -151,6 +151,9 @@ class JobResult:
     tool_length : (N,) float — mm, the tool length "TL" the IK used for each row of ``post``
     placement : PlacementResult | None — how the setup was chosen (None: as given)
     dynamics : str — the header's ``dynamics`` entry (cycle time, feeds slowed), for the summary
+    closest : Approach | None — the body that came closest to the part in the collision check (rows of
+        :attr:`program`; relative to each operation's clearance min), for the preview's mark; None: not
+        checked, or every body over the horizon
     """
 
     text: str
@@ -335,6 +338,7 @@ class JobProgram:
     tool_lengths: tuple[float, ...]
     placement: PlacementResult | None = None
     dynamics: str = ""
+    closest: Approach | None = None
 
     def chunks(self, rows: int | None = None) -> Iterator[str]:
         """The program's text, ``rows`` (None: EMIT_ROWS) rows at a time (the header first, the end blocks last): the
@@ -466,7 +470,7 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
     several = len(specs) > 1
     decimals = first.dialect.decimals.length
     done: list[OperationResult] = []
-    collisions: list[str] = []
+    measured: list[ProgramClearance | str | None] = []     # each operation's check (None: not asked)
     for number, spec in enumerate(specs, start=1):
         try:  # automatic selection skips faces narrower than the tool
             face, note = select_face(faces, spec.face, min_width=max(MIN_FACE_WIDTH_MM, spec.cutting.tool_diameter))
@@ -490,17 +494,24 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
         posted = _post_operation(machine, paths, k, spec, decimals, keep=keep, several=several,
                                  replan=partial(_planned, planned[k], done[k].face, k + 1, several))
         try:
-            collisions.append(check_program(machine, posted.program, spec.setup, triangles, operation.face,
+            measured.append(measure_program(machine, posted.program, spec.setup, triangles, operation.face,
                                             spec.cutting.tool_diameter, clearance_min=spec.clearance_min)
-                              if spec.collision_check else "")
+                            if spec.collision_check else None)
         except LimitError as error:
             if placement is None:
                 raise
             raise LimitError(f"{error}; {PLACEMENT_CANNOT_FIX}") from error
         posts.append(posted)
     if several:
-        pieces, lengths = _assemble(specs, done, posts, safe_height(triangles, first.setup, specs), triangles)
+        pieces, lengths, starts, transitions = _assemble(specs, done, posts, safe_height(triangles, first.setup, specs),
+                                                         triangles)
         program = _join_programs([p.program for p in pieces])
+        measured = [m.shifted(start) if isinstance(m, ProgramClearance) else m
+                    for m, start in zip(measured, starts, strict=True)]
+        for k, found in transitions:                   # each body's minimum over the operation's moves and these
+            mine = measured[k]
+            if isinstance(mine, ProgramClearance):
+                measured[k] = mine.merged(found)
     else:
         pieces, lengths, program = posts, [done[0].tool_length], posts[0].program
     sha = file_sha256(first.part)
@@ -508,11 +519,14 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
     entries = with_placement(header_entries(header, done[0].face, description=first.machine.description,
                                             faces=tuple(o.face for o in done) if several else ()), placement)
     dynamics = dynamics_entry(first.machine, program, [p.dynamics for p in posts])
+    collisions = [m.entry(spec.clearance_min) if isinstance(m, ProgramClearance) else m or ""
+                  for m, spec in zip(measured, specs, strict=True)]
     entries += (("dynamics", dynamics), ("collision", _collision_entry(specs, collisions)))
     job = JobProgram(program=program, header=entries, dialect=first.dialect, stage=first.machine.stage.present,
                      line_numbers=first.line_numbers, line_start=first.line_start, line_step=first.line_step,
                      face=done[0].face, face_note=done[0].face_note, setup=first.setup, triangles=triangles,
-                     tool_lengths=tuple(o.tool_length for o in done), placement=placement, dynamics=dynamics)
+                     tool_lengths=tuple(o.tool_length for o in done), placement=placement, dynamics=dynamics,
+                     closest=_closest(measured, specs))
     if not keep:
         return job, None
     fulls = [p.full for p in pieces if p.full is not None]      # keep=True: every piece is kept whole
@@ -581,13 +595,21 @@ def with_placement(entries: tuple[tuple[str, str], ...],
 
 
 def _collision_entry(specs: tuple[JobSpec, ...], found: list[str]) -> str:
-    """The header's ``collision`` entry: each operation's clearances (the moves between operations are
-    checked too, :func:`_check_transition`, and refused when too close; not reported here)."""
+    """The header's ``collision`` entry: each operation's clearances, each body's minimum over its own
+    moves and the moves between operations it owns (:func:`_check_transition`: the lift after it, the
+    turn and the way down to it), as ``verify --against`` groups them."""
     if not any(spec.collision_check for spec in specs):
         return "not checked (asked not to)"
     if len(found) == 1:
         return found[0]
     return "; ".join(f"operation {n}: {text or 'not checked'}" for n, text in enumerate(found, start=1))
+
+
+def _closest(measured: list[ProgramClearance | str | None], specs: tuple[JobSpec, ...]) -> Approach | None:
+    """The body nearest its operation's clearance min over the operations checked (None: none measured)."""
+    found = [(a.distance - spec.clearance_min, a) for m, spec in zip(measured, specs, strict=True)
+             if isinstance(m, ProgramClearance) and (a := m.approach()) is not None]
+    return min(found, key=lambda pair: pair[0])[1] if found else None
 
 
 def _operation_error(error: LimitError | ReachError, machine: Machine, path_part: Toolpath, spec: JobSpec,
@@ -697,11 +719,17 @@ MACHINE_FRAME = Setup((0.0, 0.0, 0.0), 0.0)
 
 
 def _assemble(specs: tuple[JobSpec, ...], done: list[OperationResult], posts: list[_Posted],
-              height: float, triangles: FloatArray | None = None) -> tuple[list[_Posted], list[float]]:
-    """The operations and the transitions between them, in program order, and each piece's tool length
-    (with ``triangles``, the part: each transition is checked against it, :func:`_check_transition`)."""
+              height: float, triangles: FloatArray | None = None
+              ) -> tuple[list[_Posted], list[float], list[int], list[tuple[int, ProgramClearance]]]:
+    """The operations and the transitions between them, in program order, each piece's tool length,
+    each operation's first row in the joined program, and (with ``triangles``, the part: each
+    transition is checked against it, :func:`_check_transition`) each transition's clearances in the
+    joined program's rows, with the operation that owns it (the lift: the one before, the turn and the
+    way down: the next one)."""
     pieces: list[_Posted] = [posts[0]]
     lengths: list[float] = [done[0].tool_length]
+    starts = [0]
+    transitions: list[tuple[int, ProgramClearance]] = []
     decimals = specs[0].dialect.decimals.length
     for k in range(1, len(specs)):
         spec, previous = specs[k], specs[k - 1]
@@ -711,8 +739,12 @@ def _assemble(specs: tuple[JobSpec, ...], done: list[OperationResult], posts: li
             length_decimals=decimals, labels=(f"{done[k - 1].label}, lift to the safe height",
                                               f"{done[k].label}, turn the tool axis at the safe height"))
         if triangles is not None and (previous.collision_check or spec.collision_check):
-            _check_transition(specs[k - 1:k + 1], done[k - 1:k + 1], posts[k - 1].program, lifted, turned,
-                              posts[k].program, triangles)
+            at = sum(len(p.program) for p in pieces)   # the lift's first row (its check's row 1)
+            found = _check_transition(specs[k - 1:k + 1], done[k - 1:k + 1], posts[k - 1].program, lifted, turned,
+                                      posts[k].program, triangles)
+            for owner, clearance in found:           # a check's row j is the joined program's at + j - 1
+                transitions.append((k - 1 + owner, clearance.shifted(at - 1)))
+                at += len(lifted.program) if owner == 0 and lifted is not None else 0
         if lifted is not None:
             pieces.append(_Posted.of(lifted))
             lengths.append(pair[0])
@@ -721,10 +753,11 @@ def _assemble(specs: tuple[JobSpec, ...], done: list[OperationResult], posts: li
         opening = [e for e in body.events if e.before == 0]
         if previous.cutting.tool_number == spec.cutting.tool_number:
             opening = [e for e in opening if e.kind is not EventKind.TOOL_CHANGE]
-        pieces += [_with_events(_Posted.of(turned), tuple(opening)),
-                   _with_events(posts[k], tuple(e for e in body.events if e.before != 0))]
+        pieces += [_with_events(_Posted.of(turned), tuple(opening))]
+        starts.append(sum(len(p.program) for p in pieces))
+        pieces += [_with_events(posts[k], tuple(e for e in body.events if e.before != 0))]
         lengths += [pair[1], pair[1]]
-    return pieces, lengths
+    return pieces, lengths, starts, transitions
 
 
 #: Said after a collision in a setup chosen automatically: an operation's moves all keep the face's
@@ -738,12 +771,13 @@ PLACEMENT_CANNOT_FIX = ("the setup was chosen automatically, but no placement ch
 
 def _check_transition(specs: tuple[JobSpec, ...], operations: list[OperationResult], before: JointProgram,
                       lifted: PostResult | None, turned: PostResult, after: JointProgram,
-                      triangles: FloatArray) -> None:
+                      triangles: FloatArray) -> list[tuple[int, ProgramClearance]]:
     """The moves between two operations against the part (:func:`~prs3_post.collision.check_program`,
     the smaller ``clearance_min`` of the two that ask for the check): the lift with the first tool,
     from the first operation's last row; the turn with the next tool, from the lift's end, and the
     next operation's first row (its way down, from the turn's end: the operation's own check starts
-    at that row's end).
+    at that row's end). Returns each check's clearances (rows of its program: row 0 the row before)
+    with the operation (0 or 1) whose tool it was made with.
 
     Raises
     ------
@@ -753,10 +787,17 @@ def _check_transition(specs: tuple[JobSpec, ...], operations: list[OperationResu
     clearance_min = min(s.clearance_min for s in specs if s.collision_check)
     checks = [] if lifted is None else [(0, [_rows(before, -1), lifted.program])]
     checks.append((1, [_rows(before if lifted is None else lifted.program, -1), turned.program, _rows(after, 0)]))
+    out = []
     for k, parts in checks:
         spec, operation = specs[k], operations[k]
-        check_program(_with_tool_length(spec.machine, operation.tool_length), _join_programs(parts), specs[1].setup,
-                      triangles, operation.face, spec.cutting.tool_diameter, clearance_min=clearance_min)
+        machine = _with_tool_length(spec.machine, operation.tool_length)
+        # the tool spared where the operation whose tool it is cuts (its swept region), as verify groups them
+        found = measure_program(machine, _join_programs(parts), specs[1].setup, triangles, operation.face,
+                                spec.cutting.tool_diameter, clearance_min=clearance_min,
+                                feed_tips=feed_tips_of(machine, before if k == 0 else after))
+        if isinstance(found, ProgramClearance):
+            out.append((k, found))
+    return out
 
 
 def _rows(program: JointProgram, row: int) -> JointProgram:

@@ -53,6 +53,7 @@ from prs3_post.verify import Intended, Problem, Verifier, VerifyReport, verify_p
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
+    from prs3_post.collision import Approach
     from prs3_post.job import JobResult, JobSpec
 
 _Config = TypeVar("_Config", Machine, Dialect)
@@ -732,50 +733,54 @@ def read_ahead(items: Iterable[_Item], depth: int = 2) -> Iterator[_Item]:
 def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str, *,
                   dialect: Dialect, tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None,
                   face: Face | None = None, title: str = "", rapid_rate: float = 5000.0,
-                  tool_lengths: dict[int, float] | None = None, rebuilt: RebuiltJob | None = None) -> bytes:
+                  tool_lengths: dict[int, float] | None = None, rebuilt: RebuiltJob | None = None,
+                  closest: Approach | None = None) -> bytes:
     """Replay a read program and draw it as ``png`` or ``svg`` bytes (:func:`preview_figure`)."""
     from prs3_post.preview import figure_bytes
 
     return figure_bytes(preview_figure(program, machine, setup, dialect=dialect, tolerance=tolerance, mesh=mesh,
                                        face=face, title=title, rapid_rate=rapid_rate, tool_lengths=tool_lengths,
-                                       rebuilt=rebuilt), fmt)
+                                       rebuilt=rebuilt, closest=closest), fmt)
 
 
 def preview_figure(program: ProgramFile, machine: Machine, setup: Setup, *, dialect: Dialect,
                    tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None, face: Face | None = None,
                    title: str = "", rapid_rate: float = 5000.0, tool_lengths: dict[int, float] | None = None,
-                   rebuilt: RebuiltJob | None = None) -> Figure:
+                   rebuilt: RebuiltJob | None = None, closest: Approach | None = None) -> Figure:
     """Replay a read program and draw it (matplotlib is imported here); ``tool_lengths`` as
     :func:`~prs3_post.verify.verify_program`. With the job it was made by (``rebuilt``) and a machine
     with ``[holder]``, the body that comes closest to the part (:func:`part_clearance`, relative to
-    its clearance min) is marked where it does, with its clearance and line."""
+    its clearance min) is marked where it does, with its clearance and line; or, from the check that
+    made the program (the main job's, :attr:`~prs3_post.job.JobProgram.closest`), where ``closest``
+    says (its row is the program's move: the mark names that move's line)."""
     from prs3_post.preview import render_preview
 
     # against the job's path, as `verify --against` replays it: the same samples, the same closest approach
     report = verify_loaded(program, machine, setup, dialect, tolerance=tolerance, tool_lengths=tool_lengths,
                            intended=None if rebuilt is None else rebuilt.intended)
-    closest = None
+    mark = None
     if rebuilt is not None:
         report, found = with_clearance(report, machine, rebuilt)
-        closest = None if isinstance(found, str) else closest_mark(found)
+        mark = None if isinstance(found, str) else closest_mark(found)
+    elif closest is not None:                          # the check made it already: its minimum, not measured again
+        mark = (closest.point, closest.label(int(program.moves.source[closest.row])), False)
     label = "face" if face is None else f"face {face.index} ({math.degrees(face.inclination):.2f}°)"
     heading = f"{title}: " if title else ""
     return render_preview(
         report, machine, mesh=mesh, face_triangles=None if face is None else face.triangles, face_label=label,
         title=f"{heading}{Path(program.path).name}, machine {machine.name}, {len(program.moves)} moves "
               f"({'ok' if report.ok else f'{len(report.problems)} problem' + 's' * (len(report.problems) > 1)})",
-        rapid_rate=rapid_rate, closest=closest,
+        rapid_rate=rapid_rate, closest=mark,
     )
 
 
 def closest_mark(found: PartClearance) -> tuple[FloatArray, str, bool] | None:
     """Where the preview marks the closest approach (part frame, mm), its label, and whether it is a
     collision (closer than the clearance min); None: no body near the part at any pose."""
-    from prs3_post.collision import BODY_NAMES
+    from prs3_post.collision import approach_label
 
     b = found.worst()
     if not found.line[b]:
         return None
     d, asked = float(found.distance[b]), float(found.clearance_min[b])
-    what = f"{-d:.3f} mm deep in the part" if d < 0 else f"{'over ' if not found.exact[b] else ''}{d:.3f} mm clear"
-    return (found.point[b].copy(), f"closest: {BODY_NAMES[b]} {what}, line {found.line[b]}", d < asked)
+    return (found.point[b].copy(), approach_label(b, d, bool(found.exact[b]), int(found.line[b])), d < asked)
