@@ -264,6 +264,31 @@ def test_vectorized_paper_ik_equals_scalar_reference(n):
     assert result.reachable.sum() >= 0.9 * n
 
 
+@pytest.mark.parametrize("n", [0, 1, 5000])
+def test_paper_condition_and_reach_are_the_exact_models_bit_for_bit(n):
+    """The paper model takes the exact model's condition and reachability from its axis part alone:
+    the values of the whole exact IK, bit for bit, in any blocks (a constant-axis stretch, axes
+    tilted past the exact model's reach, one pointing down)."""
+    rng = np.random.default_rng(n + 1)
+    tip, axis = poses_from(rng.uniform(0, 70, n), rng.uniform(0, 360, n),
+                           np.column_stack([rng.uniform(-150, 150, n), rng.uniform(-150, 150, n),
+                                            rng.uniform(-750, -600, n)]))
+    if n > 1:
+        axis[1000:2600] = axis[1000]                            # blocks of one axis (777 rows: two whole ones)
+        axis[7] = -axis[7]                                      # pointing down: NaN, unreachable in both
+    exact = inverse_exact(GEO, tip, axis)
+    joints = paper_joints(GEO, tip, axis)
+    radial = joints[:, :, 0] * np.cos(GEO.leg_azimuth) + joints[:, :, 1] * np.sin(GEO.leg_azimuth)
+    with np.errstate(invalid="ignore"):
+        own = (np.abs((GEO.guide_radius - radial) / GEO.link_length) <= 1.0).all(axis=1)
+    for block_rows in (777, 65536):
+        paper = inverse_paper(GEO, tip, axis, block_rows=block_rows)
+        np.testing.assert_array_equal(paper.condition.view(np.uint64), exact.condition.view(np.uint64))
+        np.testing.assert_array_equal(paper.reachable, own & exact.reachable)
+    if n > 1:
+        assert (own & ~exact.reachable).any() and (~own & exact.reachable).any() and exact.reachable.sum() > n / 2
+
+
 def scalar_fk(strokes, guess):
     """Plain per-point FK: Newton with a finite-difference Jacobian on |S_i - S_j| = q."""
     k, u, q = GEO.guide_radius, GEO.link_length, GEO.platform_radius * math.sqrt(3)

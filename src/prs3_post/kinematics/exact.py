@@ -47,6 +47,7 @@ rows that are not finite or point down come back ``reachable = False`` with NaN 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -146,16 +147,11 @@ def _inverse_block(geometry: Geometry, tip: FloatArray, axis: FloatArray, out: d
     terms of the axis alone once, for its first row, and broadcasts them where the tip comes in:
     the same operations on the same operands as row by row, so the same bits.
     """
-    if len(axis) > 1 and (axis == axis[0]).all():     # NaN rows are never equal: row by row
-        axis = axis[:1]
-    cos_a, sin_a, c3, s3 = _leg_constants(geometry)
-    rp, big_k, link, tool = (
-        geometry.platform_radius, geometry.guide_radius, geometry.link_length, geometry.tool_length
-    )
+    axis = _block_axes(axis)
+    rp, link, tool = geometry.platform_radius, geometry.link_length, geometry.tool_length
     ax, ay, az = axis[:, 0], axis[:, 1], axis[:, 2]
-    c = 1.0 / (1.0 + az)
-    diff = ax * ax - ay * ay
-    cross = ax * ay
+    _, _, c3, s3 = _leg_constants(geometry)
+    terms = c, diff, cross = _axis_terms(axis)
     centre_z = tip[:, 2] + tool * az
     # eq. (2): parasitic centre; stage = target tip - head tip
     half = -0.5 * rp * c
@@ -164,6 +160,41 @@ def _inverse_block(geometry: Geometry, tip: FloatArray, axis: FloatArray, out: d
     out["stage"][:, 0] = tip[:, 0] - (mx - tool * ax)
     out["stage"][:, 1] = tip[:, 1] - (my - tool * ay)
 
+    def leg_angles(leg: int, g: FloatArray, w: FloatArray, sin_t: FloatArray) -> None:
+        out["link_angle"][:, leg] = np.arccos(np.clip(w, -1.0, 1.0))  # clip: |w| > 1 rows are unreachable
+        out["strokes"][:, leg] = -(centre_z - rp * g) - link * sin_t
+
+    out["condition"][:], out["reachable"][:] = _axis_block(geometry, axis, terms, leg_angles)
+
+
+def _block_axes(axis: FloatArray) -> FloatArray:
+    """A block's axes (n, 3), or its first row alone (1, 3) when every row has that axis (the axis
+    terms are then computed once and broadcast: :func:`_inverse_block`)."""
+    if len(axis) > 1 and (axis == axis[0]).all():     # NaN rows are never equal: row by row
+        return axis[:1]
+    return axis
+
+
+def _axis_terms(axis: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """c = 1/(1 + a_z), a_x² − a_y² and a_x·a_y of unit axes (n, 3), each (n,)."""
+    ax, ay, az = axis[:, 0], axis[:, 1], axis[:, 2]
+    return 1.0 / (1.0 + az), ax * ax - ay * ay, ax * ay
+
+
+def _axis_block(geometry: Geometry, axis: FloatArray, terms: tuple[FloatArray, FloatArray, FloatArray],
+                each_leg: Callable[[int, FloatArray, FloatArray, FloatArray], None] | None = None
+                ) -> tuple[FloatArray, BoolArray]:
+    """What the tool axis alone decides, for one block of unit axes (n, 3) and their
+    :func:`_axis_terms`: the condition number (n,) and whether the pose assembles (n,): a_z > 0,
+    |cos θ_i| ≤ 1 for every leg and a finite condition number. ``each_leg(i, a·e_i, cos θ_i,
+    sin θ_i)`` (each (n,)) is called as each leg's terms are made (while they are in the cache:
+    :func:`_inverse_block` finishes the leg there). The tip only moves the platform up and down
+    (the strokes) and the stage, so the paper model's reachability takes this part alone
+    (:func:`~prs3_post.kinematics.paper.inverse_paper`)."""
+    cos_a, sin_a, c3, s3 = _leg_constants(geometry)
+    rp, big_k, link = geometry.platform_radius, geometry.guide_radius, geometry.link_length
+    ax, ay, az = axis[:, 0], axis[:, 1], axis[:, 2]
+    c, diff, cross = terms
     gram = np.zeros((len(axis), 6))                   # J^T J upper triangle: 00 01 02 11 12 22
     gram[:, 0] = 3.0
     jac_x = np.zeros((3, len(axis)))
@@ -179,8 +210,8 @@ def _inverse_block(geometry: Geometry, tip: FloatArray, axis: FloatArray, out: d
         w = (big_k - rp * (1.0 - c * h)) / link        # cos θ_i
         reach &= np.abs(w) <= 1.0
         sin_t = np.sqrt(np.clip(1.0 - w * w, 0.0, None))   # clip: |w| > 1 rows are flagged above
-        out["link_angle"][:, leg] = np.arccos(np.clip(w, -1.0, 1.0))  # clip as above
-        out["strokes"][:, leg] = -(centre_z - rp * g) - link * sin_t
+        if each_leg is not None:
+            each_leg(leg, g, w, sin_t)
         # Jacobian row: dT/dM_z = -1; dT/d(r_p a) = e_i + cot θ_i (c dh/da + h c² a/a_z)
         cot = w / sin_t
         jx = ca + cot * (c * (a_leg * ax + b_leg * ay + 2.0 * g * ca) + h * c2_over_az * ax)
@@ -196,8 +227,8 @@ def _inverse_block(geometry: Geometry, tip: FloatArray, axis: FloatArray, out: d
         + (jac_x[0] * jac_y[2] - jac_x[2] * jac_y[0])
         - (jac_x[0] * jac_y[1] - jac_x[1] * jac_y[0])
     )
-    out["condition"][:] = _condition_from_gram(gram, det_j)
-    out["reachable"][:] = reach & np.isfinite(out["condition"])
+    condition = _condition_from_gram(gram, det_j)
+    return condition, reach & np.isfinite(condition)
 
 
 def _condition_from_gram(gram: FloatArray, det_j: FloatArray) -> FloatArray:

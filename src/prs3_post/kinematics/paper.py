@@ -18,13 +18,26 @@ from __future__ import annotations
 import numpy as np
 
 from prs3_post.kinematics.blocks import BLOCK_ROWS, run_blocks
-from prs3_post.kinematics.exact import IKResult, inverse_exact
+from prs3_post.kinematics.exact import IKResult, _axis_block, _axis_terms, _block_axes
 from prs3_post.machine import Geometry
 from prs3_post.types import FloatArray
 
 
-def _joint(geometry: Geometry, tip: FloatArray, axis: FloatArray, leg: int) -> tuple[FloatArray, ...]:
+def _centre(geometry: Geometry, tip: FloatArray, axis: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """M = tip + TL·a as columns (x, y, z), each (N,) mm (the same for every leg)."""
+    tool = geometry.tool_length
+    return tip[:, 0] + tool * axis[:, 0], tip[:, 1] + tool * axis[:, 1], tip[:, 2] + tool * axis[:, 2]
+
+
+def _branch(axis: FloatArray) -> FloatArray:
+    """(N,) ±1: the sign that puts S_i farther out along e_i (:func:`_joint`; the same for every leg)."""
+    return np.where(-axis[:, 2] >= 0.0, 1.0, -1.0)
+
+
+def _joint(geometry: Geometry, centre: tuple[FloatArray, ...], axis: FloatArray, branch: FloatArray,
+           leg: int) -> tuple[FloatArray, ...]:
     """S_i of one leg as columns (x, y, z), each (N,) mm; NaN where the circle misses the leg's plane.
+    ``centre``: :func:`_centre`; ``branch``: :func:`_branch`.
 
     Written out per component (e = (cos α, sin α, 0), t = (−sin α, cos α, 0), g = a·e, τ = a·t):
     n = t − τa has |n|² = 1 − τ², a × t = g·z − a_z·e has the same length, and e·(a × t) = −a_z,
@@ -33,8 +46,7 @@ def _joint(geometry: Geometry, tip: FloatArray, axis: FloatArray, leg: int) -> t
     alpha = geometry.leg_azimuth[leg]
     ca, sa = np.cos(alpha), np.sin(alpha)
     ax, ay, az = axis[:, 0], axis[:, 1], axis[:, 2]
-    tool = geometry.tool_length
-    mx, my, mz = tip[:, 0] + tool * ax, tip[:, 1] + tool * ay, tip[:, 2] + tool * az   # M = tip + TL·a
+    mx, my, mz = centre
     tau = ay * ca - ax * sa                                   # t·a
     g = ax * ca + ay * sa                                     # a·e
     s2 = 1.0 - tau * tau                                      # |n|² = |a × t|²
@@ -42,7 +54,7 @@ def _joint(geometry: Geometry, tip: FloatArray, axis: FloatArray, leg: int) -> t
     k = tm / s2                                               # foot X0 = M − k·n
     with np.errstate(invalid="ignore"):
         half_chord = np.sqrt(geometry.platform_radius**2 - tm * k)   # |X0 − M|² = tm²/s2
-    step = np.where(-az >= 0.0, 1.0, -1.0) * half_chord / np.sqrt(s2)  # farther out along e_i
+    step = branch * half_chord / np.sqrt(s2)                  # farther out along e_i
     return (mx + k * (sa + tau * ax) - step * az * ca,
             my - k * (ca - tau * ay) - step * az * sa,
             mz + k * tau * az + step * g)
@@ -62,14 +74,16 @@ def paper_joints(geometry: Geometry, tip: FloatArray, axis: FloatArray) -> Float
     """
     tip = np.asarray(tip, dtype=np.float64).reshape(-1, 3)
     axis = np.asarray(axis, dtype=np.float64).reshape(-1, 3)
-    return np.stack([np.column_stack(_joint(geometry, tip, axis, leg)) for leg in range(3)], axis=1)
+    centre, branch = _centre(geometry, tip, axis), _branch(axis)
+    return np.stack([np.column_stack(_joint(geometry, centre, axis, branch, leg)) for leg in range(3)], axis=1)
 
 
 def _paper_block(geometry: Geometry, tip: FloatArray, axis: FloatArray, out: dict[str, FloatArray]) -> None:
-    """Strokes, link angles and reachability of one block (see :func:`inverse_paper`)."""
+    """Strokes, link angles, condition and reachability of one block (see :func:`inverse_paper`)."""
     reach = np.ones(len(tip), dtype=bool)
+    centre, branch = _centre(geometry, tip, axis), _branch(axis)
     for leg in range(3):
-        sx, sy, sz = _joint(geometry, tip, axis, leg)
+        sx, sy, sz = _joint(geometry, centre, axis, branch, leg)
         alpha = geometry.leg_azimuth[leg]
         radial = sx * np.cos(alpha) + sy * np.sin(alpha)
         with np.errstate(invalid="ignore"):
@@ -78,7 +92,11 @@ def _paper_block(geometry: Geometry, tip: FloatArray, axis: FloatArray, out: dic
             cos_t = np.clip(cos_t, -1.0, 1.0)              # clip: flagged above
         out["link_angle"][:, leg] = np.arccos(cos_t)
         out["strokes"][:, leg] = -sz - geometry.link_length * np.sqrt(1.0 - cos_t * cos_t)
-    out["reachable"][:] = reach
+    # the exact model's condition and reachability: its axis part alone (the tip does not change them)
+    axes = _block_axes(axis)
+    condition, exact_reach = _axis_block(geometry, axes, _axis_terms(axes))
+    out["condition"][:] = np.where(exact_reach, condition, np.nan)
+    out["reachable"][:] = reach & exact_reach
 
 
 def inverse_paper(geometry: Geometry, tip: FloatArray, axis: FloatArray, *, block_rows: int = BLOCK_ROWS,
@@ -86,8 +104,9 @@ def inverse_paper(geometry: Geometry, tip: FloatArray, axis: FloatArray, *, bloc
     """The paper's IK: strokes and link angles from independently placed joints; stage X, Y = 0.
 
     ``condition`` is the exact model's at the same tip and axis (the paper's pose is not rigid), and
-    a pose is reachable only where the exact model's is too. Cache-sized blocks on up to two
-    threads, as :func:`~prs3_post.kinematics.exact.inverse_exact`.
+    a pose is reachable only where the exact model's is too: both come from the exact model's part
+    that depends on the axis alone (its strokes, link angles and stage are not computed). Cache-sized
+    blocks on up to two threads, as :func:`~prs3_post.kinematics.exact.inverse_exact`.
 
     Parameters
     ----------
@@ -102,16 +121,16 @@ def inverse_paper(geometry: Geometry, tip: FloatArray, axis: FloatArray, *, bloc
     tip = np.asarray(tip, dtype=np.float64).reshape(-1, 3)
     axis = np.asarray(axis, dtype=np.float64).reshape(-1, 3)
     n = len(tip)
-    out = {"strokes": np.zeros((n, 3)), "link_angle": np.zeros((n, 3)), "reachable": np.zeros(n, dtype=bool)}
+    out = {"strokes": np.zeros((n, 3)), "link_angle": np.zeros((n, 3)), "condition": np.zeros(n),
+           "reachable": np.zeros(n, dtype=bool)}
 
     def kernel(rows: slice) -> None:
         _paper_block(geometry, tip[rows], axis[rows], {k: v[rows] for k, v in out.items()})
 
     run_blocks(kernel, n, block_rows=block_rows, workers=workers)
-    exact = inverse_exact(geometry, tip, axis, block_rows=block_rows, workers=workers)
-    reachable = out["reachable"] & exact.reachable
+    reachable = out["reachable"]
     stage = np.zeros((n, 2))
     for values in (stage, out["strokes"], out["link_angle"]):
         values[~reachable] = np.nan
-    return IKResult(stage=stage, strokes=out["strokes"], link_angle=out["link_angle"], condition=exact.condition,
+    return IKResult(stage=stage, strokes=out["strokes"], link_angle=out["link_angle"], condition=out["condition"],
                     reachable=reachable)
