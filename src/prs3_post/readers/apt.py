@@ -1354,11 +1354,15 @@ class _Reader:
         local = np.frombuffer(self.tip, dtype=np.float64).reshape(-1, 3)
         axis_local = np.frombuffer(self.axis, dtype=np.float64).reshape(-1, 3)
         frame = np.frombuffer(self.frame_of, dtype=np.int64)
-        tip, axis = local.copy(), axis_local.copy()
-        for index in np.unique(frame) if self.apply_msys else ():   # one transform per MSYS, all its rows at once
-            rows = frame == index
-            tip[rows] = self.frames[index].to_part(local[rows])
-            axis[rows] = rotate_rows(axis_local[rows], self.frames[index].rotation)
+        if self.apply_msys and len(frame) and frame[0] == frame[-1] and (frame == frame[0]).all():   # one MSYS
+            one = self.frames[int(frame[0])]
+            tip, axis = one.to_part(local), rotate_rows(axis_local, one.rotation)
+        else:
+            tip, axis = local.copy(), axis_local.copy()
+            for index in np.unique(frame) if self.apply_msys else ():   # one transform per MSYS, its rows at once
+                rows = frame == index
+                tip[rows] = self.frames[index].to_part(local[rows])
+                axis[rows] = rotate_rows(axis_local[rows], self.frames[index].rotation)
         events = tuple(Event(before=e.before - self.chunk_start, kind=e.kind, value=e.value, text=e.text)
                        for e in self.events)
         chunk = Toolpath(kind=np.frombuffer(self.kind, dtype=np.int64), tip=tip, axis=axis,
