@@ -225,13 +225,13 @@ def _plain_gotos(lines: list[str]) -> tuple[FloatArray, BoolArray]:
     return values, read
 
 
-def _goto_values(values: FloatArray, run: list[tuple[str | None, ...] | None], run_index: list[int]) -> FloatArray:
-    """(k, 6) the numbers of a run of plain GOTO lines: from ``values`` (:func:`_plain_gotos`) where read
-    in bulk (``run``: None), else ``float`` of the numbers as written (NaN for no i, j, k)."""
+def _goto_values(values: FloatArray, written: dict[int, tuple[str | None, ...]], run_index: list[int]) -> FloatArray:
+    """(k, 6) the numbers of a run of plain GOTO lines ``run_index``: from ``values`` (:func:`_plain_gotos`)
+    where read in bulk, else (``written``: position in the run → the numbers as written) ``float`` of
+    the text (NaN for no i, j, k)."""
     rows = values[run_index]
-    for k, groups in enumerate(run):
-        if groups is not None:
-            rows[k] = [math.nan if g is None else float(g) for g in groups]
+    for k, groups in written.items():
+        rows[k] = [math.nan if g is None else float(g) for g in groups]
     return rows
 
 
@@ -1235,38 +1235,47 @@ class _Reader:
         assembler = self.assembler
         plain, pprint, fedrat = _PLAIN_GOTO.match, _PLAIN_PPRINT.fullmatch, _PLAIN_FEDRAT.fullmatch
         values, read = _plain_gotos(lines)
-        is_read = read.tolist()
-        run: list[tuple[str | None, ...] | None] = []  # a GOTO's numbers as written (None: read in bulk)
+        # where each stretch of lines read in bulk ends: the first line from each index on not read
+        not_read = np.flatnonzero(~read)
+        stretch_end = np.append(not_read, len(lines))[np.searchsorted(not_read, np.arange(len(lines)))].tolist()
+        written: dict[int, tuple[str | None, ...]] = {}  # position in the run → numbers as written (not read)
         run_index: list[int] = []
         marks: list[tuple[int, int]] = []              # (rows of the run before it, line index): PPRINT, FEDRAT
         paints = 0
         bulk = self.arc is None and self.cycle is None and not self.finished and not assembler.pending
-        for index, raw in enumerate(lines):
+        index, count = 0, len(lines)
+        while index < count:
             if bulk:
-                if is_read[index]:
-                    run.append(None)
-                    run_index.append(index)
+                end = stretch_end[index]
+                if end > index:                          # plain GOTO lines read in bulk, all at once
+                    run_index.extend(range(index, end))
+                    index = end
                     continue
+                raw = lines[index]
                 match = plain(raw)                       # a plain GOTO of longer numbers
                 if match is not None:
-                    run.append(match.groups())
+                    written[len(run_index)] = match.groups()
                     run_index.append(index)
+                    index += 1
                     continue
                 if raw.startswith("PAINT/") and "$" not in raw:
                     paints += 1
+                    index += 1
                     continue
-                if run and (pprint(raw.rstrip("\r")) or fedrat(raw.rstrip("\r"))):
-                    marks.append((len(run), index))
+                if run_index and (pprint(raw.rstrip("\r")) or fedrat(raw.rstrip("\r"))):
+                    marks.append((len(run_index), index))
+                    index += 1
                     continue
-            if run:
-                self.goto_run(first, lines, _goto_values(values, run, run_index), run_index, marks)
-                run, run_index, marks = [], [], []
-            record = assembler.push(first + index, raw)
+            if run_index:
+                self.goto_run(first, lines, _goto_values(values, written, run_index), run_index, marks)
+                written, run_index, marks = {}, [], []
+            record = assembler.push(first + index, lines[index])
             if record is not None:
                 self.record(record)
             bulk = self.arc is None and self.cycle is None and not self.finished and not assembler.pending
-        if run:
-            self.goto_run(first, lines, _goto_values(values, run, run_index), run_index, marks)
+            index += 1
+        if run_index:
+            self.goto_run(first, lines, _goto_values(values, written, run_index), run_index, marks)
         if paints:
             self.records += paints
             self.by_word["PAINT"] += paints
