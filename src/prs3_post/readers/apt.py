@@ -85,7 +85,7 @@ from prs3_post.arcs import MAX_ARC_SEGMENTS, arc_points_3d, arc_segment_count, a
 from prs3_post.cycles import MAX_PECKS, DrillCycle, Pecking, drill_rows, peck_count
 from prs3_post.errors import InputError
 from prs3_post.readers.files import iter_pieces, line_chunks
-from prs3_post.readers.lexer import decimal_numbers
+from prs3_post.readers.lexer import bad_pairs, decimal_numbers
 from prs3_post.readers.stl import MAX_COORDINATE_MM
 from prs3_post.tolerances import FEED_RANGE_MM_MIN
 from prs3_post.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath
@@ -143,7 +143,7 @@ _GOTO_AFTER = {_GC_PREFIX: (_GC_NEWLINE, _GC_PREFIX), _GC_SLASH: (_GC_PREFIX,), 
                _GC_CR: (_GC_DIGIT, _GC_DOT), _GC_NEWLINE: (_GC_DIGIT, _GC_DOT, _GC_CR)}
 
 
-def _goto_tables() -> tuple[bytes, BoolArray]:
+def _goto_tables() -> tuple[bytes, bytes]:
     code = np.full(256, _GC_OTHER, dtype=np.uint8)
     code[ord("0"):ord("9") + 1] = _GC_DIGIT
     for chars, value in ((b"+-", _GC_SIGN), (b"GOT", _GC_PREFIX), (b".", _GC_DOT), (b",", _GC_COMMA),
@@ -152,12 +152,11 @@ def _goto_tables() -> tuple[bytes, BoolArray]:
     allowed = np.zeros((9, 9), dtype=bool)               # allowed[before, this]
     for this, before in _GOTO_AFTER.items():
         allowed[list(before), this] = True
-    pair = np.arange(256 * 9)
-    low, high = pair & 255, pair >> 8
-    pair_bad = np.ones(len(pair), dtype=bool)           # a code pair read as little-endian uint16
-    pair_bad[low < 9] = ~allowed[low[low < 9], high[low < 9]]
-    pair_bad.flags.writeable = False
-    return bytes(code.tolist()), pair_bad
+    pair = np.arange(256)                                # (before << 4) | this, for bad_pairs
+    earlier, later = pair >> 4, pair & 15
+    pair_bad = (earlier > 8) | (later > 8)
+    pair_bad[~pair_bad] = ~allowed[earlier[~pair_bad], later[~pair_bad]]
+    return bytes(code.tolist()), bytes(pair_bad.tolist())
 
 
 _GOTO_CODES, _GOTO_PAIR_BAD = _goto_tables()
@@ -197,10 +196,9 @@ def _plain_gotos(lines: list[str]) -> tuple[FloatArray, BoolArray]:
     heads = np.ndarray((size + 1,), dtype="<u8", buffer=padded, strides=(1,))[ends[:-1] + 1]
     read = (heads & np.uint64(0xFFFFFFFFFF)) == np.uint64(_GOTO_PREFIX)
     bad = np.zeros(n, dtype=bool)
-    even = np.flatnonzero(_GOTO_PAIR_BAD[np.frombuffer(classes, dtype="<u2", count=size // 2)])
-    odd = np.flatnonzero(_GOTO_PAIR_BAD[np.frombuffer(classes, dtype="<u2", count=(size - 1) // 2, offset=1)])
-    if len(even) or len(odd):
-        bad[np.searchsorted(ends, np.concatenate([2 * even + 1, 2 * odd + 2])) - 1] = True
+    wrong = bad_pairs(code[:size], _GOTO_PAIR_BAD, 4)
+    if len(wrong):
+        bad[np.searchsorted(ends, wrong) - 1] = True
     at = np.flatnonzero((kind == _GC_SLASH) | (kind == _GC_COMMA))   # a number follows each
     word_line = (np.cumsum(line_end, dtype=np.int32) - 1)[at]
     start = delimiters[at]

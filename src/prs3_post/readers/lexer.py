@@ -52,8 +52,8 @@ from prs3_post.errors import LexError
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
 __all__ = [
-    "BYTE_ORDER_MARK", "EMPTY", "LINUXCNC_COMMENTS", "NUMBER", "Word", "code_name", "column_pattern", "decimal_numbers",
-    "decode",
+    "BYTE_ORDER_MARK", "EMPTY", "LINUXCNC_COMMENTS", "NUMBER", "Word", "bad_pairs", "code_name", "column_pattern",
+    "decimal_numbers", "decode",
     "forward_fill", "lex_column_block", "lex_columns", "lex_line",
     "lex_words", "quote", "split_comments",
 ]
@@ -319,7 +319,7 @@ def lex_column_block(block: bytes, letters: str) -> tuple[FloatArray, BoolArray,
 def _lex_text(text: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArray]:
     """lex_columns of ``text``: LF, then each line and its LF (every byte not ASCII already one of the
     bytes that no line of the regular shape has); returns values, read and the LF positions (N + 1,)."""
-    code_table, pair_bad = _tables(letters)
+    code_table, pair_table = _tables(letters)
     size = len(text)
     classes = text.translate(code_table)                 # one byte a byte: its class (_CODE_*)
     code = np.frombuffer(classes + b"\0", dtype=np.uint8)         # + a byte after the last line end
@@ -330,12 +330,12 @@ def _lex_text(text: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArra
     ends = delimiters[line_end]                          # ends[k + 1] ends line k
     n, width = len(ends) - 1, len(letters)
     bad = np.zeros(n, dtype=bool)
-    # every byte after byte 0 allowed after the one before it (a line end belongs to the line it ends):
-    # the pairs of codes, read as little-endian uint16 (first byte low)
-    even = np.flatnonzero(pair_bad[np.frombuffer(classes, dtype="<u2", count=size // 2)])
-    odd = np.flatnonzero(pair_bad[np.frombuffer(classes, dtype="<u2", count=(size - 1) // 2, offset=1)])
-    if len(even) or len(odd):
-        bad[np.searchsorted(ends, np.concatenate([2 * even + 1, 2 * odd + 2])) - 1] = True
+    # every byte after byte 0 allowed after the one before it (a line end belongs to the line it ends;
+    # the letters' codes taken as one)
+    letter = np.full(size, _CODE_LETTER, dtype=np.uint8)    # (np.minimum with a scalar is several times slower)
+    wrong = bad_pairs(np.minimum(code[:size], letter), pair_table, 3)
+    if len(wrong):
+        bad[np.searchsorted(ends, wrong) - 1] = True
     at = np.flatnonzero(kind >= _CODE_LETTER)           # the words: a letter up to the next delimiter but a dot
     word_line = (np.cumsum(line_end, dtype=np.int32) - 1)[at]
     start = delimiters[at]
@@ -442,25 +442,37 @@ _AFTER = {_LETTER: (_DIGIT, _DOT, _SPACE, _NEWLINE), _DIGIT: (_LETTER, _MINUS, _
             _NEWLINE: (_DIGIT, _DOT, _SPACE, _NEWLINE), _OTHER: ()}
 
 
+def bad_pairs(codes: npt.NDArray[np.uint8], table: bytes, shift: int) -> IntArray:
+    """The positions k ≥ 1 where the pair of codes ``(codes[k − 1], codes[k])`` is bad: where
+    ``table[codes[k − 1] << shift | codes[k]]`` is 1 (a ``bytes.translate`` table; every code below
+    ``2**shift``, ``shift`` ≤ 4). In C: two byte operations, one translate, one search.
+
+    >>> bad_pairs(np.array([0, 1, 2, 1], dtype=np.uint8), bytes([0, 0, 0, 0, 0, 0, 1] + [0] * 249), 2).tolist()
+    [2]
+    """
+    pairs = codes[:-1] * (1 << shift)                   # (numpy's shift of uint8 is several times slower)
+    pairs |= codes[1:]
+    return np.flatnonzero(np.frombuffer(pairs.tobytes().translate(table), dtype=np.bool_)) + 1
+
+
 @lru_cache(maxsize=32)
-def _tables(letters: str) -> tuple[bytes, BoolArray]:
-    """lex_columns' tables: the bytes.translate table of each byte's code, and the bad pairs of codes
-    (indexed by the pair read as little-endian uint16: first code low)."""
+def _tables(letters: str) -> tuple[bytes, bytes]:
+    """lex_columns' tables: the bytes.translate table of each byte's code, and that of the bad pairs of
+    codes for :func:`bad_pairs` (shift 3, the letters' codes clipped to _CODE_LETTER)."""
     code = np.full(256, _CODE_OTHER, dtype=np.uint8)
     code[ord("0"):ord("9") + 1] = _CODE_DIGIT
     code[ord("-")], code[ord(".")], code[ord(" ")], code[ord("\n")] = _CODE_MINUS, _CODE_DOT, _CODE_SPACE, _CODE_NEWLINE
     for column, letter in enumerate(letters):
         code[ord(letter)] = _CODE_LETTER + column
-    class_of = np.full(256, _OTHER, dtype=np.int8)      # the class of each code
-    class_of[[_CODE_DIGIT, _CODE_MINUS, _CODE_DOT, _CODE_SPACE, _CODE_NEWLINE]] = _DIGIT, _MINUS, _DOT, _SPACE, _NEWLINE
-    class_of[_CODE_LETTER:_CODE_LETTER + len(letters)] = _LETTER
+    class_of = np.full(8, _OTHER, dtype=np.int8)        # the class of each code (clipped)
+    class_of[[_CODE_DIGIT, _CODE_MINUS, _CODE_DOT, _CODE_SPACE, _CODE_NEWLINE, _CODE_LETTER]] = (
+        _DIGIT, _MINUS, _DOT, _SPACE, _NEWLINE, _LETTER)
     allowed = np.zeros((7, 7), dtype=bool)               # allowed[before, this]
     for this, before in _AFTER.items():
         allowed[list(before), this] = True
-    pair = np.arange(256 * (_CODE_LETTER + len(letters)))
-    pair_bad = ~allowed[class_of[pair & 255], class_of[pair >> 8]]
-    pair_bad.flags.writeable = False
-    return bytes(code.tolist()), pair_bad
+    pair = np.arange(64)                                 # (before << 3) | this
+    pair_bad = ~allowed[class_of[pair >> 3], class_of[pair & 7]]
+    return bytes(code.tolist()), bytes(pair_bad.tolist() + [False] * 192)
 
 
 def forward_fill(values: FloatArray) -> FloatArray:
