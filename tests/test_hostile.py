@@ -289,3 +289,49 @@ def test_a_converted_program_whose_counts_were_edited_fails_against_its_input(
     assert result.stderr == (f"prs3-post: error: {path}:{line}: header: counts: {entry}, but "
                              f"mech491_APT_SimpleMillPlane.cls converted again gives {again}: the header was edited, "
                              "or the program was made from another input or by another version\n")
+
+
+# ----------------------------------------------------------------------------- numbers that are not plain
+
+
+POSES_HEADER = "tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n"
+
+
+@pytest.mark.parametrize("cell", ["1_0", "\uff11", "\u0661"])
+def test_a_pose_table_number_is_a_plain_decimal(tmp_path: Path, cell: str) -> None:
+    """float() took '1_0' as 10 and a full-width '１' as 1 (numpy's parser refused them, the careful reader
+    after it did not)."""
+    poses = tmp_path / "p.csv"
+    poses.write_text(f"{POSES_HEADER}{cell},200,-680,0,0,1\n", encoding="utf-8")
+    result = invoke("ik", "--batch", str(poses))
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == f"prs3-post: error: {poses}:2: not a number: '{cell}'\n"
+
+
+def test_a_pose_table_with_spaces_and_crlf_still_reads(tmp_path: Path) -> None:
+    poses = tmp_path / "p.csv"
+    poses.write_bytes(f"{POSES_HEADER}0, 200,-680 ,0,0,1\r\n".encode())
+    result = invoke("ik", "--batch", str(poses))
+    assert result.exit_code == 0, result.stderr
+    assert result.stdout.splitlines()[1].startswith("0.000000000,200.000000000,-680.000000000,")
+
+
+@pytest.mark.parametrize("cell", ["\uff11", "\u0661"])
+def test_a_cl_number_is_made_of_ascii_digits(tmp_path: Path, cell: str) -> None:
+    """GOTO/１,２,-1 was converted as GOTO/1,2,-1 (the record reader's \\d took any digit)."""
+    source = tmp_path / "u.cls"
+    source.write_text(f"UNITS/MM\nFEDRAT/MMPM,100\nRAPID\nGOTO/0,0,5\nGOTO/{cell},2,-1\nFINI\n", encoding="utf-8")
+    result = invoke("convert", str(source), "-o", str(tmp_path / "out"), "--part-origin=0,0,-850")
+    assert result.exit_code == 2
+    assert result.stdout == (f"failed\t{source}\t-\t{source}:5: GOTO/ value 1: '{cell}' is not a number (expected a "
+                             "decimal like -12.5, .5 or 1.5E+02)\n")
+    assert list((tmp_path / "out").iterdir()) == []
+
+
+def test_a_text_file_that_is_not_an_stl_is_shown_as_written(tmp_path: Path) -> None:
+    part = tmp_path / "u.stl"
+    part.write_text("ｓｏｌｉｄ x\n", encoding="utf-8")
+    result = invoke("faces", str(part))
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == (f"prs3-post: error: {part}: not an STL file (expected ASCII 'solid ...' or binary STL): "
+                             "text starting with 'ｓｏｌｉｄ x' instead of 'solid'\n")

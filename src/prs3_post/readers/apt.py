@@ -122,7 +122,7 @@ MIN_FEED_MM_MIN, MAX_FEED_MM_MIN = FEED_RANGE_MM_MIN
 _KNOWN_WORDS = ("GOTO", "FROM", "GOHOME", "RAPID", "FEDRAT", "MULTAX", "TLAXIS", "MSYS", "UNITS", "LOADTL",
                 "LOAD", "SELECT", "TLDATA", "SPINDL", "COOLNT", "CYCLE", "CIRCLE", "PPRINT", "END-OF-PATH",
                 "FINI", "STOP", "OPSTOP")
-_NUMBER_TEXT = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
+_NUMBER_TEXT = r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"   # ASCII digits (\\d takes ١ too)
 _NUMBER = re.compile(rf"{_NUMBER_TEXT}\Z")
 _NUMBER_LIST = re.compile(rf"[ \t]*{_NUMBER_TEXT}[ \t]*(?:,[ \t]*{_NUMBER_TEXT}[ \t]*)*\Z")
 _TRAILER = re.compile(r"Tool Path Listing has \d+ lines\.\Z")

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prs3_post.errors import InputError
+from prs3_post.errors import InputError, quoted
 from prs3_post.readers.files import open_input
 from prs3_post.types import FloatArray, IntArray
 
@@ -159,6 +159,11 @@ def _check_range(table: PoseTable, path: str) -> None:
                          f"within ±{limit:.6g}{unit})", path=path, line=int(table.line[row]))
 
 
+#: A number of a pose table: a plain decimal, as numpy's parser reads it (NaN and infinity: out of range).
+_PLAIN_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|[+-]?(?:nan|inf|infinity)",
+                           re.IGNORECASE)
+
+
 def _parse_careful(lines: list[str], before: int, path: str) -> PoseTable:
     """Line by line with the csv module: finds the first problem and names its line (``before``
     lines of the file come before ``lines``)."""
@@ -170,11 +175,10 @@ def _parse_careful(lines: list[str], before: int, path: str) -> PoseTable:
             continue
         if len(row) != len(POSE_COLUMNS):
             raise InputError(f"expected 6 values ({expected}), got {len(row)}", path=path, line=number)
-        try:
-            values.append([float(cell) for cell in row])
-        except ValueError as exc:
-            message = f"not a number: {exc}".replace("could not convert string to float: ", "")
-            raise InputError(message, path=path, line=number) from exc
+        for cell in row:                   # float() also takes '1_0', '١', ' nan ': only plain decimals here
+            if not _PLAIN_NUMBER.fullmatch(cell.strip(" ")):
+                raise InputError(f"not a number: {quoted(cell)}", path=path, line=number)
+        values.append([float(cell) for cell in row])
         line_numbers.append(number)
     table = np.array(values, dtype=np.float64).reshape(-1, 6)
     return PoseTable(tip=table[:, :3], axis=table[:, 3:], line=np.array(line_numbers, dtype=np.int64))

@@ -199,7 +199,8 @@ def _triangles_from_bytes(data: bytes, where: str) -> FloatArray:
         raise InputError(_NOT_STL + "the file contains only whitespace", path=where)
     first_line = stripped.splitlines()[0].strip()
     if first_line.split()[0].lower() != "solid":
-        raise InputError(_NOT_STL + f"text starting with {_quote(first_line)} instead of 'solid'", path=where)
+        shown = first_line.encode("latin-1").decode("utf-8", "replace")    # as the user's editor shows it
+        raise InputError(_NOT_STL + f"text starting with {_quote(shown)} instead of 'solid'", path=where)
     return _triangles_from_ascii(text, where)
 
 
