@@ -370,7 +370,10 @@ class _Reader:
         to :meth:`line`, with the text of lines ``a:b`` from ``text(a, b)``, their CRLF flags from ``crlf``."""
         g = values[:, 1]
         fast &= np.isnan(g) | (g == 0.0) | (g == 1.0)
-        fast &= ~np.isnan(values[:, 1:]).all(axis=1)   # a G0/G1 or an axis word (not only N, nor blank)
+        some = values[:, 1].copy()                      # a G0/G1 or an axis word (not only N, nor blank): not all
+        for column in range(2, values.shape[1]):         # NaN (column by column: a reduction along each row is slow)
+            np.fmax(some, values[:, column], out=some)
+        fast &= ~np.isnan(some)
         edges = np.flatnonzero(np.diff(fast.astype(np.int8))) + 1
         bounds = [0, *edges.tolist(), len(fast)]
         for a, b in itertools.pairwise(bounds):
