@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -335,3 +336,22 @@ def test_a_text_file_that_is_not_an_stl_is_shown_as_written(tmp_path: Path) -> N
     assert (result.exit_code, result.stdout) == (2, "")
     assert result.stderr == (f"prs3-post: error: {part}: not an STL file (expected ASCII 'solid ...' or binary STL): "
                              "text starting with 'ｓｏｌｉｄ x' instead of 'solid'\n")
+
+
+def test_a_work_plane_stl_is_read_with_up_and_part_units(tmp_path: Path) -> None:
+    """--work-plane PART.stl was always read as mm and z up: a Y-up part had no face that faced up."""
+    import trimesh
+
+    wedge = trimesh.load(str(WEDGE))
+    y_up = wedge.copy()
+    y_up.vertices = np.column_stack([wedge.vertices[:, 0], wedge.vertices[:, 2], -wedge.vertices[:, 1]])
+    y_up.export(str(tmp_path / "wedge_yup.stl"))
+    (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
+    headers = []
+    for plane, extra in ((f"{WEDGE}:4", []), (f"{tmp_path / 'wedge_yup.stl'}:4", ["--up", "y"])):
+        out = tmp_path / f"out{len(headers)}"
+        result = invoke("convert", str(tmp_path / "a.ngc"), "-o", str(out), "--work-plane", plane, *extra)
+        assert result.exit_code == 0, result.stdout + result.stderr
+        headers.append(next(line for line in (out / "a.ngc").read_text().splitlines()
+                            if line.startswith("(work plane: ")))
+    assert headers[1] == headers[0]

@@ -1498,7 +1498,7 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
               help="The part: every program is checked against it before it is written (the holder and the "
                    "spindle nose; the tool cuts what the CAM program removes).  [default: not checked]")
 @click.option("--part-units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True,
-              help="Length unit of the --part STL (--units is the CL files').")
+              help="Length unit of the --part and --work-plane STL (--units is the CL files').")
 @up_option
 @click.option("--collision-check/--no-collision-check", default=True, show_default=True,
               help="With --part: check the holder and spindle nose against it; the header says when it was skipped.")
@@ -1550,7 +1550,8 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
         machine = load_machine(machine_name)
         dialect = load_dialect(dialect_name)
         try:
-            plane = work_plane_from_text(work_plane_text)[0] if work_plane_text is not None else None
+            plane = (work_plane_from_text(work_plane_text, units=part_units, up=up)[0]
+                     if work_plane_text is not None else None)
         except (WorkPlaneError, InputError, FeatureError) as error:
             raise click.BadParameter(str(error), param_hint="'--work-plane'") from error
         source = None if source_name is None else load_source(source_name)
