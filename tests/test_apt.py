@@ -497,3 +497,14 @@ def test_a_goto_of_long_numbers_reads_as_one_of_short_ones():
     np.testing.assert_array_equal(long.toolpath.tip, short.toolpath.tip)
     np.testing.assert_array_equal(long.toolpath.axis, short.toolpath.axis)
     np.testing.assert_array_equal(long.toolpath.tip[-1], [1.0, 2.0, 3.0])
+
+
+def test_repeated_fedrat_lines_keep_the_first_line_of_each_feed_unit():
+    """The unit pre-pass leaves out FEDRAT/ lines that repeat one read before: the ambiguity names the
+    first line of each unit all the same."""
+    text = ("FEDRAT/MMPM,600\nGOTO/0,0,0\nFEDRAT/MMPM,600\nFEDRAT/IPM,20\nGOTO/1,0,0\nFEDRAT/IPM,20\n"
+            "FEDRAT/MMPM,600\nGOTO/2,0,0\n")
+    with pytest.raises(InputError) as caught:
+        parse_cl(text, path="both.cls", tolerance=0.002)
+    assert str(caught.value) == ("both.cls: feeds in both MMPM/MMPR (line 1) and IPM/IPR (line 4) and no UNITS/ "
+                                 "record: the length unit of the file is ambiguous; give it (mm or inch)")

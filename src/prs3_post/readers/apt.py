@@ -588,16 +588,27 @@ _UNIT_LINE = re.compile(r"^[ \t]*(?:UNITS|FEDRAT)[ \t]*/", re.MULTILINE | re.IGN
 
 
 def _unit_records(pieces: Iterator[str], path: str) -> list[_Record]:
-    """The UNITS/ and FEDRAT/ records of the whole file, found without reading every record."""
+    """The UNITS/ and FEDRAT/ records of the whole file, found without reading every record (a FEDRAT/
+    line that repeats an earlier one word for word, without ``$``, is left out: its feed unit is known
+    already, and only the first line of each unit is used)."""
     found: list[_Record] = []
     first_line = 1
     carry, carry_line = "", 0                        # a continued record cut by a piece's end
+    fedrat_lines: set[str] = set()                   # whole FEDRAT/ lines read already
     for piece in pieces:
         text = carry + piece
         if carry:
             first_line, carry = carry_line, ""
         number, counted_to = first_line, 0
         for match in _unit_lines(text):
+            fedrat = match[0].lstrip(" \t").upper().startswith("F")
+            if fedrat:
+                end = text.find("\n", match.start())
+                line = text[match.start():] if end < 0 else text[match.start():end]
+                if "$" in line or end < 0:
+                    fedrat = False                       # a continued record, or the piece's last line: read it
+                elif line in fedrat_lines:
+                    continue
             # line numbers and lines are taken from the match on, never from the piece's start: a piece
             # with many FEDRAT/ records costs linear, not quadratic, time
             number += text.count("\n", counted_to, match.start())
@@ -607,6 +618,8 @@ def _unit_records(pieces: Iterator[str], path: str) -> list[_Record]:
                 record = assembler.push(number + offset, raw)
                 if record is not None:
                     found.append(record)
+                    if fedrat:
+                        fedrat_lines.add(line)
                     break
             else:
                 carry, carry_line = text[match.start():], number
