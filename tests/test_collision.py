@@ -380,3 +380,34 @@ def test_the_main_jobs_preview_marks_the_closest_approach_its_check_found(tmp_pa
     # the SVG's text is drawn as paths, each with its words in a comment: the header's minimum, its line 27
     assert re.findall(r"<!-- (closest: [^>]*) -->", image.read_text(encoding="utf-8")) == [
         "closest: holder 8.637 mm clear, line 27"]
+
+
+def test_a_thin_wall_between_the_samples_of_a_long_feed_move_is_caught(tmp_path):
+    # a plate 2 mm thick across the holder's way, 40 mm up the tool axis over the face at u = 8.1: the
+    # G1 of line 4 translates the head 60 mm along v (verify samples it at its ends, the holder 3.549 mm
+    # from the plate at each); the bound |Δtip| + ρθ between them halves the move until the holder is seen at the plate
+    import trimesh
+
+    plate = trimesh.creation.box(extents=(10.0, 2.0, 10.0))
+    plate.apply_translation(FACE.origin + 8.1 * FACE.u + 40.0 * FACE.normal)
+    trimesh.util.concatenate([trimesh.load(str(WALL)), plate]).export(str(tmp_path / "plate.stl"))
+    source = tmp_path / "long.ngc"
+    source.write_text("G21 G90 G17\nG0 X8.1 Y-30 Z10\nG1 Z5 F100\nG1 Y30 F300\nG0 Z10\nM30\n", encoding="utf-8")
+    convert = ["convert", str(source), "--work-plane", f"{WALL}:4", "--jobs", "1"]
+    result = CliRunner().invoke(main, [*convert, "-o", str(tmp_path / "out"), "--part", str(tmp_path / "plate.stl")])
+    assert result.exit_code == 1, result.output
+    assert result.output.split("\n")[-2] == (
+        f"  {source}:4: the holder comes within 0.500 mm of the part (clearance min 1.000 mm)")
+    assert not (tmp_path / "out" / "long.ngc").exists()
+    samples = np.array([FACE.origin + 8.1 * FACE.u + v * FACE.v + 5.0 * FACE.normal for v in (-30.0, 30.0)])
+    ends = clearance(np.asarray(trimesh.load(str(tmp_path / "plate.stl")).triangles), samples,
+                     np.tile(FACE.normal, (2, 1)), BODIES, None, np.zeros((0, 3)))
+    assert ends.distance[1] == pytest.approx(3.549, abs=1e-3)       # the two samples alone: clear
+    # made without the check, verify finds it on the program's line of that move
+    result = CliRunner().invoke(main, [*convert, "-o", str(tmp_path / "unchecked"), "--no-collision-check"])
+    assert result.exit_code == 0, result.output
+    result = CliRunner().invoke(main, ["verify", str(tmp_path / "unchecked" / "long.ngc"), "--against",
+                                       str(tmp_path / "plate.stl")])
+    assert result.exit_code == 1
+    assert result.output.splitlines()[-1] == "  line 19: the holder comes within 0.500 mm of the part (clearance min " \
+                                              "1.000 mm)"
