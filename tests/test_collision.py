@@ -411,3 +411,20 @@ def test_a_thin_wall_between_the_samples_of_a_long_feed_move_is_caught(tmp_path)
     assert result.exit_code == 1
     assert result.output.splitlines()[-1] == "  line 19: the holder comes within 0.500 mm of the part (clearance min " \
                                               "1.000 mm)"
+
+
+def test_convert_tool_diameter_gives_a_g_code_tool_its_diameter_and_verify_reads_it_back(tmp_path):
+    result, program = _convert_text(tmp_path, "above.ngc", ABOVE, "--tool-diameter", "6")
+    assert result.exit_code == 0, result.output
+    assert _collision_line(program) == [
+        "(collision: clear of the part by at least 1.000 mm: tool in rapids 10.000 mm [6.000 mm diameter], "
+        "not in feeds [it cuts what the CAM program removes], holder 8.636 mm, spindle nose over 11.000 mm)"]
+    result, program = _convert_text(tmp_path, "through.ngc", THROUGH, "--tool-diameter", "6")
+    assert result.exit_code == 1
+    assert result.output.split("\n")[-2] == (
+        f"  {tmp_path / 'through.ngc'}:4: the tool hits the part in a rapid, 3.000 mm deep (a rapid may touch the "
+        "part, not cut it: 0.050 mm at most; 6.000 mm diameter)")
+    result, _ = _convert_text(tmp_path, "above.ngc", ABOVE, "--tool-diameter", "600")
+    assert result.exit_code == 2
+    assert result.output.splitlines()[-1] == ("Error: Invalid value for '--tool-diameter': must be from 0.01 to 500 "
+                                              "mm (got 600)")

@@ -213,7 +213,8 @@ def test_a_converted_program_against_its_part_reports_the_holder_and_nose(conver
     assert result.output.splitlines()[-6:] == [
         "  clearance from the part (min 1.000 mm; not counted: the tool in feeds (it cuts what the CAM program "
         "removes: its gouges are the CAM system's to check)):",
-        "    tool, rapids  none to check (a retract along the tool axis is not)",
+        "    tool, rapids  none to check (a retract along the tool axis is not; diameter unknown: its axis, 0 mm "
+        "radius)",
         "    holder             -2.446 mm  line 16",                  # as convert --part finds it
         "    spindle nose       14.859 mm  line 18",
         "FAIL: 1 problem",
@@ -227,7 +228,8 @@ def test_a_converted_program_against_its_part_reports_the_holder_and_nose(conver
 
 def test_verify_of_a_converted_program_reports_the_tool_in_its_rapids(tmp_path):
     """Two holes 30 mm apart in the 30° face's frame: the G0 between them above the face (converted with
-    the check: its header states the tool's 10.000 mm), or at the first hole's depth (converted without)."""
+    the check and a 6 mm tool: its header states the tool's 10.000 mm and its diameter, which verify
+    reads back), or at the first hole's depth (converted without: the tool's axis)."""
     above = tmp_path / "above.ngc"
     above.write_text("G21 G90 G17\nG0 X8.1 Y-15 Z10\nG1 Z-3 F100\nG0 Z10\nG0 Y15\nG1 Z-3 F100\nG0 Z10\nM30\n",
                      encoding="utf-8")
@@ -235,7 +237,7 @@ def test_verify_of_a_converted_program_reports_the_tool_in_its_rapids(tmp_path):
     through.write_text("G21 G90 G17\nG0 X8.1 Y-15 Z10\nG1 Z-3 F100\nG0 Y15\nG1 Z-4 F100\nG0 Z10\nM30\n",
                        encoding="utf-8")
     for source, check in ((above, "--part"), (through, "--no-collision-check")):
-        options = [check, WALL] if check == "--part" else [check]
+        options = [check, WALL, "--tool-diameter", "6"] if check == "--part" else [check]
         result = invoke("convert", source, "-o", tmp_path / "out", "--work-plane", f"{WALL}:4", "--jobs", "1",
                         *options)
         assert result.exit_code == 0, result.output
@@ -244,14 +246,14 @@ def test_verify_of_a_converted_program_reports_the_tool_in_its_rapids(tmp_path):
     assert result.output.splitlines()[-5:-1] == [
         "  clearance from the part (min 1.000 mm; not counted: the tool in feeds (it cuts what the CAM program "
         "removes: its gouges are the CAM system's to check)):",
-        "    tool, rapids       10.000 mm  line 20",                 # as the header's collision entry states it
+        "    tool, rapids       10.000 mm  line 20 (6.000 mm diameter)",   # as the header's collision entry says
         "    holder              8.636 mm  line 18",
         "    spindle nose       14.859 mm  line 18",
     ]
     result = invoke("verify", tmp_path / "out" / "through.ngc", "--against", WALL)
     assert result.exit_code == 1, result.output
     assert result.output.splitlines()[-5:] == [
-        "    tool, rapids       -3.000 mm  line 19",
+        "    tool, rapids       -3.000 mm  line 19 (diameter unknown: its axis, 0 mm radius)",
         "    holder              8.635 mm  line 21",
         "    spindle nose       13.859 mm  line 20",
         "FAIL: 1 problem",

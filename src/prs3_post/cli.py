@@ -38,7 +38,7 @@ from prs3_post.errors import ConfigError, FeatureError, InputError, Prs3Error, P
 from prs3_post.kinematics import IKModel, forward, inverse, unit_axes
 from prs3_post.limits import check_limits
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
-from prs3_post.ops.common import require_tolerance
+from prs3_post.ops.common import TOOL_DIAMETER_RANGE, require_tolerance
 from prs3_post.ops.work import HoleJob, Operation, ProfileJob
 from prs3_post.output import check_writable, is_stdout, refuse_overwriting, stdout_error, write_atomic, write_outputs
 from prs3_post.readers.detect import FORMATS
@@ -1496,14 +1496,19 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
               help="Codes that switch the source's TCP off, comma-separated (e.g. G49).  [default: the source's]")
 @click.option("--part", "part_path", type=click.Path(exists=True, dir_okay=False), default=None, metavar="PART.stl",
               help="The part: every program is checked against it before it is written (the holder and the "
-                   "spindle nose; the tool cuts what the CAM program removes).  [default: not checked]")
+                   "spindle nose; the tool in the rapids: in the feeds it cuts what the CAM program removes).  "
+                   "[default: not checked]")
 @click.option("--part-units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True,
               help="Length unit of the --part and --work-plane STL (--units is the CL files').")
 @up_option
 @click.option("--collision-check/--no-collision-check", default=True, show_default=True,
-              help="With --part: check the holder and spindle nose against it; the header says when it was skipped.")
+              help="With --part: check the holder, spindle nose and the tool in the rapids against it; the header "
+                   "says when it was skipped.")
 @click.option("--clearance-min", type=CLEARANCE_MIN, default=1.0, show_default=True,
               help="With --part: least distance the holder and spindle nose keep from it, mm.")
+@click.option("--tool-diameter", "tool_diameter", type=Decimal(LENGTH), default=None, metavar="MM",
+              help="With --part: the tool's diameter for its check in the rapids, mm (0.01 to 500).  [default: the "
+                   "smallest of a CL file's TLDATA/ diameters; G-code states none: the tool's axis, 0 mm radius]")
 @machine_option
 @job_part_origin_option
 @job_part_rotation_option
@@ -1516,7 +1521,7 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
             report_path: str | None, tool_length: float | None, angle_tolerance_deg: float, units: str | None,
             work_plane_text: str | None, ignore_words: tuple[str, ...], source_name: str | None,
             tcp_on: str | None, tcp_off: str | None, part_path: str | None, part_units: str, up: str,
-            collision_check: bool, clearance_min: float, machine_name: str,
+            collision_check: bool, clearance_min: float, tool_diameter: float | None, machine_name: str,
             part_origin: tuple[float, ...] | str | None, part_rotation: float | str | None, dialect_name: str,
             line_numbers: bool | None, line_start: int | None, line_step: int | None, tolerance: float) -> None:
     """Convert CAM output (APT CL files, 3+2 G-code) into programs for this machine.
@@ -1547,6 +1552,10 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
 
     def body() -> int:
         require_tolerance(tolerance)
+        low, high = TOOL_DIAMETER_RANGE
+        if tool_diameter is not None and not low <= tool_diameter <= high:
+            raise click.BadParameter(f"must be from {low:g} to {high:g} mm (got {tool_diameter:g})",
+                                     param_hint="'--tool-diameter'")
         machine = load_machine(machine_name)
         dialect = load_dialect(dialect_name)
         try:
@@ -1564,7 +1573,8 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
                 work_plane=plane, source=source, tcp_on=codes_on, tcp_off=codes_off,
                 line_numbers=line_numbers, line_start=line_start, line_step=line_step,
                 auto_origin=part_origin == AUTO, auto_rotation=part_rotation == AUTO, part=part_path,
-                part_units=part_units, part_up=up, collision_check=collision_check, clearance_min=clearance_min)
+                part_units=part_units, part_up=up, collision_check=collision_check, clearance_min=clearance_min,
+                tool_diameter=tool_diameter)
         except ConfigError as error:                     # the TCP codes given do not work with the source
             given = [f"'{flag}'" for flag, codes in (("--tcp-on", codes_on), ("--tcp-off", codes_off)) if codes]
             if source is None or not given:

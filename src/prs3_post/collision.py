@@ -64,7 +64,8 @@ from prs3_post.types import BoolArray, FloatArray, IntArray
 
 __all__ = ["BODY_NAMES", "RAPID_TOUCH_MM", "Approach", "Clearance", "ProgramClearance", "RapidClearance",
            "approach_label", "body_cylinders", "check_program", "check_rapids", "clearance", "feed_tips_of",
-           "inside", "measure_program", "point_triangle_distance", "rapid_diameter_from_entry", "rapid_tool_clearance"]
+           "inside", "measure_program", "point_triangle_distance", "rapid_diameter_from_entry", "rapid_tool_clearance",
+           "tool_words"]
 
 #: The bodies, bottom up.
 BODY_NAMES = ("tool", "holder", "spindle nose")
@@ -1089,14 +1090,14 @@ class RapidClearance:
             text = f"{self.distance:.3f}"
             text = text[1:] if text.startswith("-") and float(text) == 0 else text     # never -0.000
             shown = f"{'' if self.exact else 'over '}{text} mm"
-        return f"tool in rapids {shown} ({_tool_words(self.diameter)})"
+        return f"tool in rapids {shown} ({tool_words(self.diameter)})"
 
     def message(self, program: JointProgram) -> str:
         """The refusal: ``part.cls:12: the tool hits the part in a rapid, 4.950 mm deep (...)``."""
         d = self.distance
         what = f"hits the part in a rapid, {-d:.3f} mm deep" if d < 0 else f"comes within {d:.3f} mm of the part"
         return (f"{program.describe(self.row)}: the tool {what} (a rapid may touch the part, not cut it: "
-                f"{RAPID_TOUCH_MM:.3f} mm at most; {_tool_words(self.diameter)})")
+                f"{RAPID_TOUCH_MM:.3f} mm at most; {tool_words(self.diameter)})")
 
 
 def rapid_diameter_from_entry(text: str) -> float:
@@ -1113,7 +1114,8 @@ def rapid_diameter_from_entry(text: str) -> float:
     return float(found.group(1)) if found else 0.0
 
 
-def _tool_words(diameter: float) -> str:
+def tool_words(diameter: float) -> str:
+    """What the rapid check took the tool to be: ``6.000 mm diameter``, or its axis where none is known."""
     return (f"{diameter:.3f} mm diameter" if diameter > 0
             else "diameter unknown: its axis, 0 mm radius")
 

@@ -88,6 +88,8 @@ class ConvertSettings:
     part_units, part_up : str — its length unit and up axis (as :func:`prs3_post.readers.stl.load_part`)
     collision_check : bool — with ``part``, check every program before it is written
     clearance_min : float — mm, the least distance the holder and nose must keep from the part
+    tool_diameter : float | None — mm, the tool's diameter for its check in the rapids (None: the CAM
+        input's, :func:`tool_diameter_of`)
     """
 
     machine: Machine
@@ -113,6 +115,7 @@ class ConvertSettings:
     part_up: str = "z"
     collision_check: bool = True
     clearance_min: float = 1.0
+    tool_diameter: float | None = None
 
     def __post_init__(self) -> None:
         if self.input_format not in FORMATS:
@@ -508,7 +511,7 @@ def _collision(run: _Run, triangles: FloatArray | None) -> str:
     """The header's ``collision`` entry, the program checked: the holder and the nose everywhere
     (:func:`prs3_post.collision.measure_program` with no face: the tool cuts what the CAM program
     removes), and the tool in the rapids (:func:`prs3_post.collision.check_rapids`: a rapid must not
-    cut), with the diameter of the CAM input's tool data (:func:`tool_diameter_of`).
+    cut), with the diameter given (``--tool-diameter``), else the CAM input's (:func:`tool_diameter_of`).
 
     Raises
     ------
@@ -529,7 +532,8 @@ def _collision(run: _Run, triangles: FloatArray | None) -> str:
                             clearance_min=settings.clearance_min)
     if isinstance(found, str):
         return found
-    rapids = check_rapids(machine, program, settings.setup, triangles, tool_diameter_of(run.reader))
+    diameter = tool_diameter_of(run.reader) if settings.tool_diameter is None else settings.tool_diameter
+    rapids = check_rapids(machine, program, settings.setup, triangles, diameter)
     return found.entry(settings.clearance_min, rapids=rapids)
 
 

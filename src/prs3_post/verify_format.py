@@ -124,6 +124,7 @@ def clearance_record(clearance: PartClearance | str | None) -> dict[str, Any] | 
     from prs3_post.collision import BODY_NAMES  # measured: the collision module is loaded already
     bodies = [
         {"body": name, "rapids_only": b == 0 and clearance.tool_in_rapids,
+         **({"rapids_tool": clearance.rapids_tool} if b == 0 and clearance.tool_in_rapids else {}),
          "distance_mm": _num(clearance.distance[b]), "exact": bool(clearance.exact[b]),
          "line": int(clearance.line[b]) or None, "at": _num(clearance.at[b]) if clearance.line[b] else None,
          "step": clearance.step[b] or None,
@@ -150,7 +151,8 @@ def _clearance_lines(clearance: PartClearance | str | None) -> list[str]:
         if b == 0 and clearance.tool_in_rapids:         # a converted program's tool: held out of the part in rapids
             name = "tool, rapids"
             if not clearance.line[b]:
-                out.append(f"    {name:<12}  none to check (a retract along the tool axis is not)")
+                out.append(f"    {name:<12}  none to check (a retract along the tool axis is not; "
+                           f"{clearance.rapids_tool})")
                 continue
         if not clearance.line[b]:
             out.append(f"    {name:<12}  not measured at any pose")
@@ -158,7 +160,8 @@ def _clearance_lines(clearance: PartClearance | str | None) -> list[str]:
         d = float(clearance.distance[b])
         shown = f"{'over ' if not clearance.exact[b] else ''}{d:.3f} mm"
         step = f" ({clearance.step[b]})" if clearance.step[b] else ""
-        out.append(f"    {name:<12}  {shown:>14}  line {clearance.line[b]}{step}")
+        tool = f" ({clearance.rapids_tool})" if b == 0 and clearance.tool_in_rapids else ""
+        out.append(f"    {name:<12}  {shown:>14}  line {clearance.line[b]}{step}{tool}")
     return out
 
 

@@ -313,6 +313,7 @@ class PartClearance:
     allowance : str — what of the tool may be in the part (it cuts there), for the report
     tool_in_rapids : bool — the tool's entry is a converted program's tool in its rapids
         (:func:`~prs3_post.collision.rapid_tool_clearance`)
+    rapids_tool : str — the tool it was measured as there (``6.000 mm diameter``)
     """
 
     distance: FloatArray
@@ -324,6 +325,7 @@ class PartClearance:
     clearance_min: FloatArray
     allowance: str
     tool_in_rapids: bool = False
+    rapids_tool: str = ""
 
     def worst(self) -> int:
         """The body closest to the part (relative to its clearance min)."""
@@ -397,7 +399,7 @@ def cam_part_clearance(report: VerifyReport, machine: Machine, against: CamPart,
     the tool in the rapids only (:func:`~prs3_post.collision.rapid_tool_clearance`, with the diameter
     the program's header states; its feeds cut what the CAM program removes); ``machine``: with the
     IK's tool length "TL"."""
-    from prs3_post.collision import RAPID_TOUCH_MM, rapid_tool_clearance
+    from prs3_post.collision import RAPID_TOUCH_MM, rapid_tool_clearance, tool_words
 
     piece = _Piece(rows=np.ones(len(report.program), dtype=bool), face=None, tool_diameter=0.0,
                    tool_length=against.tool_length, clearance_min=clearance_min)
@@ -405,13 +407,13 @@ def cam_part_clearance(report: VerifyReport, machine: Machine, against: CamPart,
                      allowance=CAM_ALLOWANCE)
     rapids = rapid_tool_clearance(machine, report.program, against.setup, against.triangles, against.tool_diameter)
     if rapids.row < 0:                                          # no rapid to check
-        return replace(found, tool_in_rapids=True)
+        return replace(found, tool_in_rapids=True, rapids_tool=tool_words(against.tool_diameter))
     distance, line, at = found.distance.copy(), found.line.copy(), found.at.copy()
     point, exact, asked = found.point.copy(), found.exact.copy(), found.clearance_min.copy()
     distance[0], line[0], at[0] = rapids.distance, int(report.program.source[rapids.row]), rapids.fraction
     point[0], exact[0], asked[0] = rapids.point, rapids.exact, -RAPID_TOUCH_MM
     return replace(found, distance=distance, line=line, at=at, point=point, exact=exact, clearance_min=asked,
-                   tool_in_rapids=True)
+                   tool_in_rapids=True, rapids_tool=tool_words(against.tool_diameter))
 
 
 @dataclass(frozen=True, slots=True)
