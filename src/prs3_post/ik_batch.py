@@ -1,10 +1,11 @@
 """``ik --batch``: inverse kinematics of a pose table, streamed from the CSV to the CSV.
 
-The table is read, solved, checked and written a chunk of lines at a time (:func:`iter_poses`,
-:func:`~prs3_post.kinematics.inverse`, :func:`~prs3_post.limits.check_limits`,
-:func:`~prs3_post.tables.ik_csv_rows`), so memory stays flat whatever the table's length; the
-writer (:mod:`prs3_post.output`) puts the chunks into a temp file and renames it only when the
-last one is written, so a bad line anywhere leaves no output file.
+The table is read, solved, checked and written a chunk of lines at a time
+(:func:`~prs3_post.readers.poses_bulk.iter_poses_bulk`, :func:`~prs3_post.kinematics.inverse`,
+:func:`~prs3_post.limits.check_limits`, :func:`~prs3_post.tables.ik_csv_rows`), so memory stays
+flat whatever the table's length; the writer (:mod:`prs3_post.output`) puts the chunks into a temp
+file and renames it only when the last one is written, so a bad line anywhere leaves no output file.
+A large table is read by pyarrow's CSV parser (:mod:`prs3_post.readers.poses_bulk`).
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ from prs3_post.config import Machine
 from prs3_post.errors import InputError, PoseError
 from prs3_post.kinematics import IKModel, inverse, unit_axes
 from prs3_post.limits import check_limits
-from prs3_post.readers.poses import PoseTable, iter_poses
+from prs3_post.readers.poses import PoseTable
+from prs3_post.readers.poses_bulk import iter_poses_bulk
 from prs3_post.tables import ik_csv_header, ik_csv_rows
 
 #: Lines of the input solved together: large enough for the kernels' speed, small enough for memory.
@@ -59,7 +61,7 @@ class IKBatch:
             From the reader (naming the line), or for poses whose axis is zero, NaN or points
             away from the spindle (naming their lines, within the chunk where the first one is).
         """
-        tables = iter_poses(self.path, chunk_lines=self.chunk_lines)
+        tables = iter_poses_bulk(self.path, chunk_lines=self.chunk_lines)
         first = next(tables, None)                     # a file that cannot be read writes nothing at all
         lines = None if first is None else self._solve(first)
         yield ik_csv_header()
