@@ -29,7 +29,8 @@ SETTINGS = settings(max_examples=300, deadline=None, suppress_health_check=[Heal
 def _only_bulk(monkeypatch: pytest.MonkeyPatch) -> None:
     """Make a fall-back to the numpy reader fail the test: the values are pyarrow's."""
     def refused(*args: object, **kwargs: object) -> None:
-        raise AssertionError("the bulk reader fell back to the numpy reader")
+        raise AssertionError("the bulk reader fell back to the numpy reader (is pyarrow installed? "
+                             "pip install -e '.[test]')")
     monkeypatch.setattr(poses_bulk, "iter_poses", refused)
 
 
@@ -126,6 +127,15 @@ def test_bulk_reader_messages(tmp_path, content, message):
     with pytest.raises(InputError) as caught:
         list(iter_poses_bulk(str(path), chunk_lines=3, min_bytes=0))
     assert str(caught.value) == message.format(p=path)
+
+
+def test_bulk_reader_without_pyarrow_is_the_numpy_reader(tmp_path, monkeypatch):
+    """A venv made before pyarrow was a dependency still reads a large table (the numpy way)."""
+    path = tmp_path / "poses.csv"
+    path.write_text(_pose_text(20))
+    monkeypatch.setitem(sys.modules, "pyarrow", None)          # import pyarrow: ImportError
+    assert _outcome(functools.partial(iter_poses_bulk, min_bytes=0), path, 7) == _outcome(iter_poses, path, 7)
+    assert len(_outcome(iter_poses, path, 7)[0]) == 3
 
 
 def test_bulk_reader_of_a_missing_file(tmp_path):

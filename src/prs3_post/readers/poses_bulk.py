@@ -101,9 +101,12 @@ def _bulk_chunks(stream: _PlainStream, path: str, chunk_lines: int) -> Iterator[
     others ``chunk_lines``, as in :func:`~prs3_post.readers.poses.iter_poses`. None also for a
     table without a pose (that reader's empty chunk).
     """
-    import pyarrow as pa
-    import pyarrow.csv as pa_csv
-
+    try:
+        import pyarrow as pa
+        import pyarrow.csv as pa_csv
+    except ImportError:                             # a venv made before pyarrow was a dependency: slower, same
+        yield None
+        return
     columns = list(POSE_COLUMNS)
     try:
         reader = pa_csv.open_csv(
