@@ -355,3 +355,36 @@ def test_a_work_plane_stl_is_read_with_up_and_part_units(tmp_path: Path) -> None
         headers.append(next(line for line in (out / "a.ngc").read_text().splitlines()
                             if line.startswith("(work plane: ")))
     assert headers[1] == headers[0]
+
+
+# ----------------------------------------------------------------------------- job files
+
+
+LONG = "z" * 5000
+
+
+@pytest.mark.parametrize(("body", "message"), [
+    ("setup.part_origin = [1e300, 0, 0]\n[[operation]]\nprofile = \"hole\"\n",
+     "setup.part_origin: part origin: each of x, y, z must be a finite number within ±100000 mm, got [1e+300, 0, 0]"),
+    ("setup.part_rotation_deg = 1e300\n[[operation]]\nprofile = \"hole\"\n",
+     "setup.part_rotation_deg: part rotation: must be a finite number within ±3600 degrees, got 1e+300"),
+    (f"[[operation]]\nprofile = \"{LONG}\"\n",
+     f"operation[1].profile: expected one of hole, square, round, got '{'z' * 39}…'"),
+    (f"[[operation]]\nprofile = \"hole\"\ndepth = \"{LONG}\"\n",
+     f"operation[1].depth: expected a number, got '{'z' * 39}…'"),
+    (f"[[operation]]\nprofile = \"hole\"\n{LONG} = 1\n",
+     f"operation[1].{'z' * 39}…: unknown key (an operation has "),
+    (f"{LONG} = 1\n[[operation]]\nprofile = \"hole\"\n", f"{'z' * 39}…: unknown key (a job file has "),
+])
+def test_a_job_file_error_names_its_key_and_shows_values_short(tmp_path: Path, body: str, message: str) -> None:
+    """The setup's errors named operation[1] and '--part-origin'; a 5000-character value or key was printed
+    in full."""
+    job = tmp_path / "j.toml"
+    job.write_text(f'part = "{WEDGE}"\n{body}')
+    result = invoke("job", str(job), "-o", str(tmp_path / "j.ngc"))
+    assert (result.exit_code, result.stdout) == (2, "")
+    line = result.stderr.removesuffix("\n")
+    assert "\n" not in line and len(line) < 500
+    expected = f"prs3-post: error: {job}: {message}"
+    assert line.startswith(expected) if message.endswith("has ") else line == expected
+    assert not (tmp_path / "j.ngc").exists()

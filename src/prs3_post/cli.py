@@ -887,17 +887,21 @@ def _job_value(param: click.Parameter, value: Any) -> Any:
         raise click.BadParameter(f"expected {param.type.name}, got {str(value).lower()}")
     if param.multiple:                                 # at, at_xyz: a list of points
         if not (isinstance(value, list) and all(isinstance(v, list) for v in value)):
-            raise click.BadParameter(f"expected a list of points like [[1.0, 2.0]], got {value!r}")
+            raise click.BadParameter(f"expected a list of points like [[1.0, 2.0]], got {quoted(value)}")
         return tuple(param.type.convert(",".join(str(x) for x in point), None, None) for point in value)
     if param.name == "face_choice":
         if not (isinstance(value, str) or isinstance(value, int)):
-            raise click.BadParameter(f'expected "auto" or a face index, got {value!r}')
+            raise click.BadParameter(f'expected "auto" or a face index, got {quoted(value)}')
         return str(value)
     if isinstance(param.type, (Decimal, Integer)) and isinstance(value, str):
-        raise click.BadParameter(f"expected a number, got {value!r}")
-    if isinstance(param.type, click.Choice) and not isinstance(value, str):
-        raise click.BadParameter(f"expected one of {', '.join(map(str, param.type.choices))}, got {value!r}")
+        raise click.BadParameter(f"expected a number, got {quoted(value)}")
+    if isinstance(param.type, click.Choice) and value not in param.type.choices:
+        raise click.BadParameter(f"expected one of {', '.join(map(str, param.type.choices))}, got {quoted(value)}")
     return param.type.convert(value, None, None)
+
+
+#: The job file's keys of the setup options (a job's one setup, not an operation's).
+_JOB_SETUP_KEYS = {"--part-origin": "setup.part_origin", "--part-rotation": "setup.part_rotation_deg"}
 
 
 def _job_specs(job: JobFile) -> tuple[JobSpec, ...]:
@@ -937,8 +941,10 @@ def _job_specs(job: JobFile) -> tuple[JobSpec, ...]:
         try:
             spec = _job_spec(job.part, opts)
         except click.BadParameter as error:            # one option's value: name the job file's key
-            key = _job_keys(error.param_hint.strip("'")) if isinstance(error.param_hint, str) else ""
-            at = f"{where}.{key}" if key in OPERATION_KEYS else key if key in _JOB_SETTING_OPTION else ""
+            hint = error.param_hint.strip("'") if isinstance(error.param_hint, str) else ""
+            key = _job_keys(hint)
+            at = (f"{where}.{key}" if key in OPERATION_KEYS else key if key in _JOB_SETTING_OPTION
+                  else _JOB_SETUP_KEYS.get(hint, ""))     # the file's [setup], not an operation's
             if at:
                 raise InputError(f"{at}: {_job_keys(error.message)}", path=job.path) from error
             raise InputError(f"{where}: {error.format_message()}", path=job.path) from error

@@ -38,7 +38,7 @@ from prs3_post.dialect import (
     LineNumbers,
 )
 from prs3_post.emit.gcode import _CONTINUATION  # the indent of a wrapped comment's continuation lines
-from prs3_post.errors import ConfigError, InputError, quoted
+from prs3_post.errors import ConfigError, InputError, quoted, shortened
 from prs3_post.machine import Dynamics, Geometry, Holder, Limits, Machine, Stage
 from prs3_post.readers.files import read_text
 from prs3_post.readers.lexer import code_name
@@ -233,7 +233,7 @@ class _Table:
         """Raise on the first key nobody asked for (a typo must not be ignored)."""
         unknown = sorted(set(self._data) - self._taken)
         if unknown:
-            raise self._error(unknown[0], "unknown key")
+            raise self._error(shortened(unknown[0]), "unknown key")
 
 
 def _read_toml(path: Path) -> dict[str, Any]:

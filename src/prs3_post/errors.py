@@ -17,9 +17,15 @@ def quoted(value: object, limit: int = ECHO_LIMIT) -> str:
     >>> quoted("G0 X1"), quoted("x" * 50), quoted([1.5, "a" * 60], limit=12)
     ("'G0 X1'", "'xxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxx…'", "[1.5, 'aaaa…")
     """
-    if isinstance(value, str):
-        return repr(value if len(value) <= limit else value[:limit - 1] + "…")
-    text = repr(value)
+    return repr(shortened(value, limit)) if isinstance(value, str) else shortened(repr(value), limit)
+
+
+def shortened(text: str, limit: int = ECHO_LIMIT) -> str:
+    """``text`` cut to ``limit`` characters, the last one ``…`` (a key or name shown without quotes).
+
+    >>> shortened("step_down"), shortened("x" * 50, limit=8)
+    ('step_down', 'xxxxxxx…')
+    """
     return text if len(text) <= limit else text[:limit - 1] + "…"
 
 

@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from prs3_post.config import _read_toml
-from prs3_post.errors import InputError, quoted
+from prs3_post.errors import InputError, quoted, shortened
 from prs3_post.setup import AUTO
 
 #: The keys of an ``[[operation]]`` table: the main job's option names with ``_`` for ``-``
@@ -109,7 +109,7 @@ def read_job_file(path: str) -> JobFile:
 
     for key, value in data.items():
         if key not in TOP_KEYS:
-            raise bad(key, f"unknown key (a job file has {', '.join(TOP_KEYS)})")
+            raise bad(shortened(key), f"unknown key (a job file has {', '.join(TOP_KEYS)})")
         if not _kind(value, TOP_KEYS[key]):
             raise bad(key, f"expected {_NAMES[TOP_KEYS[key]]}, got {quoted(value)}")
     for key in ("part", "operation"):
@@ -133,7 +133,7 @@ def read_job_file(path: str) -> JobFile:
             raise bad(where, f"expected a table ([[operation]]), got {quoted(table)}")
         for key in table:
             if key not in OPERATION_KEYS:
-                raise bad(f"{where}.{key}", f"unknown key (an operation has {', '.join(OPERATION_KEYS)})")
+                raise bad(f"{where}.{shortened(key)}", f"unknown key (an operation has {', '.join(OPERATION_KEYS)})")
         if "profile" not in table:
             raise bad(f"{where}.profile", "missing (hole, square or round)")
     return JobFile(path=path, part=_relative(base, data["part"]), settings=settings, part_origin=origin,
@@ -144,7 +144,7 @@ def _setup(table: dict[str, Any], bad: Any) -> tuple[tuple[float, float, float] 
     """``[setup]``: the part origin and rotation (None where not given, ``"auto"`` where asked for)."""
     for key in table:
         if key not in ("part_origin", "part_rotation_deg"):
-            raise bad(f"setup.{key}", "unknown key (the setup has part_origin, part_rotation_deg)")
+            raise bad(f"setup.{shortened(key)}", "unknown key (the setup has part_origin, part_rotation_deg)")
     origin = table.get("part_origin")
     rotation = table.get("part_rotation_deg")
     if origin not in (None, AUTO) and not (isinstance(origin, list) and len(origin) == 3
