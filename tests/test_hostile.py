@@ -388,3 +388,11 @@ def test_a_job_file_error_names_its_key_and_shows_values_short(tmp_path: Path, b
     expected = f"prs3-post: error: {job}: {message}"
     assert line.startswith(expected) if message.endswith("has ") else line == expected
     assert not (tmp_path / "j.ngc").exists()
+
+
+def test_a_long_tcp_code_list_is_shown_short(tmp_path: Path) -> None:
+    (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
+    result = invoke("convert", str(tmp_path / "a.ngc"), "-o", str(tmp_path / "out"), "--source", "vector",
+                    "--tcp-on", "G" * 5000)
+    assert _usage_error(result) == ("Error: Invalid value for '--tcp-on': expected G or M codes separated by commas "
+                                    f"(e.g. G43.4,M428), got '{'G' * 39}…'")

@@ -540,7 +540,7 @@ def _codes_option(text: str | None, flag: str) -> tuple[str, ...] | None:
     for item in text.split(","):
         match = re.fullmatch(r"\s*([GgMm])([0-9]+(?:\.[0-9]+)?)\s*", item)
         if match is None:
-            raise click.BadParameter(f"expected G or M codes separated by commas (e.g. G43.4,M428), got {text!r}",
+            raise click.BadParameter(f"expected G or M codes separated by commas (e.g. G43.4,M428), got {quoted(text)}",
                                      param_hint=f"'{flag}'")
         codes.append(code_name(match[1].upper(), float(match[2])))
     return tuple(codes)
@@ -776,7 +776,7 @@ def _face_index(choice: str) -> int | None:
         return None
     if re.fullmatch(r"[0-9]+", choice):
         return int(choice)
-    raise click.BadParameter(f"expected auto or a face index, got {choice!r}", param_hint="'--face'")
+    raise click.BadParameter(f"expected auto or a face index, got {quoted(choice)}", param_hint="'--face'")
 
 
 def _job_spec(part: str, opts: dict[str, Any]) -> JobSpec:
