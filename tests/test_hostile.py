@@ -396,3 +396,17 @@ def test_a_long_tcp_code_list_is_shown_short(tmp_path: Path) -> None:
                     "--tcp-on", "G" * 5000)
     assert _usage_error(result) == ("Error: Invalid value for '--tcp-on': expected G or M codes separated by commas "
                                     f"(e.g. G43.4,M428), got '{'G' * 39}…'")
+
+
+def test_a_report_onto_a_loop_of_symbolic_links_is_a_clear_error(tmp_path: Path,
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """Path.resolve() raised RuntimeError('Symlink loop'): a traceback; and OUTDIR was made before the report
+    was found unwritable."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
+    (tmp_path / "loop1").symlink_to("loop2")
+    (tmp_path / "loop2").symlink_to("loop1")
+    result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", "0,0,0,0,0,1", "--report", "loop1")
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == "prs3-post: error: loop1: cannot write the output here: Too many levels of symbolic links\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc", "loop1", "loop2"]

@@ -1593,8 +1593,9 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
                 refuse_overwriting({f"the program of {file}": output_path(file, outdir, dialect),
                                     "--report": report_path}, {})
             # before any work: a report that cannot be written (its folder may be OUTDIR, made by the batch)
-            folder, made = Path(report_path).resolve().parent, Path(outdir).resolve()
-            if folder == made or folder in made.parents:
+            # realpath, not Path.resolve(): a loop of symbolic links is check_writable's clear error, not a RuntimeError
+            folder, made = Path(os.path.realpath(report_path)).parent, Path(os.path.realpath(outdir))
+            if folder == made:                           # (a report beside OUTDIR: no folder made if it fails)
                 prepare_outdir(outdir)
             check_writable(report_path)
         count = jobs or default_jobs()
