@@ -410,3 +410,16 @@ def test_a_report_onto_a_loop_of_symbolic_links_is_a_clear_error(tmp_path: Path,
     assert (result.exit_code, result.stdout) == (2, "")
     assert result.stderr == "prs3-post: error: loop1: cannot write the output here: Too many levels of symbolic links\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc", "loop1", "loop2"]
+
+
+@pytest.mark.parametrize("command", ["verify", "preview"])
+def test_a_cl_file_given_as_a_program_says_to_convert_it(tmp_path: Path, command: str) -> None:
+    """It said "not G-code: cannot read 'TOOL PATH/...' as words"."""
+    source = tmp_path / "cam.cls"
+    source.write_text("TOOL PATH/FACING,TOOL,MILL\nUNITS/MM\nFEDRAT/MMPM,100\nGOTO/0,0,5\nFINI\n")
+    result = invoke(command, str(source), *(["-o", str(tmp_path / "p.png")] if command == "preview" else []))
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == (f"prs3-post: error: {source}: an APT CL file (CAM output), not a program for this "
+                             f"machine: convert it first (prs3-post convert {source} -o OUTDIR), then give the "
+                             f"program, with --against {source} to compare them\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cam.cls"]

@@ -1144,6 +1144,24 @@ def _open_program(ctx: click.Context, path: str, machine_name: str, dialect_name
         raise InputError(f"{_HEADER_FLAGS[error.what]}: {error.args[0]}", path=error.path, line=error.line) from error
 
 
+def _refuse_cl_file(path: str) -> None:
+    """CAM output given where a program for this machine goes (verify, preview): say so, not 'not G-code'.
+    Only a file that starts as an APT CL file does (:func:`~prs3_post.readers.detect.detect_format`); any
+    other problem is the program reader's to name."""
+    from prs3_post.readers.detect import DETECT_BYTES, detect_format
+    from prs3_post.readers.files import open_input
+
+    try:
+        with open_input(path, "a file") as stream:
+            cl = detect_format(stream.read(DETECT_BYTES)) == "cl"
+    except (InputError, OSError):
+        return
+    if cl:
+        raise InputError(f"an APT CL file (CAM output), not a program for this machine: convert it first "
+                         f"(prs3-post convert {path} -o OUTDIR), then give the program, with --against {path} to "
+                         "compare them", path=path)
+
+
 _SETUP_HINTS = {"origin": "'--part-origin'", "rotation": "'--part-rotation'"}
 #: Options given in degrees whose JobSpec value is in radians.
 _DEGREE_OPTIONS = ("rotation", "ramp_angle")
@@ -1329,6 +1347,7 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
 
     def body() -> int:
         ctx = click.get_current_context()
+        _refuse_cl_file(program_path)
         require_tolerance(opts["tolerance"])
         if not (math.isfinite(axis_tolerance_deg) and axis_tolerance_deg >= 0):
             raise click.BadParameter(f"must be a number ≥ 0 degrees, got {axis_tolerance_deg:g}",
@@ -1430,6 +1449,7 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
     def body() -> int:
         ctx = click.get_current_context()
         fmt = _image_format(out_path)
+        _refuse_cl_file(program_path)
         context = _open_program(ctx, program_path, machine_name, dialect_name, part_origin, part_rotation,
                                 open_program)
         if context.machine.dynamics is not None and _given(ctx, "rapid_rate"):
