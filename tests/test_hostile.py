@@ -423,3 +423,17 @@ def test_a_cl_file_given_as_a_program_says_to_convert_it(tmp_path: Path, command
                              f"machine: convert it first (prs3-post convert {source} -o OUTDIR), then give the "
                              f"program, with --against {source} to compare them\n")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cam.cls"]
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+@pytest.mark.parametrize("args", [["--help"], ["--version"], ["convert", "--help"]])
+def test_help_into_a_full_standard_output_is_a_clear_error(args: list[str]) -> None:
+    """click printed the help itself: an OSError traceback."""
+    import subprocess
+    import sys
+
+    with open("/dev/full", "w") as full:
+        done = subprocess.run([sys.executable, "-c", "from prs3_post.cli import main; main()", *args],
+                              stdout=full, stderr=subprocess.PIPE, text=True, timeout=60, check=False)
+    assert (done.returncode, done.stderr) == (
+        2, "prs3-post: error: standard output: cannot write: No space left on device\n")

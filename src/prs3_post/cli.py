@@ -386,6 +386,18 @@ class _MainGroup(click.Group):
 
     command_class = _Command
 
+    def main(self, *args: Any, **kwargs: Any) -> Any:
+        """click's main; a standard output that cannot take what click itself prints (``--help``,
+        ``--version``, usage errors go to standard error) is reported as the commands report it."""
+        try:
+            return super().main(*args, **kwargs)
+        except OSError as exc:
+            failed = stdout_error(exc)
+            if failed is None:
+                raise
+            click.echo(f"prs3-post: error: {failed}", err=True)
+            sys.exit(failed.exit_code)
+
     def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
         if args and not args[0].startswith("-") and args[0] not in self.commands:
             first = args[0]
