@@ -387,6 +387,15 @@ def test_degenerate_arcs_are_input_errors(text: str, message: str) -> None:
     assert str(info.value) == message
 
 
+@pytest.mark.parametrize("speed", ["1e30", "1000001"])
+def test_a_spindle_speed_beyond_any_spindle_is_an_input_error(speed: str) -> None:
+    """SPINDL/ is bounded as the command line's --spindle is (it was emitted as S1000000000000000019884624838656)."""
+    with pytest.raises(InputError) as info:
+        parse_cl(f"SPINDL/RPM,{speed},CLW\nFEDRAT/100\nGOTO/0,0,0\n", path="t.cls", tolerance=0.0001)
+    assert str(info.value) == f"t.cls:1: SPINDL/ speed {speed} is more than 1e+06 rpm (allowed: above 0 to 1e+06 rpm)"
+
+
+
 @pytest.mark.parametrize(("name", "origin", "rows"), [
     ("mech491_APT_Zig_Zag_Smoothed.cls", (-76.5, -80.8, -683.0), 729),
     ("mech491_APT_Variable_Axis.cls", (-68.5, -76.1, -716.2), 1338),     # 348 GOTOs, axis changes subdivided

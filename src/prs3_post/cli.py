@@ -46,7 +46,7 @@ from prs3_post.readers.lexer import code_name
 from prs3_post.readers.stl import UP_ROTATION, load_part
 from prs3_post.setup import AUTO, Setup, SetupError
 from prs3_post.tables import fk_records, fk_text, ik_records, ik_text
-from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_TOLERANCE
+from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_TOLERANCE, MAX_SPINDLE_RPM
 
 # What only some commands need is imported where it is used (the main job, convert, verify, preview,
 # faces: each about 0.1 s of imports), so that `ik`, `fk` and a small `verify` start fast.
@@ -72,7 +72,7 @@ _PLAIN_DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[
 LENGTH = (1e6, "mm")            # a kilometre
 ANGLE = (3600.0, "degrees")     # ten turns
 FEED = (1e6, "mm/min")          # a kilometre a minute
-SPEED = (1e6, "rpm")            # spindles reach some 100,000 rpm
+SPEED = (MAX_SPINDLE_RPM, "rpm")  # spindles reach some 100,000 rpm
 TIME = (1e4, "s")               # almost three hours
 RATIO = (1e6, "")               # direction components (normalized later)
 

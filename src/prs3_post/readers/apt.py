@@ -87,7 +87,7 @@ from prs3_post.errors import InputError
 from prs3_post.readers.files import iter_pieces, line_chunks
 from prs3_post.readers.lexer import bad_pairs, decimal_numbers
 from prs3_post.readers.stl import MAX_COORDINATE_MM
-from prs3_post.tolerances import FEED_RANGE_MM_MIN
+from prs3_post.tolerances import FEED_RANGE_MM_MIN, MAX_SPINDLE_RPM
 from prs3_post.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath
 from prs3_post.types import BoolArray, FloatArray
 from prs3_post.workplane import rotate_rows
@@ -1129,6 +1129,9 @@ class _Reader:
         (rpm,) = self.numbers(record, tuple(speed))
         if not rpm > 0:
             raise self.error(f"SPINDL/ speed must be > 0 rpm, got {speed[0]}")
+        if rpm > MAX_SPINDLE_RPM:
+            raise self.error(f"SPINDL/ speed {speed[0]} is more than {MAX_SPINDLE_RPM:g} rpm (allowed: above 0 to "
+                             f"{MAX_SPINDLE_RPM:g} rpm)")
         self.spindle_rpm, self.spindle_on = rpm, True
         self.spindle_kind = EventKind.SPINDLE_ON_CCW if direction == "CCLW" else EventKind.SPINDLE_ON
         self.event(self.spindle_kind, value=rpm)

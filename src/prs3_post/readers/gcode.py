@@ -94,6 +94,7 @@ from prs3_post.readers.lexer import (
     quote,
     split_comments,
 )
+from prs3_post.tolerances import MAX_SPINDLE_RPM
 from prs3_post.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath
 from prs3_post.types import BoolArray, FloatArray, IntArray
 from prs3_post.workplane import WorkPlane, euler_zxz_deg
@@ -851,6 +852,9 @@ class _Reader:
         if speed is not None:
             if speed < 0:
                 raise self.error(f"S must be ≥ 0 rpm, got {block.values['S'][1]}")
+            if speed > MAX_SPINDLE_RPM:
+                raise self.error(f"{block.values['S'][1]} is more than {MAX_SPINDLE_RPM:g} rpm (allowed: 0 to "
+                                 f"{MAX_SPINDLE_RPM:g} rpm)")
             self.spindle_rpm = speed
             if self.spindle_on and "spindle" not in m:
                 self.event(self.spindle_kind, value=speed)
