@@ -437,3 +437,19 @@ def test_help_into_a_full_standard_output_is_a_clear_error(args: list[str]) -> N
                               stdout=full, stderr=subprocess.PIPE, text=True, timeout=60, check=False)
     assert (done.returncode, done.stderr) == (
         2, "prs3-post: error: standard output: cannot write: No space left on device\n")
+
+
+@pytest.mark.parametrize(("text", "line", "column"), [
+    ("G21 G90\rG0 X0\rM2\r", 1, 8),                       # CR-only line ends: one long line
+    ("G21 G90\nG0 X0 Y0 U0 V100\r W0\nM2\n", 2, 17),
+])
+def test_a_cr_inside_a_line_is_named(tmp_path: Path, text: str, line: int, column: int) -> None:
+    """It said "cannot read 'G21 G90G0 X0M2' as words" (the CR invisible), or that a CR-only file's one
+    line is too long "with a CRLF line ending"."""
+    program = tmp_path / "cr.ngc"
+    program.write_bytes(text.encode())
+    result = invoke("verify", str(program))
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == (f"prs3-post: error: {program}:{line}: a CR character at column {column}, inside the "
+                             "line: LinuxCNC reads LF or CRLF line ends (a file with CR-only line ends: save it with "
+                             "LF)\n")

@@ -437,6 +437,9 @@ class _Reader:
         """One line without its ending; ``crlf``: it ended in a CR (``\\r\\n``), which LinuxCNC counts
         towards its line-length limit (the emitter allows one character less for CRLF, too)."""
         self.number = number
+        if "\r" in line:                               # invisible in a message: say where, and what it means
+            raise self.error(f"a CR character at column {line.index(chr(13)) + 1}, inside the line: LinuxCNC reads "
+                             "LF or CRLF line ends (a file with CR-only line ends: save it with LF)")
         self.check_length(line, crlf)
         try:
             code, _ = split_comments(line, ((self.dialect.comments.open, self.dialect.comments.close),))
