@@ -198,6 +198,28 @@ def test_full_standard_output_is_a_clear_error(args: list[str]) -> None:
         2, "prs3-post: error: standard output: cannot write: No space left on device\n")
 
 
+_INTERRUPTED_IMPORT = """
+import sys
+class Interrupt:                       # Ctrl-C while the CLI's modules (numpy, click, ...) load
+    def find_spec(self, name, path=None, target=None):
+        if name == "prs3_post.cli":
+            raise KeyboardInterrupt
+sys.meta_path.insert(0, Interrupt())
+from prs3_post.entry import main
+main()
+"""
+
+
+def test_ctrl_c_while_the_cli_loads_is_reported_as_later() -> None:
+    """The console script runs prs3_post.entry:main: Ctrl-C in the first half second (the imports) was a
+    KeyboardInterrupt traceback with exit 130; it is click's 'Aborted!' and exit 1, as at any later moment."""
+    done = subprocess.run([sys.executable, "-c", _INTERRUPTED_IMPORT, "machines"],
+                          capture_output=True, text=True, timeout=60, check=False)
+    assert (done.returncode, done.stdout, done.stderr) == (1, "", "\nAborted!\n")
+    scripts = (REPO / "pyproject.toml").read_text().split("[project.scripts]\n")[1].splitlines()[0]
+    assert scripts == 'prs3-post = "prs3_post.entry:main"'
+
+
 # ----------------------------------------------------------------------------- a head made last
 
 def _head_last(made: list[str]) -> HeadLast:
