@@ -200,6 +200,24 @@ def test_work_plane_errors(values: list[float], message: str) -> None:
     assert str(info.value) == message and info.value.exit_code == 2
 
 
+def test_a_work_plane_of_huge_direction_numbers_is_its_direction(recwarn: pytest.WarningsRecorder) -> None:
+    """np.linalg.norm of (0, 0, 1e308) overflowed: a RuntimeWarning on standard error and 'is not a direction'."""
+    plane = WorkPlane.from_values([0, 0, 0, 0, 1e308, 1e308, 1e308, 0, 0])
+    assert_allclose(plane.normal, [0.0, math.sqrt(0.5), math.sqrt(0.5)], atol=1e-15)
+    assert_allclose(plane.rotation[:, 0], [1.0, 0.0, 0.0], atol=0)
+    assert [str(w.message) for w in recwarn] == []
+
+
+@pytest.mark.parametrize("face", ["-1", "4x", "", " "])
+def test_a_work_plane_face_that_is_no_number_is_named(face: str) -> None:
+    """`--work-plane wedge.stl:-1` said 'file not found' of a file that is there."""
+    wedge = str(REPO / "fixtures" / "parts" / "wedge.stl")
+    with pytest.raises(InputError) as info:
+        work_plane_from_text(f"{wedge}:{face}")
+    assert str(info.value) == (f"{wedge}:{face}: the face after ':' must be a face number (0, 1, ... as `prs3-post "
+                               f"faces` lists them), got {face!r}")
+
+
 # --------------------------------------------------------------------------------------------
 # Motion, arcs, cycles, units, events
 # --------------------------------------------------------------------------------------------

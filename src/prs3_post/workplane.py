@@ -153,7 +153,7 @@ class WorkPlane:
         if not np.isfinite(origin_).all() or np.abs(origin_).max() > MAX_ORIGIN_MM:
             raise WorkPlaneError(f"work plane: the origin must be finite numbers within ±{MAX_ORIGIN_MM:g} mm, got "
                                  f"{_shown(origin_)}")
-        length = float(np.linalg.norm(normal_))
+        length = math.hypot(*normal_.tolist())         # hypot: no overflow for components near 1e308
         if not (math.isfinite(length) and length > 0.0):
             raise WorkPlaneError(f"work plane: the normal {_shown(normal_)} is not a direction (it must be a "
                                  "non-zero vector, the tool axis from the tip toward the spindle)")
@@ -162,17 +162,18 @@ class WorkPlane:
             x, _ = frame_from_normal(z)
         else:
             x_ = np.asarray(x_direction, dtype=np.float64).reshape(3)
-            x_length = float(np.linalg.norm(x_))
+            x_length = math.hypot(*x_.tolist())
             if not (math.isfinite(x_length) and x_length > 0.0):
                 raise WorkPlaneError(f"work plane: the x direction {_shown(x_)} is not a direction (it must be a "
                                      "non-zero vector)")
-            cosine = float(x_ @ z) / x_length
+            x_unit = x_ / x_length
+            cosine = float(x_unit @ z)
             if abs(cosine) > PERPENDICULAR_TOLERANCE:
                 angle = math.degrees(math.acos(max(-1.0, min(1.0, cosine))))   # clip: rounding past ±1
                 raise WorkPlaneError(f"work plane: the x direction {_shown(x_)} is at {angle:.3f}° to the normal "
                                      f"{_shown(normal_)}; it must be perpendicular to it (90° within "
                                      f"{math.degrees(math.asin(PERPENDICULAR_TOLERANCE)):.2f}°)")
-            x = x_ / x_length - cosine * z                 # made exactly perpendicular
+            x = x_unit - cosine * z                 # made exactly perpendicular
             x /= np.linalg.norm(x)
         y = np.cross(z, x)
         return cls(origin_, np.column_stack([x, y, z]), name)
@@ -253,6 +254,9 @@ def work_plane_from_text(text: str, *, units: str = "mm", up: str = "z") -> tupl
         return plane, f"{plane.name}: origin {_shown(plane.origin)} mm, normal {_shown(plane.normal)}"
     path, colon, index = text.rpartition(":")
     if not (colon and index.strip().isdigit() and index.strip().isascii()):
+        if colon and os.path.lexists(path) and not os.path.lexists(text):     # `part.stl:-1`: the file is there
+            raise InputError(f"the face after ':' must be a face number (0, 1, ... as `prs3-post faces` lists them), "
+                             f"got {index!r}", path=text)
         path, index = text, ""
     if not os.path.lexists(path):                     # `nan`, `1,2,x`: say what a work plane is, not only "no file"
         raise InputError("file not found, and not 6 or 9 plain decimal numbers: a work plane is PART.stl[:FACE] or "
