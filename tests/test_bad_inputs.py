@@ -233,15 +233,15 @@ def test_a_huge_cl_coordinate_is_bad_input_shown_in_a_few_digits(tmp_path: Path,
     assert "Traceback" not in result.output and list((tmp_path / "out").iterdir()) == []
 
 
-@pytest.mark.parametrize("number", ["1_0", "\u0661", "1,5"])
+@pytest.mark.parametrize("number", ["1_0", "\u0661", "1,5", "\uff11"])
 def test_an_stl_number_is_a_plain_decimal(tmp_path: Path, number: str) -> None:
-    """float() reads '1_0' as 10 and '١' as 1: an STL coordinate so written was read as that number."""
+    """float() reads '1_0' as 10 and '١' as 1: an STL coordinate so written was read as that number. The value is
+    shown as written (it was shown as the Latin-1 reading of its UTF-8 bytes, lowered: '١' as 'ù¡', '１' as 'ï¼')."""
     part = _ascii_stl(tmp_path / "part.stl", *HUGE)
     text = part.read_text(encoding="utf-8").replace("vertex 0.0 10.0 0.0", f"vertex 0.0 {number} 0.0", 1)
     part.write_text(text, encoding="utf-8")
     line = text.splitlines().index(f"vertex 0.0 {number} 0.0") + 1
     result = invoke("faces", str(part))
-    shown = number.encode("utf-8").decode("latin-1").lower()  # an ASCII STL is read byte for byte, lowered
     assert (result.exit_code, result.stdout) == (2, "")
-    assert result.stderr == (f"prs3-post: error: {part}:{line}: '{shown}' is not a plain decimal number "
+    assert result.stderr == (f"prs3-post: error: {part}:{line}: '{number}' is not a plain decimal number "
                              "(like -12.5 or 1.25e+01)\n")

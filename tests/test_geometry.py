@@ -352,6 +352,12 @@ def test_tiny_part_loads_in_inches():
          b"endsolid t\n", 5, "expected a number, found 'vertex'"),
         (b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 x\nendloop\nendfacet\n"
          b"endsolid t\n", 6, "expected a number, found 'x'"),
+        (b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 \xc3\x9cber\nendloop\n"
+         b"endfacet\nendsolid t\n", 6, "'\u00dcber' is not a plain decimal number (like -12.5 or 1.25e+01)"),
+        (b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 NaN\nendloop\nendfacet\n"
+         b"endsolid t\n", 6, "'NaN' is not a finite number"),
+        (b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nVERTX 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n"
+         b"endsolid t\n", 5, "expected 'vertex', found 'VERTX'"),
         (b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 nan\nendloop\nendfacet\n"
          b"endsolid t\n", 6, "'nan' is not a finite number"),
         (b"solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendsolid t\n",

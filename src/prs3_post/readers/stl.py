@@ -215,6 +215,18 @@ def _quote(text: str, limit: int = 40) -> str:
     return f"'{text[:limit]}...'" if len(text) > limit else f"'{text}'"
 
 
+def _as_written(text: str, line: int, token: str) -> str:
+    """``token``, a word of line ``line`` of the lowered ``text`` (the file's bytes read as Latin-1), as the file has
+    it, its bytes read as UTF-8 as the user's editor shows them (``'١'``, not ``'ù¡'``)."""
+    start = 0
+    for _ in range(line - 1):                          # only on an error: a loop over the newlines is fine
+        start = text.index("\n", start) + 1
+    end = text.find("\n", start)
+    words = text[start:end if end >= 0 else len(text)].split()
+    written = next((word for word in words if word.lower() == token), token)
+    return written.encode("latin-1").decode("utf-8", "replace")
+
+
 def _triangles_from_binary(data: bytes, count: int, where: str) -> FloatArray:
     records = np.frombuffer(data, dtype=_BINARY_RECORD, count=count, offset=_BINARY_HEADER_BYTES)
     triangles = records["vertices"].astype(np.float64)  # (F, 3, 3)
@@ -271,18 +283,19 @@ def _triangles_from_ascii(text: str, where: str) -> FloatArray:
             first_bad = min(first_bad, int(bad[0]) * per_record + column)
     if first_bad < len(tokens):
         expected = _ASCII_RECORD[first_bad % per_record]
+        line = _line_of_token(body, first_bad)
+        found = _as_written(text, line, str(tokens[first_bad]))
         raise InputError(
-            f"expected {repr(expected) if expected else 'a number'}, found {_quote(str(tokens[first_bad]), 20)}",
-            path=where,
-            line=_line_of_token(body, first_bad),
+            f"expected {repr(expected) if expected else 'a number'}, found {_quote(found, 20)}", path=where, line=line
         )
     if len(tokens) % per_record:
         expected = _ASCII_RECORD[len(tokens) % per_record]
+        line = _line_of_token(body, len(tokens) - 1)
         raise InputError(
             f"facet ends early: expected {repr(expected) if expected else 'a number'} "
-            f"after {_quote(str(tokens[-1]), 20)}",
+            f"after {_quote(_as_written(text, line, str(tokens[-1])), 20)}",
             path=where,
-            line=_line_of_token(body, len(tokens) - 1),
+            line=line,
         )
     # 3. Numbers: the facet normal is checked (strictness) but not used; the vertices are the data.
     # float() also takes '1_0' (10) and other scripts' digits ('١'): only plain decimals are numbers here.
@@ -290,28 +303,26 @@ def _triangles_from_ascii(text: str, where: str) -> FloatArray:
     if odd is not None:
         start = max(body.rfind(blank, 0, odd.start()) for blank in " \t\r\n\f\v") + 1
         token = re.match(r"\S+", body[start:])
-        raise InputError(f"{_quote(token.group() if token else odd.group(), 20)} is not a plain decimal number "
-                         "(like -12.5 or 1.25e+01)", path=where, line=body.count("\n", 0, odd.start()) + 1)
+        line = body.count("\n", 0, odd.start()) + 1
+        shown = _as_written(text, line, token.group() if token else odd.group())
+        raise InputError(f"{_quote(shown, 20)} is not a plain decimal number (like -12.5 or 1.25e+01)", path=where,
+                         line=line)
     numeric = [column for column, keyword in enumerate(_ASCII_RECORD) if keyword is None]
     try:
         values = records[:, numeric].astype(np.float64)  # (F, 12)
     except ValueError as exc:
         row, col = _first_non_number(records[:, numeric])
-        raise InputError(
-            f"expected a number, found {_quote(str(records[row, numeric[col]]), 20)}",
-            path=where,
-            line=_line_of_token(body, row * per_record + numeric[col]),
-        ) from exc
+        line = _line_of_token(body, row * per_record + numeric[col])
+        found = _as_written(text, line, str(records[row, numeric[col]]))
+        raise InputError(f"expected a number, found {_quote(found, 20)}", path=where, line=line) from exc
     vertex_cols = [numeric.index(column) for column in _ASCII_VERTEX_COLUMNS]
     triangles = values[:, vertex_cols].reshape(count, 3, 3)
     finite = np.isfinite(values)
     if not finite.all():
         row, col = (int(i) for i in np.argwhere(~finite)[0])
-        raise InputError(
-            f"{_quote(str(records[row, numeric[col]]), 20)} is not a finite number",
-            path=where,
-            line=_line_of_token(body, row * per_record + numeric[col]),
-        )
+        line = _line_of_token(body, row * per_record + numeric[col])
+        shown = _as_written(text, line, str(records[row, numeric[col]]))
+        raise InputError(f"{_quote(shown, 20)} is not a finite number", path=where, line=line)
     return triangles
 
 
