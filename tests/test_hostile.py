@@ -370,6 +370,10 @@ LONG = "z" * 5000
      "setup.part_rotation_deg: part rotation: must be a finite number within ±3600 degrees, got 1e+300"),
     (f"[[operation]]\nprofile = \"{LONG}\"\n",
      f"operation[1].profile: expected one of hole, square, round, got '{'z' * 39}…'"),
+    ("[[operation]]\nprofile = \"HOLE\"\npeck = 2.0\n",      # was: profile HOLE does not use peck (hole only)
+     "operation[1].profile: expected one of hole, square, round, got 'HOLE'"),
+    ("[[operation]]\nprofile = 7\ndiameter = 20.0\n",
+     "operation[1].profile: expected one of hole, square, round, got 7"),
     (f"[[operation]]\nprofile = \"hole\"\ndepth = \"{LONG}\"\n",
      f"operation[1].depth: expected a number, got '{'z' * 39}…'"),
     (f"[[operation]]\nprofile = \"hole\"\n{LONG} = 1\n",

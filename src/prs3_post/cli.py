@@ -935,6 +935,10 @@ def _job_specs(job: JobFile) -> tuple[JobSpec, ...]:
     for number, operation in enumerate(job.operations, start=1):
         opts = dict(base)
         where = f"operation[{number}]"
+        try:                                           # a profile that is none: say so, not which keys it lacks
+            _job_value(params["profile"], operation["profile"])
+        except click.BadParameter as error:
+            raise InputError(f"{where}.profile: {error.message}", path=job.path) from error
         unused = _unused_by(str(operation["profile"]), [key for key in operation if key in _PROFILE_ONLY])
         if unused:
             raise InputError(f"{where}: profile {operation['profile']} does not use "
