@@ -362,7 +362,7 @@ def _lex_text(text: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArra
     if bad.any():
         keep = read[word_line]
         pointed &= keep
-        first = np.where(keep, first, stop)             # no bytes: 0
+        first += (stop - first) * ~keep                # no bytes: 0
     values = np.full((n, width), np.nan)
     values.reshape(-1)[word_line * width + rank] = decimal_numbers(text, first, stop, dot, pointed, minus)
     values[bad] = np.nan
@@ -387,7 +387,7 @@ def decimal_numbers(text: bytes, first: IntArray, stop: IntArray, dot: IntArray,
     if not len(first):
         return np.zeros(0)
     length = stop - first
-    decimals = np.where(pointed, stop - dot - 1, 0)
+    decimals = (stop - dot - 1) * pointed
     width = 8 if length.max() <= 8 else 16
     data = np.frombuffer(_ZEROS[:width] + text, dtype=np.uint8)
     words = np.ndarray((len(data) - 7,), dtype="<u8", buffer=data, strides=(1,))   # words[i]: bytes i..i+7
@@ -395,7 +395,8 @@ def decimal_numbers(text: bytes, first: IntArray, stop: IntArray, dot: IntArray,
     point_at = decimals + 16 * pointed                  # index of the point's fix-up (none: 0 to 15)
     for part in range(width // 8):                      # the last 8 bytes, then the 8 before them
         loaded = words[stop + width - 8 * (part + 1)]
-        keep = _KEEP_BYTES[np.clip(8 * (part + 1) - length, 0, 8)]     # the number's bytes only
+        before = 8 * (part + 1) - length                # bytes of the load before the number
+        keep = _KEEP_BYTES[before if width == 8 else np.clip(before, 0, 8)]   # the number's bytes only
         loaded &= keep
         loaded |= _ASCII_ZEROS & ~keep
         loaded += _POINT_TO_ZERO[part][point_at]        # '.' + 2 is '0'
