@@ -374,6 +374,12 @@ LONG = "z" * 5000
      "operation[1].profile: expected one of hole, square, round, got 'HOLE'"),
     ("[[operation]]\nprofile = 7\ndiameter = 20.0\n",
      "operation[1].profile: expected one of hole, square, round, got 7"),
+    ("[[operation]]\nprofile = \"hole\"\nat = []\n",         # was: one hole at the face origin, as without 'at'
+     "operation[1].at: expected a list of points like [[1.0, 2.0]], got []"),
+    ("[[operation]]\nprofile = \"hole\"\nat_xyz = []\n",
+     "operation[1].at_xyz: expected a list of points like [[1.0, 2.0, 3.0]], got []"),
+    ("[[operation]]\nprofile = \"hole\"\nat_xyz = [1.0, 2.0, 3.0]\n",
+     "operation[1].at_xyz: expected a list of points like [[1.0, 2.0, 3.0]], got [1.0, 2.0, 3.0]"),
     (f"[[operation]]\nprofile = \"hole\"\ndepth = \"{LONG}\"\n",
      f"operation[1].depth: expected a number, got '{'z' * 39}…'"),
     (f"[[operation]]\nprofile = \"hole\"\n{LONG} = 1\n",

@@ -898,8 +898,9 @@ def _job_value(param: click.Parameter, value: Any) -> Any:
     if isinstance(value, bool) and not isinstance(param.type, click.types.BoolParamType):
         raise click.BadParameter(f"expected {param.type.name}, got {str(value).lower()}")
     if param.multiple:                                 # at, at_xyz: a list of points
-        if not (isinstance(value, list) and all(isinstance(v, list) for v in value)):
-            raise click.BadParameter(f"expected a list of points like [[1.0, 2.0]], got {quoted(value)}")
+        if not (isinstance(value, list) and value and all(isinstance(v, list) for v in value)):   # [] is no point
+            like = "[[1.0, 2.0, 3.0]]" if param.name == "at_xyz" else "[[1.0, 2.0]]"
+            raise click.BadParameter(f"expected a list of points like {like}, got {quoted(value)}")
         return tuple(param.type.convert(",".join(str(x) for x in point), None, None) for point in value)
     if param.name == "face_choice":
         if not (isinstance(value, str) or isinstance(value, int)):
