@@ -463,3 +463,12 @@ def test_a_cr_inside_a_line_is_named(tmp_path: Path, text: str, line: int, colum
     assert result.stderr == (f"prs3-post: error: {program}:{line}: a CR character at column {column}, inside the "
                              "line: LinuxCNC reads LF or CRLF line ends (a file with CR-only line ends: save it with "
                              "LF)\n")
+
+
+def test_fk_refuses_a_stage_position_on_a_machine_without_a_stage() -> None:
+    """fk --xy 1,2 on patel2020-head moved the tip by (1, 2) mm: a stage that is not there."""
+    result = invoke("fk", "--strokes", "100,100,100", "--xy", "1,2", "--machine", "patel2020-head")
+    assert _usage_error(result) == ("Error: Invalid value for '--xy': machine patel2020-head has no stage "
+                                    "(stage.present = false): the tip is where the head puts it; leave --xy out")
+    alone = invoke("fk", "--strokes", "100,100,100", "--machine", "patel2020-head")
+    assert (alone.exit_code, alone.stdout.splitlines()[0]) == (0, "tip   0.0000 0.0000 -704.4730 mm")

@@ -507,6 +507,9 @@ def fk(strokes: tuple[float, ...], xy: tuple[float, ...], machine_name: str, as_
 
     def body() -> int:
         machine = load_machine(machine_name)
+        if not machine.stage.present and _given(click.get_current_context(), "xy"):
+            raise click.BadParameter(f"machine {machine.name} has no stage (stage.present = false): the tip is "
+                                     "where the head puts it; leave --xy out", param_hint="'--xy'")
         result = forward(machine.geometry, np.array([strokes]), np.array([xy]))
         if not result.converged[0]:
             raise ReachError(
