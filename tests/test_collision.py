@@ -334,8 +334,12 @@ def _cl(points: list[tuple[str, float, float]]) -> str:
     return "\n".join([*lines, "FINI", ""])
 
 
-def test_convert_of_cl_checks_the_rapids_with_the_tldata_diameter(tmp_path):
+@pytest.mark.parametrize("diameter", ["6.0000", "6.0E+00", "+6"])
+def test_convert_of_cl_checks_the_rapids_with_the_tldata_diameter(tmp_path, diameter):
+    """A TLDATA/ diameter with an exponent (as every CL number may have) was passed over: the tool was then
+    checked as its axis ('diameter unknown')."""
     through = _cl([("RAPID", -15, 10), ("FEED", -15, -3), ("RAPID", 15, -3), ("FEED", 15, -4), ("RAPID", 15, 10)])
+    through = through.replace("TLDATA/MILL,6.0000,", f"TLDATA/MILL,{diameter},")
     source = tmp_path / "through.cls"
     source.write_text(through, encoding="utf-8")
     result = CliRunner().invoke(main, ["convert", str(source), "-o", str(tmp_path / "out"), "--jobs", "1",

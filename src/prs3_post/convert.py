@@ -20,7 +20,6 @@ import glob
 import math
 import multiprocessing
 import os
-import re
 import signal
 import stat
 import time
@@ -546,11 +545,7 @@ def tool_diameter_of(reader: ClStream | GcodeStream) -> float:
     if not isinstance(summary, ClFile):
         return 0.0
     scale = 25.4 if summary.units == "inch" else 1.0
-    found = []
-    for record in summary.tool_data:
-        numbers = [w for w in record.words if re.fullmatch(r"[+-]?(\d+\.?\d*|\.\d+)", w.strip())]
-        if numbers and 0.0 < float(numbers[0]) < math.inf:
-            found.append(float(numbers[0]) * scale)
+    found = [record.diameter * scale for record in summary.tool_data if record.diameter is not None]
     return min(found, default=0.0)
 
 

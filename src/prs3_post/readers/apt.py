@@ -293,6 +293,14 @@ class ClToolData:
     line: int
     words: tuple[str, ...]
 
+    @property
+    def diameter(self) -> float | None:
+        """File units: the record's first number (``TLDATA/MILL,10.0,0.0,50.0`` → 10.0; a CL number, so
+        ``1.0E+01`` too), when it is one and finite and > 0; else None."""
+        numbers = [word.strip() for word in self.words if _NUMBER.match(word.strip())]
+        value = float(numbers[0]) if numbers else math.nan
+        return value if 0.0 < value < math.inf else None
+
 
 @dataclass(frozen=True, slots=True)
 class ClCounts:
