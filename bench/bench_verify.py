@@ -44,7 +44,11 @@ def make_program(path: Path, lines: int) -> int:
     first_g1 = next(i for i, ln in enumerate(golden) if ln.startswith("G1 "))
     head = golden[:first_g1]
     tail = golden[next(i for i, ln in enumerate(golden) if ln == "M9") - 2:]
-    start = np.array([float(w[1:]) for w in golden[first_g1 - 3].split()[1:]])      # the G0 before G93
+    pose = {}                                                         # where the G0s before G93 leave the head
+    for line in golden[:first_g1]:
+        if line.startswith("G0 "):
+            pose.update((w[0], float(w[1:])) for w in line.split()[1:])
+    start = np.array([pose[letter] for letter in "XYUVW"])
     n = max(lines - len(head) - len(tail), 10)
     per_lap = 200
     t = np.arange(1, n + 1)
@@ -62,7 +66,12 @@ def make_program(path: Path, lines: int) -> int:
     previous = np.vstack([start, joints[:-1]])
     fk_prev = forward(machine.geometry, previous[:, 2:], previous[:, :2])
     chord = np.linalg.norm(fk.tip - fk_prev.tip, axis=1)
-    feed = np.round(300.0 / np.maximum(chord, 1e-6), 4)
+    step = np.abs(joints - previous)                                   # each axis's move, mm
+    minutes = np.maximum.reduce([chord / 300.0,                         # 300 mm/min at the tip, and each axis
+                                 step[:, :2].max(axis=1) / 9000.0,      # at 90 % of its top speed (stage
+                                 step[:, 2:].max(axis=1) / 4500.0,      # 10000, strokes 5000 mm/min), so the
+                                 np.full(len(chord), 1e-9)])             # program verifies clean
+    feed = np.round(1.0 / minutes, 4)
     columns = [_words(letter, joints[:, i]) for i, letter in enumerate("XYUVW")] + [_words("F", feed)]
     body = []
     last = [""] * 5
