@@ -110,6 +110,21 @@ def test_convert_refuses_standard_input_and_reads_a_file_named_dash(tmp_path: Pa
     assert (tmp_path / "out" / "-.ngc").is_file()
 
 
+@pytest.mark.parametrize(("option", "message"), [
+    (["-o", "-"], "Error: Invalid value for '-o' / '--output-dir': '-' is no folder: convert writes one program per "
+                  "input into OUTDIR, standard output cannot take them (a folder named '-' is ./-)"),
+    (["-o", "out", "--report", "-"], "Error: Invalid value for '--report': '-': standard output has one line per "
+                                     "file already, the report would be mixed into them (a file named '-' is ./-)"),
+])
+def test_convert_refuses_standard_output_for_its_programs_and_report(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                     option: list[str], message: str) -> None:
+    """'-o -' made a folder named '-' (exit 0); '--report -' printed the JSON among the per-file lines."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
+    assert _usage_error(invoke("convert", "a.ngc", *option, "--work-plane", "0,0,0,0,0,1")) == message
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc"]
+
+
 @pytest.mark.parametrize("text", ["nan", "1,2,3,0,0,nan", "inf,0,0,0,0,1", "0x1p3,0,0,0,0,1", "nowhere.stl:2"])
 def test_a_work_plane_that_is_neither_numbers_nor_a_file_says_what_is_valid(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, text: str) -> None:

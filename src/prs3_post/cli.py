@@ -1598,6 +1598,13 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
 
     def body() -> int:
         require_tolerance(tolerance)
+        if outdir == "-":                                # it made a folder named '-'
+            raise click.BadParameter("'-' is no folder: convert writes one program per input into OUTDIR, standard "
+                                     "output cannot take them (a folder named '-' is ./-)",
+                                     param_hint="'-o' / '--output-dir'")
+        if report_path == "-":                           # the JSON went among the per-file lines
+            raise click.BadParameter("'-': standard output has one line per file already, the report would be "
+                                     "mixed into them (a file named '-' is ./-)", param_hint="'--report'")
         low, high = TOOL_DIAMETER_RANGE
         if tool_diameter is not None and not low <= tool_diameter <= high:
             raise click.BadParameter(f"must be from {low:g} to {high:g} mm (got {tool_diameter:g})",
