@@ -144,7 +144,11 @@ def test_preview_refuses_other_image_types_and_bad_programs(tmp_path):
     result = run("preview", VERIFY / "small.ngc", "-o", tmp_path / "p.jpg")
     assert result.exit_code == 2
     assert result.output.splitlines()[-1] == (
-        f"Error: Invalid value for '-o' / '--preview': the image must end in .png or .svg, got '{tmp_path / 'p.jpg'}'")
+        f"Error: Invalid value for '-o' / '--output': the image must end in .png or .svg, got '{tmp_path / 'p.jpg'}'")
+    result = run("demo", "--profile", "hole", "-o", tmp_path / "p.ngc", "--preview", tmp_path / "p.txt")
+    assert result.exit_code == 2                       # both named '-o' / '--preview': the main job's -o is the program
+    assert result.output.splitlines()[-1] == (
+        f"Error: Invalid value for '--preview': the image must end in .png or .svg, got '{tmp_path / 'p.txt'}'")
     bad = VERIFY / "bad" / "z_word.ngc"
     result = run("preview", bad, "-o", tmp_path / "p.png")
     assert (result.exit_code, result.output) == (

@@ -716,7 +716,7 @@ def _run_job(part: str, **opts: Any) -> int:
 
     _refuse_unused_options(opts["profile"])
     spec = _job_spec(part, opts)
-    fmt = _image_format(opts["preview_path"]) if opts["preview_path"] else None
+    fmt = _image_format(opts["preview_path"], "'--preview'") if opts["preview_path"] else None
     try:
         job = check_job(spec)
     except Placement as error:                         # the library's suggestion, as the option to give
@@ -1125,11 +1125,11 @@ def _option_flags(ctx: click.Context, names: list[str]) -> list[str]:
     return [flags.get(name, name) for name in names]
 
 
-def _image_format(path: str) -> str:
-    """``png`` or ``svg`` from an output file's suffix."""
+def _image_format(path: str, flag: str) -> str:
+    """``png`` or ``svg`` from an output file's suffix; ``flag`` names the option in the error."""
     suffix = Path(path).suffix.lower()
     if suffix not in (".png", ".svg"):
-        raise click.BadParameter(f"the image must end in .png or .svg, got {path!r}", param_hint="'-o' / '--preview'")
+        raise click.BadParameter(f"the image must end in .png or .svg, got {path!r}", param_hint=flag)
     return suffix[1:]
 
 
@@ -1468,7 +1468,7 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
 
     def body() -> int:
         ctx = click.get_current_context()
-        fmt = _image_format(out_path)
+        fmt = _image_format(out_path, "'-o' / '--output'")
         _refuse_cl_file(program_path)
         context = _open_program(ctx, program_path, machine_name, dialect_name, part_origin, part_rotation,
                                 open_program)
