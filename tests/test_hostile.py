@@ -487,3 +487,19 @@ def test_fk_refuses_a_stage_position_on_a_machine_without_a_stage() -> None:
                                     "(stage.present = false): the tip is where the head puts it; leave --xy out")
     alone = invoke("fk", "--strokes", "100,100,100", "--machine", "patel2020-head")
     assert (alone.exit_code, alone.stdout.splitlines()[0]) == (0, "tip   0.0000 0.0000 -704.4730 mm")
+
+
+def test_an_automatic_part_origin_beyond_the_setups_range_is_a_limit_failure(tmp_path: Path,
+                                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """With a 1 km tool the best origin is a kilometre down: it failed as bad input (exit 2) with the setup's check
+    of a value the user never gave ('part origin: each of x, y, z must be ... within ±100000 mm')."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
+    result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", "0,0,0,0,0,1", "--tool-length", "1e6",
+                    "--part-origin", "auto", "--jobs", "1")
+    assert result.exit_code == 1, result.stderr
+    reason = result.stdout.split("\t")[3]
+    assert reason.startswith("no part origin puts every point inside the machine's limits: the best one is "
+                             "at machine [") and reason.endswith(
+        "] mm, beyond the ±100000 mm a part origin may be from the machine's origin (is the tool length right?)\n")
+    assert not (tmp_path / "out" / "a.ngc").exists()

@@ -45,7 +45,7 @@ from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, inverse, unit_
 from prs3_post.limits import LimitReport, check_limits
 from prs3_post.pipeline import machine_path, model_for, place_toolpath, post_process
 from prs3_post.readers.header import exact_text
-from prs3_post.setup import Setup, SetupError
+from prs3_post.setup import MAX_ORIGIN_MM, Setup, SetupError
 from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.toolpath import Toolpath
 from prs3_post.types import BoolArray, FloatArray
@@ -579,6 +579,11 @@ def place(machine: Machine, paths: Toolpath | Sequence[Toolpath], *, origin: Seq
 def _finish(search: _Search, best: _Candidate, origin_chosen: bool, rotation_chosen: bool) -> PlacementResult:
     """The chosen setup, rounded (0.1 mm where every limit still holds), its margins, or the error."""
     best = search.candidate(best.rotation_deg, whole=True)    # the origin for every row of the program
+    if origin_chosen and not np.abs(best.origin).max() <= MAX_ORIGIN_MM:   # a kilometre-long tool, say
+        shown = ", ".join(f"{v:.6g}" for v in best.origin)
+        raise LimitError(f"no {_chosen(origin_chosen, rotation_chosen)} puts every point inside the machine's limits: "
+                         f"the best one is at machine [{shown}] mm, beyond the ±{MAX_ORIGIN_MM:g} mm a part origin may "
+                         "be from the machine's origin (is the tool length right?)")
     attempts = [np.round(best.origin, d) for d in (1, 3, 6)] if origin_chosen else [best.origin]
     first: tuple[PlacementResult, _Rows] | None = None
     for origin in attempts:
