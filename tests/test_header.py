@@ -147,6 +147,26 @@ def test_a_malformed_entry_is_an_error_with_its_line(tmp_path):
         f"{bad}:{number + 1}: header: setup: expected [3 numbers], got '[-100, -200]'")
 
 
+@pytest.mark.parametrize(("name", "tolerance", "expected"), [
+    ("wedge-round.ngc", "5 mm", "expected a tolerance from 0.0001 to 1 mm (as --tolerance), got '5 mm'"),
+    ("wedge-round.ngc", "0.00001 mm", "expected a tolerance from 0.0001 to 1 mm (as --tolerance), got '0.00001 mm'"),
+    ("convert-mech491_APT_SimpleMillPlane.ngc", "5 mm, angle 0.01 deg",
+     "expected a tolerance from 0.0001 to 1 mm (as --tolerance) and an angle in (0, 90] deg, got '5 mm, angle 0.01 "
+     "deg'"),
+])
+def test_a_header_tolerance_outside_the_options_range_is_refused(tmp_path, name, tolerance, expected):
+    """A header edited to 'tolerance: 5 mm' made verify accept G1 tips 5 mm off their chords: no program is made
+    with a tolerance over 1 mm (--tolerance), and the header sets verify's."""
+    lines = _header_lines(GOLDEN / name)
+    number = next(i for i, ln in enumerate(lines) if ln.startswith("(tolerance: "))
+    lines[number] = f"(tolerance: {tolerance})"
+    bad = tmp_path / "bad.ngc"
+    bad.write_text("\n".join(lines), encoding="utf-8")
+    with pytest.raises(InputError) as caught:
+        read_header(str(bad))
+    assert str(caught.value) == f"{bad}:{number + 1}: header: tolerance: {expected}"
+
+
 def test_a_missing_entry_is_an_error(tmp_path):
     lines = [ln for ln in _header_lines(GOLDEN / "wedge-round.ngc") if not ln.startswith("(tool: ")]
     bad = tmp_path / "bad.ngc"

@@ -52,6 +52,7 @@ from prs3_post.errors import InputError, Prs3Error, quoted
 from prs3_post.face import Face
 from prs3_post.fixed import fixed as _fixed
 from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
+from prs3_post.ops.common import MAX_TOLERANCE, MIN_TOLERANCE
 from prs3_post.ops.work import HoleJob, ProfileJob
 from prs3_post.readers.files import open_input
 from prs3_post.setup import Setup
@@ -734,8 +735,9 @@ def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHe
             first, key = _operation_record(found, "")
         key = "tolerance"
         tolerance = float(_match(_TOLERANCE, found["tolerance"][1]).group(1))
-        if not (math.isfinite(tolerance) and 0.0 < tolerance <= MAX_POSITION_MM):
-            raise _Bad(f"expected a tolerance > 0 mm, got {quoted(found['tolerance'][1], HEADER_ECHO)}")
+        if not (math.isfinite(tolerance) and MIN_TOLERANCE <= tolerance <= MAX_TOLERANCE):   # as --tolerance
+            raise _Bad(f"expected a tolerance from {MIN_TOLERANCE:g} to {MAX_TOLERANCE:g} mm (as --tolerance), "
+                       f"got {quoted(found['tolerance'][1], HEADER_ECHO)}")
         checks = [(True, 1.0)] * max(1, len(operations))
         if "collision" in found:
             key = "collision"
@@ -941,9 +943,10 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
         key = "tolerance"
         tolerances = _match(_SOURCE_TOLERANCE, found["tolerance"][1])
         tolerance, angle = float(tolerances.group(1)), float(tolerances.group(2))
-        if not (math.isfinite(tolerance) and 0.0 < tolerance <= MAX_POSITION_MM and math.isfinite(angle)
+        if not (math.isfinite(tolerance) and MIN_TOLERANCE <= tolerance <= MAX_TOLERANCE and math.isfinite(angle)
                 and 0.0 < angle <= 90.0):
-            raise _Bad(f"expected a tolerance > 0 mm and an angle in (0, 90] deg, "
+            raise _Bad(f"expected a tolerance from {MIN_TOLERANCE:g} to {MAX_TOLERANCE:g} mm (as --tolerance) and an "
+                       "angle in (0, 90] deg, "
                        f"got {quoted(found['tolerance'][1], HEADER_ECHO)}")
     except _Bad as bad:
         raise InputError(f"header: {key}: {bad}", path=path, line=found[key][0]) from bad
