@@ -503,3 +503,16 @@ def test_an_automatic_part_origin_beyond_the_setups_range_is_a_limit_failure(tmp
                              "at machine [") and reason.endswith(
         "] mm, beyond the ±100000 mm a part origin may be from the machine's origin (is the tool length right?)\n")
     assert not (tmp_path / "out" / "a.ngc").exists()
+
+
+@pytest.mark.parametrize(("option", "value"), [("--tool-diameter", "6"), ("--clearance-min", "3")])
+def test_convert_refuses_the_parts_check_options_without_a_part(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                option: str, value: str) -> None:
+    """They were taken and ignored (exit 0, the header saying 'collision: not checked (no part given)'): the user
+    who gave a tool's diameter or a clearance believed the program checked."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
+    result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", "0,0,0,0,0,1", option, value)
+    assert _usage_error(result) == (f"Error: {option} is used only with --part PART.stl (the check against the "
+                                    "part): give the part, or leave it out")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc"]

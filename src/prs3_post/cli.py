@@ -1605,6 +1605,12 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
         if report_path == "-":                           # the JSON went among the per-file lines
             raise click.BadParameter("'-': standard output has one line per file already, the report would be "
                                      "mixed into them (a file named '-' is ./-)", param_hint="'--report'")
+        if part_path is None:                            # else taken and ignored: the user believed it checked
+            ctx = click.get_current_context()
+            for name, flag in (("tool_diameter", "--tool-diameter"), ("clearance_min", "--clearance-min")):
+                if _given(ctx, name):
+                    raise click.UsageError(f"{flag} is used only with --part PART.stl (the check against the part): "
+                                           "give the part, or leave it out")
         low, high = TOOL_DIAMETER_RANGE
         if tool_diameter is not None and not low <= tool_diameter <= high:
             raise click.BadParameter(f"must be from {low:g} to {high:g} mm (got {tool_diameter:g})",
