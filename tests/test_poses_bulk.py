@@ -73,6 +73,20 @@ def test_bulk_values_are_float_of_the_text_bit_for_bit(tmp_path, monkeypatch, ce
     assert [len(t.line) for t in tables] == [len(t.line) for t in iter_poses(str(path), chunk_lines=4)]
 
 
+def test_a_spreadsheets_crlf_table_is_read_by_pyarrow(tmp_path, monkeypatch):
+    """``\r\n`` line ends: the bulk reader's, the same tables (with a block boundary between the
+    second line's \r and its \n)."""
+    row = "1.25,-2.5,-700.125,0.25,0.5,0.75\r\n"
+    path = tmp_path / "poses.csv"
+    path.write_bytes((HEADER.replace("\n", "\r\n") + row * 40).encode())
+    expected = _outcome(iter_poses, path, 9)
+    _only_bulk(monkeypatch)
+    for block in (1 << 20, 2 * len(row) - 1):
+        monkeypatch.setattr(poses_bulk, "BLOCK_BYTES", block)
+        assert _outcome(functools.partial(iter_poses_bulk, min_bytes=0), path, 9) == expected
+    assert [len(lines) for _, _, lines in expected[0]] == [8, 9, 9, 9, 5] and expected[1] == ""
+
+
 def _outcome(reader, path: Path, chunk_lines: int) -> tuple[list[tuple[list[float], list[float], list[int]]], str]:
     """What a reader yields: each table (as lists) and the message it ends with ('' if none)."""
     tables = []
@@ -97,17 +111,24 @@ _ROW = st.one_of(
 
 @SETTINGS
 @given(rows=st.lists(_ROW, max_size=12), ending=st.sampled_from(["\n", "\r\n", ""]), chunk_lines=st.integers(1, 5),
-       regular=st.integers(0, 10))
-@example(rows=["1,2,3,0,0,1", "", "1e308,2,3,0,0,1"], ending="\n", chunk_lines=65536, regular=0)
-@example(rows=["1,2,3,0,0,1", "1,2,3,0,nan(1),1"], ending="\n", chunk_lines=2, regular=3)
-@example(rows=["1,2,3,0,0,1\r1,2,3,0,0,1", "1,2,3,0,0,0"], ending="\n", chunk_lines=2, regular=0)
-def test_bulk_reader_yields_and_says_what_the_numpy_reader_does(tmp_path, rows, ending, chunk_lines, regular):
+       regular=st.integers(0, 10), block=st.sampled_from([1 << 20, 64, 73]), crlf=st.booleans())
+@example(rows=["1,2,3,0,0,1", "", "1e308,2,3,0,0,1"], ending="\n", chunk_lines=65536, regular=0, block=1 << 20,
+         crlf=False)
+@example(rows=["1,2,3,0,0,1", "1,2,3,0,nan(1),1"], ending="\n", chunk_lines=2, regular=3, block=1 << 20, crlf=False)
+@example(rows=["1,2,3,0,0,1\r1,2,3,0,0,1", "1,2,3,0,0,0"], ending="\n", chunk_lines=2, regular=0, block=1 << 20,
+         crlf=False)
+@example(rows=["1,2,3,0,0,1\r1,2,3,0,0,1"], ending="\n", chunk_lines=2, regular=4, block=73, crlf=True)
+def test_bulk_reader_yields_and_says_what_the_numpy_reader_does(tmp_path, monkeypatch, rows, ending, chunk_lines,
+                                                                regular, block, crlf):
     """Every table (values, lines, chunks) and the message, on plain tables and on every kind of
     irregular one (the bulk reader hands those to the numpy reader, from the chunk where it
-    stopped: ``regular`` plain lines come first, so the hand-over is often after a few chunks)."""
+    stopped: ``regular`` plain lines come first, so the hand-over is often after a few chunks).
+    Small blocks put a block boundary anywhere, also between a \r and its \n."""
+    monkeypatch.setattr(poses_bulk, "BLOCK_BYTES", block)
     path = tmp_path / "poses.csv"
     lines = ["1,2,-3.5,0,0.5,1"] * regular + rows
-    path.write_bytes((HEADER + "\n".join(lines) + (ending if lines else "")).encode())
+    newline = "\r\n" if crlf else "\n"
+    path.write_bytes((HEADER + newline.join(lines) + (ending if lines else "")).encode())
     bulk = _outcome(functools.partial(iter_poses_bulk, min_bytes=0), path, chunk_lines)
     assert bulk == _outcome(iter_poses, path, chunk_lines)
 

@@ -3,13 +3,13 @@
 :func:`iter_poses_bulk` yields what :func:`~prs3_post.readers.poses.iter_poses` yields — the same
 tables, cut at the same lines — four to five times faster on a plain table (a million poses of 17
 digits: 0.6 to 0.75 CPU s with pyarrow's import, against 3.0 s, at a load average near 5). It
-reads only the plain case: ASCII numbers separated by commas, ``\n`` line ends, no blank line,
-and every value finite and within POSE_LIMITS. Anything else — a parse error, a wrong column
-count, a quote, a ``\r``, a blank line, a NaN or an infinity, a value out of range — hands the
-table, from the chunk where it was found, to :func:`~prs3_post.readers.poses.iter_poses`, so that
-every message (and every value it accepts) is exactly that reader's. That reader reads the chunks
-before again to skip them: a table irregular only near its end costs its numpy reading and the
-bulk one.
+reads only the plain case: ASCII numbers separated by commas, ``\n`` or ``\r\n`` line ends, no
+blank line, and every value finite and within POSE_LIMITS. Anything else — a parse error, a wrong
+column count, a quote, a lone ``\r``, a blank line, a NaN or an infinity, a value out of range —
+hands the table, from the chunk where it was found, to :func:`~prs3_post.readers.poses.iter_poses`,
+so that every message (and every value it accepts) is exactly that reader's. That reader reads the
+chunks before again to skip them: a table irregular only near its end costs its numpy reading and
+the bulk one.
 
 pyarrow is imported only here, and only for a table of at least :data:`BULK_BYTES`: its import
 costs about 0.035 CPU s and 27 MB, more than the numpy reader spends on a small table (at 4 MB,
@@ -36,33 +36,23 @@ BULK_BYTES = 4_000_000
 BLOCK_BYTES = 1 << 20
 
 
-class _Irregular(Exception):
-    """The bytes are not the plain case: read by :func:`~prs3_post.readers.poses.iter_poses`."""
+def _line_ends_plain(stream: BinaryIO) -> bool:
+    """Whether the rest of ``stream`` has no lone ``\r`` (one not before ``\n``), read in blocks.
 
-
-class _PlainStream:
-    """The file after its header, for pyarrow, refusing a ``\r``: a line end for pyarrow and for
-    the numpy reader, but that reader cuts its chunks at ``\n`` only, so a lone ``\r`` would move
-    the chunks (and the lines a message names with them)."""
-
-    def __init__(self, stream: BinaryIO) -> None:
-        self.stream = stream
-        self.closed = False
-
-    def read(self, size: int = -1) -> bytes:
-        data = self.stream.read(size)
-        if b"\r" in data:
-            raise _Irregular
-        return data
-
-    def readable(self) -> bool:
-        return True
-
-    def seekable(self) -> bool:
-        return False
-
-    def close(self) -> None:
-        self.closed = True
+    A lone ``\r`` is a line end for pyarrow and for the numpy reader, but that reader cuts its
+    chunks at ``\n`` only, so it would move the chunks (and the lines a message names with them).
+    ``\r\n`` (a spreadsheet's CSV) is one line end for both. (Checked before pyarrow reads the
+    file, not by handing pyarrow a Python file object that checks each block: pyarrow's threads
+    would then need the interpreter's lock, and one left waiting can hang the process at exit.)
+    """
+    cr_before = False                               # the block before ended with \r
+    while block := stream.read(BLOCK_BYTES):
+        if cr_before and not block.startswith(b"\n"):
+            return False
+        cr_before = block.endswith(b"\r")           # its \n is the next block's first byte
+        if b"\r" in block and block.count(b"\r") != block.count(b"\r\n") + cr_before:
+            return False
+    return not cr_before
 
 
 def iter_poses_bulk(path: str, *, chunk_lines: int = 65536, min_bytes: int = BULK_BYTES) -> Iterator[PoseTable]:
@@ -77,25 +67,29 @@ def iter_poses_bulk(path: str, *, chunk_lines: int = 65536, min_bytes: int = BUL
     """
     done = 0                                        # chunks yielded by the bulk reader
     with open_input(path, "a CSV file") as stream:
-        if chunk_lines > 1 and os.fstat(stream.fileno()).st_size >= min_bytes:
+        bulk = chunk_lines > 1 and os.fstat(stream.fileno()).st_size >= min_bytes
+        if bulk:
             first = stream.readline()
             try:
                 _check_header(first, path)
             except InputError:
-                pass                                # the numpy reader says what is wrong with it
+                bulk = False                        # the numpy reader says what is wrong with it
             else:
-                for table in _bulk_chunks(_PlainStream(stream), path, chunk_lines):
-                    if table is None:
-                        break
-                    yield table
-                    done += 1
-                else:
-                    return
+                bulk = _line_ends_plain(stream)
+    if bulk:
+        for table in _bulk_chunks(path, len(first), chunk_lines):
+            if table is None:
+                break
+            yield table
+            done += 1
+        else:
+            return
     yield from itertools.islice(iter_poses(path, chunk_lines=chunk_lines), done, None)
 
 
-def _bulk_chunks(stream: _PlainStream, path: str, chunk_lines: int) -> Iterator[PoseTable | None]:
-    """The chunks of the file after its header (line 1), then None if a chunk is not plain.
+def _bulk_chunks(path: str, offset: int, chunk_lines: int) -> Iterator[PoseTable | None]:
+    """The chunks of the file after its header (line 1, ``offset`` bytes), then None if a chunk is
+    not plain.
 
     The first chunk holds ``chunk_lines - 1`` poses (the header is the chunk's first line), the
     others ``chunk_lines``, as in :func:`~prs3_post.readers.poses.iter_poses`. None also for a
@@ -109,8 +103,10 @@ def _bulk_chunks(stream: _PlainStream, path: str, chunk_lines: int) -> Iterator[
         return
     columns = list(POSE_COLUMNS)
     try:
+        source = pa.OSFile(path)                    # read by pyarrow's own threads, without Python
+        source.seek(offset)
         reader = pa_csv.open_csv(
-            stream,
+            source,
             read_options=pa_csv.ReadOptions(column_names=columns, block_size=BLOCK_BYTES),
             parse_options=pa_csv.ParseOptions(delimiter=",", quote_char=False, double_quote=False, escape_char=False,
                                               newlines_in_values=False, ignore_empty_lines=False),
@@ -118,7 +114,7 @@ def _bulk_chunks(stream: _PlainStream, path: str, chunk_lines: int) -> Iterator[
                 column_types=dict.fromkeys(columns, pa.float64()), null_values=[], true_values=[],
                 false_values=[], strings_can_be_null=False, quoted_strings_can_be_null=False),
         )
-    except (pa.ArrowException, _Irregular):         # an empty body or a bad first block
+    except (pa.ArrowException, OSError):            # an empty body, a bad first block, a file gone
         yield None
         return
     number = 1                                      # lines before the chunk being filled
@@ -130,7 +126,7 @@ def _bulk_chunks(stream: _PlainStream, path: str, chunk_lines: int) -> Iterator[
             batch = reader.read_next_batch()
         except StopIteration:
             break
-        except (pa.ArrowException, _Irregular):
+        except pa.ArrowException:
             yield None
             return
         start = 0
