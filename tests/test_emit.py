@@ -781,3 +781,29 @@ def test_motion_lines_match_a_row_by_row_reference(seed: int, decimals: int, mod
     emitter = ProgramEmitter(dialect, line_numbers=numbered)
     got = emitter.rows(program).splitlines()
     assert got == _reference_motion(program, dialect, numbered)
+
+
+# ----------------------------------------------------------------------------- long comments
+
+
+@settings(max_examples=1000, deadline=None)
+@given(text=st.text(alphabet="ab -", max_size=400), width=st.integers(min_value=1, max_value=40))
+def test_comment_wrapping_is_textwraps(text: str, width: int) -> None:
+    """The wrapping of long comments cuts a long word in one pass: the same lines as textwrap.wrap."""
+    import textwrap
+
+    expected = textwrap.wrap(text, width=width, subsequent_indent=gcode._CONTINUATION, break_on_hyphens=False)
+    assert gcode.wrap_comment(text, width) == expected
+
+
+def test_a_comment_of_megabytes_is_wrapped_in_linear_time() -> None:
+    """textwrap cuts one line off a word longer than a line per pass and copies the rest: a 20 MB CAM comment (one
+    word) took some 20 s, 50 MB minutes (convert looked hung)."""
+    import time
+
+    word = "x" * 20_000_000
+    start = time.process_time()
+    lines = gcode.wrap_comment(word, 250)
+    assert time.process_time() - start < 5.0
+    assert (len(lines), lines[0], lines[1]) == (-(-(20_000_000 - 250) // 248) + 1, "x" * 250, "  " + "x" * 248)
+    assert "".join(line.lstrip(" ") for line in lines) == word
