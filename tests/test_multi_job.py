@@ -378,3 +378,19 @@ def test_the_moves_between_operations_count_in_the_header_of_the_operation_whose
         "spindle nose 5.000 mm")
     header = parse_header(header_comments("\n".join(lines)), path=str(out))
     assert [(op.collision_check, op.clearance_min) for op in header.operations] == [(True, 1.0), (True, 1.0)]
+
+
+def test_a_tool_tables_diameter_out_of_range_names_the_table_line(tmp_path: Path) -> None:
+    """'T1 P1 D0' was reported as 'job.toml: operation[1]: tool_diameter must be from 0.01 to 500 mm (got 0)', a key
+    the job file does not have."""
+    table = tmp_path / "tools.tbl"
+    table.write_text((JOBS / "tools.tbl").read_text(encoding="utf-8").replace("T1 P1 D6.000", "T1 P1 D0"),
+                     encoding="utf-8")
+    job = tmp_path / "job.toml"
+    text = EXAMPLE.read_text(encoding="utf-8").replace('"../parts/twofaces.stl"', f'"{TWOFACES}"')
+    job.write_text(text.replace('"tools.tbl"', f'"{table}"'), encoding="utf-8")
+    result = run_cli("job", str(job), "-o", str(tmp_path / "out.ngc"))
+    assert (result.exit_code, result.stderr) == (2, f"prs3-post: error: {table}:3: T1 has diameter 0 mm in the tool "
+                                                    "table: a job takes a diameter from 0.01 to 500 mm (or give "
+                                                    "tool_diameter in the operation)\n")
+    assert not (tmp_path / "out.ngc").exists()

@@ -957,6 +957,11 @@ def _job_specs(job: JobFile) -> tuple[JobSpec, ...]:
         if table is not None and "tool_diameter" not in operation:     # the table says the diameter
             tool = table.find(opts["tool_number"])
             if tool is not None:
+                low, high = TOOL_DIAMETER_RANGE          # its line, not the operation's tool_diameter (not given)
+                if not low <= tool.diameter <= high:
+                    raise InputError(f"T{tool.number} has diameter {tool.diameter:g} mm in the tool table: a job "
+                                     f"takes a diameter from {low:g} to {high:g} mm (or give tool_diameter in the "
+                                     "operation)", path=table.path, line=tool.line)
                 opts["tool_diameter"] = tool.diameter
         try:
             spec = _job_spec(job.part, opts)
