@@ -79,6 +79,7 @@ def test_a_repeatable_option_and_a_value_that_looks_like_an_option_are_not_repea
 
 @pytest.mark.parametrize(("args", "what"), [
     (["run", "-", "--profile", "hole", "-o", "x.ngc"], "an STL file"),
+    (["-", "--profile", "hole", "-o", "x.ngc"], "an STL file"),      # was: No such command '-'
     (["faces", "-"], "an STL file"),
     (["verify", "-"], "a G-code program"),
     (["preview", "-", "-o", "x.png"], "a G-code program"),

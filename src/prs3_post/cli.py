@@ -399,9 +399,9 @@ class _MainGroup(click.Group):
             sys.exit(failed.exit_code)
 
     def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
-        if args and not args[0].startswith("-") and args[0] not in self.commands:
+        if args and (not args[0].startswith("-") or args[0] == "-") and args[0] not in self.commands:   # '-': run's
             first = args[0]
-            if not (Path(first).suffix or os.sep in first or os.path.lexists(first)):    # a word, not a file
+            if not (Path(first).suffix or os.sep in first or os.path.lexists(first) or first == "-"):   # a word
                 near = difflib.get_close_matches(first, list(self.commands), n=1)
                 hint = f"did you mean '{near[0]}'? " if near else ""
                 ctx.fail(f"no such command or file {quoted(first)} ({hint}commands: {', '.join(sorted(self.commands))};"
