@@ -57,7 +57,14 @@ import numpy as np
 
 from prs3_post.face import Face
 from prs3_post.machine import Holder, Machine
-from prs3_post.meshdist import inside, point_triangle_distance, segment_triangle_distance, triangle_distance
+from prs3_post.meshdist import (
+    PAIR_BUDGET,
+    inside,
+    nearest_distance,
+    point_triangle_distance,
+    segment_triangle_distance,
+    triangle_distance,
+)
 from prs3_post.setup import Setup
 from prs3_post.toolpath import JointProgram
 from prs3_post.types import BoolArray, FloatArray, IntArray
@@ -86,7 +93,7 @@ AFTER_HIT = 4
 #: mm: minima this close are the same (the report's rounding); the earliest pose is named.
 _TIE_MM = 5e-4
 #: Pairs measured at a time (memory).
-_CHUNK = 1 << 17
+_CHUNK = PAIR_BUDGET
 
 
 def body_cylinders(tool_diameter: float, tool_length: float, holder: Holder) -> FloatArray:
@@ -435,21 +442,19 @@ def _signed(points: FloatArray, part: _Part, cutting: BoolArray, face: Face | No
     known to be outside (not tested)."""
     lo, hi = points.min(axis=0) - reach, points.max(axis=0) + reach
     near = np.flatnonzero(((part.high >= lo) & (part.low <= hi)).all(axis=1))
-    every = point_triangle_distance(points, part.triangles[near])
     inner = np.zeros(len(points), dtype=bool)
     unknown = np.flatnonzero(~outside)
     inner[unknown] = inside(points[unknown], part.triangles)
-    dist = np.minimum(every.min(axis=1, initial=np.inf), reach)
+    dist = np.minimum(nearest_distance(points, part.triangles[near]), reach)
     deep = np.flatnonzero(inner & (dist >= reach))
     if len(deep):                                   # inside, and deeper than the near triangles say
-        dist[deep] = point_triangle_distance(points[deep], part.triangles).min(axis=1)
+        dist[deep] = nearest_distance(points[deep], part.triangles)
     dist = np.where(inner, -dist, dist)
     if cutting.any() and face is not None:
         height = (points - face.origin) @ face.normal
-        off_face = np.minimum(every[:, part.others[near]].min(axis=1, initial=np.inf), reach)
+        off_face = np.minimum(nearest_distance(points, part.triangles[near[part.others[near]]]), reach)
         if len(deep):
-            off_face[deep] = point_triangle_distance(points[deep], part.triangles[part.others]).min(
-                axis=1, initial=np.inf)
+            off_face[deep] = nearest_distance(points[deep], part.triangles[part.others])
         dist = np.where(cutting, np.where(height < part.band, np.inf, np.where(inner, -off_face, off_face)), dist)
     return dist
 
@@ -538,7 +543,7 @@ class _Poses:
             deep = np.flatnonzero(inner & (dist >= near))
             if len(deep):
                 pool = part.triangles[part.others] if cut else part.triangles
-                dist[deep] = point_triangle_distance(world[deep], pool).min(axis=1, initial=np.inf)
+                dist[deep] = nearest_distance(world[deep], pool)
             dist = np.where(inner, -dist, dist)
         if cut and self.face is not None:
             dist = np.where((world - self.face.origin) @ self.face.normal < part.band, np.inf, dist)

@@ -13,7 +13,14 @@ import numpy as np
 
 from prs3_post.types import BoolArray, FloatArray
 
-__all__ = ["RAY", "inside", "point_triangle_distance", "segment_triangle_distance", "triangle_distance"]
+__all__ = ["PAIR_BUDGET", "RAY", "inside", "nearest_distance", "point_triangle_distance", "segment_triangle_distance",
+           "triangle_distance"]
+
+#: Point × triangle pairs measured at a time (memory: a few hundred bytes each while measured).
+PAIR_BUDGET = 1 << 17
+#: Relative to |p|² + |q|² (mm²): how much a square distance's rounding is taken to be, far more than
+#: its few ulps, so that the pruning never drops the nearest triangle.
+_SQUARE_SLACK = 1e-9
 
 #: The direction of the inside test's ray: no axis-aligned edge lies along it.
 RAY = np.array([0.5773502691896258, 0.4082482904638631, 0.7071067811865476])
@@ -56,6 +63,48 @@ def triangle_distance(p: FloatArray, a: FloatArray, b: FloatArray, c: FloatArray
 def point_triangle_distance(points: FloatArray, triangles: FloatArray) -> FloatArray:
     """(P, T) mm: exact distance from each point (P, 3) to each triangle (T, 3, 3)."""
     return triangle_distance(points[:, None, :], *(triangles[None, :, k, :] for k in range(3)))
+
+
+def nearest_distance(points: FloatArray, triangles: FloatArray, *, budget: int = PAIR_BUDGET) -> FloatArray:
+    """(P,) mm: exact distance from each point (P, 3) to the nearest triangle (T, 3, 3) (inf: none);
+    the least of :func:`point_triangle_distance`'s row, the same number, in memory bounded by ``budget``.
+
+    The points go ``budget`` pairs at a time (the triangles too, past ``budget`` of them). A point's
+    nearest corner bounds its distance from above; a triangle is measured only where the ball round
+    its box, then the box, is no farther than that (the nearest triangle always is: the bounds are
+    widened by :data:`_SQUARE_SLACK`, far more than their rounding), and its distance is the same
+    number :func:`triangle_distance` gives for the pair alone."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    triangles = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+    out = np.full(len(points), np.inf)
+    if not len(points) or not len(triangles):
+        return out
+    low, high = triangles.min(axis=1), triangles.max(axis=1)                   # (T, 3)
+    centre, radius = 0.5 * (low + high), 0.5 * np.linalg.norm(high - low, axis=1)    # a ball round each box
+    corners = np.unique(triangles.reshape(-1, 3), axis=0)                     # (V, 3)
+    cols = max(1, min(budget, max(len(triangles), len(corners))))
+    rows = max(1, budget // cols)
+    for k in range(0, len(points), rows):
+        p = points[k:k + rows]
+        # squares by |p|² + |q|² − 2 p·q (a product, fast): rounding of a few ulps of |p|² + |q|², widened by far more
+        own = (p * p).sum(axis=1)
+        square = np.full(len(p), np.inf)
+        for j in range(0, len(corners), cols):
+            c = corners[j:j + cols]
+            square = np.minimum(square, (own[:, None] + (c * c).sum(axis=1) - 2.0 * p @ c.T).min(axis=1))
+        slack = _SQUARE_SLACK * (own + float((corners * corners).sum(axis=1).max()) + 1.0)         # (r,) mm²
+        nearest = np.sqrt(np.maximum(square, 0.0) + slack)                    # (r,) above each point's nearest corner
+        for j in range(0, len(triangles), cols):
+            c, r = centre[j:j + cols], radius[j:j + cols]
+            ball = own[:, None] + (c * c).sum(axis=1) - 2.0 * p @ c.T                                    # (r, c)
+            point, tri = np.nonzero(ball <= (nearest[:, None] + r) ** 2 + slack[:, None])
+            tri += j
+            gap = np.maximum(np.maximum(low[tri] - p[point], p[point] - high[tri]), 0.0)             # the box
+            close = (gap * gap).sum(axis=1) <= nearest[point] ** 2
+            point, tri = point[close], tri[close]
+            dist = triangle_distance(p[point], triangles[tri, 0], triangles[tri, 1], triangles[tri, 2])
+            np.minimum.at(out[k:k + rows], point, dist)
+    return out
 
 
 def _segment_segment(p0: FloatArray, p1: FloatArray, q0: FloatArray, q1: FloatArray) -> FloatArray:
