@@ -503,3 +503,18 @@ def test_no_straightness_problem_where_the_head_does_not_assemble(tmp_path):
                                                  "by 135.8596 mm at 12.5 % of the move"},
     ])
     assert number == 26
+
+
+@pytest.mark.parametrize("as_json", [False, True], ids=["streamed", "json"])
+def test_a_converted_program_is_not_warned_about_its_cam_feeds(as_json):
+    """A CAM program uses the feeds it likes (here F200 for the milling, F100 once for its G81 hole): verify warned
+    'line 85: implied tip feed 100.000 mm/min matches no other G1 ...: a hand-edited F or point?' of a program
+    converted and never edited. The warning is for the main job's programs (a feed and a plunge feed each)."""
+    program = REPO / "fixtures" / "golden" / "convert-wedge-face-3axis.ngc"
+    result = run("verify", program, *(["--json"] if as_json else []))
+    assert result.exit_code == 0, result.output
+    if as_json:
+        assert json.loads(result.output)["warnings"] == []
+    else:
+        assert "warning" not in result.output and result.output.splitlines()[-1] == "OK: within every limit and " \
+                                                                                     "tolerance"

@@ -1361,6 +1361,7 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
     from prs3_post.verify_job import (
         PartClearance,
         check_program_moves,
+        odd_feeds_warned,
         open_program,
         open_setting,
         tool_lengths_of,
@@ -1397,7 +1398,8 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
             intended, rebuilt = _intended(ctx, against_path, context, opts) if against_path else (None, None)
             report = verify_loaded(context.program, context.machine, context.setup, context.dialect,
                                    tolerance=tolerance, axis_tolerance_deg=axis_tolerance_deg, intended=intended,
-                                   tool_lengths=tool_lengths_of(context.header))
+                                   tool_lengths=tool_lengths_of(context.header),
+                                   odd_feeds=odd_feeds_warned(context.header))
             if rebuilt is not None and not opts["collision_check"]:
                 clearance = "not measured (asked not to)"
             elif rebuilt is not None:                  # the clearance min: as given, else each operation's

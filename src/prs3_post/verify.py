@@ -699,6 +699,7 @@ def verify_program(
     keep_samples: bool = True,
     chunk_rows: int = CHUNK_ROWS,
     tool_lengths: dict[int, float] | None = None,
+    odd_feeds: bool = True,
 ) -> VerifyReport:
     """Replay and check a program (module docstring), ``chunk_rows`` rows at a time (:class:`Verifier`).
 
@@ -719,6 +720,9 @@ def verify_program(
     tool_lengths : dict, optional — mm, the tool length "TL" (platform centre to tip) of each tool
         number: after a tool change (M6 T) the tip is that far from the platform centre (a program
         made with a tool table states them in its header); None: the machine's for every row
+    odd_feeds : bool — without an intended path with feeds, warn of a G1 whose feed matches no other (a hand
+        edit in a main job's program, whose operations each use a feed and a plunge feed); False for a converted
+        program, whose feeds are the CAM program's
 
     Returns
     -------
@@ -735,7 +739,8 @@ def verify_program(
                         "describe the same path (check the options it was made with)")
     verifier = Verifier(machine, setup=setup, tolerance=tolerance, axis_tolerance=axis_tolerance,
                         length_decimals=length_decimals, feed_decimals=feed_decimals, intended=intended,
-                        keep_samples=keep_samples, keep_rows=False, capacity=n, tool_lengths=tool_lengths)
+                        keep_samples=keep_samples, keep_rows=False, capacity=n, tool_lengths=tool_lengths,
+                        odd_feeds=odd_feeds)
     step = max(1, int(chunk_rows))
     for first in range(0, n, step):
         rows = _rows_of(program, first, min(first + step, n))
@@ -763,14 +768,16 @@ class Verifier:
     Use: ``v = Verifier(machine, setup=...); for chunk in chunks: v.add(chunk); v.report()``.
     Parameters as :func:`verify_program`, and ``keep_rows`` (False: :meth:`report` is given the whole
     program), ``capacity`` (rows to reserve room for: an upper bound saves growing the arrays),
-    ``tool_lengths`` (as :func:`verify_program`; the chunks' tool-change events say which tool).
+    ``tool_lengths`` (as :func:`verify_program`; the chunks' tool-change events say which tool), ``odd_feeds``
+    (as :func:`verify_program`).
     """
 
     def __init__(self, machine: Machine, *, setup: Setup, tolerance: float = DEFAULT_TOLERANCE,
                  axis_tolerance: float = DEFAULT_ANGLE_TOLERANCE, length_decimals: int = 4, feed_decimals: int = 4,
                  intended: Intended | None = None, keep_samples: bool = False, keep_rows: bool = True,
-                 capacity: int = 0, tool_lengths: dict[int, float] | None = None):
+                 capacity: int = 0, tool_lengths: dict[int, float] | None = None, odd_feeds: bool = True):
         self.machine, self.setup, self.tolerance, self.axis_tolerance = machine, setup, tolerance, axis_tolerance
+        self.odd_feeds = odd_feeds                           # warn of a G1 feed that matches no other
         self.tool_lengths = tool_lengths or {}
         self.tool_length = machine.geometry.tool_length    # mm, "TL" of the tool in the spindle (before any M6)
         self.last_tool_length = self.tool_length             # mm, "TL" the previous chunk's last row was cut with
@@ -991,7 +998,7 @@ class Verifier:
         groups = _feed_groups(implied, slack, lines)
         intended = self.intended
         known = intended is not None and bool(np.isfinite(intended.feed[feed_row]).any())
-        if not known and int(feed_row[1:].sum()) >= 3 and len(groups) > 1:
+        if self.odd_feeds and not known and int(feed_row[1:].sum()) >= 3 and len(groups) > 1:
             shown = ", ".join(f"{g.feed:.1f} ×{len(g.lines)}" for g in groups if len(g.lines) > 1) or "none repeat"
             for g in groups:
                 if len(g.lines) == 1:

@@ -617,8 +617,10 @@ def tool_lengths_of(header: ProgramHeader | SourceHeader | None) -> dict[int, fl
 
 def verify_loaded(program: ProgramFile, machine: Machine, setup: Setup, dialect: Dialect, *,
                   tolerance: float, axis_tolerance_deg: float = DEFAULT_ANGLE_TOLERANCE_DEG,
-                  intended: Intended | None = None, tool_lengths: dict[int, float] | None = None) -> VerifyReport:
-    """verify_program on a read program, with the dialect's decimals.
+                  intended: Intended | None = None, tool_lengths: dict[int, float] | None = None,
+                  odd_feeds: bool = True) -> VerifyReport:
+    """verify_program on a read program, with the dialect's decimals (``odd_feeds``: see
+    :func:`~prs3_post.verify.verify_program`; :func:`odd_feeds_warned` of its header).
 
     Raises
     ------
@@ -631,8 +633,14 @@ def verify_loaded(program: ProgramFile, machine: Machine, setup: Setup, dialect:
         machine, program.moves, setup=setup, tolerance=tolerance,
         axis_tolerance=math.radians(axis_tolerance_deg), intended=intended,
         length_decimals=dialect.decimals.length, feed_decimals=dialect.decimals.inverse_time,
-        blending_lines=program.blending_lines, tool_lengths=tool_lengths,
+        blending_lines=program.blending_lines, tool_lengths=tool_lengths, odd_feeds=odd_feeds,
     )
+
+
+def odd_feeds_warned(header: ProgramHeader | SourceHeader | None) -> bool:
+    """Whether a G1 feed that matches no other is worth a warning (a hand edit?): not in a converted program,
+    whose feeds are the CAM program's (a G81 at F100 among F200 moves)."""
+    return not isinstance(header, SourceHeader)
 
 
 def verify_file(setting: ProgramSetting, *, tolerance: float, axis_tolerance_deg: float = DEFAULT_ANGLE_TOLERANCE_DEG,
@@ -653,7 +661,7 @@ def verify_file(setting: ProgramSetting, *, tolerance: float, axis_tolerance_deg
     verifier = Verifier(setting.machine, setup=setting.setup, tolerance=tolerance,
                         axis_tolerance=math.radians(axis_tolerance_deg), length_decimals=decimals.length,
                         feed_decimals=decimals.inverse_time, capacity=stream.check(),
-                        tool_lengths=tool_lengths_of(setting.header))
+                        tool_lengths=tool_lengths_of(setting.header), odd_feeds=odd_feeds_warned(setting.header))
     for chunk in read_ahead(stream):
         verifier.add(chunk)
     if not verifier.rows:
