@@ -1337,7 +1337,7 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
     - straightness: a G1's tip stays within --tolerance of the line between its end points;
     - feeds: implied tip feed = chord × F (G93, F = 1/min); against PART.stl it must equal the
       intended feed within the rounding of F and the points; otherwise a G1 whose feed matches
-      no other G1 is warned about (a hand edit?);
+      no other G1 is warned about (a hand edit?), except in a converted program (the CAM's feeds);
     - with --against: tip and axis deviation from the intended path (max, mean, line); allowed:
       --tolerance plus what the output rounding moves the tip, and --axis-tolerance.
 
