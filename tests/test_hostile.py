@@ -517,3 +517,14 @@ def test_convert_refuses_the_parts_check_options_without_a_part(tmp_path: Path, 
     assert _usage_error(result) == (f"Error: {option} is used only with --part PART.stl (the check against the "
                                     "part): give the part, or leave it out")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc"]
+
+
+@pytest.mark.parametrize("word", ["", " "])
+def test_convert_refuses_an_empty_word_to_ignore(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, word: str) -> None:
+    """'--ignore ""' was taken (a word no record has) and the file converted as without it."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
+    result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", "0,0,0,0,0,1", "--ignore", word)
+    assert _usage_error(result) == (f"Error: Invalid value for '--ignore': {word!r}: give a CL major word, "
+                                    "like PAINT")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc"]

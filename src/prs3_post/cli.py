@@ -1612,6 +1612,9 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
         if report_path == "-":                           # the JSON went among the per-file lines
             raise click.BadParameter("'-': standard output has one line per file already, the report would be "
                                      "mixed into them (a file named '-' is ./-)", param_hint="'--report'")
+        for word in ignore_words:
+            if not word.strip():                         # a word no record has: taken, and nothing ignored
+                raise click.BadParameter(f"{word!r}: give a CL major word, like PAINT", param_hint="'--ignore'")
         if part_path is None:                            # else taken and ignored: the user believed it checked
             ctx = click.get_current_context()
             for name, flag in (("tool_diameter", "--tool-diameter"), ("clearance_min", "--clearance-min")):
