@@ -185,9 +185,14 @@ def test_a_machine_name_too_long_for_the_system_is_a_config_error() -> None:
 
 
 @pytest.mark.parametrize(("args", "message"), [
-    (["demo", "--profile", "square", "--feed", "0.0000001"], "--feed must be from 0.1 to 1e+06 mm/min (got 1e-07)"),
+    (["demo", "--profile", "square", "--feed", "0.0000001"],
+     "Invalid value for '--feed': 1e-07 mm/min is out of range (allowed: 0.1 to 1e+06 mm/min)"),
     (["demo", "--profile", "hole", "--plunge-feed", "0.05"],
-     "--plunge-feed must be from 0.1 to 1e+06 mm/min (got 0.05)"),
+     "Invalid value for '--plunge-feed': 0.05 mm/min is out of range (allowed: 0.1 to 1e+06 mm/min)"),
+    (["demo", "--profile", "hole", "--feed", "2e6"],          # the range named was -1e+06 to 1e+06
+     "Invalid value for '--feed': 2e+06 mm/min is out of range (allowed: 0.1 to 1e+06 mm/min)"),
+    (["demo", "--profile", "hole", "--spindle", "2e6"],
+     "Invalid value for '--spindle': 2e+06 rpm is out of range (allowed: > 0 and ≤ 1e+06 rpm)"),
 ])
 def test_a_feed_too_slow_to_mean_anything_is_bad_input(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                        args: list[str], message: str) -> None:
@@ -196,7 +201,7 @@ def test_a_feed_too_slow_to_mean_anything_is_bad_input(tmp_path: Path, monkeypat
     monkeypatch.chdir(tmp_path)
     result = invoke(*args, "-o", "x.ngc")
     assert (result.exit_code, result.stdout) == (2, "")
-    assert result.stderr == f"prs3-post: error: {message}\n"
+    assert result.stderr.splitlines()[-1] == f"Error: {message}"
     assert list(tmp_path.iterdir()) == []
 
 
@@ -205,8 +210,8 @@ def test_a_job_file_feed_too_slow_names_its_key(tmp_path: Path) -> None:
     job.write_text(f'part = "{WEDGE}"\n[[operation]]\nprofile = "hole"\nplunge_feed = 0.001\n')
     result = invoke("job", str(job), "-o", str(tmp_path / "j.ngc"))
     assert (result.exit_code, result.stdout) == (2, "")
-    assert result.stderr == f"prs3-post: error: {job}: operation[1]: plunge_feed must be from 0.1 to 1e+06 mm/min " \
-                            "(got 0.001)\n"
+    assert result.stderr == f"prs3-post: error: {job}: operation[1].plunge_feed: 0.001 mm/min is out of range " \
+                            "(allowed: 0.1 to 1e+06 mm/min)\n"
     assert not (tmp_path / "j.ngc").exists()
 
 

@@ -101,11 +101,14 @@ BAD = [
     ("diameter-zero", ["run", WEDGE, "--profile", "round", "--diameter", "0"],
      "prs3-post: error: --diameter must be > 0 mm (got 0)\n", 2),
     ("feed-zero", ["run", WEDGE, "--profile", "square", "--feed", "0"],
-     "prs3-post: error: --feed must be > 0 mm/min (got 0)\n", 2),
+     "Usage: prs3-post run [OPTIONS] PART.stl\nTry 'prs3-post run --help' for help.\n\n"
+     "Error: Invalid value for '--feed': 0 mm/min is out of range (allowed: 0.1 to 1e+06 mm/min)\n", 2),
     ("feed-negative", ["run", WEDGE, "--profile", "hole", "--feed", "-5"],
-     "prs3-post: error: --feed must be > 0 mm/min (got -5)\n", 2),
+     "Usage: prs3-post run [OPTIONS] PART.stl\nTry 'prs3-post run --help' for help.\n\n"
+     "Error: Invalid value for '--feed': -5 mm/min is out of range (allowed: 0.1 to 1e+06 mm/min)\n", 2),
     ("plunge-feed-zero", ["run", WEDGE, "--profile", "hole", "--plunge-feed", "0"],
-     "prs3-post: error: --plunge-feed must be > 0 mm/min (got 0)\n", 2),
+     "Usage: prs3-post run [OPTIONS] PART.stl\nTry 'prs3-post run --help' for help.\n\n"
+     "Error: Invalid value for '--plunge-feed': 0 mm/min is out of range (allowed: 0.1 to 1e+06 mm/min)\n", 2),
     ("step-down-zero", ["run", WEDGE, "--profile", "round", "--step-down", "0"],
      "prs3-post: error: --step-down must be > 0 mm (got 0)\n", 2),
     # the machine and the dialect

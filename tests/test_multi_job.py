@@ -203,8 +203,9 @@ def test_every_job_output_passes_linuxcnc(example, rs274_check, tmp_path: Path) 
     (("part_origin = [-100.0, -200.0, -970.0]", 'part_origin = "automatic"'),
      '{job}: setup.part_origin: expected [x, y, z] in mm or "auto", got \'automatic\''),
     (("depth = 6.0", "depth = \"6\""), "{job}: operation[1].depth: expected a number, got '6'"),
-    (("feed = 400.0", "feed = -1.0"), "{job}: operation[2]: feed must be > 0 mm/min (got -1)"),
-    (("feed = 400.0", "feed = 1e9"), "{job}: operation[2].feed: 1e+09 mm/min is out of range (allowed: -1e+06 to "
+    (("feed = 400.0", "feed = -1.0"), "{job}: operation[2].feed: -1 mm/min is out of range (allowed: 0.1 to "
+                                      "1e+06 mm/min)"),
+    (("feed = 400.0", "feed = 1e9"), "{job}: operation[2].feed: 1e+09 mm/min is out of range (allowed: 0.1 to "
                                      "1e+06 mm/min)"),
 
     # planning errors: the file and the key, not the option (they were '--profile round ... --at' without a file)

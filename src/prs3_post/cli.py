@@ -46,7 +46,12 @@ from prs3_post.readers.lexer import code_name
 from prs3_post.readers.stl import UP_ROTATION, load_part
 from prs3_post.setup import AUTO, Setup, SetupError
 from prs3_post.tables import fk_records, fk_text, ik_records, ik_text
-from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_TOLERANCE, MAX_SPINDLE_RPM
+from prs3_post.tolerances import (
+    DEFAULT_ANGLE_TOLERANCE_DEG,
+    DEFAULT_TOLERANCE,
+    FEED_RANGE_MM_MIN,
+    MAX_SPINDLE_RPM,
+)
 
 # What only some commands need is imported where it is used (the main job, convert, verify, preview,
 # faces: each about 0.1 s of imports), so that `ik`, `fk` and a small `verify` start fast.
@@ -71,7 +76,7 @@ _PLAIN_DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[
 #: The magnitudes an option may have (physically meaningful, with room to spare): (limit, unit).
 LENGTH = (1e6, "mm")            # a kilometre
 ANGLE = (3600.0, "degrees")     # ten turns
-FEED = (1e6, "mm/min")          # a kilometre a minute
+FEED = (FEED_RANGE_MM_MIN[1], "mm/min")  # a kilometre a minute
 SPEED = (MAX_SPINDLE_RPM, "rpm")  # spindles reach some 100,000 rpm
 TIME = (1e4, "s")               # almost three hours
 RATIO = (1e6, "")               # direction components (normalized later)
@@ -639,11 +644,11 @@ def _job_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="Tool diameter, mm (0.01 to 500)."),
         click.option("--tool-number", type=Integer(), default=1, show_default=True,
                      help="Tool number (T word), 1 up to the dialect's words.tool_number_max (both shipped: 99999)."),
-        click.option("--feed", type=Decimal(FEED), default=300.0, show_default=True,
+        click.option("--feed", type=Decimal(FEED, low=FEED_RANGE_MM_MIN[0]), default=300.0, show_default=True,
                      help="Cutting feed at the tool tip, mm/min."),
-        click.option("--plunge-feed", type=Decimal(FEED), default=100.0, show_default=True,
+        click.option("--plunge-feed", type=Decimal(FEED, low=FEED_RANGE_MM_MIN[0]), default=100.0, show_default=True,
                      help="Feed into the material (drilling, plunges, ramps), mm/min."),
-        click.option("--spindle", type=Decimal(SPEED), default=3000.0, show_default=True,
+        click.option("--spindle", type=Decimal(SPEED, low=0.0, low_open=True), default=3000.0, show_default=True,
                      help="Spindle speed, rpm (clockwise)."),
         click.option("--coolant", type=click.Choice([c.value for c in Coolant]), default=Coolant.FLOOD.value,
                      show_default=True,
