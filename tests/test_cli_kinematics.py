@@ -132,6 +132,20 @@ def test_fk_text_and_json():
     assert_allclose(record["tilt_deg"], np.degrees(np.arctan(0.5)), atol=1e-6)
 
 
+def test_fk_checks_the_machines_limits():
+    """fk --strokes -1000,-1000,-1000 printed a tip 395 mm above the base with exit 0: a setting the lead
+    screws cannot take. It is checked as ik checks a pose: every violated limit with its margin, exit 1."""
+    inside = run("fk", "--strokes", "36.2243753,170.3884539,88.9518701", "--xy", "-2.7640208,12.0703266")
+    assert (inside.exit_code, inside.output.splitlines()[-1]) == (0, "ok: within every limit")
+    outside = run("fk", "--strokes", "-1000,-1000,-1000")
+    assert outside.exit_code == 1
+    assert outside.output.splitlines()[-3:] == [f"LIMIT T{i} stroke: -1000.0000 mm (margin -900.0000 mm)"
+                                                for i in (1, 2, 3)]
+    record = json.loads(run("fk", "--strokes", "36.2243753,170.3884539,88.9518701", "--xy", "500,12", "--json").output)
+    assert (record["ok"], record["violations"]) == (False, [{"limit": "stage X", "value": 500.0, "margin": -200.0,
+                                                             "unit": "mm"}])
+
+
 def test_fk_does_not_assemble():
     result = run("fk", "--strokes", "0,0,2000")
     assert result.exit_code == 1

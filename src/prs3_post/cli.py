@@ -505,6 +505,9 @@ def ik(tip: tuple[float, ...] | None, axis: tuple[float, ...] | None, batch_path
 def fk(strokes: tuple[float, ...], xy: tuple[float, ...], machine_name: str, as_json: bool) -> None:
     """Forward kinematics: strokes T1..T3 (and stage X, Y) → tool tip, tool axis and link angles.
 
+    The setting is checked against the machine's limits, as `ik` checks a pose (violations are
+    listed with their margins); the exit status is 1 when it is outside a limit.
+
     \b
     Example:
       prs3-post fk --strokes 36.2244,170.3886,88.9519 --xy -2.7640,12.0703
@@ -522,9 +525,11 @@ def fk(strokes: tuple[float, ...], xy: tuple[float, ...], machine_name: str, as_
                 f"(no rigid platform pose after {result.iterations[0]} Newton steps; "
                 f"side-length error {result.residual[0]:.3g} mm)"
             )
-        record = fk_records(result)[0]
+        model = IKModel.EXACT if machine.stage.present else IKModel.HEAD
+        pose = inverse(machine.geometry, result.tip, result.axis, model=model)     # the same strokes, checked
+        record = fk_records(result, check_limits(machine, pose, result.axis))[0]
         click.echo(json.dumps(record, indent=2, allow_nan=False) if as_json else fk_text(record), nl=as_json)
-        return 0
+        return 0 if record["ok"] else 1
 
     run_reported(body)
 

@@ -44,18 +44,32 @@ def ik_records(tip: FloatArray, axis: FloatArray, ik: IKResult, report: LimitRep
         record: dict[str, Any] = {name: _number(v) for name, v in zip(names, values[row].tolist(), strict=True)}
         record["ok"] = bool(report.ok[row])
         record["reachable"] = bool(ik.reachable[row])
-        record["violations"] = [
-            {
-                "limit": report.names[col],
-                "value": _number(_shown(report, row, col, report.value)),
-                "margin": _number(_shown(report, row, col, report.margin)),
-                "unit": report.units[col],
-            }
-            for col in range(len(report.names))
-            if not report.margin[row, col] >= 0.0
-        ]
+        record["violations"] = _violations(report, row)
         records.append(record)
     return records
+
+
+def _violations(report: LimitReport, row: int) -> list[dict[str, Any]]:
+    """The limits ``row`` breaks: name, value, margin (negative) and unit."""
+    return [
+        {
+            "limit": report.names[col],
+            "value": _number(_shown(report, row, col, report.value)),
+            "margin": _number(_shown(report, row, col, report.margin)),
+            "unit": report.units[col],
+        }
+        for col in range(len(report.names))
+        if not report.margin[row, col] >= 0.0
+    ]
+
+
+def _limit_lines(record: dict[str, Any]) -> list[str]:
+    """``ok: within every limit``, or one ``LIMIT`` line per violation."""
+    lines = ["ok: within every limit"] if record["ok"] else []
+    for v in record["violations"]:
+        unit = f" {v['unit']}" if v["unit"] else ""
+        lines.append(f"LIMIT {v['limit']}: {fixed(v['value'])}{unit} (margin {fixed(v['margin'])}{unit})")
+    return lines
 
 
 def _shown(report: LimitReport, row: int, col: int, table: FloatArray) -> float:
@@ -97,16 +111,12 @@ def ik_text(record: dict[str, Any]) -> str:
         f"link angles {show('theta1_deg')}  {show('theta2_deg')}  {show('theta3_deg')} deg",
         f"condition number {show('cond', 3)}",
     ]
-    if record["ok"]:
-        lines.append("ok: within every limit")
-    for v in record["violations"]:
-        unit = f" {v['unit']}" if v["unit"] else ""
-        lines.append(f"LIMIT {v['limit']}: {fixed(v['value'])}{unit} (margin {fixed(v['margin'])}{unit})")
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + _limit_lines(record)) + "\n"
 
 
-def fk_records(fk: FKResult) -> list[dict[str, Any]]:
-    """One record per actuator setting, keys FK_COLUMNS (angles in degrees)."""
+def fk_records(fk: FKResult, report: LimitReport) -> list[dict[str, Any]]:
+    """One record per actuator setting, keys FK_COLUMNS (angles in degrees), ``ok`` and ``violations``
+    (limit, value, margin) from ``report``, the limits checked at the same setting (as :func:`ik_records`)."""
     tilt = np.degrees(np.arccos(np.clip(fk.axis[:, 2], -1.0, 1.0)))   # clip: rounding past 1
     values = np.column_stack([fk.tip, fk.axis, np.degrees(fk.link_angle), tilt])
     records = []
@@ -117,6 +127,8 @@ def fk_records(fk: FKResult) -> list[dict[str, Any]]:
         record["converged"] = bool(fk.converged[row])
         record["iterations"] = int(fk.iterations[row])
         record["residual_mm"] = float(fk.residual[row])
+        record["ok"] = bool(report.ok[row])
+        record["violations"] = _violations(report, row)
         records.append(record)
     return records
 
@@ -139,4 +151,4 @@ def fk_text(record: dict[str, Any]) -> str:
         f"axis  {r['axis_x']} {r['axis_y']} {r['axis_z']}   tilt {r['tilt_deg']} deg\n"
         f"link angles {r['theta1_deg']}  {r['theta2_deg']}  {r['theta3_deg']} deg\n"
         f"converged in {record['iterations']} Newton steps, residual {record['residual_mm']:.1e} mm\n"
-    )
+    ) + "".join(line + "\n" for line in _limit_lines(record))
