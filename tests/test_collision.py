@@ -361,6 +361,27 @@ def test_convert_of_cl_checks_the_rapids_with_the_tldata_diameter(tmp_path, diam
         "not in feeds [it cuts what the CAM program removes], holder 8.636 mm, spindle nose over 11.000 mm)"]
 
 
+@pytest.mark.parametrize(("diameter", "shown"), [("600", "600"), ("0.001", "0.001"), ("5E+02", "500")])
+def test_a_tldata_diameter_outside_the_tools_range_is_bad_input(tmp_path, diameter, shown):
+    """TLDATA/MILL,600 (or 0.001) was taken as the tool of the rapid check, though --tool-diameter is held to
+    0.01..500 mm (500 itself is within it)."""
+    text = _cl([("RAPID", -15, 10), ("FEED", -15, -3), ("RAPID", -15, 10)])
+    text = text.replace("TLDATA/MILL,6.0000,", f"TLDATA/MILL,{diameter},")
+    source = tmp_path / "big.cls"
+    source.write_text(text, encoding="utf-8")
+    result = CliRunner().invoke(main, ["convert", str(source), "-o", str(tmp_path / "out"), "--jobs", "1",
+                                       "--part", str(WALL)])
+    if shown == "500":                                 # taken (its rapids only retract along the tool axis)
+        assert result.exit_code == 0, result.output
+        assert "[500.000 mm diameter]" in _collision_line(tmp_path / "out" / "big.ngc")[0]
+        return
+    assert result.exit_code == 2, result.output
+    assert result.output.split("\n")[-2] == (
+        f"  {source}:3: TLDATA/ states a tool diameter of {shown} mm: a tool for the check in the rapids must be "
+        "0.01 to 500 mm")
+    assert not (tmp_path / "out" / "big.ngc").exists()
+
+
 def test_convert_lets_a_rapid_leave_the_face_the_tool_touches_and_states_zero(tmp_path):
     # line 3 leaves the tool's tip on the face; the rapid of line 4 moves it up and sideways from there
     result, program = _convert_text(tmp_path, "touch.ngc", "G21 G90 G17\nG0 X8.1 Y-15 Z10\nG1 Z0 F100\nG0 Y-5 Z5\n"

@@ -39,6 +39,7 @@ from prs3_post.job import file_given
 from prs3_post.kinematics import inverse, unit_axes
 from prs3_post.kinematics.blocks import THREADS_VARIABLE
 from prs3_post.limits import check_limits, raise_first_violation
+from prs3_post.ops.common import TOOL_DIAMETER_RANGE
 from prs3_post.output import HeadLast, refuse_overwriting, write_atomic
 from prs3_post.pipeline import PostCounts, PostResult, PostStream, model_for, place_toolpath, program_text
 from prs3_post.placement import place, placement_error
@@ -545,7 +546,17 @@ def tool_diameter_of(reader: ClStream | GcodeStream) -> float:
     if not isinstance(summary, ClFile):
         return 0.0
     scale = 25.4 if summary.units == "inch" else 1.0
-    found = [record.diameter * scale for record in summary.tool_data if record.diameter is not None]
+    low, high = TOOL_DIAMETER_RANGE
+    found = []
+    for record in summary.tool_data:
+        if record.diameter is None:
+            continue
+        diameter = record.diameter * scale
+        if not low <= diameter <= high:
+            raise InputError(f"TLDATA/ states a tool diameter of {diameter:.6g} mm: a tool for the check in the "
+                             f"rapids must be {low:g} to {high:g} mm",
+                             path=summary.path, line=record.line)
+        found.append(diameter)
     return min(found, default=0.0)
 
 
