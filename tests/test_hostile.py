@@ -524,6 +524,18 @@ def test_convert_refuses_the_parts_check_options_without_a_part(tmp_path: Path, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc"]
 
 
+@pytest.mark.parametrize("option", ["--tcp-on", "--tcp-off"])
+def test_convert_refuses_tcp_codes_without_a_source(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                    option: str) -> None:
+    """--tcp-on G43.4 on a 3+2 program was taken and ignored (exit 0): only a 5-axis --source reads TCP codes."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
+    result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", "0,0,0,0,0,1", option, "G43.4")
+    assert _usage_error(result) == (f"Error: {option} is used only with --source (a 5-axis program's TCP codes): "
+                                    "give the source machine, or leave it out")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc"]
+
+
 @pytest.mark.parametrize("word", ["", " "])
 def test_convert_refuses_an_empty_word_to_ignore(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, word: str) -> None:
     """'--ignore ""' was taken (a word no record has) and the file converted as without it."""

@@ -1643,6 +1643,11 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
         except (WorkPlaneError, InputError, FeatureError) as error:
             raise click.BadParameter(str(error), param_hint="'--work-plane'") from error
         source = None if source_name is None else load_source(source_name)
+        if source is None:                               # else taken and ignored: a 3+2 or CL input has no TCP
+            for flag, text in (("--tcp-on", tcp_on), ("--tcp-off", tcp_off)):
+                if text is not None:
+                    raise click.UsageError(f"{flag} is used only with --source (a 5-axis program's TCP codes): "
+                                           "give the source machine, or leave it out")
         codes_on, codes_off = _codes_option(tcp_on, "--tcp-on"), _codes_option(tcp_off, "--tcp-off")
         try:
             settings = ConvertSettings(
