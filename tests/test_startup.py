@@ -25,6 +25,9 @@ HEAVY = ("trimesh", "networkx", "PIL", "shapely", "matplotlib", "pygcode")
 #: verify --against need.
 JOB_MODULES = ("prs3_post.convert", "prs3_post.job", "prs3_post.placement", "prs3_post.collision",
                "prs3_post.geometry", "prs3_post.jobfile", "multiprocessing")
+#: What only writing a program needs: the emitter (the dialect's comment layout, which reading a
+#: program needs as well, lives in ``prs3_post.dialect``).
+WRITE_MODULES = ("prs3_post.emit", "prs3_post.emit.gcode")
 
 _PROBE = """
 import json, sys
@@ -56,14 +59,14 @@ def test_importing_the_cli_loads_no_heavy_library():
     ["machines"],
 ], ids=["ik", "fk", "machines"])
 def test_kinematics_commands_load_no_heavy_library(args):
-    assert _loaded_after(args, HEAVY + JOB_MODULES) == []
+    assert _loaded_after(args, HEAVY + JOB_MODULES + WRITE_MODULES) == []
 
 
 def test_verify_loads_no_heavy_library(tmp_path):
     program = tmp_path / "hole.ngc"
     made = CliRunner().invoke(main, ["demo", "--profile", "hole", "-o", str(program)])
     assert made.exit_code == 0, made.output
-    assert _loaded_after(["verify", str(program)], HEAVY + JOB_MODULES) == []
+    assert _loaded_after(["verify", str(program)], HEAVY + JOB_MODULES + WRITE_MODULES) == []
 
 
 def test_convert_loads_no_plotting_or_mesh_library(tmp_path):

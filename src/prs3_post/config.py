@@ -30,6 +30,7 @@ from prs3_post.dialect import (
     _END_CODES,
     _LINE_ENDINGS,
     AXIS_LETTERS,
+    COMMENT_CONTINUATION,
     TOOL_NUMBER_LIMIT,
     AxisLetters,
     CommentStyle,
@@ -37,7 +38,6 @@ from prs3_post.dialect import (
     Dialect,
     LineNumbers,
 )
-from prs3_post.emit.gcode import _CONTINUATION  # the indent of a wrapped comment's continuation lines
 from prs3_post.errors import ConfigError, InputError, quoted, shortened
 from prs3_post.machine import Dynamics, Geometry, Holder, Limits, Machine, Stage
 from prs3_post.readers.files import read_text
@@ -578,7 +578,7 @@ def load_dialect(name_or_path: str) -> Dialect:
                                              f"a SHA-256 whole; 252: LinuxCNC's limit), got {max_line_length}")
     # A header's fixed fields are read back by verify: a wrapped comment breaks only at spaces, unless a word
     # is longer than a line, so the longest fixed word (a SHA-256, 64 hex digits) must fit a continuation line.
-    sha_room = (max_line_length - (len(line_ending) - 1) - len(c_open) - len(c_close) - len(_CONTINUATION))
+    sha_room = (max_line_length - (len(line_ending) - 1) - len(c_open) - len(c_close) - len(COMMENT_CONTINUATION))
     if sha_room < SHA256_DIGITS:
         raise prog._error("max_line_length", f"{max_line_length} leaves {sha_room} characters for a wrapped header "
                                              f"comment line with comments.open {quoted(c_open)} and close "

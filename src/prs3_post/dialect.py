@@ -4,8 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["AXIS_LETTERS", "TOOL_NUMBER_LIMIT", "AxisLetters", "CommentStyle", "Decimals", "Dialect", "LineNumbers"]
+__all__ = ["AXIS_LETTERS", "COMMENT_CONTINUATION", "TOOL_NUMBER_LIMIT", "AxisLetters", "CommentStyle", "Decimals",
+           "Dialect", "LineNumbers"]
 
+#: Indent of the continuation lines of a comment too long for one line (the emitter writes them, the
+#: header reader joins them, the dialect's line length leaves room for them).
+COMMENT_CONTINUATION = "  "
 #: RS-274 axis letters a dialect may map a machine axis to. Every other letter already means
 #: something in a motion block (G, M, F, S, T, P, N, O, and the arc/cycle words D E H I J K L Q R).
 AXIS_LETTERS = "ABCUVWXYZ"

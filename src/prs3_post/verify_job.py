@@ -28,7 +28,6 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import numpy as np
 
 from prs3_post.config import DEFAULT_DIALECT, DEFAULT_MACHINE, Dialect, Machine, load_dialect, load_machine, load_source
-from prs3_post.emit.gcode import sanitize_comment
 from prs3_post.errors import ConfigError, InputError, PoseError, Prs3Error, quoted
 from prs3_post.face import Face
 from prs3_post.kinematics import unit_axes
@@ -526,6 +525,7 @@ def intended_from_source(context: ProgramContext, source: str) -> Intended:
         As the conversion.
     """
     from prs3_post.convert import ConvertSettings, convert_file  # convert imports the main job, as this does
+    from prs3_post.emit.gcode import sanitize_comment
 
     header = context.header
     if not isinstance(header, SourceHeader):

@@ -40,6 +40,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from prs3_post.dialect import COMMENT_CONTINUATION as _CONTINUATION
 from prs3_post.dialect import CommentStyle, Dialect
 from prs3_post.errors import LimitError
 from prs3_post.fixed import ChoiceColumn, ScaledColumn, fixed, render_rows, scale_column
@@ -47,10 +48,6 @@ from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
 __all__ = ["ProgramEmitter", "emit_program", "format_word", "inert", "sanitize_comment"]
-
-#: Indent of the continuation lines of a comment too long for one line.
-_CONTINUATION = "  "
-
 
 def format_word(letter: str, value: float, decimals: int) -> str:
     """One G-code word with fixed decimals: never exponent notation, never ``-0.000``.

@@ -47,7 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prs3_post.emit.gcode import _CONTINUATION  # the indent of a wrapped comment's continuation lines
+from prs3_post.dialect import COMMENT_CONTINUATION
 from prs3_post.errors import InputError, Prs3Error, quoted
 from prs3_post.face import Face
 from prs3_post.fixed import fixed as _fixed
@@ -977,7 +977,7 @@ def header_comments(text: str, *, open_: str = "(", close: str = ")") -> list[tu
             continue
         if stripped.startswith(open_) and stripped.endswith(close) and stripped.count(open_) == 1:
             comment = stripped[len(open_):len(stripped) - len(close)]
-            if comment.startswith(_CONTINUATION) and out:
+            if comment.startswith(COMMENT_CONTINUATION) and out:
                 out[-1] = (out[-1][0], f"{out[-1][1]} {comment.strip()}")
             else:
                 out.append((number, comment))
