@@ -28,6 +28,9 @@ JOB_MODULES = ("prs3_post.convert", "prs3_post.job", "prs3_post.placement", "prs
 #: What only writing a program needs: the emitter (the dialect's comment layout, which reading a
 #: program needs as well, lives in ``prs3_post.dialect``).
 WRITE_MODULES = ("prs3_post.emit", "prs3_post.emit.gcode")
+#: What only reading a part needs (the STL reader; the CLI's --up choices live in ``prs3_post.setup``), and
+#: the work plane, which only a converted program's header states.
+PART_MODULES = ("prs3_post.readers.stl", "prs3_post.workplane")
 
 _PROBE = """
 import json, sys
@@ -59,14 +62,14 @@ def test_importing_the_cli_loads_no_heavy_library():
     ["machines"],
 ], ids=["ik", "fk", "machines"])
 def test_kinematics_commands_load_no_heavy_library(args):
-    assert _loaded_after(args, HEAVY + JOB_MODULES + WRITE_MODULES) == []
+    assert _loaded_after(args, HEAVY + JOB_MODULES + WRITE_MODULES + PART_MODULES) == []
 
 
 def test_verify_loads_no_heavy_library(tmp_path):
     program = tmp_path / "hole.ngc"
     made = CliRunner().invoke(main, ["demo", "--profile", "hole", "-o", str(program)])
     assert made.exit_code == 0, made.output
-    assert _loaded_after(["verify", str(program)], HEAVY + JOB_MODULES + WRITE_MODULES) == []
+    assert _loaded_after(["verify", str(program)], HEAVY + JOB_MODULES + WRITE_MODULES + PART_MODULES) == []
 
 
 def test_convert_loads_no_plotting_or_mesh_library(tmp_path):

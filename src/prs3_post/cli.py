@@ -43,8 +43,7 @@ from prs3_post.ops.work import HoleJob, Operation, ProfileJob
 from prs3_post.output import check_writable, is_stdout, refuse_overwriting, stdout_error, write_atomic, write_outputs
 from prs3_post.readers.detect import FORMATS
 from prs3_post.readers.lexer import code_name
-from prs3_post.readers.stl import UP_ROTATION, load_part
-from prs3_post.setup import AUTO, Setup, SetupError
+from prs3_post.setup import AUTO, UP_ROTATION, Setup, SetupError
 from prs3_post.tables import fk_records, fk_text, ik_records, ik_text
 from prs3_post.tolerances import (
     DEFAULT_ANGLE_TOLERANCE_DEG,
@@ -1084,6 +1083,7 @@ def faces(part: str, units: str, up: str, as_json: bool) -> None:
       prs3-post faces angle_block.STL --units inch --up y
     """
     from prs3_post.geometry import face_table, find_faces, format_face_table, select_face
+    from prs3_post.readers.stl import load_part
 
 
     def body() -> int:
@@ -1275,6 +1275,7 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext,
     a converted program's CAM input, or its part (PART.stl: the clearance only, no path)."""
     from prs3_post.collision import rapid_diameter_from_entry
     from prs3_post.readers.header import SourceHeader
+    from prs3_post.readers.stl import load_part
     from prs3_post.verify_job import (
         CamPart,
         HeaderConflict,
@@ -1472,6 +1473,7 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
     """
     from prs3_post.geometry import find_faces, select_face
     from prs3_post.readers.header import ProgramHeader
+    from prs3_post.readers.stl import load_part
     from prs3_post.verify_job import (
         HeaderConflict,
         check_part,

@@ -29,6 +29,18 @@ MAX_ORIGIN_MM = 1e5
 #: Largest |rotation| accepted, degrees (a few turns at most is a typo, not a setup).
 MAX_ROTATION_DEG = 3600.0
 
+UP_ROTATION: dict[str, tuple[str, tuple[tuple[int, int, int], ...]]] = {
+    "z": ("unchanged", ((1, 0, 0), (0, 1, 0), (0, 0, 1))),
+    "y": ("+90° about x", ((1, 0, 0), (0, 0, -1), (0, 1, 0))),
+    "-y": ("−90° about x", ((1, 0, 0), (0, 0, 1), (0, -1, 0))),
+    "x": ("−90° about y", ((0, 0, -1), (0, 1, 0), (1, 0, 0))),
+    "-x": ("+90° about y", ((0, 0, 1), (0, 1, 0), (-1, 0, 0))),
+    "-z": ("180° about x", ((1, 0, 0), (0, -1, 0), (0, 0, -1))),
+}
+"""For each accepted ``up`` (the STL's up axis, which :func:`prs3_post.readers.stl.load_part` turns to +z before
+the part is set up): the rotation in words and its matrix (rows; part = matrix @ file), which turns that
+file axis into +z."""
+
 
 class SetupError(Prs3Error):
     """A setup value that is not physically meaningful (not finite, or absurdly large): bad input.

@@ -44,6 +44,7 @@ import math
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -57,7 +58,9 @@ from prs3_post.ops.work import HoleJob, ProfileJob
 from prs3_post.readers.files import open_input
 from prs3_post.setup import Setup
 from prs3_post.types import FloatArray
-from prs3_post.workplane import WorkPlane, WorkPlaneError
+
+if TYPE_CHECKING:
+    from prs3_post.workplane import WorkPlane
 
 #: The header's first key; a program without it has no header.
 PROGRAM_KEY = "program"
@@ -924,6 +927,8 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
         if "work plane" in found:
             key = "work plane"
             planes = _match(_WORK_PLANE, found["work plane"][1])
+            from prs3_post.workplane import WorkPlane, WorkPlaneError  # only a converted program's header has one
+
             try:
                 plane = WorkPlane.from_vectors(_vector(planes.group(1), 3), _vector(planes.group(3), 3),
                                                _vector(planes.group(2), 3), name="work plane")

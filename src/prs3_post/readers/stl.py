@@ -51,6 +51,7 @@ import numpy as np
 
 from prs3_post.errors import InputError, Prs3Warning
 from prs3_post.readers.files import read_input
+from prs3_post.setup import UP_ROTATION  # defined with the setup, so that the CLI's --up needs no STL reader
 from prs3_post.types import FloatArray
 
 if TYPE_CHECKING:  # trimesh (with networkx and PIL) costs 200 ms: imported by the commands that read an STL
@@ -64,16 +65,6 @@ MIN_EXTENT_MM = 1.0
 WARN_EXTENT_MM = (2.0, 2000.0)
 """A part whose largest extent is outside this range (mm) loads with a warning about its units."""
 
-UP_ROTATION: dict[str, tuple[str, tuple[tuple[int, int, int], ...]]] = {
-    "z": ("unchanged", ((1, 0, 0), (0, 1, 0), (0, 0, 1))),
-    "y": ("+90° about x", ((1, 0, 0), (0, 0, -1), (0, 1, 0))),
-    "-y": ("−90° about x", ((1, 0, 0), (0, 0, 1), (0, -1, 0))),
-    "x": ("−90° about y", ((0, 0, -1), (0, 1, 0), (1, 0, 0))),
-    "-x": ("+90° about y", ((0, 0, 1), (0, 1, 0), (-1, 0, 0))),
-    "-z": ("180° about x", ((1, 0, 0), (0, -1, 0), (0, 0, -1))),
-}
-"""For each accepted ``up``: the rotation in words and its matrix (rows; part = matrix @ file), which
-turns that file axis into +z."""
 MAX_COORDINATE_MM = 1e6
 """A part's vertices must lie within ±this (mm, a kilometre): far larger ones overflow areas and outlines."""
 
