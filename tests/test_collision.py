@@ -221,9 +221,11 @@ def test_a_job_transition_through_the_part_is_refused(tmp_path):
         '[[operation]]\nprofile = "hole"\nat = [[-40.0, 0.0]]\ndepth = 3.0\n', encoding="utf-8")
     out = tmp_path / "job.ngc"
     result = CliRunner().invoke(main, ["job", str(tmp_path / "job.toml"), "-o", str(out)])
+    # the block is wholly inside the nose's cylinder at the lift's closest pose: its surface points missed it,
+    # the solid test finds it (the message named the holder, 3.498 mm deep, the body its points did see)
     assert (result.exit_code, result.output) == (1, "prs3-post: error: operation 1 (hole on face 4), lift to the safe "
-                                                    "height: the holder hits the part, 3.498 mm deep (clearance min "
-                                                    "1.000 mm)\n")
+                                                    "height: the spindle nose hits the part, 19.968 mm deep "
+                                                    "(clearance min 1.000 mm)\n")
     assert not out.exists()
 
 
@@ -421,8 +423,10 @@ def test_a_thin_wall_between_the_samples_of_a_long_feed_move_is_caught(tmp_path)
     convert = ["convert", str(source), "--work-plane", f"{WALL}:4", "--jobs", "1"]
     result = CliRunner().invoke(main, [*convert, "-o", str(tmp_path / "out"), "--part", str(tmp_path / "plate.stl")])
     assert result.exit_code == 1, result.output
+    # the plate crosses the holder's axis: it is 15 mm (the holder's radius) inside it, which its surface
+    # points, straddling the 2 mm plate, saw as 'comes within 0.500 mm'
     assert result.output.split("\n")[-2] == (
-        f"  {source}:4: the holder comes within 0.500 mm of the part (clearance min 1.000 mm)")
+        f"  {source}:4: the holder hits the part, 15.000 mm deep (clearance min 1.000 mm)")
     assert not (tmp_path / "out" / "long.ngc").exists()
     samples = np.array([FACE.origin + 8.1 * FACE.u + v * FACE.v + 5.0 * FACE.normal for v in (-30.0, 30.0)])
     ends = clearance(np.asarray(trimesh.load(str(tmp_path / "plate.stl")).triangles), samples,
@@ -434,7 +438,7 @@ def test_a_thin_wall_between_the_samples_of_a_long_feed_move_is_caught(tmp_path)
     result = CliRunner().invoke(main, ["verify", str(tmp_path / "unchecked" / "long.ngc"), "--against",
                                        str(tmp_path / "plate.stl")])
     assert result.exit_code == 1
-    assert result.output.splitlines()[-1] == "  line 19: the holder comes within 0.500 mm of the part (clearance min " \
+    assert result.output.splitlines()[-1] == "  line 19: the holder hits the part, 15.000 mm deep (clearance min " \
                                               "1.000 mm)"
 
 
@@ -453,3 +457,24 @@ def test_convert_tool_diameter_gives_a_g_code_tool_its_diameter_and_verify_reads
     assert result.exit_code == 2
     assert result.output.splitlines()[-1] == ("Error: Invalid value for '--tool-diameter': must be from 0.01 to 500 "
                                               "mm (got 600)")
+
+
+def _tetrahedron(corner: tuple[float, float, float], size: float) -> np.ndarray:
+    v = np.array([[0, 0, 0], [size, 0, 0], [0, size, 0], [0, 0, size]], dtype=float) + np.array(corner)
+    return np.array([[v[0], v[2], v[1]], [v[0], v[1], v[3]], [v[0], v[3], v[2]], [v[1], v[2], v[3]]])
+
+
+@pytest.mark.parametrize(("corner", "size", "holder"), [
+    ((0.0, 0.0, 70.0), 0.5, -15.0),        # wholly inside, on the axis: its points saw nothing ('3 mm', a bound)
+    ((14.0, 0.3, 70.0), 0.8, -0.99679),    # inside the wall, between the surface points (they said 0.361 mm)
+    ((2.0, 2.0, 99.5), 0.8, -0.5),          # through the holder's end, 0.5 mm in
+    ((16.0, 0.0, 70.0), 0.8, 1.0),          # 1 mm outside: measured on the points, as before
+])
+def test_a_solid_smaller_than_the_points_spacing_inside_a_body_is_found(corner, size, holder):
+    """A feature the surface points straddle, or one wholly inside the body, was missed or understated: the
+    solid cylinder's test (collision.cylinder_penetration) finds it wherever the points say clear."""
+    bodies = np.array([[3.0, 0.0, 40.0], [15.0, 40.0, 100.0], [40.0, 100.0, 200.0]])
+    found = clearance(_tetrahedron(corner, size), np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]), bodies, None,
+                      np.zeros((0, 3)), clearance_min=1.0, refine_max=4)
+    assert found.distance[1] == pytest.approx(holder, abs=1e-5)
+    assert found.exact[1]

@@ -459,6 +459,71 @@ def _signed(points: FloatArray, part: _Part, cutting: BoolArray, face: Face | No
     return dist
 
 
+def _closest_to_axis(a: FloatArray, b: FloatArray) -> FloatArray:
+    """(K,) in [0, 1]: where on the segments ``a`` → ``b`` ((K, 3) each, tool frame) the distance from the
+    axis (x = y = 0) is least."""
+    d = b[:, :2] - a[:, :2]
+    length2 = (d * d).sum(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(length2 > 0.0, np.clip(-(a[:, :2] * d).sum(axis=1) / length2, 0.0, 1.0), 0.0)
+
+
+def cylinder_penetration(tip: FloatArray, axis: FloatArray, cylinder: FloatArray, triangles: FloatArray) -> float:
+    """mm: how deep the triangles reach into a solid cylinder, or 0 where none enters it, whatever their size
+    against the surface points' spacing (a thin pin or plate the points straddle, a small solid wholly
+    inside the body).
+
+    A point at distance ρ from the axis and z along it is min(radius − ρ, z − start, end − z) inside;
+    the value is the largest of that over each triangle's points nearest the axis within the cylinder's
+    length (its edges clipped to the length: their ends and the point of each nearest the axis; and where
+    the axis pierces it): a lower bound of the deepest point, positive exactly when one of those is inside.
+
+    Parameters
+    ----------
+    tip, axis : (3,) float — mm, unit: the pose (the cylinder's stations are along ``axis`` from ``tip``)
+    cylinder : (3,) float — radius, start, end (mm along the axis)
+    triangles : (T, 3, 3) float — mm
+    """
+    radius, z0, z1 = (float(v) for v in cylinder)
+    if len(triangles) == 0 or z1 <= z0 or radius <= 0.0:
+        return 0.0
+    x, y = _frames(axis[None, :])
+    frame = np.stack([x[0], y[0], axis])                          # rows: x, y, z of the tool frame
+    local = (triangles - tip) @ frame.T                            # (T, 3, 3): x, y, z per corner
+    z = local[..., 2]
+    local = local[(z.max(axis=1) >= z0) & (z.min(axis=1) <= z1)]
+    if len(local) == 0:
+        return 0.0
+    points = []
+    for i, j in ((0, 1), (1, 2), (2, 0)):                           # the edges, clipped to z0 <= z <= z1
+        p, q = local[:, i], local[:, j]
+        dz = q[:, 2] - p[:, 2]
+        flat = np.abs(dz) < 1e-12
+        within = (p[:, 2] >= z0) & (p[:, 2] <= z1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ta, tb = (z0 - p[:, 2]) / dz, (z1 - p[:, 2]) / dz
+        lo = np.where(flat, np.where(within, 0.0, 1.0), np.maximum(np.minimum(ta, tb), 0.0))
+        hi = np.where(flat, np.where(within, 1.0, 0.0), np.minimum(np.maximum(ta, tb), 1.0))
+        ok = lo <= hi
+        a, b = p + lo[:, None] * (q - p), p + hi[:, None] * (q - p)
+        t = _closest_to_axis(a, b)
+        points += [pt[ok] for pt in (a, b, a + t[:, None] * (b - a))]
+    e1, e2 = local[:, 1] - local[:, 0], local[:, 2] - local[:, 0]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]                # twice the triangle's area seen along z
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = (-local[:, 0, 0] * e2[:, 1] + local[:, 0, 1] * e2[:, 0]) / det
+        v = (-local[:, 0, 1] * e1[:, 0] + local[:, 0, 0] * e1[:, 1]) / det
+        pierced = (np.abs(det) > 1e-12) & (u >= 0.0) & (v >= 0.0) & (u + v <= 1.0)
+    at = local[pierced, 0] + u[pierced, None] * e1[pierced] + v[pierced, None] * e2[pierced]
+    points.append(at * np.array([0.0, 0.0, 1.0]))                   # on the axis
+    every = np.concatenate(points)
+    if len(every) == 0:
+        return 0.0
+    depth = np.minimum(radius - np.hypot(every[:, 0], every[:, 1]),
+                       np.minimum(every[:, 2] - z0, z1 - every[:, 2]))
+    return max(0.0, float(depth.max()))
+
+
 class _Poses:
     """The poses checked so far (the given ones, then the midpoints of intervals), with each body's
     clearance: a lower bound, or measured on its surface (``exact``)."""
@@ -467,6 +532,7 @@ class _Poses:
                  *, near: float | None = None):
         self.part, self.face, self.region, self.clearance_min = part, face, region, clearance_min
         self.pieces = _pieces(cylinders)
+        self.cylinders = cylinders
         self.unchecked = cylinders[:, 2] <= cylinders[:, 1]      # bodies given no length
         self.local, self.body = _surface_points(cylinders)
         self.reach = clearance_min + REACH_MM
@@ -568,11 +634,31 @@ class _Poses:
                 dist = _signed(world.reshape(-1, 3), self.part, cut, self.face, reach, outside).reshape(len(r), -1)
             best = np.argmin(dist, axis=1)
             measured = dist[np.arange(len(r)), best]
+            self._solid(r, b, measured)
             exact = measured < (self.near if reach is None else reach)
             self.value[r, b] = np.where(exact, measured, np.maximum(measured, self.value[r, b]))  # two bounds
             self.point[r, b] = np.where(exact[:, None], world[np.arange(len(r)), best], self.point[r, b])
             self.exact[r, b] = exact
             self.found[b] = min(self.found[b], float(self.value[r, b].min()))
+
+
+    def _solid(self, rows: IntArray, b: int, measured: FloatArray) -> None:
+        """Where the surface points found body ``b`` clear of the part at ``rows`` (``measured`` > 0), make
+        ``measured`` the solid body's penetration (negative) if any triangle enters it: a feature thinner
+        than the points' spacing, or wholly inside the body, is not missed (:func:`cylinder_penetration`).
+        The cutting tool is left to its surface points (what it cuts is not counted)."""
+        cylinder = self.cylinders[b]
+        if cylinder[2] <= cylinder[1]:
+            return
+        reach = cylinder[0] + max(abs(cylinder[1]), abs(cylinder[2]))
+        for i, row in enumerate(rows.tolist()):
+            if measured[i] <= 0.0 or (b == 0 and self.cutting[row]):
+                continue
+            tip, axis = self.tip[row], self.axis[row]
+            near = ((self.part.high >= tip - reach) & (self.part.low <= tip + reach)).all(axis=1)
+            depth = cylinder_penetration(tip, axis, cylinder, self.part.triangles[near])
+            if depth > 0.0:
+                measured[i] = -depth
 
 
 def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinders: FloatArray, face: Face | None,
