@@ -31,6 +31,10 @@ WRITE_MODULES = ("prs3_post.emit", "prs3_post.emit.gcode")
 #: What only reading a part needs (the STL reader; the CLI's --up choices live in ``prs3_post.setup``), and
 #: the work plane, which only a converted program's header states.
 PART_MODULES = ("prs3_post.readers.stl", "prs3_post.workplane")
+#: The five-axis source conventions: only convert and the check of a converted program need them.
+SOURCE_MODULES = ("prs3_post.source",)
+#: The ik/fk tables and the pose CSV reader, which a plain verify needs neither of.
+TABLE_MODULES = ("prs3_post.tables", "prs3_post.readers.poses")
 
 _PROBE = """
 import json, sys
@@ -62,14 +66,15 @@ def test_importing_the_cli_loads_no_heavy_library():
     ["machines"],
 ], ids=["ik", "fk", "machines"])
 def test_kinematics_commands_load_no_heavy_library(args):
-    assert _loaded_after(args, HEAVY + JOB_MODULES + WRITE_MODULES + PART_MODULES) == []
+    assert _loaded_after(args, HEAVY + JOB_MODULES + WRITE_MODULES + PART_MODULES + SOURCE_MODULES) == []
 
 
 def test_verify_loads_no_heavy_library(tmp_path):
     program = tmp_path / "hole.ngc"
     made = CliRunner().invoke(main, ["demo", "--profile", "hole", "-o", str(program)])
     assert made.exit_code == 0, made.output
-    assert _loaded_after(["verify", str(program)], HEAVY + JOB_MODULES + WRITE_MODULES + PART_MODULES) == []
+    unused = HEAVY + JOB_MODULES + WRITE_MODULES + PART_MODULES + SOURCE_MODULES + TABLE_MODULES
+    assert _loaded_after(["verify", str(program)], unused) == []
 
 
 def test_convert_loads_no_plotting_or_mesh_library(tmp_path):

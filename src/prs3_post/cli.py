@@ -44,7 +44,6 @@ from prs3_post.output import check_writable, is_stdout, refuse_overwriting, stdo
 from prs3_post.readers.detect import FORMATS
 from prs3_post.readers.lexer import code_name
 from prs3_post.setup import AUTO, UP_ROTATION, Setup, SetupError
-from prs3_post.tables import fk_records, fk_text, ik_records, ik_text
 from prs3_post.tolerances import (
     DEFAULT_ANGLE_TOLERANCE_DEG,
     DEFAULT_TOLERANCE,
@@ -460,6 +459,7 @@ def ik(tip: tuple[float, ...] | None, axis: tuple[float, ...] | None, batch_path
       prs3-post ik --tip -81.0264,21.2132,-679.4865 --axis 0.447214,0,0.894427 --json
       prs3-post ik --batch poses.csv -o strokes.csv
     """
+    from prs3_post.tables import ik_records, ik_text
 
     def body() -> int:
         machine = load_machine(machine_name)
@@ -511,6 +511,7 @@ def fk(strokes: tuple[float, ...], xy: tuple[float, ...], machine_name: str, as_
     Example:
       prs3-post fk --strokes 36.2244,170.3886,88.9519 --xy -2.7640,12.0703
     """
+    from prs3_post.tables import fk_records, fk_text
 
     def body() -> int:
         machine = load_machine(machine_name)

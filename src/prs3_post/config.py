@@ -20,7 +20,7 @@ import re
 import stat
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -42,7 +42,10 @@ from prs3_post.errors import ConfigError, InputError, quoted, shortened
 from prs3_post.machine import Dynamics, Geometry, Holder, Limits, Machine, Stage
 from prs3_post.readers.files import read_text
 from prs3_post.readers.lexer import code_name
-from prs3_post.source import Orientation, Rotary, SourceConvention
+
+# The five-axis source conventions (only `convert` and a converted program's check need them) load in load_source.
+if TYPE_CHECKING:
+    from prs3_post.source import Rotary, SourceConvention
 
 __all__ = [
     "AXIS_LETTERS",
@@ -660,6 +663,8 @@ def _codes(table: _Table, key: str, letters: str = "GM") -> tuple[str, ...]:
 
 
 def _rotary(table: _Table, is_table: bool) -> Rotary:
+    from prs3_post.source import Rotary
+
     word = table.text("word")
     if word not in ("A", "B", "C"):
         table.finish()
@@ -685,6 +690,8 @@ def load_source(name_or_path: str) -> SourceConvention:
     ConfigError
         ``file: dotted.key: problem`` for anything missing, unknown, mistyped or out of range.
     """
+    from prs3_post.source import Orientation, SourceConvention
+
     path = resolve("sources", name_or_path)
     shown = _display(path)
     data = _read_toml(path)

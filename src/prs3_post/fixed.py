@@ -28,7 +28,8 @@ import numpy as np
 
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
-__all__ = ["ChoiceColumn", "Column", "ScaledColumn", "fixed", "fixed_column", "render_rows", "scale_column"]
+__all__ = ["ChoiceColumn", "Column", "ScaledColumn", "fixed", "fixed_column", "fixed_or_na", "render_rows",
+           "scale_column"]
 
 #: |value·10^d| below this is written from exact integers; at or above it (and nan/inf) one by one.
 _EXACT_LIMIT = 2.0**52
@@ -134,6 +135,15 @@ def scale_column(values: FloatArray, decimals: int) -> ScaledColumn:
     odd = np.flatnonzero(wide).astype(np.int64)
     return ScaledColumn(scaled=scaled, decimals=decimals, odd=odd,
                         odd_text=tuple(fixed(v, decimals) for v in values[odd].tolist()))
+
+
+def fixed_or_na(value: float | None, decimals: int = 4) -> str:
+    """:func:`fixed`, and ``n/a`` for a missing value (NaN in a record; the reports of ik, fk and verify).
+
+    >>> fixed_or_na(-0.00001), fixed_or_na(1.23456, 2), fixed_or_na(None)
+    ('0.0000', '1.23', 'n/a')
+    """
+    return "n/a" if value is None else fixed(value, decimals)
 
 
 def fixed_column(values: FloatArray, decimals: int) -> list[str]:

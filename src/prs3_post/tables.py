@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from prs3_post.fixed import ChoiceColumn, Column, render_rows, scale_column
-from prs3_post.fixed import fixed as fixed_text
+from prs3_post.fixed import fixed_or_na as fixed
 from prs3_post.kinematics import FKResult, IKResult
 from prs3_post.limits import LimitReport
 from prs3_post.readers.poses import POSE_COLUMNS
@@ -131,15 +131,6 @@ def fk_records(fk: FKResult, report: LimitReport) -> list[dict[str, Any]]:
         record["violations"] = _violations(report, row)
         records.append(record)
     return records
-
-
-def fixed(value: float | None, decimals: int = 4) -> str:
-    """:func:`prs3_post.fixed.fixed`, and ``n/a`` for a missing value (NaN in a record).
-
-    >>> fixed(-0.00001), fixed(1.23456, 2), fixed(None)
-    ('0.0000', '1.23', 'n/a')
-    """
-    return "n/a" if value is None else fixed_text(value, decimals)
 
 
 def fk_text(record: dict[str, Any]) -> str:

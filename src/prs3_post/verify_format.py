@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from prs3_post.tables import fixed
+from prs3_post.fixed import fixed_or_na as fixed
 from prs3_post.toolpath import EventKind, MoveKind
 from prs3_post.types import FloatArray, IntArray
 from prs3_post.verify import (

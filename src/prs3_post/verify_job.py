@@ -39,7 +39,6 @@ from prs3_post.readers.header import (
     read_counts,
     read_header,
 )
-from prs3_post.readers.poses import read_poses
 from prs3_post.readers.program import CHUNK_LINES, ProgramFile, ProgramStream, load_program
 from prs3_post.setup import Setup
 from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_TOLERANCE
@@ -594,6 +593,8 @@ def intended_from_poses(path: str, program: ProgramFile) -> Intended:
     InputError
         An unreadable table, a bad axis, or another number of poses than motion lines.
     """
+    from prs3_post.readers.poses import read_poses
+
     table = read_poses(path)
     try:
         unit = unit_axes(table.tip, table.axis, row_name="line", row_numbers=table.line)
