@@ -33,6 +33,8 @@ WRITE_MODULES = ("prs3_post.emit", "prs3_post.emit.gcode")
 PART_MODULES = ("prs3_post.readers.stl", "prs3_post.workplane")
 #: The five-axis source conventions: only convert and the check of a converted program need them.
 SOURCE_MODULES = ("prs3_post.source",)
+#: The paper's per-leg IK (``--model paper``, for validation only).
+PAPER_MODULES = ("prs3_post.kinematics.paper",)
 #: The ik/fk tables and the pose CSV reader, which a plain verify needs neither of.
 TABLE_MODULES = ("prs3_post.tables", "prs3_post.readers.poses")
 
@@ -66,14 +68,15 @@ def test_importing_the_cli_loads_no_heavy_library():
     ["machines"],
 ], ids=["ik", "fk", "machines"])
 def test_kinematics_commands_load_no_heavy_library(args):
-    assert _loaded_after(args, HEAVY + JOB_MODULES + WRITE_MODULES + PART_MODULES + SOURCE_MODULES) == []
+    unused = HEAVY + JOB_MODULES + WRITE_MODULES + PART_MODULES + SOURCE_MODULES + PAPER_MODULES
+    assert _loaded_after(args, unused) == []
 
 
 def test_verify_loads_no_heavy_library(tmp_path):
     program = tmp_path / "hole.ngc"
     made = CliRunner().invoke(main, ["demo", "--profile", "hole", "-o", str(program)])
     assert made.exit_code == 0, made.output
-    unused = HEAVY + JOB_MODULES + WRITE_MODULES + PART_MODULES + SOURCE_MODULES + TABLE_MODULES
+    unused = HEAVY + JOB_MODULES + WRITE_MODULES + PART_MODULES + SOURCE_MODULES + TABLE_MODULES + PAPER_MODULES
     assert _loaded_after(["verify", str(program)], unused) == []
 
 

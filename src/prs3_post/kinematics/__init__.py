@@ -13,7 +13,6 @@ import numpy as np
 from prs3_post.errors import PoseError
 from prs3_post.kinematics.exact import IKResult, inverse_exact
 from prs3_post.kinematics.forward import FKResult, forward
-from prs3_post.kinematics.paper import inverse_paper
 from prs3_post.machine import Geometry
 from prs3_post.types import FloatArray, IntArray
 
@@ -101,6 +100,8 @@ def inverse(geometry: Geometry, tip: FloatArray, axis: FloatArray, *, model: IKM
     where it is below ``HEAD_XY_TOL``)
     """
     if model is IKModel.PAPER:
+        from prs3_post.kinematics.paper import inverse_paper  # validation only: the other models never load it
+
         return inverse_paper(geometry, tip, axis)
     result = inverse_exact(geometry, tip, axis)
     if model is IKModel.HEAD:
