@@ -256,3 +256,28 @@ def test_ik_batch_reads_a_csv_saved_with_a_byte_order_mark(tmp_path):
     marked.write_bytes(b"\xef\xbb\xbf" + POSES.read_bytes())
     expected = run("ik", "--batch", str(plain))
     assert expected.exit_code == 1 and run("ik", "--batch", str(marked)).output == expected.output
+
+
+def test_ik_batch_formats_ahead_on_a_thread_and_keeps_the_bytes_and_the_errors(tmp_path):
+    """A chunk's lines are formatted on a second thread while the next chunk is solved: the output is the
+    same bytes whatever the chunk size, and a bad line in a later chunk still fails the whole batch."""
+    from prs3_post.config import load_machine
+    from prs3_post.errors import InputError
+    from prs3_post.ik_batch import IKBatch
+
+    rng = np.random.default_rng(3)
+    rows = ["tip_x,tip_y,tip_z,axis_x,axis_y,axis_z"]
+    for _ in range(50):
+        tilt, azimuth = rng.uniform(0, 0.5), rng.uniform(0, 2 * np.pi)
+        axis = (np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth), np.cos(tilt))
+        rows.append(",".join(repr(float(v)) for v in (*rng.uniform(-100, 100, 2), rng.uniform(-720, -640), *axis)))
+    table = tmp_path / "poses.csv"
+    table.write_text("\n".join(rows) + "\n")
+    machine = load_machine("patel2020")
+    outputs = {size: b"".join(IKBatch(machine, str(table), chunk_lines=size).chunks()) for size in (1, 7, 65536)}
+    assert outputs[1] == outputs[7] == outputs[65536]
+    assert outputs[1].count(b"\n") == 51
+    rows[40] = "1,2,3,0,0,0"                                    # line 41: a zero axis, in the sixth chunk of 7
+    table.write_text("\n".join(rows) + "\n")
+    with pytest.raises(InputError, match=r"poses\.csv.*41"):
+        b"".join(IKBatch(machine, str(table), chunk_lines=7).chunks())

@@ -11,16 +11,19 @@ A large table is read by pyarrow's CSV parser (:mod:`prs3_post.readers.poses_bul
 from __future__ import annotations
 
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
 from prs3_post.config import Machine
 from prs3_post.errors import InputError, PoseError
 from prs3_post.kinematics import IKModel, inverse, unit_axes
-from prs3_post.limits import check_limits
+from prs3_post.kinematics.exact import IKResult
+from prs3_post.limits import LimitReport, check_limits
 from prs3_post.readers.poses import PoseTable
 from prs3_post.readers.poses_bulk import iter_poses_bulk
 from prs3_post.tables import ik_csv_header, ik_csv_rows
+from prs3_post.types import FloatArray
 
 #: Lines of the input solved together: large enough for the kernels' speed, small enough for memory.
 CHUNK_LINES = 65536
@@ -63,14 +66,22 @@ class IKBatch:
         """
         tables = iter_poses_bulk(self.path, chunk_lines=self.chunk_lines)
         first = next(tables, None)                     # a file that cannot be read writes nothing at all
-        lines = None if first is None else self._solve(first)
+        solved = None if first is None else self._solve(first)
         yield ik_csv_header()
-        if lines is not None:
-            yield lines
-        for table in tables:
-            yield self._solve(table)
+        if solved is None:
+            return
+        # a chunk's lines are formatted on a second thread while the next chunk is read and solved (numpy
+        # and pyarrow release the GIL): the same bytes in the same order, at most two chunks formatted ahead
+        with ThreadPoolExecutor(max_workers=1) as formatter:
+            pending = formatter.submit(ik_csv_rows, *solved)
+            for table in tables:
+                solved = self._solve(table)
+                lines = pending.result()
+                pending = formatter.submit(ik_csv_rows, *solved)
+                yield lines
+            yield pending.result()
 
-    def _solve(self, table: PoseTable) -> bytes:
+    def _solve(self, table: PoseTable) -> tuple[FloatArray, FloatArray, IKResult, LimitReport]:
         try:
             unit = unit_axes(table.tip, table.axis, row_name="line", row_numbers=table.line)
         except PoseError as error:
@@ -82,7 +93,7 @@ class IKBatch:
         self.outside_lines += table.line[outside[:room]].tolist() if room > 0 else []
         self.outside += len(outside)
         self.poses += len(table.line)
-        return ik_csv_rows(table.tip, unit, result, report)
+        return table.tip, unit, result, report
 
     def summary(self) -> str | None:
         """``1 of 3 poses unreachable or outside limits (lines 5); see the ok column``, or None when all are ok."""
