@@ -47,7 +47,7 @@ import numpy as np
 
 from prs3_post.config import AXIS_LETTERS, Dialect
 from prs3_post.errors import InputError, LexError
-from prs3_post.readers.files import iter_pieces, read_input
+from prs3_post.readers.files import iter_pieces, line_blocks, read_input
 from prs3_post.readers.lexer import (
     BYTE_ORDER_MARK,
     EMPTY,
@@ -84,8 +84,6 @@ MAX_AXIS_MM = 1e6
 CHUNK_LINES = 16384
 #: Bytes read from the file at a time.
 _PIECE_BYTES = 1 << 20
-#: The line feed byte.
-_LF = 10
 
 
 @dataclass(frozen=True, slots=True)
@@ -263,23 +261,15 @@ class ProgramStream:
         reader = _Reader(self.dialect, self.path, self.stage)
         number = 1
         size = self.chunk_lines
-        pending, pending_at = b"", 0                   # whole lines not handed out yet, and their offset
-        for offset, piece in self._pieces():           # bytes: lines of the regular shape are read undecoded
-            block = pending + piece if pending else piece
-            at = offset - len(pending)
-            line_ends = np.flatnonzero(np.frombuffer(block, dtype=np.uint8) == _LF)
-            cut, used = 0, 0
-            while len(line_ends) - used >= size:
-                stop = int(line_ends[used + size - 1]) + 1
-                reader.block(number, block[cut:stop], at + cut)
-                number += size
-                used += size
-                cut = stop
-                if len(chunk := reader.take()) or chunk.events:
-                    yield chunk
-            pending, pending_at = block[cut:], at + cut
-        if pending:
-            number += reader.block(number, pending, pending_at)
+        # bytes: lines of the regular shape are read undecoded; every block but the last holds `size` lines
+        for at, block in line_blocks(self._pieces(), size):
+            if block.count(b"\n") < size:                # the lines left at the end: read with the end below
+                number += reader.block(number, block, at)
+                continue
+            reader.block(number, block, at)
+            number += size
+            if len(chunk := reader.take()) or chunk.events:
+                yield chunk
         chunk = reader.take()
         reader.finish(number - 1)
         if len(chunk) or chunk.events:
