@@ -69,6 +69,11 @@ def test_render_rows_joins_the_words(seed: int, rows: int, block_rows: int, sepa
     assert np.diff(ends).tolist() == [len(line) for line in expected]
 
 
+def test_render_rows_refuses_an_empty_line_ending() -> None:
+    with pytest.raises(ValueError, match="the line ending must be one or more bytes other than NUL, got b''"):
+        render_rows([(b"X", scale_column(np.array([1.0]), 1))], np.array([[True]]), ending=b"")
+
+
 def test_render_rows_refuses_a_row_without_words() -> None:
     with pytest.raises(ValueError, match="a row without any word"):
         render_rows([(b"X", scale_column(np.array([1.0]), 1))], np.array([[False]]))
@@ -107,3 +112,7 @@ def test_render_rows_from_tables_is_the_digit_by_digit_text(seed: int, rows: int
     digits = [fixed_module._render_block_digits(spec, present, lo, min(rows, lo + block_rows), b" ", ending)
               for lo in range(0, rows, block_rows)]
     assert b"".join(d.tobytes() for d, _ in digits) == buffer.tobytes()
+    # render_rows takes the compiled writer where it was built: numpy's table writer gives the same bytes
+    tables = [fixed_module._render_block(spec, present, lo, min(rows, lo + block_rows), b" ", ending)
+              for lo in range(0, rows, block_rows)]
+    assert b"".join(t.tobytes() for t, _ in tables) == buffer.tobytes()

@@ -200,8 +200,11 @@ def render_rows(columns: Sequence[Column], present: BoolArray, *, separator: byt
     columns : sequence of ``(prefix, ScaledColumn)`` or ChoiceColumn, each with N rows
     present : (N, C) bool — which words each line has; every row needs at least one
     separator : bytes — one ASCII byte
-    ending : bytes — ASCII
+    ending : bytes — ASCII, at least one byte
     block_rows : int — rows formatted together (the scratch memory is about 100 bytes per row)
+
+    The lines are written by the compiled writer (:mod:`prs3_post.native`) where it was built, else by
+    numpy: the same bytes.
 
     Returns
     -------
@@ -222,7 +225,14 @@ def render_rows(columns: Sequence[Column], present: BoolArray, *, separator: byt
         raise ValueError("render_rows: a row without any word")
     if len(separator) != 1 or separator == b"\0" or b"\0" in ending:
         raise ValueError(f"render_rows: the separator must be one byte other than NUL, got {separator!r}")
-    blocks = [_render_block(columns, present, lo, min(rows, lo + block_rows), separator, ending)
+    if not ending or b"\0" in ending:                 # (a first word's separator lands on the ending's last byte)
+        raise ValueError(f"render_rows: the line ending must be one or more bytes other than NUL, got {ending!r}")
+    from prs3_post import native  # ctypes: loaded only where lines are written
+
+    render = _render_block
+    if native.available():
+        render, block_rows = native.render_block, max(block_rows, 65536)    # no scratch grid: any size
+    blocks = [render(columns, present, lo, min(rows, lo + block_rows), separator, ending)
               for lo in range(0, rows, block_rows)]
     ends = np.zeros(rows + 1, dtype=np.int64)
     if blocks:

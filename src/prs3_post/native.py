@@ -1,0 +1,126 @@
+"""The compiled line writer (csrc/render.c), loaded with ctypes; numpy does the same where it is absent.
+
+``pip install`` compiles csrc/render.c with the machine's C compiler (hatch_build.py) into
+``prs3_post/_native.so``. Where there is no compiler the package installs all the same and every
+line is written by numpy (:mod:`prs3_post.fixed`): the same bytes, three to four times slower. The
+C function has no Python API in it, so ctypes releases the GIL while it runs (``ik --batch``
+formats one chunk on a second thread while the next is read and solved).
+
+``PRS3_POST_NATIVE=0`` in the environment turns it off (the tests compare both writers).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from prs3_post.types import BoolArray, IntArray
+
+__all__ = ["ENV", "LIBRARY", "available", "library", "render_block"]
+
+#: The compiled library, beside this module.
+LIBRARY = Path(__file__).with_name("_native.so")
+#: ``PRS3_POST_NATIVE=0``: numpy writes every line.
+ENV = "PRS3_POST_NATIVE"
+_NUMBER, _CHOICE = 0, 1
+_library: Any = None                                    # None: not loaded yet; False: not there
+_function: Any = None                                   # prs3_render_lines, once loaded
+
+
+def library() -> Any:
+    """The compiled library (ctypes.CDLL), or None where it was not built or is turned off."""
+    global _library
+    if _library is None:
+        _library = False
+        if os.environ.get(ENV, "1") != "0" and LIBRARY.is_file():
+            try:
+                _library = ctypes.CDLL(str(LIBRARY))
+            except OSError:                              # built for another machine
+                pass
+    return _library or None
+
+
+def _load() -> Any:
+    global _function
+    if _function is None:
+        _function = False
+        loaded = library()
+        function = getattr(loaded, "prs3_render_lines", None) if loaded is not None else None
+        if function is not None:
+            pointer, i64 = ctypes.c_void_p, ctypes.c_int64
+            function.restype = i64
+            function.argtypes = [i64, i64, pointer, pointer, pointer, pointer, pointer, pointer, pointer,
+                                 ctypes.c_uint8, pointer, i64, i64, pointer, pointer, pointer, pointer, pointer,
+                                 i64, pointer]
+            _function = function
+    return _function
+
+
+def available() -> bool:
+    """True when the compiled writer is there and not turned off (``PRS3_POST_NATIVE=0``)."""
+    return bool(_load())
+
+
+def _address(array: np.ndarray) -> int:
+    return int(array.ctypes.data)
+
+
+def render_block(columns: Sequence, present: BoolArray, lo: int, hi: int, separator: bytes,
+                 ending: bytes) -> tuple[np.ndarray, IntArray]:
+    """Rows ``lo:hi`` of :func:`prs3_post.fixed.render_rows`: (their bytes, each line's length with its
+    ending), as the numpy writer gives them. Call only where :func:`available`."""
+    from prs3_post.fixed import ChoiceColumn  # fixed imports this module: no cycle at import time
+
+    m, width = hi - lo, len(columns)
+    kind = np.zeros(width, dtype=np.int32)
+    decimals = np.zeros(width, dtype=np.int32)
+    first_text = np.zeros(width, dtype=np.int64)
+    kept: list[np.ndarray] = []                          # the value columns, alive through the call
+    texts: list[bytes] = []
+    overrides: list[tuple[int, int, bytes]] = []         # (row, column, text after the prefix)
+    room = 0                                             # bytes a line needs at most
+    for j, column in enumerate(columns):
+        first_text[j] = len(texts)
+        if isinstance(column, ChoiceColumn):
+            kind[j] = _CHOICE
+            kept.append(np.ascontiguousarray(column.choice[lo:hi], dtype=np.int64))
+            texts.extend(column.texts)
+            room += 1 + max((len(t) for t in column.texts), default=0)
+            continue
+        prefix, numbers = column
+        kept.append(np.ascontiguousarray(numbers.scaled[lo:hi], dtype=np.int64))
+        decimals[j] = numbers.decimals
+        texts.append(prefix)
+        first, last = np.searchsorted(numbers.odd, [lo, hi])
+        odd_texts = [text.encode("ascii") for text in numbers.odd_text[first:last]]
+        overrides += [(row - lo, j, text) for row, text in zip(numbers.odd[first:last].tolist(), odd_texts,
+                                                                strict=True)]
+        room += 1 + len(prefix) + max(44, max((len(t) for t in odd_texts), default=0))
+    overrides.sort(key=lambda item: (item[0], item[1]))
+    text_start = np.zeros(len(texts) + 1, dtype=np.int64)
+    np.cumsum([len(t) for t in texts], out=text_start[1:])
+    text_bytes = np.frombuffer(b"".join(texts) + b"\0", dtype=np.uint8)
+    pointers = np.array([_address(a) for a in kept], dtype=np.uint64)
+    on = np.ascontiguousarray(present[lo:hi], dtype=np.bool_)
+    ending_bytes = np.frombuffer(ending + b"\0", dtype=np.uint8)
+    override_row = np.array([row for row, _, _ in overrides] + [0], dtype=np.int64)
+    override_col = np.array([col for _, col, _ in overrides] + [0], dtype=np.int64)
+    override_start = np.zeros(len(overrides) + 1, dtype=np.int64)
+    np.cumsum([len(t) for _, _, t in overrides], out=override_start[1:])
+    override_bytes = np.frombuffer(b"".join(t for _, _, t in overrides) + b"\0", dtype=np.uint8)
+    capacity = m * (room + len(ending) + 64) + 64
+    out = np.empty(capacity, dtype=np.uint8)
+    lengths = np.zeros(m, dtype=np.int64)
+    size = _load()(width, m, _address(pointers), _address(kind), _address(decimals), _address(first_text),
+                   _address(text_start), _address(text_bytes), _address(on), separator[0],
+                   _address(ending_bytes), len(ending), len(overrides), _address(override_row),
+                   _address(override_col), _address(override_start), _address(override_bytes), _address(out),
+                   capacity, _address(lengths))
+    if size < 0:
+        raise AssertionError("prs3_render_lines: the output buffer was too small")   # room is an upper bound
+    return out[:size], lengths
