@@ -214,6 +214,22 @@ def test_unreachable_point_fails_and_writes_nothing(tmp_path: Path) -> None:
     assert list(out.iterdir()) == []
 
 
+def test_the_first_error_in_the_file_is_the_one_reported(tmp_path: Path) -> None:
+    """The reader runs a chunk or two ahead on a second thread: a bad record far after an unreachable point
+    (read before the point is post-processed) must not be the error reported, nor the other way round."""
+    for name, at_start, at_end in (("limit-first", "GOTO/0,0,-500", "GOTO/0,0,1,0"),
+                                   ("syntax-first", "GOTO/0,0,1,0", "GOTO/0,0,-500")):
+        src = tmp_path / f"{name}.cls"
+        moves = "".join(f"GOTO/{k % 7},0,100\n" for k in range(60_000))
+        src.write_text(f"FEDRAT/100\nRAPID\nGOTO/0,0,100\n{at_start}\n{moves}{at_end}\n")
+        out = tmp_path / f"out-{name}"
+        code, stdout, _ = _cli(tmp_path, str(src), "-o", str(out))
+        reason = stdout.split("\t")[3].rstrip("\n")
+        assert reason.startswith(f"{src}:4: "), reason
+        assert code == (1 if name == "limit-first" else 2)
+        assert list(out.iterdir()) == []
+
+
 def test_output_folder_that_cannot_be_made(tmp_path: Path) -> None:
     src = tmp_path / "a.cls"
     src.write_text("RAPID\nGOTO/0,0,0\n")
@@ -222,6 +238,24 @@ def test_output_folder_that_cannot_be_made(tmp_path: Path) -> None:
     code, stdout, stderr = _cli(tmp_path, str(src), "-o", str(blocker / "out"))
     assert (code, stdout) == (2, "")
     assert stderr == f"prs3-post: error: {blocker / 'out'}: cannot create the output folder: Not a directory\n"
+
+
+def test_an_output_folder_on_a_read_only_file_system_says_so(tmp_path: Path,
+                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """Not "permission denied" (root may write anywhere but there): the file system is read-only."""
+    from prs3_post import convert
+
+    out = tmp_path / "out"
+    out.mkdir()
+    flags = os.statvfs(out)
+    monkeypatch.setattr(convert.os, "access", lambda path, mode: False)
+    monkeypatch.setattr(convert.os, "statvfs", lambda path: os.statvfs_result(
+        (*flags[:8], flags.f_flag | os.ST_RDONLY, flags.f_namemax)))
+    with pytest.raises(convert.InputError, match=r"out: cannot write in the output folder: read-only file system$"):
+        convert.prepare_outdir(str(out))
+    monkeypatch.setattr(convert.os, "statvfs", lambda path: flags)
+    with pytest.raises(convert.InputError, match=r"out: cannot write in the output folder: permission denied$"):
+        convert.prepare_outdir(str(out))
 
 
 def test_existing_output_is_kept_unless_forced(tmp_path: Path) -> None:

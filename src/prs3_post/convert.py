@@ -745,7 +745,8 @@ def prepare_outdir(outdir: str) -> None:
     Raises
     ------
     InputError
-        ``cannot create the output folder: <reason>`` or ``is not a folder``.
+        ``cannot create the output folder: <reason>``, ``is not a folder``, or ``cannot write in the
+        output folder: permission denied`` (or ``read-only file system``).
     """
     try:
         os.makedirs(outdir, exist_ok=True)
@@ -754,7 +755,12 @@ def prepare_outdir(outdir: str) -> None:
     if not os.path.isdir(outdir):
         raise InputError("is not a folder: give the folder the programs go to", path=outdir)
     if not os.access(outdir, os.W_OK | os.X_OK):
-        raise InputError("cannot write in the output folder: permission denied", path=outdir)
+        try:
+            read_only = bool(os.statvfs(outdir).f_flag & os.ST_RDONLY)
+        except OSError:
+            read_only = False
+        reason = "read-only file system" if read_only else "permission denied"
+        raise InputError(f"cannot write in the output folder: {reason}", path=outdir)
 
 
 #: What a file whose program exists already (and is kept) fails with.
