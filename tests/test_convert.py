@@ -426,6 +426,12 @@ BAD_INPUTS = [
      "TLAXIS, MSYS, UNITS, LOADTL, LOAD, SELECT, TLDATA, SPINDL, COOLNT, CYCLE, CIRCLE, PPRINT, END-OF-PATH, FINI, "
      "STOP, OPSTOP; display-only, skipped: PAINT, TOOL PATH; other words can be ignored on purpose by listing them "
      "as words to ignore)"),
+    ("huge.cls", "RAPID\nGOTO/" + "1.0," * 20_000 + "1\n",
+     "2: a record of 80,006 characters or more: longer than any CL record may be (65,536 at most); found "
+     "'GOTO/1.0,1.0,1.0,1.0,1.0,1.0,1.0,1.0,1.0,1.0,1.0,1.0,1.0,1.0...'"),
+    ("continued.cls", "RAPID\n" + "GOTO/1,2,$\n" * 8_000 + "GOTO/1,2,3\n",
+     "2: a record of 65,540 characters or more: longer than any CL record may be (65,536 at most); found "
+     "'GOTO/1,2,GOTO/1,2,GOTO/1,2,GOTO/1,2,GOTO/1,2,GOTO/1,2,GOTO/1...'"),
     ("zeroaxis.cls", "RAPID\nGOTO/0,200,0,0,0,0\n",
      "2: GOTO/: zero tool vector (0, 0, 0); i,j,k must be a unit vector from the tool tip toward the spindle"),
     ("msys.cls", "MSYS/0,0,0,1,0,0,0.5,1,0\nRAPID\nGOTO/0,200,0\n",

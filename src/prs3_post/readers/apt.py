@@ -540,14 +540,20 @@ def _split_comment(line: str) -> tuple[str, str | None]:
     return line[:at], line[at + 2:].strip()
 
 
+#: Characters of a record (continuation lines joined) at most: far more than any CAM system writes
+#: (a GOTO/ of six 20-digit numbers is about 130), few enough that a bad file is refused at once.
+MAX_RECORD_CHARS = 65_536
+
+
 class _Assembler:
     """Lines → records: continuations (a trailing single ``$``) joined, ``$$`` comments split off."""
 
-    __slots__ = ("comment", "path", "pending", "start")
+    __slots__ = ("comment", "path", "pending", "size", "start")
 
     def __init__(self, path: str):
         self.path = path
         self.pending: list[str] = []
+        self.size = 0                                # characters of the pending record so far
         self.start = 0
         self.comment: str | None = None
 
@@ -561,13 +567,18 @@ class _Assembler:
                 return None if comment is None else _Record(number, "$$", None, raw.strip(), comment)
         if comment is not None:
             self.comment = comment if self.comment is None else f"{self.comment} {comment}"
+        self.size += len(code)
+        if self.size > MAX_RECORD_CHARS:                 # before any work on it (a GOTO of millions of values)
+            raise InputError(f"a record of {self.size:,} characters or more: longer than any CL record may be "
+                             f"({MAX_RECORD_CHARS:,} at most); found {_quote(''.join(self.pending) + code)}",
+                             path=self.path, line=self.start)
         if code.endswith("$"):
             self.pending.append(code[:-1])
             return None
         self.pending.append(code)
         joined = "".join(self.pending)
         comment, self.comment = self.comment, None
-        self.pending = []
+        self.pending, self.size = [], 0
         return _split(self.start, joined, comment)
 
     def close(self) -> None:
