@@ -31,13 +31,14 @@ from pathlib import Path
 import numpy as np
 
 from prs3_post import __version__
+from prs3_post.ahead import read_ahead
 from prs3_post.collision import check_rapids, measure_program
 from prs3_post.config import Dialect, Machine
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.errors import InputError, LimitError, PoseError, Prs3Error, ReachError
 from prs3_post.job import file_given
 from prs3_post.kinematics import inverse, unit_axes
-from prs3_post.kinematics.blocks import THREADS_VARIABLE
+from prs3_post.kinematics.blocks import THREADS_VARIABLE, default_workers
 from prs3_post.limits import check_limits, raise_first_violation
 from prs3_post.ops.common import TOOL_DIAMETER_RANGE
 from prs3_post.output import HeadLast, refuse_overwriting, write_atomic
@@ -357,7 +358,12 @@ class _Run:
         """The reader's chunks, checked as read, placed on the machine (unit axes: for the ``placed`` stream)."""
         machine = self.settings.ik_machine
         last_axis: np.ndarray | None = None
-        for chunk in self.reader:
+        # the next chunk is read and lexed on a second thread while this one is post-processed, where this
+        # process may use two (processes × threads ≤ cores); not the 5-axis reader, whose state the first
+        # chunk's comment reads
+        ahead = default_workers() > 1 and not isinstance(self.reader, FivexStream)
+        chunks = read_ahead(self.reader) if ahead else self.reader
+        for chunk in chunks:
             if isinstance(self.reader, FivexStream):
                 _refuse_tilt(machine, chunk, self)
                 if not self.rows:

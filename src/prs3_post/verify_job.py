@@ -18,15 +18,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import threading
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from queue import Full, Queue
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
+from prs3_post.ahead import read_ahead
 from prs3_post.config import DEFAULT_DIALECT, DEFAULT_MACHINE, Dialect, Machine, load_dialect, load_machine, load_source
 from prs3_post.errors import ConfigError, InputError, PoseError, Prs3Error, quoted
 from prs3_post.face import Face
@@ -693,52 +692,6 @@ def _keep_freed_memory() -> None:
         return
     for option, value in ((_M_MMAP_THRESHOLD, 64 << 20), (_M_TRIM_THRESHOLD, 256 << 20), (_M_TOP_PAD, 16 << 20)):
         mallopt(ctypes.c_int(option), ctypes.c_int(value))
-
-
-_Item = TypeVar("_Item")
-
-
-def read_ahead(items: Iterable[_Item], depth: int = 2) -> Iterator[_Item]:
-    """The items of ``items`` in order, produced by a thread up to ``depth`` ahead of the consumer:
-    reading and lexing the next chunk of a program overlaps the replay of this one (numpy releases
-    the interpreter lock in both). An exception of the producer is raised here, where its item
-    would have come; a consumer that stops early stops the producer.
-    """
-    queue: Queue[tuple[str, Any]] = Queue(maxsize=max(1, depth))
-    stop = threading.Event()
-
-    def put(entry: tuple[str, Any]) -> bool:
-        while not stop.is_set():
-            try:
-                queue.put(entry, timeout=0.05)
-                return True
-            except Full:
-                continue
-        return False
-
-    def produce() -> None:
-        try:
-            for item in items:
-                if not put(("item", item)):
-                    return
-            put(("end", None))
-        except Exception as exc:
-            put(("error", exc))
-
-    thread = threading.Thread(target=produce, name="read-ahead", daemon=True)
-    thread.start()
-    try:
-        while True:
-            kind, value = queue.get()
-            if kind == "item":
-                yield value
-            elif kind == "error":
-                raise value
-            else:
-                return
-    finally:
-        stop.set()
-        thread.join()
 
 
 def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str, *,
