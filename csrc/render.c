@@ -13,6 +13,12 @@
 #include <stdint.h>
 #include <string.h>
 
+/* The version of the library's functions and their arguments: prs3_post/native.py loads a library
+ * only when it says the version that module was written for (an editable install whose csrc/ changed
+ * since it was built falls back to numpy instead of calling a function with other arguments).
+ * Raise it with NATIVE_VERSION in native.py whenever a function or its arguments change. */
+int64_t prs3_native_version(void) { return 1; }
+
 static const char PAIRS[] =
     "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
     "40414243444546474849505152535455565758596061626364656667686970717273747576777879"

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import ctypes
 import os
+import shutil
+import subprocess
 import sys
 from pathlib import Path
 
@@ -68,6 +70,22 @@ def test_numpy_writes_the_lines_where_it_is_turned_off(monkeypatch: pytest.Monke
     buffer, ends = render_rows([(b"X", column)], present)
     assert buffer.tobytes() == b"X1.2500\nX0.0000\nXnan\n"
     assert ends.tolist() == [0, 8, 16, 21]
+
+
+@pytest.mark.skipif(shutil.which("cc") is None, reason="needs a C compiler")
+def test_a_library_of_another_version_is_not_used(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """An editable install whose csrc/ changed after its build: numpy writes the lines, nothing crashes."""
+    source = tmp_path / "old.c"
+    source.write_text("#include <stdint.h>\nint64_t prs3_native_version(void) { return 0; }\n"
+                      "int64_t prs3_render_lines(void) { return -1; }\n")
+    library = tmp_path / "_native.so"
+    subprocess.run(["cc", "-shared", "-fPIC", "-o", str(library), str(source)], check=True)
+    monkeypatch.setattr(native, "LIBRARY", library)
+    monkeypatch.setattr(native, "_library", None)
+    monkeypatch.setattr(native, "_function", None)
+    assert native.library() is None and not native.available()
+    buffer, _ = render_rows([(b"X", scale_column(np.array([-2.5]), 3))], np.ones((1, 1), dtype=bool))
+    assert buffer.tobytes() == b"X-2.500\n"
 
 
 def _hook_module():  # type: ignore[no-untyped-def]

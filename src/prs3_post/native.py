@@ -21,12 +21,15 @@ import numpy as np
 
 from prs3_post.types import BoolArray, IntArray
 
-__all__ = ["ENV", "LIBRARY", "available", "library", "render_block"]
+__all__ = ["ENV", "LIBRARY", "NATIVE_VERSION", "available", "library", "render_block"]
 
 #: The compiled library, beside this module.
 LIBRARY = Path(__file__).with_name("_native.so")
 #: ``PRS3_POST_NATIVE=0``: numpy writes every line.
 ENV = "PRS3_POST_NATIVE"
+#: What ``prs3_native_version()`` of the library must say (csrc/render.c): another version (an old build
+#: beside newer sources) is not used.
+NATIVE_VERSION = 1
 _NUMBER, _CHOICE = 0, 1
 _library: Any = None                                    # None: not loaded yet; False: not there
 _function: Any = None                                   # prs3_render_lines, once loaded
@@ -39,9 +42,13 @@ def library() -> Any:
         _library = False
         if os.environ.get(ENV, "1") != "0" and LIBRARY.is_file():
             try:
-                _library = ctypes.CDLL(str(LIBRARY))
-            except OSError:                              # built for another machine
-                pass
+                loaded = ctypes.CDLL(str(LIBRARY))
+                version = loaded.prs3_native_version
+            except (OSError, AttributeError):            # built for another machine, or before versions
+                return None
+            version.restype, version.argtypes = ctypes.c_int64, []
+            if version() == NATIVE_VERSION:
+                _library = loaded
     return _library or None
 
 
