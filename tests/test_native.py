@@ -1,4 +1,5 @@
-"""The compiled line writer (csrc/render.c through prs3_post.native) against numpy's, and its build hook."""
+"""The compiled line writer (csrc/render.c) and lexer (csrc/lex.c), through prs3_post.native, against numpy's,
+and their build hook."""
 
 from __future__ import annotations
 
@@ -11,14 +12,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from prs3_post import fixed, native
 from prs3_post.fixed import ChoiceColumn, render_rows, scale_column
+from prs3_post.readers import lexer
 
 ROOT = Path(__file__).resolve().parents[1]
 needs_native = pytest.mark.skipif(not native.available(), reason="the compiled line writer was not built here")
+needs_lexer = pytest.mark.skipif(native.lex_text(b"\n", b"\0" * 256, 0) is None,
+                                 reason="the compiled lexer was not built here")
 
 
 def test_ci_builds_the_compiled_writer() -> None:
@@ -86,6 +90,117 @@ def test_a_library_of_another_version_is_not_used(tmp_path: Path, monkeypatch: p
     assert native.library() is None and not native.available()
     buffer, _ = render_rows([(b"X", scale_column(np.array([-2.5]), 3))], np.ones((1, 1), dtype=bool))
     assert buffer.tobytes() == b"X-2.500\n"
+
+
+# ----------------------------------------------------------------------------- the compiled lexer
+
+#: A plain number: an optional minus, 1 to 17 digits (16 and 17: too many for the fast path), the point
+#: anywhere or nowhere (before, inside, after the digits).
+_number = st.builds(lambda sign, digits, point: sign + (digits[:point] + b"." + digits[point:] if point >= 0
+                                                        else digits),
+                    st.sampled_from([b"", b"-"]), st.from_regex(rb"\A[0-9]{1,17}\Z"), st.integers(-1, 17))
+#: What breaks the regular shape: lower case, comments, tab, CR, non-ASCII bytes (UTF-8 and not), a
+#: second point, a lonely point, a minus without digits, a letter without a number, letters not
+#: read in bulk, a sign or exponent, a number without a letter.
+_odd = st.sampled_from([b"x1", b"g0", b"(note)", b";end", b"(", b"\t", b"\r", b"\xc3\xa9", b"\xff", b"\x00",
+                        b"X1.2.3", b"Y..5", b"X.", b"Z-.", b"X-", b"-", b".", b"Y", b"Q1", b"X+1", b"E5", b"7",
+                        b"X1e5", b"#1", b"[1]"])
+
+
+@st.composite
+def _blocks(draw: st.DrawFn, letters: str) -> bytes:
+    """Lines of a block: regular ones (words of ``letters`` in order), regular ones with one word or
+    piece that breaks the shape, and mixes of words in any order (repeats) and odd pieces; joined by
+    no space, one or two; empty lines; a final LF or not."""
+    word = st.builds(lambda letter, number: letter + number, st.sampled_from([c.encode() for c in letters]),
+                     _number)
+    space = st.sampled_from([b"", b" ", b"  "])
+    regular = st.lists(st.sampled_from(letters), unique=True).flatmap(
+        lambda chosen: st.tuples(*(st.tuples(space, _number.map(lambda n, c=c: c.encode() + n))
+                                   for c in sorted(chosen, key=letters.index))).map(list))
+    spoilt = st.tuples(regular, st.integers(0, 9), space, st.one_of(_odd, word)).map(
+        lambda r: [*r[0][:r[1]], (r[2], r[3]), *r[0][r[1]:]])
+    mixed = st.lists(st.tuples(space, st.one_of(word, word, _odd)), max_size=7)
+    line = st.tuples(st.one_of(regular, regular, spoilt, mixed), st.sampled_from([b"", b" "]))
+    lines = draw(st.lists(line, max_size=25))
+    text = b"\n".join(b"".join(gap + piece for gap, piece in words) + tail for words, tail in lines)
+    return text + draw(st.sampled_from([b"", b"\n"]))
+
+
+def _numpy_lex_block(block: bytes, letters: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """lexer.lex_column_block with numpy (its text as lex_column_block makes it)."""
+    return lexer._lex_text_numpy(b"\n" + block + (b"" if block.endswith(b"\n") else b"\n"), letters)
+
+
+def _assert_same_lexing(block: bytes, letters: str) -> tuple[np.ndarray, np.ndarray]:
+    values, read, ends = lexer.lex_column_block(block, letters)       # C
+    expected_values, expected_read, expected_ends = _numpy_lex_block(block, letters)
+    assert values.dtype == np.float64 and values.shape == expected_values.shape
+    assert values.view(np.uint64).tolist() == expected_values.view(np.uint64).tolist()   # bits: -0.0, NaN
+    assert read.dtype == np.bool_ and read.tolist() == expected_read.tolist()
+    assert ends.dtype == np.int64 and ends.tolist() == expected_ends.tolist()
+    return values, read
+
+
+@needs_lexer
+@settings(max_examples=400, deadline=None)
+@given(case=st.sampled_from(["NGXYZF", "NGXYZABCF", "XYZ", "G"]).flatmap(
+    lambda letters: st.tuples(st.just(letters), _blocks(letters))))
+@example(case=("NGXYZF", b"N1 G1 X-0 Y.5\n\nX1"))
+def test_compiled_lexer_reads_as_numpy(case: tuple[str, bytes]) -> None:
+    """Generated blocks mixing regular lines with every irregularity: the same values (to the bit, NaN
+    where absent or not read), the same lines read and the same line ends."""
+    letters, block = case
+    assume(block)                                       # (an empty block never gets to either)
+    _assert_same_lexing(block, letters)
+
+
+@needs_lexer
+def test_compiled_lexer_reads_the_regular_lines_only() -> None:
+    """Each irregularity once, with the lines read and the values written out (not only the agreement)."""
+    lines = [b"N10 G1 X-12.5 Y.5 Z5. F100", b"", b"  ", b"X-0 Z123456789012345", b"X1234567890123456",
+             b"g1 X1", b"G1 X1 (c)", b"G1\tX1", b"G1 X1\r", b"X1 \xc3\xa9", b"X1.2.3", b"X.", b"X-.", b"X- Y1",
+             b"X1 X2", b"Y1 X2", b"Q1", b"7", b"X1 2", b" .5", b"X1Y2Z-.25", b"X-.5 Y5. F007"]
+    values, read = _assert_same_lexing(b"\n".join(lines), "NGXYZF")
+    assert read.tolist() == [True, True, True, True] + [False] * 16 + [True, True]
+    nan = np.nan
+    expected = np.array([[10, 1, -12.5, 0.5, 5, 100], [nan] * 6, [nan] * 6, [nan, nan, -0.0, nan, 123456789012345, nan]]
+                        + [[nan] * 6] * 16 + [[nan, nan, 1, 2, -0.25, nan], [nan, nan, -0.5, 5, nan, 7]])
+    assert values.view(np.uint64).tolist() == expected.view(np.uint64).tolist()
+
+
+@needs_lexer
+def test_compiled_lexer_never_writes_past_its_outputs() -> None:
+    """Room for fewer lines than the text has: -1, and nothing written past the room given; a text that
+    does not start and end with a LF: -1."""
+    function = native._lexer
+    codes = lexer._tables("XY")[0]
+    text = b"\nX1\nY2\nX3 Y4\n"
+    values = np.full((3, 2), 7.0)
+    read = np.full(3, 5, dtype=np.uint8)
+    ends = np.full(4, 9, dtype=np.int64)
+    for rows in (0, 1, 2):
+        done = function(text, len(text), codes, 2, values.ctypes.data, read.ctypes.data, ends.ctypes.data, rows)
+        assert done == -1
+        assert values[rows:].tolist() == [[7.0, 7.0]] * (3 - rows)
+        assert read[rows:].tolist() == [5] * (3 - rows)
+        assert ends[rows + 1:].tolist() == [9] * (3 - rows)
+    for bad in (b"X1\n", b"\nX1", b""):
+        assert function(bad, len(bad), codes, 2, values.ctypes.data, read.ctypes.data, ends.ctypes.data, 3) == -1
+    assert function(text, len(text), codes, 2, values.ctypes.data, read.ctypes.data, ends.ctypes.data, 3) == 3
+    assert values[2].tolist() == [3.0, 4.0] and read.tolist() == [1, 1, 1] and ends.tolist() == [0, 3, 6, 12]
+
+
+def test_numpy_lexes_where_it_is_turned_off(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``PRS3_POST_NATIVE=0``: no compiled lexer, and lex_column_block reads the same through numpy."""
+    monkeypatch.setattr(native, "_lexer", None)
+    monkeypatch.setattr(native, "_library", None)
+    monkeypatch.setenv(native.ENV, "0")
+    assert native.lex_text(b"\nX1\n", lexer._tables("X")[0], 1) is None
+    values, read, ends = lexer.lex_column_block(b"G1 X1.5\n(note)\nX-0", "GX")
+    assert values.view(np.uint64).tolist() == np.array([[1.0, 1.5], [np.nan, np.nan], [np.nan, -0.0]]).view(
+        np.uint64).tolist()
+    assert read.tolist() == [True, False, True] and ends.tolist() == [0, 8, 15, 19]
 
 
 def _hook_module():  # type: ignore[no-untyped-def]

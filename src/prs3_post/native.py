@@ -1,12 +1,14 @@
-"""The compiled line writer (csrc/render.c), loaded with ctypes; numpy does the same where it is absent.
+"""The compiled line writer (csrc/render.c) and lexer (csrc/lex.c), loaded with ctypes; numpy does the
+same where they are absent.
 
-``pip install`` compiles csrc/render.c with the machine's C compiler (hatch_build.py) into
+``pip install`` compiles csrc/*.c with the machine's C compiler (hatch_build.py) into
 ``prs3_post/_native.so``. Where there is no compiler the package installs all the same and every
-line is written by numpy (:mod:`prs3_post.fixed`): the same bytes, three to four times slower. The
-C function has no Python API in it, so ctypes releases the GIL while it runs (``ik --batch``
-formats one chunk on a second thread while the next is read and solved).
+line is written by numpy (:mod:`prs3_post.fixed`): the same bytes, three to four times slower; and
+read by numpy (:mod:`prs3_post.readers.lexer`): the same values. The C functions have no Python API
+in them, so ctypes releases the GIL while they run (``ik --batch`` formats one chunk on a second
+thread while the next is read and solved).
 
-``PRS3_POST_NATIVE=0`` in the environment turns it off (the tests compare both writers).
+``PRS3_POST_NATIVE=0`` in the environment turns them off (the tests compare both ways).
 """
 
 from __future__ import annotations
@@ -19,13 +21,13 @@ from typing import Any
 
 import numpy as np
 
-from prs3_post.types import BoolArray, IntArray
+from prs3_post.types import BoolArray, FloatArray, IntArray
 
-__all__ = ["ENV", "LIBRARY", "NATIVE_VERSION", "available", "library", "render_block"]
+__all__ = ["ENV", "LIBRARY", "NATIVE_VERSION", "available", "lex_text", "library", "render_block"]
 
 #: The compiled library, beside this module.
 LIBRARY = Path(__file__).with_name("_native.so")
-#: ``PRS3_POST_NATIVE=0``: numpy writes every line.
+#: ``PRS3_POST_NATIVE=0``: numpy writes every line and reads every chunk.
 ENV = "PRS3_POST_NATIVE"
 #: What ``prs3_native_version()`` of the library must say (csrc/render.c): another version (an old build
 #: beside newer sources) is not used.
@@ -33,6 +35,7 @@ NATIVE_VERSION = 1
 _NUMBER, _CHOICE = 0, 1
 _library: Any = None                                    # None: not loaded yet; False: not there
 _function: Any = None                                   # prs3_render_lines, once loaded
+_lexer: Any = None                                      # prs3_lex_columns, once loaded (False: not there)
 
 
 def library() -> Any:
@@ -131,3 +134,29 @@ def render_block(columns: Sequence, present: BoolArray, lo: int, hi: int, separa
     if size < 0:
         raise AssertionError("prs3_render_lines: the output buffer was too small")   # room is an upper bound
     return out[:size], lengths
+
+
+def lex_text(text: bytes, codes: bytes, width: int) -> tuple[FloatArray, BoolArray, IntArray] | None:
+    """The lexer's fast path (:func:`prs3_post.readers.lexer._lex_text`) in C: values (N, width), read (N,)
+    and the LF positions (N + 1,) of ``text`` (a LF, then lines each ending in LF), ``codes`` the lexer's
+    byte-code table of ``width`` letters; None where the compiled lexer is not there or turned off."""
+    global _lexer
+    if _lexer is None:
+        _lexer = False
+        loaded = library()
+        function = getattr(loaded, "prs3_lex_columns", None) if loaded is not None else None
+        if function is not None:
+            pointer, i64 = ctypes.c_void_p, ctypes.c_int64
+            function.restype = i64
+            function.argtypes = [ctypes.c_char_p, i64, ctypes.c_char_p, i64, pointer, pointer, pointer, i64]
+            _lexer = function
+    if not _lexer:
+        return None
+    rows = max(text.count(b"\n") - 1, 0)
+    values = np.zeros((rows, width))                     # every cell written (calloc: no pass over it)
+    read = np.zeros(rows, dtype=np.bool_)
+    ends = np.zeros(rows + 1, dtype=np.int64)
+    done = _lexer(text, len(text), codes, width, _address(values), _address(read), _address(ends), rows)
+    if done != rows:                                     # rows is the count of its lines
+        raise AssertionError(f"prs3_lex_columns: {done} lines of {rows} (the text must start and end with a LF)")
+    return values, read, ends

@@ -318,7 +318,16 @@ def lex_column_block(block: bytes, letters: str) -> tuple[FloatArray, BoolArray,
 
 def _lex_text(text: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArray]:
     """lex_columns of ``text``: LF, then each line and its LF (every byte not ASCII already one of the
-    bytes that no line of the regular shape has); returns values, read and the LF positions (N + 1,)."""
+    bytes that no line of the regular shape has); returns values, read and the LF positions (N + 1,).
+    In C (csrc/lex.c, several times faster) where it was built, else :func:`_lex_text_numpy`: the same."""
+    from prs3_post import native  # ctypes: loaded only where lines are read in bulk
+
+    lexed = native.lex_text(text, _tables(letters)[0], len(letters))
+    return _lex_text_numpy(text, letters) if lexed is None else lexed
+
+
+def _lex_text_numpy(text: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArray]:
+    """:func:`_lex_text` with numpy (the reference of csrc/lex.c, and where that was not built)."""
     code_table, pair_table = _tables(letters)
     size = len(text)
     classes = text.translate(code_table)                 # one byte a byte: its class (_CODE_*)

@@ -1,0 +1,131 @@
+/* The G-code lexer's fast path (prs3_post.readers.lexer._lex_text), in C (loaded with ctypes by
+ * prs3_post.native).
+ *
+ * Reads the lines of the regular shape (the lexer module's docstring: upper-case words of the given
+ * letters in their order, each at most once, separated by spaces, no comment) into one column per
+ * letter, as the numpy path does, with the same rules (a test compares the two on generated blocks):
+ * every byte allowed after the one before it (the table ALLOWED, the lexer's _AFTER), at most one
+ * point in a word, a point with a digit beside it, at most 15 digits, letters in order. A line that
+ * breaks a rule is not read: its row is all NaN and the Python lexer reads it (or says what is wrong).
+ *
+ * Values are bit-identical to Python's float() of the text: the digits (at most 15) make an exact
+ * integer (< 2^53), then ONE correctly rounded division by 10^d (d digits after the point), or by
+ * -10^d for a minus (so "-0" is -0.0), exact powers of ten as double up to 10^22.
+ *
+ * Plain C with no Python API: ctypes releases the GIL for the call.
+ */
+#include <math.h>
+#include <stdint.h>
+#include <string.h>
+
+/* the byte codes of the lexer's table (_CODE_*): a letter of column c is LETTER + c */
+enum { OTHER, DIGIT, MINUS, DOT, SPACE, NEWLINE, LETTER };
+
+/* ALLOWED[before][kind]: may a byte of class `kind` follow one of class `before` (letters one class;
+ * a line start is a NEWLINE). The lexer's _AFTER. */
+static const uint8_t ALLOWED[7][7] = {
+    /* before OTHER   */ {0, 0, 0, 0, 0, 0, 0},
+    /* before DIGIT   */ {0, 1, 0, 1, 1, 1, 1},
+    /* before MINUS   */ {0, 1, 0, 1, 0, 0, 0},
+    /* before DOT     */ {0, 1, 0, 0, 1, 1, 1},
+    /* before SPACE   */ {0, 0, 0, 0, 1, 1, 1},
+    /* before NEWLINE */ {0, 0, 0, 0, 1, 1, 1},
+    /* before LETTER  */ {0, 1, 1, 1, 0, 0, 0},
+};
+
+static const double POWERS[16] = {1e0, 1e1, 1e2,  1e3,  1e4,  1e5,  1e6,  1e7,
+                                  1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15};
+
+static void fill_nan(double *row, int64_t width) {
+    for (int64_t c = 0; c < width; c++) row[c] = NAN;
+}
+
+/* text[0:size]: a LF, then lines each ending in LF. codes: the lexer's 256-byte table of byte codes
+ * for `width` letters (a code from LETTER + width on is taken as OTHER).
+ * Writes, for the N lines: values (N, width) row-major, NaN where a line has no word of a letter and
+ * on every line not read; read[k] 1 where line k is read; ends (N + 1) the positions of the LFs.
+ * Returns N, or -1 (nothing promised about the outputs) when the text does not start and end with a
+ * LF or N > rows (values and read have room for `rows` lines, ends for rows + 1). */
+int64_t prs3_lex_columns(const uint8_t *text, int64_t size, const uint8_t *codes, int64_t width, double *values,
+                         uint8_t *read, int64_t *ends, int64_t rows) {
+    if (size < 1 || text[0] != '\n' || text[size - 1] != '\n' || width < 0 || rows < 0) return -1;
+    uint8_t class_of[256];
+    for (int b = 0; b < 256; b++) {
+        int code = codes[b];
+        class_of[b] = (uint8_t)(code < LETTER ? code : code < LETTER + width ? LETTER : OTHER);
+    }
+    int64_t n = 0;
+    int64_t pos = 1;
+    ends[0] = 0;
+    while (pos < size) {                                /* one line: text[pos] up to its LF */
+        if (n >= rows) return -1;
+        double *row = values + n * width;
+        fill_nan(row, width);
+        int bad = 0;
+        int before = NEWLINE;
+        int rank = -1;                                  /* the word's column; -1: between words */
+        int last_rank = -1;
+        uint64_t integer = 0;
+        int digits = 0, decimals = 0, points = 0, minus = 0;
+        for (;; pos++) {
+            uint8_t byte = text[pos];
+            int kind = class_of[byte];
+            if (!ALLOWED[before][kind]) {
+                bad = 1;
+                break;
+            }
+            before = kind;
+            if (kind == DIGIT) {
+                integer = integer * 10 + (uint64_t)(byte - '0');
+                decimals += points;
+                if (++digits > 15) {
+                    bad = 1;
+                    break;
+                }
+                continue;
+            }
+            if (kind == DOT) {
+                if (++points > 1) {                     /* a second point */
+                    bad = 1;
+                    break;
+                }
+                continue;
+            }
+            if (kind == MINUS) {                        /* only right after a letter (ALLOWED) */
+                minus = 1;
+                continue;
+            }
+            /* a space, a line end or a letter: the word before it (if any) ends */
+            if (rank >= 0) {
+                if (digits == 0) {                      /* a lonely point ("X." and "X-." end here) */
+                    bad = 1;
+                    break;
+                }
+                double divisor = minus ? -POWERS[decimals] : POWERS[decimals];
+                row[rank] = (double)(int64_t)integer / divisor;
+                rank = -1;
+            }
+            if (kind == LETTER) {
+                rank = codes[byte] - LETTER;
+                if (rank <= last_rank) {                /* repeated, or out of order */
+                    bad = 1;
+                    break;
+                }
+                last_rank = rank;
+                integer = 0;
+                digits = decimals = points = minus = 0;
+            } else if (kind == NEWLINE) {
+                break;
+            }
+        }
+        if (bad) {
+            fill_nan(row, width);
+            const uint8_t *end = memchr(text + pos, '\n', (size_t)(size - pos));
+            pos = end - text;                           /* found: the text ends with a LF */
+        }
+        read[n] = (uint8_t)!bad;
+        ends[++n] = pos;
+        pos++;
+    }
+    return n;
+}
