@@ -33,7 +33,9 @@ for lines of a *regular shape*: upper-case words of the given letters in the giv
 most once, separated by spaces (``G1 X-1.5 Y2 F100.``), no comment. It marks the lines it read;
 every other line (comments, other letters or order, lower case, spaces inside numbers, anything
 wrong) must go through :func:`lex_line`, which reads it or says exactly what is wrong. Where both
-read a line they agree exactly (values are ``float`` of the same text: correctly rounded).
+read a line they agree exactly (values are ``float`` of the same text: correctly rounded). Where
+``pip install`` compiled csrc/lex.c (:mod:`prs3_post.native`), one pass over the bytes in C reads
+the chunk, with the same rules and values; else numpy does (``PRS3_POST_NATIVE=0`` chooses that).
 
 pygcode is the reference of a differential test (tests/test_lexer.py), where it is documented
 wrong listed there (it skips characters it does not know, reads non-ASCII letters, ...).
@@ -269,7 +271,9 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
     >>> values[0].tolist(), read.tolist()
     ([1.0, 1.5, 2.0], [True, False, False])
 
-    How (a few passes over the chunk's bytes, in C): each byte is mapped to a code (one
+    How (csrc/lex.c where it was built: one pass, line by line, byte by byte, with the same rules and
+    the values made as :func:`decimal_numbers` makes them; else numpy, a few passes over the chunk's
+    bytes, in C): each byte is mapped to a code (one
     ``bytes.translate``: digit, ``-``, ``.``, space, line end, the column of a letter of ``letters``,
     or other), and every byte must be allowed after the one before it (a table of code pairs: a letter
     of ``letters`` after a number, a space or a line start; a digit after a letter, ``-``, ``.`` or a
