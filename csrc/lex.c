@@ -10,9 +10,13 @@
  *
  * Values are bit-identical to Python's float() of the text: the digits (at most 15) make an exact
  * integer (< 2^53), then ONE correctly rounded division by 10^d (d digits after the point), or by
- * -10^d for a minus (so "-0" is -0.0), exact powers of ten as double up to 10^22.
+ * -10^d for a minus (so "-0" is -0.0); 10^d (d <= 15) is exact as a double.
  *
- * Plain C with no Python API: ctypes releases the GIL for the call.
+ * Plain C with no Python API: ctypes releases the GIL for the call (convert and verify read the next
+ * chunk on a second thread, read_ahead). No state outside the call: two threads may lex at once.
+ *
+ * prs3_native_version() (render.c) covers this function too: raise it (and NATIVE_VERSION in
+ * native.py) when its arguments change.
  */
 #include <math.h>
 #include <stdint.h>
