@@ -2,7 +2,8 @@
 
 Plain C with no Python API, built with the machine's C compiler (``$CC``, else ``cc``) and loaded with
 ctypes (src/prs3_post/native.py). Where no compiler works, the package is built all the same and
-numpy writes the lines (the same bytes, slower): a message says so, and nothing fails.
+numpy writes the lines and lexes the programs (the same results, slower): a message says so, and nothing
+fails.
 """
 
 from __future__ import annotations
@@ -32,11 +33,11 @@ def compile_library(root: Path, target: Path) -> bool:
         try:
             result = subprocess.run(command, capture_output=True, text=True, timeout=120, check=False)
         except (OSError, subprocess.TimeoutExpired) as error:
-            print(f"prs3-post: no compiled line writer ({error}); numpy writes the lines", file=sys.stderr)
+            print(f"prs3-post: no compiled library ({error}); numpy writes and lexes instead", file=sys.stderr)
             return False
         if result.returncode != 0:
-            print(f"prs3-post: no compiled line writer ({shlex.join(command)} failed: {result.stderr.strip()[:500]});"
-                  " numpy writes the lines", file=sys.stderr)
+            print(f"prs3-post: no compiled library ({shlex.join(command)} failed: {result.stderr.strip()[:500]});"
+                  " numpy writes and lexes instead", file=sys.stderr)
             return False
         os.replace(built, target)                       # a loaded old copy keeps its own inode
     return True

@@ -229,5 +229,5 @@ def test_build_hook_without_a_compiler_builds_pure_python(tmp_path: Path, monkey
     assert not hook.compile_library(ROOT, target)
     assert not target.exists()
     message = capsys.readouterr().err
-    assert message.startswith("prs3-post: no compiled line writer (false -O2 -shared -fPIC -o ")
-    assert message.rstrip().endswith("failed: ); numpy writes the lines")
+    assert message.startswith("prs3-post: no compiled library (false -O2 -shared -fPIC -o ")
+    assert message.rstrip().endswith("failed: ); numpy writes and lexes instead")
