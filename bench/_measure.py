@@ -45,6 +45,7 @@ class ChildRun:
     peak_mb : float — the child's peak resident memory (VmHWM), MB (2**20 bytes)
     code : int — exit status
     last : str — its last line of output (standard output, else standard error), for the log
+    stdout : str — its standard output
     """
 
     wall: float
@@ -52,11 +53,12 @@ class ChildRun:
     peak_mb: float
     code: int
     last: str
+    stdout: str = ""
 
 
 def run_cli(args: list[str], env: dict[str, str] | None = None) -> ChildRun:
     """Run ``prs3-post ARGS`` (this worktree's ``src``) in a fresh process and measure it."""
-    env = dict(os.environ, PYTHONPATH=str(REPO / "src"), **(env or {}))
+    env = {**os.environ, "PYTHONPATH": str(REPO / "src"), **(env or {})}      # env may name another src
     start = time.perf_counter()
     done = subprocess.run([sys.executable, "-c", _CHILD, *args], capture_output=True, env=env, text=True,
                           check=False)
@@ -65,7 +67,7 @@ def run_cli(args: list[str], env: dict[str, str] | None = None) -> ChildRun:
     said = [ln for ln in done.stderr.splitlines() if ln.strip() and not ln.startswith("PEAK_KB ")]
     last = (done.stdout.strip().splitlines() or said or [""])[-1]
     return ChildRun(wall=wall, cpu=float(words[3]), peak_mb=float(words[1]) / 1024, code=done.returncode,
-                    last=last[:160])
+                    last=last[:160], stdout=done.stdout)
 
 
 def pygcode_rate(path: Path | str, lines: int) -> tuple[float, float]:

@@ -22,9 +22,11 @@ How, in three stages (numpy only):
    ``clearance_min`` from the triangle; the pairs left are split into the next level's groups. For
    one pose and a triangle the bound is the larger of the gap between the cylinder and the
    triangle's plane (tight for the holder's end over the face) and the exact distance between the
-   cylinder's axis segment and the triangle less its radius (tight beside a wall). Most poses are
-   far from most triangles, so most pairs go at the first levels: the cost follows the poses that
-   are near the part, not poses × triangles.
+   cylinder's axis segment and the triangle less its radius (tight beside a wall). The first level
+   meets only the triangles whose boxes the part's :class:`~prs3_post.meshindex.TriangleIndex`
+   finds within that reach of each group's sphere (a superset of those it keeps, measured the same
+   way), so no array is as long as groups × pieces × triangles; most pairs go there, and the cost
+   follows the poses that are near the part and the triangles near them.
 2. **Exact where it matters.** A pose whose bound is under ``clearance_min`` is measured on its
    bodies' surfaces: rings every ``RING_SPACING_MM`` along each, ``AZIMUTHS`` points per ring, and
    rings on its end discs, against the triangles whose pair bound was under ``clearance_min`` + 2 mm
@@ -44,7 +46,8 @@ How, in three stages (numpy only):
 Why not a library: trimesh's proximity queries need rtree (not installed), and scipy (for a k-d tree)
 is not installed either; python-fcl or manifold3d would be a compiled dependency for what the
 staged bounds above do in numpy at 10⁵ poses a second or more on the demo parts
-(``bench/bench_dynamics.py``).
+(``bench/bench_dynamics.py``). The nearest-triangle queries of the measurements walk the same
+index (:func:`~prs3_post.meshdist.nearest_distance`); on fine meshes see ``bench/bench_collision.py``.
 """
 
 from __future__ import annotations
@@ -65,6 +68,7 @@ from prs3_post.meshdist import (
     segment_triangle_distance,
     triangle_distance,
 )
+from prs3_post.meshindex import TriangleIndex
 from prs3_post.setup import Setup
 from prs3_post.toolpath import JointProgram
 from prs3_post.types import BoolArray, FloatArray, IntArray
@@ -280,6 +284,7 @@ class _Part:
     others: BoolArray              # (T,) not a triangle of the worked face
     face: Face | None              # the worked face (None: none, no tool cuts)
     band: float                    # mm above the face: the cutting tool's part below this may touch the part
+    index: TriangleIndex           # the triangles' boxes, for the queries that need only the near ones
 
     @classmethod
     def of(cls, triangles: FloatArray, face: Face | None, band: float) -> _Part:
@@ -288,9 +293,9 @@ class _Part:
         others = np.ones(len(triangles), dtype=bool)
         if face is not None:
             others[np.asarray(face.triangles, dtype=np.int64)] = False
+        index = TriangleIndex(triangles)
         return cls(triangles=triangles, normal=normal, offset=(normal * triangles[:, 0]).sum(axis=1),
-                   low=triangles.min(axis=1), high=triangles.max(axis=1), others=others, face=face,
-                   band=band)
+                   low=index.low, high=index.high, others=others, face=face, band=band, index=index)
 
 
 def _pieces(cylinders: FloatArray) -> FloatArray:
@@ -392,11 +397,7 @@ def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, 
     body = pieces[:, 3].astype(np.int64)
     extra = None if spread is None else (                # a group's own spread, at the bodies' farthest point
         np.linalg.norm(spread.half, axis=1) + (np.abs(pieces[:, 1:3]).max() + pieces[:, 0].max()) * spread.turn)
-    size = LEVELS[0]
-    groups = -(-n_pose // size)
-    g = np.repeat(np.arange(groups), n_piece * n_tri)
-    q = np.tile(np.repeat(np.arange(n_piece), n_tri), groups)
-    t = np.tile(np.arange(n_tri), groups * n_piece)
+    g = q = t = np.zeros(0, dtype=np.int64)
     for level, size in enumerate(LEVELS):
         if size == 1:
             for k in range(0, len(g), _CHUNK):
@@ -414,15 +415,25 @@ def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, 
         all_cut = np.logical_and.reduceat(cutting, first)
         if extra is not None:
             moved = moved + np.maximum.reduceat(extra, first)
-        keep = np.zeros(len(g), dtype=bool)
-        for k in range(0, len(g), _CHUNK):
-            g_, q_, t_ = g[k:k + _CHUNK], q[k:k + _CHUNK], t[k:k + _CHUNK]
-            at = g_ * size
-            ball = tip[at] + centre[q_, None] * axis[at]
-            widen = half[q_] + moved[g_] + np.abs(centre[q_]) * turned[g_]
-            tri = part.triangles[t_]
-            gap = triangle_distance(ball, tri[:, 0], tri[:, 1], tri[:, 2]) - widen
-            keep[k:k + _CHUNK] = (gap < reach) & ~(all_cut[g_] & tool[q_] & ~part.others[t_])
+        level_of = _Level(size=size, moved=moved, turned=turned, all_cut=all_cut)
+        if level == 0:                                  # only the triangles whose boxes may be near a group's piece
+            g_all = np.repeat(np.arange(len(first)), n_piece)
+            q_all = np.tile(np.arange(n_piece), len(first))
+            lead = g_all * size                         # each group's first pose
+            ball = tip[lead] + centre[q_all, None] * axis[lead]
+            radius = half[q_all] + moved[g_all] + np.abs(centre[q_all]) * turned[g_all] + reach
+            found = []                                  # measured a piece at a time: memory as the pairs kept
+            for query, t_ in part.index.pairs_near(ball, ball, radius, budget=_CHUNK):
+                g_, q_ = g_all[query], q_all[query]
+                kept = _group_pairs(part, tip, axis, centre, half, tool, level_of, reach, g_, q_, t_)
+                found.append((g_[kept], q_[kept], t_[kept]))
+            g, q, t = (np.concatenate([np.zeros(0, dtype=np.int64), *(f[j] for f in found)]) for j in range(3))
+            keep = np.ones(len(g), dtype=bool)
+        else:
+            keep = np.zeros(len(g), dtype=bool)
+            for k in range(0, len(g), _CHUNK):
+                keep[k:k + _CHUNK] = _group_pairs(part, tip, axis, centre, half, tool, level_of, reach,
+                                                  g[k:k + _CHUNK], q[k:k + _CHUNK], t[k:k + _CHUNK])
         ratio = size // LEVELS[level + 1]
         g = (g[keep][:, None] * ratio + np.arange(ratio)).ravel()
         q, t = np.repeat(q[keep], ratio), np.repeat(t[keep], ratio)
@@ -434,29 +445,92 @@ def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, 
     return out, (pair // n_tri).astype(np.int64), (pair % n_tri).astype(np.int64)
 
 
+@dataclass(frozen=True, slots=True)
+class _Level:
+    """A level of :func:`_bounds`: ``size`` poses per group, each group's largest tip move (mm) and axis
+    chord from its first pose, and whether all its poses cut (each (G,))."""
+
+    size: int
+    moved: FloatArray
+    turned: FloatArray
+    all_cut: BoolArray
+
+
+def _group_pairs(part: _Part, tip: FloatArray, axis: FloatArray, centre: FloatArray, half: FloatArray,
+                 tool: BoolArray, level: _Level, reach: float, g: IntArray, q: IntArray, t: IntArray) -> BoolArray:
+    """(K,) bool: the (group ``g``, piece ``q``, triangle ``t``) pairs of a level of :func:`_bounds` that
+    may be within ``reach``: the triangle is nearer than that to the sphere round the group's first
+    pose's piece widened by how far the group moves it (and is not the face, for a group that cuts)."""
+    at = g * level.size
+    ball = tip[at] + centre[q, None] * axis[at]
+    widen = half[q] + level.moved[g] + np.abs(centre[q]) * level.turned[g]
+    tri = part.triangles[t]
+    gap = triangle_distance(ball, tri[:, 0], tri[:, 1], tri[:, 2]) - widen
+    keep: BoolArray = (gap < reach) & ~(level.all_cut[g] & tool[q] & ~part.others[t])
+    return keep
+
+
+#: One point in this many of a row's is measured first, for the row's cap (:func:`_signed`).
+_CAP_STRIDE = 8
+
+
 def _signed(points: FloatArray, part: _Part, cutting: BoolArray, face: Face | None, reach: float,
-            outside: BoolArray) -> FloatArray:
+            outside: BoolArray, *, per: int = 0) -> FloatArray:
     """(P,) mm: signed distance of points to the part (negative inside; at most ``reach``: farther is
     not measured); where ``cutting`` (the tool in its swept region) a point below ``part.band`` over the face is
     not counted (inf) and the others are measured from the part without that face. ``outside``: points
-    known to be outside (not tested)."""
+    known to be outside (not tested).
+
+    ``per`` > 0: only each row's least value and where it is are wanted (rows of ``per`` points): a
+    point outside the part whose distance is more than the least of its row's measured first (one in
+    :data:`_CAP_STRIDE`) is not measured further, and is given ``reach`` (more than that least, or
+    the value it had: neither the least nor the first point that has it changes)."""
     lo, hi = points.min(axis=0) - reach, points.max(axis=0) + reach
-    near = np.flatnonzero(((part.high >= lo) & (part.low <= hi)).all(axis=1))
+    near = ((part.high >= lo) & (part.low <= hi)).all(axis=1)
     inner = np.zeros(len(points), dtype=bool)
     unknown = np.flatnonzero(~outside)
     inner[unknown] = inside(points[unknown], part.triangles)
-    dist = np.minimum(nearest_distance(points, part.triangles[near]), reach)
-    deep = np.flatnonzero(inner & (dist >= reach))
-    if len(deep):                                   # inside, and deeper than the near triangles say
-        dist[deep] = nearest_distance(points[deep], part.triangles)
-    dist = np.where(inner, -dist, dist)
+    off = np.zeros(len(points), dtype=bool)             # measured from the part without the face
+    counted = np.ones(len(points), dtype=bool)
     if cutting.any() and face is not None:
         height = (points - face.origin) @ face.normal
-        off_face = np.minimum(nearest_distance(points, part.triangles[near[part.others[near]]]), reach)
+        off, counted = cutting, ~(cutting & (height < part.band))
+    cap_all = cap_off = None
+    if per > 0:                                         # each row's cap: the least of a few of its points, measured
+        cap = _row_caps(points, part, near, off, counted & ~inner, reach, per)
+        cap_all = np.where(inner, np.inf, np.where(off, 0.0, cap))
+        cap_off = np.where(inner, np.inf, np.where(off & counted, cap, 0.0))
+    dist = np.minimum(nearest_distance(points, part.triangles, index=part.index, mask=near, cap=cap_all), reach)
+    deep = np.flatnonzero(inner & (dist >= reach))
+    if len(deep):                                   # inside, and deeper than the near triangles say
+        dist[deep] = nearest_distance(points[deep], part.triangles, index=part.index)
+    dist = np.where(inner, -dist, dist)
+    if cutting.any() and face is not None:
+        off_face = np.minimum(nearest_distance(points, part.triangles, index=part.index, mask=near & part.others,
+                                               cap=cap_off), reach)
         if len(deep):
-            off_face[deep] = nearest_distance(points[deep], part.triangles[part.others])
-        dist = np.where(cutting, np.where(height < part.band, np.inf, np.where(inner, -off_face, off_face)), dist)
+            off_face[deep] = nearest_distance(points[deep], part.triangles, index=part.index, mask=part.others)
+        dist = np.where(cutting, np.where(~counted, np.inf, np.where(inner, -off_face, off_face)), dist)
     return dist
+
+
+def _row_caps(points: FloatArray, part: _Part, near: BoolArray, off: BoolArray, mine: BoolArray, reach: float,
+              per: int) -> FloatArray:
+    """(P,) mm: for each point, the least value (at most ``reach``) of one in :data:`_CAP_STRIDE` of its
+    row's points ``mine`` (rows of ``per`` points; ``off``: measured without the face; inf: none)."""
+    row = np.arange(len(points)) // per
+    sample = np.flatnonzero(mine & (np.arange(len(points)) % per % _CAP_STRIDE == 0))
+    value = np.full(len(sample), np.inf)
+    for without_face in (False, True):
+        at = np.flatnonzero(off[sample] == without_face)
+        if len(at):
+            mask = near & part.others if without_face else near
+            value[at] = np.minimum(nearest_distance(points[sample[at]], part.triangles, index=part.index,
+                                                    mask=mask), reach)
+    least = np.full(row[-1] + 1 if len(row) else 0, np.inf)
+    np.minimum.at(least, row[sample], value)
+    out: FloatArray = least[row]
+    return out
 
 
 def _closest_to_axis(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -608,8 +682,8 @@ class _Poses:
             inner = inside(world, part.triangles)
             deep = np.flatnonzero(inner & (dist >= near))
             if len(deep):
-                pool = part.triangles[part.others] if cut else part.triangles
-                dist[deep] = nearest_distance(world[deep], pool)
+                dist[deep] = nearest_distance(world[deep], part.triangles, index=part.index,
+                                              mask=part.others if cut else None)
             dist = np.where(inner, -dist, dist)
         if cut and self.face is not None:
             dist = np.where((world - self.face.origin) @ self.face.normal < part.band, np.inf, dist)
@@ -631,7 +705,8 @@ class _Poses:
             else:
                 cut = np.repeat(self.cutting[r], len(mine)) if b == 0 else np.zeros(len(r) * len(mine), dtype=bool)
                 outside = np.repeat(self.value[r, b] > 0.0, len(mine))          # the bound says: all outside
-                dist = _signed(world.reshape(-1, 3), self.part, cut, self.face, reach, outside).reshape(len(r), -1)
+                dist = _signed(world.reshape(-1, 3), self.part, cut, self.face, reach, outside,
+                               per=len(mine)).reshape(len(r), -1)
             best = np.argmin(dist, axis=1)
             measured = dist[np.arange(len(r)), best]
             self._solid(r, b, measured)

@@ -1,8 +1,9 @@
 """Distances between points, segments and triangles, and inside-the-mesh tests (numpy, pure).
 
 Every function takes its pairs already formed (a point or segment and a triangle per row, or
-broadcastable arrays), so that callers choose which pairs are worth measuring; :func:`inside` bins
-the triangles along its ray so that a point meets only the triangles its ray can cross.
+broadcastable arrays), so that callers choose which pairs are worth measuring; :func:`nearest_distance`
+chooses them with a :class:`~prs3_post.meshindex.TriangleIndex`, and :func:`inside` bins the
+triangles along its ray so that a point meets only the triangles its ray can cross.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import math
 
 import numpy as np
 
+from prs3_post.meshindex import TriangleIndex
 from prs3_post.types import BoolArray, FloatArray
 
 __all__ = ["PAIR_BUDGET", "RAY", "inside", "nearest_distance", "point_triangle_distance", "segment_triangle_distance",
@@ -18,9 +20,6 @@ __all__ = ["PAIR_BUDGET", "RAY", "inside", "nearest_distance", "point_triangle_d
 
 #: Point × triangle pairs measured at a time (memory: a few hundred bytes each while measured).
 PAIR_BUDGET = 1 << 17
-#: Relative to |p|² + |q|² (mm²): how much a square distance's rounding is taken to be, far more than
-#: its few ulps, so that the pruning never drops the nearest triangle.
-_SQUARE_SLACK = 1e-9
 
 #: The direction of the inside test's ray: no axis-aligned edge lies along it.
 RAY = np.array([0.5773502691896258, 0.4082482904638631, 0.7071067811865476])
@@ -65,46 +64,22 @@ def point_triangle_distance(points: FloatArray, triangles: FloatArray) -> FloatA
     return triangle_distance(points[:, None, :], *(triangles[None, :, k, :] for k in range(3)))
 
 
-def nearest_distance(points: FloatArray, triangles: FloatArray, *, budget: int = PAIR_BUDGET) -> FloatArray:
+def nearest_distance(points: FloatArray, triangles: FloatArray, *, budget: int = PAIR_BUDGET,
+                     index: TriangleIndex | None = None, mask: BoolArray | None = None,
+                     cap: FloatArray | None = None) -> FloatArray:
     """(P,) mm: exact distance from each point (P, 3) to the nearest triangle (T, 3, 3) (inf: none);
     the least of :func:`point_triangle_distance`'s row, the same number, in memory bounded by ``budget``.
 
-    The points go ``budget`` pairs at a time (the triangles too, past ``budget`` of them). A point's
-    nearest corner bounds its distance from above; a triangle is measured only where the ball round
-    its box, then the box, is no farther than that (the nearest triangle always is: the bounds are
-    widened by :data:`_SQUARE_SLACK`, far more than their rounding), and its distance is the same
-    number :func:`triangle_distance` gives for the pair alone."""
+    The triangles' :class:`~prs3_post.meshindex.TriangleIndex` (``index``, built on ``triangles``
+    when not given) finds, for each point, the triangles that can be nearest (their boxes no farther
+    than the nearest box's farthest corner, or a triangle's nearest corner, widened by far more than
+    the rounding); each is measured as :func:`triangle_distance` measures the pair alone, ``budget``
+    pairs at a time. ``mask`` (T,) bool: only those triangles count. ``cap`` (P,) mm: where a point's
+    nearest is farther than its cap, inf instead (less is measured)."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    triangles = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
-    out = np.full(len(points), np.inf)
-    if not len(points) or not len(triangles):
-        return out
-    low, high = triangles.min(axis=1), triangles.max(axis=1)                   # (T, 3)
-    centre, radius = 0.5 * (low + high), 0.5 * np.linalg.norm(high - low, axis=1)    # a ball round each box
-    corners = np.unique(triangles.reshape(-1, 3), axis=0)                     # (V, 3)
-    cols = max(1, min(budget, max(len(triangles), len(corners))))
-    rows = max(1, budget // cols)
-    for k in range(0, len(points), rows):
-        p = points[k:k + rows]
-        # squares by |p|² + |q|² − 2 p·q (a product, fast): rounding of a few ulps of |p|² + |q|², widened by far more
-        own = (p * p).sum(axis=1)
-        square = np.full(len(p), np.inf)
-        for j in range(0, len(corners), cols):
-            c = corners[j:j + cols]
-            square = np.minimum(square, (own[:, None] + (c * c).sum(axis=1) - 2.0 * p @ c.T).min(axis=1))
-        slack = _SQUARE_SLACK * (own + float((corners * corners).sum(axis=1).max()) + 1.0)         # (r,) mm²
-        nearest = np.sqrt(np.maximum(square, 0.0) + slack)                    # (r,) above each point's nearest corner
-        for j in range(0, len(triangles), cols):
-            c, r = centre[j:j + cols], radius[j:j + cols]
-            ball = own[:, None] + (c * c).sum(axis=1) - 2.0 * p @ c.T                                    # (r, c)
-            point, tri = np.nonzero(ball <= (nearest[:, None] + r) ** 2 + slack[:, None])
-            tri += j
-            gap = np.maximum(np.maximum(low[tri] - p[point], p[point] - high[tri]), 0.0)             # the box
-            close = (gap * gap).sum(axis=1) <= nearest[point] ** 2
-            point, tri = point[close], tri[close]
-            dist = triangle_distance(p[point], triangles[tri, 0], triangles[tri, 1], triangles[tri, 2])
-            np.minimum.at(out[k:k + rows], point, dist)
-    return out
+    if index is None:
+        index = TriangleIndex(np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3))
+    return index.nearest(points, mask=mask, cap=cap, budget=budget)
 
 
 def _segment_segment(p0: FloatArray, p1: FloatArray, q0: FloatArray, q1: FloatArray) -> FloatArray:
