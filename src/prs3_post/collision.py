@@ -725,13 +725,22 @@ class _Poses:
         cylinder = self.cylinders[b]
         if cylinder[2] <= cylinder[1]:
             return
-        reach = cylinder[0] + max(abs(cylinder[1]), abs(cylinder[2]))
-        for i, row in enumerate(rows.tolist()):
-            if measured[i] <= 0.0 or (b == 0 and self.cutting[row]):
-                continue
-            tip, axis = self.tip[row], self.axis[row]
-            near = ((self.part.high >= tip - reach) & (self.part.low <= tip + reach)).all(axis=1)
-            depth = cylinder_penetration(tip, axis, cylinder, self.part.triangles[near])
+        todo = np.flatnonzero((measured > 0.0) & ~(self.cutting[rows] & (b == 0)))
+        if not len(todo):
+            return
+        # a triangle that enters the cylinder meets its box: the index's (widened by its slack, far more
+        # than the rounding of the depths) are all that can give a depth above 0, so the depth is the same
+        tip, axis = self.tip[rows[todo]], self.axis[rows[todo]]
+        ends = np.stack([tip + cylinder[1] * axis, tip + cylinder[2] * axis])
+        found = list(self.part.index.pairs_near(ends.min(axis=0) - cylinder[0], ends.max(axis=0) + cylinder[0], 0.0))
+        query = np.concatenate([np.zeros(0, dtype=np.int64), *(f[0] for f in found)])
+        tri = np.concatenate([np.zeros(0, dtype=np.int64), *(f[1] for f in found)])
+        order = np.lexsort((tri, query))                  # each row's triangles in the part's order
+        query, tri = query[order], tri[order]
+        bounds = np.searchsorted(query, np.arange(len(todo) + 1))
+        for k, i in enumerate(todo.tolist()):
+            near = tri[bounds[k]:bounds[k + 1]]
+            depth = cylinder_penetration(tip[k], axis[k], cylinder, self.part.triangles[near])
             if depth > 0.0:
                 measured[i] = -depth
 

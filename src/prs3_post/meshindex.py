@@ -154,7 +154,7 @@ class TriangleIndex:
         n_top = self.levels[top][0].shape[1]
         return top, np.repeat(np.arange(n), n_top), np.tile(np.arange(n_top), n)
 
-    def pairs_near(self, query_low: FloatArray, query_high: FloatArray, radius: FloatArray, *,
+    def pairs_near(self, query_low: FloatArray, query_high: FloatArray, radius: FloatArray | float, *,
                    mask: BoolArray | None = None, budget: int = BUDGET) -> Iterator[tuple[IntArray, IntArray]]:
         """The (query, triangle) pairs whose boxes are within ``radius`` of each other, in pieces of at
         most ``max(budget, LEAF)`` pairs (in no particular order; every such pair once).
@@ -162,7 +162,7 @@ class TriangleIndex:
         Parameters
         ----------
         query_low, query_high : (Q, 3) float — mm, the queries' boxes (a point: the same row twice)
-        radius : (Q,) float — mm, how far from its box a query looks; the test is widened by a slack
+        radius : (Q,) or scalar float — mm, how far from its box a query looks; the test is widened by a slack
             far larger than its rounding (a superset: the caller measures the pairs)
         mask : (T,) bool, optional — the triangles that count (default: all)
         budget : int — pairs walked at a time
