@@ -8,9 +8,8 @@
  * point in a word, a point with a digit beside it, at most 15 digits, letters in order. A line that
  * breaks a rule is not read: its row is all NaN and the Python lexer reads it (or says what is wrong).
  *
- * Values are bit-identical to Python's float() of the text: the digits (at most 15) make an exact
- * integer (< 2^53), then ONE correctly rounded division by 10^d (d digits after the point), or by
- * -10^d for a minus (so "-0" is -0.0); 10^d (d <= 15) is exact as a double.
+ * Values are bit-identical to Python's float() of the text: decimal_value (decimal.h, shared with
+ * goto.c) of the digits read here.
  *
  * Plain C with no Python API: ctypes releases the GIL for the call (convert and verify read the next
  * chunk on a second thread, read_ahead). No state outside the call: two threads may lex at once.
@@ -21,6 +20,8 @@
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
+
+#include "decimal.h"
 
 /* the byte codes of the lexer's table (_CODE_*): a letter of column c is LETTER + c */
 enum { OTHER, DIGIT, MINUS, DOT, SPACE, NEWLINE, LETTER };
@@ -36,9 +37,6 @@ static const uint8_t ALLOWED[7][7] = {
     /* before NEWLINE */ {0, 0, 0, 0, 1, 1, 1},
     /* before LETTER  */ {0, 1, 1, 1, 0, 0, 0},
 };
-
-static const double POWERS[16] = {1e0, 1e1, 1e2,  1e3,  1e4,  1e5,  1e6,  1e7,
-                                  1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15};
 
 static void fill_nan(double *row, int64_t width) {
     for (int64_t c = 0; c < width; c++) row[c] = NAN;
@@ -69,8 +67,7 @@ int64_t prs3_lex_columns(const uint8_t *text, int64_t size, const uint8_t *codes
         int before = NEWLINE;
         int rank = -1;                                  /* the word's column; -1: between words */
         int last_rank = -1;
-        uint64_t integer = 0;
-        int digits = 0, decimals = 0, points = 0, minus = 0;
+        struct decimal number = DECIMAL_START;
         for (;; pos++) {
             uint8_t byte = text[pos];
             int kind = class_of[byte];
@@ -80,33 +77,30 @@ int64_t prs3_lex_columns(const uint8_t *text, int64_t size, const uint8_t *codes
             }
             before = kind;
             if (kind == DIGIT) {
-                integer = integer * 10 + (uint64_t)(byte - '0');
-                decimals += points;
-                if (++digits > 15) {
+                if (!decimal_digit(&number, byte)) {
                     bad = 1;
                     break;
                 }
                 continue;
             }
             if (kind == DOT) {
-                if (++points > 1) {                     /* a second point */
+                if (!decimal_point(&number)) {          /* a second point */
                     bad = 1;
                     break;
                 }
                 continue;
             }
             if (kind == MINUS) {                        /* only right after a letter (ALLOWED) */
-                minus = 1;
+                number.minus = 1;
                 continue;
             }
             /* a space, a line end or a letter: the word before it (if any) ends */
             if (rank >= 0) {
-                if (digits == 0) {                      /* a lonely point ("X." and "X-." end here) */
+                if (number.digits == 0) {               /* a lonely point ("X." and "X-." end here) */
                     bad = 1;
                     break;
                 }
-                double divisor = minus ? -POWERS[decimals] : POWERS[decimals];
-                row[rank] = (double)(int64_t)integer / divisor;
+                row[rank] = decimal_value(&number);
                 rank = -1;
             }
             if (kind == LETTER) {
@@ -116,8 +110,7 @@ int64_t prs3_lex_columns(const uint8_t *text, int64_t size, const uint8_t *codes
                     break;
                 }
                 last_rank = rank;
-                integer = 0;
-                digits = decimals = points = minus = 0;
+                number = DECIMAL_START;
             } else if (kind == NEWLINE) {
                 break;
             }
