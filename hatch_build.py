@@ -1,4 +1,4 @@
-"""Build hook: compiles csrc/*.c into prs3_post/_native.so (the compiled line writer and lexer).
+"""Build hook: compiles csrc/*.c into prs3_post/_native.so (the compiled line writer, lexer and CL GOTO reader).
 
 Plain C with no Python API, built with the machine's C compiler (``$CC``, else ``cc``) and loaded with
 ctypes (src/prs3_post/native.py). Where no compiler works, the package is built all the same and

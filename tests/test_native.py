@@ -1,5 +1,5 @@
-"""The compiled line writer (csrc/render.c) and lexer (csrc/lex.c), through prs3_post.native, against numpy's,
-and their build hook."""
+"""The compiled line writer (csrc/render.c), lexer (csrc/lex.c) and CL GOTO reader (csrc/goto.c), through
+prs3_post.native, against numpy's, and their build hook."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from prs3_post import fixed, native
 from prs3_post.fixed import ChoiceColumn, render_rows, scale_column
-from prs3_post.readers import lexer
+from prs3_post.readers import apt, lexer
 
 ROOT = Path(__file__).resolve().parents[1]
 needs_native = pytest.mark.skipif(not native.available(), reason="the compiled line writer was not built here")
@@ -201,6 +201,119 @@ def test_numpy_lexes_where_it_is_turned_off(monkeypatch: pytest.MonkeyPatch) -> 
     assert values.view(np.uint64).tolist() == np.array([[1.0, 1.5], [np.nan, np.nan], [np.nan, -0.0]]).view(
         np.uint64).tolist()
     assert read.tolist() == [True, False, True] and ends.tolist() == [0, 8, 15, 19]
+
+
+# ----------------------------------------------------------------------------- the compiled CL GOTO reader
+
+needs_gotos = pytest.mark.skipif(native.plain_gotos(b"\n", apt._GOTO_CODES, apt._GOTO_PAIR_BAD, 0) is None,
+                                 reason="the compiled CL GOTO reader was not built here")
+
+#: A CL number: a sign or none, 1 to 17 digits (16 and 17: too many for the bulk path), the point
+#: anywhere or nowhere.
+_cl_number = st.builds(lambda sign, digits, point: sign + (digits[:point] + "." + digits[point:] if point >= 0
+                                                           else digits),
+                       st.sampled_from(["", "-", "+"]), st.from_regex(r"\A[0-9]{1,17}\Z"), st.integers(-1, 17))
+#: Numbers that break a plain GOTO: none, a lone point, a sign alone, two points, an exponent, spaces,
+#: other digits and scripts, a lone surrogate (encoded as '?'), a continuation, a CR inside.
+_cl_odd = st.sampled_from(["", ".", "-.", "+.", "+", "-", "+-1", "1.2.3", "..5", "5..", "1e5", "1E-3", " 1", "1 ",
+                           "1\t", "١", "é", "\ud800", "1$", "$", "inf", "1_0", "\r1", "1\r", "0x1", "1/2"])
+#: What a line starts with: mostly GOTO/, else lower case, a space, no slash, other words.
+_cl_head = st.sampled_from(["GOTO/"] * 6 + ["goto/", "GOTO /", "GOTO", "GOT/", "GOTOGOTO/", "GOTO//", " GOTO/",
+                                            "FEDRAT/MMPM,", "PAINT/COLOR,", "PPRINT/", "/", ""])
+#: A byte or character put anywhere in a line.
+_cl_stray = st.sampled_from(["\r", " ", "\t", "$", "é", "\ud800", "\x85", "\x00", "G", "O", "/", ",", ".", "+", "-",
+                             "0", "E"])
+
+
+@st.composite
+def _cl_lines(draw: st.DrawFn) -> list[str]:
+    """Lines of a CL chunk: plain GOTOs of 3 or 6 numbers (CR or not), and plain GOTOs with one thing
+    wrong (4/5/7 numbers, an odd number, another head, another ending, a stray character anywhere),
+    other records and empty lines."""
+    lines: list[str] = []
+    for _ in range(draw(st.integers(0, 20))):
+        count = draw(st.sampled_from([3, 3, 6, 6, 0, 1, 2, 4, 5, 7]))
+        numbers = draw(st.lists(_cl_number, min_size=count, max_size=count))
+        if draw(st.integers(0, 3)) == 0 and count:
+            numbers[draw(st.integers(0, count - 1))] = draw(_cl_odd)
+        head = draw(_cl_head) if draw(st.integers(0, 3)) == 0 else "GOTO/"
+        separator = draw(st.sampled_from([","] * 6 + [", ", ",,", ";"]))
+        ending = draw(st.sampled_from(["", "", "\r", "\r\r", " ", "$", " $", "\t"]))
+        line = head + separator.join(numbers) + ending
+        if draw(st.integers(0, 4)) == 0:
+            at = draw(st.integers(0, len(line)))
+            line = line[:at] + draw(_cl_stray) + line[at:]
+        lines.append(draw(st.sampled_from([line] * 8 + ["", "RAPID", "FEDRAT/MMPM,600", "$$ comment"])))
+    return lines
+
+
+def _digit_count(number: str) -> int:
+    return sum(c.isdigit() for c in number)
+
+
+@needs_gotos
+@settings(max_examples=500, deadline=None)
+@given(lines=_cl_lines())
+@example(lines=["GOTO/-0,+0,-.5,5.,0.000,-1\r", "", "GOTO/1,2,3,4", "GOTO/1,2,1234567890123456", "goto/1,2,3"])
+def test_compiled_goto_reader_reads_as_numpy_and_as_the_pattern(lines: list[str]) -> None:
+    """Generated chunks mixing plain GOTOs with every irregularity: C and numpy give the same values (to
+    the bit: -0.0, NaN where absent or not read) and the same lines read; and those are exactly the
+    lines _PLAIN_GOTO matches with numbers of at most 15 digits, each value float() of its text."""
+    values, read = apt._plain_gotos(lines)                              # C
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(native, "_gotos", False)                          # not there: numpy
+        expected_values, expected_read = apt._plain_gotos(lines)
+    assert values.dtype == np.float64 and values.shape == (len(lines), 6) == expected_values.shape
+    assert values.view(np.uint64).tolist() == expected_values.view(np.uint64).tolist()
+    assert read.dtype == np.bool_ and read.tolist() == expected_read.tolist()
+    matches = [apt._PLAIN_GOTO.match(line) for line in lines]
+    groups = [m.groups() if m is not None and all(_digit_count(g or "") <= 15 for g in m.groups()) else None
+              for m in matches]
+    assert read.tolist() == [g is not None for g in groups]
+    specified = np.array([[np.nan if n is None else float(n) for n in g] if g is not None else [np.nan] * 6
+                          for g in groups]).reshape(-1, 6)
+    assert values.view(np.uint64).tolist() == specified.view(np.uint64).tolist()
+
+
+@needs_gotos
+def test_compiled_goto_reader_never_writes_past_its_outputs() -> None:
+    """Room for fewer lines than the text has: -1, and nothing written past the room given; a text that
+    does not start and end with a LF: -1; a line of 'GOTO/' alone at the very end: not read."""
+    function = native._gotos
+    text = b"\nGOTO/1,2,3\nGOTO/4,5,6,0,0,1\nGOTO/\n"
+    values = np.full((3, 6), 7.0)
+    read = np.full(3, 5, dtype=np.uint8)
+
+    def call(text: bytes, rows: int) -> int:
+        return int(function(text, len(text), apt._GOTO_CODES, apt._GOTO_PAIR_BAD, values.ctypes.data,
+                            read.ctypes.data, rows))
+
+    for rows in (0, 1, 2):
+        assert call(text, rows) == -1
+        assert values[rows:].tolist() == [[7.0] * 6] * (3 - rows)
+        assert read[rows:].tolist() == [5] * (3 - rows)
+    for bad in (b"GOTO/1,2,3\n", b"\nGOTO/1,2,3", b""):
+        assert call(bad, 3) == -1
+    assert call(text, 3) == 3
+    nan = np.nan
+    expected = np.array([[1, 2, 3, nan, nan, nan], [4, 5, 6, 0, 0, 1], [nan] * 6])
+    assert values.view(np.uint64).tolist() == expected.view(np.uint64).tolist()
+    assert read.tolist() == [1, 1, 0]
+    for short in (b"\nGOTO\n", b"\nGOTO/\n", b"\nG\n", b"\n\n"):
+        assert call(short, 1) == 1 and read[0] == 0 and np.isnan(values[0]).all()
+
+
+def test_numpy_reads_the_gotos_where_it_is_turned_off(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``PRS3_POST_NATIVE=0``: no compiled GOTO reader, and _plain_gotos reads the same through numpy."""
+    monkeypatch.setattr(native, "_gotos", None)
+    monkeypatch.setattr(native, "_library", None)
+    monkeypatch.setenv(native.ENV, "0")
+    assert native.plain_gotos(b"\nGOTO/1,2,3\n", apt._GOTO_CODES, apt._GOTO_PAIR_BAD, 1) is None
+    values, read = apt._plain_gotos(["GOTO/1.5,-0,+.25", "PAINT/COLOR,186", "GOTO/1,2,3,0,0,1\r"])
+    nan = np.nan
+    assert values.view(np.uint64).tolist() == np.array([[1.5, -0.0, 0.25, nan, nan, nan], [nan] * 6,
+                                                        [1, 2, 3, 0, 0, 1]]).view(np.uint64).tolist()
+    assert read.tolist() == [True, False, True]
 
 
 def _hook_module():  # type: ignore[no-untyped-def]

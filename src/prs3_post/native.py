@@ -1,12 +1,12 @@
-"""The compiled line writer (csrc/render.c) and lexer (csrc/lex.c), loaded with ctypes; numpy does the
-same where they are absent.
+"""The compiled line writer (csrc/render.c), lexer (csrc/lex.c) and CL GOTO reader (csrc/goto.c), loaded
+with ctypes; numpy does the same where they are absent.
 
 ``pip install`` compiles csrc/*.c with the machine's C compiler (hatch_build.py) into
 ``prs3_post/_native.so``. Where there is no compiler the package installs all the same and every
 line is written by numpy (:mod:`prs3_post.fixed`): the same bytes, three to four times slower; and
-read by numpy (:mod:`prs3_post.readers.lexer`): the same values. The C functions have no Python API
-in them, so ctypes releases the GIL while they run (``ik --batch`` formats one chunk on a second
-thread while the next is read and solved).
+read by numpy (:mod:`prs3_post.readers.lexer`, :mod:`prs3_post.readers.apt`): the same values. The C
+functions have no Python API in them, so ctypes releases the GIL while they run (``ik --batch``
+formats one chunk on a second thread while the next is read and solved).
 
 ``PRS3_POST_NATIVE=0`` in the environment turns them off (the tests compare both ways).
 """
@@ -23,7 +23,7 @@ import numpy as np
 
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
-__all__ = ["ENV", "LIBRARY", "NATIVE_VERSION", "available", "lex_text", "library", "render_block"]
+__all__ = ["ENV", "LIBRARY", "NATIVE_VERSION", "available", "lex_text", "library", "plain_gotos", "render_block"]
 
 #: The compiled library, beside this module.
 LIBRARY = Path(__file__).with_name("_native.so")
@@ -36,6 +36,7 @@ _NUMBER, _CHOICE = 0, 1
 _library: Any = None                                    # None: not loaded yet; False: not there
 _function: Any = None                                   # prs3_render_lines, once loaded
 _lexer: Any = None                                      # prs3_lex_columns, once loaded (False: not there)
+_gotos: Any = None                                      # prs3_plain_gotos, once loaded (False: not there)
 
 
 def library() -> Any:
@@ -160,3 +161,27 @@ def lex_text(text: bytes, codes: bytes, width: int) -> tuple[FloatArray, BoolArr
     if done != rows:                                     # rows is the count of its lines
         raise AssertionError(f"prs3_lex_columns: {done} lines of {rows} (the text must start and end with a LF)")
     return values, read, ends
+
+
+def plain_gotos(text: bytes, codes: bytes, pair_bad: bytes, rows: int) -> tuple[FloatArray, BoolArray] | None:
+    """The CL reader's bulk GOTO path (:func:`prs3_post.readers.apt._plain_goto_text`) in C: values (N, 6)
+    and read (N,) of ``text`` (a LF, then ``rows`` lines each ending in LF), ``codes`` and ``pair_bad``
+    the reader's byte-code and bad-pair tables; None where the compiled reader is not there or turned off."""
+    global _gotos
+    if _gotos is None:
+        _gotos = False
+        loaded = library()
+        function = getattr(loaded, "prs3_plain_gotos", None) if loaded is not None else None
+        if function is not None:
+            pointer, i64 = ctypes.c_void_p, ctypes.c_int64
+            function.restype = i64
+            function.argtypes = [ctypes.c_char_p, i64, ctypes.c_char_p, ctypes.c_char_p, pointer, pointer, i64]
+            _gotos = function
+    if not _gotos:
+        return None
+    values = np.zeros((rows, 6))                         # every cell written (calloc: no pass over it)
+    read = np.zeros(rows, dtype=np.bool_)
+    done = _gotos(text, len(text), codes, pair_bad, _address(values), _address(read), rows)
+    if done != rows:
+        raise AssertionError(f"prs3_plain_gotos: {done} lines, not {rows} (the text must start and end with a LF)")
+    return values, read

@@ -172,19 +172,35 @@ def _plain_gotos(lines: list[str]) -> tuple[FloatArray, BoolArray]:
     read : (N,) bool — the line matches :data:`_PLAIN_GOTO` with numbers of at most 15 digits (a plain
         GOTO with longer numbers is not read here: :data:`_PLAIN_GOTO` reads it)
 
-    How (a few passes over the chunk's bytes, in C, as :func:`~prs3_post.readers.lexer.lex_columns`):
-    each byte is coded (digit, sign, point, comma, slash, CR, line end, a letter of ``GOTO``, other);
-    every byte must be allowed after the one before it on a plain GOTO line (``GOT`` letters after a
-    line start or each other, ``/`` after them; a sign after ``/`` or ``,``; a digit after ``/``, ``,``,
-    a sign, a point or a digit; a point after ``/``, ``,``, a sign or a digit; ``,``, CR and the line
-    end after a digit or a point; a line end also after a CR); the line starts with ``GOTO/``; a
+    How: the lines joined as UTF-8 (a lone surrogate as ``?``: any non-ASCII byte breaks a plain GOTO
+    line), then one pass over the bytes in C (csrc/goto.c) where ``pip install`` compiled it, else a
+    few passes with numpy (:func:`_plain_goto_text_numpy`, ``PRS3_POST_NATIVE=0``): the same rules and
+    values. The rules: each byte is coded (digit, sign, point, comma, slash, CR, line end, a letter of
+    ``GOTO``, other); every byte must be allowed after the one before it on a plain GOTO line
+    (:data:`_GOTO_AFTER`, one table for both: ``GOT`` letters after a line start or each other, ``/``
+    after them; a sign after ``/`` or ``,``; a digit after ``/``, ``,``, a sign, a point or a digit; a
+    point after ``/``, ``,``, a sign or a digit; ``,``, CR and the line end after a digit or a point; a
+    line end also after a CR); the line starts with ``GOTO/``; a
     number is what follows ``/`` or ``,`` up to the next ``,``, CR or line end: at most one point,
     with a digit beside it, at most 15 digits; 3 or 6 numbers. Their values: ``float`` of the text.
     """
     n = len(lines)
     if not n:
         return np.full((0, 6), np.nan), np.zeros(0, dtype=bool)
-    text = ("\n" + "\n".join(lines) + "\n").encode("utf-8", errors="replace")
+    return _plain_goto_text(("\n" + "\n".join(lines) + "\n").encode("utf-8", errors="replace"), n)
+
+
+def _plain_goto_text(text: bytes, n: int) -> tuple[FloatArray, BoolArray]:
+    """:func:`_plain_gotos` of ``text``: LF, then ``n`` lines each with its LF. In C (csrc/goto.c) where it
+    was built, else :func:`_plain_goto_text_numpy`: the same."""
+    from prs3_post import native  # ctypes: loaded only where lines are read in bulk
+
+    found = native.plain_gotos(text, _GOTO_CODES, _GOTO_PAIR_BAD, n)
+    return _plain_goto_text_numpy(text, n) if found is None else found
+
+
+def _plain_goto_text_numpy(text: bytes, n: int) -> tuple[FloatArray, BoolArray]:
+    """:func:`_plain_goto_text` with numpy (the reference of csrc/goto.c, and where that was not built)."""
     size = len(text)
     classes = text.translate(_GOTO_CODES)
     code = np.frombuffer(classes + b"\0", dtype=np.uint8)
