@@ -393,8 +393,8 @@ def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, 
         return out, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     centre = 0.5 * (pieces[:, 1] + pieces[:, 2])
     half = np.hypot(pieces[:, 0], 0.5 * (pieces[:, 2] - pieces[:, 1]))
-    tool = pieces[:, 3] == 0
     body = pieces[:, 3].astype(np.int64)
+    beyond = max(reach, near)                           # a pair bound beyond this changes nothing
     extra = None if spread is None else (                # a group's own spread, at the bodies' farthest point
         np.linalg.norm(spread.half, axis=1) + (np.abs(pieces[:, 1:3]).max() + pieces[:, 0].max()) * spread.turn)
     g = q = t = np.zeros(0, dtype=np.int64)
@@ -425,14 +425,14 @@ def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, 
             found = []                                  # measured a piece at a time: memory as the pairs kept
             for query, t_ in part.index.pairs_near(ball, ball, radius, budget=_CHUNK):
                 g_, q_ = g_all[query], q_all[query]
-                kept = _group_pairs(part, tip, axis, centre, half, tool, level_of, reach, g_, q_, t_)
+                kept = _group_pairs(part, tip, axis, pieces, level_of, reach, beyond, g_, q_, t_)
                 found.append((g_[kept], q_[kept], t_[kept]))
             g, q, t = (np.concatenate([np.zeros(0, dtype=np.int64), *(f[j] for f in found)]) for j in range(3))
             keep = np.ones(len(g), dtype=bool)
         else:
             keep = np.zeros(len(g), dtype=bool)
             for k in range(0, len(g), _CHUNK):
-                keep[k:k + _CHUNK] = _group_pairs(part, tip, axis, centre, half, tool, level_of, reach,
+                keep[k:k + _CHUNK] = _group_pairs(part, tip, axis, pieces, level_of, reach, beyond,
                                                   g[k:k + _CHUNK], q[k:k + _CHUNK], t[k:k + _CHUNK])
         ratio = size // LEVELS[level + 1]
         g = (g[keep][:, None] * ratio + np.arange(ratio)).ravel()
@@ -456,18 +456,53 @@ class _Level:
     all_cut: BoolArray
 
 
-def _group_pairs(part: _Part, tip: FloatArray, axis: FloatArray, centre: FloatArray, half: FloatArray,
-                 tool: BoolArray, level: _Level, reach: float, g: IntArray, q: IntArray, t: IntArray) -> BoolArray:
+def _group_pairs(part: _Part, tip: FloatArray, axis: FloatArray, pieces: FloatArray, level: _Level, reach: float,
+                 beyond: float, g: IntArray, q: IntArray, t: IntArray) -> BoolArray:
     """(K,) bool: the (group ``g``, piece ``q``, triangle ``t``) pairs of a level of :func:`_bounds` that
     may be within ``reach``: the triangle is nearer than that to the sphere round the group's first
-    pose's piece widened by how far the group moves it (and is not the face, for a group that cuts)."""
-    at = g * level.size
-    ball = tip[at] + centre[q, None] * axis[at]
-    widen = half[q] + level.moved[g] + np.abs(centre[q]) * level.turned[g]
-    tri = part.triangles[t]
+    pose's piece widened by how far the group moves it (and is not the face, for a group that cuts),
+    and the piece's cylinder, so widened, is nearer than ``beyond`` to the triangle's plane
+    (:func:`_plane_gap`: where it is not, no pose's bound of the pair is under ``beyond``)."""
+    keep = _plane_gap(part, tip, axis, pieces, level, g, q, t) < beyond
+    at = g[keep] * level.size
+    q_k = q[keep]
+    centre = 0.5 * (pieces[q_k, 1] + pieces[q_k, 2])
+    ball = tip[at] + centre[:, None] * axis[at]
+    widen = np.hypot(pieces[q_k, 0], 0.5 * (pieces[q_k, 2] - pieces[q_k, 1])) + level.moved[g[keep]] \
+        + np.abs(centre) * level.turned[g[keep]]
+    tri = part.triangles[t[keep]]
     gap = triangle_distance(ball, tri[:, 0], tri[:, 1], tri[:, 2]) - widen
-    keep: BoolArray = (gap < reach) & ~(level.all_cut[g] & tool[q] & ~part.others[t])
+    keep[keep] = (gap < reach) & ~(level.all_cut[g[keep]] & (pieces[q_k, 3] == 0) & ~part.others[t[keep]])
     return keep
+
+
+#: mm: what the plane bound of a group (:func:`_plane_gap`) is lowered by, far more than the rounding
+#: that tells it from the bound of one of its poses.
+_PLANE_SLACK_MM = 1e-6
+
+
+def _plane_gap(part: _Part, tip: FloatArray, axis: FloatArray, pieces: FloatArray, level: _Level, g: IntArray,
+               q: IntArray, t: IntArray) -> FloatArray:
+    """(K,) mm: a lower bound of the gap between triangle ``t``'s plane and piece ``q`` at every pose of
+    group ``g``, less than the plane bound :func:`_pose_pairs` gives any of those poses.
+
+    The piece's cylinder at the group's first pose is min(h₀, h₁) − r·sin∠(axis, normal) from the
+    plane (h: its end centres' heights; 0 where it crosses it); at another pose of the group each of
+    its points is at most ``moved`` + (max |z| + r)·``turned`` from one of those (the tip's move, the
+    axis's turn about the tip), and a cutting tool cut at the band, or spread by a group of the scan
+    (:class:`_Spread`, within ``moved``), is no nearer. Less :data:`_PLANE_SLACK_MM`."""
+    at = g * level.size
+    a, p = axis[at], tip[at]
+    radius, z0, z1 = pieces[q, 0], pieces[q, 1], pieces[q, 2]
+    normal = part.normal[t]
+    along = (a * normal).sum(axis=1)
+    base = (p * normal).sum(axis=1) - part.offset[t]
+    h0, h1 = base + z0 * along, base + z1 * along
+    bulge = radius * np.sqrt(np.clip(1.0 - along ** 2, 0.0, 1.0))
+    plane = np.maximum(np.maximum(np.minimum(h0, h1) - bulge, -np.maximum(h0, h1) - bulge), 0.0)
+    spread = level.moved[g] + (np.maximum(np.abs(z0), np.abs(z1)) + radius) * level.turned[g]
+    gap: FloatArray = plane - spread - _PLANE_SLACK_MM
+    return gap
 
 
 #: One point in this many of a row's is measured first, for the row's cap (:func:`_signed`).
