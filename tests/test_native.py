@@ -247,6 +247,10 @@ def _cl_lines(draw: st.DrawFn) -> list[str]:
     return lines
 
 
+def _not_numpy(text: bytes, n: int) -> None:
+    raise AssertionError("the compiled GOTO reader is built, but _plain_gotos read with numpy")
+
+
 def _digit_count(number: str) -> int:
     return sum(c.isdigit() for c in number)
 
@@ -259,7 +263,9 @@ def test_compiled_goto_reader_reads_as_numpy_and_as_the_pattern(lines: list[str]
     """Generated chunks mixing plain GOTOs with every irregularity: C and numpy give the same values (to
     the bit: -0.0, NaN where absent or not read) and the same lines read; and those are exactly the
     lines _PLAIN_GOTO matches with numbers of at most 15 digits, each value float() of its text."""
-    values, read = apt._plain_gotos(lines)                              # C
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(apt, "_plain_goto_text_numpy", _not_numpy)        # C, not numpy
+        values, read = apt._plain_gotos(lines)
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(native, "_gotos", False)                          # not there: numpy
         expected_values, expected_read = apt._plain_gotos(lines)
