@@ -108,21 +108,31 @@ class TriangleIndex:
         code = _spread_bits(q[:, 0]) | (_spread_bits(q[:, 1]) << np.uint64(1)) | (_spread_bits(q[:, 2]) << np.uint64(2))
         self.order = np.argsort(code, kind="stable").astype(np.int64)
         low, high = self.low[self.order], self.high[self.order]
-        corners = self.triangles[self.order].reshape(-1, 3)           # triangle k's corners: rows 3k .. 3k + 2
-        width, corner_width = LEAF, 3 * LEAF
-        while True:
-            starts = np.arange(0, len(low), width)
+        starts = np.arange(0, n, LEAF)
+        low, high = np.minimum.reduceat(low, starts), np.maximum.reduceat(high, starts)
+        # each leaf's corner nearest its box's centre (one of its triangles': above their nearest), a
+        # corner of the triangles at a time (memory: a few (T, 3) arrays, not (3T, 3) ones)
+        centre = (0.5 * (low + high))[np.arange(n) // LEAF]
+        far = np.full((len(starts) * LEAF, 3), np.inf)
+        for c in range(3):
+            far[:n, c] = ((self.triangles[self.order, c] - centre) ** 2).sum(axis=1)
+        del centre
+        pick = far.reshape(len(starts), 3 * LEAF).argmin(axis=1)              # (triangle, corner) in the leaf
+        corners = self.triangles[self.order[starts + pick // 3], pick % 3]
+        self.levels.append((low.T.copy(), high.T.copy(), corners.T.copy()))
+        while len(low) > FANOUT:                        # each node: its children's, and the corner nearest its centre
+            starts = np.arange(0, len(low), FANOUT)
             low, high = np.minimum.reduceat(low, starts), np.maximum.reduceat(high, starts)
-            # each node's corner nearest its box's centre (one of its triangles': above its nearest)
-            group = np.arange(len(corners)) // corner_width
-            far = ((corners - 0.5 * (low + high)[group]) ** 2).sum(axis=1)
-            corners = corners[np.lexsort((far, group))[np.arange(0, len(corners), corner_width)]]
+            gap = np.full(len(starts) * FANOUT, np.inf)
+            gap[:len(corners)] = ((corners - (0.5 * (low + high))[np.arange(len(corners)) // FANOUT]) ** 2).sum(axis=1)
+            corners = corners[starts + gap.reshape(len(starts), FANOUT).argmin(axis=1)]
             self.levels.append((low.T.copy(), high.T.copy(), corners.T.copy()))
-            if len(low) <= FANOUT:
-                break
-            width = corner_width = FANOUT
-        self._low_t, self._high_t = self.low.T.copy(), self.high.T.copy()          # (3, T)
-        self._corners_t = self.triangles.transpose(1, 2, 0).copy()                   # (3 corners, 3 axes, T)
+
+    @staticmethod
+    def _boxes(corner: FloatArray, tri: IntArray) -> FloatArray:
+        """(3, K): rows ``tri`` of a (T, 3) array of the triangles' box corners, a row per axis."""
+        out: FloatArray = np.take(corner, tri, axis=0).T
+        return out
 
     def _counts(self, mask: BoolArray | None) -> list[IntArray] | None:
         """Per level, the triangles that count under each node (None: every triangle counts)."""
@@ -204,8 +214,8 @@ class TriangleIndex:
             if allowed is not None:
                 ok[ok] = allowed[tri[ok]]
             query, tri = query[ok], tri[ok]
-            gap2 = _box_gap2(_cols(q_low, query), _cols(q_high, query), _cols(self._low_t, tri),
-                             _cols(self._high_t, tri))
+            gap2 = _box_gap2(_cols(q_low, query), _cols(q_high, query), self._boxes(self.low, tri),
+                             self._boxes(self.high, tri))
             close = gap2 <= reach2[query]
             if close.any():
                 yield query[close], tri[close]
@@ -270,11 +280,11 @@ class TriangleIndex:
                 ok[ok] = allowed[tri[ok]]
             point, tri = point[ok], tri[ok]
             x = _cols(points_t, point)
-            corners = np.take(self._corners_t, tri, axis=2)                                # (3, 3, K)
+            corners = np.take(self.triangles, tri, axis=0).transpose(1, 2, 0)                # (3, 3, K)
             nearest_corner = np.minimum(np.minimum(_sum3((corners[0] - x) ** 2), _sum3((corners[1] - x) ** 2)),
                                         _sum3((corners[2] - x) ** 2))
             np.minimum.at(upper, point, nearest_corner)                                     # a corner: above
-            close = _gap2(x, _cols(self._low_t, tri), _cols(self._high_t, tri)) <= upper[point] + slack[point]
+            close = _gap2(x, self._boxes(self.low, tri), self._boxes(self.high, tri)) <= upper[point] + slack[point]
             point, tri = point[close], tri[close]
             for k in range(0, len(point), max(1, budget)):
                 p, t = point[k:k + budget], tri[k:k + budget]
