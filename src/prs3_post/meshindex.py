@@ -202,23 +202,33 @@ class TriangleIndex:
             query, node = query[keep], node[keep]
             if not len(query):
                 continue
-            if level > 0:
-                child = self._children(level, node)
-                query = np.repeat(query, FANOUT)
-                ok = child >= 0
-                stack.append((level - 1, query[ok], child[ok]))
+            pairs = self._descend(level, query, node, allowed, stack)
+            if pairs is None:
                 continue
-            tri = self._leaf_triangles(node)
-            query = np.repeat(query, LEAF)
-            ok = tri >= 0
-            if allowed is not None:
-                ok[ok] = allowed[tri[ok]]
-            query, tri = query[ok], tri[ok]
+            query, tri = pairs
             gap2 = _box_gap2(_cols(q_low, query), _cols(q_high, query), self._boxes(self.low, tri),
                              self._boxes(self.high, tri))
             close = gap2 <= reach2[query]
             if close.any():
                 yield query[close], tri[close]
+
+    def _descend(self, level: int, query: IntArray, node: IntArray, allowed: BoolArray | None,
+                 stack: list[tuple[int, IntArray, IntArray]]) -> tuple[IntArray, IntArray] | None:
+        """One step down for the (query row, node) pairs kept at ``level``: above the leaves, their
+        children's pairs go on ``stack`` (None is returned); at the leaves, the (query row, triangle)
+        pairs whose triangle counts (``allowed``; None: all) are returned."""
+        if level > 0:
+            child = self._children(level, node)
+            query = np.repeat(query, FANOUT)
+            ok = child >= 0
+            stack.append((level - 1, query[ok], child[ok]))
+            return None
+        tri = self._leaf_triangles(node)
+        query = np.repeat(query, LEAF)
+        ok = tri >= 0
+        if allowed is not None:
+            ok[ok] = allowed[tri[ok]]
+        return query[ok], tri[ok]
 
     def nearest(self, points: FloatArray, *, mask: BoolArray | None = None, cap: FloatArray | None = None,
                 budget: int = BUDGET) -> FloatArray:
@@ -267,18 +277,10 @@ class TriangleIndex:
             point, node = point[keep], node[keep]
             if not len(point):
                 continue
-            if level > 0:
-                child = self._children(level, node)
-                point = np.repeat(point, FANOUT)
-                ok = child >= 0
-                stack.append((level - 1, point[ok], child[ok]))
+            pairs = self._descend(level, point, node, allowed, stack)
+            if pairs is None:
                 continue
-            tri = self._leaf_triangles(node)
-            point = np.repeat(point, LEAF)
-            ok = tri >= 0
-            if allowed is not None:
-                ok[ok] = allowed[tri[ok]]
-            point, tri = point[ok], tri[ok]
+            point, tri = pairs
             x = _cols(points_t, point)
             corners = np.take(self.triangles, tri, axis=0).transpose(1, 2, 0)                # (3, 3, K)
             nearest_corner = np.minimum(np.minimum(_sum3((corners[0] - x) ** 2), _sum3((corners[1] - x) ** 2)),
