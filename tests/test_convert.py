@@ -487,7 +487,7 @@ def test_the_corpus_folder_with_automatic_placement(tmp_path: Path) -> None:
         f"{CORPUS / 'humman_1_KONTUR_NAR_40_N2.cls'}: {UNPLACEABLE['humman_1_KONTUR_NAR_40_N2.cls']}")
     ust = CORPUS / "humman_ust_a_variable_contour.cls"      # tilts to 86°: placed on its rows as given
     assert files[ust.name]["error"] == (
-        "no part origin puts every point inside the machine's limits: the condition number cannot be met, by "
+        f"{ust}: no part origin puts every point inside the machine's limits: the condition number cannot be met, by "
         f"68.7819 at best ({ust}:304: condition number 78.7819 is above the maximum 10.0000 by 68.7819); the tilt is "
         f"outside too, by 41.3459 deg there ({ust}:261: tilt 86.3459 deg is above the maximum 45.0000 deg by 41.3459 "
         f"deg); the stage Y is outside too, by 104.3549 mm there ({ust}:11: stage Y -404.3549 mm is below the "

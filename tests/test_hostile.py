@@ -505,7 +505,7 @@ def test_an_automatic_part_origin_beyond_the_setups_range_is_a_limit_failure(tmp
                     "--part-origin", "auto", "--jobs", "1")
     assert result.exit_code == 1, result.stderr
     reason = result.stdout.split("\t")[3]
-    assert reason.startswith("no part origin puts every point inside the machine's limits: the best one is "
+    assert reason.startswith("a.ngc: no part origin puts every point inside the machine's limits: the best one is "
                              "at machine [") and reason.endswith(
         "] mm, beyond the ±100000 mm a part origin may be from the machine's origin (is the tool length right?)\n")
     assert not (tmp_path / "out" / "a.ngc").exists()

@@ -786,7 +786,12 @@ def convert_one(input_path: str, output: str, settings: ConvertSettings, *, forc
             raise OutputExists(f"{EXISTS} (it is replaced only when forced)", path=output)
         report = write_conversion(input_path, output, settings)
     except Prs3Error as error:
-        return FileOutcome(input=input_path, output=output, ok=False, error=str(error), exit_code=error.exit_code,
+        message = str(error)
+        # an InputError starts with the file it is about; a limit or reach error found by no line (no
+        # placement fits the whole file) says which input it is about first, as every failure does
+        if not isinstance(error, InputError) and not message.startswith(input_path):
+            message = f"{input_path}: {message}"
+        return FileOutcome(input=input_path, output=output, ok=False, error=message, exit_code=error.exit_code,
                            seconds=time.perf_counter() - start, exists=isinstance(error, OutputExists))
     return FileOutcome(input=input_path, output=output, ok=True, report=report,
                        seconds=time.perf_counter() - start)
