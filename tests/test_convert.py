@@ -432,6 +432,8 @@ BAD_INPUTS = [
     ("continued.cls", "RAPID\n" + "GOTO/1,2,$\n" * 8_000 + "GOTO/1,2,3\n",
      "2: a record of 65,540 characters or more: longer than any CL record may be (65,536 at most); found "
      "'GOTO/1,2,GOTO/1,2,GOTO/1,2,GOTO/1,2,GOTO/1,2,GOTO/1,2,GOTO/1...'"),
+    ("hugeblock.nc", "G21 G90\nG0 X0 Y0 Z5\nG1 X1" + " Y2" * 30_000 + " (a comment)\nM30\n",
+     "3: a block of 90,005 characters besides its comments: longer than any G-code block may be (65,536 at most)"),
     ("zeroaxis.cls", "RAPID\nGOTO/0,200,0,0,0,0\n",
      "2: GOTO/: zero tool vector (0, 0, 0); i,j,k must be a unit vector from the tool tip toward the spindle"),
     ("msys.cls", "MSYS/0,0,0,1,0,0,0.5,1,0\nRAPID\nGOTO/0,200,0\n",

@@ -557,7 +557,8 @@ def _split_comment(line: str) -> tuple[str, str | None]:
 
 
 #: Characters of a record (continuation lines joined) at most: far more than any CAM system writes
-#: (a GOTO/ of six 20-digit numbers is about 130), few enough that a bad file is refused at once.
+#: (a GOTO/ of six 20-digit numbers is about 130), few enough that a bad file is refused at once. The
+#: CAM G-code reader holds a block (its code, without comments) to the same.
 MAX_RECORD_CHARS = 65_536
 
 

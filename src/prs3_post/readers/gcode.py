@@ -79,7 +79,7 @@ import numpy as np
 from prs3_post.arcs import MAX_ARC_SEGMENTS, arc_points_3d, arc_segment_count, arc_sweep
 from prs3_post.cycles import MAX_PECKS, DrillCycle, Pecking, drill_rows, peck_count
 from prs3_post.errors import InputError, LexError
-from prs3_post.readers.apt import MAX_FEED_MM_MIN, MIN_FEED_MM_MIN, join_toolpaths
+from prs3_post.readers.apt import MAX_FEED_MM_MIN, MAX_RECORD_CHARS, MIN_FEED_MM_MIN, join_toolpaths
 from prs3_post.readers.files import iter_pieces, line_blocks
 from prs3_post.readers.lexer import (
     BYTE_ORDER_MARK,
@@ -755,6 +755,9 @@ class _Reader:
             self.comments += 1
             self.event(EventKind.COMMENT, text=text.strip())
         code = code.strip()
+        if len(code) > MAX_RECORD_CHARS:                 # before its words are read (millions of them)
+            raise self.error(f"a block of {len(code):,} characters besides its comments: longer than any G-code "
+                             f"block may be ({MAX_RECORD_CHARS:,} at most)")
         if not code:
             if comments:
                 self.comment_lines += 1
