@@ -56,19 +56,26 @@ def library() -> Any:
     return _library or None
 
 
+def _bind(name: str, argtypes: list[Any]) -> Any:
+    """The library's function ``name`` with its argument types (it returns an int64), or False where the
+    library or the function is not there (a library built before the function was added)."""
+    loaded = library()
+    function = getattr(loaded, name, None) if loaded is not None else None
+    if function is None:
+        return False
+    function.restype, function.argtypes = ctypes.c_int64, argtypes
+    return function
+
+
+_POINTER, _I64, _TEXT = ctypes.c_void_p, ctypes.c_int64, ctypes.c_char_p
+
+
 def _load() -> Any:
     global _function
     if _function is None:
-        _function = False
-        loaded = library()
-        function = getattr(loaded, "prs3_render_lines", None) if loaded is not None else None
-        if function is not None:
-            pointer, i64 = ctypes.c_void_p, ctypes.c_int64
-            function.restype = i64
-            function.argtypes = [i64, i64, pointer, pointer, pointer, pointer, pointer, pointer, pointer,
-                                 ctypes.c_uint8, pointer, i64, i64, pointer, pointer, pointer, pointer, pointer,
-                                 i64, pointer]
-            _function = function
+        _function = _bind("prs3_render_lines", [
+            _I64, _I64, _POINTER, _POINTER, _POINTER, _POINTER, _POINTER, _POINTER, _POINTER, ctypes.c_uint8,
+            _POINTER, _I64, _I64, _POINTER, _POINTER, _POINTER, _POINTER, _POINTER, _I64, _POINTER])
     return _function
 
 
@@ -143,14 +150,7 @@ def lex_text(text: bytes, codes: bytes, width: int) -> tuple[FloatArray, BoolArr
     byte-code table of ``width`` letters; None where the compiled lexer is not there or turned off."""
     global _lexer
     if _lexer is None:
-        _lexer = False
-        loaded = library()
-        function = getattr(loaded, "prs3_lex_columns", None) if loaded is not None else None
-        if function is not None:
-            pointer, i64 = ctypes.c_void_p, ctypes.c_int64
-            function.restype = i64
-            function.argtypes = [ctypes.c_char_p, i64, ctypes.c_char_p, i64, pointer, pointer, pointer, i64]
-            _lexer = function
+        _lexer = _bind("prs3_lex_columns", [_TEXT, _I64, _TEXT, _I64, _POINTER, _POINTER, _POINTER, _I64])
     if not _lexer:
         return None
     rows = max(text.count(b"\n") - 1, 0)
@@ -169,14 +169,7 @@ def plain_gotos(text: bytes, codes: bytes, pair_bad: bytes, rows: int) -> tuple[
     the reader's byte-code and bad-pair tables; None where the compiled reader is not there or turned off."""
     global _gotos
     if _gotos is None:
-        _gotos = False
-        loaded = library()
-        function = getattr(loaded, "prs3_plain_gotos", None) if loaded is not None else None
-        if function is not None:
-            pointer, i64 = ctypes.c_void_p, ctypes.c_int64
-            function.restype = i64
-            function.argtypes = [ctypes.c_char_p, i64, ctypes.c_char_p, ctypes.c_char_p, pointer, pointer, i64]
-            _gotos = function
+        _gotos = _bind("prs3_plain_gotos", [_TEXT, _I64, _TEXT, _TEXT, _POINTER, _POINTER, _I64])
     if not _gotos:
         return None
     values = np.zeros((rows, 6))                         # every cell written (calloc: no pass over it)
