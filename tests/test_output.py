@@ -189,8 +189,10 @@ def test_a_signal_during_a_write_leaves_no_temp_file(tmp_path: Path, name: str, 
 
 
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
-@pytest.mark.parametrize("args", [["demo", "--profile", "hole"], ["faces", str(WEDGE)]], ids=["demo", "faces"])
+@pytest.mark.parametrize("args", [["demo", "--profile", "hole"], ["faces", str(WEDGE)], ["--help"], ["--version"],
+                                  ["convert", "--help"]], ids=["demo", "faces", "help", "version", "convert-help"])
 def test_full_standard_output_is_a_clear_error(args: list[str]) -> None:
+    """Also the help and the version, which click printed itself: an OSError traceback before."""
     with open("/dev/full", "w") as full:
         done = subprocess.run([sys.executable, "-c", "from prs3_post.cli import main; main()", *args],
                               stdout=full, stderr=subprocess.PIPE, text=True, timeout=60, check=False)
