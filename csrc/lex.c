@@ -11,6 +11,12 @@
  * Values are bit-identical to Python's float() of the text: decimal_value (decimal.h, shared with
  * goto.c) of the digits read here.
  *
+ * A line not read is also tried as the usual comment line: one comment in parentheses, with only
+ * spaces and tabs around it, its text printable ASCII (no parenthesis, no tab). Its kind is then
+ * LINE_COMMENT and its span the text's bytes without the spaces at either end (Python's strip() of
+ * that text), so the reader makes its comment event without decoding or matching the line
+ * (prs3_post.readers.lexer._line_kinds_numpy is the reference).
+ *
  * Plain C with no Python API: ctypes releases the GIL for the call (convert and verify read the next
  * chunk on a second thread, read_ahead). No state outside the call: two threads may lex at once.
  *
@@ -25,6 +31,9 @@
 
 /* the byte codes of the lexer's table (_CODE_*): a letter of column c is LETTER + c */
 enum { OTHER, DIGIT, MINUS, DOT, SPACE, NEWLINE, LETTER };
+
+/* what a line is (the lexer's LINE_*): not read, read (the regular shape), one comment */
+enum { LINE_OTHER, LINE_READ, LINE_COMMENT };
 
 /* ALLOWED[before][kind]: may a byte of class `kind` follow one of class `before` (letters one class;
  * a line start is a NEWLINE). The lexer's _AFTER. */
@@ -42,14 +51,36 @@ static void fill_nan(double *row, int64_t width) {
     for (int64_t c = 0; c < width; c++) row[c] = NAN;
 }
 
+/* The line from text[start] (up to its LF) as the usual comment line: [ \t]*([printable ASCII but
+ * parentheses]*)[ \t]*; 1 and span[0:2] its text without the spaces at either end, else 0. */
+static int comment_line(const uint8_t *text, int64_t start, int64_t *span) {
+    int64_t pos = start;
+    while (text[pos] == ' ' || text[pos] == '\t') pos++;
+    if (text[pos] != '(') return 0;
+    int64_t first = ++pos;
+    while (text[pos] >= 0x20 && text[pos] <= 0x7e && text[pos] != '(' && text[pos] != ')') pos++;
+    if (text[pos] != ')') return 0;                     /* a LF, a tab, another '(', a byte not ASCII... */
+    int64_t stop = pos++;
+    while (text[pos] == ' ' || text[pos] == '\t') pos++;
+    if (text[pos] != '\n') return 0;
+    while (first < stop && text[first] == ' ') first++;
+    while (stop > first && text[stop - 1] == ' ') stop--;
+    span[0] = first;
+    span[1] = stop;
+    return 1;
+}
+
 /* text[0:size]: a LF, then lines each ending in LF. codes: the lexer's 256-byte table of byte codes
  * for `width` letters (a code from LETTER + width on is taken as OTHER).
  * Writes, for the N lines: values (N, width) row-major, NaN where a line has no word of a letter and
- * on every line not read; read[k] 1 where line k is read; ends (N + 1) the positions of the LFs.
- * Returns N, or -1 (nothing promised about the outputs) when the text does not start and end with a
- * LF or N > rows (values and read have room for `rows` lines, ends for rows + 1). */
+ * on every line not read; kinds[k] the kind of line k (LINE_READ where it is read, LINE_COMMENT
+ * where it is the usual comment line, else LINE_OTHER); ends (N + 1) the positions of the LFs;
+ * spans (N, 2) the start and stop in `text` of a LINE_COMMENT line's stripped text (other lines'
+ * rows are not written). Returns N, or -1 (nothing promised about the outputs) when the text does
+ * not start and end with a LF or N > rows (values, kinds and spans have room for `rows` lines, ends
+ * for rows + 1). */
 int64_t prs3_lex_columns(const uint8_t *text, int64_t size, const uint8_t *codes, int64_t width, double *values,
-                         uint8_t *read, int64_t *ends, int64_t rows) {
+                         uint8_t *kinds, int64_t *ends, int64_t rows, int64_t *spans) {
     if (size < 1 || text[0] != '\n' || text[size - 1] != '\n' || width < 0 || rows < 0) return -1;
     uint8_t class_of[256];
     for (int b = 0; b < 256; b++) {
@@ -62,6 +93,7 @@ int64_t prs3_lex_columns(const uint8_t *text, int64_t size, const uint8_t *codes
     while (pos < size) {                                /* one line: text[pos] up to its LF */
         if (n >= rows) return -1;
         double *row = values + n * width;
+        int64_t line_start = pos;
         fill_nan(row, width);
         int bad = 0;
         int before = NEWLINE;
@@ -115,12 +147,14 @@ int64_t prs3_lex_columns(const uint8_t *text, int64_t size, const uint8_t *codes
                 break;
             }
         }
+        uint8_t line_kind = LINE_READ;
         if (bad) {
             fill_nan(row, width);
+            line_kind = comment_line(text, line_start, spans + 2 * n) ? LINE_COMMENT : LINE_OTHER;
             const uint8_t *end = memchr(text + pos, '\n', (size_t)(size - pos));
             pos = end - text;                           /* found: the text ends with a LF */
         }
-        read[n] = (uint8_t)!bad;
+        kinds[n] = line_kind;
         ends[++n] = pos;
         pos++;
     }

@@ -604,3 +604,20 @@ def test_move_end_points_agree_with_linuxcnc(tmp_path: Path) -> None:
     theirs = _linuxcnc_moves(paths)
     for path, text in zip(paths, texts, strict=True):
         _assert_same_moves(text, theirs[str(path)])
+
+
+def test_comment_lines_of_every_shape_read_in_bulk_as_line_by_line() -> None:
+    """Between bulk moves: the usual comment lines (found by the lexer, not decoded) and every other
+    blank or comment-only line give the events and counts the careful reader gives (a CR on every
+    line sends the whole text through it)."""
+    quiet = ["( pass 1 )", "\t(tabbed)  ", "()", "(   )", "(a)(b)", "(a\tb)", "(Ø 6)", ";end", "(a) ;b", "", "  ",
+             "\t", "( ;x )"]
+    moves = [f"G1 X{i}.5 Y-{i} Z{i % 3}" for i in range(len(quiet) + 1)]
+    body = [line for pair in zip(moves, [*quiet, ""], strict=True) for line in pair]
+    text = "G0 X0 Y0 Z5\nG1 Z0 F300\n" + "\n".join(body) + "\nM30\n"
+    bulk, careful = _parse(text), _parse(text.replace("\n", "\r\n"))
+    _same(bulk, careful)
+    assert [(e.before, e.text) for e in bulk.toolpath.events] == [
+        (3, "pass 1"), (4, "tabbed"), (5, ""), (6, ""), (7, "a"), (7, "b"), (8, "a\tb"), (9, "Ø 6"), (10, "end"),
+        (11, "a"), (11, "b"), (15, ";x")]
+    assert (bulk.counts.comment_lines, bulk.counts.blank_lines, bulk.counts.comments) == (10, 4, 12)

@@ -139,7 +139,22 @@ def _assert_same_lexing(block: bytes, letters: str) -> tuple[np.ndarray, np.ndar
     assert values.view(np.uint64).tolist() == expected_values.view(np.uint64).tolist()   # bits: -0.0, NaN
     assert read.dtype == np.bool_ and read.tolist() == expected_read.tolist()
     assert ends.dtype == np.int64 and ends.tolist() == expected_ends.tolist()
+    _assert_same_kinds(block, letters)
     return values, read
+
+
+def _assert_same_kinds(block: bytes, letters: str) -> tuple[list[int], list[bytes]]:
+    """lex_block_lines' line kinds and comment spans in C and with numpy; returns the kinds and the
+    comment texts (C's)."""
+    text = b"\n" + block + (b"" if block.endswith(b"\n") else b"\n")
+    _, read, ends = lexer._lex_text_numpy(text, letters)
+    expected_kinds, expected_spans = lexer._line_kinds_numpy(text, read, ends)
+    _, kinds, bounds, spans = lexer.lex_block_lines(block, letters)                   # C
+    assert kinds.dtype == np.uint8 and kinds.tolist() == expected_kinds.tolist()
+    comment = kinds == lexer.LINE_COMMENT
+    assert (spans[comment] + 1).tolist() == expected_spans[comment].tolist()          # block, text positions
+    assert bounds.tolist() == ends.tolist()
+    return kinds.tolist(), [block[a:b] for a, b in spans[comment].tolist()]
 
 
 @needs_lexer
@@ -169,26 +184,57 @@ def test_compiled_lexer_reads_the_regular_lines_only() -> None:
     assert values.view(np.uint64).tolist() == expected.view(np.uint64).tolist()
 
 
+#: Lines that are, or nearly are, the usual comment line (lex_block_lines): one comment, spaces and
+#: tabs around it, its text printable ASCII; and what is not (two comments, a tab or a byte not ASCII
+#: inside, nested or unclosed, code before or after, ';').
+_comment_lines = st.sampled_from([b"(pass 1)", b" ( a b ) ", b"\t(x)\t ", b"()", b"(   )", b"( ;x )", b"(a)(b)",
+                                  b"(a\tb)", b"(\xc3\xa9)", b"((a))", b"(a", b"a)", b"G1 (a)", b"(a) X1", b";x",
+                                  b"(a) ;b", b"(a)\r", b"\x7f", b"(\x7e!\x20)", b"", b" ", b"\t", b"X1 Y2"])
+
+
+@needs_lexer
+@settings(max_examples=300, deadline=None)
+@given(lines=st.lists(_comment_lines, max_size=12), final=st.sampled_from([b"", b"\n"]))
+@example(lines=[b" ( a b ) ", b"()", b"(   )", b"(a)(b)", b"\t(x)\t "], final=b"")
+def test_compiled_lexer_finds_the_usual_comment_lines_as_numpy(lines: list[bytes], final: bytes) -> None:
+    """The line kinds and the comments' spans, C and numpy: the same; the texts are split_comments'
+    texts, stripped, exactly on the LINE_COMMENT lines."""
+    block = b"\n".join(lines) + final
+    assume(block)
+    kinds, texts = _assert_same_kinds(block, "NGXYZF")
+    pieces = block.split(b"\n")[:-1] if block.endswith(b"\n") else block.split(b"\n")       # the block's lines
+    usual = (b"(pass 1)", b" ( a b ) ", b"\t(x)\t ", b"()", b"(   )", b"( ;x )", b"(\x7e!\x20)")
+    assert kinds == [lexer.LINE_READ if line.strip(b" ") == b"" or line == b"X1 Y2" else
+                     lexer.LINE_COMMENT if line in usual else lexer.LINE_OTHER for line in pieces]
+    assert texts == [lexer.split_comments(line.decode())[1][0].strip().encode() for line in pieces if line in usual]
+
+
 @needs_lexer
 def test_compiled_lexer_never_writes_past_its_outputs() -> None:
     """Room for fewer lines than the text has: -1, and nothing written past the room given; a text that
     does not start and end with a LF: -1."""
     function = native._lexer
     codes = lexer._tables("XY")[0]
-    text = b"\nX1\nY2\nX3 Y4\n"
+    text = b"\nX1\n(a)\nX3 Y4\n"
     values = np.full((3, 2), 7.0)
     read = np.full(3, 5, dtype=np.uint8)
     ends = np.full(4, 9, dtype=np.int64)
+    spans = np.full((3, 2), 8, dtype=np.int64)
     for rows in (0, 1, 2):
-        done = function(text, len(text), codes, 2, values.ctypes.data, read.ctypes.data, ends.ctypes.data, rows)
+        done = function(text, len(text), codes, 2, values.ctypes.data, read.ctypes.data, ends.ctypes.data, rows,
+                        spans.ctypes.data)
         assert done == -1
         assert values[rows:].tolist() == [[7.0, 7.0]] * (3 - rows)
         assert read[rows:].tolist() == [5] * (3 - rows)
         assert ends[rows + 1:].tolist() == [9] * (3 - rows)
+        assert spans[rows:].tolist() == [[8, 8]] * (3 - rows)
     for bad in (b"X1\n", b"\nX1", b""):
-        assert function(bad, len(bad), codes, 2, values.ctypes.data, read.ctypes.data, ends.ctypes.data, 3) == -1
-    assert function(text, len(text), codes, 2, values.ctypes.data, read.ctypes.data, ends.ctypes.data, 3) == 3
-    assert values[2].tolist() == [3.0, 4.0] and read.tolist() == [1, 1, 1] and ends.tolist() == [0, 3, 6, 12]
+        assert function(bad, len(bad), codes, 2, values.ctypes.data, read.ctypes.data, ends.ctypes.data, 3,
+                        spans.ctypes.data) == -1
+    assert function(text, len(text), codes, 2, values.ctypes.data, read.ctypes.data, ends.ctypes.data, 3,
+                    spans.ctypes.data) == 3
+    assert values[2].tolist() == [3.0, 4.0] and read.tolist() == [1, 2, 1] and ends.tolist() == [0, 3, 7, 13]
+    assert spans.tolist() == [[8, 8], [5, 6], [8, 8]]                    # written on the comment line only
 
 
 def test_numpy_lexes_where_it_is_turned_off(monkeypatch: pytest.MonkeyPatch) -> None:

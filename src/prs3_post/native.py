@@ -31,7 +31,7 @@ LIBRARY = Path(__file__).with_name("_native.so")
 ENV = "PRS3_POST_NATIVE"
 #: What ``prs3_native_version()`` of the library must say (csrc/render.c): another version (an old build
 #: beside newer sources) is not used.
-NATIVE_VERSION = 1
+NATIVE_VERSION = 2
 _NUMBER, _CHOICE = 0, 1
 _library: Any = None                                    # None: not loaded yet; False: not there
 _function: Any = None                                   # prs3_render_lines, once loaded
@@ -144,23 +144,26 @@ def render_block(columns: Sequence, present: BoolArray, lo: int, hi: int, separa
     return out[:size], lengths
 
 
-def lex_text(text: bytes, codes: bytes, width: int) -> tuple[FloatArray, BoolArray, IntArray] | None:
-    """The lexer's fast path (:func:`prs3_post.readers.lexer._lex_text`) in C: values (N, width), read (N,)
-    and the LF positions (N + 1,) of ``text`` (a LF, then lines each ending in LF), ``codes`` the lexer's
-    byte-code table of ``width`` letters; None where the compiled lexer is not there or turned off."""
+def lex_text(text: bytes, codes: bytes, width: int) -> tuple[FloatArray, np.ndarray, IntArray, IntArray] | None:
+    """The lexer's fast path (:func:`prs3_post.readers.lexer._lex_text`) in C: values (N, width), the line
+    kinds (N,) uint8 (``lexer.LINE_*``), the LF positions (N + 1,) and the comment spans (N, 2) (positions in
+    ``text``, written on the comment lines only) of ``text`` (a LF, then lines each ending in LF), ``codes``
+    the lexer's byte-code table of ``width`` letters; None where the compiled lexer is not there or turned off."""
     global _lexer
     if _lexer is None:
-        _lexer = _bind("prs3_lex_columns", [_TEXT, _I64, _TEXT, _I64, _POINTER, _POINTER, _POINTER, _I64])
+        _lexer = _bind("prs3_lex_columns", [_TEXT, _I64, _TEXT, _I64, _POINTER, _POINTER, _POINTER, _I64, _POINTER])
     if not _lexer:
         return None
     rows = max(text.count(b"\n") - 1, 0)
     values = np.zeros((rows, width))                     # every cell written (calloc: no pass over it)
-    read = np.zeros(rows, dtype=np.bool_)
+    kinds = np.zeros(rows, dtype=np.uint8)
     ends = np.zeros(rows + 1, dtype=np.int64)
-    done = _lexer(text, len(text), codes, width, _address(values), _address(read), _address(ends), rows)
+    spans = np.zeros((rows, 2), dtype=np.int64)
+    done = _lexer(text, len(text), codes, width, _address(values), _address(kinds), _address(ends), rows,
+                  _address(spans))
     if done != rows:                                     # rows is the count of its lines
         raise AssertionError(f"prs3_lex_columns: {done} lines of {rows} (the text must start and end with a LF)")
-    return values, read, ends
+    return values, kinds, ends, spans
 
 
 def plain_gotos(text: bytes, codes: bytes, pair_bad: bytes, rows: int) -> tuple[FloatArray, BoolArray] | None:

@@ -84,11 +84,14 @@ from prs3_post.readers.files import iter_pieces, line_blocks
 from prs3_post.readers.lexer import (
     BYTE_ORDER_MARK,
     EMPTY,
+    LINE_COMMENT,
+    LINE_OTHER,
+    LINE_READ,
     Word,
     code_name,
     decode,
     forward_fill,
-    lex_column_block,
+    lex_block_lines,
     lex_columns,
     lex_words,
     quote,
@@ -441,13 +444,15 @@ def _text_at(data: bytes, path: str, offset: int) -> str:
 
 
 class _BlockLines(Sequence[str]):
-    """The lines of a block of a file's bytes (:func:`~prs3_post.readers.lexer.lex_column_block`'s
+    """The lines of a block of a file's bytes (:func:`~prs3_post.readers.lexer.lex_block_lines`'
     ``bounds``: line k is ``data[bounds[k]:bounds[k + 1] - 1]``), each decoded when first asked for
-    (the lines read in bulk never are); a slice shares the block and the texts decoded."""
+    (the lines read in bulk never are, nor the usual comment lines: ``kinds`` and ``spans``, as
+    lex_block_lines gives them); a slice shares the block and the texts decoded."""
 
-    def __init__(self, data: bytes, bounds: IntArray, offset: int, path: str, *, start: int = 0,
-                 stop: int | None = None, texts: dict[int, str] | None = None):
+    def __init__(self, data: bytes, bounds: IntArray, offset: int, path: str, kinds: np.ndarray, spans: IntArray, *,
+                 start: int = 0, stop: int | None = None, texts: dict[int, str] | None = None):
         self.data, self.bounds, self.offset, self.path = data, bounds, offset, path
+        self.kinds, self.spans = kinds, spans
         self.start, self.stop = start, len(bounds) - 1 if stop is None else stop
         self.texts: dict[int, str] = {} if texts is None else texts        # line in the block → text
 
@@ -466,8 +471,8 @@ class _BlockLines(Sequence[str]):
             first, last, step = index.indices(size)
             if step != 1:
                 raise ValueError("_BlockLines: only contiguous slices")
-            return _BlockLines(self.data, self.bounds, self.offset, self.path, start=self.start + first,
-                               stop=self.start + max(first, last), texts=self.texts)
+            return _BlockLines(self.data, self.bounds, self.offset, self.path, self.kinds, self.spans,
+                               start=self.start + first, stop=self.start + max(first, last), texts=self.texts)
         if not -size <= index < size:
             raise IndexError(index)
         line = self.start + index % size
@@ -480,6 +485,19 @@ class _BlockLines(Sequence[str]):
                 text = _text_at(raw, self.path, self.offset + begin)
             self.texts[line] = text
         return text
+
+    def quiet_comments(self, indexes: IntArray) -> tuple[BoolArray, list[str]] | None:
+        """Lines ``indexes`` (of this slice; each blank or only comments) as events, where every one is
+        blank (read: no words) or the usual comment line (lex_block_lines): which are comments, and
+        their texts (stripped); None where any is another line (two comments, a tab in one, ...)."""
+        at = indexes + self.start
+        kinds = self.kinds[at]
+        comment = kinds == LINE_COMMENT
+        if not (comment | (kinds == LINE_READ)).all():
+            return None
+        spans = self.spans[at[comment]]
+        data = self.data
+        return comment, [data[a:b].decode("ascii") for a, b in spans.tolist()]
 
 
 # --------------------------------------------------------------------------------------------
@@ -625,18 +643,23 @@ class _Reader:
             lines = [line.removesuffix("\r") for line in lines]
             self.lines(first, lines)
             return len(lines)
-        values, fast, bounds = lex_column_block(data, _BULK_LETTERS)
-        self.runs(first, values, fast, _BlockLines(data, bounds, offset, self.path))
-        return len(fast)
+        values, kinds, bounds, spans = lex_block_lines(data, _BULK_LETTERS)
+        self.runs(first, values, kinds == LINE_READ, _BlockLines(data, bounds, offset, self.path, kinds, spans))
+        return len(kinds)
 
     def runs(self, first: int, values: FloatArray, fast: BoolArray, lines: Sequence[str]) -> None:
         """Lines ``first``... as lexed (``values``, ``fast``: :func:`~prs3_post.readers.lexer.lex_columns`)
         with their texts ``lines``: runs to :meth:`bulk`, the rest to :meth:`line` (see :meth:`lines`)."""
         g = values[:, 1]
+        if isinstance(lines, _BlockLines):               # the usual comment lines known, and the blank ones
+            quiet = (lines.kinds == LINE_COMMENT) | (fast & np.isnan(values).all(axis=1))     # (read, no words)
+            maybe = lines.kinds == LINE_OTHER
         fast &= np.isnan(g) | (g == 0.0) | (g == 1.0)
         fast &= ~np.isnan(np.fmax(np.fmax(values[:, 2], values[:, 3]), values[:, 4]))   # a move: an axis word
-        quiet = np.zeros(len(lines), dtype=bool)          # blank or only comments: nothing but events
-        quiet[~fast] = [_QUIET.fullmatch(lines[i]) is not None for i in np.flatnonzero(~fast).tolist()]
+        if not isinstance(lines, _BlockLines):
+            quiet = np.zeros(len(lines), dtype=bool)     # blank or only comments: nothing but events
+            maybe = ~fast
+        quiet[maybe] = [_QUIET.fullmatch(lines[i]) is not None for i in np.flatnonzero(maybe).tolist()]
         span = fast | quiet
         edges = np.flatnonzero(np.diff(span.astype(np.int8))) + 1
         for a, b in itertools.pairwise([0, *edges.tolist(), len(lines)]):
@@ -666,7 +689,17 @@ class _Reader:
                 or np.isnan(given_feed[feeding]).any() or not np.isfinite(position).all()):
             return False
         k = len(values)
-        if len(others):                                  # the comments, each before the next move's row
+        known = lines.quiet_comments(others) if len(others) and isinstance(lines, _BlockLines) else None
+        if known is not None:                            # the usual comment lines and blank ones, known
+            before = self.rows - self.chunk_start + np.cumsum(moves)[others]
+            comment, comments = known
+            self.comments += len(comments)
+            self.comment_lines += len(comments)
+            self.blank_lines += len(others) - len(comments)
+            kind = EventKind.COMMENT
+            self.events += [Event(row, kind, 0.0, text) for row, text in zip(before[comment].tolist(), comments,
+                                                                               strict=True)]
+        elif len(others):                                # the comments, each before the next move's row
             before = self.rows - self.chunk_start + np.cumsum(moves)[others]
             one_comment = _ONE_COMMENT.fullmatch
             for index, row in zip(others.tolist(), before.tolist(), strict=True):

@@ -54,9 +54,9 @@ from prs3_post.errors import LexError
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
 __all__ = [
-    "BYTE_ORDER_MARK", "EMPTY", "LINUXCNC_COMMENTS", "NUMBER", "Word", "bad_pairs", "code_name", "column_pattern",
-    "decimal_numbers", "decode",
-    "forward_fill", "lex_column_block", "lex_columns", "lex_line",
+    "BYTE_ORDER_MARK", "EMPTY", "LINE_COMMENT", "LINE_OTHER", "LINE_READ", "LINUXCNC_COMMENTS", "NUMBER", "Word",
+    "bad_pairs", "code_name", "column_pattern", "decimal_numbers", "decode",
+    "forward_fill", "lex_block_lines", "lex_column_block", "lex_columns", "lex_line",
     "lex_words", "quote", "split_comments",
 ]
 
@@ -314,10 +314,34 @@ def lex_column_block(block: bytes, letters: str) -> tuple[FloatArray, BoolArray,
     >>> values.tolist(), read.tolist(), bounds.tolist()
     ([[1.0, 1.5], [nan, nan], [nan, 2.0]], [True, False, True], [0, 8, 15, 18])
     """
+    values, kinds, bounds, _ = lex_block_lines(block, letters)
+    return values, kinds == LINE_READ, bounds
+
+
+def lex_block_lines(block: bytes, letters: str) -> tuple[FloatArray, npt.NDArray[np.uint8], IntArray, IntArray]:
+    """:func:`lex_column_block`, and what each line not read is: the usual comment line (one comment
+    in parentheses, only spaces and tabs around it, its text printable ASCII: no parenthesis, no tab,
+    nothing a careful reader would refuse) and where its text is, so that a reader makes its comment
+    without decoding the line or matching it.
+
+    Returns
+    -------
+    values, bounds : as :func:`lex_column_block`
+    kinds : (N,) uint8 — :data:`LINE_READ` (read: the regular shape), :data:`LINE_COMMENT`, :data:`LINE_OTHER`
+    spans : (N, 2) int — on the LINE_COMMENT lines, ``block[start:stop]`` is the comment's text without
+        the spaces at either end (``split_comments``' text, ``.strip()``-ed); 0 on the other lines
+
+    >>> values, kinds, bounds, spans = lex_block_lines(b"G1 X1.5\\n ( note ) \\n(a)(b)", "GX")
+    >>> kinds.tolist(), spans.tolist()
+    ([1, 2, 0], [[0, 0], [11, 15], [0, 0]])
+    """
     column_pattern(letters)                              # checks the letters
     if not block:
-        return np.full((0, len(letters)), np.nan), np.zeros(0, dtype=bool), np.zeros(1, dtype=np.int64)
-    return _lex_text(b"\n" + block + (b"" if block.endswith(b"\n") else b"\n"), letters)
+        return (np.full((0, len(letters)), np.nan), np.zeros(0, dtype=np.uint8), np.zeros(1, dtype=np.int64),
+                np.zeros((0, 2), dtype=np.int64))
+    values, kinds, ends, spans = _lex_lines(b"\n" + block + (b"" if block.endswith(b"\n") else b"\n"), letters)
+    spans -= kinds[:, None] == LINE_COMMENT              # positions in the text (after its first LF): in the block
+    return values, kinds, ends, spans
 
 
 def _lex_text(text: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArray]:
@@ -327,7 +351,43 @@ def _lex_text(text: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArra
     from prs3_post import native  # ctypes: loaded only where lines are read in bulk
 
     lexed = native.lex_text(text, _tables(letters)[0], len(letters))
-    return _lex_text_numpy(text, letters) if lexed is None else lexed
+    if lexed is None:
+        return _lex_text_numpy(text, letters)
+    values, kinds, ends, _ = lexed
+    return values, kinds == LINE_READ, ends
+
+
+def _lex_lines(text: bytes, letters: str) -> tuple[FloatArray, npt.NDArray[np.uint8], IntArray, IntArray]:
+    """:func:`_lex_text` with the line kinds and the comment spans (positions in ``text``) of
+    :func:`lex_block_lines`: csrc/lex.c where it was built, else numpy and :func:`_line_kinds_numpy`."""
+    from prs3_post import native
+
+    lexed = native.lex_text(text, _tables(letters)[0], len(letters))
+    if lexed is not None:
+        return lexed
+    values, read, ends = _lex_text_numpy(text, letters)
+    kinds, spans = _line_kinds_numpy(text, read, ends)
+    return values, kinds, ends, spans
+
+
+#: The usual comment line of :func:`lex_block_lines`: its text the group.
+_COMMENT_LINE = re.compile(rb"[ \t]*\(([\x20-\x27\x2a-\x7e]*)\)[ \t]*")
+
+
+def _line_kinds_numpy(text: bytes, read: BoolArray, ends: IntArray) -> tuple[npt.NDArray[np.uint8], IntArray]:
+    """The line kinds and comment spans (positions in ``text``) of :func:`_lex_lines` from the lines
+    read and the LF positions: each line not read matched with a pattern (the reference of csrc/lex.c's)."""
+    kinds = read.astype(np.uint8)                        # LINE_READ or LINE_OTHER
+    spans = np.zeros((len(read), 2), dtype=np.int64)
+    for k in np.flatnonzero(~read).tolist():
+        match = _COMMENT_LINE.fullmatch(text, int(ends[k]) + 1, int(ends[k + 1]))
+        if match is not None:
+            first, stop = match.span(1)
+            inner = match[1]
+            first += len(inner) - len(inner.lstrip(b" "))
+            stop = max(first, stop - (len(inner) - len(inner.rstrip(b" "))))
+            kinds[k], spans[k] = LINE_COMMENT, (first, stop)
+    return kinds, spans
 
 
 def _lex_text_numpy(text: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArray]:
@@ -445,6 +505,8 @@ for _d in range(16):
     _POINT_TO_ZERO[_d // 8, 16 + _d] = 2 << (8 * (7 - _d % 8))
 
 
+#: The kinds of line of :func:`lex_block_lines` (csrc/lex.c's LINE_*): not read, read, the usual comment line.
+LINE_OTHER, LINE_READ, LINE_COMMENT = 0, 1, 2
 #: Byte codes of lex_columns (a bytes.translate table maps each byte to its code); the delimiters of
 #: words are the codes from _CODE_DOT on, the letters of the columns from _CODE_LETTER on (+ column).
 _CODE_OTHER, _CODE_DIGIT, _CODE_MINUS, _CODE_DOT, _CODE_SPACE, _CODE_NEWLINE, _CODE_LETTER = range(7)
