@@ -47,6 +47,44 @@ static int count_digits(uint64_t value) {
     return count;
 }
 
+/* value / 10^d, d = 0 .. 19: a division by a constant is a multiplication (a division by a variable
+ * is the slowest instruction in the line writer, one per number) */
+static inline uint64_t divide_power(uint64_t value, int d) {
+    switch (d) {
+    case 0: return value;
+    case 1: return value / 10ULL;
+    case 2: return value / 100ULL;
+    case 3: return value / 1000ULL;
+    case 4: return value / 10000ULL;
+    case 5: return value / 100000ULL;
+    case 6: return value / 1000000ULL;
+    case 7: return value / 10000000ULL;
+    case 8: return value / 100000000ULL;
+    case 9: return value / 1000000000ULL;
+    case 10: return value / 10000000000ULL;
+    case 11: return value / 100000000000ULL;
+    case 12: return value / 1000000000000ULL;
+    case 13: return value / 10000000000000ULL;
+    case 14: return value / 100000000000000ULL;
+    case 15: return value / 1000000000000000ULL;
+    case 16: return value / 10000000000000000ULL;
+    case 17: return value / 100000000000000000ULL;
+    case 18: return value / 1000000000000000000ULL;
+    default: return value / 10000000000000000000ULL;
+    }
+}
+
+/* size bytes from from to to; the usual word prefixes and choices (1 to 3 bytes) without a call */
+static inline uint8_t *copy(uint8_t *to, const uint8_t *from, int64_t size) {
+    switch (size) {
+    case 3: to[2] = from[2]; /* fall through */
+    case 2: to[1] = from[1]; /* fall through */
+    case 1: to[0] = from[0]; /* fall through */
+    case 0: return to + size;
+    default: memcpy(to, from, (size_t)size); return to + size;
+    }
+}
+
 static const uint64_t POWERS[20] = {
     1ULL, 10ULL, 100ULL, 1000ULL, 10000ULL, 100000ULL, 1000000ULL, 10000000ULL, 100000000ULL,
     1000000000ULL, 10000000000ULL, 100000000000ULL, 1000000000000ULL, 10000000000000ULL,
@@ -87,13 +125,11 @@ int64_t prs3_render_lines(int64_t columns, int64_t rows, const int64_t *const *v
                 int64_t t = first_text[c] + value;
                 int64_t size = text_start[t + 1] - text_start[t];
                 if (limit - at < size) return -1;
-                memcpy(at, text_bytes + text_start[t], (size_t)size);
-                at += size;
+                at = copy(at, text_bytes + text_start[t], size);
                 continue;
             }
             int64_t t = first_text[c];
-            memcpy(at, text_bytes + text_start[t], (size_t)(text_start[t + 1] - text_start[t]));
-            at += text_start[t + 1] - text_start[t];
+            at = copy(at, text_bytes + text_start[t], text_start[t + 1] - text_start[t]);
             if (overridden) {
                 int64_t size = override_start[next + 1] - override_start[next];
                 if (limit - at < size) return -1;
@@ -110,7 +146,7 @@ int64_t prs3_render_lines(int64_t columns, int64_t rows, const int64_t *const *v
                 magnitude = (uint64_t)value;
             }
             int d = decimals[c];
-            uint64_t whole = magnitude / POWERS[d];
+            uint64_t whole = divide_power(magnitude, d);
             uint64_t fraction = magnitude - whole * POWERS[d];
             int count = count_digits(whole);
             digits(whole, at, at + count);
