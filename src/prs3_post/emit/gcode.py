@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 import textwrap
+from bisect import bisect_left, insort
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -167,6 +168,8 @@ class _Blocks:
         style = dialect.comments
         self._comment_width = self.limit - len(style.open) - len(style.close)
         self._replaced = _replaced(style.replace)
+        self._open, self._close, self._upper = style.open, style.close, style.uppercase
+        self._ending = dialect.line_ending
 
     def raw(self, text: str) -> None:
         """A line written as it is, never numbered (``%``, the ``O`` line)."""
@@ -196,12 +199,21 @@ class _Blocks:
         later = self.start + ((count - first_lap) % lap) * self.step
         return np.where(count < first_lap, self.number + count * self.step, later)
 
+    def plain_line(self, text: str) -> str | None:
+        """The usual comment's line with its ending: ``text`` as it is (upper-cased if the style says so),
+        where it fits on one line and needs no replacement; None for any other (:meth:`comment` it).
+        The emitter puts these straight between its rows (a comment every few dozen rows is common)."""
+        if (len(text) <= self._comment_width and text.isascii() and text.isprintable() and "," not in text
+                and self._replaced.isdisjoint(text)):      # as comment() would write it (trailing spaces dropped)
+            return f"{self._open}{(text.upper() if self._upper else text).rstrip(' ')}{self._close}{self._ending}"
+        return None
+
     def comment(self, text: str) -> None:
         """A comment, sanitized, split over as many unnumbered lines as it needs."""
         style = self.dialect.comments
-        if (len(text) <= self._comment_width and text.isascii() and text.isprintable() and "," not in text
-                and self._replaced.isdisjoint(text)):      # the usual one: as it is, on one line (as below)
-            self.lines.append(f"{style.open}{(text.upper() if style.uppercase else text).rstrip(' ')}{style.close}")
+        line = self.plain_line(text)
+        if line is not None:                   # the usual one: as it is, on one line (as below)
+            self.lines.append(line[:len(line) - len(self._ending)])
             return
         width = self._comment_width
         # Sanitizing first: it can lengthen the text, and it leaves one line of printable ASCII.
@@ -323,6 +335,11 @@ class _Chunk:
     axes: list[tuple[bytes, FloatArray]]     # word letter and values (checked finite), in word order
     feed: ScaledColumn                       # F of every row (0 on rapids)
     events: dict[int, list[Event]] = field(default_factory=dict)
+    rows_with_events: list[int] = field(default_factory=list)    # the keys of events, increasing
+    restate: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    """The rows (increasing) after a tool change or a stop: every word is written again."""
+    numbered: dict[int, int] = field(default_factory=dict)
+    """How many numbered blocks (events other than comments) come before each row that has some."""
 
 
 class ProgramEmitter:
@@ -428,10 +445,16 @@ class ProgramEmitter:
                                      f"{column.text(int(moved[0]))} mm on a machine without a stage")
             named = named[2:]
         events: dict[int, list[Event]] = {}
-        for event in program.events:
+        for event in program.events:                 # in row order (JointProgram sorts them)
             events.setdefault(event.before, []).append(event)
+        numbered: dict[int, int] = {}
+        for event in program.events:
+            if event.kind is not EventKind.COMMENT:
+                numbered[event.before] = numbered.get(event.before, 0) + 1
+        restate = sorted({b for b in numbered if any(e.kind in _RESTATE for e in events[b])})
         return _Chunk(program=program, axes=[(letter.encode("ascii"), values) for letter, values, _ in named],
-                      feed=self._feed_column(program, dec.inverse_time), events=events)
+                      feed=self._feed_column(program, dec.inverse_time), events=events,
+                      rows_with_events=list(events), restate=np.array(restate, dtype=np.int64), numbered=numbered)
 
     def _feed_column(self, program: JointProgram, decimals: int) -> ScaledColumn:
         """The F word of every FEED row (rapids: 0, never written); one that is not > 0 once
@@ -461,26 +484,33 @@ class ProgramEmitter:
         program, out, modal = chunk.program, self._out, self._modal
         n = len(program)
         kind = program.kind[lo:hi]
-        breaks = sorted({b for b in chunk.events if lo <= b < hi} | ({n} if hi == n else set()))
+        keys = chunk.rows_with_events
+        breaks = keys[bisect_left(keys, lo):bisect_left(keys, hi)]     # the rows with events, in order
+        if hi == n:
+            breaks.append(n)                         # (and the events after the last row)
         g93 = _first_feed(kind, lo) if not modal.inverse_time else None
-        if g93 is not None and g93 not in breaks:
-            breaks = sorted({*breaks, g93})
-        restate = np.array([b - lo for b in breaks if b < hi and b in chunk.events
-                            and any(e.kind in _RESTATE for e in chunk.events[b])], dtype=np.int64)
+        if g93 is not None and g93 not in chunk.events:
+            insort(breaks, g93)
+        restate = chunk.restate[(chunk.restate >= lo) & (chunk.restate < hi)] - lo
         axes = [(letter, scale_column(values[lo:hi], self.dialect.decimals.length)) for letter, values in chunk.axes]
         present, motion = self._words_present(chunk, axes, lo, hi, restate)
         # the block number of every row: the rows and the numbered blocks between them, in order
         blocks_before = np.zeros(hi - lo, dtype=np.int64)
-        for b in breaks:
-            if b < hi:
-                count = sum(e.kind is not EventKind.COMMENT for e in chunk.events.get(b, ())) + (b == g93)
-                if count:                            # comments are not numbered
+        if out.numbered:                             # comments are not numbered
+            for b, count in chunk.numbered.items():
+                if lo <= b < hi:
                     blocks_before[b - lo:] += count
+            if g93 is not None:
+                blocks_before[g93 - lo:] += 1
         buffer, ends = self._render(chunk, axes, lo, hi, present, motion, np.arange(hi - lo) + blocks_before)
         text = str(buffer.data, "ascii")             # every row's line; ASCII: a byte offset is a character's
         long = np.flatnonzero(np.diff(ends) - len(self.dialect.line_ending) > out.limit)
         too_long = int(long[0]) if long.size else hi - lo      # the first over-long line (hi - lo: none)
         offsets = ends.tolist()
+        # the rows between two breaks need no more than a slice of text when they are not numbered and
+        # none is too long (the usual case); else _rows_text
+        plain_rows = not out.numbered and too_long == hi - lo
+        plain_line = out.plain_line
         pieces = []
         previous = lo                                # the first row not yet written
         events = chunk.events
@@ -488,9 +518,15 @@ class ProgramEmitter:
             if b > previous:                         # the rows up to this break, as one piece
                 if out.lines:
                     pieces.append(out.take())
-                pieces.append(self._rows_text(chunk, buffer, text, offsets, too_long, lo, previous - lo, b - lo))
+                pieces.append(text[offsets[previous - lo]:offsets[b - lo]] if plain_rows else
+                              self._rows_text(chunk, buffer, text, offsets, too_long, lo, previous - lo, b - lo))
                 previous = b
             for event in events.get(b, ()):
+                if event.kind is EventKind.COMMENT and not out.lines:
+                    line = plain_line(event.text)    # the usual comment: its line goes straight in
+                    if line is not None:
+                        pieces.append(line)
+                        continue
                 self._event(program, event)
             if b == g93:
                 out.block("G93", self._where(program, b))
