@@ -1,21 +1,33 @@
-"""Read ahead: a chunked stream's next items made on a second thread while the consumer works on this one.
+"""Read ahead: a chunked stream's next items made on a second thread, or in a second process, while the
+consumer works on this one.
 
 Used where reading a chunk (bytes, lexing: C or numpy, which release the interpreter lock) and
 using it (replay, post-processing) are both heavy: ``verify`` and ``convert``. The items come in
 order, and an error of the producer is raised where its item would have come, so what a consumer
-sees (values, messages, which error comes first) does not depend on the thread.
+sees (values, messages, which error comes first) does not depend on the thread or process.
+
+A thread shares the interpreter lock: the Python between numpy's loops on both sides takes turns.
+:func:`read_in_process` runs the producer in a forked process instead, which sends each item
+pickled through a pipe (a chunk of 10,000 rows: under a megabyte, some 0.3 ms each way), so that the
+two really run at once; for a large input only (forking costs a few milliseconds).
 """
 
 from __future__ import annotations
 
+import os
+import pickle
+import signal
 import threading
-from collections.abc import Iterable, Iterator
+import warnings
+from collections.abc import Callable, Iterable, Iterator
+from multiprocessing.connection import Connection, Pipe
 from queue import Full, Queue
 from typing import Any, TypeVar
 
-__all__ = ["read_ahead"]
+__all__ = ["read_ahead", "read_in_process"]
 
 _Item = TypeVar("_Item")
+_Final = TypeVar("_Final")
 
 
 def read_ahead(items: Iterable[_Item], depth: int = 2) -> Iterator[_Item]:
@@ -59,3 +71,80 @@ def read_ahead(items: Iterable[_Item], depth: int = 2) -> Iterator[_Item]:
     finally:
         stop.set()
         thread.join()
+
+
+def read_in_process(items: Iterable[_Item], final: Callable[[], _Final],
+                    on_final: Callable[[_Final], None]) -> Iterator[_Item]:
+    """The items of ``items`` in order, produced by a forked child process; when they are all through,
+    ``final()`` is evaluated there (the producer's state once done: a reader's summary) and given to
+    ``on_final`` here. An exception of the producer is raised here, where its item would have come
+    (it and the items must pickle; :class:`~prs3_post.errors.Prs3Error` and the toolpath types do).
+    A consumer that stops early, or is interrupted (Ctrl-C: the child ignores SIGINT), kills the
+    child; the child writes to nothing but the pipe, and leaves with ``os._exit`` (no cleanup of the
+    parent's, such as removing a temp file, ever runs in it).
+    """
+    receive, send = Pipe(duplex=False)
+    with warnings.catch_warnings():
+        # Python 3.12 warns about forking a process with threads (a lock another thread holds would stay
+        # held in the child): the child here only reads a file and runs numpy's element-wise code, and
+        # the threads this package starts (kinematics blocks, read_ahead) are joined before they return
+        warnings.simplefilter("ignore", DeprecationWarning)
+        pid = os.fork()
+    if pid == 0:                                       # the child
+        code = 0
+        try:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            receive.close()
+            _produce(items, final, send)
+        except BaseException:                          # the parent went away (broken pipe), or worse
+            code = 1
+        finally:
+            os._exit(code)
+    send.close()
+    try:
+        while True:
+            kind, value = pickle.loads(_receive(receive))
+            if kind == "item":
+                yield value
+            elif kind == "error":
+                raise value
+            else:
+                on_final(value)
+                return
+    finally:
+        receive.close()
+        _reap(pid)
+
+
+def _produce(items: Iterable[Any], final: Callable[[], Any], send: Connection) -> None:
+    try:
+        for item in items:
+            send.send_bytes(pickle.dumps(("item", item), protocol=pickle.HIGHEST_PROTOCOL))
+        message = ("end", final())
+    except Exception as exc:
+        message = ("error", exc)
+    try:
+        data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+    except Exception:                                  # an error that does not pickle: its type and text
+        error = message[1]
+        data = pickle.dumps(("error", RuntimeError(f"{type(error).__name__}: {error}")))
+    send.send_bytes(data)
+    send.close()
+
+
+def _receive(connection: Connection) -> bytes:
+    try:
+        return connection.recv_bytes()
+    except EOFError:                                   # the child died without a word (killed, out of memory)
+        raise RuntimeError("the reading process ended without finishing the input") from None
+
+
+def _reap(pid: int) -> None:
+    """Wait for the child (killed first if still running: the consumer stopped early)."""
+    try:
+        done, _ = os.waitpid(pid, os.WNOHANG)
+        if done == 0:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+    except ChildProcessError:                          # reaped already
+        pass

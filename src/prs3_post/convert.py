@@ -23,7 +23,7 @@ import os
 import signal
 import stat
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from prs3_post import __version__
-from prs3_post.ahead import read_ahead
+from prs3_post.ahead import read_ahead, read_in_process
 from prs3_post.collision import check_rapids, measure_program
 from prs3_post.config import Dialect, Machine
 from prs3_post.emit.gcode import ProgramEmitter
@@ -339,6 +339,28 @@ def _check_poses(machine: Machine, chunk: Toolpath, setup: Setup, *, limits: boo
     return path
 
 
+#: Bytes of input from which a forked process reads it (:func:`prs3_post.ahead.read_in_process`), below
+#: which a thread does: forking costs a few milliseconds, reading 4 MB (some 130,000 lines) 0.1 s.
+PROCESS_READ_BYTES = 4 << 20
+
+
+def _large(path: str) -> bool:
+    try:
+        return os.path.getsize(path) >= PROCESS_READ_BYTES
+    except OSError:                                     # read as it is given (the reader names what is wrong)
+        return False
+
+
+def _summary_of(reader: ClStream | GcodeStream) -> Callable[[], object]:
+    return lambda: reader.summary
+
+
+def _set_summary(reader: ClStream | GcodeStream) -> Callable[[object], None]:
+    def put(summary: object) -> None:
+        reader.summary = summary                       # type: ignore[assignment]  # the child's, of the same type
+    return put
+
+
 @dataclass(slots=True)
 class _Run:
     """One conversion under way: the reader, the post-processing stream, and what they counted."""
@@ -358,11 +380,16 @@ class _Run:
         """The reader's chunks, checked as read, placed on the machine (unit axes: for the ``placed`` stream)."""
         machine = self.settings.ik_machine
         last_axis: np.ndarray | None = None
-        # the next chunk is read and lexed on a second thread while this one is post-processed, where this
-        # process may use two (processes × threads ≤ cores); not the 5-axis reader, whose state the first
-        # chunk's comment reads
-        ahead = default_workers() > 1 and not isinstance(self.reader, FivexStream)
-        chunks = read_ahead(self.reader) if ahead else self.reader
+        # the next chunk is read and lexed on a second core while this one is post-processed, where this
+        # process may use two (processes × threads ≤ cores): by a forked process for a large input, else by
+        # a thread; not the 5-axis reader, whose state the first chunk's comment reads
+        chunks: Iterable[Toolpath] = self.reader
+        if default_workers() > 1 and not isinstance(self.reader, FivexStream):
+            if _large(self.path):
+                chunks = read_in_process(self.reader, final=_summary_of(self.reader),
+                                         on_final=_set_summary(self.reader))
+            else:
+                chunks = read_ahead(self.reader)
         for chunk in chunks:
             if isinstance(self.reader, FivexStream):
                 _refuse_tilt(machine, chunk, self)

@@ -34,6 +34,18 @@ class Prs3Error(Exception):
 
     exit_code = 1
 
+    def __reduce__(self) -> tuple[object, ...]:
+        """Pickled with its attributes (``path``, ``line``, ``key``...), whatever its constructor takes:
+        an error of a reader running in another process (:func:`prs3_post.ahead.read_in_process`)."""
+        return _restored, (type(self), self.args, self.__dict__)
+
+
+def _restored(kind: type[Prs3Error], args: tuple[object, ...], attributes: dict[str, object]) -> Prs3Error:
+    error = kind.__new__(kind)
+    error.args = args
+    error.__dict__.update(attributes)
+    return error
+
 
 class InputError(Prs3Error):
     """A file or option the user gave is wrong; names the file (and line) and what would be valid."""

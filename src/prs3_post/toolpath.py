@@ -125,6 +125,19 @@ def _freeze_rows(table: object, fields: tuple[tuple[str, type, tuple[int, ...]],
     object.__setattr__(table, "events", tuple(sorted(table.events, key=lambda e: e.before)))  # type: ignore[attr-defined]
 
 
+_Table = TypeVar("_Table", bound="Toolpath")
+
+
+def _unpickled(kind: type[_Table], values: tuple[object, ...]) -> _Table:
+    """A frozen row table rebuilt from its pickled fields (checked when first made): arrays read-only."""
+    table: _Table = object.__new__(kind)
+    for name, value in zip(kind.__slots__, values, strict=True):
+        if isinstance(value, np.ndarray):
+            value.flags.writeable = False
+        object.__setattr__(table, name, value)
+    return table
+
+
 def describe_source(source: IntArray, labels: tuple[str, ...], row: int, file: str = "") -> str:
     """``part.cl:12`` or ``line 12`` (readers: source is a line number, of ``file`` when it is given)
     or the step label (operations).
@@ -169,6 +182,11 @@ class Toolpath:
 
     def __len__(self) -> int:
         return len(self.kind)
+
+    def __reduce__(self) -> tuple[object, ...]:
+        """Pickled as its fields, unpickled read-only again without copying the arrays (the chunks a
+        reader sends from another process, :func:`prs3_post.ahead.read_in_process`)."""
+        return _unpickled, (Toolpath, tuple(getattr(self, name) for name in Toolpath.__slots__))
 
     def describe(self, row: int) -> str:
         """Human name of the line/step row ``row`` came from (``line 12`` or the step label)."""

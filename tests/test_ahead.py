@@ -1,0 +1,186 @@
+"""Reading ahead in a forked process: the same items, errors and bytes as reading in this one.
+
+``read_in_process`` is what ``convert`` uses for a large input (``PROCESS_READ_BYTES``); here the
+threshold is lowered to 0 so that the corpus files and the bad inputs go through the child too.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import signal
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from conftest import compare_golden
+
+import prs3_post.ahead as ahead
+import prs3_post.convert as convert
+from prs3_post.ahead import read_in_process
+from prs3_post.cli import main
+from prs3_post.errors import FeatureError, InputError, LimitError
+from prs3_post.toolpath import Event, EventKind, Toolpath
+
+REPO = Path(__file__).resolve().parents[1]
+CORPUS = REPO.parent / "shared" / "corpus" / "cl"
+GOLDEN = REPO / "fixtures" / "golden"
+
+
+def _children() -> set[int]:
+    """The pids of this process's children that have not been reaped (zombies included)."""
+    task = Path(f"/proc/{os.getpid()}/task")
+    found: set[int] = set()
+    for thread in task.iterdir():
+        children = thread / "children"
+        if children.exists():
+            found |= {int(pid) for pid in children.read_text().split()}
+    return found
+
+
+def test_items_come_in_order_and_the_final_state_comes_back() -> None:
+    state = {"done": False}
+
+    def items():
+        yield from range(50)
+        state["done"] = True                           # in the child
+
+    final = []
+    assert list(read_in_process(items(), final=lambda: state["done"], on_final=final.append)) == list(range(50))
+    assert final == [True]
+    assert state == {"done": False}                    # the child's state, not this process's
+
+
+def test_an_error_comes_where_its_item_would_have_come_with_its_attributes() -> None:
+    def failing():
+        yield from (1, 2, 3)
+        raise InputError("GOTO/ needs 3 or 6 values, got 4", path="part.cls", line=4)
+
+    seen = []
+    with pytest.raises(InputError) as raised:
+        for item in read_in_process(failing(), final=lambda: None, on_final=lambda _: None):
+            seen.append(item)
+    assert seen == [1, 2, 3]
+    assert str(raised.value) == "part.cls:4: GOTO/ needs 3 or 6 values, got 4"
+    assert (raised.value.path, raised.value.line, raised.value.exit_code) == ("part.cls", 4, 2)
+
+
+def test_an_error_that_does_not_pickle_comes_as_its_type_and_text() -> None:
+    class Local(Exception):                            # a class pickle cannot find by name
+        pass
+
+    def failing():
+        yield 1
+        raise Local("odd")
+
+    with pytest.raises(RuntimeError, match=r"^Local: odd$"):
+        list(read_in_process(failing(), final=lambda: None, on_final=lambda _: None))
+
+
+def test_a_consumer_that_stops_early_leaves_no_child() -> None:
+    def endless():
+        n = 0
+        while True:
+            yield n
+            n += 1
+
+    before = _children()
+    for item in read_in_process(endless(), final=lambda: None, on_final=lambda _: None):
+        if item == 5:
+            break
+    assert _children() == before
+
+
+def test_a_child_that_dies_is_an_error_not_an_end() -> None:
+    def dying():
+        yield 1
+        os.kill(os.getpid(), signal.SIGKILL)
+        yield 2
+
+    with pytest.raises(RuntimeError, match=r"^the reading process ended without finishing the input$"):
+        list(read_in_process(dying(), final=lambda: None, on_final=lambda _: None))
+
+
+@pytest.mark.parametrize("error", [InputError("bad", path="a.ngc", line=3), InputError("bad", path="a.ngc"),
+                                   LimitError("T1 above"), FeatureError("too big", key="side", operation=2)])
+def test_errors_pickle_with_their_attributes(error: Exception) -> None:
+    back = pickle.loads(pickle.dumps(error))
+    assert (type(back), str(back), back.__dict__) == (type(error), str(error), error.__dict__)
+
+
+def test_a_toolpath_pickles_read_only() -> None:
+    path = Toolpath(kind=[0, 1], tip=[[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]], axis=np.broadcast_to([0.0, 0.0, 1.0], (2, 3)),
+                    feed=[0.0, 500.0], source=[3, 4], events=(Event(1, EventKind.COMMENT, text="x"),),
+                    source_file="a.cls")
+    back = pickle.loads(pickle.dumps(path, protocol=pickle.HIGHEST_PROTOCOL))
+    for name in ("kind", "tip", "axis", "feed", "source"):
+        assert np.array_equal(getattr(back, name), getattr(path, name))
+        assert getattr(back, name).dtype == getattr(path, name).dtype
+        assert not getattr(back, name).flags.writeable
+    assert (back.events, back.source_labels, back.source_file) == (path.events, (), "a.cls")
+
+
+@pytest.fixture
+def in_process(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
+    """Every input read by a forked process (two threads allowed: the read-ahead's condition); the
+    test fails if none was forked."""
+    monkeypatch.setattr(convert, "PROCESS_READ_BYTES", 0)
+    monkeypatch.setenv("PRS3_POST_THREADS", "2")
+    forks = []
+    fork = os.fork
+
+    def counted() -> int:
+        pid = fork()
+        if pid:
+            forks.append(pid)
+        return pid
+
+    monkeypatch.setattr(ahead.os, "fork", counted)
+    yield
+    assert forks, "no input was read by a forked process"
+
+
+@pytest.mark.skipif(not CORPUS.is_dir(), reason="the corpus (../shared/corpus) is not here")
+@pytest.mark.parametrize(("name", "origin"), [("humman_deep_drill.clsf", "94.5,0,-996"),
+                                              ("mech491_APT_Variable_Axis.cls", "-44,-81.3,-786.7")])
+def test_a_corpus_file_read_in_a_child_gives_the_golden_program(name: str, origin: str, tmp_path: Path,
+                                                                in_process: None) -> None:
+    cwd = os.getcwd()
+    os.chdir(CORPUS)
+    try:
+        result = CliRunner().invoke(main, ["convert", name, "-o", str(tmp_path), "--jobs", "1",
+                                           f"--part-origin={origin}"])
+    finally:
+        os.chdir(cwd)
+    assert result.exit_code == 0, result.output
+    compare_golden((tmp_path / (Path(name).stem + ".ngc")).read_text(), GOLDEN / f"convert-{Path(name).stem}.ngc",
+                   update=False)
+
+
+def test_a_g68_program_read_in_a_child_gives_the_golden_program(tmp_path: Path, in_process: None) -> None:
+    src = REPO / "fixtures" / "gcode" / "g68-peck-arc.ngc"
+    result = CliRunner().invoke(main, ["convert", str(src), "-o", str(tmp_path), "--jobs", "1",
+                                       "--part-origin=-60.9,-10.9,-745"])
+    assert result.exit_code == 0, result.output
+    compare_golden((tmp_path / src.name).read_text(), GOLDEN / f"convert-{src.name}", update=False)
+
+
+@pytest.mark.parametrize(("suffix", "text", "code", "reason"), [
+    (".cls", "RAPID\nGOTO/1,2,3\nGOTO/1,2,$\n", 2,
+     ":3: truncated record: 'GOTO/1,2,' continues with '$' but the file ends (a continued record needs its next line)"),
+    (".ngc", "G21 G90\nG0 X0 Y0 Z5\nG1 X1 F100\nG1 X2 Y1e-05\n", 2,
+     ":4: word 'E-05' is not G-code: E is not read here, and a number with an exponent (1e-05) must be written "
+     "as a plain decimal (0.00001)"),
+])
+def test_a_bad_input_read_in_a_child_fails_with_its_message(suffix: str, text: str, code: int, reason: str,
+                                                            tmp_path: Path, in_process: None) -> None:
+    src = tmp_path / f"bad{suffix}"
+    src.write_text(text)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["convert", str(src), "-o", str(out), "--jobs", "1", "--part-origin=0,0,-850"])
+    assert result.exit_code == code
+    assert result.stdout.split("\t")[3].rstrip("\n") == f"{src}{reason}"
+    assert list(out.iterdir()) == []
+    assert _children() == set()
