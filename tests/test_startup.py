@@ -85,3 +85,17 @@ def test_convert_loads_no_plotting_or_mesh_library(tmp_path):
     source = Path(__file__).resolve().parents[1] / "fixtures" / "gcode" / "wedge-face-3axis.ngc"
     args = ["convert", str(source), "-o", str(tmp_path), "--part-origin=-60.9,-10.9,-745.0", "--jobs", "1"]
     assert _loaded_after(args) == []
+
+
+def test_the_console_script_runs_openblas_on_one_thread_unless_told_otherwise() -> None:
+    """numpy's OpenBLAS starts a thread per core when imported (0.09 CPU s of every start, for nothing):
+    the console script asks for one, and a user's own setting is kept."""
+    count = ("import os, sys; from prs3_post import entry; {set}; entry.configure_blas(); import numpy; "
+             "print(len(os.listdir('/proc/self/task')), os.environ['OPENBLAS_NUM_THREADS'])")
+    env = {k: v for k, v in __import__("os").environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    alone = subprocess.run([sys.executable, "-c", count.format(set="pass")], env=env, capture_output=True,
+                           text=True, check=True)
+    assert alone.stdout.split() == ["1", "1"]
+    kept = subprocess.run([sys.executable, "-c", count.format(set="os.environ['OPENBLAS_NUM_THREADS'] = '2'")],
+                          env=env, capture_output=True, text=True, check=True)
+    assert kept.stdout.split()[1] == "2"

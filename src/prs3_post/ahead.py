@@ -20,9 +20,11 @@ import signal
 import threading
 import warnings
 from collections.abc import Callable, Iterable, Iterator
-from multiprocessing.connection import Connection, Pipe
 from queue import Full, Queue
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
+
+if TYPE_CHECKING:
+    from multiprocessing.connection import Connection
 
 __all__ = ["read_ahead", "read_in_process"]
 
@@ -83,6 +85,8 @@ def read_in_process(items: Iterable[_Item], final: Callable[[], _Final],
     child; the child writes to nothing but the pipe, and leaves with ``os._exit`` (no cleanup of the
     parent's, such as removing a temp file, ever runs in it).
     """
+    from multiprocessing.connection import Pipe  # only convert's large inputs need it (see test_startup)
+
     receive, send = Pipe(duplex=False)
     with warnings.catch_warnings():
         # Python 3.12 warns about forking a process with threads (a lock another thread holds would stay
