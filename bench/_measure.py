@@ -2,10 +2,14 @@
 process (wall, CPU, peak memory), pygcode's parse-only loop as the reference, the load average, and
 "median (range min..max)" (helpers, not a bench).
 
-The child's peak memory is its ``VmHWM`` from ``/proc/self/status`` (the peak resident set of that
-process image; ``ru_maxrss`` would count the parent's pages at fork), its CPU time user + system
-from its own ``getrusage`` (all its threads). On a loaded machine the rates per CPU second say more
-than the wall-clock ones.
+The child runs the console script's entry point (:func:`prs3_post.entry.main`, which also sets
+OpenBLAS's threads), as ``prs3-post`` on the command line does. Its peak memory is its ``VmHWM`` from
+``/proc/self/status`` (the peak resident set of that process image; ``ru_maxrss`` would count the
+parent's pages at fork), plus, where it forked processes of its own (``convert`` reads a large input
+in one), the largest of theirs (``ru_maxrss`` of its waited children, which counts the pages they
+share with it at fork again: an upper bound); its CPU time is user + system of itself (all its
+threads) and of those processes. On a loaded machine the rates per CPU second say more than the
+wall-clock ones.
 """
 
 from __future__ import annotations
@@ -25,13 +29,15 @@ REPO = Path(__file__).resolve().parents[1]
 
 #: Runs the CLI in a child process and reports its own CPU time and peak resident memory on standard error.
 _CHILD = """import resource, sys
-from prs3_post.cli import main
+from prs3_post.entry import main
+sys.argv = ["prs3-post", *sys.argv[1:]]
 try:
-    main(sys.argv[1:])
+    main()
 finally:
-    usage = resource.getrusage(resource.RUSAGE_SELF)
-    peak = next(ln.split()[1] for ln in open("/proc/self/status") if ln.startswith("VmHWM:"))
-    sys.stderr.write(f"\\nPEAK_KB {peak} CPU_S {usage.ru_utime + usage.ru_stime}\\n")
+    usage, forked = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    peak = int(next(ln.split()[1] for ln in open("/proc/self/status") if ln.startswith("VmHWM:")))
+    cpu = usage.ru_utime + usage.ru_stime + forked.ru_utime + forked.ru_stime
+    sys.stderr.write(f"\\nPEAK_KB {peak + forked.ru_maxrss} CPU_S {cpu} FORKED_KB {forked.ru_maxrss}\\n")
 """
 
 
@@ -42,7 +48,8 @@ class ChildRun:
     Attributes
     ----------
     wall, cpu : float — s (cpu: the child's user + system time, start-up included)
-    peak_mb : float — the child's peak resident memory (VmHWM), MB (2**20 bytes)
+    peak_mb : float — the child's peak resident memory (VmHWM), MB (2**20 bytes), plus ``forked_mb``
+    forked_mb : float — the largest peak of the processes the child forked and waited for (0: none), MB
     code : int — exit status
     last : str — its last line of output (standard output, else standard error), for the log
     stdout : str — its standard output
@@ -54,6 +61,7 @@ class ChildRun:
     code: int
     last: str
     stdout: str = ""
+    forked_mb: float = 0.0
 
 
 def run_cli(args: list[str], env: dict[str, str] | None = None) -> ChildRun:
@@ -67,7 +75,7 @@ def run_cli(args: list[str], env: dict[str, str] | None = None) -> ChildRun:
     said = [ln for ln in done.stderr.splitlines() if ln.strip() and not ln.startswith("PEAK_KB ")]
     last = (done.stdout.strip().splitlines() or said or [""])[-1]
     return ChildRun(wall=wall, cpu=float(words[3]), peak_mb=float(words[1]) / 1024, code=done.returncode,
-                    last=last[:160], stdout=done.stdout)
+                    last=last[:160], stdout=done.stdout, forked_mb=float(words[5]) / 1024)
 
 
 def pygcode_rate(path: Path | str, lines: int) -> tuple[float, float]:
