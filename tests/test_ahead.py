@@ -184,3 +184,17 @@ def test_a_bad_input_read_in_a_child_fails_with_its_message(suffix: str, text: s
     assert result.stdout.split("\t")[3].rstrip("\n") == f"{src}{reason}"
     assert list(out.iterdir()) == []
     assert _children() == set()
+
+
+def test_a_point_out_of_reach_stops_the_reading_child(tmp_path: Path, in_process: None) -> None:
+    """The error comes from this process (the post-processing) while the child still has lines to send:
+    the child is stopped, nothing is written."""
+    src = tmp_path / "far.cls"
+    moves = "".join(f"GOTO/{k % 7},0,100\n" for k in range(60_000))
+    src.write_text(f"FEDRAT/100\nRAPID\nGOTO/0,0,100\nGOTO/0,0,-500\n{moves}")
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["convert", str(src), "-o", str(out), "--jobs", "1"])
+    assert result.exit_code == 1
+    assert result.stdout.split("\t")[3].startswith(f"{src}:4: T1 stroke 865.5270 mm is above the maximum")
+    assert list(out.iterdir()) == []
+    assert _children() == set()
