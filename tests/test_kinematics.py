@@ -16,7 +16,7 @@ from numpy.testing import assert_allclose
 
 from prs3_post.config import load_machine
 from prs3_post.errors import LimitError
-from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, forward, inverse, unit_axes
+from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, _named_problems, forward, inverse, unit_axes
 from prs3_post.kinematics.exact import inverse_exact, platform_centre_xy, spherical_joints
 from prs3_post.kinematics.paper import inverse_paper, paper_joints
 from prs3_post.limits import check_limits, raise_first_violation
@@ -395,6 +395,45 @@ def test_bad_poses_are_named_by_row():
         "row 1: a value is NaN or infinite; row 2: the axis has zero length; "
         "rows 3, 4: the axis points away from the spindle (axis z must be > 0)"
     )
+
+
+@settings(max_examples=150, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), rows=st.integers(2, 60), scale=st.floats(1e-6, 1e6),
+       bad=st.sampled_from(["none", "nan tip", "inf tip", "zero axis", "downward axis", "one row apart"]))
+@example(seed=1, rows=2, scale=1.0, bad="none")
+def test_unit_axes_of_one_axis_are_the_bits_and_errors_of_row_by_row(seed: int, rows: int, scale: float,
+                                                                    bad: str) -> None:
+    """A chunk whose rows share one axis (3+2) scales it once: the unit axes are each row's alone, bit
+    for bit, and a bad chunk names the same rows with the same message as row by row."""
+    rng = np.random.default_rng(seed)
+    tip = rng.uniform(-500.0, 500.0, (rows, 3))
+    axis = np.tile(rng.uniform(-1.0, 1.0, 3) * scale + [0.0, 0.0, 2.0 * scale], (rows, 1))
+    row = int(rng.integers(rows))
+    if bad == "nan tip":
+        tip[row, 1] = np.nan
+    elif bad == "inf tip":
+        tip[row, 2] = -np.inf
+    elif bad == "zero axis":
+        axis[:] = 0.0
+    elif bad == "downward axis":
+        axis[:, 2] = -axis[:, 2]
+    elif bad == "one row apart":                      # not one axis: the row-by-row path
+        axis[row] = axis[row] * 2.0
+    numbers = np.arange(rows) * 3 + 7
+    try:
+        alone = np.concatenate([unit_axes(tip[i:i + 1], axis[i:i + 1]) for i in range(rows)])
+    except PoseError:
+        with pytest.raises(PoseError) as together:
+            unit_axes(tip, axis, row_name="line", row_numbers=numbers)
+        with pytest.raises(PoseError) as plain:
+            _named_problems(tip, axis, "line", numbers)
+        assert str(together.value) == str(plain.value)
+        assert bad != "none"
+        return
+    got = unit_axes(tip, axis, row_name="line", row_numbers=numbers)
+    assert got.shape == (rows, 3)
+    np.testing.assert_array_equal(got.view(np.int64), alone.view(np.int64))
+    np.testing.assert_array_equal(got.view(np.int64), (axis / np.linalg.norm(axis, axis=1)[:, None]).view(np.int64))
 
 
 def test_unreachable_pose_is_nan_not_garbage():

@@ -14,6 +14,7 @@ from prs3_post.errors import PoseError
 from prs3_post.kinematics.exact import IKResult, inverse_exact
 from prs3_post.kinematics.forward import FKResult, forward
 from prs3_post.machine import Geometry
+from prs3_post.rows import row_lengths
 from prs3_post.types import FloatArray, IntArray
 
 __all__ = ["FKResult", "IKModel", "IKResult", "PoseError", "forward", "inverse", "unit_axes"]
@@ -60,7 +61,22 @@ def unit_axes(
     """
     tip = np.asarray(tip, dtype=np.float64).reshape(-1, 3)
     axis = np.asarray(axis, dtype=np.float64).reshape(-1, 3)
-    length = np.linalg.norm(axis, axis=1)
+    # one axis on every row (3-axis, 3+2): its length and unit vector once; NaN rows are never equal
+    one = len(axis) > 1 and bool((axis == axis[0]).all())
+    given = axis[:1] if one else axis
+    length = row_lengths(given)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        unit = given / length[:, None]
+    if (np.isfinite(tip).all() and np.isfinite(given).all() and (length > 1e-12).all()
+            and (unit[:, 2] > 0.0).all()):              # no problem: the rows named below are none
+        return np.repeat(unit, len(axis), axis=0) if one else unit
+    return _named_problems(tip, axis, row_name, row_numbers)
+
+
+def _named_problems(tip: FloatArray, axis: FloatArray, row_name: str, row_numbers: IntArray | None) -> FloatArray:
+    """:func:`unit_axes` row by row: raise the PoseError that names every bad row (or return the unit
+    axes, when there is none)."""
+    length = row_lengths(axis)
     finite = np.isfinite(tip).all(axis=1) & np.isfinite(axis).all(axis=1)
     nonzero = finite & (length > 1e-12)
     with np.errstate(invalid="ignore", divide="ignore"):
