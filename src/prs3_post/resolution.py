@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from prs3_post.emit.gcode import format_word
+from prs3_post.rows import row_all, row_any, row_lengths
 from prs3_post.types import BoolArray, FloatArray
 
 __all__ = ["VisibleMoves", "length_resolution", "printed_units", "visible_moves"]
@@ -119,16 +120,17 @@ class VisibleMoves:
             if head + n >= 2:
                 keep = _away_from_the_last_kept(all_tip, all_axis, 0.5 * length_resolution(self.decimals),
                                                 head=head)
-        near_kept = keep.copy()
-        rows = np.flatnonzero(keep)
+        every = bool(keep.all())                          # nothing near: no copy of the rows kept
+        rows = np.arange(len(keep)) if every else np.flatnonzero(keep)
+        last_near, last_kept = int(rows[-1]), bool(keep[-1])   # by the distance test (row 0 always is)
         if len(rows) >= 2:
-            printed = printed_units(all_joints[rows], self.decimals)
-            changed = np.any(printed[1:] != printed[:-1], axis=1)
-            keep[rows[1:][~changed]] = False
+            printed = printed_units(all_joints if every else all_joints[rows], self.decimals)
+            changed = row_any(printed[1:] != printed[:-1])
+            if not changed.all():
+                keep[rows[1:][~changed]] = False
         # remember for the next chunk
-        last_near = int(np.flatnonzero(near_kept)[-1])
         self._previous = (all_tip[-1].copy(), all_axis[-1].copy())
-        self._previous_kept = bool(near_kept[-1])
+        self._previous_kept = last_kept
         self._kept = (all_tip[last_near].copy(), all_axis[last_near].copy(), all_joints[last_near].copy())
         return keep[head:]
 
@@ -146,7 +148,7 @@ def _away_from_the_last_kept(tip: FloatArray, axis: FloatArray, near: float, *, 
     keep = np.ones(len(tip), dtype=bool)
     if head == 2:
         keep[1] = False
-    short = (np.linalg.norm(np.diff(tip, axis=0), axis=1) < near) & np.all(np.diff(axis, axis=0) == 0, axis=1)
+    short = (row_lengths(np.diff(tip, axis=0)) < near) & row_all(np.diff(axis, axis=0) == 0)
     rows = (np.flatnonzero(short) + 1).tolist()
     rows = [row for row in rows if row >= head]
     if not rows:
