@@ -9,11 +9,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from prs3_post.config import load_dialect, load_machine
 from prs3_post.dynamics import (
     DynamicsTally,
+    _any_over,
     clamp_feeds,
     joint_columns,
     joint_deltas,
@@ -194,3 +197,24 @@ def test_verify_reports_a_g1_over_an_axis_speed_with_its_line(tmp_path):
                     f"top speed {top:.1f} mm/min"}]
     assert (report["axis_speed_max_line"], report["time_model"]) == (number, "trapezoid")
     assert report["axis_speed_max_fraction"] == pytest.approx(speed / top, rel=1e-9)
+
+
+@settings(max_examples=200, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), rows=st.integers(0, 40), feed_scale=st.floats(1e-3, 1e7),
+       special=st.floats(0.0, 0.3))
+@example(seed=0, rows=0, feed_scale=1.0, special=0.0)
+def test_the_tallys_quick_test_finds_a_move_over_a_speed_exactly_when_the_clamp_does(
+        seed: int, rows: int, feed_scale: float, special: float) -> None:
+    """The tally asks first whether any ratio is over 1 (an axis at a time, no row-wise maximum):
+    the same answer as clamp_feeds for any steps, feeds and rapids, zeros, NaN and inf among them."""
+    rng = np.random.default_rng(seed)
+    kind = rng.integers(0, 2, rows)
+    deltas = np.abs(rng.standard_normal((rows, 5))) * 10.0 ** rng.integers(-4, 3, (rows, 5))
+    inverse_time = rng.uniform(0.0, 1.0, rows) * feed_scale
+    pick = rng.random((rows, 5))
+    deltas[pick < special / 3] = 0.0
+    deltas[(pick >= special / 3) & (pick < special / 2)] = np.nan
+    inverse_time[rng.random(rows) < special / 4] = np.inf
+    with np.errstate(invalid="ignore"):
+        expected = bool(clamp_feeds(DYN, kind, deltas, inverse_time).clamped.any())
+        assert _any_over(DYN, kind, deltas, inverse_time) is expected

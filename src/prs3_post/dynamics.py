@@ -82,6 +82,17 @@ def axis_speed_ratio(dynamics: Dynamics, kind: np.ndarray, deltas: FloatArray,
     return per_axis.max(axis=1), per_axis.argmax(axis=1)
 
 
+def _any_over(dynamics: Dynamics, kind: np.ndarray, deltas: FloatArray, inverse_time: FloatArray) -> bool:
+    """Whether :func:`axis_speed_ratio` finds a ratio over 1: its products, an axis at a time, and its
+    maximum as the element-wise maximum of the axes (NaN as NaN), without the reduction along each row."""
+    fed = np.where(np.asarray(kind) == MoveKind.FEED, inverse_time, 0.0)
+    ratio = None
+    for axis, speed in enumerate(np.asarray(dynamics.speeds())):
+        per_axis = deltas[:, axis] * fed / speed
+        ratio = per_axis if ratio is None else np.maximum(ratio, per_axis)
+    return ratio is not None and bool((ratio > 1.0).any())
+
+
 @dataclass(frozen=True, slots=True)
 class FeedClamp:
     """Feeds lowered to the axis speed limits.
@@ -228,8 +239,10 @@ class DynamicsTally:
         self.worst_axis = ""
         self._last: FloatArray | None = None
 
-    def feed(self, program: JointProgram) -> FloatArray:
+    def feed(self, program: JointProgram, joints: FloatArray | None = None) -> FloatArray:
         """The chunk's F words, clamped (``program.inverse_time`` as requested).
+
+        ``joints`` : (N, 5) float, optional — the program's :func:`joint_columns`, when the caller has them.
 
         Raises
         ------
@@ -239,8 +252,11 @@ class DynamicsTally:
         """
         if self.dynamics is None or not len(program):
             return program.inverse_time
-        joints = joint_columns(program.stage, program.strokes)
+        joints = joint_columns(program.stage, program.strokes) if joints is None else joints
         deltas = joint_deltas(joints, self._last)
+        if not _any_over(self.dynamics, program.kind, deltas, program.inverse_time):
+            self._last = joints[-1].copy()              # no move too fast (the common case): nothing to clamp
+            return program.inverse_time
         result = clamp_feeds(self.dynamics, program.kind, deltas, program.inverse_time)
         over = np.flatnonzero(result.clamped)
         if len(over):

@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from prs3_post.dialect import Dialect
-from prs3_post.dynamics import DynamicsTally
+from prs3_post.dynamics import DynamicsTally, joint_columns
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.errors import LimitError, PoseError, ReachError
 from prs3_post.kinematics import IKModel, IKResult, inverse, unit_axes
@@ -195,10 +195,11 @@ class PostStream:
             last_pose = Toolpath(kind=path.kind[-1:], tip=path.tip[-1:], axis=path.axis[-1:], feed=path.feed[-1:],
                                  source=path.source[-1:], source_labels=path.source_labels,
                                  source_file=path.source_file)
+        joints = joint_columns(stage, ik.strokes)        # (N, 5): the printed axes, for the guard and the speeds
         if self._visible is not None:                  # no move the program cannot show (a G1 without a word)
-            keep = self._visible.keep(np.column_stack([stage, ik.strokes]), tip=path.tip, axis=path.axis)
+            keep = self._visible.keep(joints, tip=path.tip, axis=path.axis)
             if not keep.all():
-                path, stage = path.take(keep), stage[keep]
+                path, stage, joints = path.take(keep), stage[keep], joints[keep]
                 ik = IKResult(stage=ik.stage[keep], strokes=ik.strokes[keep], link_angle=ik.link_angle[keep],
                               condition=ik.condition[keep], reachable=ik.reachable[keep])
                 if checked:                            # every row is within the limits: so are those kept
@@ -221,7 +222,7 @@ class PostStream:
             kind=path.kind, stage=stage, strokes=ik.strokes, inverse_time=feeds, source=path.source,
             events=path.events, source_labels=path.source_labels, source_file=path.source_file,
         )
-        clamped = self.dynamics.feed(program)
+        clamped = self.dynamics.feed(program, joints)
         if clamped is not program.inverse_time:        # slowed: the path's tip feeds drop by the same ratio
             with np.errstate(divide="ignore", invalid="ignore"):
                 ratio = np.where(feeds > 0, clamped / feeds, 1.0)
