@@ -6,6 +6,8 @@ import dataclasses
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from prs3_post.config import load_machine
@@ -48,6 +50,35 @@ def test_inverse_time_refuses_a_first_feed_and_a_zero_length_feed():
     with pytest.raises(LimitError) as caught:
         inverse_time(path([[0, 0, 0], [0, 0, 0]], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100]))
     assert str(caught.value) == "step 1: feed move of zero length"
+
+
+@settings(max_examples=150, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), rows=st.integers(1, 40), rapids=st.booleans(), repeat=st.booleans())
+def test_inverse_time_is_each_rows_feed_over_its_length_bit_for_bit(seed, rows, rapids, repeat):
+    """Every row a feed move after a start point (the steps as slices) or some rapids among them (the
+    feed rows picked out): each F is the row's feed over np.linalg.norm of its step, the same bits, and
+    a repeated point is the zero-length error at its row on either way."""
+    rng = np.random.default_rng(seed)
+    tips = rng.uniform(-300.0, 300.0, (rows, 3)) * 10.0 ** rng.integers(-5, 2, (rows, 1))
+    kinds = np.where(rng.random(rows) < 0.3, MoveKind.RAPID, MoveKind.FEED) if rapids else np.full(rows, MoveKind.FEED)
+    feeds = np.where(kinds == MoveKind.FEED, rng.uniform(1.0, 5000.0, rows), 0.0)
+    start = rng.uniform(-300.0, 300.0, 3)
+    if repeat:
+        row = int(rng.integers(rows))
+        tips[row] = tips[row - 1] if row else start
+        kinds[row], feeds[row] = MoveKind.FEED, 100.0
+    p = path(tips, [A] * rows, kinds, feeds)
+    before = np.vstack([start, tips[:-1]])
+    expected = np.zeros(rows)
+    for i in np.flatnonzero(kinds == MoveKind.FEED):
+        length = np.linalg.norm(tips[i:i + 1] - before[i:i + 1], axis=1)[0]
+        if length < 1e-9:
+            with pytest.raises(LimitError) as caught:
+                inverse_time(p, start=start)
+            assert str(caught.value) == f"step {i}: feed move of zero length"
+            return
+        expected[i] = feeds[i] / length
+    np.testing.assert_array_equal(inverse_time(p, start=start).view(np.int64), expected.view(np.int64))
 
 
 def test_post_process_places_the_part_and_matches_case_2a():

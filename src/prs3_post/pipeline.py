@@ -30,6 +30,7 @@ from prs3_post.limits import LimitReport, check_limits, raise_first_violation, t
 from prs3_post.linearize import linearize, subdivide_axis_changes
 from prs3_post.machine import Machine
 from prs3_post.resolution import VisibleMoves
+from prs3_post.rows import row_lengths
 from prs3_post.setup import Setup
 from prs3_post.tolerances import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.toolpath import JointProgram, MoveKind, Toolpath
@@ -371,20 +372,23 @@ def inverse_time(path: Toolpath, *, start: FloatArray | None = None) -> FloatArr
     LimitError
         A FEED row as the first row of the program (no start point) or with zero length (no time to give it).
     """
-    feed_rows = np.flatnonzero(path.kind == MoveKind.FEED)
-    out = np.zeros(len(path))
-    if not len(feed_rows):
-        return out
-    if feed_rows[0] == 0 and start is None:
+    fed = path.kind == MoveKind.FEED
+    if not len(path) or not fed.any():
+        return np.zeros(len(path))
+    if fed[0] and start is None:
         raise LimitError(f"{path.describe(0)}: the program starts with a feed move; its start point is unknown")
     before = path.tip if start is None else np.concatenate([np.asarray(start, dtype=np.float64)[None, :], path.tip])
+    if start is not None and fed.all():                  # every row a feed move: the steps as slices, no indexing
+        length = row_lengths(path.tip - before[:-1])
+        if (length < 1e-9).any():
+            raise LimitError(f"{path.describe(int(np.flatnonzero(length < 1e-9)[0]))}: feed move of zero length")
+        return path.feed / length
+    feed_rows = np.flatnonzero(fed)
     offset = 0 if start is None else 1
-    if len(feed_rows) == len(path) and offset:           # every row a feed move: the steps as slices
-        length = np.linalg.norm(path.tip - before[:-1], axis=1)
-    else:
-        length = np.linalg.norm(path.tip[feed_rows] - before[feed_rows - 1 + offset], axis=1)
+    length = row_lengths(path.tip[feed_rows] - before[feed_rows - 1 + offset])
     zero = np.flatnonzero(length < 1e-9)
     if len(zero):
         raise LimitError(f"{path.describe(int(feed_rows[zero[0]]))}: feed move of zero length")
+    out = np.zeros(len(path))
     out[feed_rows] = path.feed[feed_rows] / length
     return out
