@@ -747,3 +747,8 @@ def load_source(name_or_path: str) -> SourceConvention:
     return SourceConvention(name=path.stem, description=description, source=shown, orientation=orientation,
                             tables=tuple(rotaries["table"]), heads=tuple(rotaries["head"]),
                             vector_words=vector_words, tcp_on=tcp_on, tcp_off=tcp_off, clamps=clamps, inert=inert)
+
+
+def file_given(source: str, kind: str, name: str) -> str | None:
+    """The path a machine or dialect was given by, or None for a shipped one (``machines/NAME.toml``)."""
+    return None if source == f"{kind}/{name}.toml" else source

@@ -18,44 +18,44 @@ from __future__ import annotations
 import dataclasses
 import glob
 import math
-import multiprocessing
 import os
 import signal
 import stat
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 from prs3_post import __version__
 from prs3_post.ahead import read_ahead, read_in_process
-from prs3_post.collision import check_rapids, measure_program
-from prs3_post.config import Dialect, Machine
+from prs3_post.config import Dialect, Machine, file_given
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.errors import InputError, LimitError, PoseError, Prs3Error, ReachError
-from prs3_post.job import file_given
 from prs3_post.kinematics import inverse, unit_axes
 from prs3_post.kinematics.blocks import THREADS_VARIABLE, default_workers
 from prs3_post.limits import check_limits, raise_first_violation
 from prs3_post.ops.common import TOOL_DIAMETER_RANGE
 from prs3_post.output import HeadLast, refuse_overwriting, write_atomic
 from prs3_post.pipeline import PostCounts, PostResult, PostStream, model_for, place_toolpath, program_text
-from prs3_post.placement import place, placement_error
 from prs3_post.readers.apt import ClFile, ClStream, join_toolpaths
 from prs3_post.readers.detect import DETECT_BYTES, FORMATS, detect_format
 from prs3_post.readers.files import open_input
-from prs3_post.readers.fivex import FivexStream, check_tcp_codes
 from prs3_post.readers.gcode import GcodeStream
 from prs3_post.readers.header import SourceCounts, SourceHeader, file_sha256, source_header_entries
-from prs3_post.readers.stl import load_part
 from prs3_post.setup import Setup
-from prs3_post.source import SourceConvention
 from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpath, join_programs
 from prs3_post.types import FloatArray
 from prs3_post.workplane import WorkPlane
+
+if TYPE_CHECKING:  # imported where used: a plain 3+2 or CL conversion needs none of them (test_startup)
+    import multiprocessing.process
+    from concurrent.futures import Future
+
+    from prs3_post.readers.fivex import FivexStream
+    from prs3_post.source import SourceConvention
 
 #: File name endings taken from a directory (other files there are left alone). Files named
 #: one by one are read whatever their name.
@@ -125,6 +125,8 @@ class ConvertSettings:
             raise InputError(f"tool length: must be a number > 0 mm, got {self.tool_length:g}",
                              path=self.machine.source)
         if self.source is not None:                     # refused once, before any file is read
+            from prs3_post.readers.fivex import check_tcp_codes
+
             check_tcp_codes(self.source, self.source.tcp_on if self.tcp_on is None else self.tcp_on,
                             self.source.tcp_off if self.tcp_off is None else self.tcp_off)
 
@@ -253,6 +255,8 @@ def source_stream(path: str, settings: ConvertSettings, fmt: str) -> ClStream | 
         if settings.work_plane is not None:
             raise InputError("a work plane and a 5-axis source: under TCP the program's X Y Z are the part frame "
                              "itself (its work offset), so there is no work plane to put them on", path=path)
+        from prs3_post.readers.fivex import FivexStream
+
         return FivexStream(path, settings.source, tolerance=settings.tolerance, tcp_on=settings.tcp_on,
                            tcp_off=settings.tcp_off)
     return GcodeStream(path, tolerance=settings.tolerance, work_plane=settings.work_plane)
@@ -376,6 +380,11 @@ class _Run:
     programs: list[JointProgram] = field(default_factory=list)   # each chunk's, for the collision check
     placeable: bool = True                              # False: no setup can help the error raised
 
+    @property
+    def fivex(self) -> FivexStream | None:
+        """The reader when it reads a 5-axis program (G-code with a source convention), else None."""
+        return cast("FivexStream", self.reader) if self.fmt == "gcode" and self.settings.source is not None else None
+
     def chunks(self) -> Iterator[Toolpath]:
         """The reader's chunks, checked as read, placed on the machine (unit axes: for the ``placed`` stream)."""
         machine = self.settings.ik_machine
@@ -384,18 +393,19 @@ class _Run:
         # process may use two (processes × threads ≤ cores): by a forked process for a large input, else by
         # a thread; not the 5-axis reader, whose state the first chunk's comment reads
         chunks: Iterable[Toolpath] = self.reader
-        if default_workers() > 1 and not isinstance(self.reader, FivexStream):
+        fivex = self.fivex
+        if default_workers() > 1 and fivex is None:
             if _large(self.path):
                 chunks = read_in_process(self.reader, final=_summary_of(self.reader),
                                          on_final=_set_summary(self.reader))
             else:
                 chunks = read_ahead(self.reader)
         for chunk in chunks:
-            if isinstance(self.reader, FivexStream):
+            if fivex is not None:
                 _refuse_tilt(machine, chunk, self)
                 if not self.rows:
                     chunk = dataclasses.replace(chunk, events=(
-                        Event(before=0, kind=EventKind.COMMENT, text=_five_axis_text(self.reader)), *chunk.events))
+                        Event(before=0, kind=EventKind.COMMENT, text=_five_axis_text(fivex)), *chunk.events))
             if not self.rows:
                 _refuse_feed_first(chunk, self.fmt)
             placed = chunk
@@ -415,8 +425,9 @@ class _Run:
         assert summary is not None  # set when the reader's iteration ends
         c = summary.counts
         skipped, five_axis = c.skipped, ""
-        if isinstance(self.reader, FivexStream):
-            skipped, five_axis = skipped + _five_axis_skipped(self.reader), _five_axis_text(self.reader)
+        fivex = self.fivex
+        if fivex is not None:
+            skipped, five_axis = skipped + _five_axis_skipped(fivex), _five_axis_text(fivex)
         return ConvertReport(
             input=self.path, format=self.fmt, units=summary.units, sha256=self.sha256, records=c.records,
             by_word=c.by_word, input_moves=c.moves, arcs=c.arcs, arc_rows=c.arc_segments, cycles=c.cycles,
@@ -436,6 +447,8 @@ def _start(path: str, settings: ConvertSettings) -> _Run:
             raise InputError("no moves in the file: nothing to convert", path=path)
         _refuse_feed_first(whole.toolpath, fmt)
         _check_poses(settings.ik_machine, whole.toolpath, settings.setup, limits=False)   # axes by input line
+        from prs3_post.placement import place
+
         chosen = place(settings.ik_machine, whole.toolpath,
                        origin=None if settings.auto_origin else settings.setup.origin,
                        rotation_deg=None if settings.auto_rotation else settings.setup.rotation_deg,
@@ -465,10 +478,11 @@ def _header(run: _Run) -> SourceHeader:
         tolerance=settings.tolerance, angle_tolerance_deg=settings.angle_tolerance_deg,
         line_numbers=settings.line_numbers, line_start=settings.line_start, line_step=settings.line_step,
     )
-    if isinstance(run.reader, FivexStream):
-        source = run.reader.source
+    fivex = run.fivex
+    if fivex is not None:
+        source = fivex.source
         header = dataclasses.replace(header, five_axis=file_given(source.source, "sources", source.name) or source.name,
-                                     tcp_on=run.reader.tcp_on, tcp_off=run.reader.tcp_off)
+                                     tcp_on=fivex.tcp_on, tcp_off=fivex.tcp_off)
     return header
 
 
@@ -482,6 +496,8 @@ def _placed(error: LimitError | ReachError, run: _Run) -> Exception:
         whole = source_stream(run.path, settings, run.fmt).whole()
     except InputError:
         return error
+    from prs3_post.placement import placement_error
+
     return placement_error(error, settings.ik_machine, whole.toolpath, settings.setup, tolerance=settings.tolerance,
                            length_decimals=settings.dialect.decimals.length)
 
@@ -536,6 +552,8 @@ def _part_triangles(settings: ConvertSettings) -> FloatArray | None:
     """The part's triangles when its programs are to be checked against it (None: not checked)."""
     if settings.part is None or not settings.collision_check:
         return None
+    from prs3_post.readers.stl import load_part
+
     mesh = load_part(settings.part, units=settings.part_units, up=settings.part_up)
     return np.asarray(mesh.triangles, dtype=np.float64)
 
@@ -557,6 +575,8 @@ def _collision(run: _Run, triangles: FloatArray | None) -> str:
         return "not checked (no part given)"
     if triangles is None:
         return "not checked (asked not to)"
+    from prs3_post.collision import check_rapids, measure_program
+
     parts, run.programs = run.programs, []
     file = parts[0].source_file if parts else run.path
     program = join_programs(parts, source_file=file)
@@ -927,6 +947,9 @@ def _run_parallel(inputs: Sequence[str], outputs: list[str], todo: list[int], se
     threads = max(1, _cores() // jobs)
     pending = list(todo)
     running: dict[Future[FileOutcome], int] = {}
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
     context = multiprocessing.get_context("fork")
     jobs = min(jobs, len(todo))
     with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init,

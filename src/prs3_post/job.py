@@ -27,7 +27,7 @@ import numpy as np
 
 from prs3_post import __version__
 from prs3_post.collision import Approach, ProgramClearance, feed_tips_of, measure_program
-from prs3_post.config import Dialect, Machine
+from prs3_post.config import Dialect, Machine, file_given
 from prs3_post.dynamics import DynamicsTally, dynamics_entry
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.errors import FeatureError, InputError, LimitError, ReachError
@@ -842,11 +842,6 @@ def _join_posts(pieces: list[PostResult], program: JointProgram) -> PostResult:
     limits = replace(reports[0], value=np.concatenate([r.value for r in reports]),
                      margin=np.concatenate([r.margin for r in reports]), ok=np.concatenate([r.ok for r in reports]))
     return PostResult(program=program, path=path, ik=ik, limits=limits)
-
-
-def file_given(source: str, kind: str, name: str) -> str | None:
-    """The path a machine or dialect was given by, or None for a shipped one (``machines/NAME.toml``)."""
-    return None if source == f"{kind}/{name}.toml" else source
 
 
 def header_of(spec: JobSpec, part_sha256: str, *, operations: tuple[JobSpec, ...] = (),
