@@ -43,7 +43,7 @@ from prs3_post.pipeline import PostCounts, PostResult, PostStream, model_for, pl
 from prs3_post.readers.apt import ClFile, ClStream, join_toolpaths
 from prs3_post.readers.detect import DETECT_BYTES, FORMATS, detect_format
 from prs3_post.readers.files import open_input
-from prs3_post.readers.gcode import GcodeStream
+from prs3_post.readers.gcode import GcodeFile, GcodeStream
 from prs3_post.readers.header import SourceCounts, SourceHeader, file_sha256, source_header_entries
 from prs3_post.setup import Setup
 from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpath, join_programs
@@ -355,16 +355,6 @@ def _large(path: str) -> bool:
         return False
 
 
-def _summary_of(reader: ClStream | GcodeStream) -> Callable[[], object]:
-    return lambda: reader.summary
-
-
-def _set_summary(reader: ClStream | GcodeStream) -> Callable[[object], None]:
-    def put(summary: object) -> None:
-        reader.summary = summary                       # type: ignore[assignment]  # the child's, of the same type
-    return put
-
-
 @dataclass(slots=True)
 class _Run:
     """One conversion under way: the reader, the post-processing stream, and what they counted."""
@@ -372,9 +362,10 @@ class _Run:
     path: str
     settings: ConvertSettings
     fmt: str
-    sha256: str
+    sha256: str                                         # "" until read, where a forked process reads the file
     reader: ClStream | GcodeStream
     post: PostStream
+    forked: bool = False                                # the file is read (and hashed) by a forked process
     rows: int = 0
     results: list[PostResult] = field(default_factory=list)   # each chunk's, when kept (convert_file)
     programs: list[JointProgram] = field(default_factory=list)   # each chunk's, for the collision check
@@ -389,17 +380,12 @@ class _Run:
         """The reader's chunks, checked as read, placed on the machine (unit axes: for the ``placed`` stream)."""
         machine = self.settings.ik_machine
         last_axis: np.ndarray | None = None
-        # the next chunk is read and lexed on a second core while this one is post-processed, where this
-        # process may use two (processes × threads ≤ cores): by a forked process for a large input, else by
-        # a thread; not the 5-axis reader, whose state the first chunk's comment reads
         chunks: Iterable[Toolpath] = self.reader
         fivex = self.fivex
-        if default_workers() > 1 and fivex is None:
-            if _large(self.path):
-                chunks = read_in_process(self.reader, final=_summary_of(self.reader),
-                                         on_final=_set_summary(self.reader))
-            else:
-                chunks = read_ahead(self.reader)
+        if self.forked:                                 # the hash too: both read the file (30 MB: 40 ms)
+            chunks = read_in_process(self.reader, final=self._read_there, on_final=self._read)
+        elif default_workers() > 1 and fivex is None:   # (see _start)
+            chunks = read_ahead(self.reader)
         for chunk in chunks:
             if fivex is not None:
                 _refuse_tilt(machine, chunk, self)
@@ -418,6 +404,15 @@ class _Run:
             yield placed
         if not self.rows:
             raise InputError("no moves in the file: nothing to convert", path=self.path)
+
+    def _read_there(self) -> tuple[GcodeFile | ClFile | None, str]:
+        """In the forked process that read the file: the reader's summary and the file's hash."""
+        return self.reader.summary, file_sha256(self.path)
+
+    def _read(self, done: tuple[GcodeFile | ClFile | None, str]) -> None:
+        """Here: what :meth:`_read_there` found."""
+        summary, self.sha256 = done
+        self.reader.summary = summary
 
     def report(self, counts: PostCounts) -> ConvertReport:
         """The accounting, once the reader is through."""
@@ -459,7 +454,12 @@ def _start(path: str, settings: ConvertSettings) -> _Run:
     post = PostStream(machine, settings.setup, tolerance=settings.tolerance,
                       angle_tolerance=math.radians(settings.angle_tolerance_deg),
                       length_decimals=settings.dialect.decimals.length, placed=True)
-    return _Run(path=path, settings=settings, fmt=fmt, sha256=file_sha256(path), reader=reader, post=post)
+    # the next chunk is read on a second core while this one is post-processed, where this process may use
+    # two (processes × threads ≤ cores): by a forked process for a large input, else by a thread; not the
+    # 5-axis reader, whose state the first chunk's comment reads
+    forked = default_workers() > 1 and settings.source is None and _large(path)
+    return _Run(path=path, settings=settings, fmt=fmt, sha256="" if forked else file_sha256(path), reader=reader,
+                post=post, forked=forked)
 
 
 def _header(run: _Run) -> SourceHeader:
@@ -537,7 +537,8 @@ def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) 
     def head() -> str:
         counts = run.report(stream.finish()).counts()
         collision = _collision(run, triangles)
-        entries = source_header_entries(dataclasses.replace(header, counts=counts, collision=collision),
+        entries = source_header_entries(dataclasses.replace(header, counts=counts, collision=collision,
+                                                            source_sha256=run.sha256),
                                         description=description)
         # the same opening as program_text's (its comments have no block numbers: the body's agree)
         emitter = ProgramEmitter(settings.dialect, stage=settings.ik_machine.stage.present,
