@@ -160,3 +160,97 @@ int64_t prs3_lex_columns(const uint8_t *text, int64_t size, const uint8_t *codes
     }
     return n;
 }
+
+/* What prs3_scan_text finds in data[0:count] (next[k] is data[k + 1]), without a branch: its LFs, its
+ * high bits, whether it has a control byte, whether a letter of a rotary word is followed by what may
+ * follow one. A loop the compiler vectorizes where count is a constant (STRIDE). */
+struct stride {
+    int64_t lines;
+    uint8_t high, control, rotary;
+};
+static inline struct stride scan_stride(const uint8_t *data, const uint8_t *next, int64_t count) {
+    int64_t lines = 0;
+    uint8_t high = 0, control = 0, rotary = 0;
+    for (int64_t k = 0; k < count; k++) lines += data[k] == '\n';
+    for (int64_t k = 0; k < count; k++) {
+        uint8_t byte = data[k];
+        high |= byte;
+        control |= (uint8_t)((byte < 32) & (byte != '\t') & (byte != '\n') & (byte != '\r'));
+        control |= (uint8_t)(byte == 127);
+    }
+    for (int64_t k = 0; k < count; k++) {
+        /* a letter A B C a b c, then a space, a tab, '-', '.' or a digit ('-' to '9' but '/') */
+        uint8_t letter = (uint8_t)((uint8_t)(data[k] | 0x20) - 'a');
+        uint8_t after = next[k];
+        uint8_t number = (uint8_t)(after - '-');
+        uint8_t hit = (uint8_t)(-(letter < 3)) & (uint8_t)(-((number < 13) & (after != '/')) |
+                                                           -(after == ' ') | -(after == '\t'));
+        rotary |= hit;
+    }
+    return (struct stride){lines, high, control, rotary};
+}
+
+/* What the 3+2 G-code reader checks on every byte of a file before reading it, in one pass over
+ * data[0:size] (prs3_post.readers.gcode._scan_bytes; _scan_bytes_numpy is the reference):
+ *   found[0]: the offset of the first control byte (below 32 but TAB, LF, CR; or 127), else -1;
+ *   found[1]: 1 where a byte is not ASCII (128 and up: UTF-8 to be checked by the decoder), else 0;
+ *   found[2]: the LFs counted;
+ *   found[3]: the offset of the first rotary hint, else -1: a letter A B C a b c, then spaces or tabs,
+ *             an optional '-', spaces or tabs, and a digit or '.' (the 3+2 reader's _ROTARY_HINT).
+ * Returns the LFs counted. */
+int64_t prs3_scan_text(const uint8_t *data, int64_t size, int64_t *found) {
+    enum { STRIDE = 4096 };
+    int64_t control = -1, rotary = -1, lines = 0;
+    uint8_t high = 0;
+    for (int64_t start = 0; start < size; start += STRIDE) {
+        /* a stride at a time; the exact places only in a stride that has a control byte or a rotary hint */
+        int64_t stop = size - start > STRIDE ? start + STRIDE : size;
+        /* the pairs (byte, next byte) up to the last byte but one: a rotary word has two bytes at least */
+        int64_t pair_stop = stop < size - 1 ? stop : size - 1;
+        struct stride seen = pair_stop - start == STRIDE ? scan_stride(data + start, data + start + 1, STRIDE)
+                                                         : scan_stride(data + start, data + start + 1, pair_stop - start);
+        if (pair_stop < stop) {                         /* the file's last byte */
+            uint8_t last = data[size - 1];
+            seen.lines += last == '\n';
+            seen.high |= last;
+            seen.control |= (uint8_t)(last < 32 ? last != '\t' && last != '\n' && last != '\r' : last == 127);
+        }
+        lines += seen.lines;
+        high |= seen.high;
+        for (int64_t k = start; seen.control && control < 0 && k < stop; k++) {
+            uint8_t byte = data[k];
+            if (byte < 32 ? byte != '\t' && byte != '\n' && byte != '\r' : byte == 127) control = k;
+        }
+        for (int64_t k = start; seen.rotary && rotary < 0 && k < pair_stop; k++) {
+            if ((uint8_t)((data[k] | 0x20) - 'a') >= 3) continue;
+            int64_t at = k + 1;
+            while (at < size && (data[at] == ' ' || data[at] == '\t')) at++;
+            if (at < size && data[at] == '-') at++;
+            while (at < size && (data[at] == ' ' || data[at] == '\t')) at++;
+            if (at < size && (data[at] == '.' || (data[at] >= '0' && data[at] <= '9'))) rotary = k;
+        }
+    }
+    found[0] = control;
+    found[1] = high >> 7;
+    found[2] = lines;
+    found[3] = rotary;
+    return lines;
+}
+
+/* The offset just after the count-th LF of data[start:size] (count >= 1), or -1 - (the LFs there
+ * are) when it has fewer: where a block of `count` whole lines from `start` ends. */
+int64_t prs3_line_end(const uint8_t *data, int64_t size, int64_t start, int64_t count) {
+    enum { STRIDE = 4096 };
+    int64_t seen = 0, at = start < 0 ? 0 : start;
+    while (size - at >= STRIDE) {                       /* whole strides counted (a loop the compiler vectorizes) */
+        int64_t here = 0;
+        for (int64_t k = at; k < at + STRIDE; k++) here += data[k] == '\n';
+        if (seen + here >= count) break;                /* the count-th LF is in this stride */
+        seen += here;
+        at += STRIDE;
+    }
+    for (; at < size; at++) {
+        if (data[at] == '\n' && ++seen == count) return at + 1;
+    }
+    return -1 - seen;
+}

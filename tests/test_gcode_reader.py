@@ -621,3 +621,33 @@ def test_comment_lines_of_every_shape_read_in_bulk_as_line_by_line() -> None:
         (3, "pass 1"), (4, "tabbed"), (5, ""), (6, ""), (7, "a"), (7, "b"), (8, "a\tb"), (9, "Ø 6"), (10, "end"),
         (11, "a"), (11, "b"), (15, ";x")]
     assert (bulk.counts.comment_lines, bulk.counts.blank_lines, bulk.counts.comments) == (10, 4, 12)
+
+
+@pytest.mark.parametrize(("content", "message"), [
+    (b"G0 X0 Y0 Z0\nG1 A5 F100\n" + b"G0 X1\n" * 40 + b"G0 X1\x1a\n", "t.ngc:2: 5-axis program: rotary word 'A5'"),
+    (b"G0 X0 Y0 Z0\nG1 A5 F100\n" + b"G0 X1\n" * 40 + b"G0 X1\x1a\n", "t.ngc: not a G-code program: binary data "
+     "(byte 0x1a at offset 268)"),
+    (b"G0 X1\x1a\n" + b"G0 X1\n" * 40 + b"G1 A5\n", "t.ngc: not a G-code program: binary data (byte 0x1a at offset 5)"),
+    (b"G0 X0\nG1 X1 Y2\n" * 30 + b"B -.5\n" + b"G0 X1\n" * 40, "t.ngc:61: 5-axis program: rotary word 'B-.5'"),
+    (b"G0 X0 (\xc3\xa9) Y0 Z0\nG1 Z1\n" * 8 + b"G1 C 7\n", "t.ngc:17: 5-axis program: rotary word 'C7'"),
+    (b" \n\x0c\n" + b"\n" * 80, "t.ngc: not a G-code program: the file is empty"),
+    (b" \n\x0c\n" + b"\n" * 80 + b"G0 X1\n", "t.ngc: not a G-code program: binary data (byte 0x0c at offset 2)"),
+    (b"\n" * 80 + b"G0 X1\xe9\n", "t.ngc: not a G-code program: not UTF-8 text (byte 0xe9 at offset 85)"),
+    (b"\xef\xbb\xbf\n" + b"G0 X1\x1a\n", "t.ngc: starts with a UTF-8 byte-order mark, which LinuxCNC rejects "
+     "('Bad character')"),
+])
+def test_the_whole_file_is_checked_in_pieces_first_problem_first(tmp_path: Path, content: bytes, message: str) -> None:
+    """The checks before reading, file by pieces: blank, then the mark, then each piece's bytes (control,
+    UTF-8) and its rotary words, the piece nearest the start first: in pieces of 16 bytes (the first
+    case), a rotary word before a binary byte is reported first; in one piece (the second), the bytes."""
+    path = tmp_path / "t.ngc"
+    path.write_bytes(content)
+    whole = "offset 268" in message
+    with pytest.raises(InputError) as info:
+        list(GcodeStream(str(path), tolerance=TOL, piece_bytes=1 << 20 if whole else 16))
+    shown = str(info.value).replace(str(path), "t.ngc")
+    assert shown.split(" (A, B and C")[0] == message
+    if not whole and not content.startswith(b"G0 X0 Y0 Z0\nG1 A5"):       # the others: the same in one piece
+        with pytest.raises(InputError) as info:
+            list(GcodeStream(str(path), tolerance=TOL, piece_bytes=1 << 20))
+        assert str(info.value).replace(str(path), "t.ngc").split(" (A, B and C")[0] == message

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from prs3_post import fixed, native
 from prs3_post.fixed import ChoiceColumn, render_rows, scale_column
-from prs3_post.readers import apt, lexer
+from prs3_post.readers import apt, files, gcode, lexer
 
 ROOT = Path(__file__).resolve().parents[1]
 needs_native = pytest.mark.skipif(not native.available(), reason="the compiled line writer was not built here")
@@ -237,6 +237,28 @@ def test_compiled_lexer_never_writes_past_its_outputs() -> None:
     assert spans.tolist() == [[8, 8], [5, 6], [8, 8]]                    # written on the comment line only
 
 
+@needs_lexer
+@settings(max_examples=300, deadline=None)
+@given(pieces=st.lists(st.sampled_from([b"G1 X1", b"a", b"B", b"c ", b"C\t-", b" - ", b".", b"7", b"/", b"\n",
+                                        b"\t", b"(pass 1)", b"\x01", b"\x7f", b"\r", b"\x0c", b"\xc3\xa9", b"\xff",
+                                        b"a" * 4090]), max_size=40),
+       at=st.integers(0, 5000))
+@example(pieces=[b"x" * 4095, b"A", b"1"], at=0)
+@example(pieces=[b"x" * 4095, b"A", b" " * 4096, b"1"], at=0)
+def test_compiled_scan_finds_what_numpy_finds(pieces: list[bytes], at: int) -> None:
+    """prs3_scan_text against numpy (control bytes, bytes not ASCII, LFs, the first rotary hint), on
+    texts across its strides of 4096 bytes (a hint that straddles two, the last byte); and
+    prs3_line_end against the LFs numpy finds."""
+    data = b"".join(pieces)
+    assert native.scan_text(data) == gcode._scan_bytes_numpy(data)
+    ends = np.flatnonzero(np.frombuffer(data, dtype=np.uint8) == ord("\n")) + 1
+    start = min(at, len(data))
+    for count in (1, 2, 7):
+        after = ends[ends > start]
+        expected = int(after[count - 1]) if len(after) >= count else -1 - len(after)
+        assert native.line_end(data, start, count) == expected
+
+
 def test_numpy_lexes_where_it_is_turned_off(monkeypatch: pytest.MonkeyPatch) -> None:
     """``PRS3_POST_NATIVE=0``: no compiled lexer, and lex_column_block reads the same through numpy."""
     monkeypatch.setattr(native, "_lexer", None)
@@ -247,6 +269,14 @@ def test_numpy_lexes_where_it_is_turned_off(monkeypatch: pytest.MonkeyPatch) -> 
     assert values.view(np.uint64).tolist() == np.array([[1.0, 1.5], [np.nan, np.nan], [np.nan, -0.0]]).view(
         np.uint64).tolist()
     assert read.tolist() == [True, False, True] and ends.tolist() == [0, 8, 15, 19]
+    _, kinds, _, spans = lexer.lex_block_lines(b"G1 X1.5\n ( note )\nX-0", "GX")
+    assert kinds.tolist() == [1, 2, 1] and spans.tolist() == [[0, 0], [11, 15], [0, 0]]
+    monkeypatch.setattr(native, "_scan", None)
+    monkeypatch.setattr(native, "_line_end", None)
+    assert native.scan_text(b"A1") is None and native.line_end(b"\n", 0, 1) is None
+    assert gcode._scan_bytes(b"G0 X1\nA1\x01") == (8, False, 1, 6)
+    assert list(files.line_blocks([(0, b"a\nb\n"), (4, b"c\nd\ne\n")], 2)) == [(0, b"a\nb\n"), (4, b"c\nd\n"),
+                                                                             (8, b"e\n")]
 
 
 # ----------------------------------------------------------------------------- the compiled CL GOTO reader

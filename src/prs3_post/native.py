@@ -23,7 +23,8 @@ import numpy as np
 
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
-__all__ = ["ENV", "LIBRARY", "NATIVE_VERSION", "available", "lex_text", "library", "plain_gotos", "render_block"]
+__all__ = ["ENV", "LIBRARY", "NATIVE_VERSION", "available", "lex_text", "library", "line_end", "plain_gotos",
+           "render_block", "scan_text"]
 
 #: The compiled library, beside this module.
 LIBRARY = Path(__file__).with_name("_native.so")
@@ -37,6 +38,8 @@ _library: Any = None                                    # None: not loaded yet; 
 _function: Any = None                                   # prs3_render_lines, once loaded
 _lexer: Any = None                                      # prs3_lex_columns, once loaded (False: not there)
 _gotos: Any = None                                      # prs3_plain_gotos, once loaded (False: not there)
+_scan: Any = None                                       # prs3_scan_text, once loaded (False: not there)
+_line_end: Any = None                                   # prs3_line_end, once loaded (False: not there)
 
 
 def library() -> Any:
@@ -144,26 +147,63 @@ def render_block(columns: Sequence, present: BoolArray, lo: int, hi: int, separa
     return out[:size], lengths
 
 
-def lex_text(text: bytes, codes: bytes, width: int) -> tuple[FloatArray, np.ndarray, IntArray, IntArray] | None:
+def lex_text(text: bytes, codes: bytes, width: int, rows: int | None = None
+             ) -> tuple[FloatArray, np.ndarray, IntArray, IntArray] | None:
     """The lexer's fast path (:func:`prs3_post.readers.lexer._lex_text`) in C: values (N, width), the line
     kinds (N,) uint8 (``lexer.LINE_*``), the LF positions (N + 1,) and the comment spans (N, 2) (positions in
     ``text``, written on the comment lines only) of ``text`` (a LF, then lines each ending in LF), ``codes``
-    the lexer's byte-code table of ``width`` letters; None where the compiled lexer is not there or turned off."""
+    the lexer's byte-code table of ``width`` letters; None where the compiled lexer is not there or turned off.
+    ``rows``: a guess of N, to skip counting the lines (they are counted where the text has more)."""
     global _lexer
     if _lexer is None:
         _lexer = _bind("prs3_lex_columns", [_TEXT, _I64, _TEXT, _I64, _POINTER, _POINTER, _POINTER, _I64, _POINTER])
     if not _lexer:
         return None
-    rows = max(text.count(b"\n") - 1, 0)
-    values = np.zeros((rows, width))                     # every cell written (calloc: no pass over it)
-    kinds = np.zeros(rows, dtype=np.uint8)
-    ends = np.zeros(rows + 1, dtype=np.int64)
-    spans = np.zeros((rows, 2), dtype=np.int64)
-    done = _lexer(text, len(text), codes, width, _address(values), _address(kinds), _address(ends), rows,
+    lexed = _lex_into(text, codes, width, rows) if rows else None
+    lexed = lexed or _lex_into(text, codes, width, max(text.count(b"\n") - 1, 0))
+    if lexed is None:
+        raise AssertionError("prs3_lex_columns: -1 with room for every line (the text must start and end with a LF)")
+    return lexed
+
+
+def _lex_into(text: bytes, codes: bytes, width: int, room: int
+              ) -> tuple[FloatArray, np.ndarray, IntArray, IntArray] | None:
+    """prs3_lex_columns with room for ``room`` lines: its outputs cut to the lines read, None where more."""
+    values = np.zeros((room, width))                     # every cell written (calloc: no pass over it)
+    kinds = np.zeros(room, dtype=np.uint8)
+    ends = np.zeros(room + 1, dtype=np.int64)
+    spans = np.zeros((room, 2), dtype=np.int64)
+    done = _lexer(text, len(text), codes, width, _address(values), _address(kinds), _address(ends), room,
                   _address(spans))
-    if done != rows:                                     # rows is the count of its lines
-        raise AssertionError(f"prs3_lex_columns: {done} lines of {rows} (the text must start and end with a LF)")
-    return values, kinds, ends, spans
+    if done < 0:
+        return None
+    return values[:done], kinds[:done], ends[:done + 1], spans[:done]
+
+
+def scan_text(data: bytes) -> tuple[int, bool, int, int] | None:
+    """csrc/lex.c's prs3_scan_text of ``data``: (the offset of the first control byte or -1, a byte not
+    ASCII, the LFs, the offset of the first rotary hint or -1); None where the compiled library is not
+    there or turned off."""
+    global _scan
+    if _scan is None:
+        _scan = _bind("prs3_scan_text", [_TEXT, _I64, _POINTER])
+    if not _scan:
+        return None
+    found = np.zeros(4, dtype=np.int64)
+    _scan(data, len(data), _address(found))
+    control, high, lines, rotary = found.tolist()
+    return control, bool(high), lines, rotary
+
+
+def line_end(data: bytes, start: int, count: int) -> int | None:
+    """The offset just after the ``count``-th LF of ``data[start:]`` (``count`` ≥ 1), or ``-1 - (the LFs
+    there)`` where it has fewer (csrc/lex.c's prs3_line_end); None where the compiled library is not there."""
+    global _line_end
+    if _line_end is None:
+        _line_end = _bind("prs3_line_end", [_TEXT, _I64, _I64, _I64])
+    if not _line_end:
+        return None
+    return int(_line_end(data, len(data), start, count))
 
 
 def plain_gotos(text: bytes, codes: bytes, pair_bad: bytes, rows: int) -> tuple[FloatArray, BoolArray] | None:

@@ -195,16 +195,27 @@ def line_blocks(pieces: Iterable[tuple[int, bytes]], chunk_lines: int) -> Iterat
     for offset, piece in pieces:
         block = pending + piece if pending else piece
         at = offset - len(pending)
-        line_ends = np.flatnonzero(np.frombuffer(block, dtype=np.uint8) == _LF)
-        cut, used = 0, 0
-        while len(line_ends) - used >= chunk_lines:
-            stop = int(line_ends[used + chunk_lines - 1]) + 1
+        cut = 0
+        for stop in _block_ends(block, chunk_lines):
             yield at + cut, block[cut:stop]
-            used += chunk_lines
             cut = stop
         pending, pending_at = block[cut:], at + cut
     if pending:
         yield pending_at, pending
+
+
+def _block_ends(data: bytes, lines: int) -> Iterator[int]:
+    """The offsets just after every ``lines``-th LF of ``data``, in order (csrc/lex.c: no pass over every LF)."""
+    from prs3_post import native  # ctypes: loaded only where a file is read in blocks
+
+    stop = native.line_end(data, 0, lines)
+    if stop is None:                                     # numpy: every LF found
+        line_ends = np.flatnonzero(np.frombuffer(data, dtype=np.uint8) == _LF)
+        yield from (line_ends[lines - 1::lines] + 1).tolist()
+        return
+    while stop is not None and stop >= 0:
+        yield stop
+        stop = native.line_end(data, stop, lines)
 
 
 _LF = ord("\n")

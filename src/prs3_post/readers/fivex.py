@@ -75,7 +75,7 @@ from prs3_post.readers.gcode import (
     _Block,
     _Reader,
 )
-from prs3_post.readers.lexer import Word, code_name, quote, split_comments
+from prs3_post.readers.lexer import Word, code_name, decode, quote, split_comments
 from prs3_post.source import Orientation, SourceConvention
 from prs3_post.toolpath import EventKind, Toolpath
 from prs3_post.types import FloatArray
@@ -196,6 +196,11 @@ class FivexStream(GcodeStream):
         self.fivex: FivexFile | None = None
         self._percents = 0                             # '%' lines seen by _scan (the second closes the program)
         self._five: _FivexReader | None = None
+
+    def _check_piece(self, piece: bytes, offset: int, first: int) -> int:
+        """Every piece decoded and scanned (the 3+2 reader's shortcut looks for rotary words only)."""
+        self._scan(decode(piece, offset=offset), first)
+        return piece.count(b"\n")
 
     def _scan(self, text: str, first: int) -> None:
         """Refuse LinuxCNC expressions and parameters, naming the first line that has one (up to the

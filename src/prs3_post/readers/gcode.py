@@ -329,36 +329,45 @@ class GcodeStream:
         self._text = text
         self.summary: GcodeFile | None = None
 
-    def _texts(self) -> Iterator[str]:
-        """The file's text in pieces that end at line ends, checked as :func:`~prs3_post.readers.lexer.decode`
-        checks a whole file (empty, byte-order mark, then the first piece's error)."""
-        if self._text is not None:
-            try:
-                yield decode(self._text.encode("utf-8"))
-            except LexError as exc:
-                raise InputError(str(exc), path=self.path) from exc
-            return
-        for offset, piece in iter_pieces(self.path, "a G-code program", self.piece_bytes):
-            try:
-                yield decode(piece, offset=offset)
-            except LexError as exc:
-                raise InputError(str(exc), path=self.path) from exc
-
     def _check(self) -> None:
         """The whole file: text (empty, byte-order mark, control bytes, UTF-8, in that order) and no
-        rotary word (the first one's line is named)."""
-        if self._text is None:
-            blank, mark = True, False
-            for offset, piece in iter_pieces(self.path, "a G-code program", self.piece_bytes):
-                blank = blank and not piece.strip()
-                mark = mark or (offset == 0 and piece.startswith(b"\xef\xbb\xbf"))
-            for problem in ((EMPTY if blank else None), (BYTE_ORDER_MARK if mark else None)):
-                if problem:
-                    raise InputError(problem, path=self.path)
-        first = 1
-        for text in self._texts():
-            self._scan(text, first)
-            first += text.count("\n")
+        rotary word (the first one's line is named); the file's bytes read once, each piece checked by
+        :meth:`_check_piece`."""
+        if self._text is not None:
+            try:
+                text = decode(self._text.encode("utf-8"))
+            except LexError as exc:
+                raise InputError(str(exc), path=self.path) from exc
+            self._scan(text, 1)
+            return
+        blank, problem, first = True, None, 1
+        for offset, piece in iter_pieces(self.path, "a G-code program", self.piece_bytes):
+            if offset == 0 and piece.startswith(b"\xef\xbb\xbf"):   # (a file with a mark is not blank)
+                raise InputError(BYTE_ORDER_MARK, path=self.path)
+            blank = blank and not piece.strip()
+            if problem is None:
+                try:
+                    first += self._check_piece(piece, offset, first)
+                except LexError as exc:                  # reported unless the file is blank after all
+                    problem = exc
+            if problem is not None and not blank:
+                break
+        if blank:
+            raise InputError(EMPTY, path=self.path)
+        if problem is not None:
+            raise InputError(str(problem), path=self.path) from problem
+
+    def _check_piece(self, piece: bytes, offset: int, first: int) -> int:
+        """A piece of the file from ``offset`` (a line start), whose first line is line ``first``:
+        checked as :func:`~prs3_post.readers.lexer.decode` checks it, then :meth:`_scan`-ned; returns
+        its LFs. Bytes that are plain ASCII and have no rotary hint are not decoded, nor scanned by a
+        pattern (one pass in C where it was built, :func:`_scan_bytes`)."""
+        control, high, lines, rotary = _scan_bytes(piece)
+        if control >= 0 or high:
+            self._scan(decode(piece, offset=offset), first)     # raises LexError
+        elif rotary >= 0:
+            self._scan(piece.decode("ascii"), first)
+        return lines
 
     def _scan(self, text: str, first: int) -> None:
         """Refuse what no line of the file may have (here: a rotary word) in a piece whose first line is
@@ -407,16 +416,38 @@ _ROTARY_HINT_BYTES = re.compile(_ROTARY_HINT.pattern.encode("ascii"))
 
 
 def _rotary_hint(text: str) -> bool:
-    """``_ROTARY_HINT.search(text) is not None``, in bulk: only the letters followed by a byte that can
-    continue a rotary word (a letter in a comment's word, ``pass``, is followed by another letter)
-    are tried with the pattern."""
-    data = text.encode("utf-8") + b"\n"
+    """``_ROTARY_HINT.search(text) is not None``, in bulk (:func:`_rotary_at`)."""
+    return _rotary_at(text.encode("utf-8")) >= 0
+
+
+def _rotary_at(data: bytes) -> int:
+    """Where ``_ROTARY_HINT`` first matches in ``data`` (bytes of UTF-8 text), or -1: only the letters
+    followed by a byte that can continue a rotary word (a letter in a comment's word, ``pass``, is
+    followed by another letter) are tried with the pattern."""
+    data += b"\n"
     codes = np.frombuffer(data, dtype=np.uint8)
     lower = codes | np.uint8(0x20)                      # A B C a b c: a b c (and no other byte)
     lower -= np.uint8(ord("a"))
     letters = np.flatnonzero(lower < 3)
     maybe = letters[_ROTARY_NEXT[codes[letters + 1]]].tolist()
-    return any(_ROTARY_HINT_BYTES.match(data, at) is not None for at in maybe)
+    return next((at for at in maybe if _ROTARY_HINT_BYTES.match(data, at) is not None), -1)
+
+
+def _scan_bytes(data: bytes) -> tuple[int, bool, int, int]:
+    """(the offset of the first control byte :func:`~prs3_post.readers.lexer.decode` refuses or -1, a
+    byte not ASCII, the LFs, :func:`_rotary_at`): csrc/lex.c's one pass where it was built, else numpy."""
+    from prs3_post import native  # ctypes: loaded only where a file is read
+
+    scanned = native.scan_text(data)
+    return _scan_bytes_numpy(data) if scanned is None else scanned
+
+
+def _scan_bytes_numpy(data: bytes) -> tuple[int, bool, int, int]:
+    """:func:`_scan_bytes` with numpy (the reference of csrc/lex.c's prs3_scan_text)."""
+    codes = np.frombuffer(data, dtype=np.uint8)
+    control = np.flatnonzero(((codes < 32) & (codes != 9) & (codes != 10) & (codes != 13)) | (codes == 127))
+    return (int(control[0]) if len(control) else -1, bool((codes >= 128).any()), data.count(b"\n"),
+            _rotary_at(data))
 
 
 def _refuse_rotary(line: str, number: int, path: str) -> None:
@@ -560,6 +591,7 @@ class _Reader:
         self.source, self.plane_of = array("q"), array("q")
         self.rows = 0
         self.chunk_start = 0
+        self.block_lines: int | None = None            # lines of the last block read (read_block)
         self.events: list[Event] = []
         self.base = work_plane
         self.frames: list[WorkPlane] = [work_plane]     # index 0: the work plane; then one per G68.2
@@ -643,7 +675,8 @@ class _Reader:
             lines = [line.removesuffix("\r") for line in lines]
             self.lines(first, lines)
             return len(lines)
-        values, kinds, bounds, spans = lex_block_lines(data, _BULK_LETTERS)
+        values, kinds, bounds, spans = lex_block_lines(data, _BULK_LETTERS, rows=self.block_lines)
+        self.block_lines = len(kinds)                    # the next block's, but for the last one
         self.runs(first, values, kinds == LINE_READ, _BlockLines(data, bounds, offset, self.path, kinds, spans))
         return len(kinds)
 

@@ -318,11 +318,17 @@ def lex_column_block(block: bytes, letters: str) -> tuple[FloatArray, BoolArray,
     return values, kinds == LINE_READ, bounds
 
 
-def lex_block_lines(block: bytes, letters: str) -> tuple[FloatArray, npt.NDArray[np.uint8], IntArray, IntArray]:
+def lex_block_lines(block: bytes, letters: str, *, rows: int | None = None
+                    ) -> tuple[FloatArray, npt.NDArray[np.uint8], IntArray, IntArray]:
     """:func:`lex_column_block`, and what each line not read is: the usual comment line (one comment
     in parentheses, only spaces and tabs around it, its text printable ASCII: no parenthesis, no tab,
     nothing a careful reader would refuse) and where its text is, so that a reader makes its comment
     without decoding the line or matching it.
+
+    Parameters
+    ----------
+    block, letters : as :func:`lex_column_block`
+    rows : int, optional — a guess of the number of lines (the last block's), which spares counting them
 
     Returns
     -------
@@ -339,7 +345,8 @@ def lex_block_lines(block: bytes, letters: str) -> tuple[FloatArray, npt.NDArray
     if not block:
         return (np.full((0, len(letters)), np.nan), np.zeros(0, dtype=np.uint8), np.zeros(1, dtype=np.int64),
                 np.zeros((0, 2), dtype=np.int64))
-    values, kinds, ends, spans = _lex_lines(b"\n" + block + (b"" if block.endswith(b"\n") else b"\n"), letters)
+    values, kinds, ends, spans = _lex_lines(b"\n" + block + (b"" if block.endswith(b"\n") else b"\n"), letters,
+                                            rows)
     spans -= kinds[:, None] == LINE_COMMENT              # positions in the text (after its first LF): in the block
     return values, kinds, ends, spans
 
@@ -357,12 +364,13 @@ def _lex_text(text: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArra
     return values, kinds == LINE_READ, ends
 
 
-def _lex_lines(text: bytes, letters: str) -> tuple[FloatArray, npt.NDArray[np.uint8], IntArray, IntArray]:
+def _lex_lines(text: bytes, letters: str, rows: int | None = None
+               ) -> tuple[FloatArray, npt.NDArray[np.uint8], IntArray, IntArray]:
     """:func:`_lex_text` with the line kinds and the comment spans (positions in ``text``) of
     :func:`lex_block_lines`: csrc/lex.c where it was built, else numpy and :func:`_line_kinds_numpy`."""
     from prs3_post import native
 
-    lexed = native.lex_text(text, _tables(letters)[0], len(letters))
+    lexed = native.lex_text(text, _tables(letters)[0], len(letters), rows)
     if lexed is not None:
         return lexed
     values, read, ends = _lex_text_numpy(text, letters)
