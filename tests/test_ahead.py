@@ -21,7 +21,7 @@ import prs3_post.ahead as ahead
 import prs3_post.convert as convert
 from prs3_post.ahead import read_in_process
 from prs3_post.cli import main
-from prs3_post.errors import FeatureError, InputError, LimitError
+from prs3_post.errors import FeatureError, InputError, LimitError, Prs3Error
 from prs3_post.toolpath import Event, EventKind, Toolpath
 
 REPO = Path(__file__).resolve().parents[1]
@@ -99,8 +99,11 @@ def test_a_child_that_dies_is_an_error_not_an_end() -> None:
         os.kill(os.getpid(), signal.SIGKILL)
         yield 2
 
-    with pytest.raises(RuntimeError, match=r"^the reading process ended without finishing the input$"):
+    with pytest.raises(Prs3Error) as raised:
         list(read_in_process(dying(), final=lambda: None, on_final=lambda _: None))
+    assert str(raised.value) == ("the process reading the input was killed by signal 9 (SIGKILL, out of memory?) "
+                                 "before the end of the input: nothing was converted")
+    assert _children() == set()
 
 
 @pytest.mark.parametrize("error", [InputError("bad", path="a.ngc", line=3), InputError("bad", path="a.ngc"),

@@ -23,6 +23,8 @@ from collections.abc import Callable, Iterable, Iterator
 from queue import Full, Queue
 from typing import TYPE_CHECKING, Any, TypeVar
 
+from prs3_post.errors import Prs3Error
+
 if TYPE_CHECKING:
     from multiprocessing.connection import Connection
 
@@ -107,7 +109,7 @@ def read_in_process(items: Iterable[_Item], final: Callable[[], _Final],
     send.close()
     try:
         while True:
-            kind, value = pickle.loads(_receive(receive))
+            kind, value = pickle.loads(_receive(receive, pid))
             if kind == "item":
                 yield value
             elif kind == "error":
@@ -136,11 +138,19 @@ def _produce(items: Iterable[Any], final: Callable[[], Any], send: Connection) -
     send.close()
 
 
-def _receive(connection: Connection) -> bytes:
+def _receive(connection: Connection, pid: int) -> bytes:
     try:
         return connection.recv_bytes()
     except EOFError:                                   # the child died without a word (killed, out of memory)
-        raise RuntimeError("the reading process ended without finishing the input") from None
+        pass
+    _, status = os.waitpid(pid, 0)
+    if os.WIFSIGNALED(status):
+        number = os.WTERMSIG(status)
+        guess = ", out of memory?" if number == signal.SIGKILL else ""
+        how = f"was killed by signal {number} ({signal.Signals(number).name}{guess})"
+    else:
+        how = f"ended with status {os.waitstatus_to_exitcode(status)}"
+    raise Prs3Error(f"the process reading the input {how} before the end of the input: nothing was converted")
 
 
 def _reap(pid: int) -> None:
