@@ -12,7 +12,7 @@ import numpy as np
 
 from prs3_post.types import BoolArray, FloatArray
 
-__all__ = ["row_all", "row_any", "row_lengths"]
+__all__ = ["row_all", "row_any", "row_lengths", "same_rows"]
 
 
 def row_lengths(vectors: FloatArray) -> FloatArray:
@@ -48,3 +48,18 @@ def row_any(mask: BoolArray) -> BoolArray:
     for column in range(1, mask.shape[1]):
         out |= mask[:, column]
     return out
+
+
+def same_rows(values: FloatArray) -> bool:
+    """Whether every row of ``values`` (N, K) float64, K ≥ 1, has the bits of row 0 (True for N ≤ 1).
+
+    Bits, not ``==``: a row computed once and repeated is then each row's own result, NaN, inf and
+    the sign of a zero included. Each value is compared with the one K places before it, on one
+    flat view (a comparison of (N, K) with a broadcast row costs several times more).
+
+    >>> same_rows(np.array([[0.0, 1.0], [0.0, 1.0]])), same_rows(np.array([[0.0, 1.0], [-0.0, 1.0]]))
+    (True, False)
+    """
+    width = values.shape[1]
+    flat = np.ascontiguousarray(values, dtype=np.float64).view(np.int64).reshape(-1)
+    return bool((flat[width:] == flat[:-width]).all())

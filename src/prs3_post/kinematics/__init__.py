@@ -14,7 +14,7 @@ from prs3_post.errors import PoseError
 from prs3_post.kinematics.exact import IKResult, inverse_exact
 from prs3_post.kinematics.forward import FKResult, forward
 from prs3_post.machine import Geometry
-from prs3_post.rows import row_lengths
+from prs3_post.rows import row_lengths, same_rows
 from prs3_post.types import FloatArray, IntArray
 
 __all__ = ["FKResult", "IKModel", "IKResult", "PoseError", "forward", "inverse", "unit_axes"]
@@ -61,8 +61,7 @@ def unit_axes(
     """
     tip = np.asarray(tip, dtype=np.float64).reshape(-1, 3)
     axis = np.asarray(axis, dtype=np.float64).reshape(-1, 3)
-    # one axis on every row (3-axis, 3+2): its length and unit vector once; NaN rows are never equal
-    one = len(axis) > 1 and bool((axis == axis[0]).all())
+    one = len(axis) > 1 and same_rows(axis)         # one axis on every row (3-axis, 3+2): scaled once
     given = axis[:1] if one else axis
     length = row_lengths(given)
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -54,6 +54,7 @@ import numpy as np
 
 from prs3_post.kinematics.blocks import BLOCK_ROWS, run_blocks
 from prs3_post.machine import Geometry
+from prs3_post.rows import same_rows
 from prs3_post.types import BoolArray, FloatArray
 
 
@@ -170,7 +171,7 @@ def _inverse_block(geometry: Geometry, tip: FloatArray, axis: FloatArray, out: d
 def _block_axes(axis: FloatArray) -> FloatArray:
     """A block's axes (n, 3), or its first row alone (1, 3) when every row has that axis (the axis
     terms are then computed once and broadcast: :func:`_inverse_block`)."""
-    if len(axis) > 1 and (axis == axis[0]).all():     # NaN rows are never equal: row by row
+    if len(axis) > 1 and same_rows(axis):            # the same bits on every row: the same results
         return axis[:1]
     return axis
 
