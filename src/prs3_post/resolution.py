@@ -182,7 +182,8 @@ def printed_units(values: FloatArray, decimals: int) -> FloatArray:
     doubtful = np.abs(scaled - units) > 0.5 - 1e-6
     if scaled.size and np.max(np.abs(scaled)) > 2.0 ** 40:     # the scaling's error grows with the value
         doubtful |= np.abs(scaled) > 2.0 ** 40
-    for index in zip(*np.nonzero(doubtful), strict=True):
-        text = format_word("", float(values[index]), decimals)
-        units[index] = float(text.replace(".", ""))
+    flat_values, flat_units = values.reshape(-1), units.reshape(-1)   # units: a view (a new array)
+    for index in np.flatnonzero(doubtful).tolist():
+        text = format_word("", float(flat_values[index]), decimals)
+        flat_units[index] = float(text.replace(".", ""))
     return units + 0.0                                   # -0.0 → 0.0
