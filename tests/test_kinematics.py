@@ -17,7 +17,7 @@ from numpy.testing import assert_allclose
 from prs3_post.config import load_machine
 from prs3_post.errors import LimitError
 from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, _named_problems, forward, inverse, unit_axes
-from prs3_post.kinematics.exact import inverse_exact, platform_centre_xy, spherical_joints
+from prs3_post.kinematics.exact import AxisMemo, inverse_exact, platform_centre_xy, spherical_joints
 from prs3_post.kinematics.paper import inverse_paper, paper_joints
 from prs3_post.limits import check_limits, raise_first_violation
 
@@ -220,6 +220,37 @@ def test_constant_axis_block_gives_the_bits_of_row_by_row(n, tilt_deg, reachable
     assert (together.reachable == reachable).all()
     varying = inverse_exact(GEO, tip, mixed, block_rows=777)
     np.testing.assert_array_equal(varying.strokes[1::2], together.strokes[1::2])
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), sizes=st.lists(st.integers(1, 400), min_size=1, max_size=6),
+       tilts=st.lists(st.sampled_from([0.0, 12.5, 30.0, 44.0, 60.0, 100.0]), min_size=1, max_size=3))
+def test_axis_memo_gives_the_bits_of_each_chunk_alone(seed, sizes, tilts):
+    """Chunks of a 3+2 program (one axis each, axes coming back, one pointing down, a chunk of
+    varying axes among them) through one memo: every value is the chunk's own without the memo and
+    each row's alone, bit for bit; a memo made for another geometry changes nothing either."""
+    rng = np.random.default_rng(seed)
+    memo = AxisMemo(GEO)
+    head = dataclasses.replace(GEO, tool_length=GEO.tool_length + 25.0)
+    for k, n in enumerate(sizes):
+        tilt = tilts[k % len(tilts)]
+        tip, axis = poses_from(np.full(n, tilt), np.full(n, 75.0),
+                               np.column_stack([rng.uniform(-150, 150, n), rng.uniform(-150, 150, n),
+                                                rng.uniform(-750, -600, n)]))
+        if k == 2:                                     # one chunk whose axes vary
+            axis = poses_from(rng.uniform(0, 40, n), rng.uniform(0, 360, n), tip)[1]
+        geometry = head if k == 3 else GEO
+        with_memo = inverse(geometry, tip, axis, memo=memo)
+        alone = inverse(geometry, tip, axis)
+        rows = [inverse(geometry, tip[i:i + 1], axis[i:i + 1]) for i in range(0, n, max(1, n // 7))]
+        def bits(values):
+            return np.ascontiguousarray(values).view(np.uint8)
+
+        for name in ("stage", "strokes", "link_angle", "condition", "reachable"):
+            got = getattr(with_memo, name)
+            np.testing.assert_array_equal(bits(got), bits(getattr(alone, name)))
+            np.testing.assert_array_equal(bits(got[::max(1, n // 7)]),
+                                          bits(np.concatenate([getattr(r, name) for r in rows])))
 
 
 def scalar_paper_ik(tip, axis):

@@ -25,7 +25,7 @@ from prs3_post.dialect import Dialect
 from prs3_post.dynamics import DynamicsTally, joint_columns
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.errors import LimitError, PoseError, ReachError
-from prs3_post.kinematics import IKModel, IKResult, inverse, unit_axes
+from prs3_post.kinematics import AxisMemo, IKModel, IKResult, inverse, unit_axes
 from prs3_post.limits import LimitReport, check_limits, raise_first_violation, tilt_of
 from prs3_post.linearize import linearize, subdivide_axis_changes
 from prs3_post.machine import Machine
@@ -155,6 +155,7 @@ class PostStream:
         self._worst = np.zeros(4)                     # tip, angle before; tip, angle after
         self._failed = False
         self.dynamics = DynamicsTally(machine, clamp=clamp)   # feeds clamped to the axis speeds
+        self._axes = AxisMemo(machine.geometry)       # the IK's terms of each work plane's axis, made once
 
     def feed(self, chunk: Toolpath) -> PostResult:
         """The next chunk of the part-frame toolpath, post-processed (see :func:`post_process`).
@@ -181,14 +182,14 @@ class PostStream:
     def _post(self, chunk: Toolpath, *, scope: str) -> PostResult:
         machine, model = self.machine, self.model
         given = chunk if self.placed else _unit_path(place_toolpath(chunk, self.setup), self._input_rows)
-        ik, report = _check_end_points(machine, given, model, self._counted(scope, len(given)))
+        ik, report = _check_end_points(machine, given, model, self._counted(scope, len(given)), self._axes)
         linear = linearize(machine.geometry, given, tolerance=self.tolerance, angle_tolerance=self.angle_tolerance,
                            start=self._last_pose)
         path = linear.path
         subdivided = len(path)
         checked = path is given                       # nothing inserted: the rows checked above, as they are
         if not checked:
-            ik = inverse(machine.geometry, path.tip, path.axis, model=model)
+            ik = inverse(machine.geometry, path.tip, path.axis, model=model, memo=self._axes)
             _raise_unreachable(machine, path, ik, model, self._counted(scope, len(path)))
         stage = ik.stage if model is IKModel.EXACT else np.zeros_like(ik.stage)
         last_pose = self._last_pose
@@ -310,7 +311,8 @@ def program_text(machine: Machine, chunks: Iterable[Toolpath], setup: Setup, dia
     yield emitter.end()
 
 
-def _check_end_points(machine: Machine, path: Toolpath, model: IKModel, scope: str) -> tuple[IKResult, LimitReport]:
+def _check_end_points(machine: Machine, path: Toolpath, model: IKModel, scope: str,
+                      memo: AxisMemo | None = None) -> tuple[IKResult, LimitReport]:
     """Reach and limits of the rows as given, before their moves are subdivided.
 
     A move whose end point is out of reach or past the tilt limit (the singularity lies not far
@@ -330,7 +332,7 @@ def _check_end_points(machine: Machine, path: Toolpath, model: IKModel, scope: s
     ReachError, LimitError
         As :func:`post_process`.
     """
-    ik = inverse(machine.geometry, path.tip, path.axis, model=model)
+    ik = inverse(machine.geometry, path.tip, path.axis, model=model, memo=memo)
     _raise_unreachable(machine, path, ik, model, scope)
     report = check_limits(machine, ik, path.axis)
     raise_first_violation(report, path.describe, scope=scope)

@@ -11,13 +11,13 @@ import enum
 import numpy as np
 
 from prs3_post.errors import PoseError
-from prs3_post.kinematics.exact import IKResult, inverse_exact
+from prs3_post.kinematics.exact import AxisMemo, IKResult, inverse_exact
 from prs3_post.kinematics.forward import FKResult, forward
 from prs3_post.machine import Geometry
 from prs3_post.rows import row_lengths, same_rows
 from prs3_post.types import FloatArray, IntArray
 
-__all__ = ["FKResult", "IKModel", "IKResult", "PoseError", "forward", "inverse", "unit_axes"]
+__all__ = ["AxisMemo", "FKResult", "IKModel", "IKResult", "PoseError", "forward", "inverse", "unit_axes"]
 
 
 class IKModel(enum.Enum):
@@ -99,7 +99,8 @@ def _named_problems(tip: FloatArray, axis: FloatArray, row_name: str, row_number
     return unit
 
 
-def inverse(geometry: Geometry, tip: FloatArray, axis: FloatArray, *, model: IKModel = IKModel.EXACT) -> IKResult:
+def inverse(geometry: Geometry, tip: FloatArray, axis: FloatArray, *, model: IKModel = IKModel.EXACT,
+            memo: AxisMemo | None = None) -> IKResult:
     """Inverse kinematics of N poses with the chosen model.
 
     Parameters
@@ -108,6 +109,8 @@ def inverse(geometry: Geometry, tip: FloatArray, axis: FloatArray, *, model: IKM
     tip : (N, 3) float — mm, target tool tip, machine frame
     axis : (N, 3) float — unit tool axes (see :func:`unit_axes`)
     model : IKModel
+    memo : AxisMemo, optional — the exact model's terms of axes seen before, kept by the caller
+        (:class:`~prs3_post.kinematics.exact.AxisMemo`; no effect on the result)
 
     Returns
     -------
@@ -118,7 +121,7 @@ def inverse(geometry: Geometry, tip: FloatArray, axis: FloatArray, *, model: IKM
         from prs3_post.kinematics.paper import inverse_paper  # validation only: the other models never load it
 
         return inverse_paper(geometry, tip, axis)
-    result = inverse_exact(geometry, tip, axis)
+    result = inverse_exact(geometry, tip, axis, memo=memo)
     if model is IKModel.HEAD:
         with np.errstate(invalid="ignore"):
             on_target = np.hypot(result.stage[:, 0], result.stage[:, 1]) <= HEAD_XY_TOL

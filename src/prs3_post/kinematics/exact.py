@@ -141,31 +141,122 @@ def spherical_joints(geometry: Geometry, tip: FloatArray, axis: FloatArray) -> F
     return centre[:, None, :] + geometry.platform_radius * np.einsum("nij,kj->nki", rot, radial)
 
 
-def _inverse_block(geometry: Geometry, tip: FloatArray, axis: FloatArray, out: dict[str, FloatArray]) -> None:
+def _inverse_block(geometry: Geometry, tip: FloatArray, axis: FloatArray, out: dict[str, FloatArray],
+                   memo: AxisMemo | None = None) -> None:
     """Exact IK of one block, written into the ``out`` views (see :func:`inverse`).
 
-    A block whose rows all have one tool axis (a 3+2 program: one per work plane) computes the
-    terms of the axis alone once, for its first row, and broadcasts them where the tip comes in:
-    the same operations on the same operands as row by row, so the same bits.
+    A block whose rows all have one tool axis (a 3+2 program: one per work plane) takes the terms of
+    the axis alone (:class:`_OneAxis`) once, for its first row, or from ``memo`` when an earlier block
+    had that axis, and broadcasts them where the tip comes in: the same operations on the same
+    operands as row by row, so the same bits.
     """
     axis = _block_axes(axis)
-    rp, link, tool = geometry.platform_radius, geometry.link_length, geometry.tool_length
-    ax, ay, az = axis[:, 0], axis[:, 1], axis[:, 2]
+    if len(axis) == 1:
+        part = memo.terms(geometry, axis) if memo is not None else _one_axis(geometry, axis)
+        centre_z = tip[:, 2] + part.lift
+        out["stage"][:, 0] = tip[:, 0] - part.offset_x
+        out["stage"][:, 1] = tip[:, 1] - part.offset_y
+        for leg, leg_terms in enumerate(part.legs):
+            _write_leg(out, leg, centre_z, leg_terms)
+        out["condition"][:], out["reachable"][:] = part.condition, part.reachable
+        return
+    terms = _axis_terms(axis)
+    lift, offset_x, offset_y = _platform_offsets(geometry, axis, terms)
+    centre_z = tip[:, 2] + lift
+    out["stage"][:, 0] = tip[:, 0] - offset_x
+    out["stage"][:, 1] = tip[:, 1] - offset_y
+
+    def each_leg(leg: int, g: FloatArray, w: FloatArray, sin_t: FloatArray) -> None:
+        _write_leg(out, leg, centre_z, _leg_terms(geometry, g, w, sin_t))
+
+    out["condition"][:], out["reachable"][:] = _axis_block(geometry, axis, terms, each_leg)
+
+
+def _platform_offsets(geometry: Geometry, axis: FloatArray, terms: tuple[FloatArray, FloatArray, FloatArray]
+                      ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """What the axes (n, 3) put between the tip and the platform: TL·a_z (the centre's height over the
+    tip) and M_x − TL·a_x, M_y − TL·a_y (eq. (2): the stage is the target tip minus these), each (n,)."""
+    tool, rp = geometry.tool_length, geometry.platform_radius
     _, _, c3, s3 = _leg_constants(geometry)
-    terms = c, diff, cross = _axis_terms(axis)
-    centre_z = tip[:, 2] + tool * az
-    # eq. (2): parasitic centre; stage = target tip - head tip
+    c, diff, cross = terms
     half = -0.5 * rp * c
     mx = half * (c3 * diff + 2.0 * s3 * cross)
     my = half * (s3 * diff - 2.0 * c3 * cross)
-    out["stage"][:, 0] = tip[:, 0] - (mx - tool * ax)
-    out["stage"][:, 1] = tip[:, 1] - (my - tool * ay)
+    return tool * axis[:, 2], mx - tool * axis[:, 0], my - tool * axis[:, 1]
 
-    def leg_angles(leg: int, g: FloatArray, w: FloatArray, sin_t: FloatArray) -> None:
-        out["link_angle"][:, leg] = np.arccos(np.clip(w, -1.0, 1.0))  # clip: |w| > 1 rows are unreachable
-        out["strokes"][:, leg] = -(centre_z - rp * g) - link * sin_t
 
-    out["condition"][:], out["reachable"][:] = _axis_block(geometry, axis, terms, leg_angles)
+#: One leg's terms of the axis alone: r_p·(a·e_i), U·sin θ_i and θ_i, each (n,).
+LegTerms = tuple[FloatArray, FloatArray, FloatArray]
+
+
+def _leg_terms(geometry: Geometry, g: FloatArray, w: FloatArray, sin_t: FloatArray) -> LegTerms:
+    """A leg's :data:`LegTerms` from a·e_i, cos θ_i and sin θ_i (each (n,))."""
+    angle = np.arccos(np.clip(w, -1.0, 1.0))         # clip: |w| > 1 rows are unreachable
+    return geometry.platform_radius * g, geometry.link_length * sin_t, angle
+
+
+def _write_leg(out: dict[str, FloatArray], leg: int, centre_z: FloatArray, terms: LegTerms) -> None:
+    """Leg ``leg``'s link angle and stroke T_i = −(M_z − r_p a·e_i) − U sin θ_i into ``out``."""
+    drop, reach, angle = terms
+    out["link_angle"][:, leg] = angle
+    out["strokes"][:, leg] = -(centre_z - drop) - reach
+
+
+@dataclass(frozen=True, slots=True)
+class _OneAxis:
+    """Everything the IK of a block takes from its one tool axis, each (1,): TL·a_z, the stage offsets
+    (:func:`_platform_offsets`), each leg's :data:`LegTerms`, the condition number and reachability."""
+
+    lift: FloatArray
+    offset_x: FloatArray
+    offset_y: FloatArray
+    legs: tuple[LegTerms, ...]
+    condition: FloatArray
+    reachable: BoolArray
+
+
+def _one_axis(geometry: Geometry, axis: FloatArray) -> _OneAxis:
+    """The :class:`_OneAxis` of one unit axis (1, 3)."""
+    terms = _axis_terms(axis)
+    legs: list[LegTerms] = []
+
+    def each_leg(leg: int, g: FloatArray, w: FloatArray, sin_t: FloatArray) -> None:
+        legs.append(_leg_terms(geometry, g, w, sin_t))
+
+    condition, reachable = _axis_block(geometry, axis, terms, each_leg)
+    return _OneAxis(*_platform_offsets(geometry, axis, terms), legs=tuple(legs), condition=condition,
+                    reachable=reachable)
+
+
+class AxisMemo:
+    """The terms of the tool axis alone of the last few one-axis blocks, for a caller that makes many
+    blocks of one axis (the chunks of a 3+2 program, one axis per work plane: a
+    :class:`~prs3_post.pipeline.PostStream`), so that they are made once per axis, not once per chunk.
+
+    The kinematics keep no state: the caller owns the memo. An axis is looked up by its bits; a
+    geometry other than the memo's is computed and not kept. Safe on the IK's two threads (at worst
+    both make the same terms).
+    """
+
+    #: Axes kept (then the memo starts again: a 3+2 program has a few work planes).
+    SIZE = 16
+
+    def __init__(self, geometry: Geometry):
+        self.geometry = geometry
+        self._terms: dict[bytes, _OneAxis] = {}
+
+    def terms(self, geometry: Geometry, axis: FloatArray) -> _OneAxis:
+        """The :class:`_OneAxis` of ``axis`` (1, 3)."""
+        if geometry is not self.geometry:
+            return _one_axis(geometry, axis)
+        key = axis.tobytes()
+        found = self._terms.get(key)
+        if found is None:
+            found = _one_axis(geometry, axis)
+            if len(self._terms) >= self.SIZE:
+                self._terms.clear()
+            self._terms[key] = found
+        return found
 
 
 def _block_axes(axis: FloatArray) -> FloatArray:
@@ -263,6 +354,7 @@ def inverse_exact(
     *,
     block_rows: int = BLOCK_ROWS,
     workers: int | None = None,
+    memo: AxisMemo | None = None,
 ) -> IKResult:
     """Exact IK: target tips and unit axes → stage X, Y, strokes, link angles, condition numbers.
 
@@ -272,6 +364,7 @@ def inverse_exact(
     tip : (N, 3) float — mm, target tool tip in the machine frame (part-relative tip with the stage)
     axis : (N, 3) float — unit tool axes (tip → spindle), a_z > 0
     block_rows, workers : int — rows per cache-sized block and threads (no effect on the result)
+    memo : AxisMemo, optional — the terms of axes seen before, kept by the caller (no effect on the result)
 
     Returns
     -------
@@ -296,10 +389,11 @@ def inverse_exact(
     }
 
     def kernel(rows: slice) -> None:
-        _inverse_block(geometry, tip[rows], axis[rows], {k: v[rows] for k, v in out.items()})
+        _inverse_block(geometry, tip[rows], axis[rows], {k: v[rows] for k, v in out.items()}, memo)
 
     run_blocks(kernel, n, block_rows=block_rows, workers=workers)
     bad = ~out["reachable"]
-    for key in ("stage", "strokes", "link_angle", "condition"):
-        out[key][bad] = np.nan                         # never hand out values of a pose that can't exist
+    if bad.any():
+        for key in ("stage", "strokes", "link_angle", "condition"):
+            out[key][bad] = np.nan                     # never hand out values of a pose that can't exist
     return IKResult(**out)
