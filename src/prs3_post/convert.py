@@ -378,15 +378,19 @@ class _Run:
 
     def chunks(self) -> Iterator[Toolpath]:
         """The reader's chunks, checked as read, placed on the machine (unit axes: for the ``placed`` stream)."""
+        if self.forked:                                 # the checks and the placement there too, and the hash
+            yield from read_in_process(self._placed(), final=self._read_there, on_final=self._read)
+        elif default_workers() > 1 and self.fivex is None:   # (see _start)
+            yield from self._placed(read_ahead(self.reader))
+        else:
+            yield from self._placed()
+
+    def _placed(self, chunks: Iterable[Toolpath] | None = None) -> Iterator[Toolpath]:
+        """:meth:`chunks` of the reader's ``chunks`` (default: the reader itself)."""
         machine = self.settings.ik_machine
         last_axis: np.ndarray | None = None
-        chunks: Iterable[Toolpath] = self.reader
         fivex = self.fivex
-        if self.forked:                                 # the hash too: both read the file (30 MB: 40 ms)
-            chunks = read_in_process(self.reader, final=self._read_there, on_final=self._read)
-        elif default_workers() > 1 and fivex is None:   # (see _start)
-            chunks = read_ahead(self.reader)
-        for chunk in chunks:
+        for chunk in self.reader if chunks is None else chunks:
             if fivex is not None:
                 _refuse_tilt(machine, chunk, self)
                 if not self.rows:
