@@ -254,3 +254,65 @@ int64_t prs3_line_end(const uint8_t *data, int64_t size, int64_t start, int64_t 
     }
     return -1 - seen;
 }
+
+/* The 3+2 G-code reader's bulk step (prs3_post.readers.gcode._Reader.bulk; gcode._fill_moves_numpy is
+ * the reference), one pass over the lines of a run:
+ *   values (n, 6): the N G X Y Z F words of each line (NaN where absent), moves[k] 1 on the move lines
+ *   (the others, blank or comments, have no word); state[5]: the modal motion (NaN: none yet), the F
+ *   word (program units, NaN: none yet) and the position X Y Z (mm, NaN: unknown), updated to those
+ *   after the run; limits[3]: mm per program unit, the least and the most feed (mm/min); codes[2]: the
+ *   row kinds of a rapid and of a feed move; first: the line number of line 0.
+ * Writes, for the m move lines: tip (m, 3) (mm, each axis as written times the scale, else as
+ * before), kind (m), feed (m) (mm/min: the modal F times the scale; 0 for rapids), source (m) (line
+ * numbers); words[2]: the G0 and G1 words. Returns m, or -1 where any line needs the careful reader
+ * (a motion other than G0/G1 or none, F not > 0 or out of the limits, a feed move without F, a
+ * position not finite): then the outputs and state are not to be used. */
+int64_t prs3_fill_moves(const double *values, const uint8_t *moves, int64_t n, double *state, const double *limits,
+                        const int64_t *codes, int64_t first, double *tip, int64_t *kind, double *feed,
+                        int64_t *source, int64_t *words) {
+    double motion = state[0], word = state[1], x = state[2], y = state[3], z = state[4];
+    double scale = limits[0], least = limits[1], most = limits[2];
+    int64_t m = 0, rapids = 0, feeds = 0;
+    for (int64_t k = 0; k < n; k++) {
+        if (!moves[k]) continue;
+        const double *row = values + 6 * k;
+        double g = row[1], f = row[5];
+        if (!isnan(g)) {
+            motion = g;
+            rapids += g == 0.0;
+            feeds += g == 1.0;
+        }
+        if (!(motion == 0.0 || motion == 1.0)) return -1;
+        if (!isnan(f)) {
+            double mm = f * scale;
+            if (!(f > 0.0) || !(mm <= most) || !(mm >= least)) return -1;
+            word = f;
+        }
+        if (!isnan(row[2])) x = row[2] * scale;
+        if (!isnan(row[3])) y = row[3] * scale;
+        if (!isnan(row[4])) z = row[4] * scale;
+        if (!(isfinite(x) && isfinite(y) && isfinite(z))) return -1;
+        double *point = tip + 3 * m;
+        point[0] = x;
+        point[1] = y;
+        point[2] = z;
+        if (motion == 1.0) {
+            if (isnan(word)) return -1;
+            kind[m] = codes[1];
+            feed[m] = word * scale;
+        } else {
+            kind[m] = codes[0];
+            feed[m] = 0.0;
+        }
+        source[m] = first + k;
+        m++;
+    }
+    state[0] = motion;
+    state[1] = word;
+    state[2] = x;
+    state[3] = y;
+    state[4] = z;
+    words[0] = rapids;
+    words[1] = feeds;
+    return m;
+}

@@ -259,6 +259,41 @@ def test_compiled_scan_finds_what_numpy_finds(pieces: list[bytes], at: int) -> N
         assert native.line_end(data, start, count) == expected
 
 
+@needs_lexer
+@settings(max_examples=400, deadline=None)
+@given(rows=st.lists(st.tuples(st.booleans(), st.sampled_from([np.nan, np.nan, 0.0, 1.0, 2.0]),
+                               *[st.sampled_from([np.nan, np.nan, -0.0, 1.5, -2.25, 1e300]) for _ in range(3)],
+                               st.sampled_from([np.nan, np.nan, np.nan, 100.0, 0.0, -5.0, 1e-9, 1e9])),
+                     min_size=1, max_size=12),
+       state=st.tuples(st.sampled_from([np.nan, 0.0, 1.0]), st.sampled_from([np.nan, 300.0]),
+                       st.sampled_from([np.nan, 5.0]), st.sampled_from([np.nan, -1.0]), st.just(2.0)),
+       scale=st.sampled_from([1.0, 25.4, 1e300]))
+@example(rows=[(True, 1.0, 1.0, 2.0, 3.0, 100.0), (False, np.nan, np.nan, np.nan, np.nan, np.nan),
+               (True, np.nan, -0.0, np.nan, np.nan, np.nan), (True, 0.0, np.nan, 1.5, np.nan, np.nan)],
+         state=(np.nan, np.nan, np.nan, np.nan, np.nan), scale=25.4)
+def test_compiled_bulk_fill_is_numpys(rows: list[tuple[bool, float, float, float, float, float]],
+                                      state: tuple[float, ...], scale: float) -> None:
+    """prs3_fill_moves against the numpy bulk step: the same refusals (no motion or not G0/G1, F out of
+    its limits, a feed move without F, an unknown or infinite position) and else the same rows to the
+    bit, state after the run and G0/G1 words."""
+    moves = np.array([r[0] for r in rows])
+    values = np.array([[np.nan, *r[1:]] if r[0] else [np.nan] * 6 for r in rows])
+    start = np.array(state)
+    with np.errstate(over="ignore"):                                   # (1.5 × 1e300: inf, refused)
+        numpy_filled = gcode._fill_moves_numpy(values, moves, start, scale, 7)
+    filled = native.fill_moves(values, moves, start, np.array([scale, apt.MIN_FEED_MM_MIN, apt.MAX_FEED_MM_MIN]),
+                               gcode._FILL_CODES, 7)
+    assert np.array_equal(start, np.array(state), equal_nan=True)    # the caller's state untouched
+    if numpy_filled is None:
+        assert filled is False
+        return
+    assert isinstance(filled, tuple)
+    for got, expected in zip(filled, numpy_filled, strict=True):
+        assert got.dtype == expected.dtype and got.shape == expected.shape
+        assert got.view(np.uint64 if got.dtype == np.float64 else got.dtype).tolist() == expected.view(
+            np.uint64 if expected.dtype == np.float64 else expected.dtype).tolist()
+
+
 def test_numpy_lexes_where_it_is_turned_off(monkeypatch: pytest.MonkeyPatch) -> None:
     """``PRS3_POST_NATIVE=0``: no compiled lexer, and lex_column_block reads the same through numpy."""
     monkeypatch.setattr(native, "_lexer", None)

@@ -23,8 +23,8 @@ import numpy as np
 
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
-__all__ = ["ENV", "LIBRARY", "NATIVE_VERSION", "available", "lex_text", "library", "line_end", "plain_gotos",
-           "render_block", "scan_text"]
+__all__ = ["ENV", "LIBRARY", "NATIVE_VERSION", "FilledMoves", "available", "fill_moves", "lex_text", "library",
+           "line_end", "plain_gotos", "render_block", "scan_text"]
 
 #: The compiled library, beside this module.
 LIBRARY = Path(__file__).with_name("_native.so")
@@ -40,6 +40,7 @@ _lexer: Any = None                                      # prs3_lex_columns, once
 _gotos: Any = None                                      # prs3_plain_gotos, once loaded (False: not there)
 _scan: Any = None                                       # prs3_scan_text, once loaded (False: not there)
 _line_end: Any = None                                   # prs3_line_end, once loaded (False: not there)
+_fill: Any = None                                       # prs3_fill_moves, once loaded (False: not there)
 
 
 def library() -> Any:
@@ -204,6 +205,43 @@ def line_end(data: bytes, start: int, count: int) -> int | None:
     if not _line_end:
         return None
     return int(_line_end(data, len(data), start, count))
+
+
+#: What :func:`fill_moves` gives for the m moves of a run: tip (m, 3) mm, kind (m,), feed (m,) mm/min,
+#: source (m,) line numbers, the state after the run (5,) (motion, F word, X Y Z mm; NaN: none) and the
+#: G0 and G1 words counted (2,).
+FilledMoves = tuple[FloatArray, IntArray, FloatArray, IntArray, FloatArray, IntArray]
+
+
+def fill_moves(values: FloatArray, moves: np.ndarray, state: FloatArray, limits: FloatArray, codes: IntArray,
+               first: int) -> FilledMoves | bool:
+    """The 3+2 G-code reader's bulk step in C (csrc/lex.c's prs3_fill_moves; arguments there): the
+    :data:`FilledMoves` of a run, False where a line of it needs the careful reader, True where the
+    compiled library is not there or turned off (numpy then)."""
+    global _fill
+    if _fill is None:
+        _fill = _bind("prs3_fill_moves", [_POINTER, _POINTER, _I64, _POINTER, _POINTER, _POINTER, _I64, _POINTER,
+                                          _POINTER, _POINTER, _POINTER, _POINTER])
+    if not _fill:
+        return True
+    values = np.ascontiguousarray(values, dtype=np.float64)
+    moves = np.ascontiguousarray(moves, dtype=np.bool_)
+    n = len(values)
+    if values.shape != (n, 6) or moves.shape != (n,):
+        raise ValueError(f"fill_moves: values (n, 6) and moves (n,), got {values.shape} and {moves.shape}")
+    after = np.array(state, dtype=np.float64)           # a copy: the caller's state stays as it was
+    limits = np.ascontiguousarray(limits, dtype=np.float64)
+    codes = np.ascontiguousarray(codes, dtype=np.int64)
+    tip = np.zeros((n, 3))
+    kind = np.zeros(n, dtype=np.int64)
+    feed = np.zeros(n)
+    source = np.zeros(n, dtype=np.int64)
+    words = np.zeros(2, dtype=np.int64)
+    m = _fill(_address(values), _address(moves), n, _address(after), _address(limits), _address(codes), first,
+              _address(tip), _address(kind), _address(feed), _address(source), _address(words))
+    if m < 0:
+        return False
+    return tip[:m], kind[:m], feed[:m], source[:m], after, words
 
 
 def plain_gotos(text: bytes, codes: bytes, pair_bad: bytes, rows: int) -> tuple[FloatArray, BoolArray] | None:

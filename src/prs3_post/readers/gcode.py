@@ -72,7 +72,7 @@ from array import array
 from collections import Counter
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import overload
+from typing import TYPE_CHECKING, overload
 
 import numpy as np
 
@@ -101,6 +101,9 @@ from prs3_post.tolerances import MAX_SPINDLE_RPM
 from prs3_post.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath
 from prs3_post.types import BoolArray, FloatArray, IntArray
 from prs3_post.workplane import WorkPlane, euler_zxz_deg
+
+if TYPE_CHECKING:
+    from prs3_post import native
 
 __all__ = [
     "CHUNK_LINES", "PECK_GAP_MM", "GcodeCounts", "GcodeCycle", "GcodeFile", "GcodePlane", "GcodeStream",
@@ -707,21 +710,14 @@ class _Reader:
         if (self.end_line is not None or self.percent >= 2 or self.cycle is not None or not self.absolute
                 or self.inverse_time or not self.tilt_ready or self.pending_p3 is not None or self.start_pending):
             return False
-        others = np.flatnonzero(~moves)
-        values = values[moves]
-        g, axes, feed = values[:, 1], values[:, 2:5] * self.scale, values[:, 5]
-        start = math.nan if self.motion is None else self.motion
-        motion = forward_fill(np.concatenate([[start], g]))[1:]
-        given_feed = forward_fill(np.concatenate([[math.nan if self.feed_word is None else self.feed_word], feed]))[1:]
-        position = forward_fill(np.vstack([self.position, axes]))[1:]
-        feeding = motion == 1.0
-        has_f = ~np.isnan(feed)
-        if (((motion != 0.0) & (motion != 1.0)).any() or not (feed[has_f] > 0).all()
-                or not (feed[has_f] * self.scale <= MAX_FEED_MM_MIN).all()   # the careful reader words it
-                or not (feed[has_f] * self.scale >= MIN_FEED_MM_MIN).all()
-                or np.isnan(given_feed[feeding]).any() or not np.isfinite(position).all()):
+        state = np.array([math.nan if self.motion is None else self.motion,
+                          math.nan if self.feed_word is None else self.feed_word, *self.position])
+        filled = _fill_moves(values, moves, state, self.scale, first)
+        if filled is None:
             return False
-        k = len(values)
+        tip, kind, feed, source, state, words = filled
+        others = np.flatnonzero(~moves)
+        k = len(tip)
         known = lines.quiet_comments(others) if len(others) and isinstance(lines, _BlockLines) else None
         if known is not None:                            # the usual comment lines and blank ones, known
             before = self.rows - self.chunk_start + np.cumsum(moves)[others]
@@ -729,9 +725,9 @@ class _Reader:
             self.comments += len(comments)
             self.comment_lines += len(comments)
             self.blank_lines += len(others) - len(comments)
-            kind = EventKind.COMMENT
-            self.events += [Event(row, kind, 0.0, text) for row, text in zip(before[comment].tolist(), comments,
-                                                                               strict=True)]
+            event = EventKind.COMMENT
+            self.events += [Event(row, event, 0.0, text) for row, text in zip(before[comment].tolist(), comments,
+                                                                                strict=True)]
         elif len(others):                                # the comments, each before the next move's row
             before = self.rows - self.chunk_start + np.cumsum(moves)[others]
             one_comment = _ONE_COMMENT.fullmatch
@@ -746,18 +742,17 @@ class _Reader:
                 for text in texts:
                     self.comments += 1
                     self.events.append(Event(before=row, kind=EventKind.COMMENT, text=text.strip()))
-        self.add_rows(position, np.where(feeding, _FEED, _RAPID), np.where(feeding, given_feed * self.scale, 0.0),
-                      first + np.flatnonzero(moves))
-        self.motion = float(motion[-1])
-        self.feed_word = None if np.isnan(given_feed[-1]) else float(given_feed[-1])
+        self.add_rows(tip, kind, feed, source)
+        motion, feed_word = state[:2].tolist()
+        self.motion = motion
+        self.feed_word = None if math.isnan(feed_word) else feed_word
         self.moves += k
         self.records += k
         self.code_seen = True
-        codes = g[~np.isnan(g)]
-        if len(codes):
-            rapids = int((codes == 0.0).sum())
+        rapids, feeds = words.tolist()
+        if rapids or feeds:
             self.by_word["G0"] += rapids
-            self.by_word["G1"] += len(codes) - rapids
+            self.by_word["G1"] += feeds
         return True
 
     def take(self) -> Toolpath:
@@ -1329,6 +1324,46 @@ class _Reader:
         cycle.holes += 1
         self.cycle_holes += 1
         self.cycle_rows += len(rows)
+
+
+_FILL_CODES = np.array([_RAPID, _FEED], dtype=np.int64)
+
+
+def _fill_moves(values: FloatArray, moves: BoolArray, state: FloatArray, scale: float,
+                first: int) -> native.FilledMoves | None:
+    """The rows of a run of bulk lines (:meth:`_Reader.bulk`), its state after them and its G0 and G1
+    words (:data:`~prs3_post.native.FilledMoves`); None where a line needs the careful reader. In C
+    (csrc/lex.c's prs3_fill_moves) where it was built, else :func:`_fill_moves_numpy`: the same."""
+    from prs3_post import native  # ctypes: loaded only where lines are read in bulk
+
+    limits = np.array([scale, MIN_FEED_MM_MIN, MAX_FEED_MM_MIN])
+    filled = native.fill_moves(values, moves, state, limits, _FILL_CODES, first)
+    if filled is True:
+        return _fill_moves_numpy(values, moves, state, scale, first)
+    return filled or None
+
+
+def _fill_moves_numpy(values: FloatArray, moves: BoolArray, state: FloatArray, scale: float,
+                      first: int) -> native.FilledMoves | None:
+    """:func:`_fill_moves` with numpy (the reference of prs3_fill_moves): each move's modal motion, F and
+    position filled down the run from ``state`` (motion, F word, X Y Z mm; NaN where none)."""
+    values = values[moves]
+    g, axes, feed = values[:, 1], values[:, 2:5] * scale, values[:, 5]
+    motion = forward_fill(np.concatenate([state[:1], g]))[1:]
+    given_feed = forward_fill(np.concatenate([state[1:2], feed]))[1:]
+    position = forward_fill(np.vstack([state[2:], axes]))[1:]
+    feeding = motion == 1.0
+    has_f = ~np.isnan(feed)
+    if (((motion != 0.0) & (motion != 1.0)).any() or not (feed[has_f] > 0).all()
+            or not (feed[has_f] * scale <= MAX_FEED_MM_MIN).all()   # the careful reader words it
+            or not (feed[has_f] * scale >= MIN_FEED_MM_MIN).all()
+            or np.isnan(given_feed[feeding]).any() or not np.isfinite(position).all()):
+        return None
+    after = np.concatenate([motion[-1:], given_feed[-1:], position[-1]]) if len(values) else np.array(state)
+    codes = g[~np.isnan(g)]
+    rapids = int((codes == 0.0).sum())
+    return (position, np.where(feeding, _FEED, _RAPID).astype(np.int64), np.where(feeding, given_feed * scale, 0.0),
+            first + np.flatnonzero(moves), after, np.array([rapids, len(codes) - rapids], dtype=np.int64))
 
 
 #: What each value word is for, for the message about a word no code on its line uses.
