@@ -10,6 +10,7 @@
  * Plain C with no Python API: ctypes releases the GIL for the call, so a second thread can
  * format one chunk while the first reads and solves the next.
  */
+#include <math.h>
 #include <stdint.h>
 #include <string.h>
 
@@ -91,6 +92,28 @@ static const uint64_t POWERS[20] = {
     100000000000000ULL, 1000000000000000ULL, 10000000000000000ULL, 100000000000000000ULL,
     1000000000000000000ULL, 10000000000000000000ULL};
 
+/* value (the printed digits without the point) with d digits after the point: at most 21 bytes */
+static inline uint8_t *number(uint8_t *at, int64_t value, int d) {
+    uint64_t magnitude;
+    if (value < 0) {
+        *at++ = '-';
+        magnitude = (uint64_t)0 - (uint64_t)value;
+    } else {
+        magnitude = (uint64_t)value;
+    }
+    uint64_t whole = divide_power(magnitude, d);
+    uint64_t fraction = magnitude - whole * POWERS[d];
+    int count = count_digits(whole);
+    digits(whole, at, at + count);
+    at += count;
+    if (d > 0) {
+        *at++ = '.';
+        digits(fraction, at, at + d);
+        at += d;
+    }
+    return at;
+}
+
 /* Returns the bytes written, or -1 when out (capacity bytes) would overflow (nothing is promised
  * about out then). kind[c]: 0 a number (value = printed digits, decimals[c] after the point, text
  * first_text[c] its prefix), 1 a choice (value = k, text first_text[c] + k). Text t is
@@ -138,29 +161,122 @@ int64_t prs3_render_lines(int64_t columns, int64_t rows, const int64_t *const *v
                 next++;
                 continue;
             }
-            uint64_t magnitude;
-            if (value < 0) {
-                *at++ = '-';
-                magnitude = (uint64_t)0 - (uint64_t)value;
-            } else {
-                magnitude = (uint64_t)value;
-            }
-            int d = decimals[c];
-            uint64_t whole = divide_power(magnitude, d);
-            uint64_t fraction = magnitude - whole * POWERS[d];
-            int count = count_digits(whole);
-            digits(whole, at, at + count);
-            at += count;
-            if (d > 0) {
-                *at++ = '.';
-                digits(fraction, at, at + d);
-                at += d;
-            }
+            at = number(at, value, decimals[c]);
         }
         if (limit - at < ending_length) return -1;
         memcpy(at, ending, (size_t)ending_length);
         at += ending_length;
         lengths[r] = at - line;
     }
+    return at - out;
+}
+
+/* |value·10^d| at or above 2^52 (and nan, inf) is not written from integers (prs3_post.fixed._EXACT_LIMIT). */
+static const double EXACT_LIMIT = 4503599627370496.0;
+static const double SCALES[16] = {1e0, 1e1, 1e2,  1e3,  1e4,  1e5,  1e6,  1e7,
+                                  1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15};
+enum { MAX_AXES = 8 };
+
+/* numpy's rint(y) for |y| < 2^52 (round to nearest, ties to even) without a libm call: y ± 2^52 has
+ * no bits after the point, so that addition rounds y exactly as rint does (the compiler does not
+ * reassociate floating point without -ffast-math, which csrc is never built with). */
+static inline double nearest_integer(double y) {
+    return y >= 0 ? (y + EXACT_LIMIT) - EXACT_LIMIT : (y - EXACT_LIMIT) + EXACT_LIMIT;
+}
+
+/* The bytes a motion line needs at most (checked before each row; prs3_post.native.emit_rows gives out
+ * this much a row): every text (the prefixes, G0 and G1, F), and for each number a separator, a sign,
+ * 19 digits and a point (ROOM_PER_NUMBER), and the ending. */
+enum { ROOM_PER_NUMBER = 24 };
+static int64_t row_room(int64_t axes, const int64_t *text_start, int64_t ending_length) {
+    return text_start[axes + 3] + ROOM_PER_NUMBER * (axes + 1) + ending_length;
+}
+
+/* The motion lines of rows of a program (prs3_post.emit.gcode.ProgramEmitter), scaled, decided and
+ * written in one pass; the numpy way (scale_column, _words_present, render_rows) makes the same bytes.
+ *
+ * Axis j's value on row r is axis_values[j][r * axis_stride[j]], printed with `decimals` digits after
+ * the point as the integer rint(value·10^decimals) (prs3_post.fixed.scale_column). An axis word is
+ * written where that integer differs from the row before's, on row 0 where first_present[j], and on
+ * every row of restate_row[] (increasing). The motion word (texts axes: G0 for kind 0, axes + 1: G1
+ * for kind 1) is written on every line, or with modal_motion only where the kind differs from the
+ * row before's (previous_kind for row 0, -1: unknown), on a restate row, or on a line without axis
+ * word. F (text axes + 2) and feed[r] with feed_decimals go on kind-1 rows. Text t is
+ * text_bytes[text_start[t]:text_start[t + 1]] (t < axes: the axis letters). Before row r come the
+ * lines insert_bytes[insert_start[i]:insert_start[i + 1]] of each i with insert_row[i] == r
+ * (increasing, < rows). starts[r]: where row r's inserted lines (then its line) begin, starts[rows]
+ * the end; lengths[r]: row r's line with its ending.
+ *
+ * Returns the bytes written; -1 when out (capacity bytes) would overflow; -2 - r where a value of
+ * row r cannot be printed from an exact integer (|value·10^d| >= 2^52, not finite, or within 2^-40
+ * plus |value·10^d|·2^-49 of a half-integer: a superset of the rows scale_column formats one by one
+ * with Python): nothing is promised about out then, the caller writes these rows the numpy way. */
+int64_t prs3_emit_rows(int64_t rows, int64_t axes, const double *const *axis_values, const int64_t *axis_stride,
+                       int32_t decimals, const uint8_t *first_present, const int64_t *kind, int64_t previous_kind,
+                       int64_t restates, const int64_t *restate_row, int32_t modal_motion, const int64_t *feed,
+                       int32_t feed_decimals, const int64_t *text_start, const uint8_t *text_bytes,
+                       uint8_t separator, const uint8_t *ending, int64_t ending_length, int64_t inserts,
+                       const int64_t *insert_row, const int64_t *insert_start, const uint8_t *insert_bytes,
+                       uint8_t *out, int64_t capacity, int64_t *starts, int64_t *lengths) {
+    if (axes < 0 || axes > MAX_AXES || decimals < 0 || decimals > 15 || feed_decimals < 0 || feed_decimals > 15)
+        return -1;
+    const double scale = SCALES[decimals];
+    const int64_t room = row_room(axes, text_start, ending_length);
+    uint8_t *at = out;
+    uint8_t *const limit = out + capacity;
+    int64_t last[MAX_AXES] = {0}, scaled[MAX_AXES];
+    int on[MAX_AXES];
+    int64_t next_restate = 0, next_insert = 0, previous = previous_kind;
+    for (int64_t r = 0; r < rows; r++) {
+        starts[r] = at - out;
+        while (next_insert < inserts && insert_row[next_insert] == r) {
+            int64_t size = insert_start[next_insert + 1] - insert_start[next_insert];
+            if (limit - at < size) return -1;
+            memcpy(at, insert_bytes + insert_start[next_insert], (size_t)size);
+            at += size;
+            next_insert++;
+        }
+        int restate = next_restate < restates && restate_row[next_restate] == r;
+        next_restate += restate;
+        int any = 0;
+        for (int64_t j = 0; j < axes; j++) {
+            double y = axis_values[j][r * axis_stride[j]] * scale;      /* as numpy: one rounding */
+            double size = fabs(y);
+            if (!(size < EXACT_LIMIT)) return -2 - r;
+            double whole = nearest_integer(y);
+            if (fabs(y - whole) >= 0.5 - (size * 0x1p-49 + 0x1p-40)) return -2 - r;   /* near a tie */
+            scaled[j] = (int64_t)whole;
+            on[j] = restate || (r == 0 ? first_present[j] != 0 : scaled[j] != last[j]);
+            any |= on[j];
+            last[j] = scaled[j];
+        }
+        int64_t k = kind[r];
+        int motion = !modal_motion || restate || k != previous || !any;
+        previous = k;
+        if (limit - at < room) return -1;
+        uint8_t *const line = at;
+        int first = 1;
+        if (motion) {
+            int64_t t = axes + (k == 1);
+            at = copy(at, text_bytes + text_start[t], text_start[t + 1] - text_start[t]);
+            first = 0;
+        }
+        for (int64_t j = 0; j < axes; j++) {
+            if (!on[j]) continue;
+            if (!first) *at++ = separator;
+            first = 0;
+            at = copy(at, text_bytes + text_start[j], text_start[j + 1] - text_start[j]);
+            at = number(at, scaled[j], decimals);
+        }
+        if (k == 1) {
+            if (!first) *at++ = separator;
+            at = copy(at, text_bytes + text_start[axes + 2], text_start[axes + 3] - text_start[axes + 2]);
+            at = number(at, feed[r], feed_decimals);
+        }
+        memcpy(at, ending, (size_t)ending_length);
+        at += ending_length;
+        lengths[r] = at - line;
+    }
+    starts[rows] = at - out;
     return at - out;
 }

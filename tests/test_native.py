@@ -4,6 +4,7 @@ prs3_post.native, against numpy's, and their build hook."""
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import os
 import shutil
 import subprocess
@@ -16,8 +17,13 @@ from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from prs3_post import fixed, native
+from prs3_post.config import load_dialect
+from prs3_post.emit import emit_program
+from prs3_post.emit import gcode as emit_gcode
+from prs3_post.errors import LimitError
 from prs3_post.fixed import ChoiceColumn, render_rows, scale_column
 from prs3_post.readers import apt, files, gcode, lexer
+from prs3_post.toolpath import Event, EventKind, JointProgram
 
 ROOT = Path(__file__).resolve().parents[1]
 needs_native = pytest.mark.skipif(not native.available(), reason="the compiled line writer was not built here")
@@ -90,6 +96,93 @@ def test_a_library_of_another_version_is_not_used(tmp_path: Path, monkeypatch: p
     assert native.library() is None and not native.available()
     buffer, _ = render_rows([(b"X", scale_column(np.array([-2.5]), 3))], np.ones((1, 1), dtype=bool))
     assert buffer.tobytes() == b"X-2.500\n"
+
+
+# ----------------------------------------------------------------------------- the compiled emitter
+
+needs_emitter = pytest.mark.skipif(not native.available(), reason="the compiled emitter was not built here")
+#: Comment texts: the usual ones (put in by C), and ones that need sanitizing, wrapping, an active word
+#: made inert, trailing spaces dropped, upper case (fanuc).
+_COMMENTS = ["pass 1", "pass 2 of 9", "", "  ", "trailing  ", "MSG, stop", "msg x", "a(b)", "26.6°", "tab\there",
+             "x" * 300, "word " * 70, "semi;colon", "100%"]
+
+
+@st.composite
+def _joint_programs(draw: st.DrawFn) -> JointProgram:
+    """Rows that repeat values (words left out) or round to the same text, near ties at the printed
+    decimals (x.xxxx5: formatted one by one), values too large for exact integers, tiny negatives
+    (-0.0000), both kinds, and every kind of event on any row (and after the last)."""
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    n = draw(st.integers(0, 40))
+    values = np.round(rng.uniform(-300, 300, (n, 5)), rng.integers(0, 6))
+    pick = rng.random((n, 5))
+    values[pick < 0.2] = values[np.maximum(np.arange(n) - 1, 0)][pick < 0.2]      # the row before's
+    odd = draw(st.booleans())                       # else every row is the compiled writer's
+    ties = np.round(rng.uniform(-300, 300, (n, 5)), 3) + rng.choice([0.00005, -0.00005, 0.0005], (n, 5))  # near
+    values[(0.2 <= pick) & (pick < 0.25)] = (ties if odd else np.zeros_like(ties))[(0.2 <= pick) & (pick < 0.25)]
+    values[(0.3 <= pick) & (pick < 0.32)] = 0.00005 * rng.integers(-3, 4) if odd else 0.0     # ties, -0.0000
+    values[(0.25 <= pick) & (pick < 0.28)] = rng.uniform(0, 1) * 10.0 ** rng.integers(8, 16 if odd else 10)
+    values[(0.28 <= pick) & (pick < 0.3)] = -1e-9
+    inverse_time = rng.uniform(0.5, 50.0, n)
+    inverse_time[rng.random(n) < (0.05 if odd else 0)] = 1e13                     # an F too large for integers
+    kinds = ["comment"] * 6 + ["stop", "optional_stop", "tool_change", "dwell", "coolant_off", "spindle_off"]
+    events = [Event(int(rng.integers(0, n + 1)), EventKind(draw(st.sampled_from(kinds))), 2.0,
+                    draw(st.sampled_from(_COMMENTS))) for _ in range(draw(st.integers(0, 15)))]
+    return JointProgram(kind=rng.integers(0, 2, n), stage=values[:, :2], strokes=values[:, 2:],
+                        inverse_time=inverse_time, source=np.arange(n), events=tuple(events))
+
+
+@needs_emitter
+@settings(max_examples=150, deadline=None)
+@given(program=_joint_programs(), dialect_name=st.sampled_from(["linuxcnc", "fanuc"]),
+       modal_motion=st.booleans(), crlf=st.booleans(), length=st.sampled_from([3, 4, 15]),
+       limit=st.sampled_from([60, 256]), chunk_rows=st.sampled_from([1, 3, 65536]), stage=st.booleans())
+def test_compiled_emitter_writes_numpys_program(program: JointProgram, dialect_name: str, modal_motion: bool,
+                                                crlf: bool, length: int, limit: int, chunk_rows: int,
+                                                stage: bool) -> None:
+    """prs3_emit_rows (scaling, the words left out, G0/G1, F, the comments between the rows, in one
+    pass) against the numpy way (PRS3_POST_NATIVE=0's), over every chunking: the same program, or the
+    same error."""
+    dialect = load_dialect(dialect_name)
+    dialect = dataclasses.replace(dialect, modal_motion=modal_motion, line_ending="\r\n" if crlf else "\n",
+                                  max_line_length=limit,
+                                  decimals=dataclasses.replace(dialect.decimals, length=length))
+    if not stage:
+        program = dataclasses.replace(program, stage=np.zeros_like(program.stage))
+
+    def emitted() -> str:
+        try:
+            return emit_program(program, dialect, header=(("a", "b"),), stage=stage, line_numbers=False)
+        except LimitError as error:
+            return f"LimitError: {error}"
+
+    with pytest.MonkeyPatch.context() as patch:        # (a function-scoped fixture outlives one example)
+        patch.setattr(emit_gcode, "CHUNK_ROWS", chunk_rows)
+        compiled = emitted()
+        patch.setattr(native, "_emitter", False)
+        assert compiled == emitted()
+
+
+@needs_emitter
+def test_compiled_emitter_is_used_and_leaves_ties_to_numpy(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The usual rows are written by C; a row with a value near a tie at the printed decimals (0.00005
+    with 4: Python's correctly rounded formatting decides) or too large for exact integers is not."""
+    calls: list[bool] = []
+    compiled = native.emit_rows
+
+    def spy(*args: object, **kwargs: object) -> object:
+        result = compiled(*args, **kwargs)  # type: ignore[arg-type]
+        calls.append(result is not None)
+        return result
+
+    monkeypatch.setattr(native, "emit_rows", spy)
+    dialect = load_dialect("linuxcnc")
+    for x, used in [(1.25, True), (0.00005, False), (1e12, False), (-1e-9, True)]:
+        program = JointProgram(kind=np.array([0, 1]), stage=np.array([[x, 0.0], [x, 1.0]]),
+                               strokes=np.ones((2, 3)), inverse_time=np.array([0.0, 2.0]), source=np.arange(2))
+        text = emit_program(program, dialect)
+        assert calls[-1] is used
+        assert f"G0 X{fixed.fixed(x, 4)} Y0.0000 U1.0000 V1.0000 W1.0000\nG93\nG1 Y1.0000 F2.0000\n" in text
 
 
 # ----------------------------------------------------------------------------- the compiled lexer

@@ -23,8 +23,8 @@ import numpy as np
 
 from prs3_post.types import BoolArray, FloatArray, IntArray
 
-__all__ = ["ENV", "LIBRARY", "NATIVE_VERSION", "FilledMoves", "available", "fill_moves", "lex_text", "library",
-           "line_end", "plain_gotos", "render_block", "scan_text"]
+__all__ = ["ENV", "LIBRARY", "NATIVE_VERSION", "FilledMoves", "available", "emit_rows", "fill_moves", "lex_text",
+           "library", "line_end", "plain_gotos", "render_block", "scan_text"]
 
 #: The compiled library, beside this module.
 LIBRARY = Path(__file__).with_name("_native.so")
@@ -41,6 +41,7 @@ _gotos: Any = None                                      # prs3_plain_gotos, once
 _scan: Any = None                                       # prs3_scan_text, once loaded (False: not there)
 _line_end: Any = None                                   # prs3_line_end, once loaded (False: not there)
 _fill: Any = None                                       # prs3_fill_moves, once loaded (False: not there)
+_emitter: Any = None                                    # prs3_emit_rows, once loaded (False: not there)
 
 
 def library() -> Any:
@@ -146,6 +147,78 @@ def render_block(columns: Sequence, present: BoolArray, lo: int, hi: int, separa
     if size < 0:
         raise AssertionError("prs3_render_lines: the output buffer was too small")   # room is an upper bound
     return out[:size], lengths
+
+
+#: csrc/render.c's ROOM_PER_NUMBER: the bytes a number word takes at most with its separator.
+_ROOM_PER_NUMBER = 24
+
+
+def emit_rows(axis_values: Sequence[FloatArray], decimals: int, first_present: Sequence[bool], kind: IntArray,
+              previous_kind: int, restate: IntArray, modal_motion: bool, feed: IntArray, feed_decimals: int,
+              prefixes: Sequence[bytes], ending: bytes, inserts: Sequence[tuple[int, bytes]],
+              ) -> tuple[np.ndarray, IntArray, IntArray] | None:
+    """Motion lines of a program's rows in one pass (:meth:`prs3_post.emit.gcode.ProgramEmitter._emit_rows`
+    makes the same bytes with numpy): (their bytes, where each row's inserted lines then its line start
+    (M + 1,), each line's length with its ending (M,)); None where the compiled writer is not there or
+    turned off, or where a value is not written from an exact integer (near a tie, or too large).
+
+    Parameters
+    ----------
+    axis_values : sequence of (M,) float — each axis's values (any stride), written with ``decimals``
+        after the point where it differs (as printed) from the row before
+    first_present : sequence of bool — each axis word is written on row 0
+    kind : (M,) int — 0 rapid (G0), 1 feed (G1 ... F)
+    previous_kind : int — the row before's kind (-1: unknown, the motion word is written)
+    restate : (K,) int — rows (increasing) where every axis word and the motion word are written
+    modal_motion : bool — G0/G1 only where it changes (and on restate rows and lines without axis word)
+    feed : (M,) int — the F words' printed digits (used on feed rows), ``feed_decimals`` after the point
+    prefixes : sequence of bytes — each axis's word letter
+    ending : bytes — the line ending
+    inserts : sequence of (row, bytes) — lines put before their row (< M, increasing), e.g. comments
+    """
+    global _emitter
+    if _emitter is None:
+        _emitter = _bind("prs3_emit_rows", [
+            _I64, _I64, _POINTER, _POINTER, ctypes.c_int32, _POINTER, _POINTER, _I64, _I64, _POINTER, ctypes.c_int32,
+            _POINTER, ctypes.c_int32, _POINTER, _POINTER, ctypes.c_uint8, _TEXT, _I64, _I64, _POINTER, _POINTER,
+            _TEXT, _POINTER, _I64, _POINTER, _POINTER])
+    if not _emitter:
+        return None
+    m, axes = len(kind), len(axis_values)
+    kept = []                                            # the value columns, alive through the call
+    strides = np.zeros(axes, dtype=np.int64)
+    for j, values in enumerate(axis_values):
+        if values.dtype != np.float64 or values.strides[0] <= 0 or values.strides[0] % 8:
+            values = np.ascontiguousarray(values, dtype=np.float64)
+        kept.append(values)
+        strides[j] = values.strides[0] // 8 if m else 1
+    pointers = np.array([_address(a) for a in kept], dtype=np.uint64)
+    texts = [*prefixes, b"G0", b"G1", b"F"]
+    text_start = np.zeros(len(texts) + 1, dtype=np.int64)
+    np.cumsum([len(t) for t in texts], out=text_start[1:])
+    text_bytes = np.frombuffer(b"".join(texts) + b"\0", dtype=np.uint8)
+    first = np.array(first_present, dtype=np.uint8)
+    kinds = np.ascontiguousarray(kind, dtype=np.int64)
+    feeds = np.ascontiguousarray(feed, dtype=np.int64)
+    restate_rows = np.ascontiguousarray(restate, dtype=np.int64)
+    insert_row = np.array([row for row, _ in inserts] + [0], dtype=np.int64)
+    insert_start = np.zeros(len(inserts) + 1, dtype=np.int64)
+    np.cumsum([len(text) for _, text in inserts], out=insert_start[1:])
+    insert_bytes = b"".join(text for _, text in inserts)
+    capacity = int(insert_start[-1]) + m * (int(text_start[-1]) + _ROOM_PER_NUMBER * (axes + 1) + len(ending)) + 64
+    out = np.empty(capacity, dtype=np.uint8)
+    starts = np.zeros(m + 1, dtype=np.int64)
+    lengths = np.zeros(m, dtype=np.int64)
+    size = _emitter(m, axes, _address(pointers), _address(strides), decimals, _address(first), _address(kinds),
+                    previous_kind, len(restate_rows), _address(restate_rows), int(modal_motion), _address(feeds),
+                    feed_decimals, _address(text_start), _address(text_bytes), ord(" "), ending, len(ending),
+                    len(inserts), _address(insert_row), _address(insert_start), insert_bytes, _address(out), capacity,
+                    _address(starts), _address(lengths))
+    if size <= -2:
+        return None
+    if size < 0:
+        raise AssertionError("prs3_emit_rows: the output buffer was too small")   # capacity is an upper bound
+    return out[:size], starts, lengths
 
 
 def lex_text(text: bytes, codes: bytes, width: int, rows: int | None = None

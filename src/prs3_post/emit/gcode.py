@@ -6,7 +6,9 @@ puts them in ``header``). :class:`ProgramEmitter` makes the same text in pieces 
 :meth:`~ProgramEmitter.rows` for each chunk of rows (the modal state crosses chunk boundaries), then
 :meth:`~ProgramEmitter.end` — so that a program can be streamed; ``emit_program`` is the one-chunk case.
 The motion rows are formatted a whole column at a time (:mod:`prs3_post.fixed`): the words' integers
-decide which words a line repeats, and the lines are written as bytes for all rows together.
+decide which words a line repeats, and the lines are written as bytes for all rows together. Where
+the compiled library is built (:func:`prs3_post.native.emit_rows`), one pass in C does the same for
+the usual rows (not numbered, every number an exact integer) and puts the usual comments between them.
 
 What is written, in order::
 
@@ -492,34 +494,28 @@ class ProgramEmitter:
         if g93 is not None and g93 not in chunk.events:
             insort(breaks, g93)
         restate = chunk.restate[(chunk.restate >= lo) & (chunk.restate < hi)] - lo
-        axes = [(letter, scale_column(values[lo:hi], self.dialect.decimals.length)) for letter, values in chunk.axes]
-        present, motion = self._words_present(chunk, axes, lo, hi, restate)
-        # the block number of every row: the rows and the numbered blocks between them, in order
-        blocks_before = np.zeros(hi - lo, dtype=np.int64)
-        if out.numbered:                             # comments are not numbered
-            for b, count in chunk.numbered.items():
-                if lo <= b < hi:
-                    blocks_before[b - lo:] += count
-            if g93 is not None:
-                blocks_before[g93 - lo:] += 1
-        buffer, ends = self._render(chunk, axes, lo, hi, present, motion, np.arange(hi - lo) + blocks_before)
-        text = str(buffer.data, "ascii")             # every row's line; ASCII: a byte offset is a character's
-        long = np.flatnonzero(np.diff(ends) - len(self.dialect.line_ending) > out.limit)
-        too_long = int(long[0]) if long.size else hi - lo      # the first over-long line (hi - lo: none)
-        offsets = ends.tolist()
-        # the rows between two breaks need no more than a slice of text when they are not numbered and
-        # none is too long (the usual case); else _rows_text
-        plain_rows = not out.numbered and too_long == hi - lo
+        written = self._rows_in_one_pass(chunk, lo, hi, breaks, g93, restate)
+        if written is not None:
+            text, offsets, inserted = written
+            too_long, plain_rows = hi - lo, True
+        else:
+            text, offsets, too_long = self._rows_numpy(chunk, lo, hi, breaks, g93, restate)
+            inserted = set()
+            # the rows between two breaks need no more than a slice of text when they are not numbered and
+            # none is too long (the usual case); else _rows_text
+            plain_rows = not out.numbered and too_long == hi - lo
         plain_line = out.plain_line
         pieces = []
         previous = lo                                # the first row not yet written
         events = chunk.events
         for b in breaks:
+            if b in inserted:                        # its comments are in text already
+                continue
             if b > previous:                         # the rows up to this break, as one piece
                 if out.lines:
                     pieces.append(out.take())
                 pieces.append(text[offsets[previous - lo]:offsets[b - lo]] if plain_rows else
-                              self._rows_text(chunk, buffer, text, offsets, too_long, lo, previous - lo, b - lo))
+                              self._rows_text(chunk, text, offsets, too_long, lo, previous - lo, b - lo))
                 previous = b
             for event in events.get(b, ()):
                 if event.kind is EventKind.COMMENT and not out.lines:
@@ -534,10 +530,76 @@ class ProgramEmitter:
         if hi > previous:
             if out.lines:
                 pieces.append(out.take())
-            pieces.append(self._rows_text(chunk, buffer, text, offsets, too_long, lo, previous - lo, hi - lo))
+            pieces.append(self._rows_text(chunk, text, offsets, too_long, lo, previous - lo, hi - lo))
         pieces.append(out.take())
-        self._remember(chunk, axes, hi, kind)
+        self._remember(chunk, hi, kind)
         return pieces
+
+    def _rows_in_one_pass(self, chunk: _Chunk, lo: int, hi: int, breaks: list[int], g93: int | None,
+                          restate: IntArray) -> tuple[str, list[int], set[int]] | None:
+        """Rows ``lo:hi``'s lines by the compiled writer (:func:`prs3_post.native.emit_rows`), with the
+        usual comments (:meth:`_Blocks.plain_line`) of the breaks that have nothing else put in
+        between: (the text, where each row's comments then its line start (M + 1), the breaks put in).
+        None where it cannot: not built, numbered blocks, a feed or a number not written from an
+        exact integer, or an over-long line (:meth:`_rows_numpy` writes those, and finds the errors)."""
+        out, modal, dialect = self._out, self._modal, self.dialect
+        if out.numbered:
+            return None
+        feed = chunk.feed
+        first, last = np.searchsorted(feed.odd, [lo, hi])
+        if first != last:
+            return None
+        plain_line = out.plain_line
+        inserts: list[tuple[int, bytes]] = []
+        inserted = set()
+        events = chunk.events
+        for b in breaks:
+            if b >= hi or b == g93:
+                continue
+            lines = []
+            for event in events[b]:
+                line = plain_line(event.text) if event.kind is EventKind.COMMENT else None
+                if line is None:
+                    break
+                lines.append(line)
+            else:
+                inserts.append((b - lo, "".join(lines).encode("ascii")))
+                inserted.add(b)
+        from prs3_post import native  # ctypes: loaded only where lines are written
+
+        decimals = dialect.decimals.length
+        first_present = [word is None or (lo < hi and fixed(float(values[lo]), decimals) != word)
+                         for (_, values), word in zip(chunk.axes, modal.words, strict=True)]
+        written = native.emit_rows(
+            [values[lo:hi] for _, values in chunk.axes], decimals, first_present, chunk.program.kind[lo:hi],
+            -1 if modal.motion is None else modal.motion, restate, dialect.modal_motion, feed.scaled[lo:hi],
+            feed.decimals, [letter for letter, _ in chunk.axes], dialect.line_ending.encode("ascii"), inserts)
+        if written is None:
+            return None
+        buffer, starts, lengths = written
+        if lengths.size and int(lengths.max()) - len(dialect.line_ending) > out.limit:
+            return None
+        return str(buffer.data, "ascii"), starts.tolist(), inserted
+
+    def _rows_numpy(self, chunk: _Chunk, lo: int, hi: int, breaks: list[int], g93: int | None,
+                    restate: IntArray) -> tuple[str, list[int], int]:
+        """Rows ``lo:hi``'s lines, column by column with numpy: (the text, where each row's line starts
+        (M + 1), the first over-long line (M: none))."""
+        out = self._out
+        axes = [(letter, scale_column(values[lo:hi], self.dialect.decimals.length)) for letter, values in chunk.axes]
+        present, motion = self._words_present(chunk, axes, lo, hi, restate)
+        # the block number of every row: the rows and the numbered blocks between them, in order
+        blocks_before = np.zeros(hi - lo, dtype=np.int64)
+        if out.numbered:                             # comments are not numbered
+            for b, count in chunk.numbered.items():
+                if lo <= b < hi:
+                    blocks_before[b - lo:] += count
+            if g93 is not None:
+                blocks_before[g93 - lo:] += 1
+        buffer, ends = self._render(chunk, axes, lo, hi, present, motion, np.arange(hi - lo) + blocks_before)
+        text = str(buffer.data, "ascii")             # every row's line; ASCII: a byte offset is a character's
+        long = np.flatnonzero(np.diff(ends) - len(self.dialect.line_ending) > out.limit)
+        return text, ends.tolist(), int(long[0]) if long.size else hi - lo
 
     def _event(self, program: JointProgram, event: Event) -> None:
         out = self._out
@@ -599,27 +661,27 @@ class ProgramEmitter:
         return render_rows(columns, np.column_stack(shown) if m else np.zeros((0, len(columns)), dtype=bool),
                            ending=self.dialect.line_ending.encode("ascii"))
 
-    def _rows_text(self, chunk: _Chunk, buffer: np.ndarray, text: str, offsets: list[int], too_long: int, lo: int,
-                   a: int, b: int) -> str:
-        """Lines ``a:b`` of those rendered for the rows from ``lo`` on (``buffer`` and its ``text``,
-        ``offsets``: where each line starts), as text; the first over-long one (``too_long``) is a
-        LimitError naming its row."""
+    def _rows_text(self, chunk: _Chunk, text: str, offsets: list[int], too_long: int, lo: int, a: int,
+                   b: int) -> str:
+        """Lines ``a:b`` of those rendered for the rows from ``lo`` on (``text``, ``offsets``: where each
+        line starts), as text; the first over-long one (``too_long``) is a LimitError naming its row."""
         out = self._out
         if a <= too_long < b:
             ending = len(self.dialect.line_ending)
-            line = buffer[offsets[too_long]:offsets[too_long + 1] - ending].tobytes().decode("ascii")
+            line = text[offsets[too_long]:offsets[too_long + 1] - ending]
             out.check_length(line, self._where(chunk.program, lo + too_long))
         if out.numbered:
             out.number = int(out.numbers_after(b - a)[0])
         return text[offsets[a]:offsets[b]]
 
-    def _remember(self, chunk: _Chunk, axes: list[tuple[bytes, ScaledColumn]], hi: int, kind: IntArray) -> None:
-        """The modal state after the rows up to ``hi`` (``axes``, ``kind``: the last rows') and the
-        events after the last row."""
+    def _remember(self, chunk: _Chunk, hi: int, kind: IntArray) -> None:
+        """The modal state after the rows up to ``hi`` (``kind``: the last rows') and the events after
+        the last row."""
         modal = self._modal
         if len(kind):
-            for j, (_, column) in enumerate(axes):
-                modal.words[j] = column.text(len(column) - 1)
+            decimals = self.dialect.decimals.length
+            for j, (_, values) in enumerate(chunk.axes):
+                modal.words[j] = fixed(float(values[hi - 1]), decimals)    # as the line printed it
             modal.motion = int(kind[-1])
         if hi == len(chunk.program) and any(e.kind in _RESTATE for e in chunk.events.get(hi, ())):
             modal.restate()
