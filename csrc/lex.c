@@ -4,9 +4,10 @@
  * Reads the lines of the regular shape (the lexer module's docstring: upper-case words of the given
  * letters in their order, each at most once, separated by spaces, no comment) into one column per
  * letter, as the numpy path does, with the same rules (a test compares the two on generated blocks):
- * every byte allowed after the one before it (the table ALLOWED, the lexer's _AFTER), at most one
- * point in a word, a point with a digit beside it, at most 15 digits, letters in order. A line that
- * breaks a rule is not read: its row is all NaN and the Python lexer reads it (or says what is wrong).
+ * every byte allowed after the one before it (the lexer's _AFTER, followed word by word: read_line),
+ * at most one point in a word, a point with a digit beside it, at most 15 digits, letters in order. A
+ * line that breaks a rule is not read: its row is all NaN and the Python lexer reads it (or says
+ * what is wrong).
  *
  * Values are bit-identical to Python's float() of the text: decimal_value (decimal.h, shared with
  * goto.c) of the digits read here.
@@ -35,18 +36,6 @@ enum { OTHER, DIGIT, MINUS, DOT, SPACE, NEWLINE, LETTER };
 /* what a line is (the lexer's LINE_*): not read, read (the regular shape), one comment */
 enum { LINE_OTHER, LINE_READ, LINE_COMMENT };
 
-/* ALLOWED[before][kind]: may a byte of class `kind` follow one of class `before` (letters one class;
- * a line start is a NEWLINE). The lexer's _AFTER. */
-static const uint8_t ALLOWED[7][7] = {
-    /* before OTHER   */ {0, 0, 0, 0, 0, 0, 0},
-    /* before DIGIT   */ {0, 1, 0, 1, 1, 1, 1},
-    /* before MINUS   */ {0, 1, 0, 1, 0, 0, 0},
-    /* before DOT     */ {0, 1, 0, 0, 1, 1, 1},
-    /* before SPACE   */ {0, 0, 0, 0, 1, 1, 1},
-    /* before NEWLINE */ {0, 0, 0, 0, 1, 1, 1},
-    /* before LETTER  */ {0, 1, 1, 1, 0, 0, 0},
-};
-
 static void fill_nan(double *row, int64_t width) {
     for (int64_t c = 0; c < width; c++) row[c] = NAN;
 }
@@ -68,6 +57,49 @@ static int comment_line(const uint8_t *text, int64_t start, int64_t *span) {
     span[0] = first;
     span[1] = stop;
     return 1;
+}
+
+/* Line text[*pos] up to its LF, read word by word into row: 1 where it has the regular shape, else 0
+ * (*pos then at the byte where it stopped being regular: the line's LF or before it). The rules of
+ * the lexer's _AFTER (which byte may follow which), word by word: spaces between words (and at either
+ * end); a word is a letter of a column (the columns in order, each once), an optional '-', digits
+ * with at most one '.' among or after them (one digit at least, MAX_DIGITS at most), then a space,
+ * the LF or the next word's letter. */
+static inline int read_line(const uint8_t *text, int64_t *pos, const uint8_t *class_of, const uint8_t *codes,
+                            double *row) {
+    int64_t at = *pos;
+    int last_rank = -1;
+    for (;;) {
+        int kind = class_of[text[at]];
+        while (kind == SPACE) kind = class_of[text[++at]];
+        if (kind == NEWLINE) break;
+        if (kind != LETTER) goto irregular;
+        int rank = codes[text[at]] - LETTER;
+        if (rank <= last_rank) goto irregular;          /* repeated, or out of order */
+        last_rank = rank;
+        struct decimal number = DECIMAL_START;
+        kind = class_of[text[++at]];
+        if (kind == MINUS) {
+            number.minus = 1;
+            kind = class_of[text[++at]];
+        }
+        for (;;) {                                      /* digits, one point among or after them */
+            if (kind == DIGIT) {
+                if (!decimal_digit(&number, text[at])) goto irregular;
+            } else if (kind != DOT || !decimal_point(&number)) {
+                break;                                  /* (a second point: irregular below) */
+            }
+            kind = class_of[text[++at]];
+        }
+        /* a lonely point ("X.", "X-."), no number ("X", "X-"), or what may not follow a number */
+        if (number.digits == 0 || !(kind == SPACE || kind == NEWLINE || kind == LETTER)) goto irregular;
+        row[rank] = decimal_value(&number);
+    }
+    *pos = at;
+    return 1;
+irregular:
+    *pos = at;
+    return 0;
 }
 
 /* text[0:size]: a LF, then lines each ending in LF. codes: the lexer's 256-byte table of byte codes
@@ -95,58 +127,7 @@ int64_t prs3_lex_columns(const uint8_t *text, int64_t size, const uint8_t *codes
         double *row = values + n * width;
         int64_t line_start = pos;
         fill_nan(row, width);
-        int bad = 0;
-        int before = NEWLINE;
-        int rank = -1;                                  /* the word's column; -1: between words */
-        int last_rank = -1;
-        struct decimal number = DECIMAL_START;
-        for (;; pos++) {
-            uint8_t byte = text[pos];
-            int kind = class_of[byte];
-            if (!ALLOWED[before][kind]) {
-                bad = 1;
-                break;
-            }
-            before = kind;
-            if (kind == DIGIT) {
-                if (!decimal_digit(&number, byte)) {
-                    bad = 1;
-                    break;
-                }
-                continue;
-            }
-            if (kind == DOT) {
-                if (!decimal_point(&number)) {          /* a second point */
-                    bad = 1;
-                    break;
-                }
-                continue;
-            }
-            if (kind == MINUS) {                        /* only right after a letter (ALLOWED) */
-                number.minus = 1;
-                continue;
-            }
-            /* a space, a line end or a letter: the word before it (if any) ends */
-            if (rank >= 0) {
-                if (number.digits == 0) {               /* a lonely point ("X." and "X-." end here) */
-                    bad = 1;
-                    break;
-                }
-                row[rank] = decimal_value(&number);
-                rank = -1;
-            }
-            if (kind == LETTER) {
-                rank = codes[byte] - LETTER;
-                if (rank <= last_rank) {                /* repeated, or out of order */
-                    bad = 1;
-                    break;
-                }
-                last_rank = rank;
-                number = DECIMAL_START;
-            } else if (kind == NEWLINE) {
-                break;
-            }
-        }
+        int bad = !read_line(text, &pos, class_of, codes, row);
         uint8_t line_kind = LINE_READ;
         if (bad) {
             fill_nan(row, width);
