@@ -297,3 +297,24 @@ int64_t prs3_fill_moves(const double *values, const uint8_t *moves, int64_t n, d
     words[1] = feeds;
     return m;
 }
+
+/* The G-code readers' rows to the part frame (prs3_post.workplane.WorkPlane.to_part, the reference):
+ * out[i] = rotation @ rows[i] + origin, each element as rotate_rows makes it, ((x·r0 + y·r1) + z·r2)
+ * + o, rounded after each operation (no fused multiply-add: the same bits as numpy's, whatever
+ * the rows' count). rows and out (n, 3), rotation (3, 3) row-major, origin (3). Returns n. */
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#endif
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("fp-contract=off")))
+#endif
+int64_t prs3_rows_to_part(const double *rows, int64_t n, const double *rotation, const double *origin, double *out) {
+    for (int64_t i = 0; i < n; i++) {
+        double x = rows[3 * i], y = rows[3 * i + 1], z = rows[3 * i + 2];
+        for (int j = 0; j < 3; j++) {
+            const double *r = rotation + 3 * j;
+            out[3 * i + j] = ((x * r[0] + y * r[1]) + z * r[2]) + origin[j];
+        }
+    }
+    return n;
+}

@@ -24,6 +24,7 @@ from prs3_post.errors import LimitError
 from prs3_post.fixed import ChoiceColumn, render_rows, scale_column
 from prs3_post.readers import apt, files, gcode, lexer
 from prs3_post.toolpath import Event, EventKind, JointProgram
+from prs3_post.workplane import WorkPlane, euler_zxz_deg
 
 ROOT = Path(__file__).resolve().parents[1]
 needs_native = pytest.mark.skipif(not native.available(), reason="the compiled line writer was not built here")
@@ -387,6 +388,23 @@ def test_compiled_bulk_fill_is_numpys(rows: list[tuple[bool, float, float, float
             np.uint64 if expected.dtype == np.float64 else expected.dtype).tolist()
 
 
+@needs_lexer
+@settings(max_examples=200, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), rows=st.integers(0, 40), scale=st.sampled_from([1e-3, 1.0, 1e3, 1e300]))
+@example(seed=0, rows=1, scale=1.0)
+def test_compiled_rows_to_part_are_the_work_planes_bits(seed: int, rows: int, scale: float) -> None:
+    """prs3_rows_to_part against WorkPlane.to_part (rotate_rows, then the origin): the same bits for any
+    rows, planes and magnitudes (no fused multiply-add), N = 0 and 1 included."""
+    rng = np.random.default_rng(seed)
+    plane = WorkPlane(rng.uniform(-1e3, 1e3, 3), euler_zxz_deg(*rng.uniform(-180.0, 180.0, 3).tolist()))
+    local = rng.uniform(-1.0, 1.0, (rows, 3)) * scale
+    with np.errstate(over="ignore", invalid="ignore"):                # (1e300 rows: inf and nan, compared too)
+        expected = plane.to_part(local)
+    tip = native.rows_to_part(local, plane.rotation, plane.origin)
+    assert tip is not None and tip.shape == expected.shape == (rows, 3)
+    assert tip.view(np.uint64).tolist() == expected.view(np.uint64).tolist()
+
+
 def test_numpy_lexes_where_it_is_turned_off(monkeypatch: pytest.MonkeyPatch) -> None:
     """``PRS3_POST_NATIVE=0``: no compiled lexer, and lex_column_block reads the same through numpy."""
     monkeypatch.setattr(native, "_lexer", None)
@@ -401,7 +419,11 @@ def test_numpy_lexes_where_it_is_turned_off(monkeypatch: pytest.MonkeyPatch) -> 
     assert kinds.tolist() == [1, 2, 1] and spans.tolist() == [[0, 0], [11, 15], [0, 0]]
     monkeypatch.setattr(native, "_scan", None)
     monkeypatch.setattr(native, "_line_end", None)
+    monkeypatch.setattr(native, "_fill", None)
+    monkeypatch.setattr(native, "_to_part", None)
     assert native.scan_text(b"A1") is None and native.line_end(b"\n", 0, 1) is None
+    assert native.rows_to_part(np.zeros((1, 3)), np.eye(3), np.zeros(3)) is None
+    assert native.fill_moves(np.zeros((1, 6)), np.ones(1, dtype=bool), np.zeros(5), np.ones(3), np.zeros(2), 1) is True
     assert gcode._scan_bytes(b"G0 X1\nA1\x01") == (8, False, 1, 6)
     assert list(files.line_blocks([(0, b"a\nb\n"), (4, b"c\nd\ne\n")], 2)) == [(0, b"a\nb\n"), (4, b"c\nd\n"),
                                                                              (8, b"e\n")]

@@ -41,6 +41,7 @@ _gotos: Any = None                                      # prs3_plain_gotos, once
 _scan: Any = None                                       # prs3_scan_text, once loaded (False: not there)
 _line_end: Any = None                                   # prs3_line_end, once loaded (False: not there)
 _fill: Any = None                                       # prs3_fill_moves, once loaded (False: not there)
+_to_part: Any = None                                    # prs3_rows_to_part, once loaded (False: not there)
 _emitter: Any = None                                    # prs3_emit_rows, once loaded (False: not there)
 
 
@@ -315,6 +316,24 @@ def fill_moves(values: FloatArray, moves: np.ndarray, state: FloatArray, limits:
     if m < 0:
         return False
     return tip[:m], kind[:m], feed[:m], source[:m], after, words
+
+
+def rows_to_part(rows: FloatArray, rotation: FloatArray, origin: FloatArray) -> FloatArray | None:
+    """``WorkPlane(origin, rotation).to_part(rows)`` in C (csrc/lex.c's prs3_rows_to_part: the same bits),
+    (N, 3) mm; None where the compiled library is not there or turned off."""
+    global _to_part
+    if _to_part is None:
+        _to_part = _bind("prs3_rows_to_part", [_POINTER, _I64, _POINTER, _POINTER, _POINTER])
+    if not _to_part:
+        return None
+    rows = np.ascontiguousarray(rows, dtype=np.float64).reshape(-1, 3)
+    rotation = np.ascontiguousarray(rotation, dtype=np.float64)
+    origin = np.ascontiguousarray(origin, dtype=np.float64)
+    if rotation.shape != (3, 3) or origin.shape != (3,):
+        raise ValueError(f"rows_to_part: rotation (3, 3) and origin (3,), got {rotation.shape} and {origin.shape}")
+    out = np.zeros_like(rows)
+    _to_part(_address(rows), len(rows), _address(rotation), _address(origin), _address(out))
+    return out
 
 
 def plain_gotos(text: bytes, codes: bytes, pair_bad: bytes, rows: int) -> tuple[FloatArray, BoolArray] | None:

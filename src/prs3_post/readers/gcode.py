@@ -761,13 +761,13 @@ class _Reader:
         plane_of = np.frombuffer(self.plane_of, dtype=np.int64)
         if len(plane_of) and plane_of[0] == plane_of[-1] and (plane_of == plane_of[0]).all():   # one plane
             frame = self.frames[int(plane_of[0])]
-            tip, axis = frame.to_part(local), np.broadcast_to(frame.normal, local.shape)
+            tip, axis = _to_part(frame, local), np.broadcast_to(frame.normal, local.shape)
         else:
             tip = np.zeros_like(local)
             axis = np.zeros_like(local)
             for index in np.unique(plane_of):          # one transform per plane, all its rows at once
                 rows = plane_of == index
-                tip[rows] = self.frames[index].to_part(local[rows])
+                tip[rows] = _to_part(self.frames[index], local[rows])
                 axis[rows] = self.frames[index].normal
         events = tuple(self.events)                    # counted from the chunk's start already
         chunk = Toolpath(kind=np.frombuffer(self.kind, dtype=np.int64), tip=tip, axis=axis,
@@ -1327,6 +1327,14 @@ class _Reader:
 
 
 _FILL_CODES = np.array([_RAPID, _FEED], dtype=np.int64)
+
+
+def _to_part(frame: WorkPlane, local: FloatArray) -> FloatArray:
+    """``frame.to_part(local)``: (N, 3) mm, in C where it was built (the same bits, one pass)."""
+    from prs3_post import native  # ctypes: loaded only where rows are read
+
+    tip = native.rows_to_part(local, frame.rotation, frame.origin)
+    return frame.to_part(local) if tip is None else tip
 
 
 def _fill_moves(values: FloatArray, moves: BoolArray, state: FloatArray, scale: float,
