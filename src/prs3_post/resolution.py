@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from prs3_post.emit.gcode import format_word
-from prs3_post.rows import row_all, row_any, row_lengths
+from prs3_post.rows import row_all, row_any, row_lengths, same_rows
 from prs3_post.types import BoolArray, FloatArray
 
 __all__ = ["VisibleMoves", "length_resolution", "printed_units", "visible_moves"]
@@ -112,7 +112,6 @@ class VisibleMoves:
         head = len(head_joints)
         all_joints = np.concatenate([*head_joints, joints]) if head else joints
         keep = np.ones(head + n, dtype=bool)
-        all_tip = all_axis = np.zeros((head + n, 3))
         if distance:
             assert tip is not None and axis is not None   # distance
             all_tip = np.concatenate([*head_tip, tip]) if head else tip
@@ -120,6 +119,8 @@ class VisibleMoves:
             if head + n >= 2:
                 keep = _away_from_the_last_kept(all_tip, all_axis, 0.5 * length_resolution(self.decimals),
                                                 head=head)
+        else:
+            all_tip = all_axis = np.zeros((head + n, 3))
         every = bool(keep.all())                          # nothing near: no copy of the rows kept
         rows = np.arange(len(keep)) if every else np.flatnonzero(keep)
         last_near, last_kept = int(rows[-1]), bool(keep[-1])   # by the distance test (row 0 always is)
@@ -148,7 +149,9 @@ def _away_from_the_last_kept(tip: FloatArray, axis: FloatArray, near: float, *, 
     keep = np.ones(len(tip), dtype=bool)
     if head == 2:
         keep[1] = False
-    short = (row_lengths(np.diff(tip, axis=0)) < near) & row_all(np.diff(axis, axis=0) == 0)
+    short = row_lengths(np.diff(tip, axis=0)) < near
+    if not (same_rows(axis) and np.isfinite(axis[0]).all()):   # one finite axis: every step keeps it
+        short &= row_all(np.diff(axis, axis=0) == 0)
     rows = (np.flatnonzero(short) + 1).tolist()
     rows = [row for row in rows if row >= head]
     if not rows:
@@ -179,11 +182,13 @@ def printed_units(values: FloatArray, decimals: int) -> FloatArray:
     values = np.asarray(values, dtype=np.float64)
     scaled = values * 10.0 ** decimals
     units = np.rint(scaled)
-    doubtful = np.abs(scaled - units) > 0.5 - 1e-6
-    if scaled.size and np.max(np.abs(scaled)) > 2.0 ** 40:     # the scaling's error grows with the value
-        doubtful |= np.abs(scaled) > 2.0 ** 40
+    work = scaled - units                                # one scratch array: the distance to the unit,
+    doubtful = np.abs(work, out=work) > 0.5 - 1e-6       # then the size
+    if scaled.size and np.abs(scaled, out=work).max() > 2.0 ** 40:   # the scaling's error grows with the value
+        doubtful |= work > 2.0 ** 40
     flat_values, flat_units = values.reshape(-1), units.reshape(-1)   # units: a view (a new array)
     for index in np.flatnonzero(doubtful).tolist():
         text = format_word("", float(flat_values[index]), decimals)
         flat_units[index] = float(text.replace(".", ""))
-    return units + 0.0                                   # -0.0 → 0.0
+    units += 0.0                                         # -0.0 → 0.0
+    return units
