@@ -19,7 +19,7 @@ from prs3_post.errors import LimitError
 from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, _named_problems, forward, inverse, unit_axes
 from prs3_post.kinematics.exact import AxisMemo, inverse_exact, platform_centre_xy, spherical_joints
 from prs3_post.kinematics.paper import inverse_paper, paper_joints
-from prs3_post.limits import check_limits, raise_first_violation
+from prs3_post.limits import check_limits, raise_first_violation, tilt_of, within_limits
 
 MACHINE = load_machine("patel2020")
 GEO = MACHINE.geometry
@@ -524,6 +524,63 @@ def test_each_limit_fires_exactly_at_its_boundary(limit, broken):
     outside, _ = _report_with(**{key: beyond})
     assert inside.ok[0] and not outside.ok[0]
     assert [outside.names[c] for c in np.flatnonzero(outside.margin[0] < 0)] == broken
+
+
+@settings(max_examples=200, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), rows=st.integers(0, 30), one_axis=st.booleans(), column=st.integers(0, 9),
+       edge=st.sampled_from(["inside", "at the top", "past the top", "at the bottom", "past the bottom", "nan",
+                             "inf", "-inf"]))
+def test_within_limits_is_the_reports_ok_all(seed, rows, one_axis, column, edge):
+    """The stream's quick test (each limit's least and greatest value) says what the report's ok.all()
+    says: bounds at a column's extreme value or one float past it, NaN and ±inf among the values."""
+    rng = np.random.default_rng(seed)
+    tilt = np.full(rows, 20.0) if one_axis else rng.uniform(0.0, 40.0, rows)
+    tip, axis = poses_from(tilt, np.full(rows, 75.0) if one_axis else rng.uniform(0, 360, rows),
+                           np.column_stack([rng.uniform(-150, 150, rows), rng.uniform(-150, 150, rows),
+                                            rng.uniform(-750, -600, rows)]))
+    ik = inverse(GEO, tip, axis)
+    machine = MACHINE
+    if rows:
+        group = {0: slice(0, 3), 1: slice(3, 6)}.get(column // 3, slice(column, column + 1))   # one bound's columns
+        values = check_limits(MACHINE, ik, axis).value[:, group]
+        top, bottom = float(values.max()), float(values.min())
+        bound = {"at the top": (-1e9, top), "past the top": (-1e9, np.nextafter(top, -np.inf)),
+                 "at the bottom": (bottom, 1e9), "past the bottom": (np.nextafter(bottom, np.inf), 1e9)}.get(edge)
+        if bound is not None:
+            if column < 3:
+                machine = dataclasses.replace(machine, limits=dataclasses.replace(machine.limits, stroke=bound))
+            elif column < 6:
+                machine = dataclasses.replace(machine, limits=dataclasses.replace(machine.limits, link_angle=bound))
+            elif column in (6, 7) and edge.endswith("top"):
+                key = "max_tilt" if column == 6 else "max_condition"
+                machine = dataclasses.replace(machine, limits=dataclasses.replace(machine.limits, **{key: bound[1]}))
+            elif column >= 8:
+                key = "travel_x" if column == 8 else "travel_y"
+                machine = dataclasses.replace(machine, stage=dataclasses.replace(machine.stage, **{key: bound}))
+        if edge in ("nan", "inf", "-inf"):
+            name, index = [("strokes", column % 3), ("link_angle", column % 3), ("condition", None),
+                           ("stage", column % 2)][min(column // 3, 3)]
+            changed = getattr(ik, name).copy()
+            if index is None:
+                changed[int(rng.integers(rows))] = float(edge)
+            else:
+                changed[int(rng.integers(rows)), index] = float(edge)
+            ik = dataclasses.replace(ik, **{name: changed})
+    within = within_limits(machine, ik, axis)
+    with np.errstate(invalid="ignore"):                # inf − inf in the report's margins
+        assert within == bool(check_limits(machine, ik, axis).ok.all())
+    assert within == (edge in ("inside", "at the top", "at the bottom") or not rows
+                      or (edge.startswith("past") and column in (6, 7) and edge.endswith("bottom")))
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), rows=st.integers(2, 80), tilt=st.floats(0.0, 60.0))
+def test_tilt_of_one_axis_is_each_rows_own_bit_for_bit(seed, rows, tilt):
+    rng = np.random.default_rng(seed)
+    _, axis = poses_from(np.full(rows, tilt), np.full(rows, rng.uniform(0, 360)), np.zeros((rows, 3)))
+    alone = np.concatenate([tilt_of(axis[i:i + 1]) for i in range(rows)])
+    np.testing.assert_array_equal(tilt_of(axis).view(np.int64), alone.view(np.int64))
+    np.testing.assert_array_equal(tilt_of(axis).view(np.int64), np.arccos(np.clip(axis[:, 2], -1, 1)).view(np.int64))
 
 
 def test_limit_error_message_names_step_limit_value_and_margin():

@@ -13,6 +13,7 @@ from numpy.testing import assert_allclose
 from prs3_post.config import load_machine
 from prs3_post.errors import LimitError, ReachError
 from prs3_post.kinematics import forward, inverse
+from prs3_post.limits import check_limits
 from prs3_post.linearize import (
     CHECK_FRACTIONS,
     joint_path_deviation,
@@ -94,6 +95,27 @@ def test_post_process_places_the_part_and_matches_case_2a():
     assert_allclose(result.program.strokes[1], direct.strokes[0], atol=1e-9)
     assert_allclose(result.program.inverse_time, [0.0, 10.0], atol=1e-12)
     assert result.limits.ok.all()
+
+
+@pytest.mark.parametrize("turning", [False, True])
+def test_the_limit_report_is_made_when_read_and_is_that_of_the_rows_kept(turning):
+    """The stream checks the limits without a report; the result's report, made when first read (and
+    kept through dataclasses.replace), is check_limits of the rows kept, as the one made at once was:
+    the same names, bounds, values, margins and oks, bit for bit."""
+    b = np.array([0.9, 0.0, 2.0]) / np.linalg.norm([0.9, 0.0, 2.0]) if turning else A
+    steps = np.array([[-20.0, 0.0, 5.0], [-10.0, 0.0, 5.0], [-10.0, 0.00001, 5.0], [0.0, 5.0, 5.0]])
+    tips = np.array([18.9736, 221.2132, 290.5135]) + steps      # about the paper's point 2a
+    p = path(tips, [A, A, A, b], [MoveKind.RAPID, MoveKind.FEED, MoveKind.FEED, MoveKind.FEED], [0, 300, 300, 300])
+    result = post_process(MACHINE, p, ORIGIN, length_decimals=4)
+    assert 2 not in result.path.source.tolist()                  # the 0.00001 mm step goes
+    assert (len(result.path) > 3) == turning                     # the turn is subdivided, its rows checked after
+    report = result.limits
+    expected = check_limits(MACHINE, result.ik, result.path.axis)
+    assert report.names == expected.names and report.units == expected.units
+    for name in ("low", "high", "value", "margin", "ok"):
+        np.testing.assert_array_equal(getattr(report, name), getattr(expected, name))
+    assert report.ok.all() and result.limits is report
+    assert dataclasses.replace(result, program=result.program).limits is report
 
 
 def test_limit_error_names_the_step():

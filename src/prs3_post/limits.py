@@ -15,6 +15,7 @@ import numpy as np
 from prs3_post.errors import LimitError
 from prs3_post.kinematics import IKResult
 from prs3_post.machine import Machine
+from prs3_post.rows import same_rows
 from prs3_post.types import BoolArray, FloatArray
 
 
@@ -62,8 +63,30 @@ def _shown(value: float) -> str:
 
 
 def tilt_of(axis: FloatArray) -> FloatArray:
-    """(N,) float — rad, the angle of each unit tool axis (N, 3) from the machine's vertical."""
-    return np.arccos(np.clip(np.asarray(axis, dtype=np.float64).reshape(-1, 3)[:, 2], -1.0, 1.0))  # clip: rounding
+    """(N,) float — rad, the angle of each unit tool axis (N, 3) from the machine's vertical.
+
+    Rows that all have the bits of the first (a 3+2 chunk) take its angle, computed once.
+    """
+    axis = np.asarray(axis, dtype=np.float64).reshape(-1, 3)
+    if len(axis) > 1 and same_rows(axis):
+        return np.full(len(axis), tilt_of(axis[:1])[0])
+    return np.arccos(np.clip(axis[:, 2], -1.0, 1.0))   # clip: rounding
+
+
+def _columns(machine: Machine, ik: IKResult, axis: FloatArray) -> list[tuple[str, str, float, float, FloatArray]]:
+    """Each limit of ``machine``: its name, unit, bounds and the points' values (N,)."""
+    lim = machine.limits
+    columns: list[tuple[str, str, float, float, FloatArray]] = []
+    for leg in range(3):
+        columns.append((f"T{leg + 1} stroke", "mm", *lim.stroke, ik.strokes[:, leg]))
+    for leg in range(3):
+        columns.append((f"θ{leg + 1} link angle", "deg", *lim.link_angle, ik.link_angle[:, leg]))
+    columns.append(("tilt", "deg", -math.inf, lim.max_tilt, tilt_of(axis)))
+    columns.append(("condition number", "", -math.inf, lim.max_condition, ik.condition))
+    if machine.stage.present:
+        columns.append(("stage X", "mm", *machine.stage.travel_x, ik.stage[:, 0]))
+        columns.append(("stage Y", "mm", *machine.stage.travel_y, ik.stage[:, 1]))
+    return columns
 
 
 def check_limits(machine: Machine, ik: IKResult, axis: FloatArray) -> LimitReport:
@@ -79,17 +102,7 @@ def check_limits(machine: Machine, ik: IKResult, axis: FloatArray) -> LimitRepor
     -------
     LimitReport
     """
-    lim = machine.limits
-    columns: list[tuple[str, str, float, float, FloatArray]] = []
-    for leg in range(3):
-        columns.append((f"T{leg + 1} stroke", "mm", *lim.stroke, ik.strokes[:, leg]))
-    for leg in range(3):
-        columns.append((f"θ{leg + 1} link angle", "deg", *lim.link_angle, ik.link_angle[:, leg]))
-    columns.append(("tilt", "deg", -math.inf, lim.max_tilt, tilt_of(axis)))
-    columns.append(("condition number", "", -math.inf, lim.max_condition, ik.condition))
-    if machine.stage.present:
-        columns.append(("stage X", "mm", *machine.stage.travel_x, ik.stage[:, 0]))
-        columns.append(("stage Y", "mm", *machine.stage.travel_y, ik.stage[:, 1]))
+    columns = _columns(machine, ik, axis)
     low = np.array([c[2] for c in columns])
     high = np.array([c[3] for c in columns])
     # one limit per row of (L, N) arrays: each step runs along a contiguous row (the report holds
@@ -107,6 +120,23 @@ def check_limits(machine: Machine, ik: IKResult, axis: FloatArray) -> LimitRepor
         margin=margin.T,
         ok=ok,
     )
+
+
+def within_limits(machine: Machine, ik: IKResult, axis: FloatArray) -> bool:
+    """Whether every point is within every limit, ``check_limits(machine, ik, axis).ok.all()``, from
+    each limit's least and greatest value: no (N, L) report, no temporaries.
+
+    A point is ok exactly where each of its values is finite and low ≤ value ≤ high (a margin
+    min(value − low, high − value) of two floats is ≥ 0 exactly then; an infinite value makes one
+    term NaN or negative, NaN makes both NaN), and a NaN or infinite value makes its column's least
+    or greatest value NaN or infinite, so the extremes of the columns decide.
+    """
+    for _, _, low, high, values in _columns(machine, ik, axis):
+        if len(values):
+            least, most = float(values.min()), float(values.max())
+            if not (math.isfinite(least) and math.isfinite(most) and low <= least and most <= high):
+                return False
+    return True
 
 
 def raise_first_violation(report: LimitReport, describe_row: Callable[[int], str], *, scope: str = "in all") -> None:

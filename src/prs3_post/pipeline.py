@@ -16,8 +16,9 @@ for :func:`prs3_post.output.write_atomic`, whose bytes do not depend on the chun
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
@@ -26,7 +27,7 @@ from prs3_post.dynamics import DynamicsTally, joint_columns
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.errors import LimitError, PoseError, ReachError
 from prs3_post.kinematics import AxisMemo, IKModel, IKResult, inverse, unit_axes
-from prs3_post.limits import LimitReport, check_limits, raise_first_violation, tilt_of
+from prs3_post.limits import LimitReport, check_limits, raise_first_violation, tilt_of, within_limits
 from prs3_post.linearize import linearize, subdivide_axis_changes
 from prs3_post.machine import Machine
 from prs3_post.resolution import VisibleMoves
@@ -45,9 +46,14 @@ def place_toolpath(path: Toolpath, setup: Setup) -> Toolpath:
     return replace(path, tip=setup.points_to_machine(path.tip), axis=setup.axes_to_machine(path.axis))
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, init=False)
 class PostResult:
     """A checked program (or one chunk of it) and what it was made from.
+
+    ``PostResult(program, path, ik, limits, dynamics=None)``, where ``limits`` is the report or a
+    function that makes it: a stream knows every row is within every limit without one
+    (:func:`~prs3_post.limits.within_limits`), and a program's (L, N) values and margins are made
+    only if :attr:`limits` is read.
 
     Attributes
     ----------
@@ -61,8 +67,29 @@ class PostResult:
     program: JointProgram
     path: Toolpath
     ik: IKResult
-    limits: LimitReport
-    dynamics: DynamicsTally | None = None
+    _limits: LimitReport | Callable[[], LimitReport]
+    dynamics: DynamicsTally | None
+
+    def __init__(self, program: JointProgram, path: Toolpath, ik: IKResult,
+                 limits: LimitReport | Callable[[], LimitReport] | None = None,
+                 dynamics: DynamicsTally | None = None, *,
+                 _limits: LimitReport | Callable[[], LimitReport] | None = None):
+        # (``_limits``: the field's own name, as dataclasses.replace passes it)
+        report = limits if limits is not None else _limits
+        if report is None:
+            raise TypeError("PostResult: limits (a LimitReport, or a function that makes it) is required")
+        for name, value in (("program", program), ("path", path), ("ik", ik), ("_limits", report),
+                            ("dynamics", dynamics)):
+            object.__setattr__(self, name, value)
+
+    @property
+    def limits(self) -> LimitReport:
+        """LimitReport — per row (all ok), made when it is first read."""
+        report = self._limits
+        if not isinstance(report, LimitReport):
+            report = report()
+            object.__setattr__(self, "_limits", report)
+        return report
 
 
 @dataclass(frozen=True, slots=True)
@@ -182,7 +209,7 @@ class PostStream:
     def _post(self, chunk: Toolpath, *, scope: str) -> PostResult:
         machine, model = self.machine, self.model
         given = chunk if self.placed else _unit_path(place_toolpath(chunk, self.setup), self._input_rows)
-        ik, report = _check_end_points(machine, given, model, self._counted(scope, len(given)), self._axes)
+        ik = _check_end_points(machine, given, model, self._counted(scope, len(given)), self._axes)
         linear = linearize(machine.geometry, given, tolerance=self.tolerance, angle_tolerance=self.angle_tolerance,
                            start=self._last_pose)
         path = linear.path
@@ -204,12 +231,9 @@ class PostStream:
                 path, stage, joints = path.take(keep), stage[keep], joints[keep]
                 ik = IKResult(stage=ik.stage[keep], strokes=ik.strokes[keep], link_angle=ik.link_angle[keep],
                               condition=ik.condition[keep], reachable=ik.reachable[keep])
-                if checked:                            # every row is within the limits: so are those kept
-                    report = replace(report, value=report.value[keep], margin=report.margin[keep],
-                                     ok=report.ok[keep])
-        if not checked:
-            report = check_limits(machine, ik, path.axis)
-            raise_first_violation(report, path.describe, scope=self._counted(scope, len(path)))
+        if not checked:                                # (checked: every row is within, so are those kept)
+            _raise_outside_limits(machine, path, ik, self._counted(scope, len(path)))
+        report = partial(check_limits, machine, ik, path.axis)   # made if the result's limits are read
         feeds = inverse_time(path, start=self._last_tip)
         self._input_rows += len(chunk)
         self._inserted += subdivided - len(chunk)
@@ -312,7 +336,7 @@ def program_text(machine: Machine, chunks: Iterable[Toolpath], setup: Setup, dia
 
 
 def _check_end_points(machine: Machine, path: Toolpath, model: IKModel, scope: str,
-                      memo: AxisMemo | None = None) -> tuple[IKResult, LimitReport]:
+                      memo: AxisMemo | None = None) -> IKResult:
     """Reach and limits of the rows as given, before their moves are subdivided.
 
     A move whose end point is out of reach or past the tilt limit (the singularity lies not far
@@ -324,8 +348,8 @@ def _check_end_points(machine: Machine, path: Toolpath, model: IKModel, scope: s
 
     Returns
     -------
-    (IKResult, LimitReport) — of the rows as given (all reachable, all within the limits): the
-    pipeline's when the subdivision inserts nothing
+    IKResult — of the rows as given (all reachable, all within the limits): the pipeline's when the
+    subdivision inserts nothing
 
     Raises
     ------
@@ -334,9 +358,15 @@ def _check_end_points(machine: Machine, path: Toolpath, model: IKModel, scope: s
     """
     ik = inverse(machine.geometry, path.tip, path.axis, model=model, memo=memo)
     _raise_unreachable(machine, path, ik, model, scope)
-    report = check_limits(machine, ik, path.axis)
-    raise_first_violation(report, path.describe, scope=scope)
-    return ik, report
+    _raise_outside_limits(machine, path, ik, scope)
+    return ik
+
+
+def _raise_outside_limits(machine: Machine, path: Toolpath, ik: IKResult, scope: str) -> None:
+    """The LimitError of the first point outside a limit (:func:`~prs3_post.limits.raise_first_violation`
+    of the rows' report), if any: the report is made only when some value is outside."""
+    if not within_limits(machine, ik, path.axis):
+        raise_first_violation(check_limits(machine, ik, path.axis), path.describe, scope=scope)
 
 
 def _raise_unreachable(machine: Machine, path: Toolpath, ik: IKResult, model: IKModel, scope: str) -> None:
