@@ -127,8 +127,9 @@ def _joint_programs(draw: st.DrawFn) -> JointProgram:
     inverse_time = rng.uniform(0.5, 50.0, n)
     inverse_time[rng.random(n) < (0.05 if odd else 0)] = 1e13                     # an F too large for integers
     kinds = ["comment"] * 6 + ["stop", "optional_stop", "tool_change", "dwell", "coolant_off", "spindle_off"]
-    events = [Event(int(rng.integers(0, n + 1)), EventKind(draw(st.sampled_from(kinds))), 2.0,
-                    draw(st.sampled_from(_COMMENTS))) for _ in range(draw(st.integers(0, 15)))]
+    texts = st.sampled_from(_COMMENTS[:3] if draw(st.booleans()) else _COMMENTS)   # all usual: made together
+    events = [Event(int(rng.integers(0, n + 1)), EventKind(draw(st.sampled_from(kinds))), 2.0, draw(texts))
+              for _ in range(draw(st.integers(0, 15)))]
     return JointProgram(kind=rng.integers(0, 2, n), stage=values[:, :2], strokes=values[:, 2:],
                         inverse_time=inverse_time, source=np.arange(n), events=tuple(events))
 

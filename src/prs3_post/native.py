@@ -156,7 +156,7 @@ _ROOM_PER_NUMBER = 24
 
 def emit_rows(axis_values: Sequence[FloatArray], decimals: int, first_present: Sequence[bool], kind: IntArray,
               previous_kind: int, restate: IntArray, modal_motion: bool, feed: IntArray, feed_decimals: int,
-              prefixes: Sequence[bytes], ending: bytes, inserts: Sequence[tuple[int, bytes]],
+              prefixes: Sequence[bytes], ending: bytes, inserts: tuple[IntArray, IntArray, np.ndarray],
               ) -> tuple[np.ndarray, IntArray, IntArray] | None:
     """Motion lines of a program's rows in one pass (:meth:`prs3_post.emit.gcode.ProgramEmitter._emit_rows`
     makes the same bytes with numpy): (their bytes, where each row's inserted lines then its line start
@@ -175,14 +175,15 @@ def emit_rows(axis_values: Sequence[FloatArray], decimals: int, first_present: S
     feed : (M,) int — the F words' printed digits (used on feed rows), ``feed_decimals`` after the point
     prefixes : sequence of bytes — each axis's word letter
     ending : bytes — the line ending
-    inserts : sequence of (row, bytes) — lines put before their row (< M, increasing), e.g. comments
+    inserts : (K,) int, (K + 1,) int, (B,) uint8 — lines put before their row: line k, ``bytes[starts[k]:
+        starts[k + 1]]``, before row ``rows[k]`` (< M, increasing), e.g. comments
     """
     global _emitter
     if _emitter is None:
         _emitter = _bind("prs3_emit_rows", [
             _I64, _I64, _POINTER, _POINTER, ctypes.c_int32, _POINTER, _POINTER, _I64, _I64, _POINTER, ctypes.c_int32,
             _POINTER, ctypes.c_int32, _POINTER, _POINTER, ctypes.c_uint8, _TEXT, _I64, _I64, _POINTER, _POINTER,
-            _TEXT, _POINTER, _I64, _POINTER, _POINTER])
+            _POINTER, _POINTER, _I64, _POINTER, _POINTER])
     if not _emitter:
         return None
     m, axes = len(kind), len(axis_values)
@@ -202,18 +203,23 @@ def emit_rows(axis_values: Sequence[FloatArray], decimals: int, first_present: S
     kinds = np.ascontiguousarray(kind, dtype=np.int64)
     feeds = np.ascontiguousarray(feed, dtype=np.int64)
     restate_rows = np.ascontiguousarray(restate, dtype=np.int64)
-    insert_row = np.array([row for row, _ in inserts] + [0], dtype=np.int64)
-    insert_start = np.zeros(len(inserts) + 1, dtype=np.int64)
-    np.cumsum([len(text) for _, text in inserts], out=insert_start[1:])
-    insert_bytes = b"".join(text for _, text in inserts)
-    capacity = int(insert_start[-1]) + m * (int(text_start[-1]) + _ROOM_PER_NUMBER * (axes + 1) + len(ending)) + 64
+    insert_row = np.ascontiguousarray(inserts[0], dtype=np.int64)
+    insert_start = np.ascontiguousarray(inserts[1], dtype=np.int64)
+    insert_bytes = np.ascontiguousarray(inserts[2], dtype=np.uint8)
+    if len(insert_start) != len(insert_row) + 1 or (len(insert_row) and not (
+            0 <= insert_start[0] and insert_start[-1] <= len(insert_bytes) and (np.diff(insert_start) >= 0).all()
+            and 0 <= insert_row[0] and insert_row[-1] < m and (np.diff(insert_row) >= 0).all())):
+        raise ValueError("emit_rows: the inserted lines are not rows < M in order and spans of their bytes")
+    capacity = (int(insert_start[-1] - insert_start[0]) + m * (int(text_start[-1]) + _ROOM_PER_NUMBER * (axes + 1)
+                + len(ending)) + 64)
     out = np.empty(capacity, dtype=np.uint8)
     starts = np.zeros(m + 1, dtype=np.int64)
     lengths = np.zeros(m, dtype=np.int64)
     size = _emitter(m, axes, _address(pointers), _address(strides), decimals, _address(first), _address(kinds),
                     previous_kind, len(restate_rows), _address(restate_rows), int(modal_motion), _address(feeds),
                     feed_decimals, _address(text_start), _address(text_bytes), ord(" "), ending, len(ending),
-                    len(inserts), _address(insert_row), _address(insert_start), insert_bytes, _address(out), capacity,
+                    len(insert_row), _address(insert_row), _address(insert_start), _address(insert_bytes),
+                    _address(out), capacity,
                     _address(starts), _address(lengths))
     if size <= -2:
         return None

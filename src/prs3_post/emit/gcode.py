@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 import textwrap
-from bisect import bisect_left, insort
+from bisect import bisect_left, bisect_right, insort
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -210,6 +210,29 @@ class _Blocks:
             return f"{self._open}{(text.upper() if self._upper else text).rstrip(' ')}{self._close}{self._ending}"
         return None
 
+    @property
+    def comment_frame(self) -> int:
+        """The characters a usual comment's line has besides its text: the delimiters and the ending."""
+        return len(self._open) + len(self._close) + len(self._ending)
+
+    def plain_lines(self, texts: list[str]) -> str | None:
+        """:meth:`plain_line` of every text, back to back, where every one is usual and none ends in a
+        space; else None. Checked and made for all together (a program has a comment every few dozen rows)."""
+        joined = "".join(texts)
+        if not (joined.isascii() and joined.isprintable() and "," not in joined
+                and not any(char in joined for char in self._replaced)
+                and max(map(len, texts), default=0) <= self._comment_width):
+            return None
+        lines = "\n".join(texts) + "\n"              # printable texts: no LF of their own
+        if " \n" in lines:                            # a trailing space to drop: one by one
+            return None
+        if self._upper:
+            lines = lines.upper()
+        if not texts:
+            return ""
+        framed = lines.replace("\n", self._close + self._ending + self._open)    # "a)\n(b)\n("
+        return self._open + framed[:len(framed) - len(self._open)]
+
     def comment(self, text: str) -> None:
         """A comment, sanitized, split over as many unnumbered lines as it needs."""
         style = self.dialect.comments
@@ -336,12 +359,26 @@ class _Chunk:
     program: JointProgram
     axes: list[tuple[bytes, FloatArray]]     # word letter and values (checked finite), in word order
     feed: ScaledColumn                       # F of every row (0 on rapids)
-    events: dict[int, list[Event]] = field(default_factory=dict)
-    rows_with_events: list[int] = field(default_factory=list)    # the keys of events, increasing
+    befores: list[int] = field(default_factory=list)
+    """Each event's row (``program.events`` is in row order)."""
+    rows_with_events: list[int] = field(default_factory=list)
+    """The rows that have events, increasing."""
     restate: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     """The rows (increasing) after a tool change or a stop: every word is written again."""
     numbered: dict[int, int] = field(default_factory=dict)
     """How many numbered blocks (events other than comments) come before each row that has some."""
+    special: frozenset[int] = frozenset()
+    """The rows with an event other than a usual comment (:meth:`_Blocks.plain_line`): written by
+    :meth:`ProgramEmitter._event` (all of the row's events, in order)."""
+    comment_rows: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    """(K,) the rows of the usual comments of the other rows, increasing: the compiled writer puts
+    their lines, ``comment_bytes[comment_starts[k]:comment_starts[k + 1]]``, before their row."""
+    comment_starts: IntArray = field(default_factory=lambda: np.zeros(1, dtype=np.int64))
+    comment_bytes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.uint8))
+
+    def events_at(self, row: int) -> tuple[Event, ...]:
+        """The events before ``row``, in order."""
+        return self.program.events[bisect_left(self.befores, row):bisect_right(self.befores, row)]
 
 
 class ProgramEmitter:
@@ -446,17 +483,52 @@ class ProgramEmitter:
                     raise LimitError(f"{self._where(program, int(moved[0]))}: {name} is "
                                      f"{column.text(int(moved[0]))} mm on a machine without a stage")
             named = named[2:]
-        events: dict[int, list[Event]] = {}
-        for event in program.events:                 # in row order (JointProgram sorts them)
-            events.setdefault(event.before, []).append(event)
+        befores = [event.before for event in program.events]       # increasing (JointProgram sorts them)
         numbered: dict[int, int] = {}
+        restate: set[int] = set()
+        comments: list[Event] = []
         for event in program.events:
-            if event.kind is not EventKind.COMMENT:
-                numbered[event.before] = numbered.get(event.before, 0) + 1
-        restate = sorted({b for b in numbered if any(e.kind in _RESTATE for e in events[b])})
+            if event.kind is EventKind.COMMENT:
+                comments.append(event)
+                continue
+            numbered[event.before] = numbered.get(event.before, 0) + 1
+            if event.kind in _RESTATE:
+                restate.add(event.before)
+        special, comment_rows, comment_starts, comment_bytes = self._comment_lines(comments, numbered)
         return _Chunk(program=program, axes=[(letter.encode("ascii"), values) for letter, values, _ in named],
-                      feed=self._feed_column(program, dec.inverse_time), events=events,
-                      rows_with_events=list(events), restate=np.array(restate, dtype=np.int64), numbered=numbered)
+                      feed=self._feed_column(program, dec.inverse_time), befores=befores,
+                      rows_with_events=list(dict.fromkeys(befores)), restate=np.array(sorted(restate), dtype=np.int64),
+                      numbered=numbered, special=special, comment_rows=comment_rows, comment_starts=comment_starts,
+                      comment_bytes=comment_bytes)
+
+    def _comment_lines(self, comments: list[Event], numbered: dict[int, int],
+                       ) -> tuple[frozenset[int], IntArray, IntArray, np.ndarray]:
+        """The rows whose events the compiled writer leaves to :meth:`_event` (those with an event other
+        than a usual comment), and the usual comments of the other rows as ``_Chunk`` holds them."""
+        out = self._out
+        texts = [event.text for event in comments]
+        rows = np.fromiter((event.before for event in comments), dtype=np.int64, count=len(comments))
+        joined = out.plain_lines(texts)
+        if joined is not None:
+            lines = joined.encode("ascii")
+            usual = np.ones(len(texts), dtype=bool)
+            lengths = np.fromiter(map(len, texts), dtype=np.int64, count=len(texts)) + out.comment_frame
+        else:                                        # one by one: some need sanitizing or wrapping
+            each = [out.plain_line(text) for text in texts]
+            usual = np.array([line is not None for line in each], dtype=bool)
+            kept = [line for line in each if line is not None]
+            lines = "".join(kept).encode("ascii")
+            lengths = np.fromiter(map(len, kept), dtype=np.int64, count=len(kept))
+        special = frozenset(numbered) | frozenset(rows[~usual].tolist())
+        data = np.frombuffer(lines, dtype=np.uint8)
+        rows = rows[usual]
+        if special:                                  # the comments of a special row go with its other events
+            keep = ~np.isin(rows, np.fromiter(special, dtype=np.int64, count=len(special)))
+            data = data[np.repeat(keep, lengths)]
+            rows, lengths = rows[keep], lengths[keep]
+        starts = np.zeros(len(rows) + 1, dtype=np.int64)
+        np.cumsum(lengths, out=starts[1:])
+        return special, rows, starts, data
 
     def _feed_column(self, program: JointProgram, decimals: int) -> ScaledColumn:
         """The F word of every FEED row (rapids: 0, never written); one that is not > 0 once
@@ -486,62 +558,62 @@ class ProgramEmitter:
         program, out, modal = chunk.program, self._out, self._modal
         n = len(program)
         kind = program.kind[lo:hi]
-        keys = chunk.rows_with_events
-        breaks = keys[bisect_left(keys, lo):bisect_left(keys, hi)]     # the rows with events, in order
-        if hi == n:
-            breaks.append(n)                         # (and the events after the last row)
         g93 = _first_feed(kind, lo) if not modal.inverse_time else None
-        if g93 is not None and g93 not in chunk.events:
-            insort(breaks, g93)
         restate = chunk.restate[(chunk.restate >= lo) & (chunk.restate < hi)] - lo
-        written = self._rows_in_one_pass(chunk, lo, hi, breaks, g93, restate)
-        if written is not None:
-            text, offsets, inserted = written
+        keys = chunk.rows_with_events
+        written = self._rows_in_one_pass(chunk, lo, hi, restate)
+        if written is not None:                      # the usual comments are in text: the other events
+            text, offsets = written
             too_long, plain_rows = hi - lo, True
+            breaks = [b for b in keys[bisect_left(keys, lo):bisect_left(keys, hi)] if b in chunk.special]
         else:
-            text, offsets, too_long = self._rows_numpy(chunk, lo, hi, breaks, g93, restate)
-            inserted = set()
+            text, offsets, too_long = self._rows_numpy(chunk, lo, hi, g93, restate)
             # the rows between two breaks need no more than a slice of text when they are not numbered and
             # none is too long (the usual case); else _rows_text
             plain_rows = not out.numbered and too_long == hi - lo
+            breaks = keys[bisect_left(keys, lo):bisect_left(keys, hi)]
+        if hi == n:
+            breaks.append(n)                         # (and the events after the last row)
+        if g93 is not None and g93 not in breaks:   # (once a program)
+            insort(breaks, g93)
         plain_line = out.plain_line
         pieces = []
-        previous = lo                                # the first row not yet written
-        events = chunk.events
+        at, previous = 0, lo                         # where the text not yet written starts, and its row
         for b in breaks:
-            if b in inserted:                        # its comments are in text already
-                continue
-            if b > previous:                         # the rows up to this break, as one piece
+            cut = offsets[b - lo]                    # where row b's line starts (after comments put in)
+            if cut > at:                             # the text up to this break, as one piece
                 if out.lines:
                     pieces.append(out.take())
-                pieces.append(text[offsets[previous - lo]:offsets[b - lo]] if plain_rows else
+                pieces.append(text[at:cut] if plain_rows else
                               self._rows_text(chunk, text, offsets, too_long, lo, previous - lo, b - lo))
-                previous = b
-            for event in events.get(b, ()):
-                if event.kind is EventKind.COMMENT and not out.lines:
-                    line = plain_line(event.text)    # the usual comment: its line goes straight in
-                    if line is not None:
-                        pieces.append(line)
-                        continue
-                self._event(program, event)
+                at, previous = cut, b
+            if written is None or b in chunk.special or b == n:
+                for event in chunk.events_at(b):
+                    if event.kind is EventKind.COMMENT and not out.lines:
+                        line = plain_line(event.text)    # the usual comment: its line goes straight in
+                        if line is not None:
+                            pieces.append(line)
+                            continue
+                    self._event(program, event)
             if b == g93:
                 out.block("G93", self._where(program, b))
                 modal.inverse_time = True
-        if hi > previous:
+        if len(text) > at:
             if out.lines:
                 pieces.append(out.take())
-            pieces.append(self._rows_text(chunk, text, offsets, too_long, lo, previous - lo, hi - lo))
-        pieces.append(out.take())
+            pieces.append(text[at:] if plain_rows else
+                          self._rows_text(chunk, text, offsets, too_long, lo, previous - lo, hi - lo))
+        if out.lines:
+            pieces.append(out.take())
         self._remember(chunk, hi, kind)
-        return pieces
+        return pieces                                # (one piece, the usual: rows() joins it without a copy)
 
-    def _rows_in_one_pass(self, chunk: _Chunk, lo: int, hi: int, breaks: list[int], g93: int | None,
-                          restate: IntArray) -> tuple[str, list[int], set[int]] | None:
+    def _rows_in_one_pass(self, chunk: _Chunk, lo: int, hi: int, restate: IntArray) -> tuple[str, list[int]] | None:
         """Rows ``lo:hi``'s lines by the compiled writer (:func:`prs3_post.native.emit_rows`), with the
-        usual comments (:meth:`_Blocks.plain_line`) of the breaks that have nothing else put in
-        between: (the text, where each row's comments then its line start (M + 1), the breaks put in).
-        None where it cannot: not built, numbered blocks, a feed or a number not written from an
-        exact integer, or an over-long line (:meth:`_rows_numpy` writes those, and finds the errors)."""
+        usual comments of the rows that have no other event before them: (the text, where each row's
+        line starts, then the text's end (M + 1)). None where it cannot: not built, numbered blocks, a
+        feed or a number not written from an exact integer, or an over-long line (:meth:`_rows_numpy`
+        writes those, and finds the errors)."""
         out, modal, dialect = self._out, self._modal, self.dialect
         if out.numbered:
             return None
@@ -549,39 +621,26 @@ class ProgramEmitter:
         first, last = np.searchsorted(feed.odd, [lo, hi])
         if first != last:
             return None
-        plain_line = out.plain_line
-        inserts: list[tuple[int, bytes]] = []
-        inserted = set()
-        events = chunk.events
-        for b in breaks:
-            if b >= hi or b == g93:
-                continue
-            lines = []
-            for event in events[b]:
-                line = plain_line(event.text) if event.kind is EventKind.COMMENT else None
-                if line is None:
-                    break
-                lines.append(line)
-            else:
-                inserts.append((b - lo, "".join(lines).encode("ascii")))
-                inserted.add(b)
         from prs3_post import native  # ctypes: loaded only where lines are written
 
         decimals = dialect.decimals.length
         first_present = [word is None or (lo < hi and fixed(float(values[lo]), decimals) != word)
                          for (_, values), word in zip(chunk.axes, modal.words, strict=True)]
+        a, b = np.searchsorted(chunk.comment_rows, [lo, hi])
         written = native.emit_rows(
             [values[lo:hi] for _, values in chunk.axes], decimals, first_present, chunk.program.kind[lo:hi],
             -1 if modal.motion is None else modal.motion, restate, dialect.modal_motion, feed.scaled[lo:hi],
-            feed.decimals, [letter for letter, _ in chunk.axes], dialect.line_ending.encode("ascii"), inserts)
+            feed.decimals, [letter for letter, _ in chunk.axes], dialect.line_ending.encode("ascii"),
+            (chunk.comment_rows[a:b] - lo, chunk.comment_starts[a:b + 1], chunk.comment_bytes))
         if written is None:
             return None
         buffer, starts, lengths = written
         if lengths.size and int(lengths.max()) - len(dialect.line_ending) > out.limit:
             return None
-        return str(buffer.data, "ascii"), starts.tolist(), inserted
+        line_starts = starts[1:] - lengths
+        return str(buffer.data, "ascii"), [*line_starts.tolist(), int(starts[-1])]
 
-    def _rows_numpy(self, chunk: _Chunk, lo: int, hi: int, breaks: list[int], g93: int | None,
+    def _rows_numpy(self, chunk: _Chunk, lo: int, hi: int, g93: int | None,
                     restate: IntArray) -> tuple[str, list[int], int]:
         """Rows ``lo:hi``'s lines, column by column with numpy: (the text, where each row's line starts
         (M + 1), the first over-long line (M: none))."""
@@ -683,7 +742,7 @@ class ProgramEmitter:
             for j, (_, values) in enumerate(chunk.axes):
                 modal.words[j] = fixed(float(values[hi - 1]), decimals)    # as the line printed it
             modal.motion = int(kind[-1])
-        if hi == len(chunk.program) and any(e.kind in _RESTATE for e in chunk.events.get(hi, ())):
+        if hi == len(chunk.program) and any(e.kind in _RESTATE for e in chunk.events_at(hi)):
             modal.restate()
 
 
