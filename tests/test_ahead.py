@@ -6,6 +6,7 @@ threshold is lowered to 0 so that the corpus files and the bad inputs go through
 
 from __future__ import annotations
 
+import json
 import os
 import pickle
 import signal
@@ -201,3 +202,25 @@ def test_a_point_out_of_reach_stops_the_reading_child(tmp_path: Path, in_process
     assert result.stdout.split("\t")[3].startswith(f"{src}:4: T1 stroke 865.5270 mm is above the maximum")
     assert list(out.iterdir()) == []
     assert _children() == set()
+
+
+@pytest.mark.skipif(not CORPUS.is_dir(), reason="the corpus (../shared/corpus) is not here")
+def test_the_report_of_a_file_post_processed_in_a_child_is_the_same(tmp_path: Path,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """The counts the child's post-processing and reader made come back: the same --report as in one process."""
+    src = CORPUS / "mech491_APT_Variable_Axis.cls"
+    reports = []
+    for threshold in (1 << 60, 0):
+        monkeypatch.setattr(convert, "PROCESS_READ_BYTES", threshold)
+        monkeypatch.setenv("PRS3_POST_THREADS", "2")
+        report = tmp_path / f"report-{len(reports)}.json"
+        result = CliRunner().invoke(main, ["convert", str(src), "-o", str(tmp_path / f"out-{len(reports)}"),
+                                           "--jobs", "1", "--part-origin=-44,-81.3,-786.7", "--report", str(report)])
+        assert result.exit_code == 0, result.output
+        files = json.loads(report.read_text())["files"]
+        for entry in files:
+            entry.pop("seconds", None)
+            entry.pop("output", None)
+        reports.append(files)
+    assert reports[0] == reports[1]
+    assert reports[0][0]["report"]["subdivisions"] > 0        # the axis turns: the child subdivided moves

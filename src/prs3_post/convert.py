@@ -39,7 +39,15 @@ from prs3_post.kinematics.blocks import THREADS_VARIABLE, default_workers
 from prs3_post.limits import check_limits, raise_first_violation
 from prs3_post.ops.common import TOOL_DIAMETER_RANGE
 from prs3_post.output import HeadLast, refuse_overwriting, write_atomic
-from prs3_post.pipeline import PostCounts, PostResult, PostStream, model_for, place_toolpath, program_text
+from prs3_post.pipeline import (
+    PostCounts,
+    PostResult,
+    PostStream,
+    emitted_text,
+    model_for,
+    place_toolpath,
+    program_text,
+)
 from prs3_post.readers.apt import ClFile, ClStream, join_toolpaths
 from prs3_post.readers.detect import DETECT_BYTES, FORMATS, detect_format
 from prs3_post.readers.files import open_input
@@ -366,6 +374,7 @@ class _Run:
     reader: ClStream | GcodeStream
     post: PostStream
     forked: bool = False                                # the file is read (and hashed) by a forked process
+    post_counts: PostCounts | None = None               # the forked process's, where it post-processed too
     rows: int = 0
     results: list[PostResult] = field(default_factory=list)   # each chunk's, when kept (convert_file)
     programs: list[JointProgram] = field(default_factory=list)   # each chunk's, for the collision check
@@ -408,6 +417,26 @@ class _Run:
             yield placed
         if not self.rows:
             raise InputError("no moves in the file: nothing to convert", path=self.path)
+
+    def posted(self) -> Iterator[JointProgram]:
+        """The chunks post-processed (:meth:`chunks` fed to the post-processing stream) by a forked process:
+        it reads, checks, places and post-processes; this one emits and writes (``forked`` only)."""
+        yield from read_in_process(self._programs_there(), final=self._posted_there, on_final=self._posted)
+
+    def _programs_there(self) -> Iterator[JointProgram]:
+        for chunk in self._placed():
+            yield self.post.feed(chunk).program
+
+    def _posted_there(self) -> tuple[GcodeFile | ClFile | None, str, PostCounts]:
+        return self.reader.summary, file_sha256(self.path), self.post.finish()
+
+    def _posted(self, done: tuple[GcodeFile | ClFile | None, str, PostCounts]) -> None:
+        summary, self.sha256, self.post_counts = done
+        self.reader.summary = summary
+
+    def post_finish(self) -> PostCounts:
+        """The post-processing's counts, once the chunks are through (wherever they were post-processed)."""
+        return self.post.finish() if self.post_counts is None else self.post_counts
 
     def _read_there(self) -> tuple[GcodeFile | ClFile | None, str]:
         """In the forked process that read the file: the reader's summary and the file's hash."""
@@ -459,8 +488,9 @@ def _start(path: str, settings: ConvertSettings) -> _Run:
                       angle_tolerance=math.radians(settings.angle_tolerance_deg),
                       length_decimals=settings.dialect.decimals.length, placed=True)
     # the next chunk is read on a second core while this one is post-processed, where this process may use
-    # two (processes × threads ≤ cores): by a forked process for a large input, else by a thread; not the
-    # 5-axis reader, whose state the first chunk's comment reads
+    # two (processes × threads ≤ cores): by a forked process for a large input (which post-processes it too
+    # where no result is kept here: see program_chunks), else by a thread; not the 5-axis reader, whose
+    # state the first chunk's comment reads
     forked = default_workers() > 1 and settings.source is None and _large(path)
     return _Run(path=path, settings=settings, fmt=fmt, sha256="" if forked else file_sha256(path), reader=reader,
                 post=post, forked=forked)
@@ -528,18 +558,23 @@ def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) 
         stream.feed = kept  # type: ignore[method-assign]  # a wrapper with the same signature
     header = _header(run)
     description = settings.machine.description
-    text = program_text(settings.ik_machine, run.chunks(), settings.setup, settings.dialect,
-                        header=source_header_entries(header, description=description), tolerance=settings.tolerance,
-                        angle_tolerance=math.radians(settings.angle_tolerance_deg),
-                        line_numbers=settings.line_numbers, line_start=settings.line_start,
-                        line_step=settings.line_step, stream=stream)
+    entries = source_header_entries(header, description=description)
+    if run.forked and not keep and triangles is None:   # post-processed where it is read (nothing kept here)
+        text = emitted_text(settings.ik_machine, run.posted(), settings.dialect, header=entries,
+                            line_numbers=settings.line_numbers, line_start=settings.line_start,
+                            line_step=settings.line_step)
+    else:
+        text = program_text(settings.ik_machine, run.chunks(), settings.setup, settings.dialect, header=entries,
+                            tolerance=settings.tolerance, angle_tolerance=math.radians(settings.angle_tolerance_deg),
+                            line_numbers=settings.line_numbers, line_start=settings.line_start,
+                            line_step=settings.line_step, stream=stream)
 
     def body() -> Iterator[str]:
         next(text)                                      # its opening, made again below with the counts
         yield from _with_placement(text, run)
 
     def head() -> str:
-        counts = run.report(stream.finish()).counts()
+        counts = run.report(run.post_finish()).counts()
         collision = _collision(run, triangles)
         entries = source_header_entries(dataclasses.replace(header, counts=counts, collision=collision,
                                                             source_sha256=run.sha256),
@@ -639,7 +674,7 @@ def convert_file(path: str, settings: ConvertSettings) -> Conversion:
     run, program = program_chunks(path, settings, keep=True)
     body = "".join(program.body)                        # type: ignore[arg-type]  # str chunks
     text = str(program.head()) + body
-    report = run.report(run.post.finish())
+    report = run.report(run.post_finish())
     path_rows = [r.path for r in run.results if len(r.path)]
     return Conversion(text=text, report=report, path=join_toolpaths(path_rows) if path_rows else run.results[0].path)
 
@@ -655,7 +690,7 @@ def write_conversion(path: str, output: str, settings: ConvertSettings) -> Conve
     """
     run, program = program_chunks(path, settings)
     write_atomic(output, program)
-    return run.report(run.post.finish())
+    return run.report(run.post_finish())
 
 
 # ----------------------------------------------------------------------------- a batch

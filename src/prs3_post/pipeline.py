@@ -327,11 +327,21 @@ def program_text(machine: Machine, chunks: Iterable[Toolpath], setup: Setup, dia
     if stream is None:
         stream = PostStream(machine, setup, tolerance=tolerance, angle_tolerance=angle_tolerance,
                             length_decimals=dialect.decimals.length)
+    fed = stream
+    return emitted_text(machine, (fed.feed(chunk).program for chunk in chunks), dialect, header=header,
+                        line_numbers=line_numbers, line_start=line_start, line_step=line_step)
+
+
+def emitted_text(machine: Machine, programs: Iterable[JointProgram], dialect: Dialect, *,
+                 header: tuple[tuple[str, str], ...] = (), line_numbers: bool | None = None,
+                 line_start: int | None = None, line_step: int | None = None) -> Iterator[str]:
+    """:func:`program_text` of the chunks post-processed already (``programs``, in order): its begin,
+    one text per program, its end."""
     emitter = ProgramEmitter(dialect, stage=machine.stage.present, line_numbers=line_numbers,
                              line_start=line_start, line_step=line_step)
     yield emitter.begin(header)
-    for chunk in chunks:
-        yield emitter.rows(stream.feed(chunk).program)
+    for program in programs:
+        yield emitter.rows(program)
     yield emitter.end()
 
 

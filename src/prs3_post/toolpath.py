@@ -130,7 +130,7 @@ def _freeze_rows(table: object, fields: tuple[tuple[str, type, tuple[int, ...]],
     object.__setattr__(table, "events", tuple(sorted(table.events, key=lambda e: e.before)))  # type: ignore[attr-defined]
 
 
-_Table = TypeVar("_Table", bound="Toolpath")
+_Table = TypeVar("_Table", "Toolpath", "JointProgram")
 
 
 def _unpickled(kind: type[_Table], values: tuple[object, ...]) -> _Table:
@@ -245,6 +245,10 @@ class JointProgram:
 
     def __len__(self) -> int:
         return len(self.kind)
+
+    def __reduce__(self) -> tuple[object, ...]:
+        """As :meth:`Toolpath.__reduce__` (the programs a post-processing process sends)."""
+        return _unpickled, (JointProgram, tuple(getattr(self, name) for name in JointProgram.__slots__))
 
     def describe(self, row: int) -> str:
         """Human name of the line/step row ``row`` came from (``line 12`` or the step label)."""
