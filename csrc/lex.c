@@ -298,10 +298,11 @@ int64_t prs3_fill_moves(const double *values, const uint8_t *moves, int64_t n, d
     return m;
 }
 
-/* The G-code readers' rows to the part frame (prs3_post.workplane.WorkPlane.to_part, the reference):
+/* The CAM readers' rows to the part frame (prs3_post.workplane.WorkPlane.to_part, the reference):
  * out[i] = rotation @ rows[i] + origin, each element as rotate_rows makes it, ((x·r0 + y·r1) + z·r2)
  * + o, rounded after each operation (no fused multiply-add: the same bits as numpy's, whatever
- * the rows' count). rows and out (n, 3), rotation (3, 3) row-major, origin (3). Returns n. */
+ * the rows' count). rows and out (n, 3), rotation (3, 3) row-major, origin (3), or NULL: no origin
+ * added (rotate_rows alone, for directions: adding 0 would turn -0 into 0). Returns n. */
 #if defined(__clang__)
 #pragma STDC FP_CONTRACT OFF
 #endif
@@ -313,7 +314,8 @@ int64_t prs3_rows_to_part(const double *rows, int64_t n, const double *rotation,
         double x = rows[3 * i], y = rows[3 * i + 1], z = rows[3 * i + 2];
         for (int j = 0; j < 3; j++) {
             const double *r = rotation + 3 * j;
-            out[3 * i + j] = ((x * r[0] + y * r[1]) + z * r[2]) + origin[j];
+            double turned = (x * r[0] + y * r[1]) + z * r[2];
+            out[3 * i + j] = origin == NULL ? turned : turned + origin[j];
         }
     }
     return n;

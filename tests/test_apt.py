@@ -517,3 +517,46 @@ def test_repeated_fedrat_lines_keep_the_first_line_of_each_feed_unit():
         parse_cl(text, path="both.cls", tolerance=0.002)
     assert str(caught.value) == ("both.cls: feeds in both MMPM/MMPR (line 1) and IPM/IPR (line 4) and no UNITS/ "
                                  "record: the length unit of the file is ambiguous; give it (mm or inch)")
+
+
+def _runs_with_marks(gotos: int) -> str:
+    """GOTO runs with plain PPRINT and FEDRAT lines among them (repeated, changed, per revolution), as
+    CAM systems write them between passes."""
+    lines = ["SPINDL/RPM,1000,CLW", "RAPID", "GOTO/0,0,5", "FEDRAT/MMPM,600.0000"]
+    for i in range(gotos):
+        lines.append(f"GOTO/{i % 13}.5,{-(i % 7)},{-(i % 3)}.25")
+        if i % 9 == 4:
+            lines.append(f"PPRINT/  pass {i} ")
+        if i % 17 == 8:
+            feeds = ("FEDRAT/MMPM,600.0000", "FEDRAT/500,MMPM", "FEDRAT/MMPR,0.2", "FEDRAT/MMPM,600.0000\r")
+            lines.append(feeds[i % 4])
+        if i % 23 == 0:
+            lines.append("PPRINT/")
+    return "\n".join(lines) + "\nPPRINT/last\nEND-OF-PATH\n"
+
+
+@pytest.mark.parametrize("chunk_lines", [1, 7, 10_000])
+def test_pprint_and_fedrat_lines_in_a_run_read_as_records_read_them(chunk_lines: int) -> None:
+    """Plain PPRINT and FEDRAT lines among bulk GOTOs (the PPRINTs together, a FEDRAT read before taken
+    again): the rows, feeds, events and counts of the record-by-record path (a space after GOTO/)."""
+    text = _runs_with_marks(300)
+    bulk = parse_cl(text, path="t.cls", tolerance=TOL, chunk_lines=chunk_lines)
+    _same(parse_cl(text.replace("GOTO/", "GOTO/ "), path="t.cls", tolerance=TOL), bulk)
+    comments = [(e.before, e.text) for e in bulk.toolpath.events if e.kind is EventKind.COMMENT]
+    assert (len(comments), comments[:3], comments[-1]) == (48, [(2, ""), (6, "pass 4"), (15, "pass 13")], (301, "last"))
+    assert sorted(set(bulk.toolpath.feed.tolist())) == [0.0, 200.0, 500.0, 600.0]
+    assert dict(bulk.counts.by_word)["FEDRAT"] == 1 + 18
+
+
+@pytest.mark.parametrize(("extra", "line", "message"), [
+    ("FEDRAT/MMPM,0", 10, "FEDRAT/ must be > 0, got 0"),
+    ("PPRINT/" + "x" * 70_000, 10, "a record of 70,007 characters or more: longer than any CL record may be (65,536 "
+     "at most); found 'PPRINT/xxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxx...'"),
+])
+def test_a_bad_mark_in_a_run_is_refused_where_it_stands(extra: str, line: int, message: str) -> None:
+    text = "RAPID\nGOTO/0,0,5\nFEDRAT/MMPM,600\n" + "".join(f"GOTO/{i},0,0\nPPRINT/p{i}\n" for i in range(3)) + (
+        extra + "\nGOTO/9,0,0\nFEDRAT/MMPM,0\n")
+    for careful in (False, True):
+        with pytest.raises(InputError) as info:
+            parse_cl(text.replace("GOTO/", "GOTO/ ") if careful else text, path="t.cls", tolerance=TOL)
+        assert str(info.value) == f"t.cls:{line}: {message}"

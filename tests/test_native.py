@@ -24,7 +24,7 @@ from prs3_post.errors import LimitError
 from prs3_post.fixed import ChoiceColumn, render_rows, scale_column
 from prs3_post.readers import apt, files, gcode, lexer
 from prs3_post.toolpath import Event, EventKind, JointProgram
-from prs3_post.workplane import WorkPlane, euler_zxz_deg
+from prs3_post.workplane import WorkPlane, euler_zxz_deg, rotate_rows
 
 ROOT = Path(__file__).resolve().parents[1]
 needs_native = pytest.mark.skipif(not native.available(), reason="the compiled line writer was not built here")
@@ -404,6 +404,11 @@ def test_compiled_rows_to_part_are_the_work_planes_bits(seed: int, rows: int, sc
     tip = native.rows_to_part(local, plane.rotation, plane.origin)
     assert tip is not None and tip.shape == expected.shape == (rows, 3)
     assert tip.view(np.uint64).tolist() == expected.view(np.uint64).tolist()
+    local[::3] = -0.0                                                 # directions: no origin, -0.0 kept
+    with np.errstate(over="ignore", invalid="ignore"):
+        expected = rotate_rows(local, plane.rotation)
+    turned = native.rows_to_part(local, plane.rotation, None)
+    assert turned is not None and turned.view(np.uint64).tolist() == expected.view(np.uint64).tolist()
 
 
 def test_numpy_lexes_where_it_is_turned_off(monkeypatch: pytest.MonkeyPatch) -> None:

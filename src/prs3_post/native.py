@@ -324,9 +324,10 @@ def fill_moves(values: FloatArray, moves: np.ndarray, state: FloatArray, limits:
     return tip[:m], kind[:m], feed[:m], source[:m], after, words
 
 
-def rows_to_part(rows: FloatArray, rotation: FloatArray, origin: FloatArray) -> FloatArray | None:
+def rows_to_part(rows: FloatArray, rotation: FloatArray, origin: FloatArray | None) -> FloatArray | None:
     """``WorkPlane(origin, rotation).to_part(rows)`` in C (csrc/lex.c's prs3_rows_to_part: the same bits),
-    (N, 3) mm; None where the compiled library is not there or turned off."""
+    (N, 3) mm; ``origin`` None: ``workplane.rotate_rows(rows, rotation)``. None where the compiled library
+    is not there or turned off."""
     global _to_part
     if _to_part is None:
         _to_part = _bind("prs3_rows_to_part", [_POINTER, _I64, _POINTER, _POINTER, _POINTER])
@@ -334,11 +335,14 @@ def rows_to_part(rows: FloatArray, rotation: FloatArray, origin: FloatArray) -> 
         return None
     rows = np.ascontiguousarray(rows, dtype=np.float64).reshape(-1, 3)
     rotation = np.ascontiguousarray(rotation, dtype=np.float64)
-    origin = np.ascontiguousarray(origin, dtype=np.float64)
-    if rotation.shape != (3, 3) or origin.shape != (3,):
-        raise ValueError(f"rows_to_part: rotation (3, 3) and origin (3,), got {rotation.shape} and {origin.shape}")
+    if origin is not None:
+        origin = np.ascontiguousarray(origin, dtype=np.float64)
+    if rotation.shape != (3, 3) or (origin is not None and origin.shape != (3,)):
+        raise ValueError(f"rows_to_part: rotation (3, 3) and origin (3,), got {rotation.shape} and "
+                         f"{None if origin is None else origin.shape}")
     out = np.zeros_like(rows)
-    _to_part(_address(rows), len(rows), _address(rotation), _address(origin), _address(out))
+    _to_part(_address(rows), len(rows), _address(rotation), None if origin is None else _address(origin),
+             _address(out))
     return out
 
 

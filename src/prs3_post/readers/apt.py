@@ -89,7 +89,7 @@ from prs3_post.readers.lexer import bad_pairs, decimal_numbers
 from prs3_post.readers.stl import MAX_COORDINATE_MM
 from prs3_post.tolerances import FEED_RANGE_MM_MIN, MAX_SPINDLE_RPM
 from prs3_post.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath
-from prs3_post.types import BoolArray, FloatArray
+from prs3_post.types import BoolArray, FloatArray, IntArray
 from prs3_post.workplane import rotate_rows
 
 __all__ = [
@@ -239,7 +239,8 @@ def _plain_goto_text_numpy(text: bytes, n: int) -> tuple[FloatArray, BoolArray]:
     return values, read
 
 
-def _goto_values(values: FloatArray, written: dict[int, tuple[str | None, ...]], run_index: list[int]) -> FloatArray:
+def _goto_values(values: FloatArray, written: dict[int, tuple[str | None, ...]],
+                 run_index: list[int] | IntArray) -> FloatArray:
     """(k, 6) the numbers of a run of plain GOTO lines ``run_index``: from ``values`` (:func:`_plain_gotos`)
     where read in bulk, else (``written``: position in the run → the numbers as written) ``float`` of
     the text (NaN for no i, j, k)."""
@@ -775,7 +776,7 @@ class _Reader:
         self.frame_of = array("q")                    # index into self.frames
         self.rows = 0                                 # rows so far (all chunks)
         self.chunk_start = 0                          # row index of the current chunk's first row
-        self.events: list[Event] = []                 # this chunk's, ``before`` counted from the file's start
+        self.events: list[Event] = []                 # this chunk's, ``before`` counted from its start
         self.assembler = _Assembler(path)
         self.frames: list[ClFrame] = [ClFrame(0, np.zeros(3), np.eye(3))]
         self.position: tuple[float, float, float] | None = None    # mm, local frame of the current MSYS
@@ -796,6 +797,8 @@ class _Reader:
         self.after_end = False                        # END-OF-PATH or FINI seen last
         self.by_word: Counter[str] = Counter()
         self.skipped: Counter[str] = Counter()
+        #: plain FEDRAT lines read in bulk runs (:meth:`mark`) → the feed and per_rev they set
+        self.fedrat_seen: dict[str, tuple[float | None, bool]] = {}
         self.records = self.gotos = self.gotos_with_axis = self.moves = 0
         self.arcs = self.arc_segments = self.cycle_holes = self.cycle_rows = self.comments = 0
 
@@ -872,7 +875,7 @@ class _Reader:
         self.position = (x, y, z)
 
     def event(self, kind: EventKind, value: float = 0.0, text: str = "") -> None:
-        self.events.append(Event(before=self.rows, kind=kind, value=value, text=text))
+        self.events.append(Event(before=self.rows - self.chunk_start, kind=kind, value=value, text=text))
 
     def current_feed(self) -> float:
         """mm/min of a feed move now."""
@@ -1041,8 +1044,8 @@ class _Reader:
         first = self.rows
         self.add_rows(tip, axis, kind, feed, self.line)
         if self.cycle.cycle.dwell > 0:
-            self.events.append(Event(before=first + int(bottom[0]) + 1, kind=EventKind.DWELL,
-                                     value=self.cycle.cycle.dwell))
+            self.events.append(Event(before=first - self.chunk_start + int(bottom[0]) + 1,
+                                     kind=EventKind.DWELL, value=self.cycle.cycle.dwell))
         self.cycle.holes += 1
         self.cycle_holes += 1
         self.cycle_rows += len(tip)
@@ -1317,7 +1320,8 @@ class _Reader:
                     index += 1
                     continue
             if run_index:
-                self.goto_run(first, lines, _goto_values(values, written, run_index), run_index, marks)
+                at = np.array(run_index, dtype=np.int64)
+                self.goto_run(first, lines, _goto_values(values, written, at), run_index, marks, at)
                 written, run_index, marks = {}, [], []
             record = assembler.push(first + index, lines[index])
             if record is not None:
@@ -1325,18 +1329,19 @@ class _Reader:
             bulk = self.arc is None and self.cycle is None and not self.finished and not assembler.pending
             index += 1
         if run_index:
-            self.goto_run(first, lines, _goto_values(values, written, run_index), run_index, marks)
+            at = np.array(run_index, dtype=np.int64)
+            self.goto_run(first, lines, _goto_values(values, written, at), run_index, marks, at)
         if paints:
             self.records += paints
             self.by_word["PAINT"] += paints
             self.skipped["PAINT"] += paints
 
     def goto_run(self, first: int, lines: list[str], run: FloatArray, run_index: list[int],
-                 marks: list[tuple[int, int]] | None = None) -> None:
+                 marks: list[tuple[int, int]] | None = None, at: IntArray | None = None) -> None:
         """Plain GOTO lines ``lines[run_index]`` in bulk (``run``: (k, 6) their x, y, z, i, j, k as
-        written, NaN where a GOTO has no i, j, k), with the PPRINT and FEDRAT lines ``marks``
-        ((GOTOs before it, index into ``lines``)) among them: the same rows, events, counts and errors
-        as record by record."""
+        written, NaN where a GOTO has no i, j, k; ``at``: ``run_index`` as an array, if made already),
+        with the PPRINT and FEDRAT lines ``marks`` ((GOTOs before it, index into ``lines``)) among
+        them: the same rows, events, counts and errors as record by record."""
         marks = marks or []
         with_axis = ~np.isnan(run[:, 3])
         tip = run[:, :3] * self.scale
@@ -1362,14 +1367,29 @@ class _Reader:
             kind[0] = _RAPID
             self.rapid_next = False
         feed = np.zeros(len(run))
+        pprints = [(b, index) for b, index in marks if lines[index].startswith("PPRINT/")]
+        # where no PPRINT is too long (refused where it stands), the PPRINTs in one go: no feed changes there
+        together = all(len(lines[index]) <= MAX_RECORD_CHARS for _, index in pprints)
         # the feed of the rows between the marks: the FEDRAT before them (read in order, for its errors)
-        for (a, _), (b, index) in itertools.pairwise([(0, -1), *marks, (len(run), -1)]):
+        feeds = [mark for mark in marks if not lines[mark[1]].startswith("PPRINT/")] if together else marks
+        for (a, _), (b, index) in itertools.pairwise([(0, -1), *feeds, (len(run), -1)]):
             rows = range(max(a, 1) if kind[0] == _RAPID else a, b)
             if len(rows):
                 self.line = first + run_index[rows[0]]
                 feed[rows.start:b] = self.current_feed()
             if index >= 0:
                 self.mark(first + index, lines[index], self.rows + b)
+        if together and pprints:
+            before = self.rows - self.chunk_start
+            comment = EventKind.COMMENT
+            self.events += [Event(before + b, comment, 0.0, lines[index][len("PPRINT/"):].strip())
+                            for b, index in pprints]
+            self.records += len(pprints)
+            self.by_word["PPRINT"] += len(pprints)
+            self.comments += len(pprints)
+            end_mark, end_index = marks[-1]              # the line the loop over every mark would end on
+            end_start = max(end_mark, 1) if int(kind[0]) == _RAPID else end_mark
+            self.line = first + (run_index[end_start] if end_start < len(run) else end_index)
         count = len(run)
         self.records += count
         self.by_word["GOTO"] += count
@@ -1377,24 +1397,47 @@ class _Reader:
         self.gotos_with_axis += int(with_axis.sum())
         self.moves += count
         self.after_end = False
-        self.add_rows(tip, axes, kind, feed, np.array(run_index, dtype=np.int64) + first)
+        self.add_rows(tip, axes, kind, feed, (np.array(run_index, dtype=np.int64) if at is None else at) + first)
         x, y, z = axes[-1].tolist()
         self.tool_axis = (x, y, z)
 
     def mark(self, number: int, raw: str, before: int) -> None:
         """A plain PPRINT or FEDRAT line inside a bulk run, read as :meth:`record` reads it, its comment
-        event before row ``before`` (counted from the file's start: the run's rows are added after)."""
+        event before row ``before`` (counted from the file's start: the run's rows are added after).
+
+        Without the record's objects where that changes nothing: a PPRINT's text is the line's after
+        ``PPRINT/``, stripped (as the assembler splits it); a FEDRAT line that was read before, word for
+        word, sets the same feed again (:attr:`fedrat_seen`; the state it depends on, the file's scale,
+        does not change). A line over the record limit goes the assembler's way, which refuses it."""
+        if len(raw) <= MAX_RECORD_CHARS:
+            seen = self.fedrat_seen.get(raw)
+            if seen is not None or raw.startswith("PPRINT/"):
+                self.line = number
+                self.records += 1
+                self.after_end = False
+                if seen is not None:
+                    self.by_word["FEDRAT"] += 1
+                    self.feed_value, self.per_rev = seen
+                    return
+                self.by_word["PPRINT"] += 1
+                self.comments += 1
+                self.events.append(Event(before - self.chunk_start, EventKind.COMMENT, 0.0,
+                                         raw[len("PPRINT/"):].strip()))
+                return
         record = self.assembler.push(number, raw)
         assert record is not None and record.comment is None  # no '$' on the line: a whole record
         if record.word != "PPRINT":
             self.record(record)                            # FEDRAT: no rows, no events
+            if len(self.fedrat_seen) >= 64:
+                self.fedrat_seen.clear()
+            self.fedrat_seen[raw] = (self.feed_value, self.per_rev)
             return
         self.line = number
         self.records += 1
         self.by_word["PPRINT"] += 1
         self.after_end = False
         self.comments += 1
-        self.events.append(Event(before=before, kind=EventKind.COMMENT, text=record.rest or ""))
+        self.events.append(Event(before=before - self.chunk_start, kind=EventKind.COMMENT, text=record.rest or ""))
 
     def close(self) -> None:
         """The end of the file: nothing may be left open."""
@@ -1415,15 +1458,14 @@ class _Reader:
         frame = np.frombuffer(self.frame_of, dtype=np.int64)
         if self.apply_msys and len(frame) and frame[0] == frame[-1] and (frame == frame[0]).all():   # one MSYS
             one = self.frames[int(frame[0])]
-            tip, axis = one.to_part(local), rotate_rows(axis_local, one.rotation)
+            tip, axis = _turned(local, one.rotation, one.origin), _turned(axis_local, one.rotation, None)
         else:
             tip, axis = local.copy(), axis_local.copy()
             for index in np.unique(frame) if self.apply_msys else ():   # one transform per MSYS, its rows at once
                 rows = frame == index
-                tip[rows] = self.frames[index].to_part(local[rows])
-                axis[rows] = rotate_rows(axis_local[rows], self.frames[index].rotation)
-        events = tuple(Event(before=e.before - self.chunk_start, kind=e.kind, value=e.value, text=e.text)
-                       for e in self.events)
+                tip[rows] = _turned(local[rows], self.frames[index].rotation, self.frames[index].origin)
+                axis[rows] = _turned(axis_local[rows], self.frames[index].rotation, None)
+        events = tuple(self.events)                    # counted from the chunk's start already
         chunk = Toolpath(kind=np.frombuffer(self.kind, dtype=np.int64), tip=tip, axis=axis,
                          feed=np.frombuffer(self.feed, dtype=np.float64),
                          source=np.frombuffer(self.source, dtype=np.int64), events=events,
@@ -1444,6 +1486,16 @@ class _Reader:
         return ClFile(path=self.path, units=units, toolpath=join_toolpaths([]), counts=counts,
                       frames=tuple(self.frames[1:]), cycles=tuple(self.cycles), tool_data=tuple(self.tool_data),
                       end_lines=tuple(self.end_lines))
+
+
+def _turned(rows: FloatArray, rotation: FloatArray, origin: FloatArray | None) -> FloatArray:
+    """(N, 3) ``rotate_rows(rows, rotation)`` (+ ``origin``): in C where it was built (the same bits, one pass)."""
+    from prs3_post import native  # ctypes: loaded only where rows are read
+
+    turned = native.rows_to_part(rows, rotation, origin)
+    if turned is not None:
+        return turned
+    return rotate_rows(rows, rotation) if origin is None else rotate_rows(rows, rotation) + origin
 
 
 _HANDLERS = {
