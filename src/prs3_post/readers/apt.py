@@ -537,12 +537,19 @@ class _Record(NamedTuple):
 
 
 def _text(data: bytes, path: str, offset: int = 0) -> str:
-    """The text of (a piece of) a file; binary data and non-UTF-8 are refused (``offset``: of the piece)."""
-    codes = np.frombuffer(data, dtype=np.uint8)
-    control = np.flatnonzero(((codes < 32) & (codes != 9) & (codes != 10) & (codes != 13)) | (codes == 127))
-    if len(control):
-        at = int(control[0])
-        raise InputError(f"not a CL file: binary data (byte 0x{codes[at]:02x} at offset {offset + at})", path=path)
+    """The text of (a piece of) a file; binary data and non-UTF-8 are refused (``offset``: of the piece).
+    The control bytes are looked for by csrc/lex.c's one pass where it was built, else by numpy."""
+    from prs3_post import native  # ctypes: loaded only where a file is read
+
+    scanned = native.scan_text(data)
+    if scanned is None:
+        codes = np.frombuffer(data, dtype=np.uint8)
+        control = np.flatnonzero(((codes < 32) & (codes != 9) & (codes != 10) & (codes != 13)) | (codes == 127))
+        at = int(control[0]) if len(control) else -1
+    else:
+        at = scanned[0]
+    if at >= 0:
+        raise InputError(f"not a CL file: binary data (byte 0x{data[at]:02x} at offset {offset + at})", path=path)
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
