@@ -73,20 +73,21 @@ def tilt_of(axis: FloatArray) -> FloatArray:
     return np.arccos(np.clip(axis[:, 2], -1.0, 1.0))   # clip: rounding
 
 
-def _columns(machine: Machine, ik: IKResult, axis: FloatArray) -> list[tuple[str, str, float, float, FloatArray]]:
-    """Each limit of ``machine``: its name, unit, bounds and the points' values (N,)."""
+def _groups(machine: Machine, ik: IKResult, axis: FloatArray) -> list[tuple[tuple[str, ...], str, float, float,
+                                                                            FloatArray]]:
+    """The limits of ``machine`` by the bounds they share: names, unit, bounds and the points' values
+    (N, one column per name)."""
     lim = machine.limits
-    columns: list[tuple[str, str, float, float, FloatArray]] = []
-    for leg in range(3):
-        columns.append((f"T{leg + 1} stroke", "mm", *lim.stroke, ik.strokes[:, leg]))
-    for leg in range(3):
-        columns.append((f"θ{leg + 1} link angle", "deg", *lim.link_angle, ik.link_angle[:, leg]))
-    columns.append(("tilt", "deg", -math.inf, lim.max_tilt, tilt_of(axis)))
-    columns.append(("condition number", "", -math.inf, lim.max_condition, ik.condition))
+    groups: list[tuple[tuple[str, ...], str, float, float, FloatArray]] = [
+        (tuple(f"T{leg + 1} stroke" for leg in range(3)), "mm", *lim.stroke, ik.strokes),
+        (tuple(f"θ{leg + 1} link angle" for leg in range(3)), "deg", *lim.link_angle, ik.link_angle),
+        (("tilt",), "deg", -math.inf, lim.max_tilt, tilt_of(axis)[:, None]),
+        (("condition number",), "", -math.inf, lim.max_condition, ik.condition[:, None]),
+    ]
     if machine.stage.present:
-        columns.append(("stage X", "mm", *machine.stage.travel_x, ik.stage[:, 0]))
-        columns.append(("stage Y", "mm", *machine.stage.travel_y, ik.stage[:, 1]))
-    return columns
+        groups.append((("stage X",), "mm", *machine.stage.travel_x, ik.stage[:, 0:1]))
+        groups.append((("stage Y",), "mm", *machine.stage.travel_y, ik.stage[:, 1:2]))
+    return groups
 
 
 def check_limits(machine: Machine, ik: IKResult, axis: FloatArray) -> LimitReport:
@@ -102,7 +103,8 @@ def check_limits(machine: Machine, ik: IKResult, axis: FloatArray) -> LimitRepor
     -------
     LimitReport
     """
-    columns = _columns(machine, ik, axis)
+    columns = [(name, unit, low, high, values[:, j])
+               for names, unit, low, high, values in _groups(machine, ik, axis) for j, name in enumerate(names)]
     low = np.array([c[2] for c in columns])
     high = np.array([c[3] for c in columns])
     # one limit per row of (L, N) arrays: each step runs along a contiguous row (the report holds
@@ -131,7 +133,7 @@ def within_limits(machine: Machine, ik: IKResult, axis: FloatArray) -> bool:
     term NaN or negative, NaN makes both NaN), and a NaN or infinite value makes its column's least
     or greatest value NaN or infinite, so the extremes of the columns decide.
     """
-    for _, _, low, high, values in _columns(machine, ik, axis):
+    for _, _, low, high, values in _groups(machine, ik, axis):   # (strokes, link angles: one reduction each)
         if len(values):
             least, most = float(values.min()), float(values.max())
             if not (math.isfinite(least) and math.isfinite(most) and low <= least and most <= high):
