@@ -18,6 +18,10 @@
  * that text), so the reader makes its comment event without decoding or matching the line
  * (prs3_post.readers.lexer._line_kinds_numpy is the reference).
  *
+ * The CAM readers' other passes over bytes and rows live here too: prs3_scan_text (a file's bytes
+ * checked before reading), prs3_line_end (blocks of whole lines), prs3_fill_moves (the 3+2 reader's
+ * bulk step) and prs3_rows_to_part (rows to the part frame); each has its numpy twin as reference.
+ *
  * Plain C with no Python API: ctypes releases the GIL for the call (convert and verify read the next
  * chunk on a second thread, read_ahead). No state outside the call: two threads may lex at once.
  *

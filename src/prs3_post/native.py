@@ -1,5 +1,8 @@
 """The compiled line writer (csrc/render.c), lexer (csrc/lex.c) and CL GOTO reader (csrc/goto.c), loaded
-with ctypes; numpy does the same where they are absent.
+with ctypes; numpy does the same where they are absent. csrc/lex.c also holds the CAM readers' other
+passes: the check of a file's bytes (:func:`scan_text`), the cut of blocks of lines (:func:`line_end`),
+the 3+2 G-code reader's bulk step (:func:`fill_moves`) and the turn of rows to the part frame
+(:func:`rows_to_part`), each with its numpy twin in the reader as the reference.
 
 ``pip install`` compiles csrc/*.c with the machine's C compiler (hatch_build.py) into
 ``prs3_post/_native.so``. Where there is no compiler the package installs all the same and every

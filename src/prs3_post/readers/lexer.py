@@ -36,6 +36,9 @@ wrong) must go through :func:`lex_line`, which reads it or says exactly what is 
 read a line they agree exactly (values are ``float`` of the same text: correctly rounded). Where
 ``pip install`` compiled csrc/lex.c (:mod:`prs3_post.native`), one pass over the bytes in C reads
 the chunk, with the same rules and values; else numpy does (``PRS3_POST_NATIVE=0`` chooses that).
+:func:`lex_block_lines` also names, among the lines not read, the usual comment line (one comment in
+parentheses, printable ASCII) and where its text is, so that a reader makes its comment without
+decoding or splitting the line.
 
 pygcode is the reference of a differential test (tests/test_lexer.py), where it is documented
 wrong listed there (it skips characters it does not know, reads non-ASCII letters, ...).
