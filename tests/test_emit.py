@@ -595,6 +595,15 @@ def test_rapid_ignores_inverse_time(linuxcnc: Dialect, tmp_path: Path) -> None:
     assert _emit(program, linuxcnc, tmp_path).splitlines()[-2] == "G0 X0.0000 Y0.0000 U1.0000 V2.0000 W3.0000"
 
 
+def test_huge_finite_values_are_not_taken_for_non_finite(linuxcnc: Dialect) -> None:
+    """The finiteness check sums each array first: a sum that overflows (two values of 1.5e308) is
+    not an error, the values are written (as Python formats them)."""
+    dialect = replace(linuxcnc, max_line_length=400)
+    program = _program([R, F], [[1.5e308, 0], [1.5e308, 1]], [[1, 2, 3]] * 2, [0, 2.0])
+    motion = [line for line in emit_program(program, dialect).splitlines() if line.startswith(("G0 ", "G1 "))]
+    assert motion == [f"G0 X{1.5e308:.4f} Y0.0000 U1.0000 V2.0000 W3.0000", "G1 Y1.0000 F2.0000"]
+
+
 def test_non_finite_axis(linuxcnc: Dialect) -> None:
     program = _program([R, F], [[0, 0]] * 2, [[1, 2, 3], [1, np.nan, 4]], [0, 1], [0, 1], labels=LABELS)
     assert _error(program, linuxcnc) == "row 1 from hole 1 feed: actuator stroke T2 (V) is nan, not a finite number"

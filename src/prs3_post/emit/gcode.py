@@ -358,7 +358,7 @@ class _Chunk:
 
     program: JointProgram
     axes: list[tuple[bytes, FloatArray]]     # word letter and values (checked finite), in word order
-    feed: ScaledColumn                       # F of every row (0 on rapids)
+    feed: ScaledColumn                       # F of every row (1 on rapids: never written)
     befores: list[int] = field(default_factory=list)
     """Each event's row (``program.events`` is in row order)."""
     rows_with_events: list[int] = field(default_factory=list)
@@ -469,14 +469,16 @@ class ProgramEmitter:
                  (ax.t1, program.strokes[:, 0], "actuator stroke T1"),
                  (ax.t2, program.strokes[:, 1], "actuator stroke T2"),
                  (ax.t3, program.strokes[:, 2], "actuator stroke T3")]
-        for letter, values, name in named:
+        with np.errstate(over="ignore", invalid="ignore"):       # a sum is not finite where a value is not
+            finite = np.isfinite(program.stage.sum() + program.strokes.sum())    # (or where it overflows)
+        for letter, values, name in ([] if finite else named):
             bad = np.flatnonzero(~np.isfinite(values))
             if bad.size:
                 row = int(bad[0])
                 raise LimitError(f"{self._where(program, row)}: {name} ({letter}) is {float(values[row])!r}, "
                                  "not a finite number")
         if not self.stage:
-            for _, values, name in named[:2]:
+            for _, values, name in (named[:2] if program.stage.any() else []):    # (zeros print as zero)
                 column = scale_column(values, dec.length)
                 moved = np.flatnonzero(column.scaled)
                 if moved.size:
@@ -531,18 +533,19 @@ class ProgramEmitter:
         return special, rows, starts, data
 
     def _feed_column(self, program: JointProgram, decimals: int) -> ScaledColumn:
-        """The F word of every FEED row (rapids: 0, never written); one that is not > 0 once
+        """The F word of every FEED row (rapids: 1, never written); one that is not > 0 once
         printed is a LimitError naming its row."""
         feed = program.kind == MoveKind.FEED
         values = np.where(feed, program.inverse_time, 1.0)
-        with np.errstate(invalid="ignore"):
-            bad = np.flatnonzero(~(np.isfinite(values) & (values > 0)))
+        with np.errstate(invalid="ignore", over="ignore"):   # min: nan where one is; sum: inf where one is
+            usual = bool(values.min(initial=1.0) > 0) and bool(np.isfinite(values.sum()))
+            bad = np.zeros(0, dtype=np.int64) if usual else np.flatnonzero(~(np.isfinite(values) & (values > 0)))
         if bad.size:
             row = int(bad[0])
             raise LimitError(f"{self._where(program, row)}: inverse-time feed must be a finite number > 0 /min, "
                              f"got {float(values[row])!r}")
-        column = scale_column(np.where(feed, values, 0.0), decimals)
-        zero = np.flatnonzero(feed & (column.scaled == 0))
+        column = scale_column(values, decimals)             # (rapids: 1, never written)
+        zero = np.zeros(0, dtype=np.int64) if column.scaled.all() else np.flatnonzero(feed & (column.scaled == 0))
         if zero.size:
             row = int(zero[0])
             value = float(values[row])
@@ -762,13 +765,14 @@ def _rows_of(column: ScaledColumn, lo: int, hi: int) -> ScaledColumn:
 
 def _check_rows(program: JointProgram) -> None:
     """Mistakes no caller should make: a kind that is not a MoveKind, an event outside ``0 ..= N``."""
-    n = len(program)
-    unknown = np.flatnonzero((program.kind != MoveKind.RAPID) & (program.kind != MoveKind.FEED))
-    if unknown.size:
-        raise ValueError(f"row {int(unknown[0])}: kind {int(program.kind[unknown[0]])} is not a MoveKind")
-    for event in program.events:
-        if not 0 <= event.before <= n:
-            raise ValueError(f"{event.kind.value} event: before = {event.before} is outside 0..{n}")
+    n, kind, events = len(program), program.kind, program.events
+    if n and not (kind.min() >= MoveKind.RAPID and kind.max() <= MoveKind.FEED):    # (RAPID 0, FEED 1)
+        unknown = np.flatnonzero((kind != MoveKind.RAPID) & (kind != MoveKind.FEED))
+        raise ValueError(f"row {int(unknown[0])}: kind {int(kind[unknown[0]])} is not a MoveKind")
+    if events and not (0 <= events[0].before and events[-1].before <= n):     # in row order (JointProgram)
+        for event in events:
+            if not 0 <= event.before <= n:
+                raise ValueError(f"{event.kind.value} event: before = {event.before} is outside 0..{n}")
 
 
 def emit_program(
