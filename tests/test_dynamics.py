@@ -218,3 +218,16 @@ def test_the_tallys_quick_test_finds_a_move_over_a_speed_exactly_when_the_clamp_
     with np.errstate(invalid="ignore"):
         expected = bool(clamp_feeds(DYN, kind, deltas, inverse_time).clamped.any())
         assert _any_over(DYN, kind, deltas, inverse_time) is expected
+
+
+@settings(max_examples=50, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), rows=st.integers(0, 40))
+def test_joint_columns_are_the_stage_and_strokes_side_by_side(seed: int, rows: int) -> None:
+    rng = np.random.default_rng(seed)
+    stage, strokes = rng.standard_normal((rows, 2)), rng.standard_normal((rows, 3))
+    stage[rng.random((rows, 2)) < 0.1] = -0.0
+    strokes[rng.random((rows, 3)) < 0.1] = np.nan
+    joints = joint_columns(stage, strokes)
+    np.testing.assert_array_equal(joints.view(np.int64), np.column_stack([stage, strokes]).view(np.int64))
+    with pytest.raises(ValueError, match=f"joint_columns: {rows} stage rows, {rows + 1} stroke rows"):
+        joint_columns(stage, np.vstack([strokes, [[0.0, 0.0, 0.0]]]))

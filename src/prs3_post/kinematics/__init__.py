@@ -68,7 +68,12 @@ def unit_axes(
         unit = given / length[:, None]
     if (np.isfinite(tip).all() and np.isfinite(given).all() and (length > 1e-12).all()
             and (unit[:, 2] > 0.0).all()):              # no problem: the rows named below are none
-        return np.repeat(unit, len(axis), axis=0) if one else unit
+        if not one:
+            return unit
+        repeated = np.zeros((len(axis), 3))               # a column at a time (np.repeat: 3 values a row)
+        for column in range(3):
+            repeated[:, column] = unit[0, column]
+        return repeated
     return _named_problems(tip, axis, row_name, row_numbers)
 
 
