@@ -135,8 +135,20 @@ class Setup:
         return transform
 
     def points_to_machine(self, points: FloatArray) -> FloatArray:
-        """(N, 3) mm part coordinates → (N, 3) mm machine coordinates."""
-        out = np.asarray(points, dtype=np.float64).reshape(-1, 3) @ self.rotation.T
+        """(N, 3) mm part coordinates → (N, 3) mm machine coordinates.
+
+        Without a turn (a rotation of whole turns: R is I exactly) the product is skipped for finite
+        points: x·1 + y·0 + z·0 is x, but for the sign of a zero, which adding an origin coordinate
+        that is not −0.0 makes +0.0 either way; so the same bits as with the product.
+        """
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        if (self.rotation_deg % 360.0 == 0.0 and not any(v == 0.0 and math.copysign(1.0, v) < 0.0 for v in self.origin)
+                and np.isfinite(points).all()):
+            out = np.zeros_like(points)
+            for column, shift in enumerate(self.origin):
+                np.add(points[:, column], shift, out=out[:, column])
+            return out
+        out = points @ self.rotation.T
         for column, shift in enumerate(self.origin):     # a column at a time: a (3,) row broadcast over
             out[:, column] += shift                      # (N, 3) adds three values at a time, ~3x slower
         return out
