@@ -106,25 +106,25 @@ irregular:
     return 0;
 }
 
-/* text[0:size]: a LF, then lines each ending in LF. codes: the lexer's 256-byte table of byte codes
- * for `width` letters (a code from LETTER + width on is taken as OTHER).
+/* text[0:size]: lines each ending in LF (none where size is 0). codes: the lexer's 256-byte table of
+ * byte codes for `width` letters (a code from LETTER + width on is taken as OTHER).
  * Writes, for the N lines: values (N, width) row-major, NaN where a line has no word of a letter and
  * on every line not read; kinds[k] the kind of line k (LINE_READ where it is read, LINE_COMMENT
- * where it is the usual comment line, else LINE_OTHER); ends (N + 1) the positions of the LFs;
- * spans (N, 2) the start and stop in `text` of a LINE_COMMENT line's stripped text (other lines'
- * rows are not written). Returns N, or -1 (nothing promised about the outputs) when the text does
- * not start and end with a LF or N > rows (values, kinds and spans have room for `rows` lines, ends
- * for rows + 1). */
+ * where it is the usual comment line, else LINE_OTHER); ends (N + 1) where each line starts and,
+ * last, size (line k is text[ends[k]:ends[k + 1] - 1], without its LF); spans (N, 2) the start and
+ * stop in `text` of a LINE_COMMENT line's stripped text (other lines' rows are not written).
+ * Returns N, or -1 (nothing promised about the outputs) when the text does not end with a LF or
+ * N > rows (values, kinds and spans have room for `rows` lines, ends for rows + 1). */
 int64_t prs3_lex_columns(const uint8_t *text, int64_t size, const uint8_t *codes, int64_t width, double *values,
                          uint8_t *kinds, int64_t *ends, int64_t rows, int64_t *spans) {
-    if (size < 1 || text[0] != '\n' || text[size - 1] != '\n' || width < 0 || rows < 0) return -1;
+    if (size < 0 || (size > 0 && text[size - 1] != '\n') || width < 0 || rows < 0) return -1;
     uint8_t class_of[256];
     for (int b = 0; b < 256; b++) {
         int code = codes[b];
         class_of[b] = (uint8_t)(code < LETTER ? code : code < LETTER + width ? LETTER : OTHER);
     }
     int64_t n = 0;
-    int64_t pos = 1;
+    int64_t pos = 0;
     ends[0] = 0;
     while (pos < size) {                                /* one line: text[pos] up to its LF */
         if (n >= rows) return -1;
@@ -140,8 +140,7 @@ int64_t prs3_lex_columns(const uint8_t *text, int64_t size, const uint8_t *codes
             pos = end - text;                           /* found: the text ends with a LF */
         }
         kinds[n] = line_kind;
-        ends[++n] = pos;
-        pos++;
+        ends[++n] = ++pos;                             /* the next line's start */
     }
     return n;
 }

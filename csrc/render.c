@@ -18,7 +18,7 @@
  * only when it says the version that module was written for (an editable install whose csrc/ changed
  * since it was built falls back to numpy instead of calling a function with other arguments).
  * Raise it with NATIVE_VERSION in native.py whenever a function or its arguments change. */
-int64_t prs3_native_version(void) { return 2; }
+int64_t prs3_native_version(void) { return 3; }
 
 static const char PAIRS[] =
     "00010203040506070809101112131415161718192021222324252627282930313233343536373839"

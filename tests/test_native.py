@@ -307,10 +307,10 @@ def test_compiled_lexer_finds_the_usual_comment_lines_as_numpy(lines: list[bytes
 @needs_lexer
 def test_compiled_lexer_never_writes_past_its_outputs() -> None:
     """Room for fewer lines than the text has: -1, and nothing written past the room given; a text that
-    does not start and end with a LF: -1."""
+    does not end with a LF: -1; no text: no lines."""
     function = native._lexer
     codes = lexer._tables("XY")[0]
-    text = b"\nX1\n(a)\nX3 Y4\n"
+    text = b"X1\n(a)\nX3 Y4\n"
     values = np.full((3, 2), 7.0)
     read = np.full(3, 5, dtype=np.uint8)
     ends = np.full(4, 9, dtype=np.int64)
@@ -323,13 +323,15 @@ def test_compiled_lexer_never_writes_past_its_outputs() -> None:
         assert read[rows:].tolist() == [5] * (3 - rows)
         assert ends[rows + 1:].tolist() == [9] * (3 - rows)
         assert spans[rows:].tolist() == [[8, 8]] * (3 - rows)
-    for bad in (b"X1\n", b"\nX1", b""):
+    for bad in (b"\nX1", b"X1"):
         assert function(bad, len(bad), codes, 2, values.ctypes.data, read.ctypes.data, ends.ctypes.data, 3,
                         spans.ctypes.data) == -1
     assert function(text, len(text), codes, 2, values.ctypes.data, read.ctypes.data, ends.ctypes.data, 3,
                     spans.ctypes.data) == 3
     assert values[2].tolist() == [3.0, 4.0] and read.tolist() == [1, 2, 1] and ends.tolist() == [0, 3, 7, 13]
-    assert spans.tolist() == [[8, 8], [5, 6], [8, 8]]                    # written on the comment line only
+    assert spans.tolist() == [[8, 8], [4, 5], [8, 8]]                    # written on the comment line only
+    assert function(b"", 0, codes, 2, values.ctypes.data, read.ctypes.data, ends.ctypes.data, 3,
+                    spans.ctypes.data) == 0
 
 
 @needs_lexer

@@ -35,7 +35,7 @@ LIBRARY = Path(__file__).with_name("_native.so")
 ENV = "PRS3_POST_NATIVE"
 #: What ``prs3_native_version()`` of the library must say (csrc/render.c): another version (an old build
 #: beside newer sources) is not used.
-NATIVE_VERSION = 2
+NATIVE_VERSION = 3
 _NUMBER, _CHOICE = 0, 1
 _library: Any = None                                    # None: not loaded yet; False: not there
 _function: Any = None                                   # prs3_render_lines, once loaded
@@ -233,20 +233,21 @@ def emit_rows(axis_values: Sequence[FloatArray], decimals: int, first_present: S
 
 def lex_text(text: bytes, codes: bytes, width: int, rows: int | None = None
              ) -> tuple[FloatArray, np.ndarray, IntArray, IntArray] | None:
-    """The lexer's fast path (:func:`prs3_post.readers.lexer._lex_text`) in C: values (N, width), the line
-    kinds (N,) uint8 (``lexer.LINE_*``), the LF positions (N + 1,) and the comment spans (N, 2) (positions in
-    ``text``, written on the comment lines only) of ``text`` (a LF, then lines each ending in LF), ``codes``
-    the lexer's byte-code table of ``width`` letters; None where the compiled lexer is not there or turned off.
-    ``rows``: a guess of N, to skip counting the lines (they are counted where the text has more)."""
+    """The lexer's fast path (:func:`prs3_post.readers.lexer._lex_lines`) in C: values (N, width), the line
+    kinds (N,) uint8 (``lexer.LINE_*``), where each line starts (N + 1,: line k is
+    ``text[bounds[k]:bounds[k + 1] - 1]``) and the comment spans (N, 2) (positions in ``text``, written on
+    the comment lines only) of ``text`` (lines each ending in LF), ``codes`` the lexer's byte-code table of
+    ``width`` letters; None where the compiled lexer is not there or turned off. ``rows``: a guess of
+    N, to skip counting the lines (they are counted where the text has more)."""
     global _lexer
     if _lexer is None:
         _lexer = _bind("prs3_lex_columns", [_TEXT, _I64, _TEXT, _I64, _POINTER, _POINTER, _POINTER, _I64, _POINTER])
     if not _lexer:
         return None
     lexed = _lex_into(text, codes, width, rows) if rows else None
-    lexed = lexed or _lex_into(text, codes, width, max(text.count(b"\n") - 1, 0))
+    lexed = lexed or _lex_into(text, codes, width, text.count(b"\n"))
     if lexed is None:
-        raise AssertionError("prs3_lex_columns: -1 with room for every line (the text must start and end with a LF)")
+        raise AssertionError("prs3_lex_columns: -1 with room for every line (the text must end with a LF)")
     return lexed
 
 

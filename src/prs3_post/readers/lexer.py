@@ -292,7 +292,7 @@ def lex_columns(lines: Sequence[str], letters: str) -> tuple[FloatArray, BoolArr
     column_pattern(letters)                              # checks the letters
     if not lines:
         return np.full((0, len(letters)), np.nan), np.zeros(0, dtype=bool)
-    text = ("\n" + "\n".join(lines) + "\n").encode("ascii", errors="replace")    # byte 0: the line start
+    text = ("\n".join(lines) + "\n").encode("ascii", errors="replace")
     values, read, _ = _lex_text(text, letters)
     return values, read
 
@@ -348,36 +348,31 @@ def lex_block_lines(block: bytes, letters: str, *, rows: int | None = None
     if not block:
         return (np.full((0, len(letters)), np.nan), np.zeros(0, dtype=np.uint8), np.zeros(1, dtype=np.int64),
                 np.zeros((0, 2), dtype=np.int64))
-    values, kinds, ends, spans = _lex_lines(b"\n" + block + (b"" if block.endswith(b"\n") else b"\n"), letters,
-                                            rows)
-    spans -= kinds[:, None] == LINE_COMMENT              # positions in the text (after its first LF): in the block
-    return values, kinds, ends, spans
+    return _lex_lines(block if block.endswith(b"\n") else block + b"\n", letters, rows)
 
 
 def _lex_text(text: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArray]:
-    """lex_columns of ``text``: LF, then each line and its LF (every byte not ASCII already one of the
-    bytes that no line of the regular shape has); returns values, read and the LF positions (N + 1,).
+    """lex_columns of ``text``: lines each with its LF (every byte not ASCII already one of the bytes
+    that no line of the regular shape has); returns values, read and where each line starts (N + 1,).
     In C (csrc/lex.c, several times faster) where it was built, else :func:`_lex_text_numpy`: the same."""
-    from prs3_post import native  # ctypes: loaded only where lines are read in bulk
-
-    lexed = native.lex_text(text, _tables(letters)[0], len(letters))
-    if lexed is None:
-        return _lex_text_numpy(text, letters)
-    values, kinds, ends, _ = lexed
-    return values, kinds == LINE_READ, ends
+    values, kinds, bounds, _ = _lex_lines(text, letters)
+    return values, kinds == LINE_READ, bounds
 
 
 def _lex_lines(text: bytes, letters: str, rows: int | None = None
                ) -> tuple[FloatArray, npt.NDArray[np.uint8], IntArray, IntArray]:
-    """:func:`_lex_text` with the line kinds and the comment spans (positions in ``text``) of
-    :func:`lex_block_lines`: csrc/lex.c where it was built, else numpy and :func:`_line_kinds_numpy`."""
-    from prs3_post import native
+    """The values, line kinds, line starts and comment spans (positions in ``text``) of
+    :func:`lex_block_lines` of ``text`` (lines each ending in LF): csrc/lex.c where it was built, else
+    numpy (:func:`_lex_text_numpy`, :func:`_line_kinds_numpy`, on the text after a LF)."""
+    from prs3_post import native  # ctypes: loaded only where lines are read in bulk
 
     lexed = native.lex_text(text, _tables(letters)[0], len(letters), rows)
     if lexed is not None:
         return lexed
-    values, read, ends = _lex_text_numpy(text, letters)
-    kinds, spans = _line_kinds_numpy(text, read, ends)
+    after_lf = b"\n" + text                              # byte 0: the first line's start
+    values, read, ends = _lex_text_numpy(after_lf, letters)
+    kinds, spans = _line_kinds_numpy(after_lf, read, ends)
+    spans -= kinds[:, None] == LINE_COMMENT              # positions in the text after the LF: in ``text``
     return values, kinds, ends, spans
 
 
@@ -402,7 +397,9 @@ def _line_kinds_numpy(text: bytes, read: BoolArray, ends: IntArray) -> tuple[npt
 
 
 def _lex_text_numpy(text: bytes, letters: str) -> tuple[FloatArray, BoolArray, IntArray]:
-    """:func:`_lex_text` with numpy (the reference of csrc/lex.c, and where that was not built)."""
+    """The values, lines read and LF positions (N + 1,) of ``text``: a LF, then lines each with its LF,
+    with numpy (the reference of csrc/lex.c, and where that was not built; its LF positions in
+    ``text`` are the line starts in the text after the first LF)."""
     code_table, pair_table = _tables(letters)
     size = len(text)
     classes = text.translate(code_table)                 # one byte a byte: its class (_CODE_*)
