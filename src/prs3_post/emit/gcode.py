@@ -583,7 +583,7 @@ class ProgramEmitter:
         pieces = []
         at, previous = 0, lo                         # where the text not yet written starts, and its row
         for b in breaks:
-            cut = offsets[b - lo]                    # where row b's line starts (after comments put in)
+            cut = int(offsets[b - lo])               # where row b's line starts (after comments put in)
             if cut > at:                             # the text up to this break, as one piece
                 if out.lines:
                     pieces.append(out.take())
@@ -611,7 +611,7 @@ class ProgramEmitter:
         self._remember(chunk, hi, kind)
         return pieces                                # (one piece, the usual: rows() joins it without a copy)
 
-    def _rows_in_one_pass(self, chunk: _Chunk, lo: int, hi: int, restate: IntArray) -> tuple[str, list[int]] | None:
+    def _rows_in_one_pass(self, chunk: _Chunk, lo: int, hi: int, restate: IntArray) -> tuple[str, IntArray] | None:
         """Rows ``lo:hi``'s lines by the compiled writer (:func:`prs3_post.native.emit_rows`), with the
         usual comments of the rows that have no other event before them: (the text, where each row's
         line starts, then the text's end (M + 1)). None where it cannot: not built, numbered blocks, a
@@ -640,11 +640,11 @@ class ProgramEmitter:
         buffer, starts, lengths = written
         if lengths.size and int(lengths.max()) - len(dialect.line_ending) > out.limit:
             return None
-        line_starts = starts[1:] - lengths
-        return str(buffer.data, "ascii"), [*line_starts.tolist(), int(starts[-1])]
+        line_starts = np.append(starts[1:] - lengths, starts[-1])    # (a few are looked up: not made a list)
+        return str(buffer.data, "ascii"), line_starts
 
     def _rows_numpy(self, chunk: _Chunk, lo: int, hi: int, g93: int | None,
-                    restate: IntArray) -> tuple[str, list[int], int]:
+                    restate: IntArray) -> tuple[str, IntArray, int]:
         """Rows ``lo:hi``'s lines, column by column with numpy: (the text, where each row's line starts
         (M + 1), the first over-long line (M: none))."""
         out = self._out
@@ -661,7 +661,7 @@ class ProgramEmitter:
         buffer, ends = self._render(chunk, axes, lo, hi, present, motion, np.arange(hi - lo) + blocks_before)
         text = str(buffer.data, "ascii")             # every row's line; ASCII: a byte offset is a character's
         long = np.flatnonzero(np.diff(ends) - len(self.dialect.line_ending) > out.limit)
-        return text, ends.tolist(), int(long[0]) if long.size else hi - lo
+        return text, ends, int(long[0]) if long.size else hi - lo
 
     def _event(self, program: JointProgram, event: Event) -> None:
         out = self._out
@@ -723,7 +723,7 @@ class ProgramEmitter:
         return render_rows(columns, np.column_stack(shown) if m else np.zeros((0, len(columns)), dtype=bool),
                            ending=self.dialect.line_ending.encode("ascii"))
 
-    def _rows_text(self, chunk: _Chunk, text: str, offsets: list[int], too_long: int, lo: int, a: int,
+    def _rows_text(self, chunk: _Chunk, text: str, offsets: IntArray, too_long: int, lo: int, a: int,
                    b: int) -> str:
         """Lines ``a:b`` of those rendered for the rows from ``lo`` on (``text``, ``offsets``: where each
         line starts), as text; the first over-long one (``too_long``) is a LimitError naming its row."""
