@@ -23,6 +23,7 @@ from prs3_post.linearize import (
     subdivide_axis_changes,
 )
 from prs3_post.pipeline import inverse_time, machine_path, post_process
+from prs3_post.rows import row_lengths
 from prs3_post.setup import Setup
 from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
 
@@ -74,12 +75,17 @@ def test_inverse_time_is_each_rows_feed_over_its_length_bit_for_bit(seed, rows, 
     for i in np.flatnonzero(kinds == MoveKind.FEED):
         length = np.linalg.norm(tips[i:i + 1] - before[i:i + 1], axis=1)[0]
         if length < 1e-9:
-            with pytest.raises(LimitError) as caught:
-                inverse_time(p, start=start)
-            assert str(caught.value) == f"step {i}: feed move of zero length"
+            for steps in (None, row_lengths(np.diff(tips, axis=0))):
+                with pytest.raises(LimitError) as caught:
+                    inverse_time(p, start=start, steps=steps)
+                assert str(caught.value) == f"step {i}: feed move of zero length"
             return
         expected[i] = feeds[i] / length
     np.testing.assert_array_equal(inverse_time(p, start=start).view(np.int64), expected.view(np.int64))
+    steps = row_lengths(np.diff(tips, axis=0))            # the stream's step lengths, shared with its guard
+    np.testing.assert_array_equal(inverse_time(p, start=start, steps=steps).view(np.int64), expected.view(np.int64))
+    with pytest.raises(ValueError, match=f"inverse_time: {rows} step lengths for {rows} rows"):
+        inverse_time(p, start=start, steps=np.zeros(rows))
 
 
 def test_post_process_places_the_part_and_matches_case_2a():

@@ -221,6 +221,7 @@ def test_the_resolution_guard_keeps_the_same_rows_in_chunks(size: int):
     last row kept, and a row that is a long step from a dropped row but a short one from the last
     kept row (kept: only short steps are looked at)."""
     from prs3_post.resolution import VisibleMoves, visible_moves
+    from prs3_post.rows import row_lengths
 
     rng = np.random.default_rng(size)
     steps = rng.uniform(-6e-5, 6e-5, (400, 3)) * (rng.random((400, 1)) < 0.9)
@@ -233,6 +234,10 @@ def test_the_resolution_guard_keeps_the_same_rows_in_chunks(size: int):
     guard = VisibleMoves(4)
     pieces = [guard.keep(joints[lo:lo + size], tip=tip[lo:lo + size], axis=axis[lo:lo + size])
               for lo in range(0, 400, size)]
+    assert np.concatenate(pieces).tolist() == whole.tolist()
+    guard = VisibleMoves(4)                             # given each chunk's step lengths (the stream's way)
+    pieces = [guard.keep(joints[lo:lo + size], tip=tip[lo:lo + size], axis=axis[lo:lo + size],
+                         steps=row_lengths(np.diff(tip[lo:lo + size], axis=0))) for lo in range(0, 400, size)]
     assert np.concatenate(pieces).tolist() == whole.tolist()
 
 

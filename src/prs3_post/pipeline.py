@@ -225,16 +225,17 @@ class PostStream:
                                  source=path.source[-1:], source_labels=path.source_labels,
                                  source_file=path.source_file)
         joints = joint_columns(stage, ik.strokes)        # (N, 5): the printed axes, for the guard and the speeds
+        steps: FloatArray | None = row_lengths(np.diff(path.tip, axis=0))   # for the guard and the feeds
         if self._visible is not None:                  # no move the program cannot show (a G1 without a word)
-            keep = self._visible.keep(joints, tip=path.tip, axis=path.axis)
+            keep = self._visible.keep(joints, tip=path.tip, axis=path.axis, steps=steps)
             if not keep.all():
-                path, stage, joints = path.take(keep), stage[keep], joints[keep]
+                path, stage, joints, steps = path.take(keep), stage[keep], joints[keep], None
                 ik = IKResult(stage=ik.stage[keep], strokes=ik.strokes[keep], link_angle=ik.link_angle[keep],
                               condition=ik.condition[keep], reachable=ik.reachable[keep])
         if not checked:                                # (checked: every row is within, so are those kept)
             _raise_outside_limits(machine, path, ik, self._counted(scope, len(path)))
         report = partial(check_limits, machine, ik, path.axis)   # made if the result's limits are read
-        feeds = inverse_time(path, start=self._last_tip)
+        feeds = inverse_time(path, start=self._last_tip, steps=steps)
         self._input_rows += len(chunk)
         self._inserted += subdivided - len(chunk)
         self._dropped += subdivided - len(path)
@@ -397,7 +398,7 @@ def _raise_unreachable(machine: Machine, path: Toolpath, ik: IKResult, model: IK
                      f"its joint (check --part-origin){count}")
 
 
-def inverse_time(path: Toolpath, *, start: FloatArray | None = None) -> FloatArray:
+def inverse_time(path: Toolpath, *, start: FloatArray | None = None, steps: FloatArray | None = None) -> FloatArray:
     """G93 F words: tip feed / tip path length of each FEED row (1/min); 0 for RAPID rows.
 
     Every move's tip path is the straight line between its end points (moves whose axis changes
@@ -408,24 +409,32 @@ def inverse_time(path: Toolpath, *, start: FloatArray | None = None) -> FloatArr
     path : Toolpath
     start : (3,) float, optional — mm, the tip before row 0 (the last row of the chunk before);
         None: row 0 is the first row of the program
+    steps : (N − 1,) float, optional — mm, the lengths of the steps between the rows,
+        ``row_lengths(np.diff(path.tip, axis=0))``, when the caller has them
 
     Raises
     ------
     LimitError
         A FEED row as the first row of the program (no start point) or with zero length (no time to give it).
     """
+    if steps is not None and len(steps) != max(len(path) - 1, 0):
+        raise ValueError(f"inverse_time: {len(steps)} step lengths for {len(path)} rows")
     fed = path.kind == MoveKind.FEED
     if not len(path) or not fed.any():
         return np.zeros(len(path))
     if fed[0] and start is None:
         raise LimitError(f"{path.describe(0)}: the program starts with a feed move; its start point is unknown")
-    before = path.tip if start is None else np.concatenate([np.asarray(start, dtype=np.float64)[None, :], path.tip])
-    if start is not None and fed.all():                  # every row a feed move: the steps as slices, no indexing
-        length = row_lengths(path.tip - before[:-1])
+    first = None if start is None else np.asarray(start, dtype=np.float64).reshape(1, 3)
+    if first is not None and fed.all():                  # every row a feed move: the steps as slices, no indexing
+        if steps is not None:
+            length = np.concatenate([row_lengths(path.tip[:1] - first), steps])
+        else:
+            length = row_lengths(path.tip - np.concatenate([first, path.tip[:-1]]))
         if (length < 1e-9).any():
             raise LimitError(f"{path.describe(int(np.flatnonzero(length < 1e-9)[0]))}: feed move of zero length")
         return path.feed / length
     feed_rows = np.flatnonzero(fed)
+    before = path.tip if first is None else np.concatenate([first, path.tip])
     offset = 0 if start is None else 1
     length = row_lengths(path.tip[feed_rows] - before[feed_rows - 1 + offset])
     zero = np.flatnonzero(length < 1e-9)

@@ -86,8 +86,10 @@ class VisibleMoves:
         self._kept: tuple[FloatArray, FloatArray, FloatArray] | None = None  # last row it kept: tip, axis, joints
 
     def keep(self, joints: FloatArray, *, tip: FloatArray | None = None,
-             axis: FloatArray | None = None) -> BoolArray:
-        """(N,) bool — which rows of this chunk to keep (parameters as :func:`visible_moves`)."""
+             axis: FloatArray | None = None, steps: FloatArray | None = None) -> BoolArray:
+        """(N,) bool — which rows of this chunk to keep (parameters as :func:`visible_moves`;
+        ``steps``: (N − 1,) the lengths of the chunk's tip steps, ``row_lengths(np.diff(tip, axis=0))``,
+        when the caller has them)."""
         joints = np.asarray(joints, dtype=np.float64)
         n = len(joints)
         distance = tip is not None and axis is not None
@@ -117,8 +119,10 @@ class VisibleMoves:
             all_tip = np.concatenate([*head_tip, tip]) if head else tip
             all_axis = np.concatenate([*head_axis, axis]) if head else axis
             if head + n >= 2:
+                lengths = None if steps is None else np.concatenate(
+                    [row_lengths(np.diff(all_tip[:head + 1], axis=0)), steps])   # the head's steps, the chunk's
                 keep = _away_from_the_last_kept(all_tip, all_axis, 0.5 * length_resolution(self.decimals),
-                                                head=head)
+                                                head=head, lengths=lengths)
         else:
             all_tip = all_axis = np.zeros((head + n, 3))
         every = bool(keep.all())                          # nothing near: no copy of the rows kept
@@ -136,7 +140,8 @@ class VisibleMoves:
         return keep[head:]
 
 
-def _away_from_the_last_kept(tip: FloatArray, axis: FloatArray, near: float, *, head: int = 0) -> BoolArray:
+def _away_from_the_last_kept(tip: FloatArray, axis: FloatArray, near: float, *, head: int = 0,
+                             lengths: FloatArray | None = None) -> BoolArray:
     """(N,) bool: False where the tip is within ``near`` mm of the last kept row's, axis unchanged.
 
     Only rows that step less than ``near`` from the row before (with the same axis) are looked at
@@ -144,12 +149,13 @@ def _away_from_the_last_kept(tip: FloatArray, axis: FloatArray, near: float, *, 
     back and forth is not looked for: that is not a sub-resolution move of one row).
 
     ``head`` rows from the chunk before come first and are not decided again: row 0 is the last
-    row kept, row 1 (when ``head`` is 2) the last row, which was not kept.
+    row kept, row 1 (when ``head`` is 2) the last row, which was not kept. ``lengths`` (N − 1,): the
+    steps' lengths, ``row_lengths(np.diff(tip, axis=0))``, when the caller has them.
     """
     keep = np.ones(len(tip), dtype=bool)
     if head == 2:
         keep[1] = False
-    short = row_lengths(np.diff(tip, axis=0)) < near
+    short = (row_lengths(np.diff(tip, axis=0)) if lengths is None else lengths) < near
     if not (same_rows(axis) and np.isfinite(axis[0]).all()):   # one finite axis: every step keeps it
         short &= row_all(np.diff(axis, axis=0) == 0)
     rows = (np.flatnonzero(short) + 1).tolist()
