@@ -96,6 +96,16 @@ static const uint64_t POWERS[20] = {
  * up to 3 bytes after those may be written over (the callers leave room for them). The usual numbers
  * (a whole part under 10,000) go without a branch on their digits: a mispredicted branch per word
  * was the line writer's largest cost. */
+/* DIGITS4[k]: the four ASCII digits of k < 10,000 with leading zeros, as stored little-endian */
+static uint32_t DIGITS4[10000];
+__attribute__((constructor)) static void fill_digits4(void) {
+    for (unsigned k = 0; k < 10000; k++) {
+        uint8_t text[4] = {(uint8_t)('0' + k / 1000), (uint8_t)('0' + k / 100 % 10), (uint8_t)('0' + k / 10 % 10),
+                           (uint8_t)('0' + k % 10)};
+        memcpy(&DIGITS4[k], text, 4);
+    }
+}
+
 static inline __attribute__((always_inline)) uint8_t *number(uint8_t *at, int64_t value, int d) {
     uint64_t magnitude = value < 0 ? (uint64_t)0 - (uint64_t)value : (uint64_t)value;
     *at = '-';
@@ -105,9 +115,7 @@ static inline __attribute__((always_inline)) uint8_t *number(uint8_t *at, int64_
 #if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
     if (whole < 10000) {
         /* the four digits with leading zeros in one word, shifted so that the first byte is the first digit */
-        unsigned high = (unsigned)whole / 100, low = (unsigned)whole % 100;
-        uint32_t four = (uint32_t)(uint8_t)PAIRS[2 * high] | (uint32_t)(uint8_t)PAIRS[2 * high + 1] << 8
-                        | (uint32_t)(uint8_t)PAIRS[2 * low] << 16 | (uint32_t)(uint8_t)PAIRS[2 * low + 1] << 24;
+        uint32_t four = DIGITS4[whole];
         int count = 1 + (whole >= 10) + (whole >= 100) + (whole >= 1000);
         four >>= 8 * (4 - count);
         memcpy(at, &four, 4);
@@ -120,10 +128,8 @@ static inline __attribute__((always_inline)) uint8_t *number(uint8_t *at, int64_
         at += count;
     }
     if (d == 4) {                                 /* the usual decimals without a loop */
-        unsigned high = (unsigned)fraction / 100, low = (unsigned)fraction % 100;
         *at = '.';
-        memcpy(at + 1, PAIRS + 2 * high, 2);
-        memcpy(at + 3, PAIRS + 2 * low, 2);
+        memcpy(at + 1, &DIGITS4[fraction], 4);
         return at + 5;
     }
     if (d == 3) {
