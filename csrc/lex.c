@@ -323,3 +323,24 @@ int64_t prs3_rows_to_part(const double *rows, int64_t n, const double *rotation,
     }
     return n;
 }
+
+/* The 3+2 G-code reader's sorting of a block's lines (prs3_post.readers.gcode._Reader.runs;
+ * gcode._line_roles_numpy is the reference), from the lexer's values (n, 6: N G X Y Z F, NaN where
+ * absent) and kinds: move[k] 1 where line k is read, its G (if any) is 0 or 1 and it has X, Y or Z (a
+ * regular G0/G1 move); quiet[k] 1 where it is the usual comment line, or read without a word (blank).
+ * Returns the moves counted. */
+int64_t prs3_line_roles(const double *values, const uint8_t *kinds, int64_t n, uint8_t *move, uint8_t *quiet) {
+    int64_t moves = 0;
+    for (int64_t k = 0; k < n; k++) {
+        const double *row = values + 6 * k;
+        int read = kinds[k] == LINE_READ;
+        double g = row[1];
+        int axis = !isnan(row[2]) || !isnan(row[3]) || !isnan(row[4]);
+        int is_move = read && (isnan(g) || g == 0.0 || g == 1.0) && axis;
+        int blank = read && isnan(row[0]) && isnan(g) && !axis && isnan(row[5]);
+        move[k] = (uint8_t)is_move;
+        quiet[k] = (uint8_t)(kinds[k] == LINE_COMMENT || blank);
+        moves += is_move;
+    }
+    return moves;
+}

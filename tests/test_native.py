@@ -413,6 +413,24 @@ def test_compiled_rows_to_part_are_the_work_planes_bits(seed: int, rows: int, sc
     assert turned is not None and turned.view(np.uint64).tolist() == expected.view(np.uint64).tolist()
 
 
+@needs_lexer
+@settings(max_examples=200, deadline=None)
+@given(rows=st.lists(st.tuples(st.sampled_from([0, 1, 1, 2]),
+                               *[st.sampled_from([np.nan, np.nan, 0.0, 1.0, 2.0, -0.0]) for _ in range(6)]),
+                     max_size=30))
+@example(rows=[(1, *[np.nan] * 6), (1, np.nan, 1.0, np.nan, np.nan, np.nan, 5.0), (2, *[np.nan] * 6),
+               (1, 3.0, 1.0, 2.0, np.nan, np.nan, np.nan), (0, np.nan, 0.0, 1.0, np.nan, np.nan, np.nan)])
+def test_compiled_line_roles_are_numpys(rows: list[tuple[int, ...]]) -> None:
+    """prs3_line_roles against the numpy sorting of a block's lines: the same regular moves (read, G0,
+    G1 or no G, an axis word) and quiet lines (the usual comment line, or read and blank), N = 0 too."""
+    kinds = np.array([r[0] for r in rows], dtype=np.uint8)
+    values = np.array([r[1:] for r in rows], dtype=np.float64).reshape(-1, 6)
+    roles = native.line_roles(values, kinds)
+    assert roles is not None
+    expected = gcode._line_roles_numpy(values, kinds)
+    assert [a.tolist() for a in roles] == [a.tolist() for a in expected]
+
+
 def test_numpy_lexes_where_it_is_turned_off(monkeypatch: pytest.MonkeyPatch) -> None:
     """``PRS3_POST_NATIVE=0``: no compiled lexer, and lex_column_block reads the same through numpy."""
     monkeypatch.setattr(native, "_lexer", None)
@@ -429,8 +447,10 @@ def test_numpy_lexes_where_it_is_turned_off(monkeypatch: pytest.MonkeyPatch) -> 
     monkeypatch.setattr(native, "_line_end", None)
     monkeypatch.setattr(native, "_fill", None)
     monkeypatch.setattr(native, "_to_part", None)
+    monkeypatch.setattr(native, "_roles", None)
     assert native.scan_text(b"A1") is None and native.line_end(b"\n", 0, 1) is None
     assert native.rows_to_part(np.zeros((1, 3)), np.eye(3), np.zeros(3)) is None
+    assert native.line_roles(np.zeros((1, 6)), np.ones(1, dtype=np.uint8)) is None
     assert native.fill_moves(np.zeros((1, 6)), np.ones(1, dtype=bool), np.zeros(5), np.ones(3), np.zeros(2), 1) is True
     assert gcode._scan_bytes(b"G0 X1\nA1\x01") == (8, False, 1, 6)
     assert list(files.line_blocks([(0, b"a\nb\n"), (4, b"c\nd\ne\n")], 2)) == [(0, b"a\nb\n"), (4, b"c\nd\n"),

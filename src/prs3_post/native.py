@@ -45,6 +45,7 @@ _scan: Any = None                                       # prs3_scan_text, once l
 _line_end: Any = None                                   # prs3_line_end, once loaded (False: not there)
 _fill: Any = None                                       # prs3_fill_moves, once loaded (False: not there)
 _to_part: Any = None                                    # prs3_rows_to_part, once loaded (False: not there)
+_roles: Any = None                                      # prs3_line_roles, once loaded (False: not there)
 _emitter: Any = None                                    # prs3_emit_rows, once loaded (False: not there)
 
 
@@ -326,6 +327,26 @@ def fill_moves(values: FloatArray, moves: np.ndarray, state: FloatArray, limits:
     if m < 0:
         return False
     return tip[:m], kind[:m], feed[:m], source[:m], after, words
+
+
+def line_roles(values: FloatArray, kinds: np.ndarray) -> tuple[BoolArray, BoolArray] | None:
+    """csrc/lex.c's prs3_line_roles: which lines of a lexed block (``values`` (n, 6): N G X Y Z F;
+    ``kinds``: the lexer's) are regular G0/G1 moves and which are quiet (the usual comment line, or
+    blank); None where the compiled library is not there or turned off."""
+    global _roles
+    if _roles is None:
+        _roles = _bind("prs3_line_roles", [_POINTER, _POINTER, _I64, _POINTER, _POINTER])
+    if not _roles:
+        return None
+    values = np.ascontiguousarray(values, dtype=np.float64)
+    kinds = np.ascontiguousarray(kinds, dtype=np.uint8)
+    n = len(kinds)
+    if values.shape != (n, 6):
+        raise ValueError(f"line_roles: values (n, 6) for n = {n} kinds, got {values.shape}")
+    move = np.zeros(n, dtype=np.bool_)
+    quiet = np.zeros(n, dtype=np.bool_)
+    _roles(_address(values), _address(kinds), n, _address(move), _address(quiet))
+    return move, quiet
 
 
 def rows_to_part(rows: FloatArray, rotation: FloatArray, origin: FloatArray | None) -> FloatArray | None:

@@ -686,13 +686,13 @@ class _Reader:
     def runs(self, first: int, values: FloatArray, fast: BoolArray, lines: Sequence[str]) -> None:
         """Lines ``first``... as lexed (``values``, ``fast``: :func:`~prs3_post.readers.lexer.lex_columns`)
         with their texts ``lines``: runs to :meth:`bulk`, the rest to :meth:`line` (see :meth:`lines`)."""
-        g = values[:, 1]
         if isinstance(lines, _BlockLines):               # the usual comment lines known, and the blank ones
-            quiet = (lines.kinds == LINE_COMMENT) | (fast & np.isnan(values).all(axis=1))     # (read, no words)
+            fast, quiet = _line_roles(values, lines.kinds)
             maybe = lines.kinds == LINE_OTHER
-        fast &= np.isnan(g) | (g == 0.0) | (g == 1.0)
-        fast &= ~np.isnan(np.fmax(np.fmax(values[:, 2], values[:, 3]), values[:, 4]))   # a move: an axis word
-        if not isinstance(lines, _BlockLines):
+        else:
+            g = values[:, 1]
+            fast &= np.isnan(g) | (g == 0.0) | (g == 1.0)
+            fast &= ~np.isnan(np.fmax(np.fmax(values[:, 2], values[:, 3]), values[:, 4]))   # a move: an axis word
             quiet = np.zeros(len(lines), dtype=bool)     # blank or only comments: nothing but events
             maybe = ~fast
         quiet[maybe] = [_QUIET.fullmatch(lines[i]) is not None for i in np.flatnonzero(maybe).tolist()]
@@ -1327,6 +1327,27 @@ class _Reader:
 
 
 _FILL_CODES = np.array([_RAPID, _FEED], dtype=np.int64)
+
+
+def _line_roles(values: FloatArray, kinds: np.ndarray) -> tuple[BoolArray, BoolArray]:
+    """Which lines of a lexed block (``values`` (n, 6): N G X Y Z F; ``kinds``: lex_block_lines') are
+    regular G0/G1 moves (read, G0, G1 or no G, an axis word) and which are quiet (the usual comment
+    line, or read without a word: blank): csrc/lex.c's one pass where it was built, else
+    :func:`_line_roles_numpy`."""
+    from prs3_post import native  # ctypes: loaded only where lines are read in bulk
+
+    roles = native.line_roles(values, kinds)
+    return _line_roles_numpy(values, kinds) if roles is None else roles
+
+
+def _line_roles_numpy(values: FloatArray, kinds: np.ndarray) -> tuple[BoolArray, BoolArray]:
+    """:func:`_line_roles` with numpy (the reference of prs3_line_roles)."""
+    read = kinds == LINE_READ
+    g = values[:, 1]
+    move = read & (np.isnan(g) | (g == 0.0) | (g == 1.0))
+    move &= ~np.isnan(np.fmax(np.fmax(values[:, 2], values[:, 3]), values[:, 4]))   # a move: an axis word
+    quiet = (kinds == LINE_COMMENT) | (read & np.isnan(values).all(axis=1))
+    return move, quiet
 
 
 def _to_part(frame: WorkPlane, local: FloatArray) -> FloatArray:
