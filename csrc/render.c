@@ -219,11 +219,11 @@ static inline double nearest_integer(double y) {
 }
 
 /* The bytes a motion line needs at most (checked before each row; prs3_post.native.emit_rows gives out
- * this much a row): every text (the prefixes, G0 and G1, F), and for each number a separator, a sign,
- * 19 digits and a point (ROOM_PER_NUMBER), and the ending. */
+ * this much a row): every text (the prefixes, G0 and G1, F, the block number's letter), and for each
+ * number a separator, a sign, 19 digits and a point (ROOM_PER_NUMBER), and the ending. */
 enum { ROOM_PER_NUMBER = 24 };
 static int64_t row_room(int64_t axes, const int64_t *text_start, int64_t ending_length) {
-    return text_start[axes + 3] + ROOM_PER_NUMBER * (axes + 1) + ending_length;
+    return text_start[axes + 4] + ROOM_PER_NUMBER * (axes + 2) + ending_length;
 }
 
 /* The motion lines of rows of a program (prs3_post.emit.gcode.ProgramEmitter), scaled, decided and
@@ -235,7 +235,8 @@ static int64_t row_room(int64_t axes, const int64_t *text_start, int64_t ending_
  * every row of restate_row[] (increasing). The motion word (texts axes: G0 for kind 0, axes + 1: G1
  * for kind 1) is written on every line, or with modal_motion only where the kind differs from the
  * row before's (previous_kind for row 0, -1: unknown), on a restate row, or on a line without axis
- * word. F (text axes + 2) and feed[r] with feed_decimals go on kind-1 rows. Text t is
+ * word. F (text axes + 2) and feed[r] with feed_decimals go on kind-1 rows. Where numbers is not
+ * NULL, each line starts with its block number: text axes + 3 (N) and numbers[r]. Text t is
  * text_bytes[text_start[t]:text_start[t + 1]] (t < axes: the axis letters). Before row r come the
  * lines insert_bytes[insert_start[i]:insert_start[i + 1]] of each i with insert_row[i] == r
  * (increasing, < rows). starts[r]: where row r's inserted lines (then its line) begin, starts[rows]
@@ -245,13 +246,14 @@ static int64_t row_room(int64_t axes, const int64_t *text_start, int64_t ending_
  * row r cannot be printed from an exact integer (|value·10^d| >= 2^52, not finite, or within 2^-40
  * plus |value·10^d|·2^-49 of a half-integer: a superset of the rows scale_column formats one by one
  * with Python): nothing is promised about out then, the caller writes these rows the numpy way. */
-int64_t prs3_emit_rows(int64_t rows, int64_t axes, const double *const *axis_values, const int64_t *axis_stride,
-                       int32_t decimals, const uint8_t *first_present, const int64_t *kind, int64_t previous_kind,
-                       int64_t restates, const int64_t *restate_row, int32_t modal_motion, const int64_t *feed,
-                       int32_t feed_decimals, const int64_t *text_start, const uint8_t *text_bytes,
-                       uint8_t separator, const uint8_t *ending, int64_t ending_length, int64_t inserts,
-                       const int64_t *insert_row, const int64_t *insert_start, const uint8_t *insert_bytes,
-                       uint8_t *out, int64_t capacity, int64_t *starts, int64_t *lengths) {
+int64_t prs3_emit_lines(int64_t rows, int64_t axes, const double *const *axis_values, const int64_t *axis_stride,
+                        int32_t decimals, const uint8_t *first_present, const int64_t *kind, int64_t previous_kind,
+                        int64_t restates, const int64_t *restate_row, int32_t modal_motion, const int64_t *feed,
+                        int32_t feed_decimals, const int64_t *numbers, const int64_t *text_start,
+                        const uint8_t *text_bytes, uint8_t separator, const uint8_t *ending, int64_t ending_length,
+                        int64_t inserts, const int64_t *insert_row, const int64_t *insert_start,
+                        const uint8_t *insert_bytes, uint8_t *out, int64_t capacity, int64_t *starts,
+                        int64_t *lengths) {
     if (axes < 0 || axes > MAX_AXES || decimals < 0 || decimals > 15 || feed_decimals < 0 || feed_decimals > 15)
         return -1;
     const double scale = SCALES[decimals];
@@ -290,8 +292,14 @@ int64_t prs3_emit_rows(int64_t rows, int64_t axes, const double *const *axis_val
         if (limit - at < room) return -1;
         uint8_t *const line = at;
         int first = 1;
+        if (numbers) {
+            at = copy(at, text_bytes + text_start[axes + 3], text_start[axes + 4] - text_start[axes + 3]);
+            at = number(at, numbers[r], 0);
+            first = 0;
+        }
         if (motion) {
             int64_t t = axes + (k == 1);
+            if (!first) *at++ = separator;
             at = copy(at, text_bytes + text_start[t], text_start[t + 1] - text_start[t]);
             first = 0;
         }

@@ -138,13 +138,14 @@ def _joint_programs(draw: st.DrawFn) -> JointProgram:
 @settings(max_examples=150, deadline=None)
 @given(program=_joint_programs(), dialect_name=st.sampled_from(["linuxcnc", "fanuc"]),
        modal_motion=st.booleans(), crlf=st.booleans(), length=st.sampled_from([3, 4, 15]),
-       limit=st.sampled_from([60, 256]), chunk_rows=st.sampled_from([1, 3, 65536]), stage=st.booleans())
+       limit=st.sampled_from([60, 256]), chunk_rows=st.sampled_from([1, 3, 65536]), stage=st.booleans(),
+       numbered=st.sampled_from([None, 0, 99990]))
 def test_compiled_emitter_writes_numpys_program(program: JointProgram, dialect_name: str, modal_motion: bool,
                                                 crlf: bool, length: int, limit: int, chunk_rows: int,
-                                                stage: bool) -> None:
-    """prs3_emit_rows (scaling, the words left out, G0/G1, F, the comments between the rows, in one
-    pass) against the numpy way (PRS3_POST_NATIVE=0's), over every chunking: the same program, or the
-    same error."""
+                                                stage: bool, numbered: int | None) -> None:
+    """prs3_emit_lines (scaling, the words left out, G0/G1, F, the block numbers (wrapping after
+    99999), the comments between the rows, in one pass) against the numpy way (PRS3_POST_NATIVE=0's),
+    over every chunking: the same program, or the same error."""
     dialect = load_dialect(dialect_name)
     dialect = dataclasses.replace(dialect, modal_motion=modal_motion, line_ending="\r\n" if crlf else "\n",
                                   max_line_length=limit,
@@ -154,7 +155,8 @@ def test_compiled_emitter_writes_numpys_program(program: JointProgram, dialect_n
 
     def emitted() -> str:
         try:
-            return emit_program(program, dialect, header=(("a", "b"),), stage=stage, line_numbers=False)
+            return emit_program(program, dialect, header=(("a", "b"),), stage=stage,
+                                line_numbers=numbered is not None, line_start=numbered, line_step=3)
         except LimitError as error:
             return f"LimitError: {error}"
 

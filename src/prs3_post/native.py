@@ -46,7 +46,7 @@ _line_end: Any = None                                   # prs3_line_end, once lo
 _fill: Any = None                                       # prs3_fill_moves, once loaded (False: not there)
 _to_part: Any = None                                    # prs3_rows_to_part, once loaded (False: not there)
 _roles: Any = None                                      # prs3_line_roles, once loaded (False: not there)
-_emitter: Any = None                                    # prs3_emit_rows, once loaded (False: not there)
+_emitter: Any = None                                    # prs3_emit_lines, once loaded (False: not there)
 
 
 def library() -> Any:
@@ -161,7 +161,7 @@ _ROOM_PER_NUMBER = 24
 def emit_rows(axis_values: Sequence[FloatArray], decimals: int, first_present: Sequence[bool], kind: IntArray,
               previous_kind: int, restate: IntArray, modal_motion: bool, feed: IntArray, feed_decimals: int,
               prefixes: Sequence[bytes], ending: bytes, inserts: tuple[IntArray, IntArray, np.ndarray],
-              ) -> tuple[np.ndarray, IntArray, IntArray] | None:
+              numbers: tuple[bytes, IntArray] | None = None) -> tuple[np.ndarray, IntArray, IntArray] | None:
     """Motion lines of a program's rows in one pass (:meth:`prs3_post.emit.gcode.ProgramEmitter._emit_rows`
     makes the same bytes with numpy): (their bytes, where each row's inserted lines then its line start
     (M + 1,), each line's length with its ending (M,)); None where the compiled writer is not there or
@@ -181,13 +181,14 @@ def emit_rows(axis_values: Sequence[FloatArray], decimals: int, first_present: S
     ending : bytes — the line ending
     inserts : (K,) int, (K + 1,) int, (B,) uint8 — lines put before their row: line k, ``bytes[starts[k]:
         starts[k + 1]]``, before row ``rows[k]`` (< M, increasing), e.g. comments
+    numbers : (bytes, (M,) int), optional — the block numbers' letter and each line's number, written first
     """
     global _emitter
     if _emitter is None:
-        _emitter = _bind("prs3_emit_rows", [
+        _emitter = _bind("prs3_emit_lines", [
             _I64, _I64, _POINTER, _POINTER, ctypes.c_int32, _POINTER, _POINTER, _I64, _I64, _POINTER, ctypes.c_int32,
-            _POINTER, ctypes.c_int32, _POINTER, _POINTER, ctypes.c_uint8, _TEXT, _I64, _I64, _POINTER, _POINTER,
-            _POINTER, _POINTER, _I64, _POINTER, _POINTER])
+            _POINTER, ctypes.c_int32, _POINTER, _POINTER, _POINTER, ctypes.c_uint8, _TEXT, _I64, _I64, _POINTER,
+            _POINTER, _POINTER, _POINTER, _I64, _POINTER, _POINTER])
     if not _emitter:
         return None
     m, axes = len(kind), len(axis_values)
@@ -199,7 +200,10 @@ def emit_rows(axis_values: Sequence[FloatArray], decimals: int, first_present: S
         kept.append(values)
         strides[j] = values.strides[0] // 8 if m else 1
     pointers = np.array([_address(a) for a in kept], dtype=np.uint64)
-    texts = [*prefixes, b"G0", b"G1", b"F"]
+    texts = [*prefixes, b"G0", b"G1", b"F", b"" if numbers is None else numbers[0]]
+    block_numbers = None if numbers is None else np.ascontiguousarray(numbers[1], dtype=np.int64)
+    if block_numbers is not None and len(block_numbers) != m:
+        raise ValueError(f"emit_rows: {len(block_numbers)} block numbers for {m} rows")
     text_start = np.zeros(len(texts) + 1, dtype=np.int64)
     np.cumsum([len(t) for t in texts], out=text_start[1:])
     text_bytes = np.frombuffer(b"".join(texts) + b"\0", dtype=np.uint8)
@@ -214,21 +218,21 @@ def emit_rows(axis_values: Sequence[FloatArray], decimals: int, first_present: S
             0 <= insert_start[0] and insert_start[-1] <= len(insert_bytes) and (np.diff(insert_start) >= 0).all()
             and 0 <= insert_row[0] and insert_row[-1] < m and (np.diff(insert_row) >= 0).all())):
         raise ValueError("emit_rows: the inserted lines are not rows < M in order and spans of their bytes")
-    capacity = (int(insert_start[-1] - insert_start[0]) + m * (int(text_start[-1]) + _ROOM_PER_NUMBER * (axes + 1)
+    capacity = (int(insert_start[-1] - insert_start[0]) + m * (int(text_start[-1]) + _ROOM_PER_NUMBER * (axes + 2)
                 + len(ending)) + 64)
     out = np.empty(capacity, dtype=np.uint8)
     starts = np.zeros(m + 1, dtype=np.int64)
     lengths = np.zeros(m, dtype=np.int64)
     size = _emitter(m, axes, _address(pointers), _address(strides), decimals, _address(first), _address(kinds),
                     previous_kind, len(restate_rows), _address(restate_rows), int(modal_motion), _address(feeds),
-                    feed_decimals, _address(text_start), _address(text_bytes), ord(" "), ending, len(ending),
-                    len(insert_row), _address(insert_row), _address(insert_start), _address(insert_bytes),
-                    _address(out), capacity,
-                    _address(starts), _address(lengths))
+                    feed_decimals, None if block_numbers is None else _address(block_numbers), _address(text_start),
+                    _address(text_bytes), ord(" "), ending, len(ending), len(insert_row), _address(insert_row),
+                    _address(insert_start), _address(insert_bytes), _address(out), capacity, _address(starts),
+                    _address(lengths))
     if size <= -2:
         return None
     if size < 0:
-        raise AssertionError("prs3_emit_rows: the output buffer was too small")   # capacity is an upper bound
+        raise AssertionError("prs3_emit_lines: the output buffer was too small")   # capacity is an upper bound
     return out[:size], starts, lengths
 
 

@@ -564,7 +564,7 @@ class ProgramEmitter:
         g93 = _first_feed(kind, lo) if not modal.inverse_time else None
         restate = chunk.restate[(chunk.restate >= lo) & (chunk.restate < hi)] - lo
         keys = chunk.rows_with_events
-        written = self._rows_in_one_pass(chunk, lo, hi, restate)
+        written = self._rows_in_one_pass(chunk, lo, hi, g93, restate)
         if written is not None:                      # the usual comments are in text: the other events
             text, offsets = written
             too_long, plain_rows = hi - lo, True
@@ -587,7 +587,7 @@ class ProgramEmitter:
             if cut > at:                             # the text up to this break, as one piece
                 if out.lines:
                     pieces.append(out.take())
-                pieces.append(text[at:cut] if plain_rows else
+                pieces.append(self._slice(text, at, cut, b - previous) if plain_rows else
                               self._rows_text(chunk, text, offsets, too_long, lo, previous - lo, b - lo))
                 at, previous = cut, b
             if written is None or b in chunk.special or b == n:
@@ -604,22 +604,27 @@ class ProgramEmitter:
         if len(text) > at:
             if out.lines:
                 pieces.append(out.take())
-            pieces.append(text[at:] if plain_rows else
+            pieces.append(self._slice(text, at, len(text), hi - previous) if plain_rows else
                           self._rows_text(chunk, text, offsets, too_long, lo, previous - lo, hi - lo))
         if out.lines:
             pieces.append(out.take())
         self._remember(chunk, hi, kind)
         return pieces                                # (one piece, the usual: rows() joins it without a copy)
 
-    def _rows_in_one_pass(self, chunk: _Chunk, lo: int, hi: int, restate: IntArray) -> tuple[str, IntArray] | None:
+    def _slice(self, text: str, a: int, b: int, rows: int) -> str:
+        """``text[a:b]``, which holds ``rows`` numbered rows: the block number moves on past them."""
+        if self._out.numbered:
+            self._out.number = int(self._out.numbers_after(rows)[0])
+        return text[a:b]
+
+    def _rows_in_one_pass(self, chunk: _Chunk, lo: int, hi: int, g93: int | None,
+                          restate: IntArray) -> tuple[str, IntArray] | None:
         """Rows ``lo:hi``'s lines by the compiled writer (:func:`prs3_post.native.emit_rows`), with the
         usual comments of the rows that have no other event before them: (the text, where each row's
-        line starts, then the text's end (M + 1)). None where it cannot: not built, numbered blocks, a
-        feed or a number not written from an exact integer, or an over-long line (:meth:`_rows_numpy`
-        writes those, and finds the errors)."""
+        line starts, then the text's end (M + 1)). None where it cannot: not built, a feed or a number
+        not written from an exact integer, or an over-long line (:meth:`_rows_numpy` writes those, and
+        finds the errors)."""
         out, modal, dialect = self._out, self._modal, self.dialect
-        if out.numbered:
-            return None
         feed = chunk.feed
         first, last = np.searchsorted(feed.odd, [lo, hi])
         if first != last:
@@ -634,7 +639,9 @@ class ProgramEmitter:
             [values[lo:hi] for _, values in chunk.axes], decimals, first_present, chunk.program.kind[lo:hi],
             -1 if modal.motion is None else modal.motion, restate, dialect.modal_motion, feed.scaled[lo:hi],
             feed.decimals, [letter for letter, _ in chunk.axes], dialect.line_ending.encode("ascii"),
-            (chunk.comment_rows[a:b] - lo, chunk.comment_starts[a:b + 1], chunk.comment_bytes))
+            (chunk.comment_rows[a:b] - lo, chunk.comment_starts[a:b + 1], chunk.comment_bytes),
+            (dialect.line_numbers.letter.encode("ascii"), out.numbers_after(self._block_index(chunk, lo, hi, g93)))
+            if out.numbered else None)
         if written is None:
             return None
         buffer, starts, lengths = written
@@ -643,6 +650,18 @@ class ProgramEmitter:
         line_starts = np.append(starts[1:] - lengths, starts[-1])    # (a few are looked up: not made a list)
         return str(buffer.data, "ascii"), line_starts
 
+    @staticmethod
+    def _block_index(chunk: _Chunk, lo: int, hi: int, g93: int | None) -> IntArray:
+        """(M,) — how many blocks after the current one each of the rows ``lo:hi`` is numbered: the rows
+        and the numbered blocks between them (events other than comments, and G93), in order."""
+        blocks_before = np.zeros(hi - lo, dtype=np.int64)
+        for b, count in chunk.numbered.items():
+            if lo <= b < hi:
+                blocks_before[b - lo:] += count
+        if g93 is not None:
+            blocks_before[g93 - lo:] += 1
+        return np.arange(hi - lo) + blocks_before
+
     def _rows_numpy(self, chunk: _Chunk, lo: int, hi: int, g93: int | None,
                     restate: IntArray) -> tuple[str, IntArray, int]:
         """Rows ``lo:hi``'s lines, column by column with numpy: (the text, where each row's line starts
@@ -650,15 +669,8 @@ class ProgramEmitter:
         out = self._out
         axes = [(letter, scale_column(values[lo:hi], self.dialect.decimals.length)) for letter, values in chunk.axes]
         present, motion = self._words_present(chunk, axes, lo, hi, restate)
-        # the block number of every row: the rows and the numbered blocks between them, in order
-        blocks_before = np.zeros(hi - lo, dtype=np.int64)
-        if out.numbered:                             # comments are not numbered
-            for b, count in chunk.numbered.items():
-                if lo <= b < hi:
-                    blocks_before[b - lo:] += count
-            if g93 is not None:
-                blocks_before[g93 - lo:] += 1
-        buffer, ends = self._render(chunk, axes, lo, hi, present, motion, np.arange(hi - lo) + blocks_before)
+        block_index = self._block_index(chunk, lo, hi, g93) if out.numbered else np.arange(hi - lo)
+        buffer, ends = self._render(chunk, axes, lo, hi, present, motion, block_index)
         text = str(buffer.data, "ascii")             # every row's line; ASCII: a byte offset is a character's
         long = np.flatnonzero(np.diff(ends) - len(self.dialect.line_ending) > out.limit)
         return text, ends, int(long[0]) if long.size else hi - lo
