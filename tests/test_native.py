@@ -433,6 +433,34 @@ def test_compiled_line_roles_are_numpys(rows: list[tuple[int, ...]]) -> None:
     assert [a.tolist() for a in roles] == [a.tolist() for a in expected]
 
 
+@settings(max_examples=200, deadline=None)
+@given(data=st.binary(min_size=1, max_size=120).map(lambda b: b.replace(b"\x00", b"\n")),
+       cuts=st.lists(st.integers(1, 40), max_size=8), chunk_lines=st.sampled_from([1, 2, 3, 7, 50]),
+       compiled=st.booleans())
+def test_line_blocks_cut_whole_lines_across_pieces(data: bytes, cuts: list[int], chunk_lines: int,
+                                                    compiled: bool) -> None:
+    """files.line_blocks (C's line ends, or numpy's): blocks of chunk_lines whole lines at their
+    offsets, the last one the lines left, from pieces cut anywhere at line ends."""
+    pieces, at = [], 0
+    for size in cuts:                                   # pieces that end at line ends (the last: anywhere)
+        end = data.rfind(b"\n", at, at + size) + 1
+        if end > at:
+            pieces.append((at, data[at:end]))
+            at = end
+    if at < len(data):
+        pieces.append((at, data[at:]))
+    *whole, last = data.split(b"\n")
+    lines = [line + b"\n" for line in whole] + ([last] if last else [])      # (splitlines cuts at CR too)
+    starts = np.cumsum([0, *[len(line) for line in lines]]).tolist()
+    expected = [(starts[k], b"".join(lines[k:k + chunk_lines])) for k in range(0, len(lines), chunk_lines)]
+    if compiled or native.line_end(b"\n", 0, 1) is None:
+        assert list(files.line_blocks(pieces, chunk_lines)) == expected
+    else:
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(native, "line_end", lambda *_: None)
+            assert list(files.line_blocks(pieces, chunk_lines)) == expected
+
+
 def test_numpy_lexes_where_it_is_turned_off(monkeypatch: pytest.MonkeyPatch) -> None:
     """``PRS3_POST_NATIVE=0``: no compiled lexer, and lex_column_block reads the same through numpy."""
     monkeypatch.setattr(native, "_lexer", None)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import os
 import stat
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import BinaryIO
 
 import numpy as np
@@ -186,36 +186,54 @@ def line_chunks(texts: Iterable[str], chunk_lines: int) -> Iterator[list[str]]:
 def line_blocks(pieces: Iterable[tuple[int, bytes]], chunk_lines: int) -> Iterator[tuple[int, bytes]]:
     """``(offset, bytes)`` blocks of ``chunk_lines`` whole lines each, with their LFs, from ``(offset,
     bytes)`` pieces that end at line ends (as :func:`iter_pieces` cuts them); the last block holds
-    the lines left (fewer, and its last line may end at the end of the file, without an LF).
+    the lines left (fewer, and its last line may end at the end of the file, without an LF). Each
+    byte is copied once, into its block (a block within a piece is a slice of it; one across pieces
+    is joined from their parts).
 
     >>> list(line_blocks([(0, b"a\\nb\\n"), (4, b"c\\nd")], 3))
     [(0, b'a\\nb\\nc\\n'), (6, b'd')]
     """
-    pending, pending_at = b"", 0                       # whole lines not handed out yet, and their offset
+    parts: list[memoryview] = []                      # the lines not handed out yet, from earlier pieces
+    waiting, parts_at = 0, 0                           # their LFs, and where the first starts in the file
     for offset, piece in pieces:
-        block = pending + piece if pending else piece
-        at = offset - len(pending)
-        cut = 0
-        for stop in _block_ends(block, chunk_lines):
-            yield at + cut, block[cut:stop]
+        view, cut = memoryview(piece), 0
+        line_end = _line_ends(piece)
+        while (stop := line_end(cut, chunk_lines - waiting)) >= 0:
+            if parts:
+                yield parts_at, b"".join([*parts, view[cut:stop]])
+                parts, waiting = [], 0
+            else:
+                yield offset + cut, piece[cut:stop]
             cut = stop
-        pending, pending_at = block[cut:], at + cut
-    if pending:
-        yield pending_at, pending
+        waiting += -1 - stop                           # the LFs after the last block's end
+        if cut < len(piece):
+            if not parts:
+                parts_at = offset + cut
+            parts.append(view[cut:])
+    if parts:
+        yield parts_at, b"".join(parts)
 
 
-def _block_ends(data: bytes, lines: int) -> Iterator[int]:
-    """The offsets just after every ``lines``-th LF of ``data``, in order (csrc/lex.c: no pass over every LF)."""
+def _line_ends(data: bytes) -> Callable[[int, int], int]:
+    """``line_end(start, count)``: the offset just after the ``count``-th LF of ``data[start:]`` (``count``
+    ≥ 1), or ``-1 - (the LFs there)`` where it has fewer: csrc/lex.c's prs3_line_end, no pass over every
+    LF; else numpy's LFs found once."""
     from prs3_post import native  # ctypes: loaded only where a file is read in blocks
 
-    stop = native.line_end(data, 0, lines)
-    if stop is None:                                     # numpy: every LF found
-        line_ends = np.flatnonzero(np.frombuffer(data, dtype=np.uint8) == _LF)
-        yield from (line_ends[lines - 1::lines] + 1).tolist()
-        return
-    while stop is not None and stop >= 0:
-        yield stop
-        stop = native.line_end(data, stop, lines)
+    if native.line_end(b"\n", 0, 1) is not None:
+        def compiled(start: int, count: int) -> int:
+            found = native.line_end(data, start, count)
+            assert found is not None  # the library answered above
+            return found
+        return compiled
+    line_ends = np.flatnonzero(np.frombuffer(data, dtype=np.uint8) == _LF)
+
+    def line_end(start: int, count: int) -> int:
+        first = int(np.searchsorted(line_ends, start))
+        if first + count <= len(line_ends):
+            return int(line_ends[first + count - 1]) + 1
+        return -1 - (len(line_ends) - first)
+    return line_end
 
 
 _LF = ord("\n")
