@@ -18,7 +18,7 @@
  * only when it says the version that module was written for (an editable install whose csrc/ changed
  * since it was built falls back to numpy instead of calling a function with other arguments).
  * Raise it with NATIVE_VERSION in native.py whenever a function or its arguments change. */
-int64_t prs3_native_version(void) { return 3; }
+int64_t prs3_native_version(void) { return 4; }
 
 static const char PAIRS[] =
     "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
@@ -235,7 +235,8 @@ static int64_t row_room(int64_t axes, const int64_t *text_start, int64_t ending_
  * every row of restate_row[] (increasing). The motion word (texts axes: G0 for kind 0, axes + 1: G1
  * for kind 1) is written on every line, or with modal_motion only where the kind differs from the
  * row before's (previous_kind for row 0, -1: unknown), on a restate row, or on a line without axis
- * word. F (text axes + 2) and feed[r] with feed_decimals go on kind-1 rows. Where numbers is not
+ * word. F (text axes + 2) and its value, axis_values[axes][r * axis_stride[axes]] scaled the same way
+ * with feed_decimals, go on kind-1 rows. Where numbers is not
  * NULL, each line starts with its block number: text axes + 3 (N) and numbers[r]. Text t is
  * text_bytes[text_start[t]:text_start[t + 1]] (t < axes: the axis letters). Before row r come the
  * lines insert_bytes[insert_start[i]:insert_start[i + 1]] of each i with insert_row[i] == r
@@ -248,7 +249,7 @@ static int64_t row_room(int64_t axes, const int64_t *text_start, int64_t ending_
  * with Python): nothing is promised about out then, the caller writes these rows the numpy way. */
 int64_t prs3_emit_lines(int64_t rows, int64_t axes, const double *const *axis_values, const int64_t *axis_stride,
                         int32_t decimals, const uint8_t *first_present, const int64_t *kind, int64_t previous_kind,
-                        int64_t restates, const int64_t *restate_row, int32_t modal_motion, const int64_t *feed,
+                        int64_t restates, const int64_t *restate_row, int32_t modal_motion,
                         int32_t feed_decimals, const int64_t *numbers, const int64_t *text_start,
                         const uint8_t *text_bytes, uint8_t separator, const uint8_t *ending, int64_t ending_length,
                         int64_t inserts, const int64_t *insert_row, const int64_t *insert_start,
@@ -256,7 +257,9 @@ int64_t prs3_emit_lines(int64_t rows, int64_t axes, const double *const *axis_va
                         int64_t *lengths) {
     if (axes < 0 || axes > MAX_AXES || decimals < 0 || decimals > 15 || feed_decimals < 0 || feed_decimals > 15)
         return -1;
-    const double scale = SCALES[decimals];
+    const double scale = SCALES[decimals], feed_scale = SCALES[feed_decimals];
+    const double *const feed = axis_values[axes];
+    const int64_t feed_stride = axis_stride[axes];
     const int64_t room = row_room(axes, text_start, ending_length);
     uint8_t *at = out;
     uint8_t *const limit = out + capacity;
@@ -311,9 +314,14 @@ int64_t prs3_emit_lines(int64_t rows, int64_t axes, const double *const *axis_va
             at = number(at, scaled[j], decimals);
         }
         if (k == 1) {
+            double y = feed[r * feed_stride] * feed_scale;
+            double size = fabs(y);
+            if (!(size < EXACT_LIMIT)) return -2 - r;
+            double whole = nearest_integer(y);
+            if (fabs(y - whole) >= 0.5 - (size * 0x1p-49 + 0x1p-40)) return -2 - r;       /* near a tie */
             if (!first) *at++ = separator;
             at = copy(at, text_bytes + text_start[axes + 2], text_start[axes + 3] - text_start[axes + 2]);
-            at = number(at, feed[r], feed_decimals);
+            at = number(at, (int64_t)whole, feed_decimals);
         }
         memcpy(at, ending, (size_t)ending_length);
         at += ending_length;

@@ -126,6 +126,8 @@ def _joint_programs(draw: st.DrawFn) -> JointProgram:
     values[(0.28 <= pick) & (pick < 0.3)] = -1e-9
     inverse_time = rng.uniform(0.5, 50.0, n)
     inverse_time[rng.random(n) < (0.05 if odd else 0)] = 1e13                     # an F too large for integers
+    near = rng.random(n) < (0.1 if odd else 0)                                     # an F near a tie
+    inverse_time[near] = np.round(inverse_time[near], 3) + 0.00005
     kinds = ["comment"] * 6 + ["stop", "optional_stop", "tool_change", "dwell", "coolant_off", "spindle_off"]
     texts = st.sampled_from(_COMMENTS[:3] if draw(st.booleans()) else _COMMENTS)   # all usual: made together
     events = [Event(int(rng.integers(0, n + 1)), EventKind(draw(st.sampled_from(kinds))), 2.0, draw(texts))

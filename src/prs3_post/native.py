@@ -35,7 +35,7 @@ LIBRARY = Path(__file__).with_name("_native.so")
 ENV = "PRS3_POST_NATIVE"
 #: What ``prs3_native_version()`` of the library must say (csrc/render.c): another version (an old build
 #: beside newer sources) is not used.
-NATIVE_VERSION = 3
+NATIVE_VERSION = 4
 _NUMBER, _CHOICE = 0, 1
 _library: Any = None                                    # None: not loaded yet; False: not there
 _function: Any = None                                   # prs3_render_lines, once loaded
@@ -159,7 +159,7 @@ _ROOM_PER_NUMBER = 24
 
 
 def emit_rows(axis_values: Sequence[FloatArray], decimals: int, first_present: Sequence[bool], kind: IntArray,
-              previous_kind: int, restate: IntArray, modal_motion: bool, feed: IntArray, feed_decimals: int,
+              previous_kind: int, restate: IntArray, modal_motion: bool, feed: FloatArray, feed_decimals: int,
               prefixes: Sequence[bytes], ending: bytes, inserts: tuple[IntArray, IntArray, np.ndarray],
               numbers: tuple[bytes, IntArray] | None = None) -> tuple[np.ndarray, IntArray, IntArray] | None:
     """Motion lines of a program's rows in one pass (:meth:`prs3_post.emit.gcode.ProgramEmitter._emit_rows`
@@ -176,7 +176,7 @@ def emit_rows(axis_values: Sequence[FloatArray], decimals: int, first_present: S
     previous_kind : int — the row before's kind (-1: unknown, the motion word is written)
     restate : (K,) int — rows (increasing) where every axis word and the motion word are written
     modal_motion : bool — G0/G1 only where it changes (and on restate rows and lines without axis word)
-    feed : (M,) int — the F words' printed digits (used on feed rows), ``feed_decimals`` after the point
+    feed : (M,) float — the F words' values (any stride; read on feed rows), ``feed_decimals`` after the point
     prefixes : sequence of bytes — each axis's word letter
     ending : bytes — the line ending
     inserts : (K,) int, (K + 1,) int, (B,) uint8 — lines put before their row: line k, ``bytes[starts[k]:
@@ -187,14 +187,14 @@ def emit_rows(axis_values: Sequence[FloatArray], decimals: int, first_present: S
     if _emitter is None:
         _emitter = _bind("prs3_emit_lines", [
             _I64, _I64, _POINTER, _POINTER, ctypes.c_int32, _POINTER, _POINTER, _I64, _I64, _POINTER, ctypes.c_int32,
-            _POINTER, ctypes.c_int32, _POINTER, _POINTER, _POINTER, ctypes.c_uint8, _TEXT, _I64, _I64, _POINTER,
+            ctypes.c_int32, _POINTER, _POINTER, _POINTER, ctypes.c_uint8, _TEXT, _I64, _I64, _POINTER,
             _POINTER, _POINTER, _POINTER, _I64, _POINTER, _POINTER])
     if not _emitter:
         return None
     m, axes = len(kind), len(axis_values)
-    kept = []                                            # the value columns, alive through the call
-    strides = np.zeros(axes, dtype=np.int64)
-    for j, values in enumerate(axis_values):
+    kept = []                                            # the value columns (axes, then F), alive through the call
+    strides = np.zeros(axes + 1, dtype=np.int64)
+    for j, values in enumerate([*axis_values, feed]):
         if values.dtype != np.float64 or values.strides[0] <= 0 or values.strides[0] % 8:
             values = np.ascontiguousarray(values, dtype=np.float64)
         kept.append(values)
@@ -209,7 +209,6 @@ def emit_rows(axis_values: Sequence[FloatArray], decimals: int, first_present: S
     text_bytes = np.frombuffer(b"".join(texts) + b"\0", dtype=np.uint8)
     first = np.array(first_present, dtype=np.uint8)
     kinds = np.ascontiguousarray(kind, dtype=np.int64)
-    feeds = np.ascontiguousarray(feed, dtype=np.int64)
     restate_rows = np.ascontiguousarray(restate, dtype=np.int64)
     insert_row = np.ascontiguousarray(inserts[0], dtype=np.int64)
     insert_start = np.ascontiguousarray(inserts[1], dtype=np.int64)
@@ -224,8 +223,8 @@ def emit_rows(axis_values: Sequence[FloatArray], decimals: int, first_present: S
     starts = np.zeros(m + 1, dtype=np.int64)
     lengths = np.zeros(m, dtype=np.int64)
     size = _emitter(m, axes, _address(pointers), _address(strides), decimals, _address(first), _address(kinds),
-                    previous_kind, len(restate_rows), _address(restate_rows), int(modal_motion), _address(feeds),
-                    feed_decimals, None if block_numbers is None else _address(block_numbers), _address(text_start),
+                    previous_kind, len(restate_rows), _address(restate_rows), int(modal_motion), feed_decimals,
+                    None if block_numbers is None else _address(block_numbers), _address(text_start),
                     _address(text_bytes), ord(" "), ending, len(ending), len(insert_row), _address(insert_row),
                     _address(insert_start), _address(insert_bytes), _address(out), capacity, _address(starts),
                     _address(lengths))

@@ -358,7 +358,7 @@ class _Chunk:
 
     program: JointProgram
     axes: list[tuple[bytes, FloatArray]]     # word letter and values (checked finite), in word order
-    feed: ScaledColumn                       # F of every row (1 on rapids: never written)
+    feed: FloatArray                         # F of every row, checked (1 on rapids: never written)
     befores: list[int] = field(default_factory=list)
     """Each event's row (``program.events`` is in row order)."""
     rows_with_events: list[int] = field(default_factory=list)
@@ -532,9 +532,9 @@ class ProgramEmitter:
         np.cumsum(lengths, out=starts[1:])
         return special, rows, starts, data
 
-    def _feed_column(self, program: JointProgram, decimals: int) -> ScaledColumn:
-        """The F word of every FEED row (rapids: 1, never written); one that is not > 0 once
-        printed is a LimitError naming its row."""
+    def _feed_column(self, program: JointProgram, decimals: int) -> FloatArray:
+        """The F word's value on every FEED row (rapids: 1, never written); one that is not > 0 once
+        printed is a LimitError naming its row. The words are scaled where they are written."""
         feed = program.kind == MoveKind.FEED
         values = np.where(feed, program.inverse_time, 1.0)
         with np.errstate(invalid="ignore", over="ignore"):   # min: nan where one is; sum: inf where one is
@@ -544,8 +544,10 @@ class ProgramEmitter:
             row = int(bad[0])
             raise LimitError(f"{self._where(program, row)}: inverse-time feed must be a finite number > 0 /min, "
                              f"got {float(values[row])!r}")
-        column = scale_column(values, decimals)             # (rapids: 1, never written)
-        zero = np.zeros(0, dtype=np.int64) if column.scaled.all() else np.flatnonzero(feed & (column.scaled == 0))
+        if float(values.min(initial=1.0)) * 10.0**decimals > 0.75:    # (so far from 0.5 that it prints >= 1)
+            return values
+        column = scale_column(values, decimals)
+        zero = np.flatnonzero(feed & (column.scaled == 0))
         if zero.size:
             row = int(zero[0])
             value = float(values[row])
@@ -554,7 +556,7 @@ class ProgramEmitter:
                 f"F{column.text(row)} with decimals.inverse_time = {decimals} (the move would take "
                 f"{1 / value:.6g} min); LinuxCNC would raise F0 to 0.1 and run the move at another feed"
             )
-        return column
+        return values
 
     def _emit_rows(self, chunk: _Chunk, lo: int, hi: int) -> list[str]:
         """Rows ``lo:hi`` of the chunk with the events before them (and those after the last row)."""
@@ -625,10 +627,6 @@ class ProgramEmitter:
         not written from an exact integer, or an over-long line (:meth:`_rows_numpy` writes those, and
         finds the errors)."""
         out, modal, dialect = self._out, self._modal, self.dialect
-        feed = chunk.feed
-        first, last = np.searchsorted(feed.odd, [lo, hi])
-        if first != last:
-            return None
         from prs3_post import native  # ctypes: loaded only where lines are written
 
         decimals = dialect.decimals.length
@@ -637,8 +635,8 @@ class ProgramEmitter:
         a, b = np.searchsorted(chunk.comment_rows, [lo, hi])
         written = native.emit_rows(
             [values[lo:hi] for _, values in chunk.axes], decimals, first_present, chunk.program.kind[lo:hi],
-            -1 if modal.motion is None else modal.motion, restate, dialect.modal_motion, feed.scaled[lo:hi],
-            feed.decimals, [letter for letter, _ in chunk.axes], dialect.line_ending.encode("ascii"),
+            -1 if modal.motion is None else modal.motion, restate, dialect.modal_motion, chunk.feed[lo:hi],
+            dialect.decimals.inverse_time, [letter for letter, _ in chunk.axes], dialect.line_ending.encode("ascii"),
             (chunk.comment_rows[a:b] - lo, chunk.comment_starts[a:b + 1], chunk.comment_bytes),
             (dialect.line_numbers.letter.encode("ascii"), out.numbers_after(self._block_index(chunk, lo, hi, g93)))
             if out.numbered else None)
@@ -730,7 +728,7 @@ class ProgramEmitter:
         shown.append(motion < 2)
         columns.extend(axes)
         shown.extend(present.T)
-        columns.append((b"F", _rows_of(chunk.feed, lo, hi)))
+        columns.append((b"F", scale_column(chunk.feed[lo:hi], self.dialect.decimals.inverse_time)))
         shown.append(chunk.program.kind[lo:hi] == MoveKind.FEED)
         return render_rows(columns, np.column_stack(shown) if m else np.zeros((0, len(columns)), dtype=bool),
                            ending=self.dialect.line_ending.encode("ascii"))
@@ -764,15 +762,6 @@ class ProgramEmitter:
 def _first_feed(kind: IntArray, lo: int) -> int | None:
     feeds = np.flatnonzero(kind == MoveKind.FEED)
     return lo + int(feeds[0]) if feeds.size else None
-
-
-def _rows_of(column: ScaledColumn, lo: int, hi: int) -> ScaledColumn:
-    """Rows ``lo:hi`` of a column."""
-    if (lo, hi) == (0, len(column)):
-        return column
-    first, last = np.searchsorted(column.odd, [lo, hi])
-    return ScaledColumn(column.scaled[lo:hi], column.decimals, column.odd[first:last] - lo,
-                        column.odd_text[first:last])
 
 
 def _check_rows(program: JointProgram) -> None:
