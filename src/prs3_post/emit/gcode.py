@@ -8,7 +8,8 @@ puts them in ``header``). :class:`ProgramEmitter` makes the same text in pieces 
 The motion rows are formatted a whole column at a time (:mod:`prs3_post.fixed`): the words' integers
 decide which words a line repeats, and the lines are written as bytes for all rows together. Where
 the compiled library is built (:func:`prs3_post.native.emit_rows`), one pass in C does the same for
-the usual rows (not numbered, every number an exact integer) and puts the usual comments between them.
+the usual rows (every number an exact integer, no line too long), with their block numbers, and puts
+the usual comments between them; numpy writes the others (and all of them with ``PRS3_POST_NATIVE=0``).
 
 What is written, in order::
 
