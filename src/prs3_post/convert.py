@@ -491,7 +491,7 @@ def _start(path: str, settings: ConvertSettings) -> _Run:
     # two (processes × threads ≤ cores): by a forked process for a large input (which post-processes it too
     # where no result is kept here: see program_chunks), else by a thread; not the 5-axis reader, whose
     # state the first chunk's comment reads
-    forked = default_workers() > 1 and settings.source is None and _large(path)
+    forked = default_workers() > 1 and settings.source is None and hasattr(os, "fork") and _large(path)
     return _Run(path=path, settings=settings, fmt=fmt, sha256="" if forked else file_sha256(path), reader=reader,
                 post=post, forked=forked)
 
