@@ -9,8 +9,11 @@ from __future__ import annotations
 import json
 import os
 import pickle
+import select
 import signal
+import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -243,3 +246,77 @@ def test_the_pipe_holds_a_chunk() -> None:
     finally:
         receive.close()
         send.close()
+
+
+#: A conversion whose every file is read by a forked process, held once its first chunk is emitted:
+#: it says so on the file descriptor given, with its reading child's pid, and waits for a signal.
+_HELD = """
+import os, signal, sys
+import prs3_post.convert as convert
+import prs3_post.emit.gcode as gcode
+from prs3_post.cli import main
+
+ready = int(sys.argv[1])
+convert.PROCESS_READ_BYTES = 0
+os.environ["PRS3_POST_THREADS"] = "2"
+rows = gcode.ProgramEmitter.rows
+
+def held(self, program):
+    text = rows(self, program)
+    children = open(f"/proc/{os.getpid()}/task/{os.getpid()}/children").read().split()
+    os.write(ready, (" ".join(children) + "\\n").encode())
+    while True:
+        signal.pause()
+
+gcode.ProgramEmitter.rows = held
+sys.argv[1:] = sys.argv[2:]
+main()
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc")
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_to_the_group_leaves_no_file_and_no_child(tmp_path: Path, signum: int) -> None:
+    """Ctrl-C (SIGINT) or SIGTERM to the process group while the child is reading: the temp file is
+    removed (by the parent: the child never runs the parent's handlers), and the child has ended."""
+    src = tmp_path / "part.cls"
+    src.write_text("UNITS/MM\nFEDRAT/MMPM,500\nRAPID\nGOTO/0,40,10\n" + "".join(
+        f"GOTO/{k % 40},{k % 37},-1\n" for k in range(30_000)))
+    out = tmp_path / "out"
+    env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
+    ready_read, ready_write = os.pipe()
+    try:
+        process = subprocess.Popen(
+            [sys.executable, "-c", _HELD, str(ready_write), "convert", str(src), "-o", str(out),
+             "--part-origin=0,0,-850", "--jobs", "1"],
+            env=env, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+            pass_fds=(ready_write,))
+        os.close(ready_write)
+        if not select.select([ready_read], [], [], 300)[0]:
+            process.kill()
+            pytest.fail("the conversion neither emitted nor ended in 300 s")
+        said = os.read(ready_read, 200).decode().split()
+        assert said, "the conversion ended first: " + process.communicate()[1].decode()
+    finally:
+        os.close(ready_read)
+    child = int(said[0])
+    assert len(list(out.glob(".*.tmp"))) == 1           # what the signal must clean up
+    os.killpg(process.pid, signum)
+    assert process.wait(timeout=60) != 0
+    assert sorted(os.listdir(out)) == []
+    assert _ended(child)
+
+
+def _ended(pid: int, seconds: float = 30.0) -> bool:
+    """Whether process ``pid`` is gone or a zombie (dead: a SIGTERM to the group ends the child as
+    it ends the parent, whose Python no longer runs to reap it; init does) within ``seconds``."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        try:
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except FileNotFoundError:
+            return True
+        if state == "Z":
+            return True
+        time.sleep(0.05)
+    return False

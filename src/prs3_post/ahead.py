@@ -91,16 +91,25 @@ def read_in_process(items: Iterable[_Item], final: Callable[[], _Final],
 
     receive, send = Pipe(duplex=False)
     _widen(send)
-    with warnings.catch_warnings():
-        # Python 3.12 warns about forking a process with threads (a lock another thread holds would stay
-        # held in the child): the child here only reads a file and runs numpy's element-wise code, and
-        # the threads this package starts (kinematics blocks, read_ahead) are joined before they return
-        warnings.simplefilter("ignore", DeprecationWarning)
-        pid = os.fork()
-    if pid == 0:                                       # the child
+    # no signal between the fork and the child's own handlers: the parent's Python handlers (the atomic
+    # writer's) would unwind the parent's frames in the child, and remove the parent's temp file
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, _CHILD_SIGNALS)
+    try:
+        with warnings.catch_warnings():
+            # Python 3.12 warns about forking a process with threads (a lock another thread holds would
+            # stay held in the child): the child here only reads a file and runs numpy's element-wise
+            # code, and the threads this package starts (kinematics blocks, read_ahead) are joined
+            # before they return
+            warnings.simplefilter("ignore", DeprecationWarning)
+            pid = os.fork()
+        if pid == 0:                                   # the child: Ctrl-C is the parent's to act on, and
+            for number, action in _CHILD_SIGNALS.items():   # a SIGTERM or SIGHUP ends it as the default does
+                signal.signal(number, action)
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+    if pid == 0:
         code = 0
         try:
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
             receive.close()
             _produce(items, final, send)
         except BaseException:                          # the parent went away (broken pipe), or worse
@@ -122,6 +131,11 @@ def read_in_process(items: Iterable[_Item], final: Callable[[], _Final],
         receive.close()
         _reap(pid)
 
+
+#: The child's handlers of the signals a terminal or a batch sends.
+_CHILD_SIGNALS = {getattr(signal, name): action for name, action in
+                  (("SIGINT", signal.SIG_IGN), ("SIGTERM", signal.SIG_DFL), ("SIGHUP", signal.SIG_DFL))
+                  if hasattr(signal, name)}
 
 #: Bytes the pipe holds (Linux's largest by default): the child runs a chunk or so ahead instead of
 #: waiting, 64 KB into its next chunk, for the consumer to finish this one.
