@@ -27,6 +27,7 @@ import prs3_post.convert as convert
 from prs3_post.ahead import read_in_process
 from prs3_post.cli import main
 from prs3_post.errors import FeatureError, InputError, LimitError, Prs3Error
+from prs3_post.readers.header import read_header
 from prs3_post.toolpath import Event, EventKind, Toolpath
 
 REPO = Path(__file__).resolve().parents[1]
@@ -320,3 +321,39 @@ def _ended(pid: int, seconds: float = 30.0) -> bool:
             return True
         time.sleep(0.05)
     return False
+
+
+@pytest.mark.parametrize("forked", [True, False], ids=["forked", "one process"])
+def test_an_input_replaced_while_it_is_read_is_hashed_as_it_was_read(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                                      forked: bool) -> None:
+    """An editor saving a new version over the input (or deleting it) while it is converted: the
+    header's SHA-256 is that of the bytes converted (the reader hashes what it reads; the file
+    was hashed again by name afterwards, which named the new file, or failed with 'file not
+    found' once it was deleted)."""
+    import hashlib
+
+    from prs3_post.readers.gcode import GcodeStream
+
+    src = tmp_path / "part.ngc"
+    src.write_text("G21 G90\nG0 X0 Y0 Z5\n" + "".join(f"G1 X{k % 40} Y{k % 37} Z-1 F500\n" for k in range(3000)))
+    converted = hashlib.sha256(src.read_bytes()).hexdigest()
+    newer = tmp_path / "newer.ngc"
+    newer.write_text("G21 G90\nG0 X0 Y0 Z5\nG1 X1 Y1 Z-1 F500\n")
+    pieces = GcodeStream._pieces
+
+    def replaced_after_the_first_piece(self: GcodeStream):
+        self.piece_bytes = 4096                        # several pieces
+        for number, piece in enumerate(pieces(self)):
+            yield piece
+            if number == 0:
+                os.replace(newer, src)
+
+    monkeypatch.setattr(GcodeStream, "_pieces", replaced_after_the_first_piece)
+    monkeypatch.setattr(convert, "PROCESS_READ_BYTES", 0 if forked else 1 << 60)
+    monkeypatch.setenv("PRS3_POST_THREADS", "2")
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["convert", str(src), "-o", str(out), "--jobs", "1", "--part-origin=0,0,-850"])
+    assert result.exit_code == 0, result.output
+    header = read_header(str(out / "part.ngc"))
+    assert header.source_sha256 == converted
+    assert header.counts is not None and header.counts.moves == 3001

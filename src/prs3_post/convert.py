@@ -52,7 +52,7 @@ from prs3_post.readers.apt import ClFile, ClStream, join_toolpaths
 from prs3_post.readers.detect import DETECT_BYTES, FORMATS, detect_format
 from prs3_post.readers.files import open_input
 from prs3_post.readers.gcode import GcodeFile, GcodeStream
-from prs3_post.readers.header import SourceCounts, SourceHeader, file_sha256, source_header_entries
+from prs3_post.readers.header import SourceCounts, SourceHeader, source_header_entries
 from prs3_post.setup import Setup
 from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpath, join_programs
 from prs3_post.types import FloatArray
@@ -370,7 +370,7 @@ class _Run:
     path: str
     settings: ConvertSettings
     fmt: str
-    sha256: str                                         # "" until read, where a forked process reads the file
+    sha256: str                                         # of the bytes converted: "" until the reader is through
     reader: ClStream | GcodeStream
     post: PostStream
     forked: bool = False                                # the file is read (and hashed) by a forked process
@@ -417,6 +417,7 @@ class _Run:
             yield placed
         if not self.rows:
             raise InputError("no moves in the file: nothing to convert", path=self.path)
+        self.sha256 = self.reader.sha256 or ""          # of the bytes converted (read once, by the reader)
 
     def posted(self) -> Iterator[JointProgram]:
         """The chunks post-processed (:meth:`chunks` fed to the post-processing stream) by a forked process:
@@ -428,7 +429,7 @@ class _Run:
             yield self.post.feed(chunk).program
 
     def _posted_there(self) -> tuple[GcodeFile | ClFile | None, str, PostCounts]:
-        return self.reader.summary, file_sha256(self.path), self.post.finish()
+        return self.reader.summary, self.sha256, self.post.finish()
 
     def _posted(self, done: tuple[GcodeFile | ClFile | None, str, PostCounts]) -> None:
         summary, self.sha256, self.post_counts = done
@@ -439,8 +440,8 @@ class _Run:
         return self.post.finish() if self.post_counts is None else self.post_counts
 
     def _read_there(self) -> tuple[GcodeFile | ClFile | None, str]:
-        """In the forked process that read the file: the reader's summary and the file's hash."""
-        return self.reader.summary, file_sha256(self.path)
+        """In the forked process that read the file: the reader's summary and the hash of what it read."""
+        return self.reader.summary, self.sha256
 
     def _read(self, done: tuple[GcodeFile | ClFile | None, str]) -> None:
         """Here: what :meth:`_read_there` found."""
@@ -492,8 +493,7 @@ def _start(path: str, settings: ConvertSettings) -> _Run:
     # where no result is kept here: see program_chunks), else by a thread; not the 5-axis reader, whose
     # state the first chunk's comment reads
     forked = default_workers() > 1 and settings.source is None and hasattr(os, "fork") and _large(path)
-    return _Run(path=path, settings=settings, fmt=fmt, sha256="" if forked else file_sha256(path), reader=reader,
-                post=post, forked=forked)
+    return _Run(path=path, settings=settings, fmt=fmt, sha256="", reader=reader, post=post, forked=forked)
 
 
 def _header(run: _Run) -> SourceHeader:

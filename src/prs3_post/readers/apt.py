@@ -70,6 +70,7 @@ overflow are errors.
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import math
 import re
@@ -467,16 +468,21 @@ class ClStream:
         self._text = text                             # parse_cl: the text instead of the file
         self.apply_msys = apply_msys
         self.summary: ClFile | None = None
+        self.sha256: str | None = None                 # of the bytes read, once read (the header's)
 
     def _pieces(self) -> Iterator[str]:
-        """The file's text in pieces that end at line ends (a leading byte-order mark removed)."""
+        """The file's text in pieces that end at line ends (a leading byte-order mark removed); once
+        through, :attr:`sha256` is the hash of the bytes read (the last pass's: the records')."""
+        digest = hashlib.sha256()
         if self._text is not None:
+            digest.update(self._text.encode("utf-8"))
             yield self._text.removeprefix("\ufeff")
-            return
-        for offset, piece in iter_pieces(self.path, "a CL file", self.piece_bytes):
-            if offset == 0 and piece.startswith(b"\xef\xbb\xbf"):
-                piece, offset = piece[3:], 3
-            yield _text(piece, self.path, offset)
+        else:
+            for offset, piece in iter_pieces(self.path, "a CL file", self.piece_bytes, digest):
+                if offset == 0 and piece.startswith(b"\xef\xbb\xbf"):
+                    piece, offset = piece[3:], 3
+                yield _text(piece, self.path, offset)
+        self.sha256 = digest.hexdigest()
 
     def __iter__(self) -> Iterator[Toolpath]:
         file_units = _file_units(_unit_records(self._pieces(), self.path), self.path, self.units)

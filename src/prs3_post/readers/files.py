@@ -11,11 +11,14 @@ from __future__ import annotations
 import os
 import stat
 from collections.abc import Callable, Iterable, Iterator
-from typing import BinaryIO
+from typing import TYPE_CHECKING, BinaryIO
 
 import numpy as np
 
 from prs3_post.errors import InputError
+
+if TYPE_CHECKING:
+    from hashlib import _Hash as Hash
 
 MB = 1_000_000
 SIZE_LIMITS: dict[str, int] = {
@@ -137,11 +140,14 @@ def format_bytes(size: int) -> str:
     return f"{size} bytes"
 
 
-def iter_pieces(path: str, what: str, piece_bytes: int = 1 << 20) -> Iterator[tuple[int, bytes]]:
+def iter_pieces(path: str, what: str, piece_bytes: int = 1 << 20,
+                digest: Hash | None = None) -> Iterator[tuple[int, bytes]]:
     """``(offset, bytes)`` pieces of the regular file at ``path``, each ending at a line end (or the file's end).
 
     For readers that stream a file: memory holds one piece, not the file. Checked and opened as
     :func:`open_input` does (``what`` as there); errors are raised when the iteration reaches them.
+    ``digest`` (a :mod:`hashlib` hash), when given, is updated with every byte read: the hash of the
+    bytes the pieces are, whatever happens to the file's name meanwhile.
     """
     with open_input(path, what) as stream:
         offset, rest = 0, b""
@@ -152,6 +158,8 @@ def iter_pieces(path: str, what: str, piece_bytes: int = 1 << 20) -> Iterator[tu
                 raise InputError(f"cannot read the file: {exc.strerror or exc}", path=path) from exc
             if not block:
                 break
+            if digest is not None:
+                digest.update(block)
             block = rest + block
             cut = block.rfind(b"\n") + 1
             if cut == 0:

@@ -65,6 +65,7 @@ cycle needs the full position.
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import math
 import re
@@ -331,6 +332,7 @@ class GcodeStream:
         self.chunk_lines, self.piece_bytes = max(1, int(chunk_lines)), max(1, int(piece_bytes))
         self._text = text
         self.summary: GcodeFile | None = None
+        self.sha256: str | None = None                 # of the bytes read, once read (the header's)
 
     def _check(self) -> None:
         """The whole file: text (empty, byte-order mark, control bytes, UTF-8, in that order) and no
@@ -385,11 +387,16 @@ class GcodeStream:
         return _Reader(self.path, self.work_plane, self.tolerance, self.circle_tolerance)
 
     def _pieces(self) -> Iterator[tuple[int, bytes]]:
-        """The file's bytes in ``(offset, bytes)`` pieces that end at line ends (``text``: its UTF-8 bytes)."""
+        """The file's bytes in ``(offset, bytes)`` pieces that end at line ends (``text``: its UTF-8 bytes);
+        once through, :attr:`sha256` is theirs."""
+        digest = hashlib.sha256()
         if self._text is not None:
-            yield 0, self._text.encode("utf-8")
-            return
-        yield from iter_pieces(self.path, "a G-code program", self.piece_bytes)
+            data = self._text.encode("utf-8")
+            digest.update(data)
+            yield 0, data
+        else:
+            yield from iter_pieces(self.path, "a G-code program", self.piece_bytes, digest)
+        self.sha256 = digest.hexdigest()
 
     def __iter__(self) -> Iterator[Toolpath]:
         self._check()                                   # the whole text checked: its bytes are read below
