@@ -357,3 +357,26 @@ def test_an_input_replaced_while_it_is_read_is_hashed_as_it_was_read(tmp_path: P
     header = read_header(str(out / "part.ngc"))
     assert header.source_sha256 == converted
     assert header.counts is not None and header.counts.moves == 3001
+
+
+@pytest.mark.parametrize("forked", [True, False], ids=["forked", "one process"])
+def test_running_out_of_memory_is_one_line_not_a_traceback(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                          forked: bool) -> None:
+    """QA ran convert under ``ulimit -v``: numpy's MemoryError, raised in the reading process and
+    raised again here, ended in a traceback."""
+    from prs3_post.cli import OUT_OF_MEMORY
+    from prs3_post.readers.apt import ClStream
+
+    def starved(self: ClStream):
+        raise MemoryError
+        yield                                          # a generator, as the reader is
+
+    monkeypatch.setattr(ClStream, "__iter__", starved)
+    monkeypatch.setattr(convert, "PROCESS_READ_BYTES", 0 if forked else 1 << 60)
+    monkeypatch.setenv("PRS3_POST_THREADS", "2")
+    src = tmp_path / "part.cls"
+    src.write_text("RAPID\nGOTO/0,0,10\nGOTO/1,0,10\n")
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["convert", str(src), "-o", str(out), "--jobs", "1", "--part-origin=0,0,-850"])
+    assert (result.exit_code, result.stderr) == (1, f"prs3-post: error: {OUT_OF_MEMORY}\n")
+    assert list(out.iterdir()) == []

@@ -239,7 +239,15 @@ def run_reported(action: Callable[[], int | None]) -> None:
     except Prs3Error as error:
         click.echo(f"prs3-post: error: {error}", err=True)
         sys.exit(error.exit_code)
+    except MemoryError:                              # no traceback: it would say nothing more (and need memory)
+        click.echo(f"prs3-post: error: {OUT_OF_MEMORY}", err=True)
+        sys.exit(1)
     sys.exit(code or 0)
+
+
+#: What a command that ran out of memory says (nothing is written: outputs are atomic).
+OUT_OF_MEMORY = ("out of memory: the machine, or a limit on this process (ulimit -v), left too little; nothing "
+                 "was written (free some memory, or convert the files one at a time with --jobs 1)")
 
 
 def demo_part() -> Path:
