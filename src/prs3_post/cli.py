@@ -1604,8 +1604,10 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
     .tap ... files) or a glob pattern. Each file goes through the main job's pipeline: setup, exact
     IK, subdivision of axis-changing moves, every point checked against every limit; its program
     is written whole or not at all. A failing file does not stop the others (unless --fail-fast);
-    the summary lists every failure with file:line and reason. Exit status: 0 all converted, 1 if
-    any file failed, 2 for bad options.
+    the summary lists every failure with file:line and reason. Exit status: 0 all converted; else
+    the worst failure's: 2 for bad input (a file unreadable or not understood, an output kept
+    because it exists) or bad options, 1 for a point outside a limit or out of reach, or files
+    not started (--fail-fast).
 
     \b
     Examples:
