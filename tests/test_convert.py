@@ -449,6 +449,9 @@ BAD_INPUTS = [
      "plain decimal (0.00001)"),
     ("g682.nc", "G21\nG68.2 P3 Q1 X0 Y0 Z0 I1 J0 K0\nG68.2 P3 Q2 I0 J0 K0\n",
      "3: G68.2 P3 Q2: the normal I J K is the zero vector (it must be the plane's z direction, the tool axis)"),
+    ("cut.nc", "%\nG21 G90\nG0 X0 Y0 Z5\nG1 X1 Y2 Z-1 F100\nG1 X-26.",      # a file cut short (QA: 5 MB of 30)
+     "5: the program opens with '%' (line 1) but the file ends without its closing '%': a program cut short? (a "
+     "program that opens with '%' ends with '%')"),
 ]
 
 

@@ -628,6 +628,7 @@ class _Reader:
         self.cycle: _Cycle | None = None
         self.cycles: list[GcodeCycle] = []
         self.percent = 0                               # % lines seen (1: opening, 2: closing)
+        self.percent_opened = 0                        # the opening % line's number
         self.code_seen = False
         self.end_line: int | None = None
         # counts
@@ -798,6 +799,9 @@ class _Reader:
                              "of the moves is unknown")
         if not self.code_seen:
             raise InputError("not a G-code program: no code (only comments, blank lines or '%')", path=self.path)
+        if self.percent == 1:                          # what LinuxCNC calls 'File ended with no percent sign'
+            raise self.error(f"the program opens with '%' (line {self.percent_opened}) but the file ends without "
+                             "its closing '%': a program cut short? (a program that opens with '%' ends with '%')")
         if self.cycle is not None:
             self.end_cycle()
 
@@ -855,7 +859,7 @@ class _Reader:
     def percent_line(self) -> None:
         self.skipped["%"] += 1
         if self.percent == 0 and not self.code_seen:
-            self.percent = 1                           # the opening %
+            self.percent, self.percent_opened = 1, self.number   # the opening %
         elif self.percent == 1 or self.end_line is not None:
             self.percent = 2                           # the closing %: nothing but blank lines after it
         else:
