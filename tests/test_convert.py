@@ -719,3 +719,18 @@ def test_a_folder_given_as_a_config_file_is_named_a_folder(tmp_path: Path, kind:
     assert result.exit_code == 2
     assert result.stderr.startswith(f"prs3-post: error: {folder}: is a folder, not a {kind} file: give a {kind} TOML "
                                     "file or a shipped name (shipped: ")
+
+
+def test_a_file_named_twice_is_converted_once_and_said_so(tmp_path: Path) -> None:
+    """QA: a symbolic link beside its file (or a file named twice) was converted once without a word."""
+    src = tmp_path / "a.cls"
+    src.write_text("FEDRAT/100\nRAPID\nGOTO/0,0,100\nGOTO/1,0,100\n")
+    (tmp_path / "b.cls").symlink_to(src)
+    repeats: list[tuple[str, str]] = []
+    names = [str(src), str(tmp_path / "b.cls"), str(src)]
+    assert collect_inputs(names, repeats=repeats) == [str(src)]
+    assert repeats == [(str(tmp_path / "b.cls"), str(src)), (str(src), str(src))]
+    code, _, stderr = _cli(tmp_path, *names, "-o", str(tmp_path / "out"), "--part-origin=0,0,-850")
+    assert code == 0
+    assert stderr.splitlines()[-1] == (f"prs3-post: 2 more names of files above, each converted once: "
+                                       f"{tmp_path / 'b.cls'} (= {src}), {src} (= {src})")

@@ -1677,7 +1677,8 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
             if source is None or not given:
                 raise
             raise click.BadParameter(f"{error.args[0]} (source {source.name})", param_hint=" / ".join(given)) from error
-        files = collect_inputs(inputs, exclude=outdir, exclude_suffix=dialect.extension)
+        repeats: list[tuple[str, str]] = []
+        files = collect_inputs(inputs, exclude=outdir, exclude_suffix=dialect.extension, repeats=repeats)
         if report_path is not None:
             refuse_overwriting({"--report": report_path}, {f"{i + 1} ({f})": f for i, f in enumerate(files)})
             for file in files:                           # the report must not replace a program either
@@ -1702,6 +1703,9 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
         if report_path is not None:
             write_atomic(report_path, json.dumps(result.record(), indent=1, allow_nan=False) + "\n")
         click.echo(batch_summary(result), err=True, nl=False)
+        if repeats:                                  # nothing named is left unsaid
+            click.echo(f"prs3-post: {len(repeats)} more name{'s' if len(repeats) > 1 else ''} of files above, "
+                       "each converted once: " + ", ".join(f"{name} (= {same})" for name, same in repeats), err=True)
         # the project's exit codes hold for a batch too: 2 when any file was bad input (unreadable, not
         # understood), else 1 when any failed a limit or reach or was not started, else 0
         codes = [outcome.exit_code for outcome in result.failures] + [1] * bool(result.not_started)

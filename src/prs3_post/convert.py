@@ -755,7 +755,8 @@ class BatchResult:
                             "seconds": round(self.seconds, 3)}}
 
 
-def collect_inputs(items: Sequence[str], *, exclude: str | None = None, exclude_suffix: str = ".ngc") -> list[str]:
+def collect_inputs(items: Sequence[str], *, exclude: str | None = None, exclude_suffix: str = ".ngc",
+                   repeats: list[tuple[str, str]] | None = None) -> list[str]:
     """The input files named by ``items``: files as given, directories searched recursively for
     CAM files (:data:`CL_SUFFIXES`, :data:`GCODE_SUFFIXES`; regular files only, in name order),
     glob patterns expanded. Each file once, in the order found.
@@ -764,6 +765,8 @@ def collect_inputs(items: Sequence[str], *, exclude: str | None = None, exclude_
     ----------
     exclude : str | None — the output folder: a directory search does not descend into it; when it is
         itself a folder searched, its files ending in ``exclude_suffix`` (the programs) are left out
+    repeats : list, optional — gets ``(name, first name)`` for each name of a file found already (the
+        same path twice, or a symbolic link to it): converted once, and said so
 
     Raises
     ------
@@ -771,14 +774,17 @@ def collect_inputs(items: Sequence[str], *, exclude: str | None = None, exclude_
         An item that names nothing (no such file, or a pattern or directory without CAM files).
     """
     found: list[str] = []
-    seen: set[str] = set()
     skip = os.path.realpath(exclude) if exclude is not None else None
+
+    first: dict[str, str] = {}
 
     def add(path: str) -> None:
         key = os.path.realpath(path)
-        if key not in seen:
-            seen.add(key)
+        if key not in first:
+            first[key] = path
             found.append(path)
+        elif repeats is not None:
+            repeats.append((path, first[key]))
 
     for item in items:
         if os.path.isdir(item):
