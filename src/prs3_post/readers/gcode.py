@@ -707,9 +707,29 @@ class _Reader:
         span = fast | quiet
         edges = np.flatnonzero(np.diff(span.astype(np.int8))) + 1
         for a, b in itertools.pairwise([0, *edges.tolist(), len(lines)]):
+            if span[a] and not fast[a:b].any() and self.quiet_lines(lines[a:b]):
+                continue
             if not (span[a] and fast[a:b].any() and self.bulk(first + a, values[a:b], fast[a:b], lines[a:b])):
                 for i in range(a, b):
                     self.line(first + i, lines[i])
+
+    def quiet_lines(self, lines: Sequence[str]) -> bool:
+        """Lines that are all blank or usual comment lines (read without decoding: a block's), in bulk:
+        their events and counts, as :meth:`line` makes them one by one. False (state untouched) where
+        any is another kind of line (two comments, a tab in one...), or after the closing '%' (the
+        5-axis reader counts what follows it apart): :meth:`line` reads them."""
+        if not isinstance(lines, _BlockLines) or self.percent >= 2:
+            return False
+        known = lines.quiet_comments(np.arange(len(lines)))
+        if known is None:
+            return False
+        _, comments = known
+        row = self.rows - self.chunk_start
+        self.comments += len(comments)
+        self.comment_lines += len(comments)
+        self.blank_lines += len(lines) - len(comments)
+        self.events += [Event(row, EventKind.COMMENT, 0.0, text) for text in comments]
+        return True
 
     def bulk(self, first: int, values: FloatArray, moves: BoolArray, lines: Sequence[str]) -> bool:
         """Lines ``first``... in bulk: where ``moves``, of the regular motion shape (``values`` (k, 6): N G X Y Z
