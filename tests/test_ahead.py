@@ -380,3 +380,25 @@ def test_running_out_of_memory_is_one_line_not_a_traceback(tmp_path: Path, monke
     result = CliRunner().invoke(main, ["convert", str(src), "-o", str(out), "--jobs", "1", "--part-origin=0,0,-850"])
     assert (result.exit_code, result.stderr) == (1, f"prs3-post: error: {OUT_OF_MEMORY}\n")
     assert list(out.iterdir()) == []
+
+
+@pytest.mark.skipif(not CORPUS.is_dir(), reason="the corpus (../shared/corpus) is not here")
+def test_a_file_read_in_a_child_whose_results_are_kept_here(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where the chunks' results are kept (convert_file; the collision check) the child only reads and
+    places: the program, the report and the toolpath are those of one process."""
+    from prs3_post.config import load_dialect, load_machine
+    from prs3_post.setup import Setup
+
+    machine = load_machine("patel2020")
+    settings = convert.ConvertSettings(machine=machine, dialect=load_dialect("linuxcnc"),
+                                       setup=Setup.resolve(machine, (-44.0, -81.3, -786.7)))
+    src = str(CORPUS / "mech491_APT_Variable_Axis.cls")
+    monkeypatch.setenv("PRS3_POST_THREADS", "2")
+    made = []
+    for threshold in (1 << 60, 0):
+        monkeypatch.setattr(convert, "PROCESS_READ_BYTES", threshold)
+        made.append(convert.convert_file(src, settings))
+    alone, forked = made
+    assert forked.text == alone.text
+    assert forked.report == alone.report
+    assert np.array_equal(forked.path.tip, alone.path.tip)

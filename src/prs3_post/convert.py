@@ -388,7 +388,7 @@ class _Run:
     def chunks(self) -> Iterator[Toolpath]:
         """The reader's chunks, checked as read, placed on the machine (unit axes: for the ``placed`` stream)."""
         if self.forked:                                 # the checks and the placement there too, and the hash
-            yield from read_in_process(self._placed(), final=self._read_there, on_final=self._read)
+            yield from read_in_process(self._placed(), final=self._finished_there, on_final=self._finished)
         elif default_workers() > 1 and self.fivex is None:   # (see _start)
             yield from self._placed(read_ahead(self.reader))
         else:
@@ -422,30 +422,25 @@ class _Run:
     def posted(self) -> Iterator[JointProgram]:
         """The chunks post-processed (:meth:`chunks` fed to the post-processing stream) by a forked process:
         it reads, checks, places and post-processes; this one emits and writes (``forked`` only)."""
-        yield from read_in_process(self._programs_there(), final=self._posted_there, on_final=self._posted)
+        yield from read_in_process(self._programs_there(), final=lambda: self._finished_there(posted=True),
+                                   on_final=self._finished)
 
     def _programs_there(self) -> Iterator[JointProgram]:
         for chunk in self._placed():
             yield self.post.feed(chunk).program
 
-    def _posted_there(self) -> tuple[GcodeFile | ClFile | None, str, PostCounts]:
-        return self.reader.summary, self.sha256, self.post.finish()
-
-    def _posted(self, done: tuple[GcodeFile | ClFile | None, str, PostCounts]) -> None:
-        summary, self.sha256, self.post_counts = done
-        self.reader.summary = summary
-
     def post_finish(self) -> PostCounts:
         """The post-processing's counts, once the chunks are through (wherever they were post-processed)."""
         return self.post.finish() if self.post_counts is None else self.post_counts
 
-    def _read_there(self) -> tuple[GcodeFile | ClFile | None, str]:
-        """In the forked process that read the file: the reader's summary and the hash of what it read."""
-        return self.reader.summary, self.sha256
+    def _finished_there(self, *, posted: bool = False) -> tuple[GcodeFile | ClFile | None, str, PostCounts | None]:
+        """In the forked process, once through: the reader's summary, the hash of what it read and, where
+        it post-processed too (``posted``), the stream's counts."""
+        return self.reader.summary, self.sha256, self.post.finish() if posted else None
 
-    def _read(self, done: tuple[GcodeFile | ClFile | None, str]) -> None:
-        """Here: what :meth:`_read_there` found."""
-        summary, self.sha256 = done
+    def _finished(self, done: tuple[GcodeFile | ClFile | None, str, PostCounts | None]) -> None:
+        """Here: what :meth:`_finished_there` found."""
+        summary, self.sha256, self.post_counts = done
         self.reader.summary = summary
 
     def report(self, counts: PostCounts) -> ConvertReport:
