@@ -2,7 +2,7 @@
 process (wall, CPU, peak memory), pygcode's parse-only loop as the reference, the load average, and
 "median (range min..max)" (helpers, not a bench).
 
-The child runs the console script's entry point (:func:`prs3_post.entry.main`, which also sets
+The child runs the console script's entry point (:func:`prs3_post.cli.entry.main`, which also sets
 OpenBLAS's threads), as ``prs3-post`` on the command line does. Its peak memory is its ``VmHWM`` from
 ``/proc/self/status`` (the peak resident set of that process image; ``ru_maxrss`` would count the
 parent's pages at fork), plus, where it forked processes of its own (``convert`` reads a large input
@@ -29,7 +29,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 #: Runs the CLI in a child process and reports its own CPU time and peak resident memory on standard error.
 _CHILD = """import resource, sys
-from prs3_post.entry import main
+from prs3_post.cli.entry import main
 sys.argv = ["prs3-post", *sys.argv[1:]]
 try:
     main()

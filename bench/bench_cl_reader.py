@@ -20,7 +20,7 @@ import tempfile
 
 from _measure import measure
 
-from prs3_post.readers.apt import ClStream, read_cl
+from prs3_post.readers.cl.reader import ClStream, read_cl
 
 
 def write_cl(path: str, lines: int, seed: int = 0) -> int:

@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 from _measure import count_lines, load, pygcode_rate, run_cli, spread
 
-from prs3_post.workplane import euler_zxz_deg
+from prs3_post.part.workplane import euler_zxz_deg
 
 #: The tilted plane: origin (part frame, mm) and Euler Z-X'-Z'' angles (degrees), as G68.2 X Y Z I J K.
 PLANE_ORIGIN = (10.0, 20.0, 0.0)
@@ -102,9 +102,9 @@ def write_inputs(gcode: Path, cl: Path, lines: int, seed: int = 0) -> int:
 def same_path(folder: Path) -> int:
     """Convert small twins in this process; the number of motion lines, after checking that the G-code
     and the CL programs have the same ones (SystemExit if not)."""
-    from prs3_post.config import load_dialect, load_machine
-    from prs3_post.convert import ConvertSettings, convert_file
-    from prs3_post.setup import Setup
+    from prs3_post.app.convert import ConvertSettings, convert_file
+    from prs3_post.machine.loading import load_dialect, load_machine
+    from prs3_post.part.setup_transform import Setup
 
     gcode, cl = folder / "small.ngc", folder / "small.cls"
     write_inputs(gcode, cl, 2_000)

@@ -22,17 +22,17 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from prs3_post.collision import check_program
-from prs3_post.config import load_dialect, load_machine
-from prs3_post.face import Face
-from prs3_post.geometry import find_faces, select_face
-from prs3_post.job import JobSpec, plan
-from prs3_post.ops import Coolant, Cutting, Direction, Entry, ProfileParams, RoundShape, Side
-from prs3_post.ops.work import ProfileJob
-from prs3_post.pipeline import post_process
-from prs3_post.readers.stl import load_part
-from prs3_post.setup import Setup
-from prs3_post.toolpath import Toolpath
+from prs3_post.app.job import JobSpec, plan
+from prs3_post.check.collision import check_program
+from prs3_post.core.toolpath import Toolpath
+from prs3_post.machine.loading import load_dialect, load_machine
+from prs3_post.part.face import Face
+from prs3_post.part.faces import find_faces, select_face
+from prs3_post.part.setup_transform import Setup
+from prs3_post.part.stl import load_part
+from prs3_post.post.pipeline import post_process
+from prs3_post.toolpaths import Coolant, Cutting, Direction, Entry, ProfileParams, RoundShape, Side
+from prs3_post.toolpaths.work import ProfileJob
 
 REPO = Path(__file__).resolve().parents[1]
 

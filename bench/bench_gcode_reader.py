@@ -24,7 +24,7 @@ import tempfile
 
 from _measure import load, pygcode_rate, spread, timed, traced_peak
 
-from prs3_post.readers.gcode import GcodeStream, read_gcode
+from prs3_post.readers.gcode.reader import GcodeStream, read_gcode
 
 
 def write_program(path: str, lines: int, seed: int = 0) -> int:

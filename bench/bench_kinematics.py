@@ -20,10 +20,10 @@ import statistics
 import numpy as np
 from _measure import load, spread, timed, traced_peak
 
-from prs3_post.config import load_machine
 from prs3_post.kinematics import forward, inverse
-from prs3_post.kinematics.exact import inverse_exact
-from prs3_post.kinematics.paper import inverse_paper
+from prs3_post.kinematics.prs3.exact import inverse_exact
+from prs3_post.kinematics.prs3.paper import inverse_paper
+from prs3_post.machine.loading import load_machine
 
 
 def workspace(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:

@@ -68,10 +68,10 @@ def bench(name: str, args: list[str], out: Path, count_rows, repeat: int, target
 
 def formatting_ratios(rows: int, repeat: int) -> None:
     """Bulk formatting against the old one-number-at-a-time way, in this process, alternately."""
-    from prs3_post.config import load_dialect
+    from prs3_post.core.numbers import ChoiceColumn, render_rows, scale_column
+    from prs3_post.core.toolpath import JointProgram
     from prs3_post.emit.gcode import ProgramEmitter, format_word
-    from prs3_post.fixed import ChoiceColumn, render_rows, scale_column
-    from prs3_post.toolpath import JointProgram
+    from prs3_post.machine.loading import load_dialect
 
     rng = np.random.default_rng(1)
     program = JointProgram(kind=np.ones(rows, dtype=np.int64), stage=rng.uniform(-300, 300, (rows, 2)),

@@ -4,7 +4,7 @@
 
 For each demo job (the bundled wedge: hole, square, round; and the example job file, two operations
 with the transition between them) the script times the whole job in this process
-(:func:`prs3_post.job.run_operations`: STL, faces, plan, post-process, emit) three ways: with the setup
+(:func:`prs3_post.app.job.run_operations`: STL, faces, plan, post-process, emit) three ways: with the setup
 given (the one automatic placement chooses: the reference), with the part origin chosen
 (``--part-origin auto``) and with the origin and the rotation chosen (``--part-rotation auto`` too).
 It prints the median and the range (min..max) over ``--repeat`` runs, wall and CPU time, the CPU
@@ -45,9 +45,9 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=5)
     args = parser.parse_args()
 
-    from prs3_post.cli import _job_spec, _job_specs, run
-    from prs3_post.job import run_operations
-    from prs3_post.jobfile import read_job_file
+    from prs3_post.app.job import run_operations
+    from prs3_post.cli.main import _job_spec, _job_specs, run
+    from prs3_post.readers.jobfile import read_job_file
 
     wedge = str(REPO / "postproc" / "parts" / "patel2020-wedge.stl")
     jobs = []

@@ -26,9 +26,9 @@ from pathlib import Path
 import numpy as np
 from _measure import REPO, pygcode_rate, run_cli, spread
 
-from prs3_post.config import load_machine
-from prs3_post.fixed import fixed_column
+from prs3_post.core.numbers import fixed_column
 from prs3_post.kinematics import forward
+from prs3_post.machine.loading import load_machine
 
 GOLDEN = REPO / "fixtures" / "golden" / "wedge-round.ngc"
 

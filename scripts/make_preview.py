@@ -19,7 +19,7 @@ from pathlib import Path
 
 from click.testing import CliRunner
 
-from prs3_post.cli import main
+from prs3_post.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[1]
 IMAGE = ROOT / "docs" / "preview-demo.png"

@@ -22,13 +22,13 @@ import pytest
 from click.testing import CliRunner
 from conftest import compare_golden
 
-import prs3_post.ahead as ahead
-import prs3_post.convert as convert
-from prs3_post.ahead import read_in_process
-from prs3_post.cli import main
-from prs3_post.errors import FeatureError, InputError, LimitError, Prs3Error
-from prs3_post.readers.header import read_header
-from prs3_post.toolpath import Event, EventKind, Toolpath
+import prs3_post.app.convert as convert
+import prs3_post.app.read_ahead as ahead
+from prs3_post.app.read_ahead import read_in_process
+from prs3_post.cli.main import main
+from prs3_post.core.errors import FeatureError, InputError, LimitError, Prs3Error
+from prs3_post.core.toolpath import Event, EventKind, Toolpath
+from prs3_post.emit.header import read_header
 
 REPO = Path(__file__).resolve().parents[1]
 CORPUS = REPO.parent / "shared" / "corpus" / "cl"
@@ -253,9 +253,9 @@ def test_the_pipe_holds_a_chunk() -> None:
 #: it says so on the file descriptor given, with its reading child's pid, and waits for a signal.
 _HELD = """
 import os, signal, sys
-import prs3_post.convert as convert
+import prs3_post.app.convert as convert
 import prs3_post.emit.gcode as gcode
-from prs3_post.cli import main
+from prs3_post.cli.main import main
 
 ready = int(sys.argv[1])
 convert.PROCESS_READ_BYTES = 0
@@ -332,7 +332,7 @@ def test_an_input_replaced_while_it_is_read_is_hashed_as_it_was_read(tmp_path: P
     found' once it was deleted)."""
     import hashlib
 
-    from prs3_post.readers.gcode import GcodeStream
+    from prs3_post.readers.gcode.reader import GcodeStream
 
     src = tmp_path / "part.ngc"
     src.write_text("G21 G90\nG0 X0 Y0 Z5\n" + "".join(f"G1 X{k % 40} Y{k % 37} Z-1 F500\n" for k in range(3000)))
@@ -364,8 +364,8 @@ def test_running_out_of_memory_is_one_line_not_a_traceback(tmp_path: Path, monke
                                                           forked: bool) -> None:
     """QA ran convert under ``ulimit -v``: numpy's MemoryError, raised in the reading process and
     raised again here, ended in a traceback."""
-    from prs3_post.cli import OUT_OF_MEMORY
-    from prs3_post.readers.apt import ClStream
+    from prs3_post.cli.main import OUT_OF_MEMORY
+    from prs3_post.readers.cl.reader import ClStream
 
     def starved(self: ClStream):
         raise MemoryError
@@ -386,8 +386,8 @@ def test_running_out_of_memory_is_one_line_not_a_traceback(tmp_path: Path, monke
 def test_a_file_read_in_a_child_whose_results_are_kept_here(monkeypatch: pytest.MonkeyPatch) -> None:
     """Where the chunks' results are kept (convert_file; the collision check) the child only reads and
     places: the program, the report and the toolpath are those of one process."""
-    from prs3_post.config import load_dialect, load_machine
-    from prs3_post.setup import Setup
+    from prs3_post.machine.loading import load_dialect, load_machine
+    from prs3_post.part.setup_transform import Setup
 
     machine = load_machine("patel2020")
     settings = convert.ConvertSettings(machine=machine, dialect=load_dialect("linuxcnc"),

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from prs3_post.arcs import arc_segment_count
-from prs3_post.cycles import DrillCycle, Pecking, drill_rows
-from prs3_post.errors import InputError
-from prs3_post.readers.apt import ClFile, ClStream, parse_cl, read_cl
-from prs3_post.toolpath import EventKind, MoveKind
+from prs3_post.core.errors import InputError
+from prs3_post.core.toolpath import EventKind, MoveKind
+from prs3_post.readers.cl.reader import ClFile, ClStream, parse_cl, read_cl
+from prs3_post.toolpaths.arcs import arc_segment_count
+from prs3_post.toolpaths.cycles import DrillCycle, Pecking, drill_rows
 
 REPO = Path(__file__).resolve().parents[1]
 CORPUS = REPO.parent / "shared" / "corpus" / "cl"
@@ -405,10 +405,10 @@ def test_corpus_toolpaths_post_process_and_replay_onto_the_cl_points(name: str, 
                                                                    rows: int) -> None:
     """The reader's rows go through the main pipeline as they are: every CL row is a program row, and
     FK of the program's joints lands on the intended tips and axes (before output rounding)."""
-    from prs3_post.config import load_machine
     from prs3_post.kinematics import forward
-    from prs3_post.pipeline import post_process
-    from prs3_post.setup import Setup
+    from prs3_post.machine.loading import load_machine
+    from prs3_post.part.setup_transform import Setup
+    from prs3_post.post.pipeline import post_process
 
     machine, setup = load_machine("patel2020"), Setup(origin)
     cl = _read(name)
@@ -427,11 +427,11 @@ def test_a_toolpath_past_the_tilt_limit_fails_at_its_first_bad_row_before_any_su
     300 mm): post-processing names the first row outside a limit at once, where it used to bisect
     the moves through the singularity for minutes first; no part origin is offered (the tilt does
     not depend on where the part is), and automatic placement says the tilt cannot be kept."""
-    from prs3_post.config import load_machine
-    from prs3_post.errors import LimitError
-    from prs3_post.pipeline import post_process
-    from prs3_post.placement import place, suggest_origin
-    from prs3_post.setup import Setup
+    from prs3_post.check.placement import place, suggest_origin
+    from prs3_post.core.errors import LimitError
+    from prs3_post.machine.loading import load_machine
+    from prs3_post.part.setup_transform import Setup
+    from prs3_post.post.pipeline import post_process
 
     name = "humman_ust_a_variable_contour.cls"
     machine = load_machine("patel2020")
@@ -458,11 +458,11 @@ def test_subdividing_a_move_through_the_singularity_stops_at_the_row_cap_naming_
     round limit alone would allow 16,000 rows per move) when the move would need more than its cap."""
     from dataclasses import replace
 
-    from prs3_post.config import load_machine
-    from prs3_post.errors import LimitError
-    from prs3_post.linearize import MAX_INSERTED, subdivide_axis_changes
-    from prs3_post.pipeline import place_toolpath
-    from prs3_post.setup import Setup
+    from prs3_post.core.errors import LimitError
+    from prs3_post.machine.loading import load_machine
+    from prs3_post.part.setup_transform import Setup
+    from prs3_post.post.linearize import MAX_INSERTED, subdivide_axis_changes
+    from prs3_post.post.pipeline import place_toolpath
 
     name = "humman_ust_a_variable_contour.cls"
     machine = load_machine("patel2020")
@@ -481,7 +481,7 @@ def test_subdividing_a_move_through_the_singularity_stops_at_the_row_cap_naming_
 def test_plain_gotos_read_in_bulk_are_the_lines_the_pattern_matches():
     """The byte pass reads exactly the plain GOTO lines of at most 15 digits a number, each value
     float(text) to the bit; the rest (longer numbers, spaces, a second CR, 4 numbers) are left to the pattern."""
-    from prs3_post.readers.apt import _PLAIN_GOTO, _plain_gotos
+    from prs3_post.readers.cl.reader import _PLAIN_GOTO, _plain_gotos
 
     lines = ["GOTO/1,-2.5,+.5", "GOTO/1.,2,3,0,0,1\r", "GOTO/-0,0.000,5,-0.6,0,0.8", "GOTO/1,2,3,4",
              "GOTO/1,2,3\r\r", "GOTO /1,2,3", "GOTO/1,2,-.", "GOTO/1.5.2,2,3", "FEDRAT/MMPM,600",

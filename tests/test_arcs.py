@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from prs3_post.arcs import arc_points_3d, arc_segment_count, arc_sweep
-from prs3_post.ops.profiles import arc_points
+from prs3_post.toolpaths.arcs import arc_points_3d, arc_segment_count, arc_sweep
+from prs3_post.toolpaths.profiles import arc_points
 
 Z = np.array([0.0, 0.0, 1.0])
 

@@ -17,21 +17,21 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from prs3_post.cli import _job_specs, main
-from prs3_post.config import load_dialect, load_machine
-from prs3_post.errors import LimitError, ReachError
-from prs3_post.job import JobSpec, job_in_part_frame, run_job, run_operations
-from prs3_post.jobfile import read_job_file
+from prs3_post.app.job import JobSpec, job_in_part_frame, run_job, run_operations
+from prs3_post.check.placement import place
+from prs3_post.cli.main import _job_specs, main
+from prs3_post.core.errors import LimitError, ReachError
+from prs3_post.core.toolpath import Toolpath
+from prs3_post.emit.header import read_header
 from prs3_post.kinematics import IKModel, inverse
-from prs3_post.limits import check_limits
-from prs3_post.machine import Machine
-from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side
-from prs3_post.ops.work import HoleJob, ProfileJob
-from prs3_post.pipeline import machine_path, place_toolpath
-from prs3_post.placement import place
-from prs3_post.readers.header import read_header
-from prs3_post.setup import Setup
-from prs3_post.toolpath import Toolpath
+from prs3_post.machine.loading import load_dialect, load_machine
+from prs3_post.machine.model import Machine
+from prs3_post.part.setup_transform import Setup
+from prs3_post.post.limits import check_limits
+from prs3_post.post.pipeline import machine_path, place_toolpath
+from prs3_post.readers.jobfile import read_job_file
+from prs3_post.toolpaths import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side
+from prs3_post.toolpaths.work import HoleJob, ProfileJob
 
 REPO = Path(__file__).resolve().parents[1]
 WEDGE = str(REPO / "postproc" / "parts" / "patel2020-wedge.stl")
@@ -321,7 +321,7 @@ def test_the_search_rows_hold_every_limit_extreme():
     """The rotation search evaluates only the rows that can hold a limit's extreme (per tool axis, the
     lowest and highest tip and the farthest along 36 horizontal directions): at a multiple of 10° their
     extremes are those of every row; between, the stage's are within 0.4 % of its spread."""
-    from prs3_post.placement import _support
+    from prs3_post.check.placement import _support
 
     rng = np.random.default_rng(7)
     tilt = np.radians(rng.choice([0.0, 20.0, 35.0], size=3000))

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from prs3_post.cli import main
+from prs3_post.cli.main import main
 
 REPO = Path(__file__).resolve().parents[1]
 WEDGE = REPO / "fixtures" / "parts" / "wedge.stl"
@@ -66,7 +66,7 @@ def test_a_device_is_not_read() -> None:
 def test_a_fifo_is_refused_instead_of_waited_on(tmp_path: Path, command: list[str]) -> None:
     fifo = tmp_path / "input"
     os.mkfifo(fifo)
-    done = subprocess.run([sys.executable, "-c", "from prs3_post.cli import main; main()", *command, str(fifo)],
+    done = subprocess.run([sys.executable, "-c", "from prs3_post.cli.main import main; main()", *command, str(fifo)],
                           capture_output=True, text=True, timeout=60, check=False)
     what = {"faces": "an STL file", "verify": "a G-code program", "ik": "a CSV file"}[command[0]]
     assert (done.returncode, done.stdout) == (2, "")
@@ -102,7 +102,7 @@ def test_zero_area_triangles_make_no_face() -> None:
     """find_faces on such a mesh (not through the reader): no face, rather than one with a NaN normal."""
     import trimesh
 
-    from prs3_post.geometry import find_faces
+    from prs3_post.part.faces import find_faces
 
     mesh = trimesh.Trimesh(vertices=FLAT[0], faces=FLAT[1], process=False)
     assert find_faces(mesh) == ()
@@ -173,9 +173,9 @@ def test_plain_decimals_are_accepted(value: str) -> None:
 
 def test_every_program_reader_refuses_a_fifo(tmp_path: Path) -> None:
     """The streaming reader, the header reader and the source hash open files through open_input too."""
-    from prs3_post.config import load_dialect
-    from prs3_post.errors import InputError
-    from prs3_post.readers.header import file_sha256, read_header
+    from prs3_post.core.errors import InputError
+    from prs3_post.emit.header import file_sha256, read_header
+    from prs3_post.machine.loading import load_dialect
     from prs3_post.readers.program import ProgramStream
 
     fifo = tmp_path / "prog.ngc"

@@ -12,7 +12,7 @@ import pytest
 from click.testing import CliRunner
 from numpy.testing import assert_allclose
 
-from prs3_post.cli import main
+from prs3_post.cli.main import main
 from prs3_post.kinematics import inverse
 
 POSES = Path(__file__).resolve().parents[1] / "fixtures" / "poses" / "cases_2a_2b.csv"
@@ -214,8 +214,8 @@ def _pose_file(tmp_path: Path, rows: int, *, bad_line: int | None = None) -> Pat
 
 def test_ik_batch_streams_in_chunks(tmp_path):
     """Chunks of 3 lines give the bytes of one chunk; every value is its 9-decimal text."""
-    from prs3_post.config import load_machine
-    from prs3_post.ik_batch import IKBatch
+    from prs3_post.app.ik_batch import IKBatch
+    from prs3_post.machine.loading import load_machine
     from prs3_post.readers.poses import read_poses
 
     path, machine = _pose_file(tmp_path, 40), load_machine("patel2020")
@@ -236,10 +236,10 @@ def test_ik_batch_streams_in_chunks(tmp_path):
 
 
 def test_ik_batch_bad_line_in_a_later_chunk_writes_nothing(tmp_path):
-    from prs3_post.config import load_machine
-    from prs3_post.errors import InputError
-    from prs3_post.ik_batch import IKBatch
-    from prs3_post.output import write_atomic
+    from prs3_post.app.ik_batch import IKBatch
+    from prs3_post.core.errors import InputError
+    from prs3_post.emit.output_files import write_atomic
+    from prs3_post.machine.loading import load_machine
 
     path = _pose_file(tmp_path, 40, bad_line=31)
     out = tmp_path / "out.csv"
@@ -261,9 +261,9 @@ def test_ik_batch_reads_a_csv_saved_with_a_byte_order_mark(tmp_path):
 def test_ik_batch_formats_ahead_on_a_thread_and_keeps_the_bytes_and_the_errors(tmp_path):
     """A chunk's lines are formatted on a second thread while the next chunk is solved: the output is the
     same bytes whatever the chunk size, and a bad line in a later chunk still fails the whole batch."""
-    from prs3_post.config import load_machine
-    from prs3_post.errors import InputError
-    from prs3_post.ik_batch import IKBatch
+    from prs3_post.app.ik_batch import IKBatch
+    from prs3_post.core.errors import InputError
+    from prs3_post.machine.loading import load_machine
 
     rng = np.random.default_rng(3)
     rows = ["tip_x,tip_y,tip_z,axis_x,axis_y,axis_z"]

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from prs3_post.cli import main
-from prs3_post.collision import body_cylinders, clearance, inside, point_triangle_distance
-from prs3_post.config import load_machine
-from prs3_post.geometry import find_faces, select_face
-from prs3_post.readers.stl import load_part
+from prs3_post.check.collision import body_cylinders, clearance, inside, point_triangle_distance
+from prs3_post.cli.main import main
+from prs3_post.machine.loading import load_machine
+from prs3_post.part.faces import find_faces, select_face
+from prs3_post.part.stl import load_part
 
 WALL = Path(__file__).resolve().parents[1] / "fixtures" / "parts" / "wall30.stl"
 MACHINE = load_machine("patel2020")
@@ -110,12 +110,12 @@ def test_a_rapid_given_by_its_end_poses_only_is_checked_along_its_length():
 
 def _round_pocket(depth: float):
     """The demo wedge's round profile (36 mm, 0.1 mm steps down): 24,027 rows at 2.5 mm deep."""
-    from prs3_post.config import load_dialect
-    from prs3_post.job import JobSpec, plan
-    from prs3_post.ops import Coolant, Cutting, Direction, Entry, ProfileParams, RoundShape, Side
-    from prs3_post.ops.work import ProfileJob
-    from prs3_post.pipeline import post_process
-    from prs3_post.setup import Setup
+    from prs3_post.app.job import JobSpec, plan
+    from prs3_post.machine.loading import load_dialect
+    from prs3_post.part.setup_transform import Setup
+    from prs3_post.post.pipeline import post_process
+    from prs3_post.toolpaths import Coolant, Cutting, Direction, Entry, ProfileParams, RoundShape, Side
+    from prs3_post.toolpaths.work import ProfileJob
 
     part = str(Path(__file__).resolve().parents[1] / "postproc" / "parts" / "patel2020-wedge.stl")
     work = ProfileJob(RoundShape(diameter=36.0), ProfileParams(
@@ -132,8 +132,8 @@ def _round_pocket(depth: float):
 
 
 def test_a_program_of_more_than_20000_poses_is_checked():
-    from prs3_post.collision import check_program
-    from prs3_post.errors import LimitError
+    from prs3_post.check.collision import check_program
+    from prs3_post.core.errors import LimitError
 
     program, setup, triangles, face = _round_pocket(2.5)
     assert len(program) == 24027                              # once beyond the check's pose limit: 'not checked'
@@ -150,9 +150,9 @@ def test_a_program_of_more_than_20000_poses_is_checked():
 @pytest.mark.parametrize(("replay_rows", "group_rows"), [(65536, 64), (7, 64), (7, 7), (65536, 10**9)])
 def test_the_streamed_check_gives_the_same_minima_and_messages_in_any_pieces(monkeypatch, replay_rows, group_rows):
     # 10**9 rows a group: no group is bounded as a whole, every row is replayed and checked in order
-    import prs3_post.collision as collision
-    import prs3_post.collision_scan as scan
-    from prs3_post.errors import LimitError
+    import prs3_post.check.collision as collision
+    import prs3_post.check.collision_scan as scan
+    from prs3_post.core.errors import LimitError
 
     program, setup, triangles, face = _round_pocket(0.3)
     monkeypatch.setattr(collision, "REPLAY_ROWS", replay_rows)
@@ -169,9 +169,9 @@ def test_the_streamed_check_gives_the_same_minima_and_messages_in_any_pieces(mon
 
 
 def test_the_replay_in_pieces_gives_the_samples_of_one_replay(monkeypatch):
-    import prs3_post.collision as collision
-    from prs3_post.toolpath import MoveKind
-    from prs3_post.verify import replay
+    import prs3_post.check.collision as collision
+    from prs3_post.check.verify import replay
+    from prs3_post.core.toolpath import MoveKind
 
     program = _round_pocket(0.5)[0]
     whole = replay(MACHINE, program)
@@ -186,9 +186,9 @@ def test_the_replay_in_pieces_gives_the_samples_of_one_replay(monkeypatch):
 @pytest.mark.parametrize("rows", [1, 7, 1000])
 def test_the_swept_region_drawn_in_pieces_is_the_region_drawn_at_once(monkeypatch, rows):
     # the main job draws its feed tips a piece at a time (memory), in the machine frame with the setup
-    import prs3_post.collision as collision
-    from prs3_post.toolpath import MoveKind
-    from prs3_post.verify import replay
+    import prs3_post.check.collision as collision
+    from prs3_post.check.verify import replay
+    from prs3_post.core.toolpath import MoveKind
 
     program, setup, _, face = _round_pocket(0.5)
     whole = replay(MACHINE, program)

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from prs3_post.cli import main
-from prs3_post.config import load_dialect, load_machine
-from prs3_post.errors import InputError
-from prs3_post.job import run_operations, specs_from_header
-from prs3_post.readers.header import ProgramHeader, header_comments, parse_header, read_header
+from prs3_post.app.job import run_operations, specs_from_header
+from prs3_post.cli.main import main
+from prs3_post.core.errors import InputError
+from prs3_post.emit.header import ProgramHeader, header_comments, parse_header, read_header
+from prs3_post.machine.loading import load_dialect, load_machine
 
 WALL = Path(__file__).resolve().parents[1] / "fixtures" / "parts" / "wall30.stl"
 
@@ -171,9 +171,9 @@ def test_verify_can_be_asked_not_to_measure_the_clearance(wall_programs):
 
 def test_preview_on_the_part_marks_the_closest_approach_where_verify_finds_it(wall_programs):
     pytest.importorskip("matplotlib")
-    from prs3_post.geometry import find_faces, select_face
-    from prs3_post.readers.stl import load_part
-    from prs3_post.verify_job import header_job, open_program, preview_figure, rebuild_job
+    from prs3_post.app.verify import header_job, open_program, preview_figure, rebuild_job
+    from prs3_post.part.faces import find_faces, select_face
+    from prs3_post.part.stl import load_part
 
     context = open_program(str(wall_programs["near"]))
     mesh = load_part(str(WALL))

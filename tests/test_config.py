@@ -9,9 +9,9 @@ import pytest
 from click.testing import CliRunner
 from numpy.testing import assert_allclose
 
-from prs3_post.cli import main
-from prs3_post.config import load_machine, postproc_dir, shipped_names
-from prs3_post.errors import ConfigError
+from prs3_post.cli.main import main
+from prs3_post.core.errors import ConfigError
+from prs3_post.machine.loading import load_machine, postproc_dir, shipped_names
 
 BAD = Path(__file__).resolve().parents[1] / "fixtures" / "bad"
 BAD_MACHINES = sorted((BAD / "machines").glob("*.toml"))

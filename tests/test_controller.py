@@ -19,17 +19,17 @@ from click.testing import CliRunner
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from prs3_post.cli import _job_spec, demo, demo_part, main
-from prs3_post.config import Dialect, load_dialect, load_machine
-from prs3_post.controller import block_problem
+from prs3_post.app.job import JobResult, run_job
+from prs3_post.check.verify import Intended, verify_program
+from prs3_post.cli.main import _job_spec, demo, demo_part, main
+from prs3_post.core.errors import ConfigError, FeatureError, Prs3Error
+from prs3_post.core.toolpath import MoveKind
 from prs3_post.emit.gcode import format_word
-from prs3_post.errors import ConfigError, FeatureError, Prs3Error
-from prs3_post.job import JobResult, run_job
-from prs3_post.ops.common import pass_depths
+from prs3_post.machine.controller_rules import block_problem
+from prs3_post.machine.loading import Dialect, load_dialect, load_machine
+from prs3_post.post.visible_moves import visible_moves
 from prs3_post.readers.program import read_program
-from prs3_post.resolution import visible_moves
-from prs3_post.toolpath import MoveKind
-from prs3_post.verify import Intended, verify_program
+from prs3_post.toolpaths.common import pass_depths
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -23,17 +23,17 @@ from click.testing import CliRunner
 from conftest import compare_golden
 from numpy.testing import assert_allclose
 
-from prs3_post.cli import main
-from prs3_post.config import load_dialect, load_machine
-from prs3_post.convert import ConvertSettings, collect_inputs, convert_batch, convert_file, write_conversion
-from prs3_post.errors import PoseError
+from prs3_post.app.convert import ConvertSettings, collect_inputs, convert_batch, convert_file, write_conversion
+from prs3_post.cli.main import main
+from prs3_post.core.errors import PoseError
+from prs3_post.emit.header import SourceHeader, read_header
 from prs3_post.kinematics import forward, unit_axes
-from prs3_post.pipeline import place_toolpath
-from prs3_post.readers.apt import read_cl
-from prs3_post.readers.header import SourceHeader, read_header
+from prs3_post.machine.loading import load_dialect, load_machine
+from prs3_post.part.setup_transform import Setup
+from prs3_post.part.workplane import WorkPlane
+from prs3_post.post.pipeline import place_toolpath
+from prs3_post.readers.cl.reader import read_cl
 from prs3_post.readers.program import read_program
-from prs3_post.setup import Setup
-from prs3_post.workplane import WorkPlane
 
 REPO = Path(__file__).resolve().parents[1]
 CORPUS = REPO.parent / "shared" / "corpus" / "cl"
@@ -243,7 +243,7 @@ def test_output_folder_that_cannot_be_made(tmp_path: Path) -> None:
 def test_an_output_folder_on_a_read_only_file_system_says_so(tmp_path: Path,
                                                               monkeypatch: pytest.MonkeyPatch) -> None:
     """Not "permission denied" (root may write anywhere but there): the file system is read-only."""
-    from prs3_post import convert
+    from prs3_post.app import convert
 
     out = tmp_path / "out"
     out.mkdir()
@@ -512,9 +512,9 @@ def test_the_corpus_folder_with_automatic_placement(tmp_path: Path) -> None:
 #: every time (it used to poll for temp files with sleeps, and under load a file could finish first).
 _HELD_BATCH = """
 import os, signal, sys
-from prs3_post import convert
-from prs3_post.cli import main
-from prs3_post.output import HeadLast
+from prs3_post.app import convert
+from prs3_post.cli.main import main
+from prs3_post.emit.output_files import HeadLast
 
 ready, write_atomic = int(sys.argv[1]), convert.write_atomic
 

@@ -13,8 +13,13 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from prs3_post.config import load_dialect, load_machine
-from prs3_post.dynamics import (
+from prs3_post.core.errors import LimitError
+from prs3_post.core.toolpath import EventKind, JointProgram, MoveKind, Toolpath
+from prs3_post.kinematics.prs3.forward import forward
+from prs3_post.machine.loading import load_dialect, load_machine
+from prs3_post.machine.model import Dynamics, Holder
+from prs3_post.part.setup_transform import Setup
+from prs3_post.post.dynamics import (
     DynamicsTally,
     _any_over,
     clamp_feeds,
@@ -24,13 +29,8 @@ from prs3_post.dynamics import (
     program_time,
     trapezoid_time,
 )
-from prs3_post.errors import LimitError
-from prs3_post.kinematics.forward import forward
-from prs3_post.machine import Dynamics, Holder
-from prs3_post.pipeline import post_process
+from prs3_post.post.pipeline import post_process
 from prs3_post.readers.program import load_program
-from prs3_post.setup import Setup
-from prs3_post.toolpath import EventKind, JointProgram, MoveKind, Toolpath
 
 REPO = Path(__file__).resolve().parents[1]
 GOLDEN = sorted((REPO / "fixtures" / "golden").iterdir())
@@ -172,7 +172,7 @@ def test_verify_reports_a_g1_over_an_axis_speed_with_its_line(tmp_path):
 
     from click.testing import CliRunner
 
-    from prs3_post.cli import main
+    from prs3_post.cli.main import main
 
     out = tmp_path / "hole.ngc"
     assert CliRunner().invoke(main, ["demo", "--profile", "hole", "--at", "10,0", "-o", str(out)]).exit_code == 0

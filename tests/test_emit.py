@@ -26,11 +26,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from prs3_post.config import Dialect, load_dialect
-from prs3_post.emit import emit_program, format_word, gcode, sanitize_comment
-from prs3_post.emit.gcode import ProgramEmitter
-from prs3_post.errors import ConfigError, LimitError
-from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind
+from prs3_post.core.errors import ConfigError, LimitError
+from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind
+from prs3_post.emit import gcode
+from prs3_post.emit.gcode import ProgramEmitter, emit_program, format_word, sanitize_comment
+from prs3_post.machine.loading import Dialect, load_dialect
 
 REPO = Path(__file__).resolve().parents[1]
 BAD_DIALECTS = sorted((REPO / "fixtures" / "bad" / "dialects").glob("*.toml"))

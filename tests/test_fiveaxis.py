@@ -12,15 +12,15 @@ import pytest
 from click.testing import CliRunner
 from numpy.testing import assert_allclose
 
-from prs3_post.cli import main
-from prs3_post.config import load_machine, load_source
-from prs3_post.errors import ConfigError, InputError
-from prs3_post.pipeline import post_process
-from prs3_post.readers.apt import read_cl
-from prs3_post.readers.fivex import FivexFile, parse_fivex, read_fivex
-from prs3_post.setup import Setup
-from prs3_post.source import Rotary
-from prs3_post.toolpath import EventKind, MoveKind
+from prs3_post.cli.main import main
+from prs3_post.core.errors import ConfigError, InputError
+from prs3_post.core.toolpath import EventKind, MoveKind
+from prs3_post.machine.cam_conventions import Rotary
+from prs3_post.machine.loading import load_machine, load_source
+from prs3_post.part.setup_transform import Setup
+from prs3_post.post.pipeline import post_process
+from prs3_post.readers.cl.reader import read_cl
+from prs3_post.readers.fivex.reader import FivexFile, parse_fivex, read_fivex
 
 REPO = Path(__file__).resolve().parents[1]
 CORPUS = REPO.parent / "shared" / "corpus"
@@ -335,8 +335,8 @@ _HAAS_ORIGIN = (-44.0 + 3 * INCH, -81.3 + 3 * INCH, -786.7)
 
 
 def _convert_settings(origin: tuple[float, float, float], source: str, **kwargs: object) -> object:
-    from prs3_post.config import load_dialect
-    from prs3_post.convert import ConvertSettings
+    from prs3_post.app.convert import ConvertSettings
+    from prs3_post.machine.loading import load_dialect
 
     machine = load_machine("patel2020")
     return ConvertSettings(machine=machine, dialect=load_dialect("linuxcnc"), setup=Setup(origin),
@@ -347,9 +347,9 @@ def _convert_settings(origin: tuple[float, float, float], source: str, **kwargs:
 def test_converted_haas_program_replays_onto_the_cl_points(tmp_path: Path, rs274_check) -> None:
     """FK of the converted Haas program lands on the CL file's points and axes (MSYS and the same placement
     applied) within the Haas program's rounding (0.0001 in, 0.001°) plus the output's; LinuxCNC accepts it."""
-    from prs3_post.convert import convert_file
+    from prs3_post.app.convert import convert_file
     from prs3_post.kinematics import forward
-    from prs3_post.pipeline import place_toolpath
+    from prs3_post.post.pipeline import place_toolpath
     from prs3_post.readers.program import read_program
 
     settings = _convert_settings(_HAAS_ORIGIN, "haas-umc750")
@@ -439,9 +439,9 @@ def test_verify_against_the_haas_source(tmp_path: Path) -> None:
 def test_synthesized_program_converts_and_replays(name: str, tmp_path: Path, rs274_check) -> None:
     """A 5-axis program in each shipped convention (tilts up to 30°, G93 and G94 moves) converts; FK of the
     program lands on the tips and axes the reader gave; LinuxCNC's interpreter accepts the output."""
-    from prs3_post.convert import convert_file
+    from prs3_post.app.convert import convert_file
     from prs3_post.kinematics import forward
-    from prs3_post.pipeline import place_toolpath
+    from prs3_post.post.pipeline import place_toolpath
     from prs3_post.readers.program import read_program
 
     rng = np.random.default_rng(11)

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from prs3_post.fixed import ChoiceColumn, fixed, fixed_column, render_rows, scale_column
+from prs3_post.core.numbers import ChoiceColumn, fixed, fixed_column, render_rows, scale_column
 
 
 def _python(value: float, decimals: int) -> str:
@@ -90,7 +90,7 @@ def test_render_rows_from_tables_is_the_digit_by_digit_text(seed: int, rows: int
     """The table writer (words stored a few bytes at a time, straight to their place) against the
     digit-by-digit writer and Python's text: whole parts of 1 to 12 digits, short lines of one word
     in the same column as the line before's last (the head stores reach back), odd rows (nan)."""
-    from prs3_post import fixed as fixed_module
+    from prs3_post.core import numbers as fixed_module
 
     rng = np.random.default_rng(seed)
     values = rng.uniform(-1, 1, (rows, 3)) * 10.0 ** rng.integers(-3, 12, (rows, 3))

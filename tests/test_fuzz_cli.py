@@ -28,7 +28,7 @@ from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from prs3_post.cli import Decimal, Integer, Numbers, OutputPath, main
+from prs3_post.cli.main import Decimal, Integer, Numbers, OutputPath, main
 
 REPO = Path(__file__).resolve().parents[1]
 

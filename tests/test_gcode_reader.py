@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from prs3_post.errors import FeatureError, InputError
-from prs3_post.geometry import find_faces, select_face
+from prs3_post.core.errors import FeatureError, InputError
+from prs3_post.core.toolpath import EventKind, MoveKind
+from prs3_post.part.faces import find_faces, select_face
+from prs3_post.part.stl import load_part
+from prs3_post.part.workplane import WorkPlane, WorkPlaneError, euler_zxz_deg, rotate_rows, work_plane_from_text
 from prs3_post.readers.detect import detect_format
-from prs3_post.readers.gcode import PECK_GAP_MM, GcodeFile, GcodeStream, parse_gcode, read_gcode
-from prs3_post.readers.stl import load_part
-from prs3_post.toolpath import EventKind, MoveKind
-from prs3_post.workplane import WorkPlane, WorkPlaneError, euler_zxz_deg, rotate_rows, work_plane_from_text
+from prs3_post.readers.gcode.reader import PECK_GAP_MM, GcodeFile, GcodeStream, parse_gcode, read_gcode
 
 REPO = Path(__file__).resolve().parents[1]
 PROGRAMS = REPO / "fixtures" / "gcode"
@@ -658,7 +658,7 @@ def test_runs_of_blank_and_comment_lines_are_read_in_bulk_as_one_by_one(tmp_path
     """QA: 4.5 M blank lines took 9.4 s (each through the careful reader). A run of blank and usual
     comment lines with no move is now read in bulk: the same rows, events and counts as when the
     careful reader reads them one by one; an unusual comment line among them sends the run there."""
-    from prs3_post.readers import gcode
+    from prs3_post.readers.gcode import reader as gcode
 
     text = ("%\nG21 G90\nG0 X0 Y0 Z5\n" + "\n" * 500 + "(a comment)\n" * 3 + "\n(two) (comments)\n\n"
             + "G1 X1 Y2 Z-1 F100\n" + "\n(last)\n" * 200 + "M30\n%\n" + "\n" * 20)

@@ -16,9 +16,9 @@ import shapely
 import trimesh
 from numpy.testing import assert_allclose
 
-from prs3_post.errors import FeatureError, InputError, Prs3Warning
-from prs3_post.face import frame_from_normal
-from prs3_post.geometry import (
+from prs3_post.core.errors import FeatureError, InputError, Prs3Warning
+from prs3_post.part.face import frame_from_normal
+from prs3_post.part.faces import (
     candidate_reason,
     face_kind,
     face_table,
@@ -27,7 +27,7 @@ from prs3_post.geometry import (
     project_onto_face,
     select_face,
 )
-from prs3_post.readers.stl import load_part, up_rotation
+from prs3_post.part.stl import load_part, up_rotation
 
 REPO = Path(__file__).resolve().parents[1]
 PARTS = REPO / "fixtures" / "parts"

@@ -13,13 +13,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
-from prs3_post.config import load_dialect, load_machine
+from prs3_post.app.job import JobSpec, run_job, run_operations, spec_from_header, specs_from_header
+from prs3_post.core.errors import InputError
 from prs3_post.emit.gcode import ProgramEmitter
-from prs3_post.errors import InputError
-from prs3_post.job import JobSpec, run_job, run_operations, spec_from_header, specs_from_header
-from prs3_post.ops import Coolant, Cutting, Direction, Entry, HoleParams, ProfileParams, RoundShape, Side, SquareShape
-from prs3_post.ops.work import HoleJob, ProfileJob
-from prs3_post.readers.header import (
+from prs3_post.emit.header import (
     SourceCounts,
     SourceHeader,
     degrees_text,
@@ -29,7 +26,20 @@ from prs3_post.readers.header import (
     read_header,
     source_header_entries,
 )
-from prs3_post.setup import Setup
+from prs3_post.machine.loading import load_dialect, load_machine
+from prs3_post.part.setup_transform import Setup
+from prs3_post.toolpaths import (
+    Coolant,
+    Cutting,
+    Direction,
+    Entry,
+    HoleParams,
+    ProfileParams,
+    RoundShape,
+    Side,
+    SquareShape,
+)
+from prs3_post.toolpaths.work import HoleJob, ProfileJob
 
 REPO = Path(__file__).resolve().parents[1]
 GOLDEN = REPO / "fixtures" / "golden"
@@ -97,12 +107,12 @@ def _spec(**changes) -> JobSpec:
     _spec(dialect=load_dialect("fanuc"), line_numbers=False, at_uv=np.zeros((0, 2))),
 ], ids=["square", "round", "holes-both-positions", "rotated-setup-numbered", "fanuc-upper-case"])
 def test_header_round_trip_gives_the_same_spec(spec):
+    from prs3_post.app.job import header_of
+    from prs3_post.core.toolpath import JointProgram
     from prs3_post.emit.gcode import emit_program
-    from prs3_post.geometry import find_faces
-    from prs3_post.job import header_of
-    from prs3_post.readers.header import header_entries
-    from prs3_post.readers.stl import load_part
-    from prs3_post.toolpath import JointProgram
+    from prs3_post.emit.header import header_entries
+    from prs3_post.part.faces import find_faces
+    from prs3_post.part.stl import load_part
 
     face = find_faces(load_part(spec.part))[4]
     entries = header_entries(header_of(spec, "ab" * 32), face, description="a machine (with parentheses)")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from prs3_post.cli import main
+from prs3_post.cli.main import main
 
 REPO = Path(__file__).resolve().parents[1]
 WEDGE = REPO / "fixtures" / "parts" / "wedge.stl"
@@ -234,7 +234,7 @@ def _short_dialect(tmp_path: Path, length: int, ending: str = "\\n") -> Path:
 def test_a_header_wrapped_at_the_shortest_line_reads_back(tmp_path: Path, ending: str) -> None:
     """A 60-character line limit split the part's SHA-256 over two lines: verify could not read its own
     program back. At the shortest limit allowed (80) every fixed field keeps its words whole."""
-    from prs3_post.readers.header import file_sha256, read_header
+    from prs3_post.emit.header import file_sha256, read_header
 
     dialect = _short_dialect(tmp_path, 80, ending)
     program = tmp_path / "p.ngc"

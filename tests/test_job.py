@@ -1,9 +1,9 @@
 """The main job end to end: golden programs, LinuxCNC and pygcode acceptance, and an FK replay.
 
-Every golden program is made through the CLI (``CliRunner`` on ``prs3_post.cli.main``) with explicit
+Every golden program is made through the CLI (``CliRunner`` on ``prs3_post.cli.main.main``) with explicit
 options, written with ``-o`` and compared byte for byte with ``fixtures/golden/<name>``
 (``pytest --update-golden`` rewrites them; review the diff). While the CLI runs, ``check_job`` is
-wrapped (posting 7 rows at a time) so that the test also sees the :class:`~prs3_post.job.JobResult`
+wrapped (posting 7 rows at a time) so that the test also sees the :class:`~prs3_post.app.job.JobResult`
 of ``run_job`` behind the text, and checks that both make the same text in chunks of any size.
 
 The replay is an independent oracle: the program text is read back here with a small regex reader
@@ -33,14 +33,14 @@ from click.testing import CliRunner
 from conftest import compare_golden
 from numpy.testing import assert_allclose
 
-import prs3_post.job as job_module
-from prs3_post.cli import main
-from prs3_post.config import Geometry, load_dialect, load_machine
-from prs3_post.job import JobProgram, JobResult, JobSpec, ProfileJob, run_job
+import prs3_post.app.job as job_module
+from prs3_post.app.job import JobProgram, JobResult, JobSpec, ProfileJob, run_job
+from prs3_post.cli.main import main
+from prs3_post.core.toolpath import MoveKind
 from prs3_post.kinematics import forward, inverse
-from prs3_post.ops import Coolant, Cutting, Direction, Entry, ProfileParams, Side, SquareShape
-from prs3_post.setup import Setup
-from prs3_post.toolpath import MoveKind
+from prs3_post.machine.loading import Geometry, load_dialect, load_machine
+from prs3_post.part.setup_transform import Setup
+from prs3_post.toolpaths import Coolant, Cutting, Direction, Entry, ProfileParams, Side, SquareShape
 
 REPO = Path(__file__).resolve().parents[1]
 PARTS = REPO / "fixtures" / "parts"
@@ -573,7 +573,7 @@ def test_same_job_twice_gives_the_same_bytes(made: dict[str, Made], tmp_path: Pa
     assert CliRunner().invoke(main, [*case.args[1:], "-o", str(second)]).exit_code == 0
     env = {**os.environ, "PYTHONHASHSEED": "12345"}
     done = subprocess.run(
-        [sys.executable, "-c", "from prs3_post.cli import main; main()", *case.args, "-o", str(third)],
+        [sys.executable, "-c", "from prs3_post.cli.main import main; main()", *case.args, "-o", str(third)],
         cwd=tmp_path, env=env, capture_output=True, text=True, check=False)
     assert done.returncode == 0, done.stderr
     expected = made[case.name].text.encode("utf-8")

@@ -14,12 +14,12 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from prs3_post.config import load_machine
-from prs3_post.errors import LimitError
+from prs3_post.core.errors import LimitError
 from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, _named_problems, forward, inverse, unit_axes
-from prs3_post.kinematics.exact import AxisMemo, inverse_exact, platform_centre_xy, spherical_joints
-from prs3_post.kinematics.paper import inverse_paper, paper_joints
-from prs3_post.limits import check_limits, raise_first_violation, tilt_of, within_limits
+from prs3_post.kinematics.prs3.exact import AxisMemo, inverse_exact, platform_centre_xy, spherical_joints
+from prs3_post.kinematics.prs3.paper import inverse_paper, paper_joints
+from prs3_post.machine.loading import load_machine
+from prs3_post.post.limits import check_limits, raise_first_violation, tilt_of, within_limits
 
 MACHINE = load_machine("patel2020")
 GEO = MACHINE.geometry

@@ -14,8 +14,8 @@ from numpy.testing import assert_array_equal
 from pygcode.comment import split_line
 from pygcode.words import text2words
 
-from prs3_post.errors import LexError
-from prs3_post.readers.lexer import (
+from prs3_post.core.errors import LexError
+from prs3_post.core.lexer import (
     LINUXCNC_COMMENTS,
     code_name,
     column_pattern,

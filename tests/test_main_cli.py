@@ -15,7 +15,7 @@ import pytest
 from click.testing import CliRunner
 from numpy.testing import assert_allclose
 
-from prs3_post.cli import demo, main, run
+from prs3_post.cli.main import demo, main, run
 
 REPO = Path(__file__).resolve().parents[1]
 WEDGE = "fixtures/parts/wedge.stl"
@@ -368,9 +368,9 @@ def test_a_program_failing_while_it_is_written_leaves_nothing(tmp_path, monkeypa
     """The main job writes its program chunk by chunk (a few rows at a time here); a chunk that fails
     while it is formatted leaves the old file as it was and no temp file (standard output gets the
     whole text or nothing: it is formatted before any of it is written)."""
-    import prs3_post.job as job_module
+    import prs3_post.app.job as job_module
+    from prs3_post.core.errors import LimitError
     from prs3_post.emit.gcode import ProgramEmitter
-    from prs3_post.errors import LimitError
 
     monkeypatch.setattr(job_module, "EMIT_ROWS", 2)
     real = ProgramEmitter.row_pieces

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from prs3_post import meshdist
-from prs3_post.meshdist import nearest_distance, point_triangle_distance
+from prs3_post.part import meshdist
+from prs3_post.part.meshdist import nearest_distance, point_triangle_distance
 
 
 def _mesh(rng: np.random.Generator, n: int) -> np.ndarray:

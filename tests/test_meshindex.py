@@ -12,13 +12,13 @@ import trimesh
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from prs3_post.collision import body_cylinders, clearance, cylinder_penetration
-from prs3_post.config import load_machine
-from prs3_post.face import Face
-from prs3_post.geometry import find_faces, select_face
-from prs3_post.meshdist import point_triangle_distance
-from prs3_post.meshindex import LEAF, TriangleIndex
-from prs3_post.readers.stl import load_part
+from prs3_post.check.collision import body_cylinders, clearance, cylinder_penetration
+from prs3_post.machine.loading import load_machine
+from prs3_post.part.face import Face
+from prs3_post.part.faces import find_faces, select_face
+from prs3_post.part.meshdist import point_triangle_distance
+from prs3_post.part.meshindex import LEAF, TriangleIndex
+from prs3_post.part.stl import load_part
 
 
 def _mesh(rng: np.random.Generator, n: int, spread: float) -> np.ndarray:
@@ -192,7 +192,7 @@ def test_the_triangles_near_a_cylinders_box_give_its_whole_penetration(seed, tri
 def test_the_groups_plane_bound_drops_only_pairs_no_pose_bounds_under_the_reach(seed, poses, height, spread):
     """_bounds gives the same bounds and near pairs with the groups' plane test (collision._plane_gap) as
     without it, for poses one at a time and for the scan's groups (a spread round each)."""
-    from prs3_post import collision
+    from prs3_post.check import collision
 
     triangles, face, bodies = _wall_part()
     part = collision._Part.of(triangles, face, 1.0)

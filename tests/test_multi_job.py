@@ -12,15 +12,15 @@ from click.testing import CliRunner
 from conftest import compare_golden
 from numpy.testing import assert_allclose
 
-from prs3_post.cli import main
-from prs3_post.config import load_dialect, load_machine
-from prs3_post.errors import InputError
-from prs3_post.job import JobResult, post_transition, run_operations, specs_from_header
-from prs3_post.jobfile import read_job_file
+from prs3_post.app.job import JobResult, post_transition, run_operations, specs_from_header
+from prs3_post.cli.main import main
+from prs3_post.core.errors import InputError
+from prs3_post.core.toolpath import EventKind, MoveKind, Toolpath
+from prs3_post.emit.header import header_comments, parse_header
 from prs3_post.kinematics import IKModel, forward, inverse
-from prs3_post.readers.header import header_comments, parse_header
+from prs3_post.machine.loading import load_dialect, load_machine
+from prs3_post.readers.jobfile import read_job_file
 from prs3_post.readers.program import read_program
-from prs3_post.toolpath import EventKind, MoveKind, Toolpath
 
 REPO = Path(__file__).resolve().parents[1]
 JOBS = REPO / "fixtures" / "jobs"
@@ -40,7 +40,7 @@ def example(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, JobResult]:
     out = tmp_path_factory.mktemp("job") / "example.ngc"
     result = run_cli("job", str(EXAMPLE), "-o", str(out))
     assert result.exit_code == 0, result.output
-    from prs3_post.cli import _job_specs
+    from prs3_post.cli.main import _job_specs
 
     return out, run_operations(_job_specs(read_job_file(str(EXAMPLE))))
 
@@ -264,7 +264,7 @@ def test_job_file_reader_resolves_paths_against_the_file() -> None:
 def test_a_limit_error_names_the_operation_and_a_placement_for_it_alone(tmp_path: Path, monkeypatch,
                                                                          post_rows: int | None) -> None:
     # posted 2 rows at a time, the pieces posted are gone when the error comes: the operation is planned again
-    import prs3_post.job as job_module
+    import prs3_post.app.job as job_module
 
     if post_rows is not None:
         monkeypatch.setattr(job_module, "POST_ROWS", post_rows)
@@ -308,7 +308,7 @@ def test_verify_replays_each_row_with_the_tool_in_the_spindle(example) -> None:
     """The header's tool lengths make the replay put each tip where its tool's tip is: against the job's
     own path within the rounding; with the machine's tool length for every row, off by the length
     difference of the longer tool (16.25 mm)."""
-    from prs3_post.verify_job import intended_from_job, open_program, tool_lengths_of, verify_loaded
+    from prs3_post.app.verify import intended_from_job, open_program, tool_lengths_of, verify_loaded
 
     out, _ = example
     context = open_program(str(out))
@@ -352,8 +352,8 @@ def test_the_moves_between_operations_count_in_the_header_of_the_operation_whose
     # golden says); here each transition check reports its holder 3 mm and its nose 4 mm from the part
     # (rows 1 and 2 of its program), as if something stood there: the lift is operation 1's (its tool),
     # the turn and the way down operation 2's, and each operation's entry is its bodies' minima over both
-    import prs3_post.job as job_module
-    from prs3_post.collision import ProgramClearance
+    import prs3_post.app.job as job_module
+    from prs3_post.check.collision import ProgramClearance
 
     checked = job_module._check_transition
     seen = []

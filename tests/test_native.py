@@ -1,5 +1,5 @@
 """The compiled line writer (csrc/render.c), lexer (csrc/lex.c) and CL GOTO reader (csrc/goto.c), through
-prs3_post.native, against numpy's, and their build hook."""
+prs3_post.core.native, against numpy's, and their build hook."""
 
 from __future__ import annotations
 
@@ -16,15 +16,18 @@ import pytest
 from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
-from prs3_post import fixed, native
-from prs3_post.config import load_dialect
-from prs3_post.emit import emit_program
+from prs3_post.core import input_files as files
+from prs3_post.core import lexer, native
+from prs3_post.core import numbers as fixed
+from prs3_post.core.errors import LimitError
+from prs3_post.core.numbers import ChoiceColumn, render_rows, scale_column
+from prs3_post.core.toolpath import Event, EventKind, JointProgram
 from prs3_post.emit import gcode as emit_gcode
-from prs3_post.errors import LimitError
-from prs3_post.fixed import ChoiceColumn, render_rows, scale_column
-from prs3_post.readers import apt, files, gcode, lexer
-from prs3_post.toolpath import Event, EventKind, JointProgram
-from prs3_post.workplane import WorkPlane, euler_zxz_deg, rotate_rows
+from prs3_post.emit.gcode import emit_program
+from prs3_post.machine.loading import load_dialect
+from prs3_post.part.workplane import WorkPlane, euler_zxz_deg, rotate_rows
+from prs3_post.readers.cl import reader as apt
+from prs3_post.readers.gcode import reader as gcode
 
 ROOT = Path(__file__).resolve().parents[1]
 needs_native = pytest.mark.skipif(not native.available(), reason="the compiled line writer was not built here")

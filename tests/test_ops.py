@@ -15,9 +15,10 @@ import pytest
 import shapely
 from numpy.testing import assert_allclose, assert_array_equal
 
-from prs3_post.errors import FeatureError
-from prs3_post.face import Face, frame_from_normal
-from prs3_post.ops import (
+from prs3_post.core.errors import FeatureError
+from prs3_post.core.toolpath import EventKind, MoveKind, Toolpath
+from prs3_post.part.face import Face, frame_from_normal
+from prs3_post.toolpaths import (
     Coolant,
     Cutting,
     Direction,
@@ -32,8 +33,7 @@ from prs3_post.ops import (
     plan_profile,
     tool_center_contour,
 )
-from prs3_post.ops.common import pass_depths, swept_region
-from prs3_post.toolpath import EventKind, MoveKind, Toolpath
+from prs3_post.toolpaths.common import pass_depths, swept_region
 
 BETA = math.atan(0.5)                              # 26.5651°
 PAPER_2A_PART = np.array([18.9736, 221.2132, 290.5135])   # DESIGN.md: drilling point, part coordinates

@@ -15,10 +15,10 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from prs3_post import output as output_module
-from prs3_post.cli import demo_part, main
-from prs3_post.errors import InputError
-from prs3_post.output import HeadLast, write_atomic, write_outputs
+from prs3_post.cli.main import demo_part, main
+from prs3_post.core.errors import InputError
+from prs3_post.emit import output_files as output_module
+from prs3_post.emit.output_files import HeadLast, write_atomic, write_outputs
 
 REPO = Path(__file__).resolve().parents[1]
 WEDGE = REPO / "fixtures" / "parts" / "wedge.stl"
@@ -163,7 +163,7 @@ def test_a_failed_rename_undoes_the_ones_before(tmp_path: Path, monkeypatch: pyt
 
 _SIGNAL_SCRIPT = """
 import os, signal, sys
-from prs3_post.output import write_atomic
+from prs3_post.emit.output_files import write_atomic
 def chunks():
     yield "first half\\n"
     os.kill(os.getpid(), signal.{name})
@@ -194,7 +194,7 @@ def test_a_signal_during_a_write_leaves_no_temp_file(tmp_path: Path, name: str, 
 def test_full_standard_output_is_a_clear_error(args: list[str]) -> None:
     """Also the help and the version, which click printed itself: an OSError traceback before."""
     with open("/dev/full", "w") as full:
-        done = subprocess.run([sys.executable, "-c", "from prs3_post.cli import main; main()", *args],
+        done = subprocess.run([sys.executable, "-c", "from prs3_post.cli.main import main; main()", *args],
                               stdout=full, stderr=subprocess.PIPE, text=True, timeout=60, check=False)
     assert (done.returncode, done.stderr) == (
         2, "prs3-post: error: standard output: cannot write: No space left on device\n")
@@ -204,22 +204,22 @@ _INTERRUPTED_IMPORT = """
 import sys
 class Interrupt:                       # Ctrl-C while the CLI's modules (numpy, click, ...) load
     def find_spec(self, name, path=None, target=None):
-        if name == "prs3_post.cli":
+        if name == "prs3_post.cli.main":
             raise KeyboardInterrupt
 sys.meta_path.insert(0, Interrupt())
-from prs3_post.entry import main
+from prs3_post.cli.entry import main
 main()
 """
 
 
 def test_ctrl_c_while_the_cli_loads_is_reported_as_later() -> None:
-    """The console script runs prs3_post.entry:main: Ctrl-C in the first half second (the imports) was a
+    """The console script runs prs3_post.cli.entry:main: Ctrl-C in the first half second (the imports) was a
     KeyboardInterrupt traceback with exit 130; it is click's 'Aborted!' and exit 1, as at any later moment."""
     done = subprocess.run([sys.executable, "-c", _INTERRUPTED_IMPORT, "machines"],
                           capture_output=True, text=True, timeout=60, check=False)
     assert (done.returncode, done.stdout, done.stderr) == (1, "", "\nAborted!\n")
     scripts = (REPO / "pyproject.toml").read_text().split("[project.scripts]\n")[1].splitlines()[0]
-    assert scripts == 'prs3-post = "prs3_post.entry:main"'
+    assert scripts == 'prs3-post = "prs3_post.cli.entry:main"'
 
 
 # ----------------------------------------------------------------------------- a head made last

@@ -20,8 +20,9 @@ import pytest
 from click.testing import CliRunner
 from numpy.testing import assert_allclose
 
-from prs3_post import collision, meshdist
-from prs3_post.cli import main
+from prs3_post.check import collision
+from prs3_post.cli.main import main
+from prs3_post.part import meshdist
 
 CORPUS = Path(__file__).resolve().parents[2] / "shared" / "corpus" / "stl"
 pytestmark = pytest.mark.skipif(

@@ -10,11 +10,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from prs3_post.config import load_machine
-from prs3_post.errors import LimitError, ReachError
+from prs3_post.core.errors import LimitError, ReachError
+from prs3_post.core.rowwise import row_lengths
+from prs3_post.core.toolpath import Event, EventKind, MoveKind, Toolpath
 from prs3_post.kinematics import forward, inverse
-from prs3_post.limits import check_limits
-from prs3_post.linearize import (
+from prs3_post.machine.loading import load_machine
+from prs3_post.part.setup_transform import Setup
+from prs3_post.post.limits import check_limits
+from prs3_post.post.linearize import (
     CHECK_FRACTIONS,
     joint_path_deviation,
     joint_path_deviations,
@@ -22,10 +25,7 @@ from prs3_post.linearize import (
     slerp,
     subdivide_axis_changes,
 )
-from prs3_post.pipeline import inverse_time, machine_path, post_process
-from prs3_post.rows import row_lengths
-from prs3_post.setup import Setup
-from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
+from prs3_post.post.pipeline import inverse_time, machine_path, post_process
 
 MACHINE = load_machine("patel2020")
 ORIGIN = Setup((-100.0, -200.0, -970.0))

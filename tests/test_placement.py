@@ -13,17 +13,17 @@ import pytest
 from click.testing import CliRunner
 from numpy.testing import assert_allclose
 
-import prs3_post.job as job_module
-from prs3_post.cli import main
-from prs3_post.config import load_dialect, load_machine
-from prs3_post.errors import LimitError
-from prs3_post.job import JobSpec, check_job, run_job
-from prs3_post.ops import Coolant, Cutting, HoleParams
-from prs3_post.ops.work import HoleJob
-from prs3_post.pipeline import machine_path, post_process
-from prs3_post.placement import PlacementLimitError, shift_ranges, suggest_origin
-from prs3_post.setup import Setup
-from prs3_post.toolpath import MoveKind, Toolpath
+import prs3_post.app.job as job_module
+from prs3_post.app.job import JobSpec, check_job, run_job
+from prs3_post.check.placement import PlacementLimitError, shift_ranges, suggest_origin
+from prs3_post.cli.main import main
+from prs3_post.core.errors import LimitError
+from prs3_post.core.toolpath import MoveKind, Toolpath
+from prs3_post.machine.loading import load_dialect, load_machine
+from prs3_post.part.setup_transform import Setup
+from prs3_post.post.pipeline import machine_path, post_process
+from prs3_post.toolpaths import Coolant, Cutting, HoleParams
+from prs3_post.toolpaths.work import HoleJob
 
 REPO = Path(__file__).resolve().parents[1]
 CORPUS = REPO.parent / "shared" / "corpus" / "stl"

@@ -17,7 +17,7 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from prs3_post.errors import InputError
+from prs3_post.core.errors import InputError
 from prs3_post.readers import poses_bulk
 from prs3_post.readers.poses import iter_poses
 from prs3_post.readers.poses_bulk import iter_poses_bulk
@@ -176,17 +176,17 @@ def _pose_text(n: int, seed: int = 3) -> str:
 
 @pytest.mark.parametrize("chunk_lines", [7, 65536])
 def test_ik_batch_output_is_byte_identical_with_and_without_the_bulk_reader(tmp_path, monkeypatch, chunk_lines):
-    from prs3_post.config import load_machine
-    from prs3_post.ik_batch import IKBatch
+    from prs3_post.app.ik_batch import IKBatch
+    from prs3_post.machine.loading import load_machine
 
     path = tmp_path / "poses.csv"
     path.write_text(_pose_text(300))
     machine = load_machine("patel2020")
-    monkeypatch.setattr("prs3_post.ik_batch.iter_poses_bulk", iter_poses)
+    monkeypatch.setattr("prs3_post.app.ik_batch.iter_poses_bulk", iter_poses)
     numpy_batch = IKBatch(machine, str(path), chunk_lines=chunk_lines)
     expected = b"".join(numpy_batch.chunks())
     _only_bulk(monkeypatch)
-    monkeypatch.setattr("prs3_post.ik_batch.iter_poses_bulk", functools.partial(iter_poses_bulk, min_bytes=0))
+    monkeypatch.setattr("prs3_post.app.ik_batch.iter_poses_bulk", functools.partial(iter_poses_bulk, min_bytes=0))
     bulk_batch = IKBatch(machine, str(path), chunk_lines=chunk_lines)
     assert b"".join(bulk_batch.chunks()) == expected
     assert expected.count(b"\n") == 301 and expected.count(b",false\n") > 10
@@ -196,7 +196,7 @@ def test_ik_batch_output_is_byte_identical_with_and_without_the_bulk_reader(tmp_
 
 _PROBE = """
 import json, sys
-from prs3_post.cli import main
+from prs3_post.cli.main import main
 try:
     main(["ik", "--batch", sys.argv[1], "-o", sys.argv[2]])
 except SystemExit:

@@ -12,16 +12,16 @@ import pytest
 from click.testing import CliRunner
 from numpy.testing import assert_allclose
 
-from prs3_post.cli import main
-from prs3_post.config import load_dialect, load_machine
-from prs3_post.errors import Prs3Error
-from prs3_post.geometry import find_faces, select_face
+from prs3_post.check.verify import row_times, verify_program
+from prs3_post.cli.main import main
+from prs3_post.core.errors import Prs3Error
+from prs3_post.core.toolpath import MoveKind
 from prs3_post.kinematics import forward
+from prs3_post.machine.loading import load_dialect, load_machine
+from prs3_post.part.faces import find_faces, select_face
+from prs3_post.part.setup_transform import Setup
+from prs3_post.part.stl import load_part
 from prs3_post.readers.program import load_program
-from prs3_post.readers.stl import load_part
-from prs3_post.setup import Setup
-from prs3_post.toolpath import MoveKind
-from prs3_post.verify import row_times, verify_program
 
 matplotlib = pytest.importorskip("matplotlib")
 
@@ -39,7 +39,7 @@ def run(*args: object):
 @pytest.fixture(scope="module")
 def drawn():
     """The small fixture program replayed and drawn on the wedge with its automatic face."""
-    from prs3_post.preview import render_preview
+    from prs3_post.check.preview import render_preview
 
     program = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc"))
     mesh = load_part(WEDGE)
@@ -122,7 +122,7 @@ def test_main_job_writes_program_and_svg_preview_in_one_step(tmp_path):
 
 
 def test_preview_without_matplotlib_is_a_clear_error(tmp_path, monkeypatch):
-    from prs3_post.preview import render_preview
+    from prs3_post.check.preview import render_preview
 
     for name in [n for n in sys.modules if n.split(".")[0] in ("matplotlib", "mpl_toolkits")]:
         monkeypatch.setitem(sys.modules, name, None)
@@ -166,7 +166,7 @@ def test_stage_panel_draws_each_axis_travel_in_its_own_colour(tmp_path):
     """A Y travel tighter than X's (−20..20 mm, where small.ngc goes to Y −24.1429) is drawn at its own bounds."""
     from matplotlib.colors import to_hex
 
-    from prs3_post.preview import render_preview
+    from prs3_post.check.preview import render_preview
 
     text = (REPO / "postproc" / "machines" / "patel2020.toml").read_text()
     assert text.count("travel_y_mm = [-300.0, 300.0]") == 1
@@ -199,7 +199,7 @@ def test_stage_panel_draws_each_axis_travel_in_its_own_colour(tmp_path):
 
 
 def test_without_dynamics_the_time_axis_says_its_nominal_rapid_rate(drawn):
-    from prs3_post.preview import render_preview
+    from prs3_post.check.preview import render_preview
 
     moves, report, _ = drawn
     plain = dataclasses.replace(MACHINE, dynamics=None)

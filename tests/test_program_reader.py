@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from prs3_post.config import load_dialect
-from prs3_post.errors import InputError
+from prs3_post.core.errors import InputError
+from prs3_post.core.toolpath import JointProgram, MoveKind, join_programs
+from prs3_post.machine.loading import load_dialect
 from prs3_post.readers import program as reader_module
 from prs3_post.readers.program import ProgramStream, load_program, read_program
-from prs3_post.toolpath import JointProgram, MoveKind, join_programs
 
 REPO = Path(__file__).resolve().parents[1]
 VERIFY = REPO / "fixtures" / "verify"

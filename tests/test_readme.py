@@ -7,7 +7,7 @@ from pathlib import Path
 
 from click.testing import CliRunner
 
-from prs3_post.cli import main
+from prs3_post.cli.main import main
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 

@@ -1,4 +1,4 @@
-"""prs3_post.rows: the column-at-a-time row arithmetic gives numpy's bits (lengths) and values (all, any)."""
+"""prs3_post.core.rowwise: the column-at-a-time row arithmetic gives numpy's bits (lengths) and values (all, any)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from prs3_post.rows import row_all, row_any, row_lengths, same_rows
+from prs3_post.core.rowwise import row_all, row_any, row_lengths, same_rows
 
 
 @settings(max_examples=200, deadline=None)

@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from prs3_post.config import load_machine
-from prs3_post.setup import Setup, SetupError
+from prs3_post.machine.loading import load_machine
+from prs3_post.part.setup_transform import Setup, SetupError
 
 MACHINE = load_machine("patel2020")
 

@@ -18,33 +18,34 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from prs3_post.cli import main
+from prs3_post.cli.main import main
 
 HEAVY = ("trimesh", "networkx", "PIL", "shapely", "matplotlib", "pygcode")
 #: The package's modules (and the standard library's) that only the main job, convert and
 #: verify --against need.
-JOB_MODULES = ("prs3_post.convert", "prs3_post.job", "prs3_post.placement", "prs3_post.collision",
-               "prs3_post.geometry", "prs3_post.jobfile", "multiprocessing")
+JOB_MODULES = ("prs3_post.app.convert", "prs3_post.app.job", "prs3_post.check.placement", "prs3_post.check.collision",
+               "prs3_post.part.faces", "prs3_post.readers.jobfile", "multiprocessing")
 #: What only writing a program needs: the emitter (the dialect's comment layout, which reading a
-#: program needs as well, lives in ``prs3_post.dialect``).
-WRITE_MODULES = ("prs3_post.emit", "prs3_post.emit.gcode")
-#: What only reading a part needs (the STL reader; the CLI's --up choices live in ``prs3_post.setup``), and
+#: program needs as well, lives in ``prs3_post.machine.dialect``).
+WRITE_MODULES = ("prs3_post.emit.gcode",)
+#: What only reading a part needs (the STL reader; the CLI's --up choices live in
+#: ``prs3_post.part.setup_transform``), and
 #: the work plane, which only a converted program's header states.
-PART_MODULES = ("prs3_post.readers.stl", "prs3_post.workplane")
+PART_MODULES = ("prs3_post.part.stl", "prs3_post.part.workplane")
 #: The five-axis source conventions: only convert and the check of a converted program need them.
-SOURCE_MODULES = ("prs3_post.source",)
+SOURCE_MODULES = ("prs3_post.machine.cam_conventions",)
 #: The paper's per-leg IK (``--model paper``, for validation only).
-PAPER_MODULES = ("prs3_post.kinematics.paper",)
+PAPER_MODULES = ("prs3_post.kinematics.prs3.paper",)
 #: The ik/fk tables and the pose CSV reader, which a plain verify needs neither of.
-TABLE_MODULES = ("prs3_post.tables", "prs3_post.readers.poses")
+TABLE_MODULES = ("prs3_post.emit.pose_tables", "prs3_post.readers.poses")
 
 _PROBE = """
 import json, sys
 from click.testing import CliRunner
-import prs3_post.cli
+import prs3_post.cli.main
 args = json.loads(sys.argv[1])
 if args:
-    result = CliRunner().invoke(prs3_post.cli.main, args)
+    result = CliRunner().invoke(prs3_post.cli.main.main, args)
     assert result.exit_code == 0, result.output
 print(json.dumps(sorted(set(sys.modules) & set(json.loads(sys.argv[2])))))
 """
@@ -82,8 +83,9 @@ def test_verify_loads_no_heavy_library(tmp_path):
 
 #: What a conversion needs only with a part (--part: the collision check), an automatic placement,
 #: a 5-axis source, or several files at once (--jobs: a process pool).
-CONVERT_EXTRAS = ("prs3_post.placement", "prs3_post.collision", "prs3_post.readers.fivex",
-                  "prs3_post.source", "prs3_post.job", "multiprocessing", "concurrent.futures.process")
+CONVERT_EXTRAS = ("prs3_post.check.placement", "prs3_post.check.collision", "prs3_post.readers.fivex.reader",
+                  "prs3_post.machine.cam_conventions", "prs3_post.app.job", "multiprocessing",
+                  "concurrent.futures.process")
 
 
 def test_convert_loads_no_plotting_or_mesh_library(tmp_path):
@@ -97,7 +99,7 @@ def test_convert_loads_no_plotting_or_mesh_library(tmp_path):
 def test_the_console_script_runs_openblas_on_one_thread_unless_told_otherwise() -> None:
     """numpy's OpenBLAS starts a thread per core when imported (0.09 CPU s of every start, for nothing):
     the console script asks for one, and a user's own setting is kept."""
-    count = ("import os, sys; from prs3_post import entry; {set}; entry.configure_blas(); import numpy; "
+    count = ("import os, sys; from prs3_post.cli import entry; {set}; entry.configure_blas(); import numpy; "
              "print(len(os.listdir('/proc/self/task')), os.environ['OPENBLAS_NUM_THREADS'])")
     env = {k: v for k, v in __import__("os").environ.items() if k != "OPENBLAS_NUM_THREADS"}
     alone = subprocess.run([sys.executable, "-c", count.format(set="pass")], env=env, capture_output=True,
@@ -109,7 +111,7 @@ def test_the_console_script_runs_openblas_on_one_thread_unless_told_otherwise() 
 
 
 _FAULTS = """import resource, sys
-from prs3_post import entry
+from prs3_post.cli import entry
 if sys.argv[1] == "set":
     assert entry.configure_malloc()
 import numpy as np

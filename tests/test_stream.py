@@ -15,13 +15,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from prs3_post.config import load_dialect, load_machine
+from prs3_post.core.errors import LimitError, ReachError
+from prs3_post.core.toolpath import Event, EventKind, MoveKind, Toolpath
 from prs3_post.emit.gcode import emit_program
-from prs3_post.errors import LimitError, ReachError
-from prs3_post.output import write_atomic
-from prs3_post.pipeline import PostStream, post_process, program_text
-from prs3_post.setup import Setup
-from prs3_post.toolpath import Event, EventKind, MoveKind, Toolpath
+from prs3_post.emit.output_files import write_atomic
+from prs3_post.machine.loading import load_dialect, load_machine
+from prs3_post.part.setup_transform import Setup
+from prs3_post.post.pipeline import PostStream, post_process, program_text
 
 MACHINE = load_machine("patel2020")
 DIALECT = load_dialect("linuxcnc")
@@ -220,8 +220,8 @@ def test_the_resolution_guard_keeps_the_same_rows_in_chunks(size: int):
     """A walk of steps around half an output unit: rows dropped in runs, the reference being the
     last row kept, and a row that is a long step from a dropped row but a short one from the last
     kept row (kept: only short steps are looked at)."""
-    from prs3_post.resolution import VisibleMoves, visible_moves
-    from prs3_post.rows import row_lengths
+    from prs3_post.core.rowwise import row_lengths
+    from prs3_post.post.visible_moves import VisibleMoves, visible_moves
 
     rng = np.random.default_rng(size)
     steps = rng.uniform(-6e-5, 6e-5, (400, 3)) * (rng.random((400, 1)) < 0.9)
@@ -242,7 +242,7 @@ def test_the_resolution_guard_keeps_the_same_rows_in_chunks(size: int):
 
 
 def test_a_long_step_from_a_dropped_row_is_kept_across_chunks():
-    from prs3_post.resolution import VisibleMoves, visible_moves
+    from prs3_post.post.visible_moves import VisibleMoves, visible_moves
 
     tip = np.array([[0.0, 0, 0], [0.00004, 0, 0], [-0.00002, 0, 0]])   # near = 0.00005 mm
     axis = np.tile([0.0, 0.0, 1.0], (3, 1))
@@ -259,8 +259,8 @@ def test_a_long_step_from_a_dropped_row_is_kept_across_chunks():
 ])
 def test_a_cam_file_streamed_names_its_line_in_a_limit_error(name: str, text: str):
     """CL and 3+2 G-code rows keep their file and line through the stream: the error names line 5."""
-    from prs3_post.readers.apt import ClStream
-    from prs3_post.readers.gcode import GcodeStream
+    from prs3_post.readers.cl.reader import ClStream
+    from prs3_post.readers.gcode.reader import GcodeStream
 
     reader = ClStream if name.endswith(".cls") else GcodeStream
     stream = PostStream(MACHINE, SETUP, length_decimals=4)
@@ -273,7 +273,7 @@ def test_a_cam_file_streamed_names_its_line_in_a_limit_error(name: str, text: st
 @pytest.mark.parametrize("size", [1, 7, 61, 5000])
 def test_toolpath_pieces_are_the_chunks_owning_their_rows(path: Toolpath, size: int):
     # the main job cuts its toolpath into pieces that own their rows and drops each once posted
-    from prs3_post.toolpath import toolpath_chunks, toolpath_pieces
+    from prs3_post.core.toolpath import toolpath_chunks, toolpath_pieces
 
     names = ("kind", "tip", "axis", "feed", "source")
     columns = {name: getattr(path, name).copy() for name in names}

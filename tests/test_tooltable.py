@@ -4,8 +4,8 @@ from pathlib import Path
 
 import pytest
 
-from prs3_post.config import load_machine
-from prs3_post.errors import ConfigError, InputError
+from prs3_post.core.errors import ConfigError, InputError
+from prs3_post.machine.loading import load_machine
 from prs3_post.readers.tooltable import Tool, parse_tool_table, read_tool_table
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -11,15 +11,15 @@ import pytest
 from click.testing import CliRunner
 from numpy.testing import assert_allclose
 
-from prs3_post.cli import main
-from prs3_post.config import load_dialect, load_machine
-from prs3_post.errors import InputError
-from prs3_post.job import run_job
+from prs3_post.app.job import run_job
+from prs3_post.check.verify import EPSILON_FRACTION, PROBE_INTERVALS, Intended, replay, verify_program
+from prs3_post.cli.main import main
+from prs3_post.core.errors import InputError
+from prs3_post.core.toolpath import EventKind, MoveKind
 from prs3_post.kinematics import forward
+from prs3_post.machine.loading import load_dialect, load_machine
+from prs3_post.part.setup_transform import Setup
 from prs3_post.readers.program import load_program, read_program
-from prs3_post.setup import Setup
-from prs3_post.toolpath import EventKind, MoveKind
-from prs3_post.verify import EPSILON_FRACTION, PROBE_INTERVALS, Intended, replay, verify_program
 
 REPO = Path(__file__).resolve().parents[1]
 VERIFY = REPO / "fixtures" / "verify"
@@ -50,7 +50,7 @@ def verify_json(*args: str):
 
 def test_reader_reads_back_what_the_emitter_wrote():
     """Every row, F word and event of a job's program comes back from its text (4 decimals)."""
-    from prs3_post.cli import _job_spec
+    from prs3_post.cli.main import _job_spec
 
     opts = dict(profile="hole", face_choice="auto", at_uv=(), at_xyz=(), units="mm", depth=5.0, peck=2.0,
                 reapproach_gap=0.5, dwell=0.5, size=30.0, corner_radius=0.0, rotation=0.0, diameter=30.0,
@@ -77,9 +77,9 @@ def test_a_counter_clockwise_spindle_and_an_optional_stop_are_m4_and_m1_and_read
     """CAM input marks them (SPINDL/...,CCLW and OPSTOP here; M4 and M1 in 3+2 G-code): the program says
     M4 and M1 (not M3 and M0: the spindle would turn the wrong way), LinuxCNC runs it, and verify's
     reader gives the same events back."""
-    from prs3_post.emit import emit_program
-    from prs3_post.pipeline import post_process
-    from prs3_post.readers.apt import parse_cl
+    from prs3_post.emit.gcode import emit_program
+    from prs3_post.post.pipeline import post_process
+    from prs3_post.readers.cl.reader import parse_cl
 
     cl = ("LOADTL/1\nSPINDL/RPM,1200,CCLW\nFEDRAT/100,MMPM\nRAPID\nGOTO/0,0,10\nGOTO/0,0,0\nOPSTOP\n"
           "GOTO/5,0,0\nSTOP\nSPINDL/OFF\nFINI\n")
@@ -445,7 +445,7 @@ def test_g64_blending_is_read_and_warned_about(tmp_path):
 def test_text_report_against_line_comes_from_the_summary_not_the_json_record(monkeypatch):
     """The text report's against line needs the maxima and means only: it never builds the JSON record
     (every sample as lists, and the summary again)."""
-    import prs3_post.verify_format as fmt
+    import prs3_post.app.verify_report as fmt
 
     moves = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc")).moves
     fk = forward(MACHINE.geometry, moves.strokes, moves.stage)

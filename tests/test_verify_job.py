@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from prs3_post.cli import main
-from prs3_post.readers.stl import load_part
-from prs3_post.setup import Setup
-from prs3_post.verify_job import open_program, verify_loaded
+from prs3_post.app.verify import open_program, verify_loaded
+from prs3_post.cli.main import main
+from prs3_post.part.setup_transform import Setup
+from prs3_post.part.stl import load_part
 
 REPO = Path(__file__).resolve().parents[1]
 CORPUS = REPO.parent / "shared" / "corpus" / "stl"

@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from prs3_post.ahead import read_ahead
-from prs3_post.config import load_machine
+from prs3_post.app.read_ahead import read_ahead
+from prs3_post.app.verify import open_program, open_setting, tool_lengths_of, verify_file, verify_loaded
+from prs3_post.app.verify_report import report_record, report_text
+from prs3_post.check.verify import Intended, verify_program
+from prs3_post.machine.loading import load_machine
 from prs3_post.readers.poses import read_poses
-from prs3_post.verify import Intended, verify_program
-from prs3_post.verify_format import report_record, report_text
-from prs3_post.verify_job import open_program, open_setting, tool_lengths_of, verify_file, verify_loaded
 
 REPO = Path(__file__).resolve().parents[1]
 VERIFY = REPO / "fixtures" / "verify"

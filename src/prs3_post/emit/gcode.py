@@ -1,13 +1,13 @@
-"""Write a :class:`~prs3_post.toolpath.JointProgram` as G-code text in a :class:`~prs3_post.config.Dialect`.
+"""Write a :class:`~prs3_post.core.toolpath.JointProgram` as G-code text in a ``Dialect``.
 
 Pure: :func:`emit_program` returns the program as a string and never opens a file; the CLI writes it.
 The output is a function of its inputs only (no time stamps, host names or paths unless the caller
 puts them in ``header``). :class:`ProgramEmitter` makes the same text in pieces — :meth:`~ProgramEmitter.begin`,
 :meth:`~ProgramEmitter.rows` for each chunk of rows (the modal state crosses chunk boundaries), then
 :meth:`~ProgramEmitter.end` — so that a program can be streamed; ``emit_program`` is the one-chunk case.
-The motion rows are formatted a whole column at a time (:mod:`prs3_post.fixed`): the words' integers
+The motion rows are formatted a whole column at a time (:mod:`prs3_post.core.numbers`): the words' integers
 decide which words a line repeats, and the lines are written as bytes for all rows together. Where
-the compiled library is built (:func:`prs3_post.native.emit_rows`), one pass in C does the same for
+the compiled library is built (:func:`prs3_post.core.native.emit_rows`), one pass in C does the same for
 the usual rows (every number an exact integer, no line too long), with their block numbers, and puts
 the usual comments between them; numpy writes the others (and all of them with ``PRS3_POST_NATIVE=0``).
 
@@ -44,12 +44,12 @@ from functools import lru_cache
 
 import numpy as np
 
-from prs3_post.dialect import COMMENT_CONTINUATION as _CONTINUATION
-from prs3_post.dialect import CommentStyle, Dialect
-from prs3_post.errors import LimitError
-from prs3_post.fixed import ChoiceColumn, ScaledColumn, fixed, render_rows, scale_column
-from prs3_post.toolpath import Event, EventKind, JointProgram, MoveKind
-from prs3_post.types import BoolArray, FloatArray, IntArray
+from prs3_post.core.errors import LimitError
+from prs3_post.core.numbers import ChoiceColumn, ScaledColumn, fixed, render_rows, scale_column
+from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind
+from prs3_post.core.types import BoolArray, FloatArray, IntArray
+from prs3_post.machine.dialect import COMMENT_CONTINUATION as _CONTINUATION
+from prs3_post.machine.dialect import CommentStyle, Dialect
 
 __all__ = ["ProgramEmitter", "emit_program", "format_word", "inert", "sanitize_comment"]
 
@@ -109,7 +109,7 @@ def sanitize_comment(text: str, style: CommentStyle) -> str:
 
     Examples
     --------
-    >>> from prs3_post.config import load_dialect
+    >>> from prs3_post.machine.loading import load_dialect
     >>> sanitize_comment("hole (1)\\nat 26.6°", load_dialect("linuxcnc").comments)
     'hole [1] at 26.6 deg'
     >>> sanitize_comment(" msg, stop here", load_dialect("linuxcnc").comments)
@@ -142,7 +142,7 @@ def inert(text: str, style: CommentStyle) -> str:
     """``text``, with the comma after a leading active word made a period so the controller does
     not act on it (``MSG, x`` → ``MSG. x``: a plain comment, and the same length).
 
-    >>> from prs3_post.config import load_dialect
+    >>> from prs3_post.machine.loading import load_dialect
     >>> inert("  Debug, x", load_dialect("linuxcnc").comments), inert("debugging, x", load_dialect("linuxcnc").comments)
     ('  Debug. x', 'debugging, x')
     """
@@ -622,13 +622,13 @@ class ProgramEmitter:
 
     def _rows_in_one_pass(self, chunk: _Chunk, lo: int, hi: int, g93: int | None,
                           restate: IntArray) -> tuple[str, IntArray] | None:
-        """Rows ``lo:hi``'s lines by the compiled writer (:func:`prs3_post.native.emit_rows`), with the
+        """Rows ``lo:hi``'s lines by the compiled writer (:func:`prs3_post.core.native.emit_rows`), with the
         usual comments of the rows that have no other event before them: (the text, where each row's
         line starts, then the text's end (M + 1)). None where it cannot: not built, a feed or a number
         not written from an exact integer, or an over-long line (:meth:`_rows_numpy` writes those, and
         finds the errors)."""
         out, modal, dialect = self._out, self._modal, self.dialect
-        from prs3_post import native  # ctypes: loaded only where lines are written
+        from prs3_post.core import native  # ctypes: loaded only where lines are written
 
         decimals = dialect.decimals.length
         first_present = [word is None or (lo < hi and fixed(float(values[lo]), decimals) != word)
@@ -714,7 +714,7 @@ class ProgramEmitter:
 
     def _render(self, chunk: _Chunk, axes: list[tuple[bytes, ScaledColumn]], lo: int, hi: int,
                 present: BoolArray, motion: IntArray, block_index: IntArray) -> tuple[np.ndarray, IntArray]:
-        """Every row's line as bytes (see :func:`prs3_post.fixed.render_rows`); over-long ones are
+        """Every row's line as bytes (see :func:`prs3_post.core.numbers.render_rows`); over-long ones are
         found here and reported when their turn comes."""
         out = self._out
         m = hi - lo

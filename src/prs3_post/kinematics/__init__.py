@@ -10,12 +10,12 @@ import enum
 
 import numpy as np
 
-from prs3_post.errors import PoseError
-from prs3_post.kinematics.exact import AxisMemo, IKResult, inverse_exact
-from prs3_post.kinematics.forward import FKResult, forward
-from prs3_post.machine import Geometry
-from prs3_post.rows import row_lengths, same_rows
-from prs3_post.types import FloatArray, IntArray
+from prs3_post.core.errors import PoseError
+from prs3_post.core.rowwise import row_lengths, same_rows
+from prs3_post.core.types import FloatArray, IntArray
+from prs3_post.kinematics.prs3.exact import AxisMemo, IKResult, inverse_exact
+from prs3_post.kinematics.prs3.forward import FKResult, forward
+from prs3_post.machine.model import Geometry
 
 __all__ = ["AxisMemo", "FKResult", "IKModel", "IKResult", "PoseError", "forward", "inverse", "unit_axes"]
 
@@ -115,7 +115,7 @@ def inverse(geometry: Geometry, tip: FloatArray, axis: FloatArray, *, model: IKM
     axis : (N, 3) float — unit tool axes (see :func:`unit_axes`)
     model : IKModel
     memo : AxisMemo, optional — the exact model's terms of axes seen before, kept by the caller
-        (:class:`~prs3_post.kinematics.exact.AxisMemo`; no effect on the result)
+        (:class:`~prs3_post.kinematics.prs3.exact.AxisMemo`; no effect on the result)
 
     Returns
     -------
@@ -123,7 +123,7 @@ def inverse(geometry: Geometry, tip: FloatArray, axis: FloatArray, *, model: IKM
     where it is below ``HEAD_XY_TOL``)
     """
     if model is IKModel.PAPER:
-        from prs3_post.kinematics.paper import inverse_paper  # validation only: the other models never load it
+        from prs3_post.kinematics.prs3.paper import inverse_paper  # validation only: the other models never load it
 
         return inverse_paper(geometry, tip, axis)
     result = inverse_exact(geometry, tip, axis, memo=memo)

@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prs3_post.errors import InputError, quoted
-from prs3_post.readers.files import open_input
-from prs3_post.types import FloatArray, IntArray
+from prs3_post.core.errors import InputError, quoted
+from prs3_post.core.input_files import open_input
+from prs3_post.core.types import FloatArray, IntArray
 
 POSE_COLUMNS = ("tip_x", "tip_y", "tip_z", "axis_x", "axis_y", "axis_z")
 #: The magnitude each column may have, and its unit: what ``ik --tip``/``--axis`` allow (a kilometre;

@@ -25,10 +25,10 @@ from typing import BinaryIO
 
 import numpy as np
 
-from prs3_post.errors import InputError
-from prs3_post.readers.files import open_input
+from prs3_post.core.errors import InputError
+from prs3_post.core.input_files import open_input
+from prs3_post.core.types import FloatArray
 from prs3_post.readers.poses import POSE_COLUMNS, PoseTable, _check_header, _check_range, iter_poses
-from prs3_post.types import FloatArray
 
 #: Bytes: the smallest table read by pyarrow (about 33,000 poses of 17 digits); below, numpy's reader.
 BULK_BYTES = 4_000_000

@@ -1,8 +1,8 @@
-"""Read a prs3-post program (actuator-space G-code) back into a :class:`~prs3_post.toolpath.JointProgram`.
+"""Read a prs3-post program (actuator-space G-code) back into a :class:`~prs3_post.core.toolpath.JointProgram`.
 
 This is the input side of ``prs3-post verify`` and ``prs3-post preview``: it understands exactly
 what the emitter (:mod:`prs3_post.emit.gcode`) writes, in any dialect, and rejects everything
-else with an :class:`~prs3_post.errors.InputError` naming the file and the line, so that nothing
+else with an :class:`~prs3_post.core.errors.InputError` naming the file and the line, so that nothing
 in a program is skipped silently.
 
 Understood
@@ -23,10 +23,10 @@ otherwise unknown); one code per modal group and no letter twice on a line; the 
 M2 or M30 and only comments, blank lines and a closing ``%`` follow. A file that is not UTF-8
 text, has control bytes, or does not read as G-code words is refused as not G-code.
 
-Parsing: bytes, comments and words are the shared lexer's (:mod:`prs3_post.readers.lexer`; pygcode
+Parsing: bytes, comments and words are the shared lexer's (:mod:`prs3_post.core.lexer`; pygcode
 is its reference in a differential test, no longer a step here). Lines of the emitter's own motion
 shape (``N.. G0/G1 X.. Y.. <T1> <T2> <T3> F..``, upper case, no comment) are read a chunk at a time
-(:func:`~prs3_post.readers.lexer.lex_columns`) and replayed on the modal state in bulk; a chunk where
+(:func:`~prs3_post.core.lexer.lex_columns`) and replayed on the modal state in bulk; a chunk where
 any rule would fail, and every other line, goes through the careful reader one line at a time,
 which is the definition: the bulk step only ever takes lines it would read the same way.
 
@@ -45,10 +45,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from prs3_post.config import AXIS_LETTERS, Dialect
-from prs3_post.errors import InputError, LexError
-from prs3_post.readers.files import iter_pieces, line_blocks, read_input
-from prs3_post.readers.lexer import (
+from prs3_post.core.errors import InputError, LexError
+from prs3_post.core.input_files import iter_pieces, line_blocks, read_input
+from prs3_post.core.lexer import (
     BYTE_ORDER_MARK,
     EMPTY,
     Word,
@@ -61,8 +60,9 @@ from prs3_post.readers.lexer import (
     quote,
     split_comments,
 )
-from prs3_post.toolpath import Coolant, Event, EventKind, JointProgram, MoveKind, join_programs
-from prs3_post.types import BoolArray, FloatArray, IntArray
+from prs3_post.core.toolpath import Coolant, Event, EventKind, JointProgram, MoveKind, join_programs
+from prs3_post.core.types import BoolArray, FloatArray, IntArray
+from prs3_post.machine.loading import AXIS_LETTERS, Dialect
 
 __all__ = ["ALLOWED_G", "ALLOWED_M", "CHUNK_LINES", "ProgramFile", "ProgramStream", "load_program", "read_program"]
 
@@ -135,7 +135,7 @@ def load_program(path: str, dialect: Dialect, *, stage: bool = True) -> ProgramF
 
 
 def text_from_bytes(data: bytes, path: str) -> str:
-    """The program text of a file's bytes (:func:`prs3_post.readers.lexer.decode`, its errors naming ``path``).
+    """The program text of a file's bytes (:func:`prs3_post.core.lexer.decode`, its errors naming ``path``).
 
     Raises
     ------
@@ -199,7 +199,7 @@ def _rows(kind: list[int] | IntArray, joints: FloatArray, feed: list[float] | Fl
 class ProgramStream:
     """A program file read in chunks of lines, for a replay whose memory does not grow with the program.
 
-    Iterate it for one :class:`~prs3_post.toolpath.JointProgram` per chunk with moves or events (events
+    Iterate it for one :class:`~prs3_post.core.toolpath.JointProgram` per chunk with moves or events (events
     count rows from the chunk's start; ``source`` holds the file's line numbers); the modal state
     and the last position carry across chunks, so the chunks are exactly the rows :func:`load_program`
     reads, cut in pieces. After the iteration, ``end_line``, ``blending_lines`` and ``line_count`` are
@@ -226,7 +226,7 @@ class ProgramStream:
         return iter_pieces(self.path, "a G-code program", self.piece_bytes)
 
     def check(self) -> int:
-        """Check that the whole file is text, with :func:`~prs3_post.readers.lexer.decode`'s errors in its
+        """Check that the whole file is text, with :func:`~prs3_post.core.lexer.decode`'s errors in its
         order (iterating does it first, once); returns its number of lines (an upper bound on its moves).
 
         Raises
@@ -340,7 +340,7 @@ class _Reader:
         may end at the end of the file), as :meth:`lines` reads them decoded; returns their number.
 
         Runs of lines of the emitter's motion shape go to :meth:`bulk` without being decoded; the
-        others are decoded (:func:`~prs3_post.readers.lexer.decode`) and read by :meth:`line`. A
+        others are decoded (:func:`~prs3_post.core.lexer.decode`) and read by :meth:`line`. A
         piece with a CR goes to :meth:`lines` whole (its CRLF line ends count towards the lengths).
         """
         if b"\r" in data:
@@ -355,7 +355,7 @@ class _Reader:
 
     def runs(self, first: int, values: FloatArray, fast: BoolArray, text: Callable[[int, int], list[str]],
              crlf: Callable[[int, int], list[bool]]) -> None:
-        """Lines ``first``... from :func:`~prs3_post.readers.lexer.lex_columns` (``values``, ``fast``: read
+        """Lines ``first``... from :func:`~prs3_post.core.lexer.lex_columns` (``values``, ``fast``: read
         and short enough): runs of the motion shape to :meth:`bulk`, the others (and a run it refuses)
         to :meth:`line`, with the text of lines ``a:b`` from ``text(a, b)``, their CRLF flags from ``crlf``."""
         g = values[:, 1]

@@ -22,7 +22,7 @@ What LinuxCNC writes and reads there (its ``tooldata`` format): ``T`` tool numbe
   diameter at most 10 m, a tool or pocket number at most 99999999); a word is at most 32 characters.
 
 Blank lines and lines with only a comment are skipped. Lengths are in mm (the programs are G21).
-Every problem is an :class:`~prs3_post.errors.InputError` naming ``file:line``.
+Every problem is an :class:`~prs3_post.core.errors.InputError` naming ``file:line``.
 """
 
 from __future__ import annotations
@@ -30,8 +30,8 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from prs3_post.errors import InputError
-from prs3_post.readers.files import open_input
+from prs3_post.core.errors import InputError
+from prs3_post.core.input_files import open_input
 
 #: Letters of LinuxCNC's tool table, in the order of its documentation.
 LETTERS = "TPXYZABCUVWDIJQ"

@@ -1,0 +1,1052 @@
+"""Conversion of CAM output: one APT CL or 3+2 G-code file → one checked program for this machine.
+
+    INPUT ──► format (content) ──► reader (part frame, mm) ──► post_process (setup, exact IK,
+          subdivision, limits on every emitted point) ──► emitter + dialect ──► OUTDIR/<stem><extension>
+
+The program opens with a self-describing header (:func:`prs3_post.emit.header.source_header_entries`):
+the source file's name and SHA-256, the setup, the tolerances, the tool length used by the IK and the
+counts, so that ``verify --against INPUT`` can rebuild what the program should do.
+
+A batch (:func:`convert_batch`) runs the files in worker processes; each file either completes (its
+program written atomically, :func:`prs3_post.emit.output_files.write_atomic`) or leaves nothing behind, and a
+failing file does not stop the others unless asked. Messages name files, lines and values, never a
+command-line flag.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import glob
+import math
+import os
+import signal
+import stat
+import time
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, cast
+
+import numpy as np
+
+from prs3_post import __version__
+from prs3_post.app.read_ahead import read_ahead, read_in_process
+from prs3_post.core.errors import InputError, LimitError, PoseError, Prs3Error, ReachError
+from prs3_post.core.input_files import open_input
+from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpath, join_programs
+from prs3_post.core.types import FloatArray
+from prs3_post.emit.gcode import ProgramEmitter
+from prs3_post.emit.header import SourceCounts, SourceHeader, source_header_entries
+from prs3_post.emit.output_files import HeadLast, refuse_overwriting, write_atomic
+from prs3_post.kinematics import inverse, unit_axes
+from prs3_post.kinematics.prs3.blocks import THREADS_VARIABLE, default_workers
+from prs3_post.machine.loading import Dialect, Machine, file_given
+from prs3_post.part.setup_transform import Setup
+from prs3_post.part.workplane import WorkPlane
+from prs3_post.post.limits import check_limits, raise_first_violation
+from prs3_post.post.pipeline import (
+    PostCounts,
+    PostResult,
+    PostStream,
+    emitted_text,
+    model_for,
+    place_toolpath,
+    program_text,
+)
+from prs3_post.readers.cl.reader import ClFile, ClStream, join_toolpaths
+from prs3_post.readers.detect import DETECT_BYTES, FORMATS, detect_format
+from prs3_post.readers.gcode.reader import GcodeFile, GcodeStream
+from prs3_post.toolpaths.common import TOOL_DIAMETER_RANGE
+
+if TYPE_CHECKING:  # imported where used: a plain 3+2 or CL conversion needs none of them (test_startup)
+    import multiprocessing.process
+    from concurrent.futures import Future
+
+    from prs3_post.machine.cam_conventions import SourceConvention
+    from prs3_post.readers.fivex.reader import FivexStream
+
+#: File name endings taken from a directory (other files there are left alone). Files named
+#: one by one are read whatever their name.
+CL_SUFFIXES = (".cls", ".clsf", ".cl", ".apt", ".aptsource", ".cldata")
+GCODE_SUFFIXES = (".nc", ".ngc", ".gcode", ".tap", ".cnc", ".iso", ".mpf", ".eia")
+
+
+@dataclass(frozen=True, slots=True)
+class ConvertSettings:
+    """Everything a conversion needs besides the input file.
+
+    Attributes
+    ----------
+    machine : Machine — as loaded (its own tool length)
+    dialect : Dialect
+    setup : Setup — part → machine
+    tolerance : float — mm, chordal tolerance of arcs and of axis-changing moves
+    angle_tolerance_deg : float — degrees, allowed tool-axis deviation of subdivided moves
+    tool_length : float | None — mm, platform centre to tool tip for the IK (None: the machine's)
+    input_format : str — ``auto``, ``cl`` or ``gcode``
+    units : str | None — a CL file's length unit when it has no UNITS/ record (None: from its feeds)
+    ignore : tuple of str — CL major words skipped (and counted) instead of refused
+    work_plane : WorkPlane | None — where a G-code program's X, Y, Z are in the part (None: the part frame)
+    source : SourceConvention | None — G-code is a 5-axis program of this source machine (None: 3+2 G-code)
+    tcp_on, tcp_off : tuple of str | None — the codes that switch its TCP on and off (None: the source's);
+        codes the reader would read as something else, or one code in both, are a ConfigError here
+    line_numbers, line_start, line_step : block numbering overrides (None: the dialect's)
+    auto_origin, auto_rotation : bool — choose the part origin / the rotation about z for each file
+        (:func:`prs3_post.check.placement.place`: the largest worst-case margin); ``setup`` holds the values kept
+    part : str | None — the part's STL, to check the holder and nose against (None: not checked)
+    part_units, part_up : str — its length unit and up axis (as :func:`prs3_post.part.stl.load_part`)
+    collision_check : bool — with ``part``, check every program before it is written
+    clearance_min : float — mm, the least distance the holder and nose must keep from the part
+    tool_diameter : float | None — mm, the tool's diameter for its check in the rapids (None: the CAM
+        input's, :func:`tool_diameter_of`)
+    """
+
+    machine: Machine
+    dialect: Dialect
+    setup: Setup
+    tolerance: float = 0.002
+    angle_tolerance_deg: float = 0.01
+    tool_length: float | None = None
+    input_format: str = "auto"
+    units: str | None = None
+    ignore: tuple[str, ...] = ()
+    work_plane: WorkPlane | None = None
+    source: SourceConvention | None = None
+    tcp_on: tuple[str, ...] | None = None
+    tcp_off: tuple[str, ...] | None = None
+    line_numbers: bool | None = None
+    line_start: int | None = None
+    line_step: int | None = None
+    auto_origin: bool = False
+    auto_rotation: bool = False
+    part: str | None = None
+    part_units: str = "mm"
+    part_up: str = "z"
+    collision_check: bool = True
+    clearance_min: float = 1.0
+    tool_diameter: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.input_format not in FORMATS:
+            raise ValueError(f"input_format must be one of {FORMATS}, got {self.input_format!r}")
+        if self.tool_length is not None and not (math.isfinite(self.tool_length) and self.tool_length > 0):
+            raise InputError(f"tool length: must be a number > 0 mm, got {self.tool_length:g}",
+                             path=self.machine.source)
+        if self.source is not None:                     # refused once, before any file is read
+            from prs3_post.readers.fivex.reader import check_tcp_codes
+
+            check_tcp_codes(self.source, self.source.tcp_on if self.tcp_on is None else self.tcp_on,
+                            self.source.tcp_off if self.tcp_off is None else self.tcp_off)
+
+    @property
+    def ik_machine(self) -> Machine:
+        """The machine with the tool length the IK uses."""
+        if self.tool_length is None:
+            return self.machine
+        return dataclasses.replace(self.machine,
+                                   geometry=dataclasses.replace(self.machine.geometry, tool_length=self.tool_length))
+
+
+@dataclass(frozen=True, slots=True)
+class ConvertReport:
+    """What one conversion read and made (every input record accounted for).
+
+    Attributes
+    ----------
+    input : str — the input path as given
+    format : str — ``cl`` or ``gcode``
+    units : str — the input's length unit (``mm`` or ``inch``)
+    sha256 : str — of the input's bytes
+    records : int — input records (CL records, G-code lines with code)
+    by_word : tuple of (str, int) — records by major word (CL) or G/M code (G-code)
+    input_moves : int — motion records that became one row each
+    arcs, arc_rows : int — arcs expanded and the rows they became
+    cycles, cycle_holes, cycle_rows : int — drilling cycles, their holes and the rows those became
+    comments : int — comments carried into the program
+    skipped : tuple of (str, int) — records skipped on purpose (display records, ignored words), with counts
+    toolpath_rows : int — rows read (part frame)
+    subdivisions : int — rows inserted to keep axis-changing moves within tolerance
+    dropped : int — rows the output cannot show (no axis word changes at its decimals)
+    emitted_moves : int — motion lines of the program
+    deviation_before : float — mm, worst tip deviation of the joint-space moves before subdivision
+    deviation_after : float — mm, the same after subdivision (≤ the tolerance)
+    angle_before_deg, angle_after_deg : float — degrees, the same for the tool axis
+    tool_length : float — mm, used by the IK
+    setup : str — the setup used (chosen automatically or given), as the header states it
+    five_axis : str — for a 5-axis G-code program: its source convention and the path it is read as
+    """
+
+    input: str
+    format: str
+    units: str
+    sha256: str
+    records: int
+    by_word: tuple[tuple[str, int], ...]
+    input_moves: int
+    arcs: int
+    arc_rows: int
+    cycles: int
+    cycle_holes: int
+    cycle_rows: int
+    comments: int
+    skipped: tuple[tuple[str, int], ...]
+    toolpath_rows: int
+    subdivisions: int
+    dropped: int
+    emitted_moves: int
+    deviation_before: float
+    deviation_after: float
+    angle_before_deg: float
+    angle_after_deg: float
+    tool_length: float
+    setup: str
+    five_axis: str = ""
+
+    @property
+    def motion_records(self) -> int:
+        """Moves, arcs and drilled holes as the input states them (what "moves/s" counts)."""
+        return self.input_moves + self.arcs + self.cycle_holes
+
+    def counts(self) -> SourceCounts:
+        """What the program's header states of this accounting."""
+        return SourceCounts(records=self.records, moves=self.input_moves, arcs=self.arcs, arc_rows=self.arc_rows,
+                            cycle_holes=self.cycle_holes, cycle_rows=self.cycle_rows, comments=self.comments,
+                            program_moves=self.emitted_moves, subdivisions=self.subdivisions, skipped=self.skipped)
+
+    def record(self) -> dict[str, object]:
+        """The report as JSON-ready data (word counts as objects)."""
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        out["by_word"] = dict(self.by_word)
+        out["skipped"] = dict(self.skipped)
+        return out
+
+
+@dataclass(frozen=True, slots=True)
+class Conversion:
+    """One converted file held in memory: the program text, its report, and the machine-frame path
+    it follows (one row per program motion line)."""
+
+    text: str
+    report: ConvertReport
+    path: Toolpath
+
+
+# ----------------------------------------------------------------------------- one file
+
+
+def input_format(path: str, requested: str = "auto") -> str:
+    """``cl`` or ``gcode``: ``requested`` unless ``auto``, else by the file's first bytes.
+
+    Raises
+    ------
+    InputError
+        The file cannot be opened (missing, a folder, a FIFO, unreadable), or it is empty (in any format).
+    """
+    with open_input(path, "a file") as stream:
+        try:
+            head = stream.read(DETECT_BYTES)
+        except OSError as exc:
+            raise InputError(f"cannot read the file: {exc.strerror or exc}", path=path) from exc
+    if not head:
+        raise InputError("the file is empty (0 bytes): nothing to convert", path=path)
+    if len(head) < DETECT_BYTES and not head.strip():
+        raise InputError("the file has only blank lines: nothing to convert", path=path)
+    return requested if requested != "auto" else detect_format(head)
+
+
+def source_stream(path: str, settings: ConvertSettings, fmt: str) -> ClStream | GcodeStream:
+    """The input's reader for its format, in chunks of lines (part frame, mm); G-code with a source
+    convention is read as a 5-axis program (:mod:`prs3_post.readers.fivex.reader`)."""
+    if fmt == "cl":
+        return ClStream(path, tolerance=settings.tolerance, units=settings.units, ignore=frozenset(settings.ignore))
+    if settings.source is not None:
+        if settings.work_plane is not None:
+            raise InputError("a work plane and a 5-axis source: under TCP the program's X Y Z are the part frame "
+                             "itself (its work offset), so there is no work plane to put them on", path=path)
+        from prs3_post.readers.fivex.reader import FivexStream
+
+        return FivexStream(path, settings.source, tolerance=settings.tolerance, tcp_on=settings.tcp_on,
+                           tcp_off=settings.tcp_off)
+    return GcodeStream(path, tolerance=settings.tolerance, work_plane=settings.work_plane)
+
+
+def _five_axis_text(reader: FivexStream) -> str:
+    """What a 5-axis program was read as (the report and the program's first comment say it)."""
+    return (f"5-axis source {reader.source.name}, TCP {'/'.join(reader.tcp_on)} on, {'/'.join(reader.tcp_off)} "
+            "off; between two input points the intended path is the straight tip line with the tool axis on the "
+            "great circle (the source machine's rotary interpolation is not reproduced)")
+
+
+def _five_axis_skipped(reader: FivexStream) -> tuple[tuple[str, int], ...]:
+    """The 5-axis blocks that became no row, for the report's skipped counts."""
+    assert reader.fivex is not None  # set when the reader's iteration ends
+    c = reader.fivex.counts
+    out = [(f"{code} (machine coordinates, not converted)", n) for code, n in c.machine_blocks]
+    out += [(f"{code} (axis clamp)", n) for code, n in c.clamps]
+    out += [(f"{code} (no effect here)", n) for code, n in c.inert]
+    if c.prepositions:
+        out.append(("rotary positioning outside TCP (sets the next orientation)", c.prepositions))
+    if c.trailing_lines:
+        out.append((f"text after the closing % (from line {c.trailing_first})", c.trailing_lines))
+    return tuple(out)
+
+
+def _refuse_tilt(machine: Machine, chunk: Toolpath, run: _Run) -> None:
+    """A 5-axis program's orientations beyond the machine's tilt limit, named at the first line with its
+    value and the share of the file's rows beyond it (read again for that: only a failure pays)."""
+    tilt = np.degrees(np.arccos(np.clip(chunk.axis[:, 2], -1.0, 1.0)))     # clip: rounding past ±1
+    limit = math.degrees(machine.limits.max_tilt)
+    bad = np.flatnonzero(tilt > limit)
+    if not len(bad):
+        return
+    row = int(bad[0])
+    beyond = total = 0
+    for part in source_stream(run.path, run.settings, run.fmt):
+        part_tilt = np.degrees(np.arccos(np.clip(part.axis[:, 2], -1.0, 1.0)))
+        beyond += int((part_tilt > limit).sum())
+        total += len(part)
+    run.placeable = False
+    raise LimitError(f"{chunk.describe(row)}: the program's tool axis tilts {tilt[row]:.4f} deg from the part's z, "
+                     f"beyond this machine's maximum tilt {limit:.4f} deg; {beyond} of {total} rows "
+                     f"({100.0 * beyond / total:.1f}%) tilt beyond it, and a setup turns the part about z only")
+
+
+#: What would be valid instead of a feed move first, by input format.
+_FIRST_MOVE = {
+    "cl": "start with FROM/x,y,z, or RAPID and a GOTO/ to the start point, before the first feed",
+    "gcode": "move to the start point with G0 before the first G1",
+}
+
+
+def _refuse_feed_first(chunk: Toolpath, fmt: str) -> None:
+    """A first motion that is a feed has no start point: an input property (no setup helps)."""
+    if len(chunk) and chunk.kind[0] == MoveKind.FEED:
+        raise InputError(f"the first motion is a feed move, so its start point is unknown: {_FIRST_MOVE[fmt]}",
+                         path=chunk.source_file, line=int(chunk.source[0]))
+
+
+class AxisError(ReachError):
+    """A tool axis that points away from the spindle (or is zero) in the part frame: no setup, which
+    turns the part about z only, can fix it, so no part origin is suggested."""
+
+
+def _check_poses(machine: Machine, chunk: Toolpath, setup: Setup, *, limits: bool = True) -> Toolpath:
+    """The tool axes of the points as read (by input line), and with ``limits`` their reach and limits,
+    before any subdivision: a path outside the workspace is named at its first bad line at once
+    (subdividing it first could not converge on moves that cross a singularity, and would only
+    multiply the bad rows). Returns the chunk placed on the machine with unit axes (what a
+    ``placed`` :class:`~prs3_post.post.pipeline.PostStream` takes: the chunk is transformed once)."""
+    path = place_toolpath(chunk, setup)
+    try:
+        axis = unit_axes(path.tip, path.axis, row_name="line", row_numbers=path.source)
+    except PoseError as error:
+        raise AxisError(f"{chunk.source_file}: {error}; a setup turns the part about z only, so no setup turns "
+                        "these tool axes toward the spindle") from error
+    path = dataclasses.replace(path, axis=axis)
+    if not limits:
+        return path
+    ik = inverse(machine.geometry, path.tip, axis, model=model_for(machine))
+    if ik.reachable.all():                              # else the pipeline names the unreachable pose
+        raise_first_violation(check_limits(machine, ik, axis), path.describe)
+    return path
+
+
+#: Bytes of input from which a forked process reads it (:func:`prs3_post.app.read_ahead.read_in_process`), below
+#: which a thread does: forking costs a few milliseconds, reading 4 MB (some 130,000 lines) 0.1 s.
+PROCESS_READ_BYTES = 4 << 20
+
+
+def _large(path: str) -> bool:
+    try:
+        return os.path.getsize(path) >= PROCESS_READ_BYTES
+    except OSError:                                     # read as it is given (the reader names what is wrong)
+        return False
+
+
+@dataclass(slots=True)
+class _Run:
+    """One conversion under way: the reader, the post-processing stream, and what they counted."""
+
+    path: str
+    settings: ConvertSettings
+    fmt: str
+    sha256: str                                         # of the bytes converted: "" until the reader is through
+    reader: ClStream | GcodeStream
+    post: PostStream
+    forked: bool = False                                # the file is read (and hashed) by a forked process
+    post_counts: PostCounts | None = None               # the forked process's, where it post-processed too
+    rows: int = 0
+    results: list[PostResult] = field(default_factory=list)   # each chunk's, when kept (convert_file)
+    programs: list[JointProgram] = field(default_factory=list)   # each chunk's, for the collision check
+    placeable: bool = True                              # False: no setup can help the error raised
+
+    @property
+    def fivex(self) -> FivexStream | None:
+        """The reader when it reads a 5-axis program (G-code with a source convention), else None."""
+        return cast("FivexStream", self.reader) if self.fmt == "gcode" and self.settings.source is not None else None
+
+    def chunks(self) -> Iterator[Toolpath]:
+        """The reader's chunks, checked as read, placed on the machine (unit axes: for the ``placed`` stream)."""
+        if self.forked:                                 # the checks and the placement there too, and the hash
+            yield from read_in_process(self._placed(), final=self._finished_there, on_final=self._finished)
+        elif default_workers() > 1 and self.fivex is None:   # (see _start)
+            yield from self._placed(read_ahead(self.reader))
+        else:
+            yield from self._placed()
+
+    def _placed(self, chunks: Iterable[Toolpath] | None = None) -> Iterator[Toolpath]:
+        """:meth:`chunks` of the reader's ``chunks`` (default: the reader itself)."""
+        machine = self.settings.ik_machine
+        last_axis: np.ndarray | None = None
+        fivex = self.fivex
+        for chunk in self.reader if chunks is None else chunks:
+            if fivex is not None:
+                _refuse_tilt(machine, chunk, self)
+                if not self.rows:
+                    chunk = dataclasses.replace(chunk, events=(
+                        Event(before=0, kind=EventKind.COMMENT, text=_five_axis_text(fivex)), *chunk.events))
+            if not self.rows:
+                _refuse_feed_first(chunk, self.fmt)
+            placed = chunk
+            if len(chunk):
+                axes = np.vstack([chunk.axis if last_axis is None else [last_axis], chunk.axis])
+                turning = np.ptp(axes, axis=0).max() > 0.0   # an axis change: subdivision needs reachable ends
+                placed = _check_poses(machine, chunk, self.settings.setup, limits=bool(turning))
+                last_axis = chunk.axis[-1]
+            self.rows += len(chunk)
+            yield placed
+        if not self.rows:
+            raise InputError("no moves in the file: nothing to convert", path=self.path)
+        self.sha256 = self.reader.sha256 or ""          # of the bytes converted (read once, by the reader)
+
+    def posted(self) -> Iterator[JointProgram]:
+        """The chunks post-processed (:meth:`chunks` fed to the post-processing stream) by a forked process:
+        it reads, checks, places and post-processes; this one emits and writes (``forked`` only)."""
+        yield from read_in_process(self._programs_there(), final=lambda: self._finished_there(posted=True),
+                                   on_final=self._finished)
+
+    def _programs_there(self) -> Iterator[JointProgram]:
+        for chunk in self._placed():
+            yield self.post.feed(chunk).program
+
+    def post_finish(self) -> PostCounts:
+        """The post-processing's counts, once the chunks are through (wherever they were post-processed)."""
+        return self.post.finish() if self.post_counts is None else self.post_counts
+
+    def _finished_there(self, *, posted: bool = False) -> tuple[GcodeFile | ClFile | None, str, PostCounts | None]:
+        """In the forked process, once through: the reader's summary, the hash of what it read and, where
+        it post-processed too (``posted``), the stream's counts."""
+        return self.reader.summary, self.sha256, self.post.finish() if posted else None
+
+    def _finished(self, done: tuple[GcodeFile | ClFile | None, str, PostCounts | None]) -> None:
+        """Here: what :meth:`_finished_there` found."""
+        summary, self.sha256, self.post_counts = done
+        self.reader.summary = summary
+
+    def report(self, counts: PostCounts) -> ConvertReport:
+        """The accounting, once the reader is through."""
+        summary = self.reader.summary
+        assert summary is not None  # set when the reader's iteration ends
+        c = summary.counts
+        skipped, five_axis = c.skipped, ""
+        fivex = self.fivex
+        if fivex is not None:
+            skipped, five_axis = skipped + _five_axis_skipped(fivex), _five_axis_text(fivex)
+        return ConvertReport(
+            input=self.path, format=self.fmt, units=summary.units, sha256=self.sha256, records=c.records,
+            by_word=c.by_word, input_moves=c.moves, arcs=c.arcs, arc_rows=c.arc_segments, cycles=c.cycles,
+            cycle_holes=c.cycle_holes, cycle_rows=c.cycle_rows, comments=c.comments, skipped=skipped,
+            toolpath_rows=counts.input_rows, subdivisions=counts.inserted, dropped=counts.dropped,
+            emitted_moves=counts.program_rows, deviation_before=counts.tip_before, deviation_after=counts.tip_after,
+            angle_before_deg=math.degrees(counts.angle_before), angle_after_deg=math.degrees(counts.angle_after),
+            tool_length=self.settings.ik_machine.geometry.tool_length, setup=self.settings.setup.describe(),
+            five_axis=five_axis)
+
+
+def _start(path: str, settings: ConvertSettings) -> _Run:
+    fmt = input_format(path, settings.input_format)
+    if settings.auto_origin or settings.auto_rotation:   # the whole path decides the setup: read it once more
+        whole = source_stream(path, settings, fmt).whole()
+        if not len(whole.toolpath):
+            raise InputError("no moves in the file: nothing to convert", path=path)
+        _refuse_feed_first(whole.toolpath, fmt)
+        _check_poses(settings.ik_machine, whole.toolpath, settings.setup, limits=False)   # axes by input line
+        from prs3_post.check.placement import place
+
+        chosen = place(settings.ik_machine, whole.toolpath,
+                       origin=None if settings.auto_origin else settings.setup.origin,
+                       rotation_deg=None if settings.auto_rotation else settings.setup.rotation_deg,
+                       tolerance=settings.tolerance, angle_tolerance=math.radians(settings.angle_tolerance_deg))
+        settings = dataclasses.replace(settings, setup=chosen.setup, auto_origin=False, auto_rotation=False)
+    reader = source_stream(path, settings, fmt)
+    machine = settings.ik_machine
+    post = PostStream(machine, settings.setup, tolerance=settings.tolerance,
+                      angle_tolerance=math.radians(settings.angle_tolerance_deg),
+                      length_decimals=settings.dialect.decimals.length, placed=True)
+    # the next chunk is read on a second core while this one is post-processed, where this process may use
+    # two (processes × threads ≤ cores): by a forked process for a large input (which post-processes it too
+    # where no result is kept here: see program_chunks), else by a thread; not the 5-axis reader, whose
+    # state the first chunk's comment reads
+    forked = default_workers() > 1 and settings.source is None and hasattr(os, "fork") and _large(path)
+    return _Run(path=path, settings=settings, fmt=fmt, sha256="", reader=reader, post=post, forked=forked)
+
+
+def _header(run: _Run) -> SourceHeader:
+    """The program header as known before the file is read (without the counts)."""
+    settings = run.settings
+    units = settings.units if run.fmt == "cl" else None
+    header = SourceHeader(
+        version=f"prs3-post {__version__}", machine=settings.machine.name,
+        machine_file=file_given(settings.machine.source, "machines", settings.machine.name),
+        dialect=settings.dialect.name,
+        dialect_file=file_given(settings.dialect.source, "dialects", settings.dialect.name),
+        source_name=Path(run.path).name, source_sha256=run.sha256, source_format=run.fmt,
+        source_units=units or "auto", ignore=tuple(settings.ignore) if run.fmt == "cl" else (),
+        work_plane=settings.work_plane if run.fmt == "gcode" else None, setup=settings.setup,
+        tool_length=settings.ik_machine.geometry.tool_length, tool_length_given=settings.tool_length is not None,
+        tolerance=settings.tolerance, angle_tolerance_deg=settings.angle_tolerance_deg,
+        line_numbers=settings.line_numbers, line_start=settings.line_start, line_step=settings.line_step,
+    )
+    fivex = run.fivex
+    if fivex is not None:
+        source = fivex.source
+        header = dataclasses.replace(header, five_axis=file_given(source.source, "sources", source.name) or source.name,
+                                     tcp_on=fivex.tcp_on, tcp_off=fivex.tcp_off)
+    return header
+
+
+def _placed(error: LimitError | ReachError, run: _Run) -> Exception:
+    """``error`` with the setup used and a part origin that fits, if one does (the whole file is read
+    again for that: only a failure pays for it)."""
+    settings = run.settings
+    if not run.placeable or isinstance(error, AxisError):   # no setup turns a tool axis (about z only)
+        return error
+    try:
+        whole = source_stream(run.path, settings, run.fmt).whole()
+    except InputError:
+        return error
+    from prs3_post.check.placement import placement_error
+
+    return placement_error(error, settings.ik_machine, whole.toolpath, settings.setup, tolerance=settings.tolerance,
+                           length_decimals=settings.dialect.decimals.length)
+
+
+def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) -> tuple[_Run, HeadLast]:
+    """The conversion of one file as program text whose header is made last: the body's chunks are
+    lazy (see :func:`prs3_post.post.pipeline.program_text`), and the head, with the counts, is made once
+    they are through (:class:`prs3_post.emit.output_files.HeadLast`: a writer spools the body, then writes the
+    head and the body). The run's :meth:`_Run.report` follows the body."""
+    run = _start(path, settings)
+    stream = run.post
+    triangles = _part_triangles(settings)
+    if keep or triangles is not None:                   # keep each chunk's result (tests, verify --against)
+        feed = stream.feed                              # or program (the collision check)
+
+        def kept(chunk: Toolpath) -> PostResult:
+            result = feed(chunk)
+            if keep:
+                run.results.append(result)
+            if triangles is not None:
+                run.programs.append(result.program)
+            return result
+
+        stream.feed = kept  # type: ignore[method-assign]  # a wrapper with the same signature
+    header = _header(run)
+    description = settings.machine.description
+    entries = source_header_entries(header, description=description)
+    if run.forked and not keep and triangles is None:   # post-processed where it is read (nothing kept here)
+        text = emitted_text(settings.ik_machine, run.posted(), settings.dialect, header=entries,
+                            line_numbers=settings.line_numbers, line_start=settings.line_start,
+                            line_step=settings.line_step)
+    else:
+        text = program_text(settings.ik_machine, run.chunks(), settings.setup, settings.dialect, header=entries,
+                            tolerance=settings.tolerance, angle_tolerance=math.radians(settings.angle_tolerance_deg),
+                            line_numbers=settings.line_numbers, line_start=settings.line_start,
+                            line_step=settings.line_step, stream=stream)
+
+    def body() -> Iterator[str]:
+        next(text)                                      # its opening, made again below with the counts
+        yield from _with_placement(text, run)
+
+    def head() -> str:
+        counts = run.report(run.post_finish()).counts()
+        collision = _collision(run, triangles)
+        entries = source_header_entries(dataclasses.replace(header, counts=counts, collision=collision,
+                                                            source_sha256=run.sha256),
+                                        description=description)
+        # the same opening as program_text's (its comments have no block numbers: the body's agree)
+        emitter = ProgramEmitter(settings.dialect, stage=settings.ik_machine.stage.present,
+                                 line_numbers=settings.line_numbers, line_start=settings.line_start,
+                                 line_step=settings.line_step)
+        return emitter.begin(entries)
+
+    return run, HeadLast(body=body(), head=head)
+
+
+def _part_triangles(settings: ConvertSettings) -> FloatArray | None:
+    """The part's triangles when its programs are to be checked against it (None: not checked)."""
+    if settings.part is None or not settings.collision_check:
+        return None
+    from prs3_post.part.stl import load_part
+
+    mesh = load_part(settings.part, units=settings.part_units, up=settings.part_up)
+    return np.asarray(mesh.triangles, dtype=np.float64)
+
+
+def _collision(run: _Run, triangles: FloatArray | None) -> str:
+    """The header's ``collision`` entry, the program checked: the holder and the nose everywhere
+    (:func:`prs3_post.check.collision.measure_program` with no face: the tool cuts what the CAM program
+    removes), and the tool in the rapids (:func:`prs3_post.check.collision.check_rapids`: a rapid must not
+    cut), with the diameter given (``--tool-diameter``), else the CAM input's (:func:`tool_diameter_of`).
+
+    Raises
+    ------
+    LimitError
+        ``part.cls:41: the holder hits the part, 2.100 mm deep (clearance min 1.000 mm)``, or
+        ``part.cls:12: the tool hits the part in a rapid, 4.950 mm deep (...)``.
+    """
+    settings = run.settings
+    if settings.part is None:
+        return "not checked (no part given)"
+    if triangles is None:
+        return "not checked (asked not to)"
+    from prs3_post.check.collision import check_rapids, measure_program
+
+    parts, run.programs = run.programs, []
+    file = parts[0].source_file if parts else run.path
+    program = join_programs(parts, source_file=file)
+    machine = settings.ik_machine
+    found = measure_program(machine, program, settings.setup, triangles, None, 0.0,
+                            clearance_min=settings.clearance_min)
+    if isinstance(found, str):
+        return found
+    diameter = tool_diameter_of(run.reader) if settings.tool_diameter is None else settings.tool_diameter
+    rapids = check_rapids(machine, program, settings.setup, triangles, diameter)
+    return found.entry(settings.clearance_min, rapids=rapids)
+
+
+def tool_diameter_of(reader: ClStream | GcodeStream) -> float:
+    """mm: the tool diameter a CAM input states, once read: the smallest of a CL file's ``TLDATA/``
+    records (its first number, in the file's units: ``TLDATA/MILL,10.0,0.0,50.0``), the one a rapid
+    of the thinnest tool must clear; 0 where none is stated (G-code carries none: the tool is then
+    checked as its axis, and the header says so)."""
+    summary = reader.summary
+    if not isinstance(summary, ClFile):
+        return 0.0
+    scale = 25.4 if summary.units == "inch" else 1.0
+    low, high = TOOL_DIAMETER_RANGE
+    found = []
+    for record in summary.tool_data:
+        if record.diameter is None:
+            continue
+        diameter = record.diameter * scale
+        if not low <= diameter <= high:
+            raise InputError(f"TLDATA/ states a tool diameter of {diameter:.6g} mm: a tool for the check in the "
+                             f"rapids must be {low:g} to {high:g} mm",
+                             path=summary.path, line=record.line)
+        found.append(diameter)
+    return min(found, default=0.0)
+
+
+def _with_placement(text: Iterator[str], run: _Run) -> Iterator[str]:
+    try:
+        yield from text
+    except (LimitError, ReachError) as error:
+        raise _placed(error, run) from error
+
+
+def convert_file(path: str, settings: ConvertSettings) -> Conversion:
+    """Convert one CAM file into a program held in memory (nothing is written).
+
+    Raises
+    ------
+    InputError
+        An unreadable input (``path:line: message``).
+    LimitError, ReachError
+        A point outside a limit or the workspace (``path:line: ...``, the setup, and a part origin
+        that fits where there is one).
+    """
+    run, program = program_chunks(path, settings, keep=True)
+    body = "".join(program.body)                        # type: ignore[arg-type]  # str chunks
+    text = str(program.head()) + body
+    report = run.report(run.post_finish())
+    path_rows = [r.path for r in run.results if len(r.path)]
+    return Conversion(text=text, report=report, path=join_toolpaths(path_rows) if path_rows else run.results[0].path)
+
+
+def write_conversion(path: str, output: str, settings: ConvertSettings) -> ConvertReport:
+    """Convert one CAM file and write its program to ``output`` as it is made, atomically: a file that
+    fails leaves nothing (the temp file is removed).
+
+    Raises
+    ------
+    InputError, LimitError, ReachError
+        As :func:`convert_file`, and an output that cannot be written.
+    """
+    run, program = program_chunks(path, settings)
+    write_atomic(output, program)
+    return run.report(run.post_finish())
+
+
+# ----------------------------------------------------------------------------- a batch
+
+
+@dataclass(frozen=True, slots=True)
+class FileOutcome:
+    """How one file of a batch went.
+
+    Attributes
+    ----------
+    input : str — as found
+    output : str — the program's path (written only when ``ok``)
+    ok : bool
+    error : str — ``path:line: reason`` (empty when ok)
+    exit_code : int — the error's (0 when ok): 2 unreadable input or output, 1 limit or reach
+    report : ConvertReport | None — None when it failed
+    seconds : float — wall time of this file
+    exists : bool — it failed because its program exists already (kept: see ``force``)
+    """
+
+    input: str
+    output: str
+    ok: bool
+    error: str = ""
+    exit_code: int = 0
+    report: ConvertReport | None = None
+    seconds: float = 0.0
+    exists: bool = False
+
+    def record(self) -> dict[str, object]:
+        """JSON-ready data."""
+        return {"input": self.input, "output": self.output if self.ok else None, "ok": self.ok,
+                "error": self.error or None, "seconds": round(self.seconds, 3),
+                "report": None if self.report is None else self.report.record()}
+
+
+@dataclass(frozen=True, slots=True)
+class BatchResult:
+    """Every file's outcome, in input order, and what was not converted because the batch stopped."""
+
+    outcomes: tuple[FileOutcome, ...]
+    not_started: tuple[str, ...] = ()
+    seconds: float = 0.0
+
+    @property
+    def failures(self) -> tuple[FileOutcome, ...]:
+        """The files that failed, in input order."""
+        return tuple(o for o in self.outcomes if not o.ok)
+
+    @property
+    def moves(self) -> int:
+        """Motion records of the converted files: moves, arcs and drilled holes as the input states them."""
+        return sum(o.report.motion_records for o in self.outcomes if o.report is not None)
+
+    def record(self) -> dict[str, object]:
+        """JSON-ready data: the files and a summary."""
+        return {"files": [o.record() for o in self.outcomes], "not_started": list(self.not_started),
+                "summary": {"files": len(self.outcomes) + len(self.not_started),
+                            "converted": len(self.outcomes) - len(self.failures), "failed": len(self.failures),
+                            "not_started": len(self.not_started), "motion_records": self.moves,
+                            "seconds": round(self.seconds, 3)}}
+
+
+def collect_inputs(items: Sequence[str], *, exclude: str | None = None, exclude_suffix: str = ".ngc",
+                   repeats: list[tuple[str, str]] | None = None) -> list[str]:
+    """The input files named by ``items``: files as given, directories searched recursively for
+    CAM files (:data:`CL_SUFFIXES`, :data:`GCODE_SUFFIXES`; regular files only, in name order),
+    glob patterns expanded. Each file once, in the order found.
+
+    Parameters
+    ----------
+    exclude : str | None — the output folder: a directory search does not descend into it; when it is
+        itself a folder searched, its files ending in ``exclude_suffix`` (the programs) are left out
+    repeats : list, optional — gets ``(name, first name)`` for each name of a file found already (the
+        same path twice, or a symbolic link to it): converted once, and said so
+
+    Raises
+    ------
+    InputError
+        An item that names nothing (no such file, or a pattern or directory without CAM files).
+    """
+    found: list[str] = []
+    skip = os.path.realpath(exclude) if exclude is not None else None
+
+    first: dict[str, str] = {}
+
+    def add(path: str) -> None:
+        key = os.path.realpath(path)
+        if key not in first:
+            first[key] = path
+            found.append(path)
+        elif repeats is not None:
+            repeats.append((path, first[key]))
+
+    for item in items:
+        if os.path.isdir(item):
+            hits = list(_search(item, skip, exclude_suffix))
+            if not hits:
+                raise InputError("no CAM files in this directory (searched for "
+                                 f"{', '.join(CL_SUFFIXES + GCODE_SUFFIXES)})", path=item)
+            for hit in hits:
+                add(hit)
+        elif os.path.lexists(item) or not glob.has_magic(item):
+            add(item)                                  # the reader says what is wrong with it
+        else:
+            matches = sorted(glob.glob(item, recursive=True))
+            if not matches:
+                raise InputError("no file matches this pattern", path=item)
+            for match in matches:
+                if os.path.isdir(match):
+                    for hit in _search(match, skip, exclude_suffix):
+                        add(hit)
+                else:
+                    add(match)
+    return found
+
+
+def _search(folder: str, skip: str | None, skip_suffix: str) -> Iterator[str]:
+    """CAM files under ``folder`` in name order: regular files only (a FIFO would block, a device never
+    ends); never inside the output folder ``skip``, except when that is a folder searched itself:
+    then only its files ending in ``skip_suffix`` (programs, maybe of an earlier run) are left out."""
+    suffixes = CL_SUFFIXES + GCODE_SUFFIXES
+    for root, dirs, files in os.walk(folder):
+        dirs.sort()
+        here = os.path.realpath(root)
+        if skip is not None:
+            dirs[:] = [d for d in dirs if os.path.realpath(os.path.join(root, d)) != skip]
+        for name in sorted(files):
+            path = os.path.join(root, name)
+            if not name.lower().endswith(suffixes):
+                continue
+            if here == skip and name.lower().endswith(skip_suffix.lower()):
+                continue
+            try:
+                regular = stat.S_ISREG(os.stat(path).st_mode)
+            except OSError:
+                regular = True                             # unreadable: let the reader say so
+            if regular:
+                yield path
+
+
+def output_path(input_path: str, outdir: str, dialect: Dialect) -> str:
+    """``OUTDIR/<input stem><dialect extension>``."""
+    return os.path.join(outdir, Path(input_path).stem + dialect.extension)
+
+
+def prepare_outdir(outdir: str) -> None:
+    """Create the output folder if it does not exist, and check that files can be made in it.
+
+    Raises
+    ------
+    InputError
+        ``cannot create the output folder: <reason>``, ``is not a folder``, or ``cannot write in the
+        output folder: permission denied`` (or ``read-only file system``).
+    """
+    try:
+        os.makedirs(outdir, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create the output folder: {exc.strerror or exc}", path=outdir) from exc
+    if not os.path.isdir(outdir):
+        raise InputError("is not a folder: give the folder the programs go to", path=outdir)
+    if not os.access(outdir, os.W_OK | os.X_OK):
+        try:
+            read_only = bool(os.statvfs(outdir).f_flag & os.ST_RDONLY)
+        except OSError:
+            read_only = False
+        reason = "read-only file system" if read_only else "permission denied"
+        raise InputError(f"cannot write in the output folder: {reason}", path=outdir)
+
+
+#: What a file whose program exists already (and is kept) fails with.
+EXISTS = "exists already: kept"
+
+
+class OutputExists(InputError):
+    """The program exists already and replacing it was not asked for."""
+
+
+def convert_one(input_path: str, output: str, settings: ConvertSettings, *, force: bool = False) -> FileOutcome:
+    """Convert one file and write its program atomically; every :class:`Prs3Error` becomes a failed outcome."""
+    start = time.perf_counter()
+    try:
+        refuse_overwriting({"its program": output}, {"being converted": input_path})
+        if not force and os.path.lexists(output):
+            raise OutputExists(f"{EXISTS} (it is replaced only when forced)", path=output)
+        report = write_conversion(input_path, output, settings)
+    except Prs3Error as error:
+        message = str(error)
+        # an InputError starts with the file it is about; a limit or reach error found by no line (no
+        # placement fits the whole file) says which input it is about first, as every failure does
+        if not isinstance(error, InputError) and not message.startswith(input_path):
+            message = f"{input_path}: {message}"
+        return FileOutcome(input=input_path, output=output, ok=False, error=message, exit_code=error.exit_code,
+                           seconds=time.perf_counter() - start, exists=isinstance(error, OutputExists))
+    return FileOutcome(input=input_path, output=output, ok=True, report=report,
+                       seconds=time.perf_counter() - start)
+
+
+def _worker_init(threads: int) -> None:
+    """A worker: the kinematics' thread count, and Ctrl-C as in the main process (the forkserver's
+    children inherit an ignored SIGINT): an interrupted write removes its temp file."""
+    os.environ[THREADS_VARIABLE] = str(threads)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def convert_batch(inputs: Sequence[str], outdir: str, settings: ConvertSettings, *, jobs: int = 1,
+                  fail_fast: bool = False, force: bool = False,
+                  on_done: Callable[[FileOutcome], None] | None = None) -> BatchResult:
+    """Convert every input into ``outdir``, ``jobs`` files at a time in worker processes.
+
+    Outputs are :func:`output_path`; two inputs with the same stem would write the same program, so
+    both fail (neither is written: which one wins would depend on timing). An input that would be
+    overwritten by its own output fails. With ``fail_fast`` the first failure stops the batch: files
+    not started are listed in ``not_started``; files under way finish (each is whole or absent).
+
+    Parameters
+    ----------
+    jobs : int — worker processes (1: in this process); each runs the kinematics on
+        ``max(1, cores // jobs)`` threads, so that processes × threads ≤ cores
+    on_done : called in this process with each outcome as it comes (progress)
+
+    Returns
+    -------
+    BatchResult — outcomes in input order
+    """
+    started = time.perf_counter()
+    prepare_outdir(outdir)
+    outputs = [output_path(p, outdir, settings.dialect) for p in inputs]
+    owners: dict[str, list[int]] = {}
+    for index, out in enumerate(outputs):
+        owners.setdefault(os.path.realpath(out), []).append(index)
+    results: dict[int, FileOutcome] = {}
+    todo: list[int] = []
+    for index, out in enumerate(outputs):
+        same = owners[os.path.realpath(out)]
+        if len(same) > 1:
+            others = ", ".join(inputs[i] for i in same if i != index)
+            results[index] = FileOutcome(
+                input=inputs[index], output=out, ok=False, exit_code=2,
+                error=f"{inputs[index]}: has the same name as {others}: both would be written to {out} "
+                      "(convert them into different folders)")
+        else:
+            todo.append(index)
+    for index in sorted(results):
+        if on_done is not None:
+            on_done(results[index])
+    stopped = fail_fast and bool(results)
+    not_started: list[int] = []
+    if stopped:
+        not_started = todo
+    elif jobs <= 1 or len(todo) <= 1:
+        for position, index in enumerate(todo):
+            outcome = convert_one(inputs[index], outputs[index], settings, force=force)
+            results[index] = outcome
+            if on_done is not None:
+                on_done(outcome)
+            if fail_fast and not outcome.ok:
+                not_started = todo[position + 1:]
+                break
+    else:
+        not_started = _run_parallel(inputs, outputs, todo, settings, jobs, fail_fast, force, results, on_done)
+    return BatchResult(outcomes=tuple(results[i] for i in sorted(results)),
+                       not_started=tuple(inputs[i] for i in not_started), seconds=time.perf_counter() - started)
+
+
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def default_jobs() -> int:
+    """Worker processes by default: the cores this process may run on."""
+    return _cores()
+
+
+#: Seconds the workers get to stop by themselves after Ctrl-C before they are sent SIGTERM.
+_STOP_GRACE = 2.0
+
+
+def _stop_workers(processes: list[multiprocessing.process.BaseProcess]) -> None:
+    """After Ctrl-C: a terminal sends SIGINT to every worker too, and each interrupted write removes its
+    temp file; a second signal during that cleanup could cut it short, so SIGTERM goes only to the
+    workers still running after :data:`_STOP_GRACE` (those the signal did not reach)."""
+    deadline = time.monotonic() + _STOP_GRACE
+    for process in processes:
+        process.join(max(0.0, deadline - time.monotonic()))
+    for process in processes:
+        if process.is_alive():
+            process.terminate()                         # SIGTERM: write_atomic removes its temp file
+            process.join()
+
+
+def _run_parallel(inputs: Sequence[str], outputs: list[str], todo: list[int], settings: ConvertSettings, jobs: int,
+                  fail_fast: bool, force: bool, results: dict[int, FileOutcome],
+                  on_done: Callable[[FileOutcome], None] | None) -> list[int]:
+    """Run ``todo`` in a process pool, at most ``jobs`` files at a time; the indices not started."""
+    threads = max(1, _cores() // jobs)
+    pending = list(todo)
+    running: dict[Future[FileOutcome], int] = {}
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    context = multiprocessing.get_context("fork")
+    jobs = min(jobs, len(todo))
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init,
+                             initargs=(threads,)) as pool:
+        try:
+            stop = False
+            while pending or running:
+                while pending and len(running) < jobs and not stop:
+                    index = pending.pop(0)
+                    running[pool.submit(convert_one, inputs[index], outputs[index], settings, force=force)] = index
+                if not running:
+                    break
+                done, _ = wait(running, return_when=FIRST_COMPLETED)
+                for future in done:
+                    index = running.pop(future)
+                    outcome = future.result()
+                    results[index] = outcome
+                    if on_done is not None:
+                        on_done(outcome)
+                    if fail_fast and not outcome.ok:
+                        stop = True
+                if stop and not running:
+                    break
+        except BaseException:                           # Ctrl-C, SIGTERM: stop the workers, whose writes clean up
+            for future in running:
+                future.cancel()
+            workers = list(getattr(pool, "_processes", {}).values())         # no public way to reach them
+            pool.shutdown(wait=False, cancel_futures=True)                  # idle workers exit
+            _stop_workers(workers)
+            raise
+    return pending
+
+
+def outcome_line(outcome: FileOutcome) -> str:
+    """One tab-separated line per file: ``ok<TAB>INPUT<TAB>OUTPUT<TAB>N moves`` or
+    ``failed<TAB>INPUT<TAB>-<TAB>path:line: reason``."""
+    if outcome.ok and outcome.report is not None:
+        r = outcome.report
+        return (f"ok\t{outcome.input}\t{outcome.output}\t{r.input_moves} moves, {r.arcs} arcs, {r.cycle_holes} holes "
+                f"in; {r.emitted_moves} program moves, {r.subdivisions} subdivisions; {outcome.seconds:.3f} s")
+    return f"failed\t{outcome.input}\t-\t{_one_line(outcome.error)}"
+
+
+def _one_line(text: str) -> str:
+    return " ".join(text.split())
+
+
+def batch_summary(result: BatchResult) -> str:
+    """The summary for people: counts, throughput, then every failure (``path:line: reason``)."""
+    converted = len(result.outcomes) - len(result.failures)
+    rate = result.moves / result.seconds if result.seconds > 0 else 0.0
+    lines = [f"prs3-post: converted {converted} of {len(result.outcomes) + len(result.not_started)} files, "
+             f"{result.moves} input moves, arcs and holes in {result.seconds:.2f} s ({rate:,.0f}/s)"]
+    if result.failures:
+        lines.append(f"prs3-post: {len(result.failures)} failed:")
+        lines += [f"  {_one_line(o.error)}" for o in result.failures]
+    if result.not_started:
+        lines.append(f"prs3-post: not started (stopped at the first failure): {', '.join(result.not_started)}")
+    return "\n".join(lines) + "\n"

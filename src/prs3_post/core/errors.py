@@ -1,0 +1,117 @@
+"""The one error hierarchy of prs3-post.
+
+Everything raised on purpose across module boundaries is a :class:`Prs3Error`; the CLI prints it
+as ``where: message`` and exits non-zero, never with a traceback.
+"""
+
+from __future__ import annotations
+
+ECHO_LIMIT = 40
+"""Characters of a user's value that a message shows (a longer one is cut, with ``…``)."""
+
+
+def quoted(value: object, limit: int = ECHO_LIMIT) -> str:
+    """A value from the user's input for a message: ``repr``, cut to ``limit`` characters plus ``…``, so that a
+    10,000-character TOML string or header line is not printed back in full.
+
+    >>> quoted("G0 X1"), quoted("x" * 50), quoted([1.5, "a" * 60], limit=12)
+    ("'G0 X1'", "'xxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxx…'", "[1.5, 'aaaa…")
+    """
+    return repr(shortened(value, limit)) if isinstance(value, str) else shortened(repr(value), limit)
+
+
+def shortened(text: str, limit: int = ECHO_LIMIT) -> str:
+    """``text`` cut to ``limit`` characters, the last one ``…`` (a key or name shown without quotes).
+
+    >>> shortened("step_down"), shortened("x" * 50, limit=8)
+    ('step_down', 'xxxxxxx…')
+    """
+    return text if len(text) <= limit else text[:limit - 1] + "…"
+
+
+class Prs3Error(Exception):
+    """Reported by the CLI as `where: message`; never a traceback."""
+
+    exit_code = 1
+
+    def __reduce__(self) -> tuple[object, ...]:
+        """Pickled with its attributes (``path``, ``line``, ``key``...), whatever its constructor takes:
+        an error of a reader running in another process (:func:`prs3_post.app.read_ahead.read_in_process`)."""
+        return _restored, (type(self), self.args, self.__dict__)
+
+
+def _restored(kind: type[Prs3Error], args: tuple[object, ...], attributes: dict[str, object]) -> Prs3Error:
+    error = kind.__new__(kind)
+    error.args = args
+    error.__dict__.update(attributes)
+    return error
+
+
+class InputError(Prs3Error):
+    """A file or option the user gave is wrong; names the file (and line) and what would be valid."""
+
+    exit_code = 2
+
+    def __init__(self, message: str, *, path: str, line: int | None = None):
+        super().__init__(message)
+        self.path, self.line = path, line
+
+    def __str__(self) -> str:
+        where = self.path if self.line is None else f"{self.path}:{self.line}"
+        return f"{where}: {self.args[0]}"
+
+
+class ConfigError(InputError):
+    """A machine or dialect TOML file is wrong; the message starts with the dotted key."""
+
+
+class LimitError(Prs3Error):
+    """A point would drive the machine past a limit: names the source line/step, limit, value, margin."""
+
+
+class ReachError(Prs3Error):
+    """A pose is outside the workspace (cannot assemble, or needs a stage the machine lacks)."""
+
+
+class PoseError(Prs3Error):
+    """Tool poses that are not numbers, or whose axis is zero or points away from the spindle."""
+
+    exit_code = 2
+
+
+class FeatureError(Prs3Error):
+    """An operation cannot be placed as asked (does not fit the face, tool too big, bad size).
+
+    Attributes
+    ----------
+    key : str | None — the operation's parameter at fault, as a job file's key (``at``, ``side``), if one is
+    operation : int | None — which operation of a job (1-based), once the job knows it
+    """
+
+    exit_code = 2
+
+    def __init__(self, message: str, *, key: str | None = None, operation: int | None = None):
+        super().__init__(message)
+        self.key, self.operation = key, operation
+
+
+class Prs3Warning(UserWarning):
+    """Something looks wrong but may be meant (a part of an unusual size): the CLI prints it as
+    ``prs3-post: warning: message`` on standard error and goes on."""
+
+
+class LexError(Prs3Error):
+    """Text that is not G-code words (:mod:`prs3_post.core.lexer`). It knows neither the file nor the
+    line: a reader wraps it in an :class:`InputError` with both (``raise InputError(...) from exc``).
+
+    Attributes
+    ----------
+    column : int | None — 1-based column in the line (None: not about one line, e.g. undecodable bytes)
+    found : str — the text that could not be read, from where reading stopped (``''`` if none)
+    """
+
+    exit_code = 2
+
+    def __init__(self, message: str, *, column: int | None = None, found: str = ""):
+        super().__init__(message)
+        self.column, self.found = column, found

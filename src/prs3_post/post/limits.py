@@ -1,0 +1,159 @@
+"""Machine limits on every point: values, margins, and the error for the first violation.
+
+A margin is the distance from a value to the nearest bound of its limit, in the limit's unit
+(mm, rad or plain number): positive inside, 0 on the boundary (still allowed), negative outside.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from prs3_post.core.errors import LimitError
+from prs3_post.core.rowwise import same_rows
+from prs3_post.core.types import BoolArray, FloatArray
+from prs3_post.kinematics import IKResult
+from prs3_post.machine.model import Machine
+
+
+@dataclass(frozen=True, slots=True)
+class LimitReport:
+    """Every limit of a machine evaluated on N points.
+
+    Attributes
+    ----------
+    names : (L,) str — ``T1 stroke`` … ``condition number``, ``stage X``
+    units : (L,) str — ``mm``, ``deg`` (values kept in rad) or ``""``
+    low, high : (L,) float — bounds (``-inf`` / ``inf`` where there is none)
+    value : (N, L) float — each point's value (mm, rad, number)
+    margin : (N, L) float — distance to the nearest bound, negative outside
+    ok : (N,) bool — every margin ≥ 0
+    """
+
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    low: FloatArray
+    high: FloatArray
+    value: FloatArray
+    margin: FloatArray
+    ok: BoolArray
+
+    def describe(self, row: int, column: int) -> str:
+        """``T2 stroke 412.3456 mm is above the maximum 400.0000 mm by 12.3456 mm`` (or the margin)."""
+        name, unit = self.names[column], self.units[column]
+        scale = math.degrees(1.0) if unit == "deg" else 1.0
+        value, margin = self.value[row, column] * scale, self.margin[row, column] * scale
+        low, high = self.low[column] * scale, self.high[column] * scale
+        suffix = f" {unit}" if unit else ""
+        value_text, margin_text = _shown(value), _shown(abs(margin))
+        if margin >= 0:
+            return (f"{name} {value_text}{suffix} is within [{low:.4f}, {high:.4f}]{suffix} "
+                    f"with margin {margin_text}{suffix}")
+        if value > high:
+            return f"{name} {value_text}{suffix} is above the maximum {high:.4f}{suffix} by {margin_text}{suffix}"
+        return f"{name} {value_text}{suffix} is below the minimum {low:.4f}{suffix} by {margin_text}{suffix}"
+
+
+def _shown(value: float) -> str:
+    """A value for a message: 4 decimals, or 6 significant digits from 1e9 up (``1e+300``, not 301 digits)."""
+    return f"{value:.4f}" if abs(value) < 1e9 else f"{value:.6g}"
+
+
+def tilt_of(axis: FloatArray) -> FloatArray:
+    """(N,) float — rad, the angle of each unit tool axis (N, 3) from the machine's vertical.
+
+    Rows that all have the bits of the first (a 3+2 chunk) take its angle, computed once.
+    """
+    axis = np.asarray(axis, dtype=np.float64).reshape(-1, 3)
+    if len(axis) > 1 and same_rows(axis):
+        return np.full(len(axis), tilt_of(axis[:1])[0])
+    return np.arccos(np.clip(axis[:, 2], -1.0, 1.0))   # clip: rounding
+
+
+def _groups(machine: Machine, ik: IKResult, axis: FloatArray) -> list[tuple[tuple[str, ...], str, float, float,
+                                                                            FloatArray]]:
+    """The limits of ``machine`` by the bounds they share: names, unit, bounds and the points' values
+    (N, one column per name)."""
+    lim = machine.limits
+    groups: list[tuple[tuple[str, ...], str, float, float, FloatArray]] = [
+        (tuple(f"T{leg + 1} stroke" for leg in range(3)), "mm", *lim.stroke, ik.strokes),
+        (tuple(f"θ{leg + 1} link angle" for leg in range(3)), "deg", *lim.link_angle, ik.link_angle),
+        (("tilt",), "deg", -math.inf, lim.max_tilt, tilt_of(axis)[:, None]),
+        (("condition number",), "", -math.inf, lim.max_condition, ik.condition[:, None]),
+    ]
+    if machine.stage.present:
+        groups.append((("stage X",), "mm", *machine.stage.travel_x, ik.stage[:, 0:1]))
+        groups.append((("stage Y",), "mm", *machine.stage.travel_y, ik.stage[:, 1:2]))
+    return groups
+
+
+def check_limits(machine: Machine, ik: IKResult, axis: FloatArray) -> LimitReport:
+    """Evaluate every limit of ``machine`` on IK results.
+
+    Parameters
+    ----------
+    machine : Machine
+    ik : IKResult — N points
+    axis : (N, 3) float — unit tool axes of the same points (for the tilt)
+
+    Returns
+    -------
+    LimitReport
+    """
+    columns = [(name, unit, low, high, values[:, j])
+               for names, unit, low, high, values in _groups(machine, ik, axis) for j, name in enumerate(names)]
+    low = np.array([c[2] for c in columns])
+    high = np.array([c[3] for c in columns])
+    # one limit per row of (L, N) arrays: each step runs along a contiguous row (the report holds
+    # their (N, L) transposes, views)
+    value = np.stack([c[4] for c in columns]).reshape(len(columns), len(ik.strokes))
+    margin = np.minimum(value - low[:, None], high[:, None] - value)
+    with np.errstate(invalid="ignore"):
+        ok = np.logical_and.reduce(margin >= 0.0, axis=0)   # NaN (unreachable) is never ok
+    return LimitReport(
+        names=tuple(c[0] for c in columns),
+        units=tuple(c[1] for c in columns),
+        low=low,
+        high=high,
+        value=value.T,
+        margin=margin.T,
+        ok=ok,
+    )
+
+
+def within_limits(machine: Machine, ik: IKResult, axis: FloatArray) -> bool:
+    """Whether every point is within every limit, ``check_limits(machine, ik, axis).ok.all()``, from
+    each limit's least and greatest value: no (N, L) report, no temporaries.
+
+    A point is ok exactly where each of its values is finite and low ≤ value ≤ high (a margin
+    min(value − low, high − value) of two floats is ≥ 0 exactly then; an infinite value makes one
+    term NaN or negative, NaN makes both NaN), and a NaN or infinite value makes its column's least
+    or greatest value NaN or infinite, so the extremes of the columns decide.
+    """
+    for _, _, low, high, values in _groups(machine, ik, axis):   # (strokes, link angles: one reduction each)
+        if len(values):
+            least, most = float(values.min()), float(values.max())
+            if not (math.isfinite(least) and math.isfinite(most) and low <= least and most <= high):
+                return False
+    return True
+
+
+def raise_first_violation(report: LimitReport, describe_row: Callable[[int], str], *, scope: str = "in all") -> None:
+    """Raise :class:`LimitError` for the first point outside a limit (its first broken limit), if any.
+
+    Parameters
+    ----------
+    report : LimitReport
+    describe_row : row index → where it came from (``hole 1 feed``, ``part.cl:12``)
+    scope : str — what the count of bad points counts (``in all``: the whole path)
+    """
+    bad = np.flatnonzero(~report.ok)
+    if not len(bad):
+        return
+    row = int(bad[0])
+    column = int(np.flatnonzero(~(report.margin[row] >= 0.0))[0])   # first limit broken (or NaN)
+    count = f" ({len(bad)} points outside limits {scope})" if len(bad) > 1 else ""
+    raise LimitError(f"{describe_row(row)}: {report.describe(row, column)}{count}")
