@@ -68,9 +68,9 @@ def bench(name: str, args: list[str], out: Path, count_rows, repeat: int, target
 
 def formatting_ratios(rows: int, repeat: int) -> None:
     """Bulk formatting against the old one-number-at-a-time way, in this process, alternately."""
-    from prs3_post.core.numbers import ChoiceColumn, render_rows, scale_column
+    from prs3_post.core.numbers import ChoiceColumn, format_word, render_rows, scale_column
     from prs3_post.core.toolpath import JointProgram
-    from prs3_post.emit.gcode import ProgramEmitter, format_word
+    from prs3_post.emit.gcode import ProgramEmitter
     from prs3_post.machine.loading import load_dialect
 
     rng = np.random.default_rng(1)

@@ -21,11 +21,12 @@ import tempfile
 from _measure import measure
 from bench_cl_reader import write_cl
 
+from prs3_post.app.streaming import program_text
 from prs3_post.emit.gcode import emit_program
 from prs3_post.emit.output_files import write_atomic
 from prs3_post.machine.loading import load_dialect, load_machine
 from prs3_post.part.setup_transform import Setup
-from prs3_post.post.pipeline import PostStream, post_process, program_text
+from prs3_post.post.pipeline import PostStream, post_process
 from prs3_post.readers.cl.reader import ClStream, read_cl
 
 MACHINE = load_machine("patel2020")

@@ -23,8 +23,8 @@ from prs3_post.app.job import JobResult, run_job
 from prs3_post.check.verify import Intended, verify_program
 from prs3_post.cli.main import _job_spec, demo, demo_part, main
 from prs3_post.core.errors import ConfigError, FeatureError, Prs3Error
+from prs3_post.core.numbers import format_word
 from prs3_post.core.toolpath import MoveKind
-from prs3_post.emit.gcode import format_word
 from prs3_post.machine.controller_rules import block_problem
 from prs3_post.machine.loading import Dialect, load_dialect, load_machine
 from prs3_post.post.visible_moves import visible_moves

@@ -27,9 +27,10 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from prs3_post.core.errors import ConfigError, LimitError
+from prs3_post.core.numbers import format_word
 from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind
 from prs3_post.emit import gcode
-from prs3_post.emit.gcode import ProgramEmitter, emit_program, format_word, sanitize_comment
+from prs3_post.emit.gcode import ProgramEmitter, emit_program, sanitize_comment
 from prs3_post.machine.loading import Dialect, load_dialect
 
 REPO = Path(__file__).resolve().parents[1]

@@ -37,7 +37,7 @@ SOURCE_MODULES = ("prs3_post.machine.cam_conventions",)
 #: The paper's per-leg IK (``--model paper``, for validation only).
 PAPER_MODULES = ("prs3_post.kinematics.prs3.paper",)
 #: The ik/fk tables and the pose CSV reader, which a plain verify needs neither of.
-TABLE_MODULES = ("prs3_post.emit.pose_tables", "prs3_post.readers.poses")
+TABLE_MODULES = ("prs3_post.app.pose_tables", "prs3_post.readers.poses")
 
 _PROBE = """
 import json, sys

@@ -31,6 +31,7 @@ import numpy as np
 
 from prs3_post import __version__
 from prs3_post.app.read_ahead import read_ahead, read_in_process
+from prs3_post.app.streaming import emitted_text, program_text
 from prs3_post.core.errors import InputError, LimitError, PoseError, Prs3Error, ReachError
 from prs3_post.core.input_files import open_input
 from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpath, join_programs
@@ -48,10 +49,8 @@ from prs3_post.post.pipeline import (
     PostCounts,
     PostResult,
     PostStream,
-    emitted_text,
     model_for,
     place_toolpath,
-    program_text,
 )
 from prs3_post.readers.cl.reader import ClFile, ClStream, join_toolpaths
 from prs3_post.readers.detect import DETECT_BYTES, FORMATS, detect_format
@@ -533,7 +532,7 @@ def _placed(error: LimitError | ReachError, run: _Run) -> Exception:
 
 def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) -> tuple[_Run, HeadLast]:
     """The conversion of one file as program text whose header is made last: the body's chunks are
-    lazy (see :func:`prs3_post.post.pipeline.program_text`), and the head, with the counts, is made once
+    lazy (see :func:`prs3_post.app.streaming.program_text`), and the head, with the counts, is made once
     they are through (:class:`prs3_post.emit.output_files.HeadLast`: a writer spools the body, then writes the
     head and the body). The run's :meth:`_Run.report` follows the body."""
     run = _start(path, settings)

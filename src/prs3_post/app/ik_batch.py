@@ -2,7 +2,7 @@
 
 The table is read, solved, checked and written a chunk of lines at a time
 (:func:`~prs3_post.readers.poses_bulk.iter_poses_bulk`, :func:`~prs3_post.kinematics.inverse`,
-:func:`~prs3_post.post.limits.check_limits`, :func:`~prs3_post.emit.pose_tables.ik_csv_rows`), so memory stays
+:func:`~prs3_post.post.limits.check_limits`, :func:`~prs3_post.app.pose_tables.ik_csv_rows`), so memory stays
 flat whatever the table's length; the writer (:mod:`prs3_post.emit.output_files`) puts the chunks into a temp
 file and renames it only when the last one is written, so a bad line anywhere leaves no output file.
 A large table is read by pyarrow's CSV parser (:mod:`prs3_post.readers.poses_bulk`).
@@ -15,9 +15,9 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from prs3_post.app.pose_tables import ik_csv_header, ik_csv_rows
 from prs3_post.core.errors import InputError, PoseError
 from prs3_post.core.types import FloatArray
-from prs3_post.emit.pose_tables import ik_csv_header, ik_csv_rows
 from prs3_post.kinematics import IKModel, inverse, unit_axes
 from prs3_post.kinematics.prs3.exact import IKResult
 from prs3_post.machine.loading import Machine

@@ -30,6 +30,7 @@ from prs3_post.check.collision import Approach, ProgramClearance, feed_tips_of, 
 from prs3_post.check.placement import PlacementResult, place, placement_error, suggest_origin
 from prs3_post.core.defaults import DEFAULT_TOLERANCE
 from prs3_post.core.errors import FeatureError, InputError, LimitError, ReachError
+from prs3_post.core.numbers import exact_text
 from prs3_post.core.toolpath import (
     Event,
     EventKind,
@@ -42,7 +43,7 @@ from prs3_post.core.toolpath import (
 )
 from prs3_post.core.types import FloatArray
 from prs3_post.emit.gcode import ProgramEmitter
-from prs3_post.emit.header import OperationRecord, ProgramHeader, ToolRecord, exact_text, file_sha256, header_entries
+from prs3_post.emit.header import OperationRecord, ProgramHeader, ToolRecord, file_sha256, header_entries
 from prs3_post.kinematics import IKResult
 from prs3_post.machine.loading import Dialect, Machine, file_given
 from prs3_post.part.face import Face

@@ -940,7 +940,7 @@ class ProgramClearance:
         """The header's ``collision`` entry: ``clear of the part by at least 1.000 mm: tool 3.250 mm,
         holder over 11.000 mm, spindle nose over 11.000 mm`` (``cam``: the tool is not checked;
         ``rapids``: a CAM program's tool, checked in its rapids only)."""
-        from prs3_post.emit.header import exact_text
+        from prs3_post.core.numbers import exact_text
 
         shown = [f"{name} {'' if exact else 'over '}{d:.3f} mm" for name, d, exact in zip(
             BODY_NAMES, self.distance.tolist(), self.exact.tolist(), strict=True)]
@@ -1047,7 +1047,7 @@ def feed_tips_of(machine: Machine, program: JointProgram) -> FloatArray:
 
 
 def _exact(value: float) -> str:
-    from prs3_post.emit.header import exact_text
+    from prs3_post.core.numbers import exact_text
 
     return exact_text(value, 3)
 

@@ -40,10 +40,10 @@ import numpy as np
 
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.core.errors import LimitError, ReachError
+from prs3_post.core.numbers import exact_text
 from prs3_post.core.numbers import fixed as _fixed
 from prs3_post.core.toolpath import Toolpath
 from prs3_post.core.types import BoolArray, FloatArray
-from prs3_post.emit.header import exact_text
 from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, inverse, unit_axes
 from prs3_post.machine.loading import Machine
 from prs3_post.part.setup_transform import MAX_ORIGIN_MM, Setup, SetupError

@@ -484,7 +484,7 @@ def ik(tip: tuple[float, ...] | None, axis: tuple[float, ...] | None, batch_path
       prs3-post ik --tip -81.0264,21.2132,-679.4865 --axis 0.447214,0,0.894427 --json
       prs3-post ik --batch poses.csv -o strokes.csv
     """
-    from prs3_post.emit.pose_tables import ik_records, ik_text
+    from prs3_post.app.pose_tables import ik_records, ik_text
 
     def body() -> int:
         machine = load_machine(machine_name)
@@ -536,7 +536,7 @@ def fk(strokes: tuple[float, ...], xy: tuple[float, ...], machine_name: str, as_
     Example:
       prs3-post fk --strokes 36.2244,170.3886,88.9519 --xy -2.7640,12.0703
     """
-    from prs3_post.emit.pose_tables import fk_records, fk_text
+    from prs3_post.app.pose_tables import fk_records, fk_text
 
     def body() -> int:
         machine = load_machine(machine_name)

@@ -21,6 +21,7 @@ are formatted one by one with :func:`fixed`; the rest never touch Python floats.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -611,3 +612,46 @@ class _Field:
         for row, text in self.odd:
             grid[offset:end, row] = 0
             grid[end - len(text):end, row] = np.frombuffer(text, dtype=np.uint8)
+
+def exact_text(value: float, decimals: int) -> str:
+    """``value`` in fixed decimals, at least ``decimals`` and as many more as reading it back exactly takes.
+
+    >>> exact_text(6.0, 3), exact_text(2.00001, 3), exact_text(-0.0, 4), exact_text(0.1 + 0.2, 1)
+    ('6.000', '2.00001', '0.0000', '0.30000000000000004')
+    """
+    for places in range(decimals, 25):
+        text = fixed(value, places)
+        if float(text) == value:
+            return text
+    return repr(float(value))                           # not reached for finite values
+
+def format_word(letter: str, value: float, decimals: int) -> str:
+    """One G-code word with fixed decimals: never exponent notation, never ``-0.000``.
+
+    Parameters
+    ----------
+    letter : str
+        The word letter (``X``).
+    value : float
+        The number; rounded half-even on its binary value by Python's fixed-point formatting.
+    decimals : int
+        Digits after the decimal point (0: no decimal point).
+
+    Returns
+    -------
+    str
+        e.g. ``X-12.3457``; ``X0.0000`` for ``-0.00004``.
+
+    Raises
+    ------
+    ValueError
+        When ``value`` is nan or infinite (the caller, which knows the row, reports it).
+
+    Examples
+    --------
+    >>> format_word("X", -0.00004, 4), format_word("U", 1e-5, 4), format_word("F", 2.0, 0)
+    ('X0.0000', 'U0.0000', 'F2')
+    """
+    if not math.isfinite(value):
+        raise ValueError(f"{letter}: {value!r} is not a finite number")
+    return f"{letter}{fixed(value, decimals)}"

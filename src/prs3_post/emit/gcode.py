@@ -45,7 +45,7 @@ from functools import lru_cache
 import numpy as np
 
 from prs3_post.core.errors import LimitError
-from prs3_post.core.numbers import ChoiceColumn, ScaledColumn, fixed, render_rows, scale_column
+from prs3_post.core.numbers import ChoiceColumn, ScaledColumn, fixed, format_word, render_rows, scale_column
 from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 from prs3_post.machine.dialect import COMMENT_CONTINUATION as _CONTINUATION
@@ -53,36 +53,6 @@ from prs3_post.machine.dialect import CommentStyle, Dialect
 
 __all__ = ["ProgramEmitter", "emit_program", "format_word", "inert", "sanitize_comment"]
 
-def format_word(letter: str, value: float, decimals: int) -> str:
-    """One G-code word with fixed decimals: never exponent notation, never ``-0.000``.
-
-    Parameters
-    ----------
-    letter : str
-        The word letter (``X``).
-    value : float
-        The number; rounded half-even on its binary value by Python's fixed-point formatting.
-    decimals : int
-        Digits after the decimal point (0: no decimal point).
-
-    Returns
-    -------
-    str
-        e.g. ``X-12.3457``; ``X0.0000`` for ``-0.00004``.
-
-    Raises
-    ------
-    ValueError
-        When ``value`` is nan or infinite (the caller, which knows the row, reports it).
-
-    Examples
-    --------
-    >>> format_word("X", -0.00004, 4), format_word("U", 1e-5, 4), format_word("F", 2.0, 0)
-    ('X0.0000', 'U0.0000', 'F2')
-    """
-    if not math.isfinite(value):
-        raise ValueError(f"{letter}: {value!r} is not a finite number")
-    return f"{letter}{fixed(value, decimals)}"
 
 
 def sanitize_comment(text: str, style: CommentStyle) -> str:

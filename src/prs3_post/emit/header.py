@@ -50,6 +50,7 @@ import numpy as np
 
 from prs3_post.core.errors import InputError, Prs3Error, quoted
 from prs3_post.core.input_files import open_input
+from prs3_post.core.numbers import exact_text
 from prs3_post.core.numbers import fixed as _fixed
 from prs3_post.core.types import FloatArray
 from prs3_post.machine.dialect import COMMENT_CONTINUATION
@@ -315,17 +316,6 @@ def file_sha256(path: str) -> str:
 # ============================================================================ numbers
 
 
-def exact_text(value: float, decimals: int) -> str:
-    """``value`` in fixed decimals, at least ``decimals`` and as many more as reading it back exactly takes.
-
-    >>> exact_text(6.0, 3), exact_text(2.00001, 3), exact_text(-0.0, 4), exact_text(0.1 + 0.2, 1)
-    ('6.000', '2.00001', '0.0000', '0.30000000000000004')
-    """
-    for places in range(decimals, 25):
-        text = _fixed(value, places)
-        if float(text) == value:
-            return text
-    return repr(float(value))                           # not reached for finite values
 
 
 def degrees_text(radians: float, decimals: int) -> str:

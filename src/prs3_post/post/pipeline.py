@@ -9,14 +9,14 @@ came from; nothing is emitted for a program that has one.
 :class:`PostStream` takes the toolpath in consecutive chunks and carries what a row depends on
 from the rows before it (the last pose, for the subdivision of the move to the next row and for
 its inverse-time feed; the last row kept, for the resolution guard), so that the rows it makes are
-those of :func:`post_process` on the whole toolpath, cut in the same places. :func:`program_text`
+those of :func:`post_process` on the whole toolpath, cut in the same places. ``app.streaming.program_text``
 adds the emitter: an iterator of toolpath chunks becomes an iterator of G-code text chunks, ready
 for :func:`prs3_post.emit.output_files.write_atomic`, whose bytes do not depend on the chunking.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import partial
 
@@ -27,9 +27,7 @@ from prs3_post.core.errors import LimitError, PoseError, ReachError
 from prs3_post.core.rowwise import row_lengths
 from prs3_post.core.toolpath import JointProgram, MoveKind, Toolpath
 from prs3_post.core.types import FloatArray
-from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.kinematics import AxisMemo, IKModel, IKResult, inverse, unit_axes
-from prs3_post.machine.dialect import Dialect
 from prs3_post.machine.model import Machine
 from prs3_post.part.setup_transform import Setup
 from prs3_post.post.dynamics import DynamicsTally, joint_columns
@@ -38,7 +36,7 @@ from prs3_post.post.linearize import linearize, subdivide_axis_changes
 from prs3_post.post.visible_moves import VisibleMoves
 
 __all__ = ["PostCounts", "PostResult", "PostStream", "inverse_time", "machine_path", "model_for",
-           "place_toolpath", "post_process", "program_text"]
+           "place_toolpath", "post_process"]
 
 
 def place_toolpath(path: Toolpath, setup: Setup) -> Toolpath:
@@ -297,53 +295,6 @@ def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, toleran
                         length_decimals=length_decimals, clamp=clamp)
     return stream._post(path_part, scope="in all")
 
-
-def program_text(machine: Machine, chunks: Iterable[Toolpath], setup: Setup, dialect: Dialect, *,
-                 header: tuple[tuple[str, str], ...] = (), tolerance: float = DEFAULT_TOLERANCE,
-                 angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, line_numbers: bool | None = None,
-                 line_start: int | None = None, line_step: int | None = None,
-                 stream: PostStream | None = None) -> Iterator[str]:
-    """The program of a toolpath given in chunks, as chunks of G-code text (begin, one per chunk, end).
-
-    The concatenation is byte for byte the program of the whole toolpath post-processed in one piece
-    (:func:`post_process` with ``length_decimals`` = the dialect's) and emitted with
-    :func:`~prs3_post.emit.gcode.emit_program`. Lazy: a chunk is read, checked and formatted when
-    its text is asked for, so ``write_atomic(path, program_text(...))`` holds one chunk at a time
-    and leaves no file when a chunk raises.
-
-    Parameters
-    ----------
-    machine, setup, tolerance, angle_tolerance : as :func:`post_process`
-    chunks : iterable of Toolpath — the part-frame toolpath, in order (placed already when ``stream`` is ``placed``)
-    dialect, header, line_numbers, line_start, line_step : as :func:`~prs3_post.emit.gcode.emit_program`
-    stream : PostStream, optional — the stream to feed (made here when None); pass one to read its
-        :meth:`~PostStream.finish` counts afterwards (it must use the dialect's length decimals)
-
-    Raises
-    ------
-    ReachError, LimitError
-        As :meth:`PostStream.feed` and :func:`~prs3_post.emit.gcode.emit_program`, when the text
-        of the chunk concerned is asked for.
-    """
-    if stream is None:
-        stream = PostStream(machine, setup, tolerance=tolerance, angle_tolerance=angle_tolerance,
-                            length_decimals=dialect.decimals.length)
-    fed = stream
-    return emitted_text(machine, (fed.feed(chunk).program for chunk in chunks), dialect, header=header,
-                        line_numbers=line_numbers, line_start=line_start, line_step=line_step)
-
-
-def emitted_text(machine: Machine, programs: Iterable[JointProgram], dialect: Dialect, *,
-                 header: tuple[tuple[str, str], ...] = (), line_numbers: bool | None = None,
-                 line_start: int | None = None, line_step: int | None = None) -> Iterator[str]:
-    """:func:`program_text` of the chunks post-processed already (``programs``, in order): its begin,
-    one text per program, its end."""
-    emitter = ProgramEmitter(dialect, stage=machine.stage.present, line_numbers=line_numbers,
-                             line_start=line_start, line_step=line_step)
-    yield emitter.begin(header)
-    for program in programs:
-        yield emitter.rows(program)
-    yield emitter.end()
 
 
 def _check_end_points(machine: Machine, path: Toolpath, model: IKModel, scope: str,

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from prs3_post.core.numbers import format_word
 from prs3_post.core.rowwise import row_all, row_any, row_lengths, same_rows
 from prs3_post.core.types import BoolArray, FloatArray
-from prs3_post.emit.gcode import format_word
 
 __all__ = ["VisibleMoves", "length_resolution", "printed_units", "visible_moves"]
 
