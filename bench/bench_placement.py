@@ -46,7 +46,8 @@ def main() -> None:
     args = parser.parse_args()
 
     from prs3_post.app.job import run_operations
-    from prs3_post.cli.main import _job_spec, _job_specs, run
+    from prs3_post.cli.run import _job_specs, run
+    from prs3_post.cli.run import job_spec as _job_spec
     from prs3_post.readers.jobfile import read_job_file
 
     wedge = str(REPO / "postproc" / "parts" / "patel2020-wedge.stl")

@@ -364,7 +364,7 @@ def test_running_out_of_memory_is_one_line_not_a_traceback(tmp_path: Path, monke
                                                           forked: bool) -> None:
     """QA ran convert under ``ulimit -v``: numpy's MemoryError, raised in the reading process and
     raised again here, ended in a traceback."""
-    from prs3_post.cli.main import OUT_OF_MEMORY
+    from prs3_post.cli.options import OUT_OF_MEMORY
     from prs3_post.readers.cl.reader import ClStream
 
     def starved(self: ClStream):

@@ -19,7 +19,8 @@ from click.testing import CliRunner
 
 from prs3_post.app.job import JobSpec, job_in_part_frame, run_job, run_operations
 from prs3_post.check.placement import place
-from prs3_post.cli.main import _job_specs, main
+from prs3_post.cli.main import main
+from prs3_post.cli.run import _job_specs
 from prs3_post.core.errors import LimitError, ReachError
 from prs3_post.core.toolpath import Toolpath
 from prs3_post.emit.header import read_header

@@ -21,7 +21,10 @@ from hypothesis import strategies as st
 
 from prs3_post.app.job import JobResult, run_job
 from prs3_post.check.verify import Intended, verify_program
-from prs3_post.cli.main import _job_spec, demo, demo_part, main
+from prs3_post.cli.main import main
+from prs3_post.cli.options import demo_part
+from prs3_post.cli.run import demo
+from prs3_post.cli.run import job_spec as _job_spec
 from prs3_post.core.errors import ConfigError, FeatureError, Prs3Error
 from prs3_post.core.numbers import format_word
 from prs3_post.core.toolpath import MoveKind

@@ -28,7 +28,8 @@ from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from prs3_post.cli.main import Decimal, Integer, Numbers, OutputPath, main
+from prs3_post.cli.main import main
+from prs3_post.cli.options import Decimal, Integer, Numbers, OutputPath
 
 REPO = Path(__file__).resolve().parents[1]
 

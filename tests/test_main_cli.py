@@ -15,7 +15,8 @@ import pytest
 from click.testing import CliRunner
 from numpy.testing import assert_allclose
 
-from prs3_post.cli.main import demo, main, run
+from prs3_post.cli.main import main
+from prs3_post.cli.run import demo, run
 
 REPO = Path(__file__).resolve().parents[1]
 WEDGE = "fixtures/parts/wedge.stl"

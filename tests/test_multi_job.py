@@ -40,7 +40,7 @@ def example(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, JobResult]:
     out = tmp_path_factory.mktemp("job") / "example.ngc"
     result = run_cli("job", str(EXAMPLE), "-o", str(out))
     assert result.exit_code == 0, result.output
-    from prs3_post.cli.main import _job_specs
+    from prs3_post.cli.run import _job_specs
 
     return out, run_operations(_job_specs(read_job_file(str(EXAMPLE))))
 

@@ -15,7 +15,8 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from prs3_post.cli.main import demo_part, main
+from prs3_post.cli.main import main
+from prs3_post.cli.options import demo_part
 from prs3_post.core.errors import InputError
 from prs3_post.emit import output_files as output_module
 from prs3_post.emit.output_files import HeadLast, write_atomic, write_outputs

@@ -50,7 +50,7 @@ def verify_json(*args: str):
 
 def test_reader_reads_back_what_the_emitter_wrote():
     """Every row, F word and event of a job's program comes back from its text (4 decimals)."""
-    from prs3_post.cli.main import _job_spec
+    from prs3_post.cli.run import job_spec as _job_spec
 
     opts = dict(profile="hole", face_choice="auto", at_uv=(), at_xyz=(), units="mm", depth=5.0, peck=2.0,
                 reapproach_gap=0.5, dwell=0.5, size=30.0, corner_radius=0.0, rotation=0.0, diameter=30.0,

@@ -1,0 +1,252 @@
+"""`convert`: CAM output (APT CL files, 3+2 and 5-axis G-code) into programs for this machine."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import re
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import click
+
+from prs3_post.cli.options import (
+    ANGLE,
+    CLEARANCE_MIN,
+    LENGTH,
+    Command,
+    Decimal,
+    Integer,
+    OutputPath,
+    dialect_option,
+    job_part_origin_option,
+    job_part_rotation_option,
+    line_number_options,
+    machine_option,
+    resolve_setup,
+    run_reported,
+    tolerance_option,
+    up_option,
+    was_given,
+)
+from prs3_post.core.errors import ConfigError, FeatureError, InputError, quoted
+from prs3_post.core.lexer import code_name
+from prs3_post.emit.output_files import (
+    check_writable,
+    refuse_overwriting,
+    write_atomic,
+)
+from prs3_post.machine.loading import (
+    load_dialect,
+    load_machine,
+    load_source,
+)
+from prs3_post.part.setup_transform import AUTO
+from prs3_post.readers.detect import FORMATS
+from prs3_post.toolpaths.common import TOOL_DIAMETER_RANGE, require_tolerance
+
+# What only some commands need is imported where it is used (the main job, convert, verify, preview,
+# faces: each about 0.1 s of imports), so that `ik`, `fk` and a small `verify` start fast.
+if TYPE_CHECKING:
+    from prs3_post.app.convert import FileOutcome
+
+
+def _codes_option(text: str | None, flag: str) -> tuple[str, ...] | None:
+    """``G43.4,M428`` → ``("G43.4", "M428")`` (as :func:`~prs3_post.core.lexer.code_name` writes them)."""
+    if text is None:
+        return None
+    codes = []
+    for item in text.split(","):
+        match = re.fullmatch(r"\s*([GgMm])([0-9]+(?:\.[0-9]+)?)\s*", item)
+        if match is None:
+            raise click.BadParameter(f"expected G or M codes separated by commas (e.g. G43.4,M428), got {quoted(text)}",
+                                     param_hint=f"'{flag}'")
+        codes.append(code_name(match[1].upper(), float(match[2])))
+    return tuple(codes)
+
+
+@click.command(cls=Command)
+@click.argument("inputs", nargs=-1, required=True, metavar="INPUT...")
+@click.option("-o", "--output-dir", "outdir", type=click.Path(file_okay=False), required=True, metavar="OUTDIR",
+              help="Folder for the programs, OUTDIR/<input stem><dialect extension> (created if missing).")
+@click.option("--jobs", type=Integer(1, 1024), default=None, help="Files converted at a time, in worker processes.  "
+              "[default: the number of cores]")
+@click.option("--fail-fast", is_flag=True, help="Stop at the first file that fails (files under way finish).")
+@click.option("--force", is_flag=True,
+              help="Replace programs that exist already (default: keep them; that file fails).")
+@click.option("--format", "input_format", type=click.Choice(list(FORMATS)), default="auto", show_default=True,
+              help="Input format: by content (CL records or G-code words), or forced.")
+@click.option("--report", "report_path", type=OutputPath(), metavar="FILE.json",
+              help="Write every file's accounting (records by word, moves, subdivisions, deviations) as JSON.")
+@click.option("--tool-length", type=Decimal(LENGTH, low=0.0, low_open=True), default=None, metavar="MM",
+              help="Platform centre to tool tip for the IK, mm.  [default: the machine's tool_length_mm]")
+@click.option("--angle-tolerance", "angle_tolerance_deg", type=Decimal(ANGLE, low=0.0, low_open=True), default=0.01,
+              show_default=True, metavar="DEG", help="Allowed tool-axis deviation of axis-changing moves, degrees.")
+@click.option("--units", type=click.Choice(["mm", "inch"]), default=None,
+              help="Length unit of CL files without UNITS/.  [default: inch when the feeds are IPM/IPR, else mm]")
+@click.option("--work-plane", "work_plane_text", default=None, metavar="PART.stl[:FACE]|OX,OY,OZ,NX,NY,NZ[,XX,XY,XZ]",
+              help="Where a G-code program's X, Y, Z are in the part: a face frame (u, v, w) or origin, normal, x.")
+@click.option("--ignore", "ignore_words", multiple=True, metavar="WORD",
+              help="Skip (and count) this unknown CL major word instead of failing (repeatable).")
+@click.option("--source", "source_name", default=None, metavar="NAME|PATH",
+              help="Read G-code as a 5-axis program of this source machine (see `prs3-post sources`).")
+@click.option("--tcp-on", "tcp_on", default=None, metavar="CODES",
+              help="Codes that switch the source's TCP on, comma-separated (e.g. G43.4).  [default: the source's]")
+@click.option("--tcp-off", "tcp_off", default=None, metavar="CODES",
+              help="Codes that switch the source's TCP off, comma-separated (e.g. G49).  [default: the source's]")
+@click.option("--part", "part_path", type=click.Path(exists=True, dir_okay=False), default=None, metavar="PART.stl",
+              help="The part: every program is checked against it before it is written (the holder and the "
+                   "spindle nose; the tool in the rapids: in the feeds it cuts what the CAM program removes).  "
+                   "[default: not checked]")
+@click.option("--part-units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True,
+              help="Length unit of the --part and --work-plane STL (--units is the CL files').")
+@up_option
+@click.option("--collision-check/--no-collision-check", default=True, show_default=True,
+              help="With --part: check the holder, spindle nose and the tool in the rapids against it; the header "
+                   "says when it was skipped.")
+@click.option("--clearance-min", type=CLEARANCE_MIN, default=1.0, show_default=True,
+              help="With --part: least distance the holder and spindle nose keep from it, mm.")
+@click.option("--tool-diameter", "tool_diameter", type=Decimal(LENGTH), default=None, metavar="MM",
+              help="With --part: the tool's diameter for its check in the rapids, mm (0.01 to 500).  [default: the "
+                   "smallest of a CL file's TLDATA/ diameters; G-code states none: the tool's axis, 0 mm radius]")
+@machine_option
+@job_part_origin_option
+@job_part_rotation_option
+@dialect_option
+@line_number_options[0]
+@line_number_options[1]
+@line_number_options[2]
+@tolerance_option
+def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: bool, force: bool, input_format: str,
+            report_path: str | None, tool_length: float | None, angle_tolerance_deg: float, units: str | None,
+            work_plane_text: str | None, ignore_words: tuple[str, ...], source_name: str | None,
+            tcp_on: str | None, tcp_off: str | None, part_path: str | None, part_units: str, up: str,
+            collision_check: bool, clearance_min: float, tool_diameter: float | None, machine_name: str,
+            part_origin: tuple[float, ...] | str | None, part_rotation: float | str | None, dialect_name: str,
+            line_numbers: bool | None, line_start: int | None, line_step: int | None, tolerance: float) -> None:
+    """Convert CAM output (APT CL files, 3+2 G-code) into programs for this machine.
+
+    INPUT is a file, a directory (searched recursively for .cls .clsf .cl .apt .nc .ngc .gcode
+    .tap ... files) or a glob pattern. Each file goes through the main job's pipeline: setup, exact
+    IK, subdivision of axis-changing moves, every point checked against every limit; its program
+    is written whole or not at all. A failing file does not stop the others (unless --fail-fast);
+    the summary lists every failure with file:line and reason. Exit status: 0 all converted; else
+    the worst failure's: 2 for bad input (a file unreadable or not understood, an output kept
+    because it exists) or bad options, 1 for a point outside a limit or out of reach, or files
+    not started (--fail-fast).
+
+    \b
+    Examples:
+      prs3-post convert ../shared/corpus/cl/mech491_APT_SimpleMillPlane.cls -o out --part-origin 0,-17.2,-856
+      prs3-post convert cam/ -o out --part-origin auto --jobs 2 --report out/report.json
+    """
+    from prs3_post.app.convert import (
+        ConvertSettings,
+        batch_summary,
+        collect_inputs,
+        convert_batch,
+        default_jobs,
+        outcome_line,
+        output_path,
+        prepare_outdir,
+    )
+    from prs3_post.part.workplane import WorkPlaneError, work_plane_from_text
+
+    def body() -> int:
+        require_tolerance(tolerance)
+        if outdir == "-":                                # it made a folder named '-'
+            raise click.BadParameter("'-' is no folder: convert writes one program per input into OUTDIR, standard "
+                                     "output cannot take them (a folder named '-' is ./-)",
+                                     param_hint="'-o' / '--output-dir'")
+        if report_path == "-":                           # the JSON went among the per-file lines
+            raise click.BadParameter("'-': standard output has one line per file already, the report would be "
+                                     "mixed into them (a file named '-' is ./-)", param_hint="'--report'")
+        for word in ignore_words:
+            if not word.strip():                         # a word no record has: taken, and nothing ignored
+                raise click.BadParameter(f"{word!r}: give a CL major word, like PAINT", param_hint="'--ignore'")
+        if part_path is None:                            # else taken and ignored: the user believed it checked
+            ctx = click.get_current_context()
+            for name, flag in (("tool_diameter", "--tool-diameter"), ("clearance_min", "--clearance-min")):
+                if was_given(ctx, name):
+                    raise click.UsageError(f"{flag} is used only with --part PART.stl (the check against the part): "
+                                           "give the part, or leave it out")
+        low, high = TOOL_DIAMETER_RANGE
+        if tool_diameter is not None and not low <= tool_diameter <= high:
+            raise click.BadParameter(f"must be from {low:g} to {high:g} mm (got {tool_diameter:g})",
+                                     param_hint="'--tool-diameter'")
+        machine = load_machine(machine_name)
+        dialect = load_dialect(dialect_name)
+        try:
+            plane = (work_plane_from_text(work_plane_text, units=part_units, up=up)[0]
+                     if work_plane_text is not None else None)
+        except (WorkPlaneError, InputError, FeatureError) as error:
+            raise click.BadParameter(str(error), param_hint="'--work-plane'") from error
+        source = None if source_name is None else load_source(source_name)
+        if source is None:                               # else taken and ignored: a 3+2 or CL input has no TCP
+            for flag, text in (("--tcp-on", tcp_on), ("--tcp-off", tcp_off)):
+                if text is not None:
+                    raise click.UsageError(f"{flag} is used only with --source (a 5-axis program's TCP codes): "
+                                           "give the source machine, or leave it out")
+        codes_on, codes_off = _codes_option(tcp_on, "--tcp-on"), _codes_option(tcp_off, "--tcp-off")
+        try:
+            settings = ConvertSettings(
+                machine=machine, dialect=dialect, setup=resolve_setup(machine, part_origin, part_rotation),
+                tolerance=tolerance, angle_tolerance_deg=angle_tolerance_deg, tool_length=tool_length,
+                input_format=input_format, units=units, ignore=tuple(w.upper() for w in ignore_words),
+                work_plane=plane, source=source, tcp_on=codes_on, tcp_off=codes_off,
+                line_numbers=line_numbers, line_start=line_start, line_step=line_step,
+                auto_origin=part_origin == AUTO, auto_rotation=part_rotation == AUTO, part=part_path,
+                part_units=part_units, part_up=up, collision_check=collision_check, clearance_min=clearance_min,
+                tool_diameter=tool_diameter)
+        except ConfigError as error:                     # the TCP codes given do not work with the source
+            given = [f"'{flag}'" for flag, codes in (("--tcp-on", codes_on), ("--tcp-off", codes_off)) if codes]
+            if source is None or not given:
+                raise
+            raise click.BadParameter(f"{error.args[0]} (source {source.name})", param_hint=" / ".join(given)) from error
+        repeats: list[tuple[str, str]] = []
+        files = collect_inputs(inputs, exclude=outdir, exclude_suffix=dialect.extension, repeats=repeats)
+        if report_path is not None:
+            refuse_overwriting({"--report": report_path}, {f"{i + 1} ({f})": f for i, f in enumerate(files)})
+            for file in files:                           # the report must not replace a program either
+                refuse_overwriting({f"the program of {file}": output_path(file, outdir, dialect),
+                                    "--report": report_path}, {})
+            # before any work: a report that cannot be written (its folder may be OUTDIR, made by the batch)
+            # realpath, not Path.resolve(): a loop of symbolic links is check_writable's clear error, not a RuntimeError
+            folder, made = Path(os.path.realpath(report_path)).parent, Path(os.path.realpath(outdir))
+            if folder == made:                           # (a report beside OUTDIR: no folder made if it fails)
+                prepare_outdir(outdir)
+            check_writable(report_path)
+        count = jobs or default_jobs()
+        terminal = sys.stderr.isatty()
+        if terminal:
+            with click.progressbar(length=len(files), label="converting", file=sys.stderr) as bar:
+                result = convert_batch(files, outdir, settings, jobs=count, fail_fast=fail_fast, force=force,
+                                       on_done=lambda outcome: bar.update(1))
+        else:
+            result = convert_batch(files, outdir, settings, jobs=count, fail_fast=fail_fast, force=force,
+                                   on_done=lambda outcome: click.echo(outcome_line(_flag_named(outcome))))
+        result = dataclasses.replace(result, outcomes=tuple(_flag_named(o) for o in result.outcomes))
+        if report_path is not None:
+            write_atomic(report_path, json.dumps(result.record(), indent=1, allow_nan=False) + "\n")
+        click.echo(batch_summary(result), err=True, nl=False)
+        if repeats:                                  # nothing named is left unsaid
+            click.echo(f"prs3-post: {len(repeats)} more name{'s' if len(repeats) > 1 else ''} of files above, "
+                       "each converted once: " + ", ".join(f"{name} (= {same})" for name, same in repeats), err=True)
+        # the project's exit codes hold for a batch too: 2 when any file was bad input (unreadable, not
+        # understood), else 1 when any failed a limit or reach or was not started, else 0
+        codes = [outcome.exit_code for outcome in result.failures] + [1] * bool(result.not_started)
+        return max(codes, default=0)
+
+    run_reported(body)
+
+
+def _flag_named(outcome: FileOutcome) -> FileOutcome:
+    """A kept program's failure says which option replaces it (the library names no option)."""
+    from prs3_post.app.convert import EXISTS
+
+    if not outcome.exists:
+        return outcome
+    return dataclasses.replace(outcome, error=f"{outcome.output}: {EXISTS} (convert with --force to replace it)")
+

@@ -1,0 +1,101 @@
+"""The listing commands: `machines`, `sources` (shipped configuration) and `faces` (a part's faces)."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from prs3_post.cli.options import Command, run_reported, up_option
+from prs3_post.core.errors import FeatureError
+from prs3_post.machine.loading import (
+    load_machine,
+    load_source,
+    shipped_names,
+)
+
+
+@click.command(cls=Command)
+def machines() -> None:
+    """List the shipped machines (use a name or a TOML path with --machine).
+
+    Each line: name, whether it has an XY stage, and its description. The files live in
+    postproc/machines/ (every key commented); copy one to describe your own machine.
+
+    \b
+    Example:
+      prs3-post machines
+      prs3-post ik --tip 0,200,-680 --axis 0,0,1 --machine my-machine.toml
+    """
+
+    def body() -> int:
+        for name in shipped_names("machines"):
+            machine = load_machine(name)
+            stage = "XY stage" if machine.stage.present else "no stage"
+            click.echo(f"{name:<18} {stage:<9} {machine.description}")
+        return 0
+
+    run_reported(body)
+
+
+@click.command(cls=Command)
+def sources() -> None:
+    """List the shipped 5-axis source conventions (how a program for another machine gives its tool axis).
+
+    Each line: name, the rotary words (or the vector words), the TCP on/off codes and the
+    description. The files live in postproc/sources/ (every key commented); copy one to describe
+    another machine.
+
+    \b
+    Example:
+      prs3-post sources
+    """
+
+    def body() -> int:
+        for name in shipped_names("sources"):
+            source = load_source(name)
+            words = " ".join(source.words or source.vector_words)
+            tcp = f"{'/'.join(source.tcp_on)} {'/'.join(source.tcp_off)}"
+            click.echo(f"{name:<14} {words:<6} {tcp:<12} {source.description}")
+        return 0
+
+    run_reported(body)
+
+
+@click.command(cls=Command)
+@click.argument("part", type=click.Path(dir_okay=False), metavar="PART.stl")
+@click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True,
+              help="Length unit of the STL.")
+@up_option
+@click.option("--json", "as_json", is_flag=True, help="Print the table as JSON.")
+def faces(part: str, units: str, up: str, as_json: bool) -> None:
+    """List a part's faces: index, area, width, inclination, normal, origin, kind; and the automatic choice.
+
+    Each face says whether automatic selection may take it and why not: it must face up, be inclined
+    between 1° and 89°, be a planar face of the design (not a strip of a tessellated curved surface:
+    a fillet, a hole wall) and be at least 3 mm wide (the main job: as wide as its tool). A Y-up export needs
+    --up y; a part that loads with a size warning probably needs --units inch.
+
+    \b
+    Examples:
+      prs3-post faces part.stl --json
+      prs3-post faces angle_block.STL --units inch --up y
+    """
+    from prs3_post.part.faces import face_table, find_faces, format_face_table, select_face
+    from prs3_post.part.stl import load_part
+
+
+    def body() -> int:
+        found = find_faces(load_part(part, units=units, up=up))
+        if as_json:
+            click.echo(json.dumps(face_table(found), indent=2, allow_nan=False))
+            return 0
+        click.echo(format_face_table(found), nl=False)
+        try:
+            click.echo(select_face(found, None)[1])
+        except FeatureError as error:
+            click.echo(f"auto: {error}")
+        return 0
+
+    run_reported(body)
+

@@ -1,0 +1,380 @@
+"""The CLI's shared parts: option types, the options several commands take, the command class that
+refuses an option given twice, and how a command's errors are reported.
+
+Every :class:`~prs3_post.core.errors.Prs3Error` is printed as ``prs3-post: error: where: message`` with
+its exit code (2 for bad input or configuration, 1 for limits and reach); never a traceback.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+import sys
+import warnings
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import click
+
+from prs3_post.core.defaults import (
+    DEFAULT_TOLERANCE,
+    FEED_RANGE_MM_MIN,
+    MAX_SPINDLE_RPM,
+)
+from prs3_post.core.errors import Prs3Error, Prs3Warning, quoted
+from prs3_post.emit.output_files import (
+    refuse_overwriting,
+    stdout_error,
+)
+from prs3_post.machine.loading import (
+    DEFAULT_DIALECT,
+    DEFAULT_MACHINE,
+    Machine,
+    postproc_dir,
+)
+from prs3_post.part.setup_transform import AUTO, UP_ROTATION, Setup, SetupError
+
+#: Plain decimal numbers only: ``-12.5``, ``.5``, ``5.``, ``1e-3``; not ``1_0``, ``nan``, ``inf``, ``0x1p3``,
+#: ``٣`` or surrounding spaces, which Python's float() would take.
+_PLAIN_DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+
+#: The magnitudes an option may have (physically meaningful, with room to spare): (limit, unit).
+LENGTH = (1e6, "mm")            # a kilometre
+ANGLE = (3600.0, "degrees")     # ten turns
+FEED = (FEED_RANGE_MM_MIN[1], "mm/min")  # a kilometre a minute
+SPEED = (MAX_SPINDLE_RPM, "rpm")  # spindles reach some 100,000 rpm
+TIME = (1e4, "s")               # almost three hours
+RATIO = (1e6, "")               # direction components (normalized later)
+
+
+def compact(value: float) -> str:
+    """A number for a message: at most 6 significant digits, ``1e+308`` rather than 309 digits."""
+    return f"{value:.6g}"
+
+
+def _plain_decimal(text: str) -> float | None:
+    """``text`` as a float if it is a plain decimal number, else None."""
+    return float(text) if _PLAIN_DECIMAL.fullmatch(text) else None
+
+
+class Decimal(click.ParamType):
+    """A plain, finite decimal number within ``[low, high]`` (default ``±magnitude``); ``low_open``
+    excludes ``low`` itself. The library checks what the value means (``--depth`` > 0); this type
+    keeps out what no machine means (``1e308``, ``nan``, ``1_0``)."""
+
+    name = "number"
+
+    def __init__(self, magnitude: tuple[float, str], *, low: float | None = None, low_open: bool = False):
+        self.limit, self.unit = magnitude
+        self.low = -self.limit if low is None else low
+        self.low_open = low_open
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> float:
+        number = float(value) if isinstance(value, (int, float)) else _plain_decimal(str(value))
+        if number is None:
+            self.fail(f"expected a plain decimal number (like 12.5 or -0.25), got {quoted(str(value))}", param, ctx)
+        too_low = number <= self.low if self.low_open else number < self.low
+        if too_low or not number <= self.limit:          # `not <=`: also NaN from a default
+            unit = f" {self.unit}" if self.unit else ""
+            allowed = (f"> {compact(self.low)} and ≤ {compact(self.limit)}" if self.low_open
+                       else f"{compact(self.low)} to {compact(self.limit)}")
+            self.fail(f"{compact(number)}{unit} is out of range (allowed: {allowed}{unit})", param, ctx)
+        return number
+
+
+#: ``--clearance-min`` (the main job and convert): a distance kept from the part, so never negative.
+CLEARANCE_MIN = Decimal(LENGTH, low=0.0)
+
+
+class Integer(click.ParamType):
+    """A plain whole number (``12``, ``-3``; not ``1_0``, ``1e3``, ``٣`` or ``+ 1``) within ``[low, high]``.
+
+    Without bounds only a count of digits no controller takes is refused (more than 30), so that no
+    message prints a 300-digit number; what the value means is checked where it is used."""
+
+    name = "integer"
+
+    def __init__(self, low: int | None = None, high: int | None = None):
+        self.low, self.high = low, high
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> int:
+        if isinstance(value, int):
+            number = value
+        elif _PLAIN_INTEGER.fullmatch(str(value)):
+            number = int(str(value))
+        else:
+            self.fail(f"expected a whole number (like 12), got {quoted(str(value))}", param, ctx)
+        low = -_INTEGER_LIMIT if self.low is None else self.low
+        high = _INTEGER_LIMIT if self.high is None else self.high
+        if not low <= number <= high:
+            shown = str(number) if abs(number) < 10**12 else compact(float(number))
+            allowed = f"{low} to {high}" if self.low is not None or self.high is not None else "at most 30 digits"
+            self.fail(f"{shown} is out of range (allowed: {allowed})", param, ctx)
+        return number
+
+
+_PLAIN_INTEGER = re.compile(r"[+-]?[0-9]+")
+_INTEGER_LIMIT = 10**30 - 1
+
+
+class Numbers(click.ParamType):
+    """``X,Y,Z``-style option values: a fixed count of comma-separated plain decimal numbers, each
+    within ``±magnitude``."""
+
+    def __init__(self, names: str, magnitude: tuple[float, str] = LENGTH):
+        self.names = names
+        self.count = len(names.split(","))
+        self.name = names
+        self.limit, self.unit = magnitude
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> tuple[float, ...]:
+        if isinstance(value, tuple):
+            return value
+        parts = [_plain_decimal(p) for p in str(value).split(",")]
+        if len(parts) != self.count or None in parts:
+            self.fail(f"expected {self.count} plain decimal numbers {self.names}, got {quoted(str(value))}",
+                      param, ctx)
+        numbers = tuple(float(p) for p in parts if p is not None)
+        for name, number in zip(self.names.split(","), numbers, strict=True):
+            if not abs(number) <= self.limit:
+                unit = f" {self.unit}" if self.unit else ""
+                self.fail(f"{name} = {compact(number)}{unit} is out of range (allowed: within ±{compact(self.limit)}"
+                          f"{unit})", param, ctx)
+        return numbers
+
+
+class OutputPath(click.Path):
+    """A file the command writes (``-o``, ``--preview``): checked against the inputs before any work."""
+
+    def __init__(self) -> None:
+        super().__init__(dir_okay=False)
+
+
+def _refuse_overwriting_inputs(ctx: click.Context) -> None:
+    """No output may be one of the command's input files (PART.stl, POSES.csv, a machine TOML ...)."""
+    outputs: dict[str, str | None] = {}
+    inputs: dict[str, str | None] = {}
+    for param in ctx.command.params:
+        value = ctx.params.get(param.name or "")
+        if not isinstance(value, str):
+            continue
+        name = max(param.opts, key=len) if isinstance(param, click.Option) else param.human_readable_name
+        if isinstance(param.type, OutputPath):
+            outputs[name] = value
+        elif isinstance(param.type, click.Path) or param.name in ("machine_name", "dialect_name"):
+            inputs[name] = value
+    if ctx.command.name == "demo":
+        inputs["the demo part"] = str(demo_part())
+    refuse_overwriting(outputs, inputs)
+
+
+@contextlib.contextmanager
+def warnings_to_stderr() -> Iterator[None]:
+    """Print every :class:`Prs3Warning` as ``prs3-post: warning: message`` on standard error, when it happens."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", Prs3Warning)
+        shown = warnings.showwarning
+
+        def show(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:
+            if issubclass(category, Prs3Warning):
+                click.echo(f"prs3-post: warning: {message}", err=True)
+            else:
+                shown(message, category, *args, **kwargs)
+
+        warnings.showwarning = show
+        yield
+
+
+def run_reported(action: Callable[[], int | None]) -> None:
+    """Run a command body; report :class:`Prs3Error` as one line and exit with its code.
+
+    Before anything, outputs that name an input are refused; a standard output that cannot be
+    written (full, closed pipe) is reported like any other error."""
+    try:
+        ctx = click.get_current_context(silent=True)
+        if ctx is not None:
+            _refuse_overwriting_inputs(ctx)
+        try:
+            with warnings_to_stderr():
+                code = action()
+            sys.stdout.flush()
+        except OSError as exc:                       # the library reports its own I/O as Prs3Error
+            failed = stdout_error(exc)
+            if failed is None:
+                raise                                # not standard output: a bug, and its traceback helps
+            raise failed from exc
+    except Prs3Error as error:
+        click.echo(f"prs3-post: error: {error}", err=True)
+        sys.exit(error.exit_code)
+    except MemoryError:                              # no traceback: it would say nothing more (and need memory)
+        click.echo(f"prs3-post: error: {OUT_OF_MEMORY}", err=True)
+        sys.exit(1)
+    sys.exit(code or 0)
+
+
+#: What a command that ran out of memory says (nothing is written: outputs are atomic).
+OUT_OF_MEMORY = ("out of memory: the machine, or a limit on this process (ulimit -v), left too little; nothing "
+                 "was written (free some memory, or convert the files one at a time with --jobs 1)")
+
+
+def demo_part() -> Path:
+    """The bundled demo part: the paper's wedge."""
+    return postproc_dir() / "parts" / "patel2020-wedge.stl"
+
+
+up_option = click.option(
+    "--up", type=click.Choice(list(UP_ROTATION)), default="z", show_default=True,
+    help="The STL's up axis; the part is turned so that it becomes +z: "
+         + ", ".join(f"{axis}: {turn}" for axis, (turn, _) in UP_ROTATION.items() if axis != "z") + ".",
+)
+
+
+part_origin_option = click.option(
+    "--part-origin", type=Numbers("X,Y,Z"), default=None,
+    help="Machine coordinates of the part origin, mm.  [default: the machine file's setup]",
+)
+part_rotation_option = click.option(
+    "--part-rotation", "part_rotation", type=Decimal(ANGLE), default=None, metavar="DEG",
+    help="Rotation of the part about the machine z axis, degrees, counter-clockwise seen from above "
+         "(p_machine = Rz(DEG)·p_part + part origin).  [default: 0]",
+)
+
+
+class OrAuto(click.ParamType):
+    """``auto`` or a value of ``inner``: the main job's setup options."""
+
+    def __init__(self, inner: click.ParamType):
+        self.inner = inner
+        self.name = f"auto|{inner.name}"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        return AUTO if value == AUTO else self.inner.convert(value, param, ctx)
+
+
+_AUTO_HELP = ("auto: chosen so that every point of the job keeps the largest margin to every limit, as a fraction "
+              "of the limit's range (printed, and written to the program's header).")
+job_part_origin_option = click.option(
+    "--part-origin", type=OrAuto(Numbers("X,Y,Z")), default=None, metavar="auto|X,Y,Z",
+    help="Machine coordinates of the part origin, mm; " + _AUTO_HELP + "  [default: the machine file's setup]",
+)
+job_part_rotation_option = click.option(
+    "--part-rotation", "part_rotation", type=OrAuto(Decimal(ANGLE)), default=None, metavar="auto|DEG",
+    help="Rotation of the part about the machine z axis, degrees, counter-clockwise seen from above "
+         "(p_machine = Rz(DEG)·p_part + part origin); auto: chosen with the part origin (or for the one given), "
+         "searched in 0.1° steps.  [default: 0]",
+)
+
+
+def resolve_setup(machine: Machine, origin: tuple[float, ...] | str | None, rotation_deg: float | str | None) -> Setup:
+    """The job's :class:`Setup` from --part-origin / --part-rotation (None: the machine's default; ``auto``:
+    the default until the job chooses it)."""
+    try:
+        return Setup.resolve(machine, None if origin == AUTO else origin,  # type: ignore[arg-type]
+                             None if rotation_deg == AUTO else rotation_deg)  # type: ignore[arg-type]
+    except SetupError as error:
+        hint = "'--part-rotation'" if error.field == "rotation" else "'--part-origin'"
+        raise click.BadParameter(str(error), param_hint=hint) from error
+
+
+machine_option = click.option(
+    "--machine", "machine_name", default=DEFAULT_MACHINE, show_default=True, metavar="NAME|PATH",
+    help="Shipped machine name (see `prs3-post machines`) or path to a machine TOML file.",
+)
+
+
+dialect_option = click.option(
+    "--dialect", "dialect_name", default=DEFAULT_DIALECT, show_default=True, metavar="NAME|PATH",
+    help="G-code dialect: linuxcnc, fanuc, or a dialect TOML file.",
+)
+line_number_options = (
+    click.option("--line-numbers/--no-line-numbers", default=None,
+                 help="Number the blocks (N words).  [default: as the dialect says]"),
+    click.option("--line-start", type=Integer(0, 99999), default=None, help="First block number."),
+    click.option("--line-step", type=Integer(1, 1000), default=None, help="Block number increment."),
+)
+tolerance_option = click.option(
+    "--tolerance", type=Decimal(LENGTH), default=DEFAULT_TOLERANCE, show_default=True,
+    help="Chordal tolerance of arcs (and of moves that turn the tool axis), mm (0.0001 to 1).",
+)
+
+
+def _takes_value(option: click.Option) -> bool:
+    return not (option.is_flag or option.count)
+
+
+def _occurrences(params: list[click.Parameter], args: list[str]) -> Iterator[tuple[click.Option, str]]:
+    """``(option, value as written)`` for each option in ``args`` (a flag's value: its spelling), as
+    click reads them: ``--name VALUE``, ``--name=VALUE``, ``-o VALUE``, ``-oVALUE``, grouped short
+    flags, and nothing after ``--``. An unknown option is passed over (click reports it)."""
+    named = {name: p for p in params if isinstance(p, click.Option) for name in (*p.opts, *p.secondary_opts)}
+    i = 0
+    while i < len(args):
+        arg = args[i]
+        i += 1
+        if arg == "--":
+            return
+        if not arg.startswith("-") or arg == "-":
+            continue
+        if arg.startswith("--"):
+            name, equals, value = arg.partition("=")
+            option = named.get(name)
+            if option is None:
+                continue
+            if _takes_value(option) and not equals:
+                value = " ".join(args[i:i + option.nargs])
+                i += option.nargs
+            yield option, value if _takes_value(option) else name
+            continue
+        for at in range(1, len(arg)):                     # -o VALUE, -oVALUE, -ab (flags)
+            option = named.get("-" + arg[at])
+            if option is None:
+                break
+            if _takes_value(option):
+                value = arg[at + 1:]
+                if not value:
+                    value = " ".join(args[i:i + option.nargs])
+                    i += option.nargs
+                yield option, value
+                break
+            yield option, "-" + arg[at]
+
+
+class Command(click.Command):
+    """A command whose single-valued options may be given once: ``--profile hole --profile square``
+    (or ``-o a -o b``, ``--collision-check --no-collision-check``) is refused, naming both, instead
+    of click's silent last-one-wins. Options made to repeat (``multiple``, ``count``) may repeat."""
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        first: dict[str, str] = {}
+        for option, value in _occurrences(self.get_params(ctx), args):
+            if option.multiple or option.count or option.is_eager or option.name is None:
+                continue
+            if option.name in first:
+                names = "/".join(sorted((*option.opts, *option.secondary_opts), key=lambda n: (len(n) > 2, n)))
+                ctx.fail(f"{names} given twice ({quoted(first[option.name])} and {quoted(value)}): give it once")
+            first[option.name] = value
+        return super().parse_args(ctx, args)
+
+
+def image_format(path: str, flag: str) -> str:
+    """``png`` or ``svg`` from an output file's suffix; ``flag`` names the option in the error."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in (".png", ".svg"):
+        raise click.BadParameter(f"the image must end in .png or .svg, got {path!r}", param_hint=flag)
+    return suffix[1:]
+
+
+def was_given(ctx: click.Context, name: str) -> bool:
+    """Whether the user gave the option (not its default)."""
+    return ctx.get_parameter_source(name) is not click.core.ParameterSource.DEFAULT
+
+
+def face_index(choice: str) -> int | None:
+    """``auto`` → None, ``7`` → 7 (ASCII digits only: ``²`` is a digit to Python, not to us)."""
+    if choice == "auto":
+        return None
+    if re.fullmatch(r"[0-9]+", choice):
+        return int(choice)
+    raise click.BadParameter(f"expected auto or a face index, got {quoted(choice)}", param_hint="'--face'")
+

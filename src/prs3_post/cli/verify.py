@@ -1,0 +1,466 @@
+"""`verify` (replay a program and check it) and `preview` (draw it)."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, TypeVar
+
+import click
+import numpy as np
+
+from prs3_post.cli.options import (
+    ANGLE,
+    FEED,
+    Command,
+    Decimal,
+    OutputPath,
+    face_index,
+    image_format,
+    machine_option,
+    part_origin_option,
+    part_rotation_option,
+    run_reported,
+    up_option,
+    was_given,
+)
+from prs3_post.cli.run import job_options, job_spec, refuse_unused_options
+from prs3_post.core.defaults import (
+    DEFAULT_ANGLE_TOLERANCE_DEG,
+)
+from prs3_post.core.errors import InputError
+from prs3_post.emit.output_files import (
+    write_atomic,
+)
+from prs3_post.machine.loading import (
+    DEFAULT_DIALECT,
+)
+from prs3_post.part.setup_transform import AUTO, SetupError
+from prs3_post.toolpaths import (
+    SquareShape,
+)
+from prs3_post.toolpaths.common import require_tolerance
+from prs3_post.toolpaths.work import HoleJob
+
+# What only some commands need is imported where it is used (the main job, convert, verify, preview,
+# faces: each about 0.1 s of imports), so that `ik`, `fk` and a small `verify` start fast.
+if TYPE_CHECKING:
+    from prs3_post.app.job import JobSpec
+    from prs3_post.app.verify import CamPart, ProgramContext, ProgramSetting, RebuiltJob
+    from prs3_post.check.verify import Intended
+
+#: What _open_program opens: the whole program, or only what it was made for.
+_Opened = TypeVar("_Opened", "ProgramContext", "ProgramSetting")
+
+
+def _against_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """The main job's options, for `verify --against PART.stl` to rebuild the intended path with:
+    the same options and defaults, but --profile not required and without the output-only ones (a
+    program with a prs3-post header needs none of them: they may only repeat what it says)."""
+    probe = job_options(lambda **_: None)
+    skip = {"out_path", "preview_path", "line_numbers", "line_start", "line_step", "tool_table"}
+    params = getattr(func, "__click_params__", [])
+    borrowed: list[click.Parameter] = probe.__click_params__  # type: ignore[attr-defined]  # click stores them here
+    for param in borrowed:                           # in click's stored (reversed) order
+        if param.name in skip:
+            continue
+        if param.name == "profile":
+            param.required = False
+            param.help = "Operation the program was made with (only with --against PART.stl)."
+        if param.name == "tolerance":
+            param.help = ("Allowed tip deviation, mm (0.0001 to 1; plus the output rounding against a path); also "
+                          "the chordal tolerance the job is rebuilt with for --against PART.stl.")
+        params.append(param)
+    func.__click_params__ = params                   # type: ignore[attr-defined]
+    return func
+
+
+#: The main job's options that describe the operation: `verify` uses them only with --against PART.stl.
+_OPERATION_OPTIONS = (
+    "profile", "face_choice", "at_uv", "at_xyz", "units", "up", "depth", "peck", "reapproach_gap", "dwell", "size",
+    "corner_radius", "rotation", "diameter", "side", "step_down", "direction", "entry", "ramp_angle", "clearance",
+    "retract", "tool_diameter", "tool_number", "feed", "plunge_feed", "spindle", "coolant",
+)
+
+
+def _option_flags(ctx: click.Context, names: list[str]) -> list[str]:
+    """The flags as the user spells them (``--face`` for the parameter ``face_choice``)."""
+    flags = {f"--{p.name.replace('_', '-')}": p.opts[0] for p in ctx.command.params if p.name}
+    return [flags.get(name, name) for name in names]
+
+
+#: The flag of each value a program header records, for messages about a contradiction.
+_HEADER_FLAGS = {"machine": "--machine", "dialect": "--dialect", "part origin": "--part-origin",
+                 "part rotation": "--part-rotation", "part": "--against"}
+
+
+def _open_program(ctx: click.Context, path: str, machine_name: str, dialect_name: str,
+                  part_origin: tuple[float, ...] | None, part_rotation: float | None,
+                  opener: Callable[..., _Opened]) -> _Opened:
+    """The program (``open_program``), or its setting only (``open_setting``), with the machine, dialect and setup
+    of its header, or those given."""
+    from prs3_post.app.verify import HeaderConflict
+
+    for value, flag in ((part_origin, "--part-origin"), (part_rotation, "--part-rotation")):
+        if value == AUTO:
+            raise click.BadParameter("auto chooses the setup when a program is made; a program is read with the "
+                                     "setup its header states (or the one given as numbers)", param_hint=f"'{flag}'")
+    try:
+        return opener(path, machine=machine_name if was_given(ctx, "machine_name") else None,
+                      dialect=dialect_name if was_given(ctx, "dialect_name") else None,
+                      origin=part_origin, rotation_deg=part_rotation)
+    except SetupError as error:
+        raise click.BadParameter(str(error), param_hint=_SETUP_HINTS[error.field]) from error
+    except HeaderConflict as error:
+        raise InputError(f"{_HEADER_FLAGS[error.what]}: {error.args[0]}", path=error.path, line=error.line) from error
+
+
+def _refuse_cl_file(path: str) -> None:
+    """CAM output given where a program for this machine goes (verify, preview): say so, not 'not G-code'.
+    Only a file that starts as an APT CL file does (:func:`~prs3_post.readers.detect.detect_format`); any
+    other problem is the program reader's to name."""
+    from prs3_post.core.input_files import open_input
+    from prs3_post.readers.detect import DETECT_BYTES, detect_format
+
+    try:
+        with open_input(path, "a file") as stream:
+            cl = detect_format(stream.read(DETECT_BYTES)) == "cl"
+    except (InputError, OSError):
+        return
+    if cl:
+        raise InputError(f"an APT CL file (CAM output), not a program for this machine: convert it first "
+                         f"(prs3-post convert {path} -o OUTDIR), then give the program, with --against {path} to "
+                         "compare them", path=path)
+
+
+_SETUP_HINTS = {"origin": "'--part-origin'", "rotation": "'--part-rotation'"}
+#: Options given in degrees whose JobSpec value is in radians.
+_DEGREE_OPTIONS = ("rotation", "ramp_angle")
+
+
+def _operation_values(spec: JobSpec) -> dict[str, Any]:
+    """The operation options of the main job that ``spec`` answers, in JobSpec units (angles in
+    radians, positions as arrays, the face as an index or None)."""
+    cut = spec.cutting
+    values: dict[str, Any] = {
+        "profile": spec.operation.value, "face_choice": spec.face, "at_uv": spec.at_uv, "at_xyz": spec.at_xyz,
+        "units": spec.units, "up": spec.up, "tool_diameter": cut.tool_diameter, "tool_number": cut.tool_number,
+        "feed": cut.feed, "plunge_feed": cut.plunge_feed, "spindle": cut.spindle_rpm, "coolant": cut.coolant.value,
+    }
+    work = spec.work
+    if isinstance(work, HoleJob):
+        h = work.params
+        values |= {"depth": h.depth, "peck": h.peck, "reapproach_gap": h.reapproach_gap, "dwell": h.dwell,
+                   "clearance": h.clearance, "retract": h.retract}
+        return values
+    p, shape = work.params, work.shape
+    if isinstance(shape, SquareShape):
+        values |= {"size": shape.size, "corner_radius": shape.corner_radius, "rotation": shape.rotation}
+    else:
+        values |= {"diameter": shape.diameter}
+    values |= {"side": p.side.value, "depth": p.depth, "step_down": p.step_down, "direction": p.direction.value,
+               "entry": p.entry.value, "ramp_angle": p.ramp_angle, "clearance": p.clearance, "retract": p.retract}
+    return values
+
+
+def _as_spec_value(name: str, value: Any) -> Any:
+    """An option's value in JobSpec units (see _operation_values)."""
+    if name in _DEGREE_OPTIONS:
+        return math.radians(value)
+    if name == "face_choice":
+        return face_index(value)
+    if name in ("at_uv", "at_xyz"):
+        return np.array(value, dtype=np.float64).reshape(-1, 2 if name == "at_uv" else 3)
+    return value
+
+
+def _check_operation_options(ctx: click.Context, spec: JobSpec, opts: dict[str, Any]) -> None:
+    """Operation options given with a program that has a header must say what the header says."""
+    recorded = _operation_values(spec)
+    wrong = []
+    for name in _OPERATION_OPTIONS:
+        if not was_given(ctx, name) or name not in recorded:
+            continue
+        given, header = _as_spec_value(name, opts[name]), recorded[name]
+        same = np.array_equal(given, header) if isinstance(header, np.ndarray) else given == header
+        if not same:
+            shown = header
+            if name in _DEGREE_OPTIONS:
+                shown = math.degrees(header)
+            elif isinstance(header, np.ndarray):
+                shown = " ".join(",".join(f"{v:g}" for v in row) for row in header) or "none"
+            elif header is None:
+                shown = "auto"
+            wrong.append(f"{_option_flags(ctx, [f'--{name.replace(chr(95), chr(45))}'])[0]} (header: {shown})")
+    _refuse_contradictions(wrong)
+
+
+def _refuse_contradictions(wrong: list[str]) -> None:
+    """A usage error for options that say otherwise than the program's header (``--depth (header: 5)``)."""
+    if len(wrong) == 1:
+        raise click.UsageError(f"{wrong[0]}: contradicts the program's header; leave it out to use the header's value")
+    if wrong:
+        raise click.UsageError(f"{', '.join(wrong)}: contradict the program's header; leave them out to use the "
+                               "header's values")
+
+
+def _intended(ctx: click.Context, against: str, context: ProgramContext,
+              opts: dict[str, Any]) -> tuple[Intended | None, RebuiltJob | CamPart | None]:
+    """The intended path of `verify --against`: the job rebuilt from PART.stl and the program's header
+    (or, without a header, the options), with that job (for the clearance from the part), or POSES.csv;
+    a converted program's CAM input, or its part (PART.stl: the clearance only, no path)."""
+    from prs3_post.app.verify import (
+        CamPart,
+        HeaderConflict,
+        header_job,
+        intended_from_poses,
+        intended_from_source,
+        rebuild_job,
+    )
+    from prs3_post.check.collision import rapid_diameter_from_entry
+    from prs3_post.emit.header import SourceHeader
+    from prs3_post.part.stl import load_part
+
+    suffix = Path(against).suffix.lower()
+    if isinstance(context.header, SourceHeader) and suffix == ".stl":   # the part a CAM program cuts
+        mesh = load_part(against, units=opts["units"], up=opts["up"])
+        return None, CamPart(triangles=np.asarray(mesh.triangles, dtype=np.float64),
+                             tool_length=context.header.tool_length, setup=context.header.setup,
+                             tool_diameter=rapid_diameter_from_entry(context.header.collision))
+    if isinstance(context.header, SourceHeader):            # a converted program: its CAM source
+        try:
+            return intended_from_source(context, against), None
+        except HeaderConflict as error:
+            raise InputError(f"--against: {error.args[0]}", path=error.path, line=error.line) from error
+    if suffix == ".stl":
+        if context.header is not None:
+            try:
+                specs = header_job(context, against)
+            except HeaderConflict as error:
+                raise InputError(f"--against: {error.args[0]}", path=error.path, line=error.line) from error
+            for spec in specs:                         # an option given must be what every operation says
+                _check_operation_options(ctx, spec, opts)
+            rebuilt = rebuild_job(specs)
+        elif not opts["profile"]:
+            raise click.UsageError("--against PART.stl needs --profile and the other operation options the "
+                                   "program was made with (it has no prs3-post header that records them)")
+        else:
+            refuse_unused_options(opts["profile"])
+            rebuilt = rebuild_job(job_spec(against, opts))
+        return rebuilt.intended, rebuilt
+    if suffix == ".csv":
+        return intended_from_poses(against, context.program), None
+    raise InputError("--against takes PART.stl (with the operation options the program was made with), "
+                     "POSES.csv (one pose per motion line), or the CAM file a program was converted from (its "
+                     "header names it)", path=against)
+
+
+@click.command(cls=Command)
+@click.argument("program_path", type=click.Path(dir_okay=False), metavar="PROGRAM.ngc")
+@click.option("--against", "against_path", type=click.Path(dir_okay=False), metavar="PART.stl|POSES.csv|INPUT",
+              help="The intended path: PART.stl (the operation is rebuilt from the program's header; a program "
+                   "without one needs the options it was made with: --profile, --at, --depth, ...), "
+                   "or POSES.csv (the `ik --batch` format, "
+                   "machine frame, one pose per G0/G1 line), or for a program made by `prs3-post convert` its CAM "
+                   "input (APT CL or G-code; checked by the SHA-256 its header records).")
+@click.option("--axis-tolerance", "axis_tolerance_deg", type=Decimal(ANGLE), default=DEFAULT_ANGLE_TOLERANCE_DEG,
+              show_default=True,
+              help="Allowed tool-axis deviation from the --against path, degrees.")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print the complete report as JSON: every move, the FK tool-tip path in part coordinates, "
+                   "every limit's closest approach, feeds, deviations, problems.")
+@_against_options
+def verify(program_path: str, against_path: str | None, axis_tolerance_deg: float, as_json: bool,
+           **opts: Any) -> None:
+    """Replay a program through forward kinematics and check it: limits, straightness, feeds, deviation.
+
+    Reads PROGRAM.ngc in --dialect (letters, decimals, comments), samples every move in joint
+    space as the controller interpolates it (X, Y, T1..T3 linear; at least 8 samples per move,
+    more where the tip path or a link angle curves, so that what falls between samples is below
+    --tolerance / 20) and checks every sample:
+
+    \b
+    - limits: the closest approach to each limit of --machine (value, margin, line);
+    - straightness: a G1's tip stays within --tolerance of the line between its end points;
+    - feeds: implied tip feed = chord × F (G93, F = 1/min); against PART.stl it must equal the
+      intended feed within the rounding of F and the points; otherwise a G1 whose feed matches
+      no other G1 is warned about (a hand edit?), except in a converted program (the CAM's feeds);
+    - with --against: tip and axis deviation from the intended path (max, mean, line); allowed:
+      --tolerance plus what the output rounding moves the tip, and --axis-tolerance.
+
+    A program made by prs3-post states in its header the machine, dialect, setup and operation it
+    was made with: they are used, and an option that says otherwise is an error (leave it out).
+    A program without that header is read with the options given (or their defaults).
+
+    --tolerance (mm; default: the program's, else 0.002) is the allowed tip deviation. The
+    operation options (--profile ... --retract) are used only with --against PART.stl, and only
+    for a program without a header. Exit status: 0 within every limit and tolerance, 1 if not,
+    2 for a program or option it cannot read.
+
+    \b
+    Examples:
+      prs3-post demo --profile square -o sq.ngc
+      prs3-post verify sq.ngc
+      prs3-post verify sq.ngc --against postproc/parts/patel2020-wedge.stl --json
+      prs3-post verify paper_2a_2b.ngc --against paper_2a_2b.csv
+    """
+    from prs3_post.app.verify import (
+        PartClearance,
+        check_program_moves,
+        odd_feeds_warned,
+        open_program,
+        open_setting,
+        tool_lengths_of,
+        verify_file,
+        verify_loaded,
+        with_clearance,
+    )
+    from prs3_post.app.verify_report import report_record, report_text
+
+
+    def body() -> int:
+        ctx = click.get_current_context()
+        _refuse_cl_file(program_path)
+        require_tolerance(opts["tolerance"])
+        if not (math.isfinite(axis_tolerance_deg) and axis_tolerance_deg >= 0):
+            raise click.BadParameter(f"must be a number ≥ 0 degrees, got {axis_tolerance_deg:g}",
+                                     param_hint="'--axis-tolerance'")
+        if not (against_path and Path(against_path).suffix.lower() == ".stl"):
+            given = [f"--{name.replace('_', '-')}" for name in (*_OPERATION_OPTIONS, "collision_check", "clearance_min")
+                     if was_given(ctx, name)]
+            if given:
+                raise click.UsageError(f"{', '.join(_option_flags(ctx, given))}: the operation options are only "
+                                       "used with --against PART.stl")
+        where = (ctx, program_path, opts["machine_name"], opts["dialect_name"], opts["part_origin"],
+                 opts["part_rotation"])
+        # the text report without an intended path needs no samples: the program streams through
+        setting = _open_program(*where, open_setting)
+        # the check's tolerance: as given, else the one the program was made with
+        tolerance = (setting.header.tolerance if setting.header is not None and not was_given(ctx, "tolerance")
+                     else opts["tolerance"])
+        clearance: PartClearance | str | None = None
+        if as_json or against_path:
+            context = _open_program(*where, open_program)
+            check_program_moves(context.header, len(context.program.moves))
+            intended, rebuilt = _intended(ctx, against_path, context, opts) if against_path else (None, None)
+            report = verify_loaded(context.program, context.machine, context.setup, context.dialect,
+                                   tolerance=tolerance, axis_tolerance_deg=axis_tolerance_deg, intended=intended,
+                                   tool_lengths=tool_lengths_of(context.header),
+                                   odd_feeds=odd_feeds_warned(context.header))
+            if rebuilt is not None and not opts["collision_check"]:
+                clearance = "not measured (asked not to)"
+            elif rebuilt is not None:                  # the clearance min: as given, else each operation's
+                report, clearance = with_clearance(
+                    report, context.machine, rebuilt,
+                    clearance_min=opts["clearance_min"] if was_given(ctx, "clearance_min") else None)
+        else:
+            report = verify_file(setting, tolerance=tolerance, axis_tolerance_deg=axis_tolerance_deg)
+        dialect = setting.dialect.name
+        if as_json:
+            click.echo(json.dumps(report_record(report, path=program_path, dialect=dialect, clearance=clearance),
+                                  allow_nan=False))
+        else:
+            click.echo(report_text(report, path=program_path, dialect=dialect, clearance=clearance), nl=False)
+        return 0 if report.ok else 1
+
+    run_reported(body)
+
+
+@click.command(cls=Command)
+@click.argument("program_path", type=click.Path(dir_okay=False), metavar="PROGRAM.ngc")
+@click.option("-o", "--output", "out_path", type=OutputPath(), required=True,
+              metavar="OUT.png|OUT.svg",
+              help="Image file (PNG or SVG by suffix; written to a temp file, then renamed).")
+@click.option("--part", "part_path", type=click.Path(dir_okay=False), metavar="PART.stl",
+              help="Draw the part (part coordinates) and highlight its face (--face).")
+@click.option("--face", "face_choice", default="auto", show_default=True, metavar="auto|N",
+              help="Face to highlight: auto = the main job's automatic choice; N = index from `prs3-post faces`.")
+@click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True,
+              help="Length unit of the STL.")
+@up_option
+@machine_option
+@click.option("--dialect", "dialect_name", default=DEFAULT_DIALECT, show_default=True, metavar="NAME|PATH",
+              help="G-code dialect of the program: linuxcnc, fanuc, or a dialect TOML file.")
+@part_origin_option
+@part_rotation_option
+@click.option("--rapid-rate", type=Decimal(FEED, low=0.0, low_open=True), default=5000.0, show_default=True,
+              help="Joint-space rate of G0 moves for the time axis, mm/min (the longest joint travel at this rate), "
+                   "for a machine without [dynamics]; with them the axis shows the cycle time.")
+def preview(program_path: str, out_path: str, part_path: str | None, face_choice: str, units: str, up: str,
+            machine_name: str, dialect_name: str, part_origin: tuple[float, ...] | None, part_rotation: float | None,
+            rapid_rate: float) -> None:
+    """Draw a program: the FK tool path on the part, the axes over time, the limit margins.
+
+    One figure: (a) 3D view in part coordinates of the part mesh (--part), its face (highlighted)
+    and the tool-tip path replayed through forward kinematics (G1 solid, G0 dashed) with the tool
+    axis at a few points; (b) the strokes T1..T3 and stage X, Y over program time (the cycle time
+    of the machine's [dynamics]; without them G1: 1/F min, G0: the longest joint travel at
+    --rapid-rate), the machine's limits shaded; (c) the worst margin
+    of every limit as a fraction of its range. Needs matplotlib: pip install 'prs3-post[plot]'.
+    The machine, dialect and setup (and the part's units, up axis and face) come from the program's
+    header when it has one; an option that says otherwise is an error.
+    `prs3-post PART.stl ... --preview OUT.png` makes a program and its picture in one step.
+
+    \b
+    Examples:
+      prs3-post demo --profile square -o sq.ngc
+      prs3-post preview sq.ngc --part postproc/parts/patel2020-wedge.stl -o sq.png
+      prs3-post demo --profile round -o round.ngc --preview round.svg
+    """
+    from prs3_post.app.verify import (
+        HeaderConflict,
+        check_part,
+        header_job,
+        open_program,
+        preview_bytes,
+        rebuild_job,
+        tool_lengths_of,
+    )
+    from prs3_post.emit.header import ProgramHeader
+    from prs3_post.part.faces import find_faces, select_face
+    from prs3_post.part.stl import load_part
+
+
+    def body() -> int:
+        ctx = click.get_current_context()
+        fmt = image_format(out_path, "'-o' / '--output'")
+        _refuse_cl_file(program_path)
+        context = _open_program(ctx, program_path, machine_name, dialect_name, part_origin, part_rotation,
+                                open_program)
+        if context.machine.dynamics is not None and was_given(ctx, "rapid_rate"):
+            raise click.BadParameter(f"machine {context.machine.name} has [dynamics]: the time axis shows its cycle "
+                                     "time (each axis's top speed); leave it out", param_hint="'--rapid-rate'")
+        mesh = face = None
+        rebuilt: RebuiltJob | None = None
+        if part_path is not None:
+            choice, part_units, part_up = face_index(face_choice), units, up
+            header = context.header
+            if header is not None:                     # the part as the program was made from it
+                try:
+                    check_part(header, part_path)
+                except HeaderConflict as error:
+                    raise InputError(f"--part: {error.args[0]}", path=error.path, line=error.line) from error
+                assert isinstance(header, ProgramHeader)   # check_part refuses a converted program's header
+                recorded = {"face_choice": header.face, "units": header.units, "up": header.up}
+                wrong = [f"{flag} (header: {'auto' if recorded[name] is None else recorded[name]})"
+                         for name, flag in (("face_choice", "--face"), ("units", "--units"), ("up", "--up"))
+                         if was_given(ctx, name) and _as_spec_value(name, {"face_choice": face_choice, "units": units,
+                                                                         "up": up}[name]) != recorded[name]]
+                _refuse_contradictions(wrong)
+                choice, part_units, part_up = header.face, header.units, header.up
+                # the job it was made by: where its tool, holder and nose come closest to the part
+                rebuilt = rebuild_job(header_job(context, part_path)) if context.machine.holder is not None else None
+            loaded = load_part(part_path, units=part_units, up=part_up)
+            face, _ = select_face(find_faces(loaded), choice)
+            mesh = loaded.triangles
+        image = preview_bytes(context.program, context.machine, context.setup, fmt, dialect=context.dialect,
+                              mesh=mesh, face=face, rapid_rate=rapid_rate, tool_lengths=tool_lengths_of(context.header),
+                              title=Path(part_path).name if part_path else "", rebuilt=rebuilt)
+        write_atomic(out_path, image)
+        click.echo(f"prs3-post: wrote {out_path}", err=True)
+        return 0
+
+    run_reported(body)
+
