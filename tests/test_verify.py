@@ -12,11 +12,12 @@ from click.testing import CliRunner
 from numpy.testing import assert_allclose
 
 from prs3_post.app.job import run_job
-from prs3_post.check.verify import EPSILON_FRACTION, PROBE_INTERVALS, Intended, replay, verify_program
+from prs3_post.check.verify import Intended, replay, verify_program
 from prs3_post.cli.main import main
 from prs3_post.core.errors import InputError
 from prs3_post.core.toolpath import EventKind, MoveKind
 from prs3_post.kinematics import forward
+from prs3_post.kinematics.replay import EPSILON_FRACTION, PROBE_INTERVALS
 from prs3_post.machine.loading import load_dialect, load_machine
 from prs3_post.part.setup_transform import Setup
 from prs3_post.readers.program import load_program, read_program

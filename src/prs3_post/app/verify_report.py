@@ -11,17 +11,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from prs3_post.check.verify import (
-    MAX_INTERVALS,
-    NOMINAL_RAPID_RATE,
-    PROBE_INTERVALS,
-    VerifyReport,
-    joints_of,
-    row_times,
-)
+from prs3_post.check.verify import NOMINAL_RAPID_RATE, VerifyReport, row_times
 from prs3_post.core.numbers import fixed_or_na as fixed
 from prs3_post.core.toolpath import EventKind, MoveKind
 from prs3_post.core.types import FloatArray, IntArray
+from prs3_post.kinematics.replay import MAX_INTERVALS, PROBE_INTERVALS, joints_of
 
 __all__ = ["against_summary", "clearance_record", "report_record", "report_text", "summary"]
 

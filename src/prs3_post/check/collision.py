@@ -1126,8 +1126,8 @@ def _to_part(setup: Setup, points: FloatArray) -> FloatArray:
 def _replay_rows(machine: Machine, program: JointProgram, lo: int, hi: int) -> tuple[IntArray, FloatArray, FloatArray]:
     """verify's samples of rows ``lo`` .. ``hi`` replayed from the row before (its end is where row
     ``lo``'s move starts, and the first sample): each sample's row, tip and axis (machine frame)."""
-    from prs3_post.check.verify import replay
     from prs3_post.core.toolpath import program_from_columns
+    from prs3_post.kinematics.replay import replay
 
     start = max(lo - 1, 0)
     columns = {name: getattr(program, name)[start:hi] for name in ("kind", "stage", "strokes", "inverse_time",
@@ -1234,8 +1234,8 @@ def _replayed(machine: Machine, program: JointProgram) -> tuple[IntArray, FloatA
     """verify's FK samples of ``program`` (machine frame), REPLAY_ROWS program rows at a time, each piece
     from the previous one's last row (its end is where the piece's first move starts: the samples are
     those of one replay): the row, tip and axis of each sample, and the end tips of the FEED rows."""
-    from prs3_post.check.verify import replay
     from prs3_post.core.toolpath import MoveKind, program_from_columns
+    from prs3_post.kinematics.replay import replay
 
     out_row, out_tip, out_axis, out_feed = [], [], [], []
     n, rows = len(program), REPLAY_ROWS
@@ -1349,8 +1349,8 @@ def rapid_tool_clearance(machine: Machine, program: JointProgram, setup: Setup, 
     ValueError
         The machine has no ``[holder]`` (the tool ends where it begins).
     """
-    from prs3_post.check.verify import replay
     from prs3_post.core.toolpath import MoveKind, program_from_columns
+    from prs3_post.kinematics.replay import replay
 
     if machine.holder is None:
         raise ValueError(f"machine {machine.name} has no [holder]")

@@ -7,7 +7,7 @@ pose and how far the group's motion may stray from it, so that :mod:`prs3_post.c
 a whole group against the part and replay only the groups that may come near it.
 
 The poses of the rows' end points are the replay's own: the FK of the rows' distinct head poses up
-to a common stroke shift (:func:`prs3_post.check.verify._shift_keys`: the guides are parallel, so adding
+to a common stroke shift (:func:`prs3_post.kinematics.replay._shift_keys`: the guides are parallel, so adding
 ``s`` to every stroke moves the head by −s along z and changes nothing else), shifted by the stage
 and the common stroke. A move's samples lie on its joint-space segment, so their stage and common
 stroke lie between the two rows', and their head pose key (T2 − T1, T3 − T1) between the two keys:
@@ -103,7 +103,7 @@ def _scan_rows(machine: Machine, program: JointProgram, lo: int, hi: int, frame:
                ) -> tuple[FloatArray, ...]:
     """Rows ``lo`` .. ``hi`` (``lo`` a multiple of GROUP_ROWS), with the row before: the feed tips and
     the groups' tip, axis, half, turn, wobble, feeding and flat (the last two as 0/1)."""
-    from prs3_post.check.verify import _forward_parts, _shift_keys
+    from prs3_post.kinematics.replay import _forward_parts, _shift_keys
 
     start = max(lo - 1, 0)
     stage, strokes = program.stage[start:hi], program.strokes[start:hi]
@@ -146,7 +146,7 @@ def _scan_rows(machine: Machine, program: JointProgram, lo: int, hi: int, frame:
 def _rates(machine: Machine, canonical: FloatArray) -> tuple[FloatArray, FloatArray]:
     """(K,), (K,): Σ_j |∂tip/∂key_j| (mm/mm) and Σ_j |∂axis/∂key_j| (1/mm) at head pose keys (K, 3)
     (strokes with T1 = 0), by central differences in T2 and T3."""
-    from prs3_post.check.verify import _forward_parts
+    from prs3_post.kinematics.replay import _forward_parts
 
     parts = []
     for leg in (1, 2):

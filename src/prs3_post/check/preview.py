@@ -35,10 +35,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from prs3_post.check.verify import NOMINAL_RAPID_RATE, VerifyReport, joints_of, row_times
+from prs3_post.check.verify import NOMINAL_RAPID_RATE, VerifyReport, row_times
 from prs3_post.core.errors import Prs3Error
 from prs3_post.core.toolpath import MoveKind
 from prs3_post.core.types import FloatArray, IntArray
+from prs3_post.kinematics.replay import joints_of
 from prs3_post.machine.loading import Machine
 
 if TYPE_CHECKING:
