@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from prs3_post.core.columns import ChoiceColumn
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 
 __all__ = ["ENV", "LIBRARY", "NATIVE_VERSION", "FilledMoves", "available", "emit_rows", "fill_moves", "lex_text",
@@ -102,8 +103,6 @@ def render_block(columns: Sequence, present: BoolArray, lo: int, hi: int, separa
                  ending: bytes) -> tuple[np.ndarray, IntArray]:
     """Rows ``lo:hi`` of :func:`prs3_post.core.numbers.render_rows`: (their bytes, each line's length with its
     ending), as the numpy writer gives them. Call only where :func:`available`."""
-    from prs3_post.core.numbers import ChoiceColumn  # fixed imports this module: no cycle at import time
-
     m, width = hi - lo, len(columns)
     kind = np.zeros(width, dtype=np.int32)
     decimals = np.zeros(width, dtype=np.int32)

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from prs3_post.core.columns import ChoiceColumn, Column, ScaledColumn
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 
 __all__ = ["ChoiceColumn", "Column", "ScaledColumn", "fixed", "fixed_column", "fixed_or_na", "render_rows",
@@ -53,51 +54,6 @@ def fixed(value: float, decimals: int = 4) -> str:
     if text[0] == "-" and not text.strip("-0."):  # every digit is 0: no sign
         return text[1:]
     return text
-
-
-@dataclass(frozen=True, slots=True)
-class ScaledColumn:
-    """A column of numbers as the integers their fixed-decimal text shows.
-
-    Attributes
-    ----------
-    scaled : (N,) int64 — the digits without the point, with the sign (``-12.3457`` → ``-123457``;
-        0 for what prints as zero); 0 on the rows listed in ``odd``
-    decimals : int — digits after the point
-    odd : (K,) int64 — rows whose text could not be made from an int64 (not finite, or
-        ``|value|·10^decimals ≥ 2⁵²``), increasing
-    odd_text : tuple of str — their text, from :func:`fixed`
-    """
-
-    scaled: IntArray
-    decimals: int
-    odd: IntArray
-    odd_text: tuple[str, ...]
-
-    def __len__(self) -> int:
-        return len(self.scaled)
-
-    def text(self, row: int) -> str:
-        """The text of one row (for messages and for comparing odd rows)."""
-        position = int(np.searchsorted(self.odd, row))
-        if position < len(self.odd) and self.odd[position] == row:
-            return self.odd_text[position]
-        return _text_of_scaled(int(self.scaled[row]), self.decimals)
-
-    def same_as_previous(self) -> BoolArray:
-        """(N,) bool — row r prints exactly as row r − 1 (row 0: False)."""
-        same = np.zeros(len(self.scaled), dtype=bool)
-        same[1:] = self.scaled[1:] == self.scaled[:-1]
-        for row in np.unique(np.concatenate([self.odd, self.odd + 1])).tolist():  # an odd row on either side
-            if 1 <= row < len(same):
-                same[row] = self.text(row) == self.text(row - 1)
-        return same
-
-
-def _text_of_scaled(scaled: int, decimals: int) -> str:
-    digits = str(abs(scaled)).rjust(decimals + 1, "0")
-    sign = "-" if scaled < 0 else ""
-    return f"{sign}{digits[:-decimals]}.{digits[-decimals:]}" if decimals else f"{sign}{digits}"
 
 
 def scale_column(values: FloatArray, decimals: int) -> ScaledColumn:
@@ -158,24 +114,6 @@ def fixed_column(values: FloatArray, decimals: int) -> list[str]:
         return []
     buffer, _ = render_rows([(b"", column)], np.ones((len(column), 1), dtype=bool), ending=b"\n")
     return buffer.tobytes().decode("ascii").split("\n")[:-1]
-
-
-@dataclass(frozen=True, slots=True)
-class ChoiceColumn:
-    """A column of words picked per row from a few fixed texts (``G0``/``G1``, ``true``/``false``).
-
-    Attributes
-    ----------
-    choice : (N,) int — index into ``texts`` per row
-    texts : tuple of bytes — ASCII
-    """
-
-    choice: IntArray
-    texts: tuple[bytes, ...]
-
-
-#: One column of a row of words: a number with its prefix (the word letter), or a choice.
-Column = tuple[bytes, ScaledColumn] | ChoiceColumn
 
 
 def _digit_count(magnitude: IntArray) -> IntArray:
