@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from prs3_post.part import meshdist
+from prs3_post.part import meshdist, meshindex
 from prs3_post.part.meshdist import nearest_distance, point_triangle_distance
 
 
@@ -42,6 +42,7 @@ def test_nearest_distance_asks_for_at_most_the_budget_of_pairs_at_a_time(monkeyp
         return kernel(p, a, b, c)
 
     monkeypatch.setattr(meshdist, "triangle_distance", spy)
+    monkeypatch.setattr(meshindex, "triangle_distance", spy)     # the index measures its own pairs
     rng = np.random.default_rng(5)
     tri = _mesh(rng, 40)
     points = rng.uniform(-1e3, 1e3, (500, 3))            # far: the boxes prune little

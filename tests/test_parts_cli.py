@@ -22,7 +22,7 @@ from numpy.testing import assert_allclose
 
 from prs3_post.check import collision
 from prs3_post.cli.main import main
-from prs3_post.part import meshdist
+from prs3_post.part import meshdist, meshindex
 
 CORPUS = Path(__file__).resolve().parents[2] / "shared" / "corpus" / "stl"
 pytestmark = pytest.mark.skipif(
@@ -126,6 +126,7 @@ def test_main_job_and_verify_measure_the_angle_block_in_pieces_of_the_pair_budge
         return kernel(p, a, b, c)
 
     monkeypatch.setattr(meshdist, "triangle_distance", spy)
+    monkeypatch.setattr(meshindex, "triangle_distance", spy)     # the index measures its own pairs
     monkeypatch.setattr(collision, "triangle_distance", spy)
     out = tmp_path / "ab.ngc"
     job = ["--units", "inch", "--up", "y", "--profile", "hole", "--at", "5,0", "--part-origin=0,-16.75,-700"]

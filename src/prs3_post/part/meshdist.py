@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from prs3_post.core.types import BoolArray, FloatArray
-from prs3_post.part.meshindex import TriangleIndex
+from prs3_post.part.meshindex import TriangleIndex, triangle_distance
 
 __all__ = ["PAIR_BUDGET", "RAY", "inside", "nearest_distance", "point_triangle_distance", "segment_triangle_distance",
            "triangle_distance"]
@@ -27,36 +27,6 @@ RAY = np.array([0.5773502691896258, 0.4082482904638631, 0.7071067811865476])
 
 def _dot(x: FloatArray, y: FloatArray) -> FloatArray:
     return (x * y).sum(-1)
-
-
-def triangle_distance(p: FloatArray, a: FloatArray, b: FloatArray, c: FloatArray) -> FloatArray:
-    """mm: exact distance from points ``p`` to triangles ``a b c`` (each (..., 3), broadcast together;
-    Ericson's Voronoi regions)."""
-    ab, ac, ap = b - a, c - a, p - a
-    d1, d2 = _dot(ab, ap), _dot(ac, ap)
-    bp = p - b
-    d3, d4 = _dot(ab, bp), _dot(ac, bp)
-    cp = p - c
-    d5, d6 = _dot(ab, cp), _dot(ac, cp)
-    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        denom = va + vb + vc
-        v = vb / denom
-        w = vc / denom
-        closest = a + ab * v[..., None] + ac * w[..., None]                  # inside the face
-        t_ab = np.clip(d1 / (d1 - d3), 0, 1)
-        t_ac = np.clip(d2 / (d2 - d6), 0, 1)
-        t_bc = np.clip((d4 - d3) / ((d4 - d3) + (d5 - d6)), 0, 1)
-    on_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-    on_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-    on_bc = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
-    closest = np.where(on_bc[..., None], b + (c - b) * t_bc[..., None], closest)
-    closest = np.where(on_ac[..., None], a + ac * t_ac[..., None], closest)
-    closest = np.where(on_ab[..., None], a + ab * t_ab[..., None], closest)
-    closest = np.where(((d6 >= 0) & (d5 <= d6))[..., None], c, closest)
-    closest = np.where(((d3 >= 0) & (d4 <= d3))[..., None], b, closest)
-    closest = np.where(((d1 <= 0) & (d2 <= 0))[..., None], a, closest)
-    return np.linalg.norm(p - closest, axis=-1)
 
 
 def point_triangle_distance(points: FloatArray, triangles: FloatArray) -> FloatArray:

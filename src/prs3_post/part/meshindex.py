@@ -12,7 +12,7 @@ may hold what is asked are expanded into the children's pairs and the others dro
 pieces of at most ``budget`` pairs at a time (memory: proportional to the pairs near the queries,
 never to queries × triangles). The pruning is conservative: a node is dropped only where no
 triangle in it can be what is asked, with a slack far larger than the rounding of the boxes'
-distances, and what is finally measured (:func:`~prs3_post.part.meshdist.triangle_distance`, pair by
+distances, and what is finally measured (:func:`triangle_distance`, pair by
 pair) is the same number for a pair whoever asks; so a query answers exactly as every pair measured.
 """
 
@@ -25,7 +25,7 @@ import numpy.typing as npt
 
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 
-__all__ = ["FANOUT", "LEAF", "TriangleIndex"]
+__all__ = ["FANOUT", "LEAF", "TriangleIndex", "triangle_distance"]
 
 #: Triangles per leaf.
 LEAF = 8
@@ -76,6 +76,40 @@ def _pieces(level: int, rows: IntArray, node: IntArray, step: int) -> list[tuple
     """The pairs (``rows``, ``node``) at ``level`` cut into pieces of at most ``step``, the first last
     (a stack: the first is walked first)."""
     return [(level, rows[k:k + step], node[k:k + step]) for k in range(0, len(rows), step)][::-1]
+
+
+def _dot(x: FloatArray, y: FloatArray) -> FloatArray:
+    return (x * y).sum(-1)
+
+
+def triangle_distance(p: FloatArray, a: FloatArray, b: FloatArray, c: FloatArray) -> FloatArray:
+    """mm: exact distance from points ``p`` to triangles ``a b c`` (each (..., 3), broadcast together;
+    Ericson's Voronoi regions)."""
+    ab, ac, ap = b - a, c - a, p - a
+    d1, d2 = _dot(ab, ap), _dot(ac, ap)
+    bp = p - b
+    d3, d4 = _dot(ab, bp), _dot(ac, bp)
+    cp = p - c
+    d5, d6 = _dot(ab, cp), _dot(ac, cp)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = va + vb + vc
+        v = vb / denom
+        w = vc / denom
+        closest = a + ab * v[..., None] + ac * w[..., None]                  # inside the face
+        t_ab = np.clip(d1 / (d1 - d3), 0, 1)
+        t_ac = np.clip(d2 / (d2 - d6), 0, 1)
+        t_bc = np.clip((d4 - d3) / ((d4 - d3) + (d5 - d6)), 0, 1)
+    on_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+    on_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+    on_bc = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
+    closest = np.where(on_bc[..., None], b + (c - b) * t_bc[..., None], closest)
+    closest = np.where(on_ac[..., None], a + ac * t_ac[..., None], closest)
+    closest = np.where(on_ab[..., None], a + ab * t_ab[..., None], closest)
+    closest = np.where(((d6 >= 0) & (d5 <= d6))[..., None], c, closest)
+    closest = np.where(((d3 >= 0) & (d4 <= d3))[..., None], b, closest)
+    closest = np.where(((d1 <= 0) & (d2 <= 0))[..., None], a, closest)
+    return np.linalg.norm(p - closest, axis=-1)
 
 
 class TriangleIndex:
@@ -233,15 +267,13 @@ class TriangleIndex:
     def nearest(self, points: FloatArray, *, mask: BoolArray | None = None, cap: FloatArray | None = None,
                 budget: int = BUDGET) -> FloatArray:
         """(P,) mm: each point's (P, 3) distance to the nearest triangle that counts (``mask``, default
-        all; inf: none), exactly the least of :func:`~prs3_post.part.meshdist.triangle_distance` over them.
+        all; inf: none), exactly the least of :func:`triangle_distance` over them.
 
         A node is dropped where its box is farther than a triangle's corner (the one kept for each
         node; with a ``mask``, the farthest corner of a box that holds one that counts), widened by
         the slack: the nearest triangle never is. ``cap`` (P,) mm: where a point's nearest is farther
         than its cap, inf instead (the walk drops what is farther from the start). ``budget``: pairs
         walked, and measured, at a time."""
-        from prs3_post.part.meshdist import triangle_distance
-
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         out = np.full(len(points), np.inf)
         if not len(points) or not self.levels:
