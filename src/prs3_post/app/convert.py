@@ -140,10 +140,7 @@ class ConvertSettings:
     @property
     def ik_machine(self) -> Machine:
         """The machine with the tool length the IK uses."""
-        if self.tool_length is None:
-            return self.machine
-        return dataclasses.replace(self.machine,
-                                   geometry=dataclasses.replace(self.machine.geometry, tool_length=self.tool_length))
+        return self.machine if self.tool_length is None else self.machine.with_tool_length(self.tool_length)
 
 
 @dataclass(frozen=True, slots=True)

@@ -491,7 +491,7 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
         done = [replace(operation, path_part=_NO_ROWS) for operation in done]
     for k, spec in enumerate(specs):
         operation = done[k]
-        machine = _with_tool_length(spec.machine, operation.tool_length)
+        machine = spec.machine.with_tool_length(operation.tool_length)
         posted = _post_operation(machine, paths, k, spec, decimals, keep=keep, several=several,
                                  replan=partial(_planned, planned[k], done[k].face, k + 1, several))
         try:
@@ -573,7 +573,7 @@ def job_in_part_frame(specs: tuple[JobSpec, ...], operations: list[OperationResu
     for k in range(1, len(operations)):
         before, after = operations[k - 1], operations[k]
         pair = (before.tool_length, after.tool_length)
-        ends = [machine_path(_with_tool_length(spec.machine, op.tool_length), op.path_part, MACHINE_FRAME)
+        ends = [machine_path(spec.machine.with_tool_length(op.tool_length), op.path_part, MACHINE_FRAME)
                 for spec, op in ((specs[k - 1], before), (specs[k], after))]
         lift, turn = transition_paths(ends[0], ends[1], pair, height, labels=(
             f"{before.label}, lift to the safe height", f"{after.label}, turn the tool axis at the safe height"))
@@ -622,13 +622,6 @@ def _operation_error(error: LimitError | ReachError, machine: Machine, path_part
               f"a part origin at machine [{', '.join(origin)}] mm puts this operation (alone) inside the machine's "
               "limits")
     return type(error)(f"{error}; setup: {spec.setup.describe()}; {advice}")
-
-
-def _with_tool_length(machine: Machine, length: float) -> Machine:
-    """``machine`` with the tool length "TL" ``length`` mm (itself when it is the machine's)."""
-    if length == machine.geometry.tool_length:
-        return machine
-    return replace(machine, geometry=replace(machine.geometry, tool_length=length))
 
 
 def safe_height(triangles: FloatArray, setup: Setup, specs: tuple[JobSpec, ...]) -> float:
@@ -704,9 +697,9 @@ def post_transition(machine: Machine, before: Toolpath, after: Toolpath, lengths
     lift, turn = transition_paths(before, after, lengths, height, labels=labels)
     lifted = None
     if len(lift):
-        lifted = post_process(_with_tool_length(machine, lengths[0]), lift, MACHINE_FRAME,
+        lifted = post_process(machine.with_tool_length(lengths[0]), lift, MACHINE_FRAME,
                               length_decimals=length_decimals)
-    next_tool = _with_tool_length(machine, lengths[1])
+    next_tool = machine.with_tool_length(lengths[1])
     as_feed = replace(turn, kind=np.full(len(turn), MoveKind.FEED))
     fine = subdivide_axis_changes(next_tool.geometry, as_feed, tolerance=tolerance)
     fine = replace(fine, kind=np.full(len(fine), MoveKind.RAPID))
@@ -791,7 +784,7 @@ def _check_transition(specs: tuple[JobSpec, ...], operations: list[OperationResu
     out = []
     for k, parts in checks:
         spec, operation = specs[k], operations[k]
-        machine = _with_tool_length(spec.machine, operation.tool_length)
+        machine = spec.machine.with_tool_length(operation.tool_length)
         # the tool spared where the operation whose tool it is cuts (its swept region), as verify groups them
         found = measure_program(machine, _join_programs(parts), specs[1].setup, triangles, operation.face,
                                 spec.cutting.tool_diameter, clearance_min=clearance_min,

@@ -192,8 +192,7 @@ def open_setting(path: str, *, machine: str | None = None, dialect: str | None =
             raise _conflict(header, "setup", "part rotation", f"{setup.rotation_deg:g} deg", f"{rotation_deg:g} deg")
         if isinstance(header, SourceHeader) and header.tool_length != chosen_machine.geometry.tool_length:
             # a converted program's IK used the tool length its header states: replay it with that one
-            chosen_machine = dataclasses.replace(chosen_machine, geometry=dataclasses.replace(
-                chosen_machine.geometry, tool_length=header.tool_length))
+            chosen_machine = chosen_machine.with_tool_length(header.tool_length)
     return ProgramSetting(path=path, header=header, machine=chosen_machine, dialect=chosen_dialect, setup=setup)
 
 

@@ -557,9 +557,7 @@ def place(machine: Machine, paths: Toolpath | Sequence[Toolpath], *, origin: Seq
     lengths = [None] * len(pieces) if tool_lengths is None else list(tool_lengths)
     if len(lengths) != len(pieces):
         raise ValueError(f"place: {len(pieces)} paths but {len(lengths)} tool lengths")
-    machines = tuple(machine if length is None or length == machine.geometry.tool_length
-                     else replace(machine, geometry=replace(machine.geometry, tool_length=float(length)))
-                     for length in lengths)
+    machines = tuple(machine if length is None else machine.with_tool_length(float(length)) for length in lengths)
     given = None if origin is None else np.asarray(origin, dtype=np.float64).reshape(3)
     search = _Search(machine, pieces, machines, given, np.asarray(machine.part_origin, dtype=np.float64),
                      tolerance, angle_tolerance)

@@ -160,3 +160,11 @@ class Machine:
     part_origin: tuple[float, float, float]
     dynamics: Dynamics | None = None
     holder: Holder | None = None
+
+    def with_tool_length(self, length: float) -> Machine:
+        """This machine with the tool length "TL" ``length`` mm (platform centre to tool tip); itself when it
+        is already the machine's. The one place a machine with another tool is made (a job's operations,
+        a conversion's ``--tool-length``, a converted program's recorded length, placement)."""
+        if length == self.geometry.tool_length:
+            return self
+        return replace(self, geometry=replace(self.geometry, tool_length=length))
