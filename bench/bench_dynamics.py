@@ -24,6 +24,7 @@ import trimesh
 
 from prs3_post.app.job import JobSpec, plan
 from prs3_post.check.collision import check_program
+from prs3_post.core.defaults import DEFAULT_CLEARANCE_MIN
 from prs3_post.core.toolpath import Toolpath
 from prs3_post.machine.loading import load_dialect, load_machine
 from prs3_post.part.face import Face
@@ -81,7 +82,8 @@ def collision(job: JobSpec, mesh: trimesh.Trimesh, face: Face, path: Toolpath, r
         post = post_process(job.machine, path, job.setup, tolerance=job.tolerance, length_decimals=4)
         posting.append(time.process_time() - start)
         start = time.process_time()
-        text = check_program(job.machine, post.program, job.setup, np.asarray(mesh.triangles), face, 6.0)
+        text = check_program(job.machine, post.program, job.setup, np.asarray(mesh.triangles), face, 6.0,
+                             clearance_min=DEFAULT_CLEARANCE_MIN)
         checking.append(time.process_time() - start)
     rows, check = len(post.program), statistics.median(checking)
     print(f"collision check of {rows} rows ({Path(job.part).name}): {check:.3f} s CPU, {rows / check:.0f} rows/s "

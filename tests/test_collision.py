@@ -13,6 +13,7 @@ from click.testing import CliRunner
 
 from prs3_post.check.collision import body_cylinders, clearance, inside, point_triangle_distance
 from prs3_post.cli.main import main
+from prs3_post.core.defaults import DEFAULT_CLEARANCE_MIN
 from prs3_post.machine.loading import load_machine
 from prs3_post.part.faces import find_faces, select_face
 from prs3_post.part.stl import load_part
@@ -64,7 +65,8 @@ def _sweep(height: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def test_a_rapid_through_the_wall_between_two_features_is_caught():
     tip, axis, features = _sweep(FACE.origin[2] + 30.0 * FACE.u[2] + 10.0 * FACE.normal[2])
-    found = clearance(TRIANGLES, tip, axis, BODIES, FACE, features, refine_max=10**6)
+    found = clearance(TRIANGLES, tip, axis, BODIES, FACE, features, refine_max=10**6,
+                      clearance_min=DEFAULT_CLEARANCE_MIN)
     # the tool (radius 3) crosses the 5 mm wall: its deepest surface point is half the wall inside
     assert found.distance[0] == pytest.approx(-2.5, abs=0.02)
     assert found.distance[1] < 0 and found.exact.all()
@@ -72,7 +74,8 @@ def test_a_rapid_through_the_wall_between_two_features_is_caught():
 
 def test_the_same_rapid_above_the_wall_clears_it_by_the_formula():
     tip, axis, features = _sweep(330.0)
-    found = clearance(TRIANGLES, tip, axis, BODIES, FACE, features, refine_max=10**6)
+    found = clearance(TRIANGLES, tip, axis, BODIES, FACE, features, refine_max=10**6,
+                      clearance_min=DEFAULT_CLEARANCE_MIN)
     # the tool's low rim, tilted 30°: 330 − 3 sin 30° above the wall's top at z = 315
     assert found.distance[0] == pytest.approx(330.0 - 3.0 * math.sin(math.radians(30.0)) - 315.0, abs=1e-6)
     assert found.exact.all()
@@ -80,8 +83,9 @@ def test_the_same_rapid_above_the_wall_clears_it_by_the_formula():
 
 def test_lower_bound_never_exceeds_the_sampled_minimum():
     tip, axis, features = _sweep(320.0)
-    quick = clearance(TRIANGLES, tip, axis, BODIES, FACE, features)
-    full = clearance(TRIANGLES, tip, axis, BODIES, FACE, features, refine_max=10**6)
+    quick = clearance(TRIANGLES, tip, axis, BODIES, FACE, features, clearance_min=DEFAULT_CLEARANCE_MIN)
+    full = clearance(TRIANGLES, tip, axis, BODIES, FACE, features, refine_max=10**6,
+                     clearance_min=DEFAULT_CLEARANCE_MIN)
     assert (quick.distance <= full.distance + 1e-12).all()
     assert full.exact.all()
 
@@ -101,9 +105,11 @@ def test_a_rapid_given_by_its_end_poses_only_is_checked_along_its_length():
     slim = np.array([[3.0, 0.0, 15.0], [4.0, 15.0, 20.0], [4.0, 20.0, 22.0]])
     tip, axis, features = _sweep(FACE.origin[2] + 30.0 * FACE.u[2] + 10.0 * FACE.normal[2])
     ends = [0, len(tip) - 1]
-    alone = clearance(TRIANGLES, tip[ends], axis[ends], slim, FACE, features, refine_max=10)
+    alone = clearance(TRIANGLES, tip[ends], axis[ends], slim, FACE, features, refine_max=10,
+                      clearance_min=DEFAULT_CLEARANCE_MIN)
     assert alone.distance.round(3).tolist() == [8.921, 5.555, 4.555] and alone.exact.all()
-    moving = clearance(TRIANGLES, tip[ends], axis[ends], slim, FACE, features, connected=np.array([False, True]))
+    moving = clearance(TRIANGLES, tip[ends], axis[ends], slim, FACE, features, connected=np.array([False, True]),
+                       clearance_min=DEFAULT_CLEARANCE_MIN)
     assert moving.distance[0] == pytest.approx(-2.108, abs=1e-3) and moving.exact[0]   # through the 5 mm wall
     assert moving.sample[0] == 1                              # named by the pose the motion ends at
 
@@ -137,7 +143,7 @@ def test_a_program_of_more_than_20000_poses_is_checked():
 
     program, setup, triangles, face = _round_pocket(2.5)
     assert len(program) == 24027                              # once beyond the check's pose limit: 'not checked'
-    assert check_program(MACHINE, program, setup, triangles, face, 6.0) == (
+    assert check_program(MACHINE, program, setup, triangles, face, 6.0, clearance_min=DEFAULT_CLEARANCE_MIN) == (
         "clear of the part by at least 1.000 mm: tool over 11.000 mm, holder over 11.000 mm, "
         "spindle nose over 11.000 mm")
     # the holder's end is 20 − 2.5 mm above the face on the last pass: an 18 mm clearance refuses it there
@@ -430,7 +436,7 @@ def test_a_thin_wall_between_the_samples_of_a_long_feed_move_is_caught(tmp_path)
     assert not (tmp_path / "out" / "long.ngc").exists()
     samples = np.array([FACE.origin + 8.1 * FACE.u + v * FACE.v + 5.0 * FACE.normal for v in (-30.0, 30.0)])
     ends = clearance(np.asarray(trimesh.load(str(tmp_path / "plate.stl")).triangles), samples,
-                     np.tile(FACE.normal, (2, 1)), BODIES, None, np.zeros((0, 3)))
+                     np.tile(FACE.normal, (2, 1)), BODIES, None, np.zeros((0, 3)), clearance_min=DEFAULT_CLEARANCE_MIN)
     assert ends.distance[1] == pytest.approx(3.549, abs=1e-3)       # the two samples alone: clear
     # made without the check, verify finds it on the program's line of that move
     result = CliRunner().invoke(main, [*convert, "-o", str(tmp_path / "unchecked"), "--no-collision-check"])

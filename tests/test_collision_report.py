@@ -13,6 +13,7 @@ from click.testing import CliRunner
 
 from prs3_post.app.job import run_operations, specs_from_header
 from prs3_post.cli.main import main
+from prs3_post.core.defaults import NOMINAL_RAPID_RATE
 from prs3_post.core.errors import InputError
 from prs3_post.emit.header import ProgramHeader, header_comments, parse_header, read_header
 from prs3_post.machine.loading import load_dialect, load_machine
@@ -179,7 +180,8 @@ def test_preview_on_the_part_marks_the_closest_approach_where_verify_finds_it(wa
     mesh = load_part(str(WALL))
     face, _ = select_face(find_faces(mesh), None, min_width=6.0)
     figure = preview_figure(context.program, context.machine, context.setup, dialect=context.dialect,
-                            mesh=mesh.triangles, face=face, rebuilt=rebuild_job(header_job(context, str(WALL))))
+                            mesh=mesh.triangles, face=face, rebuilt=rebuild_job(header_job(context, str(WALL))),
+                            rapid_rate=NOMINAL_RAPID_RATE)
     ax3d = figure.axes[0]
     marker = next(c for c in ax3d.collections if c.get_label().startswith("closest: "))
     assert marker.get_label() == "closest: holder 2.488 mm deep in the part, line 27"

@@ -13,6 +13,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from prs3_post.check.collision import body_cylinders, clearance, cylinder_penetration
+from prs3_post.core.defaults import DEFAULT_CLEARANCE_MIN
 from prs3_post.machine.loading import load_machine
 from prs3_post.part.face import Face
 from prs3_post.part.faces import find_faces, select_face
@@ -158,7 +159,7 @@ def test_clearance_with_the_index_is_what_every_pair_gave(seed, poses, height):
 
     def run() -> tuple[list, ...]:
         found = clearance(triangles, tip, axis, bodies, None if seed % 3 == 0 else face, tip[: poses // 2],
-                          refine_max=2, block=4, connected=connected)
+                          refine_max=2, block=4, connected=connected, clearance_min=DEFAULT_CLEARANCE_MIN)
         return found.distance.tolist(), found.sample.tolist(), found.point.tolist(), found.exact.tolist()
 
     indexed = run()

@@ -32,6 +32,7 @@ import numpy as np
 from prs3_post import __version__
 from prs3_post.app.read_ahead import read_ahead, read_in_process
 from prs3_post.app.streaming import emitted_text, program_text
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE, MM_PER_INCH
 from prs3_post.core.errors import InputError, LimitError, PoseError, Prs3Error, ReachError
 from prs3_post.core.input_files import open_input
 from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpath, join_programs
@@ -103,8 +104,8 @@ class ConvertSettings:
     machine: Machine
     dialect: Dialect
     setup: Setup
-    tolerance: float = 0.002
-    angle_tolerance_deg: float = 0.01
+    tolerance: float = DEFAULT_TOLERANCE
+    angle_tolerance_deg: float = DEFAULT_ANGLE_TOLERANCE_DEG
     tool_length: float | None = None
     input_format: str = "auto"
     units: str | None = None
@@ -122,7 +123,7 @@ class ConvertSettings:
     part_units: str = "mm"
     part_up: str = "z"
     collision_check: bool = True
-    clearance_min: float = 1.0
+    clearance_min: float = DEFAULT_CLEARANCE_MIN
     tool_diameter: float | None = None
 
     def __post_init__(self) -> None:
@@ -629,7 +630,7 @@ def tool_diameter_of(reader: ClStream | GcodeStream) -> float:
     summary = reader.summary
     if not isinstance(summary, ClFile):
         return 0.0
-    scale = 25.4 if summary.units == "inch" else 1.0
+    scale = MM_PER_INCH if summary.units == "inch" else 1.0
     low, high = TOOL_DIAMETER_RANGE
     found = []
     for record in summary.tool_data:

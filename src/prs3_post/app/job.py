@@ -28,7 +28,7 @@ import numpy as np
 from prs3_post import __version__
 from prs3_post.check.collision import Approach, ProgramClearance, feed_tips_of, measure_program
 from prs3_post.check.placement import PlacementResult, place, placement_error, suggest_origin
-from prs3_post.core.defaults import DEFAULT_TOLERANCE
+from prs3_post.core.defaults import DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE
 from prs3_post.core.errors import FeatureError, InputError, LimitError, ReachError
 from prs3_post.core.numbers import exact_text
 from prs3_post.core.toolpath import (
@@ -107,7 +107,7 @@ class JobSpec:
     auto_rotation: bool = False
     clamp: bool = True
     collision_check: bool = True
-    clearance_min: float = 1.0
+    clearance_min: float = DEFAULT_CLEARANCE_MIN
 
     @property
     def operation(self) -> Operation:

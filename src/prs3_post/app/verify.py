@@ -27,7 +27,7 @@ import numpy as np
 
 from prs3_post.app.read_ahead import read_ahead
 from prs3_post.check.verify import Intended, Problem, Verifier, VerifyReport, verify_program
-from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_TOLERANCE
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE
 from prs3_post.core.errors import ConfigError, InputError, PoseError, Prs3Error, quoted
 from prs3_post.core.toolpath import MoveKind
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
@@ -397,7 +397,7 @@ CAM_ALLOWANCE = "the tool in feeds (it cuts what the CAM program removes: its go
 
 
 def cam_part_clearance(report: VerifyReport, machine: Machine, against: CamPart, *,
-                       clearance_min: float = 1.0) -> PartClearance:
+                       clearance_min: float) -> PartClearance:
     """The clearance from the part (``against.triangles``, part frame) of a program converted from CAM
     input, as ``convert --part`` checks it: the holder and the spindle nose at every sample (no face),
     the tool in the rapids only (:func:`~prs3_post.check.collision.rapid_tool_clearance`, with the diameter
@@ -446,7 +446,7 @@ def _measure(report: VerifyReport, machine: Machine, triangles: FloatArray, piec
     sample = np.full(3, -1, dtype=np.int64)
     point = np.zeros((3, 3))
     exact = np.ones(3, dtype=bool)
-    asked = np.full(3, 1.0 if clearance_min is None else clearance_min)
+    asked = np.full(3, DEFAULT_CLEARANCE_MIN if clearance_min is None else clearance_min)
     for piece in pieces:
         mine = np.flatnonzero(piece.rows[rep.row] & finite)
         if not len(mine):
@@ -496,7 +496,7 @@ def with_clearance(report: VerifyReport, machine: Machine, against: RebuiltJob |
         return report, f"not measured: machine {machine.name} has no [holder]"
     if isinstance(against, CamPart):
         found = cam_part_clearance(report, machine, against,
-                                   clearance_min=1.0 if clearance_min is None else clearance_min)
+                                   clearance_min=DEFAULT_CLEARANCE_MIN if clearance_min is None else clearance_min)
     else:
         found = part_clearance(report, machine, against, clearance_min=clearance_min)
     problems = tuple(sorted(report.problems + found.problems(), key=lambda p: p.line))
@@ -703,7 +703,7 @@ def _keep_freed_memory() -> None:
 
 def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str, *,
                   dialect: Dialect, tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None,
-                  face: Face | None = None, title: str = "", rapid_rate: float = 5000.0,
+                  face: Face | None = None, title: str = "", rapid_rate: float,
                   tool_lengths: dict[int, float] | None = None, rebuilt: RebuiltJob | None = None,
                   closest: Approach | None = None) -> bytes:
     """Replay a read program and draw it as ``png`` or ``svg`` bytes (:func:`preview_figure`)."""
@@ -716,7 +716,7 @@ def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str
 
 def preview_figure(program: ProgramFile, machine: Machine, setup: Setup, *, dialect: Dialect,
                    tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None, face: Face | None = None,
-                   title: str = "", rapid_rate: float = 5000.0, tool_lengths: dict[int, float] | None = None,
+                   title: str = "", rapid_rate: float, tool_lengths: dict[int, float] | None = None,
                    rebuilt: RebuiltJob | None = None, closest: Approach | None = None) -> Figure:
     """Replay a read program and draw it (matplotlib is imported here); ``tool_lengths`` as
     :func:`~prs3_post.check.verify.verify_program`. With the job it was made by (``rebuilt``) and a machine

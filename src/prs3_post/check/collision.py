@@ -781,7 +781,7 @@ class _Poses:
 
 
 def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinders: FloatArray, face: Face | None,
-              feed_tips: FloatArray, *, clearance_min: float = 1.0, block: int = 64, refine_max: int = 0,
+              feed_tips: FloatArray, *, clearance_min: float, block: int = 64, refine_max: int = 0,
               connected: BoolArray | None = None, near: float | None = None) -> Clearance:
     """The clearance of the bodies from the part at every pose (part frame), and between connected ones.
 
@@ -875,7 +875,7 @@ def _refine(poses: _Poses, refine_max: int, block: int) -> None:
 
 
 def check_program(machine: Machine, program: JointProgram, setup: Setup, triangles: FloatArray, face: Face | None,
-                  tool_diameter: float, *, clearance_min: float = 1.0) -> str:
+                  tool_diameter: float, *, clearance_min: float) -> str:
     """Replay ``program`` (verify's FK samples) and check the bodies' clearance from the part.
 
     ``face`` None: a CAM program's (``convert --part``), whose tool cuts what the CAM program
@@ -984,7 +984,7 @@ def approach_label(body: int, distance: float, exact: bool, line: int) -> str:
 
 
 def measure_program(machine: Machine, program: JointProgram, setup: Setup, triangles: FloatArray,
-                    face: Face | None, tool_diameter: float, *, clearance_min: float = 1.0,
+                    face: Face | None, tool_diameter: float, *, clearance_min: float,
                     feed_tips: FloatArray | None = None) -> ProgramClearance | str:
     """Each body's smallest clearance along ``program`` (verify's FK samples and the motion between
     them), streamed: the groups of rows the scan bounds beyond the horizon as a whole

@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE, NOMINAL_RAPID_RATE
 from prs3_post.core.errors import Prs3Error
 from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind, program_from_columns
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
@@ -78,9 +78,6 @@ from prs3_post.post.linearize import slerp
 
 #: Rows replayed at a time (memory: a few kB per row at most; the report does not depend on it).
 CHUNK_ROWS = 16384
-#: mm/min: the rapid rate used for program time: the longest joint travel of a G0 at this rate
-#: (a nominal value: the real one depends on the machine's axis settings).
-NOMINAL_RAPID_RATE = 5000.0
 
 
 # ============================================================================= replay

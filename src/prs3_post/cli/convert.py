@@ -31,6 +31,7 @@ from prs3_post.cli.options import (
     up_option,
     was_given,
 )
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARANCE_MIN
 from prs3_post.core.errors import ConfigError, FeatureError, InputError, quoted
 from prs3_post.core.lexer import code_name
 from prs3_post.emit.output_files import (
@@ -82,7 +83,8 @@ def _codes_option(text: str | None, flag: str) -> tuple[str, ...] | None:
               help="Write every file's accounting (records by word, moves, subdivisions, deviations) as JSON.")
 @click.option("--tool-length", type=Decimal(LENGTH, low=0.0, low_open=True), default=None, metavar="MM",
               help="Platform centre to tool tip for the IK, mm.  [default: the machine's tool_length_mm]")
-@click.option("--angle-tolerance", "angle_tolerance_deg", type=Decimal(ANGLE, low=0.0, low_open=True), default=0.01,
+@click.option("--angle-tolerance", "angle_tolerance_deg", type=Decimal(ANGLE, low=0.0, low_open=True),
+              default=DEFAULT_ANGLE_TOLERANCE_DEG,
               show_default=True, metavar="DEG", help="Allowed tool-axis deviation of axis-changing moves, degrees.")
 @click.option("--units", type=click.Choice(["mm", "inch"]), default=None,
               help="Length unit of CL files without UNITS/.  [default: inch when the feeds are IPM/IPR, else mm]")
@@ -106,7 +108,7 @@ def _codes_option(text: str | None, flag: str) -> tuple[str, ...] | None:
 @click.option("--collision-check/--no-collision-check", default=True, show_default=True,
               help="With --part: check the holder, spindle nose and the tool in the rapids against it; the header "
                    "says when it was skipped.")
-@click.option("--clearance-min", type=CLEARANCE_MIN, default=1.0, show_default=True,
+@click.option("--clearance-min", type=CLEARANCE_MIN, default=DEFAULT_CLEARANCE_MIN, show_default=True,
               help="With --part: least distance the holder and spindle nose keep from it, mm.")
 @click.option("--tool-diameter", "tool_diameter", type=Decimal(LENGTH), default=None, metavar="MM",
               help="With --part: the tool's diameter for its check in the rapids, mm (0.01 to 500).  [default: the "

@@ -41,7 +41,9 @@ from prs3_post.cli.options import (
     was_given,
 )
 from prs3_post.core.defaults import (
+    DEFAULT_CLEARANCE_MIN,
     FEED_RANGE_MM_MIN,
+    NOMINAL_RAPID_RATE,
 )
 from prs3_post.core.errors import FeatureError, InputError, quoted
 from prs3_post.emit.output_files import (
@@ -153,7 +155,7 @@ def job_options(func: Callable[..., Any]) -> Callable[..., Any]:
         click.option("--collision-check/--no-collision-check", default=True, show_default=True,
                      help="Check that the tool, holder and spindle nose stay clear of the part (the machine's "
                           "[holder]) before writing; the header says when it was skipped."),
-        click.option("--clearance-min", type=CLEARANCE_MIN, default=1.0, show_default=True,
+        click.option("--clearance-min", type=CLEARANCE_MIN, default=DEFAULT_CLEARANCE_MIN, show_default=True,
                      help="Least distance the tool, holder and spindle nose keep from the part, mm."),
         click.option("-o", "--output", "out_path", type=OutputPath(),
                      help="Program file (written to a temp file, then renamed). Default: standard output."),
@@ -222,7 +224,7 @@ def _run_job(part: str, **opts: Any) -> int:
         lengths = None if spec.tool_table is None else {spec.cutting.tool_number: job.tool_lengths[0]}
         image = preview_bytes(program, spec.machine, job.setup, fmt, tolerance=spec.tolerance, tool_lengths=lengths,
                               mesh=job.triangles, face=job.face, title=Path(part).name, dialect=spec.dialect,
-                              closest=job.closest)
+                              closest=job.closest, rapid_rate=NOMINAL_RAPID_RATE)
     write_outputs([(out_path, text.data())] + ([] if image is None else [(opts["preview_path"], image)]))
     _report_placement(job)
     if not is_stdout(out_path):
@@ -325,7 +327,7 @@ def job_spec(part: str, opts: dict[str, Any]) -> JobSpec:
         auto_rotation=opts.get("part_rotation") == AUTO,
         tool_table=read_tool_table(opts["tool_table"]) if opts.get("tool_table") else None,
         clamp=opts.get("clamp", True), collision_check=opts.get("collision_check", True),
-        clearance_min=opts.get("clearance_min", 1.0),
+        clearance_min=opts.get("clearance_min", DEFAULT_CLEARANCE_MIN),
     )
 
 

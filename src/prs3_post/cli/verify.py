@@ -29,6 +29,7 @@ from prs3_post.cli.options import (
 from prs3_post.cli.run import job_options, job_spec, refuse_unused_options
 from prs3_post.core.defaults import (
     DEFAULT_ANGLE_TOLERANCE_DEG,
+    NOMINAL_RAPID_RATE,
 )
 from prs3_post.core.errors import InputError
 from prs3_post.emit.output_files import (
@@ -385,7 +386,7 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
               help="G-code dialect of the program: linuxcnc, fanuc, or a dialect TOML file.")
 @part_origin_option
 @part_rotation_option
-@click.option("--rapid-rate", type=Decimal(FEED, low=0.0, low_open=True), default=5000.0, show_default=True,
+@click.option("--rapid-rate", type=Decimal(FEED, low=0.0, low_open=True), default=NOMINAL_RAPID_RATE, show_default=True,
               help="Joint-space rate of G0 moves for the time axis, mm/min (the longest joint travel at this rate), "
                    "for a machine without [dynamics]; with them the axis shows the cycle time.")
 def preview(program_path: str, out_path: str, part_path: str | None, face_choice: str, units: str, up: str,

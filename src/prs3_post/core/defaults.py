@@ -1,7 +1,11 @@
-"""The default tolerances, defined once (library defaults, the CLI's option defaults, the header's), and
-the range of feeds any input may ask for.
+"""Every default and constant of the library, defined once: the tolerances (the CLI's option defaults, the
+header's), the clearance a collision check keeps, the nominal rapid rate, the inch, and the range of feeds any
+input may ask for. What is a machine's own (its limits, speeds, holder) is in its machine file instead.
 
-A tolerance a user gives overrides these; a program header records the one used.
+A value a user gives overrides these; a program header records the one used. Inside the library a value that
+has a default here is a required keyword argument (a value someone forgets to pass is an error, not silently
+the default): only the edges (the command line, a job file, a request's fields) fill it in from this module.
+tests/test_defaults.py fails on a new copy of these numbers elsewhere in the package.
 """
 
 from __future__ import annotations
@@ -9,8 +13,8 @@ from __future__ import annotations
 import math
 
 __all__ = [
-    "DEFAULT_ANGLE_TOLERANCE", "DEFAULT_ANGLE_TOLERANCE_DEG", "DEFAULT_TOLERANCE", "FEED_RANGE_MM_MIN",
-    "MAX_SPINDLE_RPM",
+    "DEFAULT_ANGLE_TOLERANCE", "DEFAULT_ANGLE_TOLERANCE_DEG", "DEFAULT_CIRCLE_TOLERANCE", "DEFAULT_CLEARANCE_MIN",
+    "DEFAULT_TOLERANCE", "FEED_RANGE_MM_MIN", "MAX_SPINDLE_RPM", "MM_PER_INCH", "NOMINAL_RAPID_RATE",
 ]
 
 DEFAULT_TOLERANCE = 0.002
@@ -21,6 +25,19 @@ DEFAULT_ANGLE_TOLERANCE_DEG = 0.01
 
 DEFAULT_ANGLE_TOLERANCE = math.radians(DEFAULT_ANGLE_TOLERANCE_DEG)
 """rad: :data:`DEFAULT_ANGLE_TOLERANCE_DEG` in code units."""
+
+DEFAULT_CIRCLE_TOLERANCE = 0.01
+"""mm: how far a CAM arc's start and end may be from its circle (radially, and in height for a helix)."""
+
+DEFAULT_CLEARANCE_MIN = 1.0
+"""mm: the least distance the tool, holder and spindle nose must keep from the part (``--clearance-min``)."""
+
+NOMINAL_RAPID_RATE = 5000.0
+"""mm/min: the joint-space rate a G0 move is timed at where the machine file has no ``[dynamics]``
+(``verify --rapid-rate``)."""
+
+MM_PER_INCH = 25.4
+"""mm in an inch (G20 programs, ``UNITS/INCHES`` CL files, STL parts in inches)."""
 
 FEED_RANGE_MM_MIN = (0.1, 1e6)
 """mm/min, the tip feeds an option, a job file, a CAM file (FEDRAT/, CYCLE/, G-code F) may ask for: from 6 mm an

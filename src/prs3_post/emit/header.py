@@ -48,6 +48,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from prs3_post.core.defaults import DEFAULT_CLEARANCE_MIN
 from prs3_post.core.errors import InputError, Prs3Error, quoted
 from prs3_post.core.input_files import open_input
 from prs3_post.core.numbers import exact_text
@@ -95,7 +96,7 @@ class OperationRecord:
     at_xyz: FloatArray
     cutting: Cutting
     collision_check: bool = True
-    clearance_min: float = 1.0
+    clearance_min: float = DEFAULT_CLEARANCE_MIN
 
 
 @dataclass(frozen=True, slots=True)
@@ -187,7 +188,7 @@ class ProgramHeader(_HeaderLines):
     lines: tuple[tuple[str, int], ...] = ()
     path: str = ""
     collision_check: bool = True
-    clearance_min: float = 1.0
+    clearance_min: float = DEFAULT_CLEARANCE_MIN
 
 
 @dataclass(frozen=True, slots=True)

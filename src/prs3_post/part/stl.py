@@ -49,6 +49,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from prs3_post.core.defaults import MM_PER_INCH
 from prs3_post.core.errors import InputError, Prs3Warning
 from prs3_post.core.input_files import read_input
 from prs3_post.core.types import FloatArray
@@ -59,7 +60,7 @@ from prs3_post.part.setup_transform import (
 if TYPE_CHECKING:  # trimesh (with networkx and PIL) costs 200 ms: imported by the commands that read an STL
     import trimesh
 
-UNIT_SCALE: dict[str, float] = {"mm": 1.0, "inch": 25.4}
+UNIT_SCALE: dict[str, float] = {"mm": 1.0, "inch": MM_PER_INCH}
 """mm per file unit, for each accepted ``units`` value."""
 
 MIN_EXTENT_MM = 1.0
@@ -353,7 +354,7 @@ def _check_size(mesh: trimesh.Trimesh, units: str, where: str) -> None:
     if units == "mm":
         message = (
             f"part is only {dims} mm (largest extent under {MIN_EXTENT_MM:g} mm): "
-            f"if the file is in inches, use --units inch ({_dims(extents * 25.4)} mm); "
+            f"if the file is in inches, use --units inch ({_dims(extents * MM_PER_INCH)} mm); "
             f"if it is in metres, scale it by 1000 ({_dims(extents * 1000.0)} mm)"
         )
     else:
@@ -373,11 +374,11 @@ def _size_doubt(extents: FloatArray, units: str) -> str:
         f"{_dims(extents)} mm (largest extent over {high / 1000.0:g} m)"
     )
     fixes = {
-        (True, "mm"): f"is this STL in inches? use --units inch ({_dims(extents * 25.4)} mm)",
+        (True, "mm"): f"is this STL in inches? use --units inch ({_dims(extents * MM_PER_INCH)} mm)",
         (True, "inch"): f"is this STL in metres? scale it by 1000 and use --units mm "
-                        f"({_dims(extents / 25.4 * 1000.0)} mm)",
+                        f"({_dims(extents / MM_PER_INCH * 1000.0)} mm)",
         (False, "mm"): f"is this STL in micrometres? scale it by 1/1000 ({_dims(extents / 1000.0)} mm)",
-        (False, "inch"): f"is this STL in mm? use --units mm ({_dims(extents / 25.4)} mm)",
+        (False, "inch"): f"is this STL in mm? use --units mm ({_dims(extents / MM_PER_INCH)} mm)",
     }
     return f"part is {size}: {fixes[small, units]}"
 

@@ -82,7 +82,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from prs3_post.core.defaults import FEED_RANGE_MM_MIN, MAX_SPINDLE_RPM
+from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE, FEED_RANGE_MM_MIN, MAX_SPINDLE_RPM, MM_PER_INCH
 from prs3_post.core.errors import InputError
 from prs3_post.core.input_files import iter_pieces, line_chunks
 from prs3_post.core.lexer import bad_pairs, decimal_numbers
@@ -113,7 +113,6 @@ LISTING_TRAILER = "Tool Path Listing"
 FRAME_TOLERANCE = 1e-5
 #: A tool vector must have length 1 within this (it is then normalized).
 AXIS_LENGTH_TOLERANCE = 1e-3
-MM_PER_INCH = 25.4
 #: mm/min, the fastest feed per minute a CAM file may ask for (a kilometre a minute, as the command line's
 #: feeds): more is a typo, and would make a program whose moves the controller cannot follow.
 MIN_FEED_MM_MIN, MAX_FEED_MM_MIN = FEED_RANGE_MM_MIN
@@ -391,7 +390,7 @@ _PIECE_BYTES = 1 << 20
 
 
 def read_cl(path: str, *, tolerance: float, units: str | None = None, ignore: frozenset[str] = frozenset(),
-            circle_tolerance: float = 0.01, apply_msys: bool = True) -> ClFile:
+            circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE, apply_msys: bool = True) -> ClFile:
     """Read a whole CL file (see the module docstring for what is understood).
 
     Parameters
@@ -423,7 +422,7 @@ def read_cl(path: str, *, tolerance: float, units: str | None = None, ignore: fr
 
 
 def parse_cl(text: str, *, path: str, tolerance: float, units: str | None = None,
-             ignore: frozenset[str] = frozenset(), circle_tolerance: float = 0.01,
+             ignore: frozenset[str] = frozenset(), circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE,
              chunk_lines: int = CHUNK_LINES, apply_msys: bool = True) -> ClFile:
     """Read CL text; ``path`` is only used in messages. Parameters as :func:`read_cl`."""
     return ClStream(path, tolerance=tolerance, units=units, ignore=ignore, circle_tolerance=circle_tolerance,
@@ -450,7 +449,7 @@ class ClStream:
     """
 
     def __init__(self, path: str, *, tolerance: float, units: str | None = None,
-                 ignore: frozenset[str] = frozenset(), circle_tolerance: float = 0.01,
+                 ignore: frozenset[str] = frozenset(), circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE,
                  chunk_lines: int = CHUNK_LINES, piece_bytes: int = _PIECE_BYTES, text: str | None = None,
                  apply_msys: bool = True):
         if units not in (None, "mm", "inch"):

@@ -77,7 +77,7 @@ from typing import TYPE_CHECKING, overload
 
 import numpy as np
 
-from prs3_post.core.defaults import MAX_SPINDLE_RPM
+from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE, MAX_SPINDLE_RPM, MM_PER_INCH
 from prs3_post.core.errors import InputError, LexError
 from prs3_post.core.input_files import iter_pieces, line_blocks
 from prs3_post.core.lexer import (
@@ -111,7 +111,6 @@ __all__ = [
     "parse_gcode", "read_gcode",
 ]
 
-MM_PER_INCH = 25.4
 #: Lines read per chunk by :class:`GcodeStream`.
 CHUNK_LINES = 10_000
 _PIECE_BYTES = 1 << 20
@@ -274,7 +273,7 @@ class GcodeFile:
 # Entry points
 # --------------------------------------------------------------------------------------------
 def read_gcode(path: str, *, tolerance: float, work_plane: WorkPlane | None = None,
-               circle_tolerance: float = 0.01) -> GcodeFile:
+               circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE) -> GcodeFile:
     """Read a whole 3+2 G-code file (see the module docstring for what is understood).
 
     Parameters
@@ -297,7 +296,7 @@ def read_gcode(path: str, *, tolerance: float, work_plane: WorkPlane | None = No
 
 
 def parse_gcode(text: str, *, path: str, tolerance: float, work_plane: WorkPlane | None = None,
-                circle_tolerance: float = 0.01, chunk_lines: int = CHUNK_LINES) -> GcodeFile:
+                circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE, chunk_lines: int = CHUNK_LINES) -> GcodeFile:
     """Read G-code text; ``path`` is only used in messages. Parameters as :func:`read_gcode`."""
     return GcodeStream(path, tolerance=tolerance, work_plane=work_plane, circle_tolerance=circle_tolerance,
                        chunk_lines=chunk_lines, text=text).whole()
@@ -321,8 +320,8 @@ class GcodeStream:
     """
 
     def __init__(self, path: str, *, tolerance: float, work_plane: WorkPlane | None = None,
-                 circle_tolerance: float = 0.01, chunk_lines: int = CHUNK_LINES, piece_bytes: int = _PIECE_BYTES,
-                 text: str | None = None):
+                 circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE, chunk_lines: int = CHUNK_LINES,
+                 piece_bytes: int = _PIECE_BYTES, text: str | None = None):
         if not (math.isfinite(tolerance) and tolerance > 0):
             raise ValueError(f"GcodeStream: tolerance must be > 0 mm, got {tolerance!r}")
         if not (math.isfinite(circle_tolerance) and circle_tolerance > 0):
