@@ -30,8 +30,8 @@ from typing import TYPE_CHECKING, cast
 import numpy as np
 
 from prs3_post import __version__
-from prs3_post.app.read_ahead import read_ahead, read_in_process
-from prs3_post.app.streaming import emitted_text, program_text
+from prs3_post.app.read_ahead import read_ahead
+from prs3_post.app.streaming import program_text
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE, MM_PER_INCH
 from prs3_post.core.errors import InputError, LimitError, PoseError, Prs3Error, ReachError
 from prs3_post.core.input_files import open_input
@@ -55,7 +55,7 @@ from prs3_post.post.pipeline import (
 )
 from prs3_post.readers.cl.reader import ClFile, ClStream, join_toolpaths
 from prs3_post.readers.detect import DETECT_BYTES, FORMATS, detect_format
-from prs3_post.readers.gcode.reader import GcodeFile, GcodeStream
+from prs3_post.readers.gcode.reader import GcodeStream
 from prs3_post.toolpaths.common import TOOL_DIAMETER_RANGE
 
 if TYPE_CHECKING:  # imported where used: a plain 3+2 or CL conversion needs none of them (test_startup)
@@ -348,18 +348,6 @@ def _check_poses(machine: Machine, chunk: Toolpath, setup: Setup, *, limits: boo
     return path
 
 
-#: Bytes of input from which a forked process reads it (:func:`prs3_post.app.read_ahead.read_in_process`), below
-#: which a thread does: forking costs a few milliseconds, reading 4 MB (some 130,000 lines) 0.1 s.
-PROCESS_READ_BYTES = 4 << 20
-
-
-def _large(path: str) -> bool:
-    try:
-        return os.path.getsize(path) >= PROCESS_READ_BYTES
-    except OSError:                                     # read as it is given (the reader names what is wrong)
-        return False
-
-
 @dataclass(slots=True)
 class _Run:
     """One conversion under way: the reader, the post-processing stream, and what they counted."""
@@ -370,8 +358,6 @@ class _Run:
     sha256: str                                         # of the bytes converted: "" until the reader is through
     reader: ClStream | GcodeStream
     post: PostStream
-    forked: bool = False                                # the file is read (and hashed) by a forked process
-    post_counts: PostCounts | None = None               # the forked process's, where it post-processed too
     rows: int = 0
     results: list[PostResult] = field(default_factory=list)   # each chunk's, when kept (convert_file)
     programs: list[JointProgram] = field(default_factory=list)   # each chunk's, for the collision check
@@ -384,9 +370,9 @@ class _Run:
 
     def chunks(self) -> Iterator[Toolpath]:
         """The reader's chunks, checked as read, placed on the machine (unit axes: for the ``placed`` stream)."""
-        if self.forked:                                 # the checks and the placement there too, and the hash
-            yield from read_in_process(self._placed(), final=self._finished_there, on_final=self._finished)
-        elif default_workers() > 1 and self.fivex is None:   # (see _start)
+        # the next chunk is read by a thread while this one is post-processed, where this process may use two
+        # cores (processes × threads ≤ cores); not the 5-axis reader, whose state the first chunk's comment reads
+        if default_workers() > 1 and self.fivex is None:
             yield from self._placed(read_ahead(self.reader))
         else:
             yield from self._placed()
@@ -415,30 +401,6 @@ class _Run:
         if not self.rows:
             raise InputError("no moves in the file: nothing to convert", path=self.path)
         self.sha256 = self.reader.sha256 or ""          # of the bytes converted (read once, by the reader)
-
-    def posted(self) -> Iterator[JointProgram]:
-        """The chunks post-processed (:meth:`chunks` fed to the post-processing stream) by a forked process:
-        it reads, checks, places and post-processes; this one emits and writes (``forked`` only)."""
-        yield from read_in_process(self._programs_there(), final=lambda: self._finished_there(posted=True),
-                                   on_final=self._finished)
-
-    def _programs_there(self) -> Iterator[JointProgram]:
-        for chunk in self._placed():
-            yield self.post.feed(chunk).program
-
-    def post_finish(self) -> PostCounts:
-        """The post-processing's counts, once the chunks are through (wherever they were post-processed)."""
-        return self.post.finish() if self.post_counts is None else self.post_counts
-
-    def _finished_there(self, *, posted: bool = False) -> tuple[GcodeFile | ClFile | None, str, PostCounts | None]:
-        """In the forked process, once through: the reader's summary, the hash of what it read and, where
-        it post-processed too (``posted``), the stream's counts."""
-        return self.reader.summary, self.sha256, self.post.finish() if posted else None
-
-    def _finished(self, done: tuple[GcodeFile | ClFile | None, str, PostCounts | None]) -> None:
-        """Here: what :meth:`_finished_there` found."""
-        summary, self.sha256, self.post_counts = done
-        self.reader.summary = summary
 
     def report(self, counts: PostCounts) -> ConvertReport:
         """The accounting, once the reader is through."""
@@ -480,12 +442,7 @@ def _start(path: str, settings: ConvertSettings) -> _Run:
     post = PostStream(machine, settings.setup, tolerance=settings.tolerance,
                       angle_tolerance=math.radians(settings.angle_tolerance_deg),
                       length_decimals=settings.dialect.decimals.length, placed=True)
-    # the next chunk is read on a second core while this one is post-processed, where this process may use
-    # two (processes × threads ≤ cores): by a forked process for a large input (which post-processes it too
-    # where no result is kept here: see program_chunks), else by a thread; not the 5-axis reader, whose
-    # state the first chunk's comment reads
-    forked = default_workers() > 1 and settings.source is None and hasattr(os, "fork") and _large(path)
-    return _Run(path=path, settings=settings, fmt=fmt, sha256="", reader=reader, post=post, forked=forked)
+    return _Run(path=path, settings=settings, fmt=fmt, sha256="", reader=reader, post=post)
 
 
 def _header(run: _Run) -> SourceHeader:
@@ -551,22 +508,17 @@ def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) 
     header = _header(run)
     description = settings.machine.description
     entries = source_header_entries(header, description=description)
-    if run.forked and not keep and triangles is None:   # post-processed where it is read (nothing kept here)
-        text = emitted_text(settings.ik_machine, run.posted(), settings.dialect, header=entries,
-                            line_numbers=settings.line_numbers, line_start=settings.line_start,
-                            line_step=settings.line_step)
-    else:
-        text = program_text(settings.ik_machine, run.chunks(), settings.setup, settings.dialect, header=entries,
-                            tolerance=settings.tolerance, angle_tolerance=math.radians(settings.angle_tolerance_deg),
-                            line_numbers=settings.line_numbers, line_start=settings.line_start,
-                            line_step=settings.line_step, stream=stream)
+    text = program_text(settings.ik_machine, run.chunks(), settings.setup, settings.dialect, header=entries,
+                        tolerance=settings.tolerance, angle_tolerance=math.radians(settings.angle_tolerance_deg),
+                        line_numbers=settings.line_numbers, line_start=settings.line_start,
+                        line_step=settings.line_step, stream=stream)
 
     def body() -> Iterator[str]:
         next(text)                                      # its opening, made again below with the counts
         yield from _with_placement(text, run)
 
     def head() -> str:
-        counts = run.report(run.post_finish()).counts()
+        counts = run.report(run.post.finish()).counts()
         collision = _collision(run, triangles)
         entries = source_header_entries(dataclasses.replace(header, counts=counts, collision=collision,
                                                             source_sha256=run.sha256),
@@ -666,7 +618,7 @@ def convert_file(path: str, settings: ConvertSettings) -> Conversion:
     run, program = program_chunks(path, settings, keep=True)
     body = "".join(program.body)                        # type: ignore[arg-type]  # str chunks
     text = str(program.head()) + body
-    report = run.report(run.post_finish())
+    report = run.report(run.post.finish())
     path_rows = [r.path for r in run.results if len(r.path)]
     return Conversion(text=text, report=report, path=join_toolpaths(path_rows) if path_rows else run.results[0].path)
 
@@ -682,7 +634,7 @@ def write_conversion(path: str, output: str, settings: ConvertSettings) -> Conve
     """
     run, program = program_chunks(path, settings)
     write_atomic(output, program)
-    return run.report(run.post_finish())
+    return run.report(run.post.finish())
 
 
 # ----------------------------------------------------------------------------- a batch

@@ -36,7 +36,7 @@ class Prs3Error(Exception):
 
     def __reduce__(self) -> tuple[object, ...]:
         """Pickled with its attributes (``path``, ``line``, ``key``...), whatever its constructor takes:
-        an error of a reader running in another process (:func:`prs3_post.app.read_ahead.read_in_process`)."""
+        an error that crosses a process boundary (a ``convert --jobs`` worker's) arrives whole."""
         return _restored, (type(self), self.args, self.__dict__)
 
 

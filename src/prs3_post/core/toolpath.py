@@ -93,11 +93,6 @@ class Event:
     value: float = 0.0
     text: str = ""
 
-    def __reduce__(self) -> tuple[object, ...]:
-        """Pickled as its constructor's arguments (a quarter of the time of the dataclass's own state:
-        the comments of a chunk a reader sends from another process)."""
-        return Event, (self.before, self.kind, self.value, self.text)
-
     @property
     def coolant(self) -> Coolant:
         """The coolant a COOLANT_ON event turns on: ``Coolant(text)``, FLOOD when ``text`` is empty.
@@ -128,19 +123,6 @@ def _freeze_rows(table: object, fields: tuple[tuple[str, type, tuple[int, ...]],
             raise ValueError(f"{name}: {len(value)} rows, {fields[0][0]} has {rows}")
         object.__setattr__(table, name, value)
     object.__setattr__(table, "events", tuple(sorted(table.events, key=lambda e: e.before)))  # type: ignore[attr-defined]
-
-
-_Table = TypeVar("_Table", "Toolpath", "JointProgram")
-
-
-def _unpickled(kind: type[_Table], values: tuple[object, ...]) -> _Table:
-    """A frozen row table rebuilt from its pickled fields (checked when first made): arrays read-only."""
-    table: _Table = object.__new__(kind)
-    for name, value in zip(kind.__slots__, values, strict=True):
-        if isinstance(value, np.ndarray):
-            value.flags.writeable = False
-        object.__setattr__(table, name, value)
-    return table
 
 
 def describe_source(source: IntArray, labels: tuple[str, ...], row: int, file: str = "") -> str:
@@ -187,11 +169,6 @@ class Toolpath:
 
     def __len__(self) -> int:
         return len(self.kind)
-
-    def __reduce__(self) -> tuple[object, ...]:
-        """Pickled as its fields, unpickled read-only again without copying the arrays (the chunks a
-        reader sends from another process, :func:`prs3_post.app.read_ahead.read_in_process`)."""
-        return _unpickled, (Toolpath, tuple(getattr(self, name) for name in Toolpath.__slots__))
 
     def describe(self, row: int) -> str:
         """Human name of the line/step row ``row`` came from (``line 12`` or the step label)."""
@@ -245,10 +222,6 @@ class JointProgram:
 
     def __len__(self) -> int:
         return len(self.kind)
-
-    def __reduce__(self) -> tuple[object, ...]:
-        """As :meth:`Toolpath.__reduce__` (the programs a post-processing process sends)."""
-        return _unpickled, (JointProgram, tuple(getattr(self, name) for name in JointProgram.__slots__))
 
     def describe(self, row: int) -> str:
         """Human name of the line/step row ``row`` came from (``line 12`` or the step label)."""
