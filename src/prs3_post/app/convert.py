@@ -25,14 +25,14 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from prs3_post import __version__
 from prs3_post.app.read_ahead import read_ahead
 from prs3_post.app.streaming import program_text
-from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE, MM_PER_INCH
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE
 from prs3_post.core.errors import InputError, LimitError, PoseError, Prs3Error, ReachError
 from prs3_post.core.input_files import open_input
 from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpath, join_programs
@@ -53,22 +53,16 @@ from prs3_post.post.pipeline import (
     model_for,
     place_toolpath,
 )
-from prs3_post.readers.cl.reader import ClFile, ClStream, join_toolpaths
-from prs3_post.readers.detect import DETECT_BYTES, FORMATS, detect_format
-from prs3_post.readers.gcode.reader import GcodeStream
-from prs3_post.toolpaths.common import TOOL_DIAMETER_RANGE
+from prs3_post.readers.cl.reader import join_toolpaths
+from prs3_post.readers.detect import DETECT_BYTES, detect_format, formats
+from prs3_post.readers.protocol import CamStream, ReadOptions
+from prs3_post.readers.registry import reader_named, readers, suffixes
 
 if TYPE_CHECKING:  # imported where used: a plain 3+2 or CL conversion needs none of them (test_startup)
     import multiprocessing.process
     from concurrent.futures import Future
 
     from prs3_post.machine.cam_conventions import SourceConvention
-    from prs3_post.readers.fivex.reader import FivexStream
-
-#: File name endings taken from a directory (other files there are left alone). Files named
-#: one by one are read whatever their name.
-CL_SUFFIXES = (".cls", ".clsf", ".cl", ".apt", ".aptsource", ".cldata")
-GCODE_SUFFIXES = (".nc", ".ngc", ".gcode", ".tap", ".cnc", ".iso", ".mpf", ".eia")
 
 
 @dataclass(frozen=True, slots=True)
@@ -98,7 +92,7 @@ class ConvertSettings:
     collision_check : bool — with ``part``, check every program before it is written
     clearance_min : float — mm, the least distance the holder and nose must keep from the part
     tool_diameter : float | None — mm, the tool's diameter for its check in the rapids (None: the CAM
-        input's, :func:`tool_diameter_of`)
+        input's, :meth:`~prs3_post.readers.protocol.CamStream.tool_diameter`)
     """
 
     machine: Machine
@@ -127,16 +121,19 @@ class ConvertSettings:
     tool_diameter: float | None = None
 
     def __post_init__(self) -> None:
-        if self.input_format not in FORMATS:
-            raise ValueError(f"input_format must be one of {FORMATS}, got {self.input_format!r}")
+        if self.input_format not in formats():
+            raise ValueError(f"input_format must be one of {formats()}, got {self.input_format!r}")
         if self.tool_length is not None and not (math.isfinite(self.tool_length) and self.tool_length > 0):
             raise InputError(f"tool length: must be a number > 0 mm, got {self.tool_length:g}",
                              path=self.machine.source)
-        if self.source is not None:                     # refused once, before any file is read
-            from prs3_post.readers.fivex.reader import check_tcp_codes
+        for reader in readers():                        # refused once, before any file is read
+            reader.check(self.read_options)
 
-            check_tcp_codes(self.source, self.source.tcp_on if self.tcp_on is None else self.tcp_on,
-                            self.source.tcp_off if self.tcp_off is None else self.tcp_off)
+    @property
+    def read_options(self) -> ReadOptions:
+        """How the inputs are to be read (each format takes what concerns it)."""
+        return ReadOptions(tolerance=self.tolerance, units=self.units, ignore=self.ignore, work_plane=self.work_plane,
+                           source=self.source, tcp_on=self.tcp_on, tcp_off=self.tcp_off)
 
     @property
     def ik_machine(self) -> Machine:
@@ -170,7 +167,8 @@ class ConvertReport:
     angle_before_deg, angle_after_deg : float — degrees, the same for the tool axis
     tool_length : float — mm, used by the IK
     setup : str — the setup used (chosen automatically or given), as the header states it
-    five_axis : str — for a 5-axis G-code program: its source convention and the path it is read as
+    five_axis : str — what the input is read as where its reader says (a 5-axis G-code program: its source
+        convention and the path it is read as; :attr:`~prs3_post.readers.protocol.CamStream.read_as`)
     """
 
     input: str
@@ -232,7 +230,8 @@ class Conversion:
 
 
 def input_format(path: str, requested: str = "auto") -> str:
-    """``cl`` or ``gcode``: ``requested`` unless ``auto``, else by the file's first bytes.
+    """The input's format (a registered reader's name): ``requested`` unless ``auto``, else by the file's
+    first bytes (:func:`~prs3_post.readers.detect.detect_format`).
 
     Raises
     ------
@@ -251,46 +250,15 @@ def input_format(path: str, requested: str = "auto") -> str:
     return requested if requested != "auto" else detect_format(head)
 
 
-def source_stream(path: str, settings: ConvertSettings, fmt: str) -> ClStream | GcodeStream:
-    """The input's reader for its format, in chunks of lines (part frame, mm); G-code with a source
-    convention is read as a 5-axis program (:mod:`prs3_post.readers.fivex.reader`)."""
-    if fmt == "cl":
-        return ClStream(path, tolerance=settings.tolerance, units=settings.units, ignore=frozenset(settings.ignore))
-    if settings.source is not None:
-        if settings.work_plane is not None:
-            raise InputError("a work plane and a 5-axis source: under TCP the program's X Y Z are the part frame "
-                             "itself (its work offset), so there is no work plane to put them on", path=path)
-        from prs3_post.readers.fivex.reader import FivexStream
-
-        return FivexStream(path, settings.source, tolerance=settings.tolerance, tcp_on=settings.tcp_on,
-                           tcp_off=settings.tcp_off)
-    return GcodeStream(path, tolerance=settings.tolerance, work_plane=settings.work_plane)
-
-
-def _five_axis_text(reader: FivexStream) -> str:
-    """What a 5-axis program was read as (the report and the program's first comment say it)."""
-    return (f"5-axis source {reader.source.name}, TCP {'/'.join(reader.tcp_on)} on, {'/'.join(reader.tcp_off)} "
-            "off; between two input points the intended path is the straight tip line with the tool axis on the "
-            "great circle (the source machine's rotary interpolation is not reproduced)")
-
-
-def _five_axis_skipped(reader: FivexStream) -> tuple[tuple[str, int], ...]:
-    """The 5-axis blocks that became no row, for the report's skipped counts."""
-    assert reader.fivex is not None  # set when the reader's iteration ends
-    c = reader.fivex.counts
-    out = [(f"{code} (machine coordinates, not converted)", n) for code, n in c.machine_blocks]
-    out += [(f"{code} (axis clamp)", n) for code, n in c.clamps]
-    out += [(f"{code} (no effect here)", n) for code, n in c.inert]
-    if c.prepositions:
-        out.append(("rotary positioning outside TCP (sets the next orientation)", c.prepositions))
-    if c.trailing_lines:
-        out.append((f"text after the closing % (from line {c.trailing_first})", c.trailing_lines))
-    return tuple(out)
+def source_stream(path: str, settings: ConvertSettings, fmt: str) -> CamStream:
+    """The input's reader for its format ``fmt``, in chunks of lines (part frame, mm)."""
+    return reader_named(fmt).open(path, settings.read_options)
 
 
 def _refuse_tilt(machine: Machine, chunk: Toolpath, run: _Run) -> None:
-    """A 5-axis program's orientations beyond the machine's tilt limit, named at the first line with its
-    value and the share of the file's rows beyond it (read again for that: only a failure pays)."""
+    """A program's own orientations (:attr:`~prs3_post.readers.protocol.CamStream.refuses_tilt`) beyond the
+    machine's tilt limit, named at the first line with its value and the share of the file's rows beyond
+    it (read again for that: only a failure pays)."""
     tilt = np.degrees(np.arccos(np.clip(chunk.axis[:, 2], -1.0, 1.0)))     # clip: rounding past ±1
     limit = math.degrees(machine.limits.max_tilt)
     bad = np.flatnonzero(tilt > limit)
@@ -308,18 +276,12 @@ def _refuse_tilt(machine: Machine, chunk: Toolpath, run: _Run) -> None:
                      f"({100.0 * beyond / total:.1f}%) tilt beyond it, and a setup turns the part about z only")
 
 
-#: What would be valid instead of a feed move first, by input format.
-_FIRST_MOVE = {
-    "cl": "start with FROM/x,y,z, or RAPID and a GOTO/ to the start point, before the first feed",
-    "gcode": "move to the start point with G0 before the first G1",
-}
-
-
 def _refuse_feed_first(chunk: Toolpath, fmt: str) -> None:
-    """A first motion that is a feed has no start point: an input property (no setup helps)."""
+    """A first motion that is a feed has no start point: an input property (no setup helps); the
+    format's reader says what would be valid instead."""
     if len(chunk) and chunk.kind[0] == MoveKind.FEED:
-        raise InputError(f"the first motion is a feed move, so its start point is unknown: {_FIRST_MOVE[fmt]}",
-                         path=chunk.source_file, line=int(chunk.source[0]))
+        raise InputError("the first motion is a feed move, so its start point is unknown: "
+                         f"{reader_named(fmt).first_move}", path=chunk.source_file, line=int(chunk.source[0]))
 
 
 class AxisError(ReachError):
@@ -356,23 +318,18 @@ class _Run:
     settings: ConvertSettings
     fmt: str
     sha256: str                                         # of the bytes converted: "" until the reader is through
-    reader: ClStream | GcodeStream
+    reader: CamStream
     post: PostStream
     rows: int = 0
     results: list[PostResult] = field(default_factory=list)   # each chunk's, when kept (convert_file)
     programs: list[JointProgram] = field(default_factory=list)   # each chunk's, for the collision check
     placeable: bool = True                              # False: no setup can help the error raised
 
-    @property
-    def fivex(self) -> FivexStream | None:
-        """The reader when it reads a 5-axis program (G-code with a source convention), else None."""
-        return cast("FivexStream", self.reader) if self.fmt == "gcode" and self.settings.source is not None else None
-
     def chunks(self) -> Iterator[Toolpath]:
         """The reader's chunks, checked as read, placed on the machine (unit axes: for the ``placed`` stream)."""
         # the next chunk is read by a thread while this one is post-processed, where this process may use two
-        # cores (processes × threads ≤ cores); not the 5-axis reader, whose state the first chunk's comment reads
-        if default_workers() > 1 and self.fivex is None:
+        # cores (processes × threads ≤ cores) and the reader allows it
+        if default_workers() > 1 and self.reader.reads_ahead:
             yield from self._placed(read_ahead(self.reader))
         else:
             yield from self._placed()
@@ -381,13 +338,13 @@ class _Run:
         """:meth:`chunks` of the reader's ``chunks`` (default: the reader itself)."""
         machine = self.settings.ik_machine
         last_axis: np.ndarray | None = None
-        fivex = self.fivex
-        for chunk in self.reader if chunks is None else chunks:
-            if fivex is not None:
+        reader = self.reader
+        for chunk in reader if chunks is None else chunks:
+            if reader.refuses_tilt:
                 _refuse_tilt(machine, chunk, self)
-                if not self.rows:
-                    chunk = dataclasses.replace(chunk, events=(
-                        Event(before=0, kind=EventKind.COMMENT, text=_five_axis_text(fivex)), *chunk.events))
+            if reader.read_as and not self.rows:        # what the file is read as: the program's first comment
+                chunk = dataclasses.replace(chunk, events=(
+                    Event(before=0, kind=EventKind.COMMENT, text=reader.read_as), *chunk.events))
             if not self.rows:
                 _refuse_feed_first(chunk, self.fmt)
             placed = chunk
@@ -407,19 +364,15 @@ class _Run:
         summary = self.reader.summary
         assert summary is not None  # set when the reader's iteration ends
         c = summary.counts
-        skipped, five_axis = c.skipped, ""
-        fivex = self.fivex
-        if fivex is not None:
-            skipped, five_axis = skipped + _five_axis_skipped(fivex), _five_axis_text(fivex)
         return ConvertReport(
             input=self.path, format=self.fmt, units=summary.units, sha256=self.sha256, records=c.records,
             by_word=c.by_word, input_moves=c.moves, arcs=c.arcs, arc_rows=c.arc_segments, cycles=c.cycles,
-            cycle_holes=c.cycle_holes, cycle_rows=c.cycle_rows, comments=c.comments, skipped=skipped,
+            cycle_holes=c.cycle_holes, cycle_rows=c.cycle_rows, comments=c.comments, skipped=self.reader.skipped(),
             toolpath_rows=counts.input_rows, subdivisions=counts.inserted, dropped=counts.dropped,
             emitted_moves=counts.program_rows, deviation_before=counts.tip_before, deviation_after=counts.tip_after,
             angle_before_deg=math.degrees(counts.angle_before), angle_after_deg=math.degrees(counts.angle_after),
             tool_length=self.settings.ik_machine.geometry.tool_length, setup=self.settings.setup.describe(),
-            five_axis=five_axis)
+            five_axis=self.reader.read_as)
 
 
 def _start(path: str, settings: ConvertSettings) -> _Run:
@@ -448,25 +401,19 @@ def _start(path: str, settings: ConvertSettings) -> _Run:
 def _header(run: _Run) -> SourceHeader:
     """The program header as known before the file is read (without the counts)."""
     settings = run.settings
-    units = settings.units if run.fmt == "cl" else None
-    header = SourceHeader(
+    notes = run.reader.notes()
+    return SourceHeader(
         version=f"prs3-post {__version__}", machine=settings.machine.name,
         machine_file=file_given(settings.machine.source, "machines", settings.machine.name),
         dialect=settings.dialect.name,
         dialect_file=file_given(settings.dialect.source, "dialects", settings.dialect.name),
         source_name=Path(run.path).name, source_sha256=run.sha256, source_format=run.fmt,
-        source_units=units or "auto", ignore=tuple(settings.ignore) if run.fmt == "cl" else (),
-        work_plane=settings.work_plane if run.fmt == "gcode" else None, setup=settings.setup,
+        source_units=notes.units, ignore=notes.ignore, work_plane=notes.work_plane, setup=settings.setup,
         tool_length=settings.ik_machine.geometry.tool_length, tool_length_given=settings.tool_length is not None,
         tolerance=settings.tolerance, angle_tolerance_deg=settings.angle_tolerance_deg,
         line_numbers=settings.line_numbers, line_start=settings.line_start, line_step=settings.line_step,
+        five_axis=notes.five_axis, tcp_on=notes.tcp_on, tcp_off=notes.tcp_off,
     )
-    fivex = run.fivex
-    if fivex is not None:
-        source = fivex.source
-        header = dataclasses.replace(header, five_axis=file_given(source.source, "sources", source.name) or source.name,
-                                     tcp_on=fivex.tcp_on, tcp_off=fivex.tcp_off)
-    return header
 
 
 def _placed(error: LimitError | ReachError, run: _Run) -> Exception:
@@ -546,7 +493,8 @@ def _collision(run: _Run, triangles: FloatArray | None) -> str:
     """The header's ``collision`` entry, the program checked: the holder and the nose everywhere
     (:func:`prs3_post.check.collision.measure_program` with no face: the tool cuts what the CAM program
     removes), and the tool in the rapids (:func:`prs3_post.check.collision.check_rapids`: a rapid must not
-    cut), with the diameter given (``--tool-diameter``), else the CAM input's (:func:`tool_diameter_of`).
+    cut), with the diameter given (``--tool-diameter``), else the CAM input's
+    (:meth:`~prs3_post.readers.protocol.CamStream.tool_diameter`).
 
     Raises
     ------
@@ -569,32 +517,9 @@ def _collision(run: _Run, triangles: FloatArray | None) -> str:
                             clearance_min=settings.clearance_min)
     if isinstance(found, str):
         return found
-    diameter = tool_diameter_of(run.reader) if settings.tool_diameter is None else settings.tool_diameter
+    diameter = run.reader.tool_diameter() if settings.tool_diameter is None else settings.tool_diameter
     rapids = check_rapids(machine, program, settings.setup, triangles, diameter)
     return found.entry(settings.clearance_min, rapids=rapids)
-
-
-def tool_diameter_of(reader: ClStream | GcodeStream) -> float:
-    """mm: the tool diameter a CAM input states, once read: the smallest of a CL file's ``TLDATA/``
-    records (its first number, in the file's units: ``TLDATA/MILL,10.0,0.0,50.0``), the one a rapid
-    of the thinnest tool must clear; 0 where none is stated (G-code carries none: the tool is then
-    checked as its axis, and the header says so)."""
-    summary = reader.summary
-    if not isinstance(summary, ClFile):
-        return 0.0
-    scale = MM_PER_INCH if summary.units == "inch" else 1.0
-    low, high = TOOL_DIAMETER_RANGE
-    found = []
-    for record in summary.tool_data:
-        if record.diameter is None:
-            continue
-        diameter = record.diameter * scale
-        if not low <= diameter <= high:
-            raise InputError(f"TLDATA/ states a tool diameter of {diameter:.6g} mm: a tool for the check in the "
-                             f"rapids must be {low:g} to {high:g} mm",
-                             path=summary.path, line=record.line)
-        found.append(diameter)
-    return min(found, default=0.0)
 
 
 def _with_placement(text: Iterator[str], run: _Run) -> Iterator[str]:
@@ -702,7 +627,7 @@ class BatchResult:
 def collect_inputs(items: Sequence[str], *, exclude: str | None = None, exclude_suffix: str = ".ngc",
                    repeats: list[tuple[str, str]] | None = None) -> list[str]:
     """The input files named by ``items``: files as given, directories searched recursively for
-    CAM files (:data:`CL_SUFFIXES`, :data:`GCODE_SUFFIXES`; regular files only, in name order),
+    CAM files (the registered formats' :func:`~prs3_post.readers.registry.suffixes`; regular files only, in name order),
     glob patterns expanded. Each file once, in the order found.
 
     Parameters
@@ -735,7 +660,7 @@ def collect_inputs(items: Sequence[str], *, exclude: str | None = None, exclude_
             hits = list(_search(item, skip, exclude_suffix))
             if not hits:
                 raise InputError("no CAM files in this directory (searched for "
-                                 f"{', '.join(CL_SUFFIXES + GCODE_SUFFIXES)})", path=item)
+                                 f"{', '.join(suffixes())})", path=item)
             for hit in hits:
                 add(hit)
         elif os.path.lexists(item) or not glob.has_magic(item):
@@ -757,7 +682,7 @@ def _search(folder: str, skip: str | None, skip_suffix: str) -> Iterator[str]:
     """CAM files under ``folder`` in name order: regular files only (a FIFO would block, a device never
     ends); never inside the output folder ``skip``, except when that is a folder searched itself:
     then only its files ending in ``skip_suffix`` (programs, maybe of an earlier run) are left out."""
-    suffixes = CL_SUFFIXES + GCODE_SUFFIXES
+    endings = suffixes()
     for root, dirs, files in os.walk(folder):
         dirs.sort()
         here = os.path.realpath(root)
@@ -765,7 +690,7 @@ def _search(folder: str, skip: str | None, skip_suffix: str) -> Iterator[str]:
             dirs[:] = [d for d in dirs if os.path.realpath(os.path.join(root, d)) != skip]
         for name in sorted(files):
             path = os.path.join(root, name)
-            if not name.lower().endswith(suffixes):
+            if not name.lower().endswith(endings):
                 continue
             if here == skip and name.lower().endswith(skip_suffix.lower()):
                 continue

@@ -90,7 +90,9 @@ from prs3_post.core.toolpath import Coolant, Event, EventKind, MoveKind, Toolpat
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 from prs3_post.part.stl import MAX_COORDINATE_MM
 from prs3_post.part.workplane import rotate_rows
+from prs3_post.readers.protocol import SourceNotes, StreamDefaults
 from prs3_post.toolpaths.arcs import MAX_ARC_SEGMENTS, arc_points_3d, arc_segment_count, arc_sweep
+from prs3_post.toolpaths.common import TOOL_DIAMETER_RANGE
 from prs3_post.toolpaths.cycles import MAX_PECKS, DrillCycle, Pecking, drill_rows, peck_count
 
 __all__ = [
@@ -429,7 +431,7 @@ def parse_cl(text: str, *, path: str, tolerance: float, units: str | None = None
                     chunk_lines=chunk_lines, text=text, apply_msys=apply_msys).whole()
 
 
-class ClStream:
+class ClStream(StreamDefaults):
     """A CL file read in chunks of lines, for a conversion whose memory does not grow with the file.
 
     Iterate it for one :class:`~prs3_post.core.toolpath.Toolpath` (part frame, mm) per chunk of
@@ -449,7 +451,7 @@ class ClStream:
     """
 
     def __init__(self, path: str, *, tolerance: float, units: str | None = None,
-                 ignore: frozenset[str] = frozenset(), circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE,
+                 ignore: Iterable[str] = (), circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE,
                  chunk_lines: int = CHUNK_LINES, piece_bytes: int = _PIECE_BYTES, text: str | None = None,
                  apply_msys: bool = True):
         if units not in (None, "mm", "inch"):
@@ -457,7 +459,8 @@ class ClStream:
         if not (math.isfinite(tolerance) and tolerance > 0):
             raise ValueError(f"ClStream: tolerance must be > 0 mm, got {tolerance!r}")
         self.path, self.tolerance, self.units, self.circle_tolerance = path, tolerance, units, circle_tolerance
-        self.ignore = frozenset(word.upper() for word in ignore)
+        self.ignored_words = tuple(ignore)             # as given (the program's header lists them so)
+        self.ignore = frozenset(word.upper() for word in self.ignored_words)
         understood = sorted(self.ignore & {*_KNOWN_WORDS, *DISPLAY_WORDS})
         if understood:
             raise InputError(f"cannot ignore {', '.join(understood)}: the reader understands "
@@ -507,6 +510,35 @@ class ClStream:
         return ClFile(path=self.path, units=self.summary.units, toolpath=join_toolpaths(chunks),
                       counts=self.summary.counts, frames=self.summary.frames, cycles=self.summary.cycles,
                       tool_data=self.summary.tool_data, end_lines=self.summary.end_lines)
+
+    def notes(self) -> SourceNotes:
+        """The length unit given (else ``auto``) and the words ignored, for the program's header."""
+        return SourceNotes(units=self.units or "auto", ignore=self.ignored_words)
+
+    def tool_diameter(self) -> float:
+        """mm: the tool diameter the file states, once read: the smallest of its ``TLDATA/`` records (their
+        first number, in the file's units: ``TLDATA/MILL,10.0,0.0,50.0``), the one a rapid of the thinnest
+        tool must clear; 0 where none is stated.
+
+        Raises
+        ------
+        InputError
+            A diameter outside :data:`~prs3_post.toolpaths.common.TOOL_DIAMETER_RANGE`, at its record.
+        """
+        summary = self.summary
+        assert summary is not None  # set when the iteration ends
+        scale = MM_PER_INCH if summary.units == "inch" else 1.0
+        low, high = TOOL_DIAMETER_RANGE
+        found = []
+        for record in summary.tool_data:
+            if record.diameter is None:
+                continue
+            diameter = record.diameter * scale
+            if not low <= diameter <= high:
+                raise InputError(f"TLDATA/ states a tool diameter of {diameter:.6g} mm: a tool for the check in "
+                                 f"the rapids must be {low:g} to {high:g} mm", path=summary.path, line=record.line)
+            found.append(diameter)
+        return min(found, default=0.0)
 
 
 def join_toolpaths(parts: list[Toolpath]) -> Toolpath:

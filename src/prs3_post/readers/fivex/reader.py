@@ -67,6 +67,7 @@ from prs3_post.core.lexer import Word, code_name, decode, quote, split_comments
 from prs3_post.core.toolpath import EventKind, Toolpath
 from prs3_post.core.types import FloatArray
 from prs3_post.machine.cam_conventions import Orientation, SourceConvention
+from prs3_post.machine.loading import file_given
 from prs3_post.part.workplane import WorkPlane
 from prs3_post.readers.cl.reader import join_toolpaths
 from prs3_post.readers.gcode.reader import (
@@ -81,6 +82,7 @@ from prs3_post.readers.gcode.reader import (
     _Block,
     _Reader,
 )
+from prs3_post.readers.protocol import SourceNotes
 
 __all__ = ["FivexCounts", "FivexFile", "FivexStream", "check_tcp_codes", "parse_fivex", "read_fivex"]
 
@@ -235,6 +237,37 @@ class FivexStream(GcodeStream):
         assert self._five is not None and self.summary is not None  # set by the iteration
         self.fivex = FivexFile(gcode=self.summary, source=self.source, tcp_on=self.tcp_on, tcp_off=self.tcp_off,
                                counts=self._five.fivex_counts())
+
+    #: Not read ahead by a thread: the 5-axis state is read between chunks (the program's first comment).
+    reads_ahead = False
+    #: The tool axes are the program's own orientations (no setup, which turns the part about z, changes them).
+    refuses_tilt = True
+
+    @property
+    def read_as(self) -> str:
+        """What the program is read as (the report and the program's first comment say it)."""
+        return (f"5-axis source {self.source.name}, TCP {'/'.join(self.tcp_on)} on, {'/'.join(self.tcp_off)} "
+                "off; between two input points the intended path is the straight tip line with the tool axis on "
+                "the great circle (the source machine's rotary interpolation is not reproduced)")
+
+    def skipped(self) -> tuple[tuple[str, int], ...]:
+        """The 3+2 reader's skipped records, then the 5-axis blocks that became no row."""
+        assert self.fivex is not None and self.summary is not None  # set when the iteration ends
+        c = self.fivex.counts
+        out = [(f"{code} (machine coordinates, not converted)", n) for code, n in c.machine_blocks]
+        out += [(f"{code} (axis clamp)", n) for code, n in c.clamps]
+        out += [(f"{code} (no effect here)", n) for code, n in c.inert]
+        if c.prepositions:
+            out.append(("rotary positioning outside TCP (sets the next orientation)", c.prepositions))
+        if c.trailing_lines:
+            out.append((f"text after the closing % (from line {c.trailing_first})", c.trailing_lines))
+        return self.summary.counts.skipped + tuple(out)
+
+    def notes(self) -> SourceNotes:
+        """The source convention (its shipped name or file) and the TCP codes, for the program's header."""
+        source = self.source
+        return SourceNotes(five_axis=file_given(source.source, "sources", source.name) or source.name,
+                           tcp_on=self.tcp_on, tcp_off=self.tcp_off)
 
     def whole_fivex(self) -> FivexFile:
         """All chunks joined: the whole file's :class:`FivexFile`."""

@@ -100,6 +100,7 @@ from prs3_post.core.toolpath import Coolant, Event, EventKind, MoveKind, Toolpat
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 from prs3_post.part.workplane import WorkPlane, euler_zxz_deg
 from prs3_post.readers.cl.reader import MAX_FEED_MM_MIN, MAX_RECORD_CHARS, MIN_FEED_MM_MIN, join_toolpaths
+from prs3_post.readers.protocol import SourceNotes, StreamDefaults
 from prs3_post.toolpaths.arcs import MAX_ARC_SEGMENTS, arc_points_3d, arc_segment_count, arc_sweep
 from prs3_post.toolpaths.cycles import MAX_PECKS, DrillCycle, Pecking, drill_rows, peck_count
 
@@ -302,7 +303,7 @@ def parse_gcode(text: str, *, path: str, tolerance: float, work_plane: WorkPlane
                        chunk_lines=chunk_lines, text=text).whole()
 
 
-class GcodeStream:
+class GcodeStream(StreamDefaults):
     """A G-code file read in chunks of lines, for a conversion whose memory does not grow with the file.
 
     Iterate it for one :class:`~prs3_post.core.toolpath.Toolpath` (part frame, mm) per chunk of
@@ -327,6 +328,7 @@ class GcodeStream:
         if not (math.isfinite(circle_tolerance) and circle_tolerance > 0):
             raise ValueError(f"GcodeStream: circle_tolerance must be > 0 mm, got {circle_tolerance!r}")
         self.path, self.tolerance, self.circle_tolerance = path, tolerance, circle_tolerance
+        self.work_plane_given = work_plane                # the program's header states it when given
         self.work_plane = work_plane if work_plane is not None else WorkPlane.identity()
         self.chunk_lines, self.piece_bytes = max(1, int(chunk_lines)), max(1, int(piece_bytes))
         self._text = text
@@ -416,6 +418,10 @@ class GcodeStream:
         s = self.summary
         return GcodeFile(path=s.path, units=s.units, toolpath=join_toolpaths(chunks), counts=s.counts,
                          work_plane=s.work_plane, planes=s.planes, cycles=s.cycles, end_lines=s.end_lines)
+
+    def notes(self) -> SourceNotes:
+        """The work plane given, for the program's header."""
+        return SourceNotes(work_plane=self.work_plane_given)
 
 
 #: Bytes of :data:`_ROTARY_HINT`: what may follow a letter in a rotary word.
