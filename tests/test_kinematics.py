@@ -16,10 +16,11 @@ from numpy.testing import assert_allclose
 
 from prs3_post.core.errors import LimitError
 from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, _named_problems, forward, inverse, unit_axes
+from prs3_post.kinematics.protocol import tilt_of
 from prs3_post.kinematics.prs3.exact import AxisMemo, inverse_exact, platform_centre_xy, spherical_joints
 from prs3_post.kinematics.prs3.paper import inverse_paper, paper_joints
 from prs3_post.machine.loading import load_machine
-from prs3_post.post.limits import check_limits, raise_first_violation, tilt_of, within_limits
+from prs3_post.post.limits import check_limits, raise_first_violation, within_limits
 
 MACHINE = load_machine("patel2020")
 GEO = MACHINE.geometry

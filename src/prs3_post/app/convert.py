@@ -40,8 +40,9 @@ from prs3_post.core.types import FloatArray
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.emit.header import SourceCounts, SourceHeader, source_header_entries
 from prs3_post.emit.output_files import HeadLast, refuse_overwriting, write_atomic
-from prs3_post.kinematics import inverse, unit_axes
+from prs3_post.kinematics import unit_axes
 from prs3_post.kinematics.prs3.blocks import THREADS_VARIABLE, default_workers
+from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.loading import Dialect, Machine, file_given
 from prs3_post.part.setup_transform import Setup
 from prs3_post.part.workplane import WorkPlane
@@ -304,7 +305,7 @@ def _check_poses(machine: Machine, chunk: Toolpath, setup: Setup, *, limits: boo
     path = dataclasses.replace(path, axis=axis)
     if not limits:
         return path
-    ik = inverse(machine.geometry, path.tip, axis, model=model_for(machine))
+    ik = kinematics_of(machine).inverse(path.tip, axis, model=model_for(machine))
     if ik.reachable.all():                              # else the pipeline names the unreachable pose
         raise_first_violation(check_limits(machine, ik, axis), path.describe)
     return path
@@ -473,7 +474,7 @@ def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) 
         # the same opening as program_text's (its comments have no block numbers: the body's agree)
         emitter = ProgramEmitter(settings.dialect, stage=settings.ik_machine.stage.present,
                                  line_numbers=settings.line_numbers, line_start=settings.line_start,
-                                 line_step=settings.line_step)
+                                 line_step=settings.line_step, kinematics=kinematics_of(settings.ik_machine))
         return emitter.begin(entries)
 
     return run, HeadLast(body=body(), head=head)

@@ -18,8 +18,9 @@ import numpy as np
 from prs3_post.app.pose_tables import ik_csv_header, ik_csv_rows
 from prs3_post.core.errors import InputError, PoseError
 from prs3_post.core.types import FloatArray
-from prs3_post.kinematics import IKModel, inverse, unit_axes
+from prs3_post.kinematics import IKModel, unit_axes
 from prs3_post.kinematics.prs3.exact import IKResult
+from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.loading import Machine
 from prs3_post.post.limits import LimitReport, check_limits
 from prs3_post.readers.poses import PoseTable
@@ -67,7 +68,7 @@ class IKBatch:
         tables = iter_poses_bulk(self.path, chunk_lines=self.chunk_lines)
         first = next(tables, None)                     # a file that cannot be read writes nothing at all
         solved = None if first is None else self._solve(first)
-        yield ik_csv_header()
+        yield ik_csv_header(kinematics_of(self.machine).joint_names)
         if solved is None:
             return
         # a chunk's lines are formatted on a second thread while the next chunk is read and solved (numpy
@@ -86,7 +87,7 @@ class IKBatch:
             unit = unit_axes(table.tip, table.axis, row_name="line", row_numbers=table.line)
         except PoseError as error:
             raise InputError(str(error), path=self.path) from error
-        result = inverse(self.machine.geometry, table.tip, unit, model=self.model)
+        result = kinematics_of(self.machine).inverse(table.tip, unit, model=self.model)
         report = check_limits(self.machine, result, unit)
         outside = np.flatnonzero(~report.ok)
         room = SHOWN_LINES - len(self.outside_lines)

@@ -45,6 +45,7 @@ from prs3_post.core.types import FloatArray
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.emit.header import OperationRecord, ProgramHeader, ToolRecord, file_sha256, header_entries
 from prs3_post.kinematics import IKResult
+from prs3_post.kinematics.registry import Kinematics, kinematics_of
 from prs3_post.machine.loading import Dialect, Machine, file_given
 from prs3_post.part.face import Face
 from prs3_post.part.faces import MIN_FACE_WIDTH_MM, find_faces, project_onto_face, select_face
@@ -340,6 +341,7 @@ class JobProgram:
     placement: PlacementResult | None = None
     dynamics: str = ""
     closest: Approach | None = None
+    kinematics: Kinematics | None = None                  # whose joints the program's are (None: 3-PRS)
 
     def chunks(self, rows: int | None = None) -> Iterator[str]:
         """The program's text, ``rows`` (None: EMIT_ROWS) rows at a time (the header first, the end blocks last): the
@@ -352,7 +354,7 @@ class JobProgram:
             when the chunk concerned is asked for.
         """
         emitter = ProgramEmitter(self.dialect, stage=self.stage, line_numbers=self.line_numbers,
-                                 line_start=self.line_start, line_step=self.line_step)
+                                 line_start=self.line_start, line_step=self.line_step, kinematics=self.kinematics)
         yield emitter.begin(self.header)
         for piece in program_chunks(self.program, EMIT_ROWS if rows is None else rows):
             yield from emitter.row_pieces(piece)
@@ -527,7 +529,7 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
                      line_numbers=first.line_numbers, line_start=first.line_start, line_step=first.line_step,
                      face=done[0].face, face_note=done[0].face_note, setup=first.setup, triangles=triangles,
                      tool_lengths=tuple(o.tool_length for o in done), placement=placement, dynamics=dynamics,
-                     closest=_closest(measured, specs))
+                     closest=_closest(measured, specs), kinematics=kinematics_of(first.machine))
     if not keep:
         return job, None
     fulls = [p.full for p in pieces if p.full is not None]      # keep=True: every piece is kept whole

@@ -15,10 +15,19 @@ from prs3_post.core.numbers import ChoiceColumn, Column, render_rows, scale_colu
 from prs3_post.core.numbers import fixed_or_na as fixed
 from prs3_post.core.types import FloatArray
 from prs3_post.kinematics import FKResult, IKResult
+from prs3_post.kinematics.prs3.kinematics import Prs3Kinematics
 from prs3_post.post.limits import LimitReport
 from prs3_post.readers.poses import POSE_COLUMNS
 
-IK_COLUMNS = ("X", "Y", "T1", "T2", "T3", "theta1_deg", "theta2_deg", "theta3_deg", "cond", "ok")
+
+def ik_columns(joints: tuple[str, ...] | None = None, angles: int = 3) -> tuple[str, ...]:
+    """The IK table's columns after the pose: stage ``X``, ``Y``, each joint (``joints``: the
+    kinematics' :attr:`~prs3_post.kinematics.protocol.Kinematics.joint_names`; None: the 3-PRS
+    head's), each link angle ``theta1_deg`` ..., ``cond`` and ``ok``."""
+    names = Prs3Kinematics.joint_names if joints is None else joints
+    return ("X", "Y", *names, *(f"theta{i + 1}_deg" for i in range(angles)), "cond", "ok")
+
+
 FK_COLUMNS = (
     "tip_x", "tip_y", "tip_z", "axis_x", "axis_y", "axis_z",
     "theta1_deg", "theta2_deg", "theta3_deg", "tilt_deg", "converged", "iterations", "residual_mm",
@@ -30,15 +39,16 @@ def _number(value: float) -> float | None:
     return None if math.isnan(value) else float(value)
 
 
-def ik_records(tip: FloatArray, axis: FloatArray, ik: IKResult, report: LimitReport) -> list[dict[str, Any]]:
-    """One record per pose: the pose, IK_COLUMNS, and ``violations`` (limit, value, margin).
+def ik_records(tip: FloatArray, axis: FloatArray, ik: IKResult, report: LimitReport,
+               joints: tuple[str, ...] | None = None) -> list[dict[str, Any]]:
+    """One record per pose: the pose, :func:`ik_columns`, and ``violations`` (limit, value, margin).
 
     Angles in the records are degrees, as their names say; margins are in each limit's unit.
     """
     values = np.column_stack([
         tip, axis, ik.stage, ik.strokes, np.degrees(ik.link_angle), ik.condition,
     ])
-    names = POSE_COLUMNS + IK_COLUMNS[:-1]
+    names = POSE_COLUMNS + ik_columns(joints, ik.link_angle.shape[1])[:-1]
     records = []
     for row in range(len(values)):
         record: dict[str, Any] = {name: _number(v) for name, v in zip(names, values[row].tolist(), strict=True)}
@@ -83,13 +93,13 @@ def _shown(report: LimitReport, row: int, col: int, table: FloatArray) -> float:
 CSV_DECIMALS = 9
 
 
-def ik_csv_header() -> bytes:
-    """The batch output's header line: the input columns, then IK_COLUMNS."""
-    return (",".join(POSE_COLUMNS + IK_COLUMNS) + "\n").encode("ascii")
+def ik_csv_header(joints: tuple[str, ...] | None = None) -> bytes:
+    """The batch output's header line: the input columns, then :func:`ik_columns`."""
+    return (",".join(POSE_COLUMNS + ik_columns(joints)) + "\n").encode("ascii")
 
 
 def ik_csv_rows(tip: FloatArray, axis: FloatArray, ik: IKResult, report: LimitReport) -> bytes:
-    """The batch output's lines for N poses (ASCII, ``\n`` endings): the pose, IK_COLUMNS with
+    """The batch output's lines for N poses (ASCII, ``\n`` endings): the pose, :func:`ik_columns` with
     CSV_DECIMALS decimals (``nan`` where a pose is unreachable), ``ok`` as ``true``/``false``."""
     values = np.column_stack([tip, axis, ik.stage, ik.strokes, np.degrees(ik.link_angle), ik.condition])
     columns: list[Column] = [(b"", scale_column(values[:, j], CSV_DECIMALS)) for j in range(values.shape[1])]
@@ -103,12 +113,15 @@ def ik_text(record: dict[str, Any]) -> str:
     def show(key: str, decimals: int = 4) -> str:
         return fixed(record[key], decimals)
 
+    keys = list(record)
+    joints = keys[keys.index("Y") + 1:keys.index("theta1_deg")]      # the kinematics' joints, in order
+    angles = [key for key in keys if key.startswith("theta")]
     lines = [
         f"tip   {show('tip_x')} {show('tip_y')} {show('tip_z')} mm   axis {show('axis_x', 6)} "
         f"{show('axis_y', 6)} {show('axis_z', 6)}",
         f"stage X {show('X')}  Y {show('Y')} mm",
-        f"strokes T1 {show('T1')}  T2 {show('T2')}  T3 {show('T3')} mm",
-        f"link angles {show('theta1_deg')}  {show('theta2_deg')}  {show('theta3_deg')} deg",
+        "strokes " + "  ".join(f"{name} {show(name)}" for name in joints) + " mm",
+        "link angles " + "  ".join(show(name) for name in angles) + " deg",
         f"condition number {show('cond', 3)}",
     ]
     return "\n".join(lines + _limit_lines(record)) + "\n"

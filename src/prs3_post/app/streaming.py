@@ -12,6 +12,7 @@ from collections.abc import Iterable, Iterator
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.core.toolpath import JointProgram, Toolpath
 from prs3_post.emit.gcode import ProgramEmitter
+from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.dialect import Dialect
 from prs3_post.machine.model import Machine
 from prs3_post.part.setup_transform import Setup
@@ -60,7 +61,7 @@ def emitted_text(machine: Machine, programs: Iterable[JointProgram], dialect: Di
     """:func:`program_text` of the chunks post-processed already (``programs``, in order): its begin,
     one text per program, its end."""
     emitter = ProgramEmitter(dialect, stage=machine.stage.present, line_numbers=line_numbers,
-                             line_start=line_start, line_step=line_step)
+                             line_start=line_start, line_step=line_step, kinematics=kinematics_of(machine))
     yield emitter.begin(header)
     for program in programs:
         yield emitter.rows(program)

@@ -40,6 +40,7 @@ from prs3_post.emit.header import (
     read_header,
 )
 from prs3_post.kinematics import unit_axes
+from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.loading import (
     DEFAULT_DIALECT,
     DEFAULT_MACHINE,
@@ -149,7 +150,8 @@ def open_program(path: str, *, machine: str | None = None, dialect: str | None =
         As :func:`open_setting`, and an unreadable program.
     """
     setting = open_setting(path, machine=machine, dialect=dialect, origin=origin, rotation_deg=rotation_deg)
-    program = load_program(path, setting.dialect, stage=setting.machine.stage.present)
+    program = load_program(path, setting.dialect, stage=setting.machine.stage.present,
+                           kinematics=kinematics_of(setting.machine))
     return ProgramContext(program=program, header=setting.header, machine=setting.machine, dialect=setting.dialect,
                           setup=setting.setup)
 
@@ -663,7 +665,8 @@ def verify_file(setting: ProgramSetting, *, tolerance: float, axis_tolerance_deg
         An unreadable program, or one without moves.
     """
     _keep_freed_memory()
-    stream = ProgramStream(setting.path, setting.dialect, stage=setting.machine.stage.present, chunk_lines=chunk_lines)
+    stream = ProgramStream(setting.path, setting.dialect, stage=setting.machine.stage.present, chunk_lines=chunk_lines,
+                           kinematics=kinematics_of(setting.machine))
     decimals = setting.dialect.decimals
     verifier = Verifier(setting.machine, setup=setting.setup, tolerance=tolerance,
                         axis_tolerance=math.radians(axis_tolerance_deg), length_decimals=decimals.length,

@@ -174,8 +174,9 @@ def report_record(report: VerifyReport, *, path: str = "", dialect: str = "",
         e = int(rep.end[r])
         record: dict[str, Any] = {
             "line": int(lines[r]), "kind": _kind_name(int(program.kind[r])),
-            "X": _num(joints[r, 0]), "Y": _num(joints[r, 1]), "T1": _num(joints[r, 2]), "T2": _num(joints[r, 3]),
-            "T3": _num(joints[r, 4]), "F": _num(program.inverse_time[r]) if program.kind[r] == MoveKind.FEED else None,
+            "X": _num(joints[r, 0]), "Y": _num(joints[r, 1]),
+            **{name: _num(joints[r, 2 + j]) for j, name in enumerate(report.joint_names)},
+            "F": _num(program.inverse_time[r]) if program.kind[r] == MoveKind.FEED else None,
             "tip_part": _nums(tip_part[e]), "axis": _nums(rep.axis[e]),
             "intervals": int(report.intervals[r]), "sampling_bound_mm": _num(report.bound[r]),
             "rounding_mm": _num(report.rounding[r]), "chord_mm": _num(report.chord[r]),

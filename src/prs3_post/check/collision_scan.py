@@ -149,14 +149,14 @@ def _rates(machine: Machine, canonical: FloatArray) -> tuple[FloatArray, FloatAr
     from prs3_post.kinematics.replay import _forward_parts
 
     parts = []
-    for leg in (1, 2):
-        delta = np.zeros(3)
+    for leg in range(1, canonical.shape[1]):
+        delta = np.zeros(canonical.shape[1])
         delta[leg] = _STEP
         parts += [canonical + delta, canonical - delta]
     fk = _forward_parts(machine, parts)
     tip_rate = np.zeros(len(canonical))
     axis_rate = np.zeros(len(canonical))
-    for k in range(2):
+    for k in range(len(fk) // 2):
         plus, minus = fk[2 * k], fk[2 * k + 1]
         tip_rate += np.linalg.norm(plus[0] - minus[0], axis=1) / (2 * _STEP)
         axis_rate += np.linalg.norm(plus[1] - minus[1], axis=1) / (2 * _STEP)

@@ -44,7 +44,8 @@ from prs3_post.core.numbers import exact_text
 from prs3_post.core.numbers import fixed as _fixed
 from prs3_post.core.toolpath import Toolpath
 from prs3_post.core.types import BoolArray, FloatArray
-from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, inverse, unit_axes
+from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, unit_axes
+from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.loading import Machine
 from prs3_post.part.setup_transform import MAX_ORIGIN_MM, Setup, SetupError
 from prs3_post.post.limits import LimitReport, check_limits
@@ -110,7 +111,7 @@ def _columns(machine: Machine, path: Toolpath, shift: FloatArray | None = None) 
     (``head x offset``, ``head y offset``).
     """
     tip = path.tip if shift is None else path.tip + shift
-    ik = inverse(machine.geometry, tip, path.axis, model=IKModel.EXACT)
+    ik = kinematics_of(machine).inverse(tip, path.axis, model=IKModel.EXACT)
     report = check_limits(machine, ik, path.axis)
     if model_for(machine) is IKModel.HEAD:
         bound = HEAD_XY_TOL / 2.0                      # a box inside the round tolerance
@@ -504,7 +505,7 @@ def _margins(rows: _Rows) -> tuple[LimitMargin, ...]:
     normalized = np.nan_to_num(columns.margin / _span(columns), nan=-np.inf)   # (N, L)
     groups: dict[str, list[int]] = {}
     for index, name in enumerate(columns.names):
-        leg = name[:1] in "Tθ" and name[1:2].isdigit()
+        leg = name[1:2].isdigit() and " " in name        # a joint's or a leg's (T1 stroke, θ1 link angle)
         groups.setdefault(name.split(" ", 1)[1] if leg else name, []).append(index)
     out = []
     for name, indices in groups.items():

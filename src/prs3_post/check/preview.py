@@ -39,6 +39,7 @@ from prs3_post.check.verify import NOMINAL_RAPID_RATE, VerifyReport, row_times
 from prs3_post.core.errors import Prs3Error
 from prs3_post.core.toolpath import MoveKind
 from prs3_post.core.types import FloatArray, IntArray
+from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.kinematics.replay import joints_of
 from prs3_post.machine.loading import Machine
 
@@ -283,20 +284,22 @@ def render_preview(
     joints = joints_of(report.program)
     previous = np.vstack([joints[:1], joints[:-1]])
     times = np.column_stack([start_t, end_t]).ravel()
-    values = np.stack([previous, joints], axis=1).reshape(-1, 5)
+    values = np.stack([previous, joints], axis=1).reshape(-1, joints.shape[1])
+    joint_names = kinematics_of(machine).joint_names
     limits = machine.limits
     rapid_rows = np.flatnonzero(report.program.kind == MoveKind.RAPID)
     for ax in (ax_t, ax_xy):
         for r in rapid_rows.tolist():
             if end_t[r] > start_t[r]:
                 ax.axvspan(start_t[r], end_t[r], color="#e0e0e0", linewidth=0)
-    for leg in range(3):
-        ax_t.plot(times, values[:, 2 + leg], color=_JOINT_COLOURS[leg], linewidth=1.2, label=f"T{leg + 1}")
+    for leg, name in enumerate(joint_names):
+        ax_t.plot(times, values[:, 2 + leg], color=_JOINT_COLOURS[leg % len(_JOINT_COLOURS)], linewidth=1.2,
+                  label=name)
     _draw_limits(ax_t, limits.stroke, _LIMIT_COLOUR)
     ax_t.set_ylim(*_limit_view(values[:, 2:], limits.stroke))
     ax_t.set_ylabel("stroke (mm)")
-    ax_t.set_title(f"(b) strokes T1..T3 over time (limits {limits.stroke[0]:g}..{limits.stroke[1]:g} mm)",
-                   fontsize=10)
+    ax_t.set_title(f"(b) strokes {joint_names[0]}..{joint_names[-1]} over time (limits {limits.stroke[0]:g}.."
+                   f"{limits.stroke[1]:g} mm)", fontsize=10)
     ax_t.legend(loc="best", fontsize=8, ncols=3)
     if machine.stage.present:
         for i, name in enumerate("XY"):

@@ -55,6 +55,8 @@ from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind, pr
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 from prs3_post.kinematics import IKResult
 from prs3_post.kinematics import replay as kinematic
+from prs3_post.kinematics.prs3.kinematics import Prs3Kinematics
+from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.kinematics.replay import (
     _ROUNDING_STEP,
     EPSILON_FRACTION,
@@ -72,7 +74,7 @@ from prs3_post.kinematics.replay import (
 from prs3_post.machine.loading import Machine
 from prs3_post.machine.model import Dynamics
 from prs3_post.part.setup_transform import Setup
-from prs3_post.post.dynamics import AXIS_NAMES, joint_columns, joint_deltas, move_times, speed_excess
+from prs3_post.post.dynamics import axis_names, joint_columns, joint_deltas, move_times, speed_excess
 from prs3_post.post.limits import LimitReport, check_limits
 from prs3_post.post.linearize import slerp
 
@@ -306,6 +308,7 @@ class VerifyReport:
     dynamics: Dynamics | None = None
     fastest: tuple[float, int, str] = (0.0, 0, "")
     duration: FloatArray | None = None
+    joint_names: tuple[str, ...] = Prs3Kinematics.joint_names        # the kinematics' joints (program columns)
 
     @property
     def ok(self) -> bool:
@@ -435,7 +438,8 @@ class Verifier:
         self.keep_samples = keep_samples or intended is not None
         self.rows = 0                                        # rows added so far
         # the program's rows (unless the caller has them) and the per-move values, each in one array
-        self.program_rows = _Columns(_ROW_COLUMNS, capacity) if keep_rows else None
+        joints = (len(kinematics_of(machine).joint_names),)                 # each row's joints
+        self.program_rows = _Columns({**_ROW_COLUMNS, "strokes": (np.float64, joints)}, capacity) if keep_rows else None
         self.events: list[Event] = []
         self.per_move = _Columns(_PER_MOVE, capacity)
         self.samples = 0
@@ -532,13 +536,14 @@ class Verifier:
 
         # ---- axis speeds (the machine's dynamics)
         if self.machine.dynamics is not None:
-            ratio, axis, over = speed_excess(self.machine.dynamics, rows, first=skip,
+            names = axis_names(self.machine)
+            ratio, axis, over = speed_excess(self.machine.dynamics, rows, names=names, first=skip,
                                              length_decimals=self.length_decimals, feed_decimals=self.feed_decimals)
             for r, text in over:
                 problems.append(Problem(int(lines[r]), "speed", f"line {lines[r]}: {text}"))
             if len(ratio) > skip and float(ratio[skip:].max()) > self.fastest[0]:
                 r = skip + int(np.argmax(ratio[skip:]))
-                self.fastest = (float(ratio[r]), int(lines[r]), AXIS_NAMES[int(axis[r])])
+                self.fastest = (float(ratio[r]), int(lines[r]), names[int(axis[r])])
 
         # ---- straightness of G1 moves
         end = rep.end
@@ -670,7 +675,7 @@ class Verifier:
             epsilon=self.tolerance * EPSILON_FRACTION, feed_groups=groups, closest=self._closest_table(),
             against=against, problems=tuple(problems), warnings=tuple(warnings),
             dynamics=self.machine.dynamics, fastest=self.fastest, duration=per_move["duration"],
-        )
+            joint_names=kinematics_of(self.machine).joint_names)
 
     def _closest_table(self) -> tuple[Closest, ...]:
         limits = self.limit_table

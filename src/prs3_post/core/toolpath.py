@@ -103,8 +103,21 @@ class Event:
         return Coolant(self.text) if self.text else Coolant.FLOOD
 
 
+#: A row shape ``(ANY_WIDTH,)``: rows of any one width ≥ 1 (a program's joints: as many as the
+#: machine's kinematics has; empty: 3).
+ANY_WIDTH = -1
+
+
+def _tail(array: np.ndarray, shape_tail: tuple[int, ...]) -> tuple[int, ...]:
+    """``shape_tail`` with :data:`ANY_WIDTH` as the width ``array`` has (2-D, at least one column)."""
+    if shape_tail != (ANY_WIDTH,):
+        return shape_tail
+    return array.shape[1:] if array.ndim == 2 and array.shape[1] >= 1 else (3,)
+
+
 def _frozen(array: np.ndarray, dtype: type, shape_tail: tuple[int, ...], name: str) -> np.ndarray:
     out: np.ndarray = np.array(array, dtype=dtype, copy=True)
+    shape_tail = _tail(out, shape_tail)
     if out.ndim == 1 and shape_tail and out.size == 0:
         out = out.reshape((0, *shape_tail))
     if out.shape[1:] != shape_tail:
@@ -199,7 +212,7 @@ class JointProgram:
     ----------
     kind : (N,) int — :class:`MoveKind` values
     stage : (N, 2) float — mm, stage X, Y (zeros on a machine without a stage)
-    strokes : (N, 3) float — mm, actuator strokes T1, T2, T3
+    strokes : (N, J) float — mm, the kinematics' joints (a 3-PRS head's strokes T1, T2, T3)
     inverse_time : (N,) float — 1/min, G93 F word of FEED rows (move time = 1/F min), 0 for rapids
     source : (N,) int — as in :class:`Toolpath`
     events : tuple of Event — as in :class:`Toolpath`
@@ -217,7 +230,7 @@ class JointProgram:
     source_file: str = ""
 
     def __post_init__(self) -> None:
-        _freeze_rows(self, (("kind", np.int64, ()), ("stage", np.float64, (2,)), ("strokes", np.float64, (3,)),
+        _freeze_rows(self, (("kind", np.int64, ()), ("stage", np.float64, (2,)), ("strokes", np.float64, (ANY_WIDTH,)),
                             ("inverse_time", np.float64, ()), ("source", np.int64, ())))
 
     def __len__(self) -> int:
@@ -241,14 +254,14 @@ def join_programs(parts: list[JointProgram], *, source_labels: tuple[str, ...] =
     for part in parts:
         events += [Event(before=e.before + offset, kind=e.kind, value=e.value, text=e.text) for e in part.events]
         offset += len(part)
-    shapes = {"kind": (np.int64, ()), "stage": (np.float64, (2,)), "strokes": (np.float64, (3,)),
+    shapes = {"kind": (np.int64, ()), "stage": (np.float64, (2,)), "strokes": (np.float64, (ANY_WIDTH,)),
               "inverse_time": (np.float64, ()), "source": (np.int64, ())}
     pieces = {name: [getattr(p, name) for p in parts] for name in shapes}
     parts.clear()
     columns = {}
     for name, (dtype, tail) in shapes.items():
         columns[name] = (np.concatenate(pieces.pop(name)).astype(dtype, copy=False) if offset
-                         else np.zeros((0, *tail), dtype=dtype))
+                         else np.zeros((0, *_tail(np.zeros(0), tail)), dtype=dtype))
     return program_from_columns(columns, events, source_labels=source_labels, source_file=source_file)
 
 
@@ -263,7 +276,7 @@ def program_from_columns(columns: dict[str, np.ndarray], events: list[Event] | t
     ValueError
         A column of another dtype, row shape or row count.
     """
-    fields = (("kind", np.int64, ()), ("stage", np.float64, (2,)), ("strokes", np.float64, (3,)),
+    fields = (("kind", np.int64, ()), ("stage", np.float64, (2,)), ("strokes", np.float64, (ANY_WIDTH,)),
               ("inverse_time", np.float64, ()), ("source", np.int64, ()))
     return _frozen_from_columns(JointProgram, [(name, columns[name], dtype, tail) for name, dtype, tail in fields],
                                 events, source_labels, source_file)
@@ -297,7 +310,8 @@ def _frozen_from_columns(cls: type[_Framed], fields: list[tuple[str, np.ndarray,
     made = object.__new__(cls)
     rows = len(fields[0][1])
     row_shape: tuple[int, ...]
-    for name, column, dtype, row_shape in fields:
+    for name, column, dtype, given_shape in fields:
+        row_shape = _tail(column, given_shape)
         if column.dtype != dtype or column.shape != (rows, *row_shape):
             raise ValueError(f"{name}: expected {np.dtype(dtype).name} of shape {(rows, *row_shape)}, got "
                              f"{column.dtype.name} of shape {column.shape}")

@@ -48,6 +48,8 @@ from prs3_post.core.errors import LimitError
 from prs3_post.core.numbers import ChoiceColumn, ScaledColumn, fixed, format_word, render_rows, scale_column
 from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
+from prs3_post.kinematics.protocol import Kinematics, joint_letters
+from prs3_post.kinematics.prs3.kinematics import Prs3Kinematics
 from prs3_post.machine.dialect import COMMENT_CONTINUATION as _CONTINUATION
 from prs3_post.machine.dialect import CommentStyle, Dialect
 
@@ -293,9 +295,10 @@ def _event_blocks(where: str, event: Event, dialect: Dialect) -> tuple[str | Non
     raise ValueError(f"no G-code for event kind {event.kind!r}")
 
 
-def _axis_line(dialect: Dialect, stage: bool) -> str:
+def _axis_line(dialect: Dialect, stage: bool, joints: tuple[tuple[str, str], ...]) -> str:
     ax = dialect.axes
-    strokes = f"{ax.t1} {ax.t2} {ax.t3} = actuator strokes T1 T2 T3 mm"
+    strokes = (f"{' '.join(letter for _, letter in joints)} = actuator strokes "
+               f"{' '.join(name for name, _ in joints)} mm")
     if stage:
         return f"axes: {ax.x} {ax.y} = stage X Y mm, {strokes}"
     return f"axes: {strokes}, no stage"
@@ -362,7 +365,8 @@ class ProgramEmitter:
     """
 
     def __init__(self, dialect: Dialect, *, stage: bool = True, line_numbers: bool | None = None,
-                 line_start: int | None = None, line_step: int | None = None):
+                 line_start: int | None = None, line_step: int | None = None,
+                 kinematics: Kinematics | None = None):
         numbering = dialect.line_numbers
         start = numbering.start if line_start is None else line_start
         step = numbering.step if line_step is None else line_step
@@ -371,8 +375,11 @@ class ProgramEmitter:
         if step < 1:
             raise ValueError(f"line_step must be ≥ 1, got {step}")
         self.dialect, self.stage = dialect, stage
+        given = Prs3Kinematics if kinematics is None else kinematics          # (no kinematics: the 3-PRS head's)
+        letters = joint_letters(given.joint_names, given.default_letters, dialect.axes)
+        self.joints = tuple(zip(given.joint_names, letters, strict=True))
         self._out = _Blocks(dialect, numbering.enabled if line_numbers is None else line_numbers, start, step)
-        self._modal = _Modal(words=[None] * (5 if stage else 3))
+        self._modal = _Modal(words=[None] * (len(self.joints) + (2 if stage else 0)))
 
     # ------------------------------------------------------------------ begin and end
     def begin(self, header: tuple[tuple[str, str], ...] = ()) -> str:
@@ -388,7 +395,7 @@ class ProgramEmitter:
             out.raw(o_line)
         for key, value in header:
             out.comment(f"{key}: {value}")
-        out.comment(_axis_line(dialect, self.stage))
+        out.comment(_axis_line(dialect, self.stage, self.joints))
         out.comment("motion: joint space, G1 feed in G93 inverse time, F = 1 / move time in min")
         for line in dialect.safe_start:
             out.block(line, "blocks.safe_start")
@@ -437,9 +444,8 @@ class ProgramEmitter:
         are scaled CHUNK_ROWS rows at a time, when written); errors name the first bad row."""
         ax, dec = self.dialect.axes, self.dialect.decimals
         named = [(ax.x, program.stage[:, 0], "stage X"), (ax.y, program.stage[:, 1], "stage Y"),
-                 (ax.t1, program.strokes[:, 0], "actuator stroke T1"),
-                 (ax.t2, program.strokes[:, 1], "actuator stroke T2"),
-                 (ax.t3, program.strokes[:, 2], "actuator stroke T3")]
+                 *((letter, program.strokes[:, j], f"actuator stroke {name}")
+                   for j, (name, letter) in enumerate(self.joints))]
         with np.errstate(over="ignore", invalid="ignore"):       # a sum is not finite where a value is not
             finite = np.isfinite(program.stage.sum() + program.strokes.sum())    # (or where it overflows)
         for letter, values, name in ([] if finite else named):
@@ -756,13 +762,14 @@ def emit_program(
     line_numbers: bool | None = None,
     line_start: int | None = None,
     line_step: int | None = None,
+    kinematics: Kinematics | None = None,
 ) -> str:
     """The whole program as G-code text in ``dialect``.
 
     Parameters
     ----------
     program : JointProgram
-        Rows in actuator space: ``stage`` (N, 2) mm, ``strokes`` (N, 3) mm, ``inverse_time`` (N,)
+        Rows in actuator space: ``stage`` (N, 2) mm, ``strokes`` (N, J) mm, ``inverse_time`` (N,)
         1/min (> 0 on FEED rows), and the events between rows (``before == N``: after the last row).
     dialect : Dialect
         Letters, decimals, comments, numbering and the fixed blocks (see ``postproc/dialects``).
@@ -774,6 +781,8 @@ def emit_program(
         value is an error.
     line_numbers, line_start, line_step : bool, int, int, optional
         Override the dialect's block numbering (None: the dialect's value).
+    kinematics : Kinematics, optional
+        Whose joints the ``strokes`` columns are: their names and letters (None: the 3-PRS head's).
 
     Returns
     -------
@@ -801,6 +810,6 @@ def emit_program(
     and on a line that would otherwise carry no axis word).
     """
     emitter = ProgramEmitter(dialect, stage=stage, line_numbers=line_numbers, line_start=line_start,
-                             line_step=line_step)
+                             line_step=line_step, kinematics=kinematics)
     _check_rows(program)
     return "".join([emitter.begin(header), *emitter.row_pieces(program), emitter.end()])

@@ -55,7 +55,7 @@ import numpy as np
 from prs3_post.core.defaults import DEFAULT_TOLERANCE
 from prs3_post.core.toolpath import JointProgram
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
-from prs3_post.kinematics import IKModel, forward, inverse
+from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.model import Machine
 
 #: Intervals every move is probed with (and its minimum).
@@ -83,7 +83,7 @@ class Replay:
     ----------
     row : (S,) int — program row (move) of each sample; samples of a row are contiguous
     fraction : (S,) float — t in (0, 1] along the move (row 0, whose start is unknown: its end, 1)
-    joints : (S, 5) float — mm, X, Y, T1, T2, T3 (joint-space interpolation)
+    joints : (S, 2 + J) float — mm, X, Y and the J joints (joint-space interpolation)
     tip : (S, 3) float — mm, tool tip, machine frame (part-relative: stage included)
     axis : (S, 3) float — unit tool axis
     converged : (S,) bool — FK found the head's pose (NaN tip/axis where not)
@@ -111,8 +111,8 @@ class Replay:
 
 
 def joints_of(program: JointProgram) -> FloatArray:
-    """(N, 5) float — mm, X, Y, T1, T2, T3 of every row."""
-    return np.column_stack([program.stage, program.strokes]).reshape(-1, 5)
+    """(N, 2 + J) float — mm, X, Y and the J joints of every row."""
+    return np.column_stack([program.stage, program.strokes]).reshape(-1, 2 + program.strokes.shape[1])
 
 
 @dataclass(frozen=True, slots=True)
@@ -135,8 +135,11 @@ def _shift_keys(strokes: FloatArray) -> tuple[FloatArray, IntArray]:
     Jacobian). So FK, the exact IK's condition number and the rounding allowance are computed once
     per distinct (T2 − T1, T3 − T1): on a constant-axis stretch of a program, a handful of poses.
     """
-    strokes = np.asarray(strokes, dtype=np.float64).reshape(-1, 3)
-    key = (strokes[:, 1] - strokes[:, 0]) + 1j * (strokes[:, 2] - strokes[:, 0])
+    strokes = np.asarray(strokes, dtype=np.float64)
+    strokes = strokes.reshape(-1, strokes.shape[-1])
+    if strokes.shape[1] != 3:
+        return _shift_keys_of_rows(strokes)
+    key = (strokes[:, 1] - strokes[:, 0]) + 1j * (strokes[:, 2] - strokes[:, 0])   # two differences: one number
     # a program repeats a pose row after row: sort only the first row of each run of equal keys
     head = np.ones(len(key), dtype=bool)
     head[1:] = key[1:] != key[:-1]
@@ -146,9 +149,19 @@ def _shift_keys(strokes: FloatArray) -> tuple[FloatArray, IntArray]:
     return canonical, inverse_index.reshape(-1)
 
 
+def _shift_keys_of_rows(strokes: FloatArray) -> tuple[FloatArray, IntArray]:
+    """:func:`_shift_keys` of (N, J) joints, J ≠ 3: the differences to the first joint as rows."""
+    key = strokes[:, 1:] - strokes[:, :1]
+    head = np.ones(len(key), dtype=bool)
+    head[1:] = (key[1:] != key[:-1]).any(axis=1)
+    distinct, head_index = np.unique(key[head], axis=0, return_inverse=True)
+    inverse_index = head_index.reshape(-1)[np.cumsum(head) - 1]
+    return np.column_stack([np.zeros(len(distinct)), distinct]), inverse_index.reshape(-1)
+
+
 def _poses(machine: Machine, joints: FloatArray, *, keys: tuple[FloatArray, IntArray] | None = None,
            condition: bool = True) -> _Poses:
-    """FK and condition number of (N, 5) joints (X, Y, T1..T3), once per distinct head pose.
+    """FK and condition number of (N, 2 + J) joints (X, Y, the joints), once per distinct head pose.
 
     ``keys``: :func:`_shift_keys` of the strokes, if at hand; ``condition``: False skips the exact IK
     (the condition numbers are NaN).
@@ -166,7 +179,7 @@ def _forward_parts(machine: Machine, parts: list[FloatArray]) -> list[_KeyFK]:
     """FK of several (K_i, 3) stroke arrays in one call: FK solves every row on its own, so each part
     gets the values a call of its own would give, without that call's fixed cost."""
     sizes = [len(part) for part in parts]
-    fk = forward(machine.geometry, np.concatenate(parts) if len(parts) > 1 else parts[0])
+    fk = kinematics_of(machine).forward(np.concatenate(parts) if len(parts) > 1 else parts[0])
     out, at = [], 0
     for size in sizes:
         rows = slice(at, at + size)
@@ -177,11 +190,11 @@ def _forward_parts(machine: Machine, parts: list[FloatArray]) -> list[_KeyFK]:
 
 def _condition(machine: Machine, fk: _KeyFK) -> FloatArray:
     """(K,) the actuator-Jacobian condition number of FK poses (exact IK; NaN where FK failed)."""
-    return inverse(machine.geometry, fk[0], fk[1], model=IKModel.EXACT).condition
+    return kinematics_of(machine).condition(fk[0], fk[1])
 
 
 def _expand(fk: _KeyFK, condition: FloatArray | None, index: IntArray, joints: FloatArray) -> _Poses:
-    """The poses of (N, 5) joints from the FK of their distinct head poses (``index``: each row's)."""
+    """The poses of (N, 2 + J) joints from the FK of their distinct head poses (``index``: each row's)."""
     key_tip, key_axis, key_angle, key_converged = fk
     tip = np.take(key_tip, index, axis=0)
     tip[:, :2] += joints[:, :2]
@@ -210,7 +223,7 @@ def _interleave(at_end: BoolArray, ends: _Poses, inner: _Poses) -> _Poses:
 
 
 def _sample_moves(joints: FloatArray, intervals: IntArray) -> tuple[IntArray, FloatArray, FloatArray, IntArray]:
-    """Samples of every move: row (S,), fraction (S,), joints (S, 5), first sample of each row (N,)."""
+    """Samples of every move: row (S,), fraction (S,), joints (S, 2 + J), first sample of each row (N,)."""
     n = len(joints)
     row = np.repeat(np.arange(n), intervals)
     first = np.cumsum(intervals) - intervals
@@ -246,20 +259,24 @@ class _Translations:
 
 
 def _translations(joints: FloatArray) -> _Translations:
-    """The translation candidates of (N, 5) joints (:func:`_translation_bound`)."""
-    n = len(joints)
+    """The translation candidates of (N, 2 + J) joints (:func:`_translation_bound`)."""
+    n, width = joints.shape
     if n < 2:
-        return _Translations(rows=np.zeros(0, dtype=np.int64), common=np.zeros(0), back=np.zeros((0, 5)))
+        return _Translations(rows=np.zeros(0, dtype=np.int64), common=np.zeros(0), back=np.zeros((0, width)))
     # column by column (numpy's reductions along a row of three are slow; the same sums, in the same order)
-    d0, d1, d2 = (np.subtract(joints[1:, j], joints[:-1, j]) for j in (2, 3, 4))
-    common = (d0 + d1 + d2) / 3.0
-    s0, s1, s2 = d0 - common, d1 - common, d2 - common
-    widest = np.maximum(np.maximum(np.abs(s0), np.abs(s1)), np.abs(s2))
+    d = [np.subtract(joints[1:, j], joints[:-1, j]) for j in range(2, width)]
+    total = d[0]
+    for column in d[1:]:
+        total = total + column
+    common = total / float(len(d))
+    s = [column - common for column in d]
+    widest = np.abs(s[0])
+    for column in s[1:]:
+        widest = np.maximum(widest, np.abs(column))
     moves = np.flatnonzero(widest <= TRANSLATION_SPREAD)
     back = np.take(joints, moves, axis=0)                # q_{k-1} of each such move k = moves + 1
-    back[:, 2] -= s0[moves]
-    back[:, 3] -= s1[moves]
-    back[:, 4] -= s2[moves]
+    for j, column in enumerate(s):
+        back[:, 2 + j] -= column[moves]
     return _Translations(rows=moves + 1, common=common[moves], back=back)
 
 
@@ -303,10 +320,10 @@ def _translation_bound(machine: Machine, joints: FloatArray, ends: _Poses, moves
         second_sq = second * second if j == 0 else second_sq + second * second
     tip2 = np.sqrt(second_sq)
     turn = np.zeros(len(rows))
-    for j in range(3):
+    for j in range(angle.shape[1]):
         bend = np.abs(np.take(angle[:, j], rows) - 2.0 * np.take(angle[:, j], before) + mirror.link_angle[:, j])
         turn = bend if j == 0 else np.maximum(turn, bend)
-    angle2 = machine.geometry.link_length * turn
+    angle2 = kinematics_of(machine).link_length * turn
     bound[rows] = SAFETY * np.maximum(tip2, angle2) / 8.0     # NaN stays NaN: no assembly, sample it
     return bound
 
@@ -332,10 +349,10 @@ def replay(machine: Machine, program: JointProgram, *, tolerance: float = DEFAUL
 
 def _replay_joints(machine: Machine, joints: FloatArray, *, tolerance: float, translations: bool,
                    ends: _Poses | None = None, flat_bound: FloatArray | None = None) -> Replay:
-    """:func:`replay` of (N, 5) joints; row 0 is sampled at its end only (its start is unknown, or it is
+    """:func:`replay` of (N, 2 + J) joints; row 0 is sampled at its end only (its start is unknown, or it is
     the previous chunk's last row, replayed again to start the next move from). ``ends``: the poses
     of the rows, and ``flat_bound``: :func:`_translation_bound` (with ``translations``), if at hand."""
-    geometry = machine.geometry
+    link_length = kinematics_of(machine).link_length
     n = len(joints)
     epsilon = tolerance * EPSILON_FRACTION
     ends = _poses(machine, joints) if ends is None else ends
@@ -355,7 +372,7 @@ def _replay_joints(machine: Machine, joints: FloatArray, *, tolerance: float, tr
         at_end[first + intervals - 1] = True
         poses = _interleave(at_end, ends, _poses(machine, sampled[~at_end]))
         return row, fraction, sampled, first, poses, _curvature(row, intervals, poses.tip, poses.link_angle,
-                                                               geometry.link_length, n)
+                                                               link_length, n)
 
     row, fraction, sampled, first, poses, curvature = run()
     for _ in range(REFINE_ROUNDS):                     # refine until the bound holds (never coarsen)
@@ -395,8 +412,8 @@ def _rounding_of_keys(machine: Machine, canonical: FloatArray, decimals: int, *,
 def _rounding_strokes(canonical: FloatArray, step: float) -> list[FloatArray]:
     """The strokes whose FK :func:`_rounding_from` needs: each pose with one stroke ± ``step``."""
     out = []
-    for leg in range(3):
-        delta = np.zeros(3)
+    for leg in range(canonical.shape[1]):
+        delta = np.zeros(canonical.shape[1])
         delta[leg] = step
         out += [canonical + delta, canonical - delta]
     return out
@@ -406,7 +423,7 @@ def _rounding_from(machine: Machine, fk: list[_KeyFK], decimals: int, *, step: f
     """:func:`_rounding_of_keys` from the FK of :func:`_rounding_strokes` (in its order)."""
     half = 0.5 * 10.0 ** (-decimals)
     total = np.full(len(fk[0][0]), 2.0 if machine.stage.present else 0.0)   # ∂tip/∂X, ∂tip/∂Y: unit vectors
-    for leg in range(3):
+    for leg in range(len(fk) // 2):
         plus, minus = fk[2 * leg][0], fk[2 * leg + 1][0]
         total += np.linalg.norm(plus - minus, axis=1) / (2.0 * step)
     return half * total

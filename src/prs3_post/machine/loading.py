@@ -41,7 +41,16 @@ from prs3_post.machine.dialect import (
     Dialect,
     LineNumbers,
 )
-from prs3_post.machine.model import Dynamics, Geometry, Holder, Limits, Machine, Stage
+from prs3_post.machine.model import (
+    DEFAULT_KINEMATICS,
+    KINEMATICS_NAMES,
+    Dynamics,
+    Geometry,
+    Holder,
+    Limits,
+    Machine,
+    Stage,
+)
 
 # The five-axis source conventions (only `convert` and a converted program's check need them) load in load_source.
 if TYPE_CHECKING:
@@ -285,6 +294,10 @@ def load_machine(name_or_path: str) -> Machine:
     shown = _display(path)
     top = _Table(_read_toml(path), shown)
     description = top.text("description")
+    kinematics = top.text("kinematics", DEFAULT_KINEMATICS)
+    if kinematics not in KINEMATICS_NAMES:
+        raise top._error("kinematics", f"unknown kinematics {quoted(kinematics)} (known: "
+                                       f"{', '.join(sorted(KINEMATICS_NAMES))})")
 
     geo = top.table("geometry")
     azimuth_deg = geo.numbers("leg_azimuth_deg", 3, "[α1, α2, α3] in degrees")
@@ -363,6 +376,7 @@ def load_machine(name_or_path: str) -> Machine:
         part_origin=part_origin,  # type: ignore[arg-type]
         dynamics=dynamics,
         holder=holder,
+        kinematics=kinematics,
     )
 
 

@@ -5,7 +5,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-__all__ = ["Dynamics", "Geometry", "Holder", "Limits", "Machine", "Stage"]
+__all__ = ["DEFAULT_KINEMATICS", "KINEMATICS_NAMES", "Dynamics", "Geometry", "Holder", "Limits", "Machine", "Stage"]
+
+#: The kinematics of a machine file without a ``kinematics`` key (the files written before it).
+DEFAULT_KINEMATICS = "3-prs"
+#: The kinematics a machine file may name: :func:`prs3_post.kinematics.registry.register` adds
+#: each one it registers (this layer cannot import that registry).
+KINEMATICS_NAMES: set[str] = {DEFAULT_KINEMATICS}
 
 
 @dataclass(frozen=True, slots=True)
@@ -101,13 +107,14 @@ class Dynamics:
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0")
 
-    def speeds(self) -> tuple[float, float, float, float, float]:
-        """mm/min, the top speed of the program's axes in column order: stage X, Y, strokes T1, T2, T3."""
-        return (self.stage_speed,) * 2 + (self.stroke_speed,) * 3
+    def speeds(self, joints: int = 3) -> tuple[float, ...]:
+        """mm/min, the top speed of the program's axes in column order: stage X, Y, then ``joints``
+        actuator strokes (T1, T2, T3 on a 3-PRS head)."""
+        return (self.stage_speed,) * 2 + (self.stroke_speed,) * joints
 
-    def accels(self) -> tuple[float, float, float, float, float]:
-        """mm/min², the acceleration of stage X, Y, strokes T1, T2, T3 (the config's mm/s² × 3600)."""
-        return (self.stage_accel * 3600.0,) * 2 + (self.stroke_accel * 3600.0,) * 3
+    def accels(self, joints: int = 3) -> tuple[float, ...]:
+        """mm/min², the acceleration of stage X, Y and the ``joints`` strokes (the config's mm/s² × 3600)."""
+        return (self.stage_accel * 3600.0,) * 2 + (self.stroke_accel * 3600.0,) * joints
 
 
 @dataclass(frozen=True, slots=True)
@@ -149,6 +156,7 @@ class Machine:
     dynamics : Dynamics | None — axis speeds and accelerations (None: an older file without
         ``[dynamics]``: no feed clamping, no cycle time)
     holder : Holder | None — holder and spindle nose (None: no ``[holder]``: no collision check)
+    kinematics : str — the kinematics' registered name (:mod:`prs3_post.kinematics.registry`)
     """
 
     name: str
@@ -160,6 +168,7 @@ class Machine:
     part_origin: tuple[float, float, float]
     dynamics: Dynamics | None = None
     holder: Holder | None = None
+    kinematics: str = DEFAULT_KINEMATICS
 
     def with_tool_length(self, length: float) -> Machine:
         """This machine with the tool length "TL" ``length`` mm (platform centre to tool tip); itself when it

@@ -26,13 +26,14 @@ import numpy as np
 from prs3_post.core.errors import LimitError
 from prs3_post.core.toolpath import EventKind, JointProgram, MoveKind
 from prs3_post.core.types import BoolArray, FloatArray
+from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.model import Dynamics, Machine
 
 __all__ = [
-    "AXIS_NAMES",
     "NO_DYNAMICS",
     "DynamicsTally",
     "FeedClamp",
+    "axis_names",
     "axis_speed_ratio",
     "clamp_feeds",
     "dynamics_entry",
@@ -44,8 +45,11 @@ __all__ = [
     "trapezoid_time",
 ]
 
-#: The program's axes in :func:`joint_columns` order, for messages.
-AXIS_NAMES = ("stage X", "stage Y", "stroke T1", "stroke T2", "stroke T3")
+
+def axis_names(machine: Machine) -> tuple[str, ...]:
+    """The program's axes in :func:`joint_columns` order, for messages: ``stage X``, ``stage Y`` and
+    ``stroke`` and each joint's name (``stroke T1``)."""
+    return ("stage X", "stage Y", *(f"stroke {name}" for name in kinematics_of(machine).joint_names))
 
 #: Relative slack of the speed check of an existing program: the F word's rounding (the emitted
 #: feed may be up to half a unit of its last digit above the clamped one).
@@ -53,24 +57,27 @@ SPEED_SLACK = 1e-6
 
 
 def joint_columns(stage: FloatArray, strokes: FloatArray) -> FloatArray:
-    """(N, 5) mm: stage X, Y and strokes T1, T2, T3 side by side (the order of :meth:`Dynamics.speeds`).
+    """(N, 2 + J) mm: stage X, Y and the J joints side by side (the order of :meth:`Dynamics.speeds`).
 
-    Copied a column at a time: np.column_stack copies each row's 2 and 3 values as inner loops of 2
-    and 3 elements, about three times slower."""
+    ``strokes`` : (N, J), or (J,) for one row. Copied a column at a time: np.column_stack copies each
+    row's 2 and J values as inner loops of 2 and J elements, about three times slower."""
     stage = np.asarray(stage, dtype=np.float64).reshape(-1, 2)
-    strokes = np.asarray(strokes, dtype=np.float64).reshape(-1, 3)
+    strokes = np.asarray(strokes, dtype=np.float64)
+    strokes = strokes.reshape(-1, strokes.shape[-1])
     if len(stage) != len(strokes):
         raise ValueError(f"joint_columns: {len(stage)} stage rows, {len(strokes)} stroke rows")
-    out = np.zeros((len(stage), 5))
-    for column, values in enumerate((stage[:, 0], stage[:, 1], strokes[:, 0], strokes[:, 1], strokes[:, 2])):
+    out = np.zeros((len(stage), 2 + strokes.shape[1]))
+    for column, values in enumerate((stage[:, 0], stage[:, 1], *strokes.T)):
         out[:, column] = values
     return out
 
 
 def joint_deltas(joints: FloatArray, start: FloatArray | None = None) -> FloatArray:
-    """(N, 5) mm: |Δq| of each row's move from the row before (row 0 from ``start``; zeros when None)."""
-    joints = np.asarray(joints, dtype=np.float64).reshape(-1, 5)
-    before = np.concatenate([joints[:1] if start is None else np.asarray(start, dtype=np.float64).reshape(1, 5),
+    """(N, 2 + J) mm: |Δq| of each row's move from the row before (row 0 from ``start``; zeros when None)."""
+    joints = np.asarray(joints, dtype=np.float64)
+    joints = joints.reshape(-1, joints.shape[-1])
+    width = joints.shape[1]
+    before = np.concatenate([joints[:1] if start is None else np.asarray(start, dtype=np.float64).reshape(1, width),
                              joints[:-1]])
     return np.abs(joints - before[: len(joints)])
 
@@ -82,10 +89,11 @@ def axis_speed_ratio(dynamics: Dynamics, kind: np.ndarray, deltas: FloatArray,
     Returns
     -------
     ratio : (N,) float — max_a |Δq_a| · F / v_a (0 on rapids: they run at the axes' own speeds)
-    axis : (N,) int — the axis of that maximum (index into :data:`AXIS_NAMES`)
+    axis : (N,) int — the axis of that maximum (index into :func:`axis_names`)
     """
     feed = np.asarray(kind) == MoveKind.FEED
-    per_axis = deltas * np.where(feed, inverse_time, 0.0)[:, None] / np.asarray(dynamics.speeds())
+    top = np.asarray(dynamics.speeds(deltas.shape[1] - 2))
+    per_axis = deltas * np.where(feed, inverse_time, 0.0)[:, None] / top
     if not len(per_axis):
         return np.zeros(0), np.zeros(0, dtype=np.int64)
     return per_axis.max(axis=1), per_axis.argmax(axis=1)
@@ -96,7 +104,7 @@ def _any_over(dynamics: Dynamics, kind: np.ndarray, deltas: FloatArray, inverse_
     maximum as the element-wise maximum of the axes (NaN as NaN), without the reduction along each row."""
     fed = np.where(np.asarray(kind) == MoveKind.FEED, inverse_time, 0.0)
     ratio = None
-    for axis, speed in enumerate(np.asarray(dynamics.speeds())):
+    for axis, speed in enumerate(np.asarray(dynamics.speeds(deltas.shape[1] - 2))):
         per_axis = deltas[:, axis] * fed / speed
         ratio = per_axis if ratio is None else np.maximum(ratio, per_axis)
     return ratio is not None and bool((ratio > 1.0).any())
@@ -110,7 +118,7 @@ class FeedClamp:
     ----------
     inverse_time : (N,) float — 1/min, the G93 F words after clamping (rapids: 0, as given)
     ratio : (N,) float — requested F / clamped F (> 1: the move was slowed; 1 elsewhere)
-    axis : (N,) int — the axis that limits each move (index into :data:`AXIS_NAMES`)
+    axis : (N,) int — the axis that limits each move (index into :func:`axis_names`)
     """
 
     inverse_time: FloatArray
@@ -143,7 +151,7 @@ def clamp_feeds(dynamics: Dynamics, kind: np.ndarray, deltas: FloatArray, invers
     out = inverse_time.copy()
     if over.any():                          # F' = min_a v_a / |Δq_a|, computed directly (not F / ratio)
         with np.errstate(divide="ignore"):          # an axis that does not move allows any feed (inf)
-            allowed = np.asarray(dynamics.speeds()) / deltas[over]
+            allowed = np.asarray(dynamics.speeds(deltas.shape[1] - 2)) / deltas[over]
         out[over] = allowed.min(axis=1)
     return FeedClamp(inverse_time=out, ratio=np.where(over, ratio, 1.0), axis=axis)
 
@@ -164,10 +172,10 @@ def move_times(dynamics: Dynamics, kind: np.ndarray, deltas: FloatArray, inverse
     """(N,) min: each move's time, the slowest axis's trapezoid (G1: every axis at |Δq|·F; G0: each
     axis at its top speed). A row without motion takes no time."""
     feed = np.asarray(kind) == MoveKind.FEED
-    top = np.asarray(dynamics.speeds())
+    top = np.asarray(dynamics.speeds(deltas.shape[1] - 2))
     speed = np.where(feed[:, None], deltas * np.asarray(inverse_time)[:, None], top)
     speed = np.where(speed > 0, speed, top)             # an axis that does not move: any speed, t = 0
-    times = trapezoid_time(deltas, speed, np.asarray(dynamics.accels()))
+    times = trapezoid_time(deltas, speed, np.asarray(dynamics.accels(deltas.shape[1] - 2)))
     return times.max(axis=1) if len(times) else np.zeros(0)
 
 
@@ -190,8 +198,9 @@ def program_time(dynamics: Dynamics, program: JointProgram) -> float:
     return float(moves.sum()) + dwell
 
 
-def speed_excess(dynamics: Dynamics, program: JointProgram, *, first: int = 0, length_decimals: int = 4,
-                 feed_decimals: int = 4) -> tuple[FloatArray, np.ndarray, list[tuple[int, str]]]:
+def speed_excess(dynamics: Dynamics, program: JointProgram, *, names: tuple[str, ...], first: int = 0,
+                 length_decimals: int = 4, feed_decimals: int = 4
+                 ) -> tuple[FloatArray, np.ndarray, list[tuple[int, str]]]:
     """The G1 moves of an existing program that drive an axis over its top speed.
 
     Row 0 is where the program (or the chunk, carried from the one before) starts: not a move here.
@@ -208,17 +217,18 @@ def speed_excess(dynamics: Dynamics, program: JointProgram, *, first: int = 0, l
     ratio : (N,) float — each row's worst axis speed / top speed (0 on rapids and row 0)
     axis : (N,) int — the axis of that maximum
     over : list of (row, message) — ``the feed drives stroke T2 at 6012.3 mm/min, 1.20 x its top speed 5000.0 mm/min``
+        (``names``: :func:`axis_names`)
     """
     joints = joint_columns(program.stage, program.strokes)
     deltas = joint_deltas(joints)
     f = np.asarray(program.inverse_time, dtype=np.float64)
     ratio, axis = axis_speed_ratio(dynamics, program.kind, deltas, f)
-    top = np.asarray(dynamics.speeds())
+    top = np.asarray(dynamics.speeds(deltas.shape[1] - 2))
     # F may be half a unit of its last digit above the value meant, each end point half a unit off
     with np.errstate(divide="ignore", invalid="ignore"):
         slack = 0.5 * 10.0 ** -feed_decimals / f + f * 10.0 ** -length_decimals / top[axis]
     over = np.flatnonzero(ratio > 1.0 + np.where(np.isfinite(slack), slack, 0.0) + SPEED_SLACK)
-    messages = [(r, f"the feed drives {AXIS_NAMES[axis[r]]} at {ratio[r] * top[axis[r]]:.1f} mm/min, "
+    messages = [(r, f"the feed drives {names[axis[r]]} at {ratio[r] * top[axis[r]]:.1f} mm/min, "
                     f"{ratio[r]:.2f} x its top speed {top[axis[r]]:.1f} mm/min") for r in over.tolist() if r >= first]
     return ratio, axis, messages
 
@@ -241,6 +251,7 @@ class DynamicsTally:
 
     def __init__(self, machine: Machine, *, clamp: bool = True):
         self.dynamics = machine.dynamics
+        self.names = axis_names(machine)
         self.clamp = clamp
         self.clamped = 0
         self.worst_ratio = 1.0
@@ -273,15 +284,15 @@ class DynamicsTally:
             if not self.clamp:
                 first = int(over[0])
                 axis = int(result.axis[first])
-                top = self.dynamics.speeds()[axis]
-                raise LimitError(f"{program.describe(first)}: the feed needs {AXIS_NAMES[axis]} at "
+                top = self.dynamics.speeds(deltas.shape[1] - 2)[axis]
+                raise LimitError(f"{program.describe(first)}: the feed needs {self.names[axis]} at "
                                  f"{result.ratio[first] * top:.1f} mm/min, {result.ratio[first]:.2f} x its top "
                                  f"speed {top:.1f} mm/min (slow the feed, or let it be clamped)")
             self.clamped += len(over)
             if result.ratio[row] > self.worst_ratio:
                 self.worst_ratio = float(result.ratio[row])
                 self.worst_where = program.describe(row)
-                self.worst_axis = AXIS_NAMES[int(result.axis[row])]
+                self.worst_axis = self.names[int(result.axis[row])]
         self._last = joints[-1].copy()
         return result.inverse_time if len(over) else program.inverse_time
 

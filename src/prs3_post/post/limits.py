@@ -13,9 +13,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from prs3_post.core.errors import LimitError
-from prs3_post.core.rowwise import same_rows
 from prs3_post.core.types import BoolArray, FloatArray
 from prs3_post.kinematics import IKResult
+from prs3_post.kinematics.protocol import LimitColumns
+from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.model import Machine
 
 
@@ -25,7 +26,7 @@ class LimitReport:
 
     Attributes
     ----------
-    names : (L,) str — ``T1 stroke`` … ``condition number``, ``stage X``
+    names : (L,) str — the kinematics' limits (``T1 stroke`` … ``condition number``), ``stage X``, ``stage Y``
     units : (L,) str — ``mm``, ``deg`` (values kept in rad) or ``""``
     low, high : (L,) float — bounds (``-inf`` / ``inf`` where there is none)
     value : (N, L) float — each point's value (mm, rad, number)
@@ -62,28 +63,10 @@ def _shown(value: float) -> str:
     return f"{value:.4f}" if abs(value) < 1e9 else f"{value:.6g}"
 
 
-def tilt_of(axis: FloatArray) -> FloatArray:
-    """(N,) float — rad, the angle of each unit tool axis (N, 3) from the machine's vertical.
-
-    Rows that all have the bits of the first (a 3+2 chunk) take its angle, computed once.
-    """
-    axis = np.asarray(axis, dtype=np.float64).reshape(-1, 3)
-    if len(axis) > 1 and same_rows(axis):
-        return np.full(len(axis), tilt_of(axis[:1])[0])
-    return np.arccos(np.clip(axis[:, 2], -1.0, 1.0))   # clip: rounding
-
-
-def _groups(machine: Machine, ik: IKResult, axis: FloatArray) -> list[tuple[tuple[str, ...], str, float, float,
-                                                                            FloatArray]]:
+def _groups(machine: Machine, ik: IKResult, axis: FloatArray) -> LimitColumns:
     """The limits of ``machine`` by the bounds they share: names, unit, bounds and the points' values
-    (N, one column per name)."""
-    lim = machine.limits
-    groups: list[tuple[tuple[str, ...], str, float, float, FloatArray]] = [
-        (tuple(f"T{leg + 1} stroke" for leg in range(3)), "mm", *lim.stroke, ik.strokes),
-        (tuple(f"θ{leg + 1} link angle" for leg in range(3)), "deg", *lim.link_angle, ik.link_angle),
-        (("tilt",), "deg", -math.inf, lim.max_tilt, tilt_of(axis)[:, None]),
-        (("condition number",), "", -math.inf, lim.max_condition, ik.condition[:, None]),
-    ]
+    (N, one column per name): its kinematics' columns, then the stage's travel."""
+    groups = kinematics_of(machine).limit_columns(machine.limits, ik, axis)
     if machine.stage.present:
         groups.append((("stage X",), "mm", *machine.stage.travel_x, ik.stage[:, 0:1]))
         groups.append((("stage Y",), "mm", *machine.stage.travel_y, ik.stage[:, 1:2]))

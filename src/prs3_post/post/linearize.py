@@ -24,7 +24,8 @@ from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.core.errors import LimitError
 from prs3_post.core.toolpath import MoveKind, Toolpath
 from prs3_post.core.types import FloatArray, IntArray
-from prs3_post.kinematics import IKModel, forward, inverse
+from prs3_post.kinematics import IKModel
+from prs3_post.kinematics.registry import Kinematics, as_kinematics
 from prs3_post.machine.model import Geometry
 
 #: Bisection rounds before a move that still strays is an error. Halving a move divides its
@@ -53,15 +54,15 @@ def slerp(a: FloatArray, b: FloatArray, t: FloatArray) -> FloatArray:
 
 
 def joint_path_deviation(
-    geometry: Geometry, tip: FloatArray, axis: FloatArray, starts: IntArray, model: IKModel = IKModel.EXACT
-) -> FloatArray:
+    geometry: Geometry | Kinematics, tip: FloatArray, axis: FloatArray, starts: IntArray,
+    model: IKModel = IKModel.EXACT) -> FloatArray:
     """(K,) float — mm, the worst tip deviation of each move: the first half of :func:`joint_path_deviations`."""
     return joint_path_deviations(geometry, tip, axis, starts, model)[0]
 
 
 def joint_path_deviations(
-    geometry: Geometry, tip: FloatArray, axis: FloatArray, starts: IntArray, model: IKModel = IKModel.EXACT
-) -> tuple[FloatArray, FloatArray]:
+    geometry: Geometry | Kinematics, tip: FloatArray, axis: FloatArray, starts: IntArray,
+    model: IKModel = IKModel.EXACT) -> tuple[FloatArray, FloatArray]:
     """Worst tip deviation (mm) and worst axis deviation (rad) of the joint-space line, per move.
 
     The intended pose at fraction t of move k: the tip on the straight line, the axis on the great
@@ -79,13 +80,14 @@ def joint_path_deviations(
         to the FK axis (inf where FK does not converge)
     """
     starts = np.asarray(starts, dtype=np.int64)
-    ik = inverse(geometry, tip, axis, model=model)
-    joints = np.column_stack([ik.stage, ik.strokes])                     # (M + 1, 5)
+    kinematics = as_kinematics(geometry)
+    ik = kinematics.inverse(tip, axis, model=model)
+    joints = np.column_stack([ik.stage, ik.strokes])                     # (M + 1, 2 + J)
     worst = np.zeros(len(starts))
     worst_angle = np.zeros(len(starts))
     for t in CHECK_FRACTIONS:
         mixed = (1.0 - t) * joints[starts] + t * joints[starts + 1]
-        fk = forward(geometry, mixed[:, 2:], mixed[:, :2])
+        fk = kinematics.forward(mixed[:, 2:], mixed[:, :2])
         intended = (1.0 - t) * tip[starts] + t * tip[starts + 1]
         gap = np.linalg.norm(fk.tip - intended, axis=1)
         worst = np.maximum(worst, np.where(fk.converged, gap, np.inf))
@@ -117,7 +119,7 @@ class Linearized:
 
 
 def subdivide_axis_changes(
-    geometry: Geometry, path: Toolpath, *, tolerance: float = DEFAULT_TOLERANCE,
+    geometry: Geometry | Kinematics, path: Toolpath, *, tolerance: float = DEFAULT_TOLERANCE,
     angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, max_rounds: int = MAX_ROUNDS, max_inserted: int = MAX_INSERTED,
     start: Toolpath | None = None,
 ) -> Toolpath:
@@ -130,7 +132,7 @@ def subdivide_axis_changes(
 
 
 def linearize(
-    geometry: Geometry, path: Toolpath, *, tolerance: float = DEFAULT_TOLERANCE,
+    geometry: Geometry | Kinematics, path: Toolpath, *, tolerance: float = DEFAULT_TOLERANCE,
     angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, max_rounds: int = MAX_ROUNDS, max_inserted: int = MAX_INSERTED,
     start: Toolpath | None = None,
 ) -> Linearized:
@@ -138,7 +140,7 @@ def linearize(
 
     Parameters
     ----------
-    geometry : Geometry
+    geometry : Geometry or Kinematics — the machine's kinematics (a Geometry: the 3-PRS head's)
     path : Toolpath — machine frame, unit axes
     tolerance : float — mm, allowed tip deviation of the joint-space interpolation
     angle_tolerance : float — rad, allowed angle between its tool axis and the intended one

@@ -27,11 +27,13 @@ from prs3_post.core.errors import LimitError, PoseError, ReachError
 from prs3_post.core.rowwise import row_lengths
 from prs3_post.core.toolpath import JointProgram, MoveKind, Toolpath
 from prs3_post.core.types import FloatArray
-from prs3_post.kinematics import AxisMemo, IKModel, IKResult, inverse, unit_axes
+from prs3_post.kinematics import AxisMemo, IKModel, IKResult, unit_axes
+from prs3_post.kinematics.protocol import tilt_of
+from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.model import Machine
 from prs3_post.part.setup_transform import Setup
 from prs3_post.post.dynamics import DynamicsTally, joint_columns
-from prs3_post.post.limits import LimitReport, check_limits, raise_first_violation, tilt_of, within_limits
+from prs3_post.post.limits import LimitReport, check_limits, raise_first_violation, within_limits
 from prs3_post.post.linearize import linearize, subdivide_axis_changes
 from prs3_post.post.visible_moves import VisibleMoves
 
@@ -147,7 +149,7 @@ def machine_path(machine: Machine, path_part: Toolpath, setup: Setup, *, toleran
     path = _unit_path(place_toolpath(path_part, setup), 0)
     if (tilt_of(path.axis) > machine.limits.max_tilt).any():
         return path
-    return subdivide_axis_changes(machine.geometry, path, tolerance=tolerance, angle_tolerance=angle_tolerance)
+    return subdivide_axis_changes(kinematics_of(machine), path, tolerance=tolerance, angle_tolerance=angle_tolerance)
 
 
 class PostStream:
@@ -208,13 +210,13 @@ class PostStream:
         machine, model = self.machine, self.model
         given = chunk if self.placed else _unit_path(place_toolpath(chunk, self.setup), self._input_rows)
         ik = _check_end_points(machine, given, model, self._counted(scope, len(given)), self._axes)
-        linear = linearize(machine.geometry, given, tolerance=self.tolerance, angle_tolerance=self.angle_tolerance,
-                           start=self._last_pose)
+        linear = linearize(kinematics_of(machine), given, tolerance=self.tolerance,
+                           angle_tolerance=self.angle_tolerance, start=self._last_pose)
         path = linear.path
         subdivided = len(path)
         checked = path is given                       # nothing inserted: the rows checked above, as they are
         if not checked:
-            ik = inverse(machine.geometry, path.tip, path.axis, model=model, memo=self._axes)
+            ik = kinematics_of(machine).inverse(path.tip, path.axis, model=model, memo=self._axes)
             _raise_unreachable(machine, path, ik, model, self._counted(scope, len(path)))
         stage = ik.stage if model is IKModel.EXACT else np.zeros_like(ik.stage)
         last_pose = self._last_pose
@@ -222,7 +224,7 @@ class PostStream:
             last_pose = Toolpath(kind=path.kind[-1:], tip=path.tip[-1:], axis=path.axis[-1:], feed=path.feed[-1:],
                                  source=path.source[-1:], source_labels=path.source_labels,
                                  source_file=path.source_file)
-        joints = joint_columns(stage, ik.strokes)        # (N, 5): the printed axes, for the guard and the speeds
+        joints = joint_columns(stage, ik.strokes)        # (N, 2 + J): the printed axes, for the guard and the speeds
         steps: FloatArray | None = row_lengths(np.diff(path.tip, axis=0))   # for the guard and the feeds
         if self._visible is not None:                  # no move the program cannot show (a G1 without a word)
             keep = self._visible.keep(joints, tip=path.tip, axis=path.axis, steps=steps)
@@ -318,7 +320,7 @@ def _check_end_points(machine: Machine, path: Toolpath, model: IKModel, scope: s
     ReachError, LimitError
         As :func:`post_process`.
     """
-    ik = inverse(machine.geometry, path.tip, path.axis, model=model, memo=memo)
+    ik = kinematics_of(machine).inverse(path.tip, path.axis, model=model, memo=memo)
     _raise_unreachable(machine, path, ik, model, scope)
     _raise_outside_limits(machine, path, ik, scope)
     return ik

@@ -62,6 +62,8 @@ from prs3_post.core.lexer import (
 )
 from prs3_post.core.toolpath import Coolant, Event, EventKind, JointProgram, MoveKind, join_programs
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
+from prs3_post.kinematics.protocol import Kinematics, joint_letters
+from prs3_post.kinematics.prs3.kinematics import Prs3Kinematics
 from prs3_post.machine.loading import AXIS_LETTERS, Dialect
 
 __all__ = ["ALLOWED_G", "ALLOWED_M", "CHUNK_LINES", "ProgramFile", "ProgramStream", "load_program", "read_program"]
@@ -77,7 +79,6 @@ ALLOWED_M: dict[int, str] = {0: "stop", 1: "stop", 2: "stop", 30: "stop", 3: "sp
                              6: "tool change", 7: "coolant", 8: "coolant", 9: "coolant"}
 #: Word letters other than axes: what each is for.
 _OTHER_LETTERS = "GMNFSTPO"
-_AXIS_NAMES = ("stage X", "stage Y", "actuator T1", "actuator T2", "actuator T3")
 #: mm, the largest axis value a program may give (a kilometre).
 MAX_AXIS_MM = 1e6
 #: Lines handed out per chunk by :class:`ProgramStream` (and read in bulk at a time).
@@ -111,7 +112,8 @@ class ProgramFile:
     blending_lines: tuple[int, ...]
 
 
-def load_program(path: str, dialect: Dialect, *, stage: bool = True) -> ProgramFile:
+def load_program(path: str, dialect: Dialect, *, stage: bool = True,
+                 kinematics: Kinematics | None = None) -> ProgramFile:
     """Read a program file whole (see the module docstring for what is understood).
 
     Parameters
@@ -119,6 +121,7 @@ def load_program(path: str, dialect: Dialect, *, stage: bool = True) -> ProgramF
     path : str
     dialect : Dialect — letters, comment delimiters, dwell unit and line length of the program
     stage : bool — the machine has an XY stage (False: stage words are errors, stage = 0)
+    kinematics : Kinematics, optional — whose joints the program moves (None: the 3-PRS head's)
 
     Returns
     -------
@@ -131,7 +134,7 @@ def load_program(path: str, dialect: Dialect, *, stage: bool = True) -> ProgramF
         for the first line that is not understood.
     """
     data = read_input(path, "a G-code program")
-    return read_program(text_from_bytes(data, path), dialect, path=path, stage=stage)
+    return read_program(text_from_bytes(data, path), dialect, path=path, stage=stage, kinematics=kinematics)
 
 
 def text_from_bytes(data: bytes, path: str) -> str:
@@ -169,14 +172,14 @@ def _split_lines(text: str) -> tuple[list[str], list[bool]]:
 
 
 def read_program(text: str, dialect: Dialect, *, path: str, stage: bool = True,
-                 chunk_lines: int = CHUNK_LINES) -> ProgramFile:
+                 chunk_lines: int = CHUNK_LINES, kinematics: Kinematics | None = None) -> ProgramFile:
     """Read program text (see the module docstring); ``path`` is only used in messages.
 
     Raises
     ------
     InputError
     """
-    reader = _Reader(dialect, path, stage)
+    reader = _Reader(dialect, path, stage, kinematics)
     lines, crlf = _split_lines(text)
     parts = []
     for first in range(0, len(lines), chunk_lines):
@@ -189,8 +192,8 @@ def read_program(text: str, dialect: Dialect, *, path: str, stage: bool = True,
 
 
 def _rows(kind: list[int] | IntArray, joints: FloatArray, feed: list[float] | FloatArray,
-          source: list[int] | IntArray, events: list[Event]) -> JointProgram:
-    joints = np.asarray(joints, dtype=np.float64).reshape(-1, 5)
+          source: list[int] | IntArray, events: list[Event], width: int) -> JointProgram:
+    joints = np.asarray(joints, dtype=np.float64).reshape(-1, width)
     return JointProgram(kind=np.asarray(kind, dtype=np.int64), stage=joints[:, :2], strokes=joints[:, 2:],
                         inverse_time=np.asarray(feed, dtype=np.float64), source=np.asarray(source, dtype=np.int64),
                         events=tuple(events))
@@ -213,8 +216,8 @@ class ProgramStream:
     """
 
     def __init__(self, path: str, dialect: Dialect, *, stage: bool = True, chunk_lines: int = CHUNK_LINES,
-                 piece_bytes: int = _PIECE_BYTES):
-        self.path, self.dialect, self.stage = path, dialect, stage
+                 piece_bytes: int = _PIECE_BYTES, kinematics: Kinematics | None = None):
+        self.path, self.dialect, self.stage, self.kinematics = path, dialect, stage, kinematics
         self.chunk_lines, self.piece_bytes = max(1, int(chunk_lines)), max(1, int(piece_bytes))
         self.end_line = 0
         self.blending_lines: tuple[int, ...] = ()
@@ -258,7 +261,7 @@ class ProgramStream:
 
     def __iter__(self) -> Iterator[JointProgram]:
         self.check()
-        reader = _Reader(self.dialect, self.path, self.stage)
+        reader = _Reader(self.dialect, self.path, self.stage, self.kinematics)
         number = 1
         size = self.chunk_lines
         # bytes: lines of the regular shape are read undecoded; every block but the last holds `size` lines
@@ -284,17 +287,19 @@ class _Block:
     seen: dict[str, str] = field(default_factory=dict)         # letter → word text (not G, M)
     g_codes: dict[str, int] = field(default_factory=dict)      # modal group → code
     m_codes: dict[str, int] = field(default_factory=dict)
-    axes: dict[int, float] = field(default_factory=dict)       # axis index (X Y T1 T2 T3) → value
+    axes: dict[int, float] = field(default_factory=dict)       # axis index (X, Y, the joints) → value
     values: dict[str, float] = field(default_factory=dict)     # F S T P → value
 
 
 class _Reader:
     """The modal state of LinuxCNC's interpreter, as far as prs3-post programs use it."""
 
-    def __init__(self, dialect: Dialect, path: str, stage: bool):
+    def __init__(self, dialect: Dialect, path: str, stage: bool, kinematics: Kinematics | None = None):
         self.dialect, self.path, self.stage = dialect, path, stage
         ax = dialect.axes
-        self.letters = (ax.x, ax.y, ax.t1, ax.t2, ax.t3)
+        given = Prs3Kinematics if kinematics is None else kinematics          # (no kinematics: the 3-PRS head's)
+        self.letters = (ax.x, ax.y, *joint_letters(given.joint_names, given.default_letters, ax))
+        self.names = ("stage X", "stage Y", *(f"actuator {name}" for name in given.joint_names))
         self.axis_index = {letter: i for i, letter in enumerate(self.letters)}
         self.axes_text = " ".join(self.letters if stage else self.letters[2:])
         self.bulk_letters = "NG" + "".join(self.letters) + "F"
@@ -302,7 +307,9 @@ class _Reader:
         self.inverse_time = False                      # G93 active
         self.spindle: float | None = None              # last S
         self.tool: int | None = None                   # last T
-        self.position = np.full(5, np.nan) if stage else np.array([0.0, 0.0, np.nan, np.nan, np.nan])
+        self.position = np.full(len(self.letters), np.nan)
+        if not stage:
+            self.position[:2] = 0.0
         self.parts: list[JointProgram] = []            # rows since the last take(), in order
         self.kind: list[int] = []                      # rows of the careful reader, not yet in parts
         self.joints: list[FloatArray] = []
@@ -373,9 +380,11 @@ class _Reader:
                     self.line(first + a + i, line, crlf=cr)
 
     def bulk(self, first: int, values: FloatArray) -> bool:
-        """Lines ``first``... of the motion shape (``values`` (k, 8): N, G, the five axes, F, NaN where
-        absent), in bulk: True if done; False (state untouched) where any line would be an error."""
-        g, axes, feed = values[:, 1], values[:, 2:7], values[:, 7]
+        """Lines ``first``... of the motion shape (``values`` (k, 5 + J): N, G, the axes X, Y and the J
+        joints, F, NaN where absent), in bulk: True if done; False (state untouched) where any line would be an
+        error."""
+        width = len(self.letters)
+        g, axes, feed = values[:, 1], values[:, 2:2 + width], values[:, 2 + width]
         start = -1.0 if self.motion is None else float(self.motion)
         motion = forward_fill(np.concatenate([[start], g]))[1:]
         has_f = ~np.isnan(feed)
@@ -388,7 +397,7 @@ class _Reader:
         self.flush()
         k = len(values)
         self.parts.append(_rows(np.where(feeding, int(MoveKind.FEED), int(MoveKind.RAPID)), position,
-                                np.where(feeding, feed, 0.0), np.arange(first, first + k), []))
+                                np.where(feeding, feed, 0.0), np.arange(first, first + k), [], width))
         self.rows += k
         self.motion = int(motion[-1])
         self.position = position[-1].copy()
@@ -399,7 +408,7 @@ class _Reader:
     def flush(self) -> None:
         """The careful reader's rows into ``parts`` (before a bulk run, or when taken)."""
         if self.kind:
-            self.parts.append(_rows(self.kind, np.array(self.joints), self.feed, self.source, []))
+            self.parts.append(_rows(self.kind, np.array(self.joints), self.feed, self.source, [], len(self.letters)))
             self.kind, self.joints, self.feed, self.source = [], [], [], []
 
     def take(self) -> JointProgram:
@@ -415,7 +424,7 @@ class _Reader:
     def check_magnitudes(self, chunk: JointProgram) -> None:
         """Every axis value within ±MAX_AXIS_MM: a far larger one is a typo, and the reports would print it
         digit by digit."""
-        joints = np.column_stack([chunk.stage, chunk.strokes])      # (N, 5) mm
+        joints = np.column_stack([chunk.stage, chunk.strokes])      # (N, 2 + J) mm
         beyond = np.abs(joints) > MAX_AXIS_MM
         if beyond.any():
             row, column = np.argwhere(beyond)[0]
@@ -624,9 +633,9 @@ class _Reader:
     def move(self, motion: int, axes: dict[int, float], feed: float) -> None:
         for index, value in axes.items():
             self.position[index] = value
-        missing = [i for i in range(5) if np.isnan(self.position[i])]
+        missing = [i for i in range(len(self.letters)) if np.isnan(self.position[i])]
         if missing:
-            names = ", ".join(f"{self.letters[i]} ({_AXIS_NAMES[i]})" for i in missing)
+            names = ", ".join(f"{self.letters[i]} ({self.names[i]})" for i in missing)
             raise self.error(f"the first move must set every axis ({self.axes_text}); missing: {names}")
         self.kind.append(int(MoveKind.FEED if motion == 1 else MoveKind.RAPID))
         self.joints.append(self.position.copy())
