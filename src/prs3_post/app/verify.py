@@ -652,6 +652,46 @@ def odd_feeds_warned(header: ProgramHeader | SourceHeader | None) -> bool:
     return not isinstance(header, SourceHeader)
 
 
+def check_tolerance(header: ProgramHeader | SourceHeader | None, given: float | None) -> float:
+    """The tip deviation a program is checked with, mm: the one given, else the one its header says it
+    was made with, else :data:`~prs3_post.core.defaults.DEFAULT_TOLERANCE`."""
+    if given is not None:
+        return given
+    return header.tolerance if header is not None else DEFAULT_TOLERANCE
+
+
+def verify_program_file(path: str, *, machine: str | None = None, dialect: str | None = None,
+                        part_origin: tuple[float, ...] | None = None, part_rotation_deg: float | None = None,
+                        tolerance: float | None = None,
+                        axis_tolerance_deg: float = DEFAULT_ANGLE_TOLERANCE_DEG) -> VerifyReport:
+    """Replay a program file through forward kinematics and check it: limits, straightness, feeds.
+
+    Parameters
+    ----------
+    path : str — the program (G-code for this machine, as the main job or ``convert`` wrote it)
+    machine, dialect : str | None — a shipped name or a TOML path (None: the program header's, or the defaults)
+    part_origin : (3,) mm | None, part_rotation_deg : float | None — the setup (None: the header's, or the
+        machine's default)
+    tolerance : float | None — mm, the allowed tip deviation (None: the one the program was made with,
+        :func:`check_tolerance`)
+    axis_tolerance_deg : float — degrees, the allowed tool-axis deviation
+
+    Returns
+    -------
+    VerifyReport — ``ok`` when every sample is within every limit and tolerance
+
+    Raises
+    ------
+    HeaderConflict
+        A value given that contradicts the program's header.
+    InputError, ConfigError
+        An unreadable program, or a machine or dialect file that is wrong.
+    """
+    setting = open_setting(path, machine=machine, dialect=dialect, origin=part_origin, rotation_deg=part_rotation_deg)
+    return verify_file(setting, tolerance=check_tolerance(setting.header, tolerance),
+                       axis_tolerance_deg=axis_tolerance_deg)
+
+
 def verify_file(setting: ProgramSetting, *, tolerance: float, axis_tolerance_deg: float = DEFAULT_ANGLE_TOLERANCE_DEG,
                 chunk_lines: int = CHUNK_LINES) -> VerifyReport:
     """Read and verify a program a chunk of lines at a time (:class:`~prs3_post.readers.program.ProgramStream`

@@ -5,18 +5,15 @@ from __future__ import annotations
 import json
 
 import click
-import numpy as np
 
 from prs3_post.cli.options import RATIO, Command, Numbers, OutputPath, machine_option, run_reported, was_given
-from prs3_post.core.errors import ReachError
 from prs3_post.emit.output_files import (
     write_outputs,
 )
-from prs3_post.kinematics import IKModel, forward, inverse, unit_axes
+from prs3_post.kinematics import IKModel
 from prs3_post.machine.loading import (
     load_machine,
 )
-from prs3_post.post.limits import check_limits
 
 
 @click.command(cls=Command)
@@ -46,7 +43,8 @@ def ik(tip: tuple[float, ...] | None, axis: tuple[float, ...] | None, batch_path
       prs3-post ik --tip -81.0264,21.2132,-679.4865 --axis 0.447214,0,0.894427 --json
       prs3-post ik --batch poses.csv -o strokes.csv
     """
-    from prs3_post.app.pose_tables import ik_records, ik_text
+    from prs3_post.app.kinematics import pose_record
+    from prs3_post.app.pose_tables import ik_text
 
     def body() -> int:
         machine = load_machine(machine_name)
@@ -63,19 +61,7 @@ def ik(tip: tuple[float, ...] | None, axis: tuple[float, ...] | None, batch_path
             return 0
         if tip is None or axis is None:
             raise click.UsageError("give --tip and --axis, or --batch POSES.csv")
-        tips, axes = np.array([tip]), unit_axes(np.array([tip]), np.array([axis]), row_name="pose")
-        result = inverse(machine.geometry, tips, axes, model=IKModel(model))
-        if IKModel(model) is IKModel.HEAD and not result.reachable[0] and np.isfinite(result.stage[0]).all():
-            dx, dy = result.stage[0]
-            raise ReachError(
-                f"machine {machine.name} has no stage and its head alone misses this tip by "
-                f"{np.hypot(dx, dy):.4f} mm (x {dx:.4f}, y {dy:.4f}): the tilt's parasitic shift must be "
-                "matched by the part setup, or use a machine with an XY stage"
-            )
-        if not result.reachable[0]:
-            raise ReachError("this pose cannot be reached: the head does not assemble there (a link cannot reach)")
-        report = check_limits(machine, result, axes)
-        record = ik_records(tips, axes, result, report)[0]
+        record = pose_record(machine, tip, axis, model=IKModel(model))
         click.echo(json.dumps(record, indent=2, allow_nan=False) if as_json else ik_text(record), nl=as_json)
         return 0 if record["ok"] else 1
 
@@ -98,23 +84,15 @@ def fk(strokes: tuple[float, ...], xy: tuple[float, ...], machine_name: str, as_
     Example:
       prs3-post fk --strokes 36.2244,170.3886,88.9519 --xy -2.7640,12.0703
     """
-    from prs3_post.app.pose_tables import fk_records, fk_text
+    from prs3_post.app.kinematics import setting_record
+    from prs3_post.app.pose_tables import fk_text
 
     def body() -> int:
         machine = load_machine(machine_name)
         if not machine.stage.present and was_given(click.get_current_context(), "xy"):
             raise click.BadParameter(f"machine {machine.name} has no stage (stage.present = false): the tip is "
                                      "where the head puts it; leave --xy out", param_hint="'--xy'")
-        result = forward(machine.geometry, np.array([strokes]), np.array([xy]))
-        if not result.converged[0]:
-            raise ReachError(
-                f"strokes {', '.join(f'{s:g}' for s in strokes)} mm do not assemble the head of {machine.name} "
-                f"(no rigid platform pose after {result.iterations[0]} Newton steps; "
-                f"side-length error {result.residual[0]:.3g} mm)"
-            )
-        model = IKModel.EXACT if machine.stage.present else IKModel.HEAD
-        pose = inverse(machine.geometry, result.tip, result.axis, model=model)     # the same strokes, checked
-        record = fk_records(result, check_limits(machine, pose, result.axis))[0]
+        record = setting_record(machine, strokes, xy)
         click.echo(json.dumps(record, indent=2, allow_nan=False) if as_json else fk_text(record), nl=as_json)
         return 0 if record["ok"] else 1
 

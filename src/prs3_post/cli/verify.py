@@ -310,6 +310,7 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
     from prs3_post.app.verify import (
         PartClearance,
         check_program_moves,
+        check_tolerance,
         odd_feeds_warned,
         open_program,
         open_setting,
@@ -339,8 +340,7 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
         # the text report without an intended path needs no samples: the program streams through
         setting = _open_program(*where, open_setting)
         # the check's tolerance: as given, else the one the program was made with
-        tolerance = (setting.header.tolerance if setting.header is not None and not was_given(ctx, "tolerance")
-                     else opts["tolerance"])
+        tolerance = check_tolerance(setting.header, opts["tolerance"] if was_given(ctx, "tolerance") else None)
         clearance: PartClearance | str | None = None
         if as_json or against_path:
             context = _open_program(*where, open_program)
