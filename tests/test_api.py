@@ -83,3 +83,15 @@ def test_verify_program_file_checks_a_program_with_its_header_tolerance(tmp_path
     report = prs3_post.verify_program_file(str(program))
     assert report.ok
     assert report.tolerance == 0.005
+
+
+def test_post_part_is_the_main_job():
+    from click.testing import CliRunner
+
+    from prs3_post.cli.main import main
+    from prs3_post.cli.options import demo_part
+
+    made = CliRunner().invoke(main, ["demo", "--profile", "round", "--diameter", "20", "--depth", "1.5"])
+    assert made.exit_code == 0, made.output
+    posted = prs3_post.post_part(str(demo_part()), profile="round", operation={"diameter": 20.0, "depth": 1.5})
+    assert posted == made.stdout

@@ -14,6 +14,7 @@ if TYPE_CHECKING:
     from prs3_post.app.convert_files import convert_files
     from prs3_post.app.kinematics import forward_kinematics, inverse_kinematics
     from prs3_post.app.posting import post_toolpath
+    from prs3_post.app.run import post_part, run_job_file
     from prs3_post.app.verify import verify_program_file
     from prs3_post.core.toolpath import Event, EventKind, MoveKind, Toolpath
     from prs3_post.part.setup_transform import Setup
@@ -28,12 +29,15 @@ _HOMES = {
     "convert_files": "prs3_post.app.convert_files",
     "forward_kinematics": "prs3_post.app.kinematics",
     "inverse_kinematics": "prs3_post.app.kinematics",
+    "post_part": "prs3_post.app.run",
     "post_toolpath": "prs3_post.app.posting",
+    "run_job_file": "prs3_post.app.run",
     "verify_program_file": "prs3_post.app.verify",
 }
 
 __all__ = ["Event", "EventKind", "MoveKind", "Setup", "Toolpath", "__version__", "convert_files",
-           "forward_kinematics", "inverse_kinematics", "post_toolpath", "verify_program_file"]
+           "forward_kinematics", "inverse_kinematics", "post_part", "post_toolpath", "run_job_file",
+           "verify_program_file"]
 
 
 def __getattr__(name: str) -> Any:

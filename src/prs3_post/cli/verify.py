@@ -26,7 +26,7 @@ from prs3_post.cli.options import (
     up_option,
     was_given,
 )
-from prs3_post.cli.run import job_options, job_spec, refuse_unused_options
+from prs3_post.cli.run import given_options, job_options, job_specs_of
 from prs3_post.core.defaults import (
     DEFAULT_ANGLE_TOLERANCE_DEG,
     NOMINAL_RAPID_RATE,
@@ -248,8 +248,7 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext,
             raise click.UsageError("--against PART.stl needs --profile and the other operation options the "
                                    "program was made with (it has no prs3-post header that records them)")
         else:
-            refuse_unused_options(opts["profile"])
-            rebuilt = rebuild_job(job_spec(against, opts))
+            rebuilt = rebuild_job(job_specs_of(against, opts, given=given_options())[0])
         return rebuilt.intended, rebuilt
     if suffix == ".csv":
         return intended_from_poses(against, context.program), None

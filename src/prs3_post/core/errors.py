@@ -6,6 +6,9 @@ as ``where: message`` and exits non-zero, never with a traceback.
 
 from __future__ import annotations
 
+import re
+from collections.abc import Callable
+
 ECHO_LIMIT = 40
 """Characters of a user's value that a message shows (a longer one is cut, with ``…``)."""
 
@@ -77,6 +80,49 @@ class PoseError(Prs3Error):
     """Tool poses that are not numbers, or whose axis is zero or points away from the spindle."""
 
     exit_code = 2
+
+
+class FieldError(Prs3Error):
+    """A value of a request (the main job's, from the command line or a job file) is wrong.
+
+    The message does not say where the value came from: each front end words that, the command
+    line as its flag (``--depth``), a job file as its key (``operation[1].depth``). Other fields a
+    message names are written ``{key}`` (``{line_step}``) and spelled by :meth:`worded`.
+
+    Attributes
+    ----------
+    field : str — the key at fault, as a job file spells it (``depth``, ``tool``, ``line_start``,
+        ``setup.part_origin``)
+    operation : int | None — which operation (1-based) the key belongs to; None for a job's setting
+    """
+
+    exit_code = 2
+
+    def __init__(self, message: str, *, field: str, operation: int | None = None):
+        super().__init__(message)
+        self.field, self.operation = field, operation
+
+    def worded(self, spell: Callable[[str], str] = str) -> str:
+        """The message, each ``{key}`` in it as ``spell(key)`` (default: the key itself)."""
+        return re.sub(r"\{([a-z_.]+)\}", lambda match: spell(match[1]), self.args[0])
+
+    def __str__(self) -> str:
+        return self.worded()
+
+
+class UnusedFields(FieldError):
+    """An operation's keys that its profile does not use (``diameter`` on a square): given, they would be ignored.
+
+    Attributes
+    ----------
+    profile : str — the operation's profile
+    keys : tuple of (str, tuple of str) — each unused key and the profiles that use it
+    """
+
+    def __init__(self, profile: str, keys: tuple[tuple[str, tuple[str, ...]], ...], *, operation: int | None = None):
+        shown = ", ".join(f"{key} ({' and '.join(profiles)} only)" for key, profiles in keys)
+        super().__init__(f"profile {profile} does not use {shown}", field=keys[0][0], operation=operation)
+        self.profile, self.keys = profile, keys
 
 
 class FeatureError(Prs3Error):

@@ -75,6 +75,13 @@ class JobFile:
     part_rotation_deg: float | str | None
     operations: tuple[dict[str, Any], ...]
 
+    def as_data(self) -> dict[str, Any]:
+        """The job as the plain data a job request is built from (:func:`prs3_post.app.requests.job_request`):
+        the top-level keys, ``setup`` and the ``operation`` list, paths resolved."""
+        setup = {key: value for key, value in (("part_origin", self.part_origin),
+                                                ("part_rotation_deg", self.part_rotation_deg)) if value is not None}
+        return {"part": self.part, **self.settings, "setup": setup, "operation": [dict(o) for o in self.operations]}
+
 
 def _kind(value: Any, wanted: type) -> bool:
     if wanted is float:

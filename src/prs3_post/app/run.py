@@ -1,0 +1,123 @@
+"""The main job and job files as use cases: a request in, a checked program (and its picture) out.
+
+:func:`check_request` runs a :class:`~prs3_post.app.requests.JobRequest` (one operation or several);
+:func:`job_preview` draws the program it made; :func:`post_part` and :func:`run_job_file` are the
+library's one-call faces of ``prs3-post PART.stl ...`` and ``prs3-post job JOB.toml``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any
+
+from prs3_post.app.requests import JobRequest, job_request, job_specs
+from prs3_post.core.defaults import NOMINAL_RAPID_RATE
+
+if TYPE_CHECKING:
+    from prs3_post.app.job import JobProgram, JobSpec
+
+__all__ = ["check_request", "check_specs", "job_preview", "post_part", "run_job_file"]
+
+
+def check_request(request: JobRequest) -> tuple[tuple[JobSpec, ...], JobProgram]:
+    """Each operation's JobSpec, and the job they make, checked (every row against every limit, the
+    collision check) and ready to be written (:meth:`~prs3_post.app.job.JobProgram.chunks`).
+
+    Raises
+    ------
+    FieldError, UnusedFields, FeatureError, InputError, ConfigError
+        As :func:`~prs3_post.app.requests.job_specs` and the job (a feature that does not fit).
+    LimitError, ReachError
+        A point outside a limit or out of reach (with the placement's suggestion, :mod:`prs3_post.check.placement`).
+    """
+    specs = job_specs(request)
+    return specs, check_specs(specs)
+
+
+def check_specs(specs: tuple[JobSpec, ...], *,
+                placement_hint: Callable[[tuple[str, str, str] | None], str] | None = None) -> JobProgram:
+    """The job of these operations, checked (:func:`~prs3_post.app.job.check_operations`).
+
+    ``placement_hint`` words, for a job that does not fit its setup, what to do about it: the front
+    end's way to give the part origin that works (its argument; None: no translation of the part
+    does); the error's message then ends with it.
+    """
+    from prs3_post.app.job import check_job, check_operations
+    from prs3_post.check.placement import Placement
+
+    try:
+        return check_job(specs[0]) if len(specs) == 1 else check_operations(specs)
+    except Placement as error:
+        if placement_hint is None:
+            raise
+        origin = error.suggested_origin
+        raise type(error)(f"{error}: {placement_hint(origin)}", setup=error.setup, suggested_origin=origin) from error
+
+
+def job_preview(job: JobProgram, specs: tuple[JobSpec, ...], fmt: str, *, text: str, path: str, title: str) -> bytes:
+    """The picture of a checked job's program (``text``, read back as the controller reads it) on its
+    part and (first) face, as ``png`` or ``svg`` bytes (:func:`~prs3_post.app.verify.preview_bytes`)."""
+    from prs3_post.app.verify import preview_bytes
+    from prs3_post.readers.program import read_program
+
+    first = specs[0]
+    program = read_program(text, first.dialect, path=path, stage=first.machine.stage.present)
+    lengths = (None if first.tool_table is None
+               else {spec.cutting.tool_number: length for spec, length in zip(specs, job.tool_lengths, strict=True)})
+    return preview_bytes(program, first.machine, job.setup, fmt, tolerance=first.tolerance, tool_lengths=lengths,
+                         mesh=job.triangles, face=job.face, title=title, dialect=first.dialect, closest=job.closest,
+                         rapid_rate=NOMINAL_RAPID_RATE)
+
+
+def post_part(part: str, *, profile: str, operation: Mapping[str, Any] | None = None, **settings: Any) -> str:
+    """The main job on a part's inclined face: a hole, square or round profile, as G-code text.
+
+    Parameters
+    ----------
+    part : str — the STL file
+    profile : str — ``hole``, ``square`` or ``round``
+    operation : mapping, optional — the operation's other keys, as a job file's ``[[operation]]``
+        (``depth``, ``at``, ``tool_diameter``, ...; :data:`~prs3_post.app.requests.OPERATION_FIELDS`)
+    **settings — the job's settings, as a job file's top-level keys (``machine``, ``dialect``, ``units``,
+        ``tolerance``, ...; :data:`~prs3_post.app.requests.SETTING_FIELDS`) and ``setup``
+        (``{"part_origin": [x, y, z], "part_rotation_deg": θ}``)
+
+    Returns
+    -------
+    str — the program, checked against every limit of the machine
+
+    Raises
+    ------
+    FieldError
+        A value that is wrong, naming its key.
+    FeatureError, LimitError, ReachError, InputError, ConfigError
+        As the main job.
+    """
+    data = {"part": part, **settings, "operation": [{"profile": profile, **(operation or {})}]}
+    _, job = check_request(job_request(data))
+    return "".join(job.chunks())
+
+
+def run_job_file(path: str, **overrides: Any) -> str:
+    """A job file's program (several operations on one part), as G-code text.
+
+    Parameters
+    ----------
+    path : str — the job file (TOML; the format is in :mod:`prs3_post.readers.jobfile`)
+    **overrides — settings that replace the file's (``machine``, ``dialect``, ``collision_check``,
+        ``setup={"part_origin": ...}``), as a job file spells them
+
+    Raises
+    ------
+    InputError
+        A job file that cannot be read or has a key it does not know.
+    FieldError, FeatureError, LimitError, ReachError, ConfigError
+        As :func:`post_part`.
+    """
+    from prs3_post.readers.jobfile import read_job_file
+
+    data = read_job_file(path).as_data()
+    setup = {**data.get("setup", {}), **overrides.pop("setup", {})}
+    _, job = check_request(job_request({**data, **overrides, "setup": setup}))
+    return "".join(job.chunks())
+
