@@ -192,7 +192,7 @@ def test_the_replay_in_pieces_gives_the_samples_of_one_replay(monkeypatch):
 @pytest.mark.parametrize("rows", [1, 7, 1000])
 def test_the_swept_region_drawn_in_pieces_is_the_region_drawn_at_once(monkeypatch, rows):
     # the main job draws its feed tips a piece at a time (memory), in the machine frame with the setup
-    import prs3_post.check.collision as collision
+    import prs3_post.check.collision_bodies as collision
     from prs3_post.check.verify import replay
     from prs3_post.core.toolpath import MoveKind
 

@@ -12,7 +12,8 @@ import trimesh
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from prs3_post.check.collision import body_cylinders, clearance, cylinder_penetration
+from prs3_post.check.collision import body_cylinders, clearance
+from prs3_post.check.collision_distance import cylinder_penetration
 from prs3_post.core.defaults import DEFAULT_CLEARANCE_MIN
 from prs3_post.machine.loading import load_machine
 from prs3_post.part.face import Face
@@ -193,7 +194,7 @@ def test_the_triangles_near_a_cylinders_box_give_its_whole_penetration(seed, tri
 def test_the_groups_plane_bound_drops_only_pairs_no_pose_bounds_under_the_reach(seed, poses, height, spread):
     """_bounds gives the same bounds and near pairs with the groups' plane test (collision._plane_gap) as
     without it, for poses one at a time and for the scan's groups (a spread round each)."""
-    from prs3_post.check import collision
+    from prs3_post.check import collision_distance as collision
 
     triangles, face, bodies = _wall_part()
     part = collision._Part.of(triangles, face, 1.0)

@@ -20,7 +20,7 @@ import pytest
 from click.testing import CliRunner
 from numpy.testing import assert_allclose
 
-from prs3_post.check import collision
+from prs3_post.check import collision_distance as collision
 from prs3_post.cli.main import main
 from prs3_post.part import meshdist, meshindex
 
