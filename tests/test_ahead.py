@@ -13,7 +13,7 @@ from click.testing import CliRunner
 
 from prs3_post.cli.main import main
 from prs3_post.core.errors import FeatureError, InputError, LimitError
-from prs3_post.emit.header import read_header
+from prs3_post.emit.header_read import read_header
 
 
 @pytest.mark.parametrize("error", [InputError("bad", path="a.ngc", line=3), InputError("bad", path="a.ngc"),

@@ -23,7 +23,7 @@ from prs3_post.cli.main import main
 from prs3_post.cli.run import _job_specs
 from prs3_post.core.errors import LimitError, ReachError
 from prs3_post.core.toolpath import Toolpath
-from prs3_post.emit.header import read_header
+from prs3_post.emit.header_read import read_header
 from prs3_post.kinematics import IKModel, inverse
 from prs3_post.machine.loading import load_dialect, load_machine
 from prs3_post.machine.model import Machine

@@ -15,7 +15,8 @@ from prs3_post.app.job import run_operations, specs_from_header
 from prs3_post.cli.main import main
 from prs3_post.core.defaults import NOMINAL_RAPID_RATE
 from prs3_post.core.errors import InputError
-from prs3_post.emit.header import ProgramHeader, header_comments, parse_header, read_header
+from prs3_post.emit.header import ProgramHeader
+from prs3_post.emit.header_read import header_comments, parse_header, read_header
 from prs3_post.machine.loading import load_dialect, load_machine
 
 WALL = Path(__file__).resolve().parents[1] / "fixtures" / "parts" / "wall30.stl"

@@ -26,7 +26,8 @@ from numpy.testing import assert_allclose
 from prs3_post.app.convert import ConvertSettings, collect_inputs, convert_batch, convert_file, write_conversion
 from prs3_post.cli.main import main
 from prs3_post.core.errors import PoseError
-from prs3_post.emit.header import SourceHeader, read_header
+from prs3_post.emit.header import SourceHeader
+from prs3_post.emit.header_read import read_header
 from prs3_post.kinematics import forward, unit_axes
 from prs3_post.machine.loading import load_dialect, load_machine
 from prs3_post.part.setup_transform import Setup

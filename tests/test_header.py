@@ -15,17 +15,11 @@ from numpy.testing import assert_array_equal
 
 from prs3_post.app.job import JobSpec, run_job, run_operations, spec_from_header, specs_from_header
 from prs3_post.core.errors import InputError
+from prs3_post.core.numbers import exact_text
 from prs3_post.emit.gcode import ProgramEmitter
-from prs3_post.emit.header import (
-    SourceCounts,
-    SourceHeader,
-    degrees_text,
-    exact_text,
-    header_comments,
-    parse_header,
-    read_header,
-    source_header_entries,
-)
+from prs3_post.emit.header import SourceCounts, SourceHeader
+from prs3_post.emit.header_read import header_comments, parse_header, read_header
+from prs3_post.emit.header_write import degrees_text, source_header_entries
 from prs3_post.machine.loading import load_dialect, load_machine
 from prs3_post.part.setup_transform import Setup
 from prs3_post.toolpaths import (
@@ -110,7 +104,7 @@ def test_header_round_trip_gives_the_same_spec(spec):
     from prs3_post.app.job import header_of
     from prs3_post.core.toolpath import JointProgram
     from prs3_post.emit.gcode import emit_program
-    from prs3_post.emit.header import header_entries
+    from prs3_post.emit.header_write import header_entries
     from prs3_post.part.faces import find_faces
     from prs3_post.part.stl import load_part
 

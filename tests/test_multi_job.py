@@ -16,7 +16,7 @@ from prs3_post.app.job import JobResult, post_transition, run_operations, specs_
 from prs3_post.cli.main import main
 from prs3_post.core.errors import InputError
 from prs3_post.core.toolpath import EventKind, MoveKind, Toolpath
-from prs3_post.emit.header import header_comments, parse_header
+from prs3_post.emit.header_read import header_comments, parse_header
 from prs3_post.kinematics import IKModel, forward, inverse
 from prs3_post.machine.loading import load_dialect, load_machine
 from prs3_post.readers.jobfile import read_job_file

@@ -38,7 +38,8 @@ from prs3_post.core.input_files import open_input
 from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpath, join_programs
 from prs3_post.core.types import FloatArray
 from prs3_post.emit.gcode import ProgramEmitter
-from prs3_post.emit.header import SourceCounts, SourceHeader, source_header_entries
+from prs3_post.emit.header import SourceCounts, SourceHeader
+from prs3_post.emit.header_write import source_header_entries
 from prs3_post.emit.output_files import HeadLast, refuse_overwriting, write_atomic
 from prs3_post.kinematics import unit_axes
 from prs3_post.kinematics.prs3.blocks import THREADS_VARIABLE, default_workers

@@ -43,7 +43,8 @@ from prs3_post.core.toolpath import (
 )
 from prs3_post.core.types import FloatArray
 from prs3_post.emit.gcode import ProgramEmitter
-from prs3_post.emit.header import OperationRecord, ProgramHeader, ToolRecord, file_sha256, header_entries
+from prs3_post.emit.header import OperationRecord, ProgramHeader, ToolRecord
+from prs3_post.emit.header_write import file_sha256, header_entries
 from prs3_post.kinematics import IKResult
 from prs3_post.kinematics.registry import Kinematics, kinematics_of
 from prs3_post.machine.loading import Dialect, Machine, file_given
