@@ -481,7 +481,7 @@ def test_subdividing_a_move_through_the_singularity_stops_at_the_row_cap_naming_
 def test_plain_gotos_read_in_bulk_are_the_lines_the_pattern_matches():
     """The byte pass reads exactly the plain GOTO lines of at most 15 digits a number, each value
     float(text) to the bit; the rest (longer numbers, spaces, a second CR, 4 numbers) are left to the pattern."""
-    from prs3_post.readers.cl.reader import _PLAIN_GOTO, _plain_gotos
+    from prs3_post.readers.cl.bulk import _PLAIN_GOTO, _plain_gotos
 
     lines = ["GOTO/1,-2.5,+.5", "GOTO/1.,2,3,0,0,1\r", "GOTO/-0,0.000,5,-0.6,0,0.8", "GOTO/1,2,3,4",
              "GOTO/1,2,3\r\r", "GOTO /1,2,3", "GOTO/1,2,-.", "GOTO/1.5.2,2,3", "FEDRAT/MMPM,600",

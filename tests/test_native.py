@@ -26,8 +26,9 @@ from prs3_post.emit import gcode as emit_gcode
 from prs3_post.emit.gcode import emit_program
 from prs3_post.machine.loading import load_dialect
 from prs3_post.part.workplane import WorkPlane, euler_zxz_deg, rotate_rows
-from prs3_post.readers.cl import reader as apt
-from prs3_post.readers.gcode import reader as gcode
+from prs3_post.readers import common
+from prs3_post.readers.cl import bulk as apt
+from prs3_post.readers.gcode import bulk as gcode
 
 ROOT = Path(__file__).resolve().parents[1]
 needs_native = pytest.mark.skipif(not native.available(), reason="the compiled line writer was not built here")
@@ -385,7 +386,7 @@ def test_compiled_bulk_fill_is_numpys(rows: list[tuple[bool, float, float, float
     start = np.array(state)
     with np.errstate(over="ignore"):                                   # (1.5 × 1e300: inf, refused)
         numpy_filled = gcode._fill_moves_numpy(values, moves, start, scale, 7)
-    filled = native.fill_moves(values, moves, start, np.array([scale, apt.MIN_FEED_MM_MIN, apt.MAX_FEED_MM_MIN]),
+    filled = native.fill_moves(values, moves, start, np.array([scale, common.MIN_FEED_MM_MIN, common.MAX_FEED_MM_MIN]),
                                gcode._FILL_CODES, 7)
     assert np.array_equal(start, np.array(state), equal_nan=True)    # the caller's state untouched
     if numpy_filled is None:

@@ -55,7 +55,7 @@ from prs3_post.post.pipeline import (
     model_for,
     place_toolpath,
 )
-from prs3_post.readers.cl.reader import join_toolpaths
+from prs3_post.readers.common import join_toolpaths
 from prs3_post.readers.detect import DETECT_BYTES, detect_format, formats
 from prs3_post.readers.protocol import CamStream, ReadOptions
 from prs3_post.readers.registry import reader_named, readers, suffixes

@@ -69,19 +69,11 @@ from prs3_post.core.types import FloatArray
 from prs3_post.machine.cam_conventions import Orientation, SourceConvention
 from prs3_post.machine.loading import file_given
 from prs3_post.part.workplane import WorkPlane
-from prs3_post.readers.cl.reader import join_toolpaths
-from prs3_post.readers.gcode.reader import (
-    _CODES_READ,
-    _G_GROUPS,
-    _HINTS,
-    _M_GROUPS,
-    _VALUE_LETTERS,
-    CHUNK_LINES,
-    GcodeFile,
-    GcodeStream,
-    _Block,
-    _Reader,
-)
+from prs3_post.readers.common import join_toolpaths
+from prs3_post.readers.gcode.bulk import _Reader
+from prs3_post.readers.gcode.reader import CHUNK_LINES, GcodeStream
+from prs3_post.readers.gcode.summary import GcodeFile
+from prs3_post.readers.gcode.words import _CODES_READ, _G_GROUPS, _HINTS, _M_GROUPS, _VALUE_LETTERS, _Block
 from prs3_post.readers.protocol import SourceNotes
 
 __all__ = ["FivexCounts", "FivexFile", "FivexStream", "check_tcp_codes", "parse_fivex", "read_fivex"]
