@@ -665,7 +665,7 @@ def test_runs_of_blank_and_comment_lines_are_read_in_bulk_as_one_by_one(tmp_path
     path = tmp_path / "quiet.ngc"
     path.write_text(text)
     from_file = GcodeStream(str(path), tolerance=TOL, chunk_lines=97).whole()
-    monkeypatch.setattr(gcode._Reader, "quiet_lines", lambda self, lines: False)
+    monkeypatch.setattr(gcode.LineReader, "quiet_lines", lambda self, lines: False)
     from_text = GcodeStream(str(path), tolerance=TOL, chunk_lines=97).whole()
     assert from_file.counts == from_text.counts
     assert from_file.counts.blank_lines == 500 + 1 + 1 + 200 + 20

@@ -374,7 +374,7 @@ def rows_to_part(rows: FloatArray, rotation: FloatArray, origin: FloatArray | No
 
 
 def plain_gotos(text: bytes, codes: bytes, pair_bad: bytes, rows: int) -> tuple[FloatArray, BoolArray] | None:
-    """The CL reader's bulk GOTO path (:func:`prs3_post.readers.cl.reader._plain_goto_text`) in C: values (N, 6)
+    """The CL reader's bulk GOTO path (:func:`prs3_post.readers.cl.bulk._plain_goto_text`) in C: values (N, 6)
     and read (N,) of ``text`` (a LF, then ``rows`` lines each ending in LF), ``codes`` and ``pair_bad``
     the reader's byte-code and bad-pair tables; None where the compiled reader is not there or turned off."""
     global _gotos

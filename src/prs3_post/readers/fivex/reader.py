@@ -70,10 +70,10 @@ from prs3_post.machine.cam_conventions import Orientation, SourceConvention
 from prs3_post.machine.loading import file_given
 from prs3_post.part.workplane import WorkPlane
 from prs3_post.readers.common import join_toolpaths
-from prs3_post.readers.gcode.bulk import _Reader
+from prs3_post.readers.gcode.bulk import LineReader
 from prs3_post.readers.gcode.reader import CHUNK_LINES, GcodeStream
 from prs3_post.readers.gcode.summary import GcodeFile
-from prs3_post.readers.gcode.words import _CODES_READ, _G_GROUPS, _HINTS, _M_GROUPS, _VALUE_LETTERS, _Block
+from prs3_post.readers.gcode.words import CODES_READ, G_GROUPS, HINTS, M_GROUPS, VALUE_LETTERS, Block
 from prs3_post.readers.protocol import SourceNotes
 
 __all__ = ["FivexCounts", "FivexFile", "FivexStream", "check_tcp_codes", "parse_fivex", "read_fivex"]
@@ -285,7 +285,7 @@ def check_tcp_codes(source: SourceConvention, tcp_on: tuple[str, ...], tcp_off: 
             if match is None:
                 raise ConfigError(f"{name}: {code!r} is not a G or M code (e.g. G43.4, M428)", path=source.source)
             value = float(match[2])
-            groups = _G_GROUPS if match[1] == "G" else _M_GROUPS
+            groups = G_GROUPS if match[1] == "G" else M_GROUPS
             if value in groups and not (code == "G49" and name == "tcp.off"):
                 raise ConfigError(f"{name}: {code} is read as itself ({groups[value]} group), it cannot switch TCP",
                                   path=source.source)
@@ -294,7 +294,7 @@ def check_tcp_codes(source: SourceConvention, tcp_on: tuple[str, ...], tcp_off: 
         raise ConfigError(f"tcp: {both[0]} both switches TCP on and off", path=source.source)
 
 
-class _FivexReader(_Reader):
+class _FivexReader(LineReader):
     """The 3+2 interpreter plus TCP, rotary words or tool vectors, machine-coordinate blocks and clamps."""
 
     def __init__(self, path: str, tolerance: float, circle_tolerance: float, source: SourceConvention,
@@ -305,8 +305,8 @@ class _FivexReader(_Reader):
         self.letters = "".join(source.vector_words) if self.vector else source.words
         self.tcp_codes = {code: True for code in tcp_on} | {code: False for code in tcp_off}
         self.quiet_codes = {code: "clamp" for code in source.clamps} | {code: "inert" for code in source.inert}
-        g_groups = {v: g for v, g in _G_GROUPS.items() if v not in _NOT_READ}
-        m_groups = dict(_M_GROUPS)
+        g_groups = {v: g for v, g in G_GROUPS.items() if v not in _NOT_READ}
+        m_groups = dict(M_GROUPS)
         g_groups.update({28.0: "non-modal", 53.0: "non-modal"})
         for codes, g_group, m_group in ((tcp_on + tcp_off, "length offset", "tcp"), (tuple(self.quiet_codes), "source",
                                                                                        "source")):
@@ -316,15 +316,15 @@ class _FivexReader(_Reader):
                 else:
                     m_groups.setdefault(float(code[1:]), m_group)
         self.g_groups, self.m_groups = g_groups, m_groups
-        self.value_letters = _VALUE_LETTERS + "".join(c for c in self.letters if c not in _VALUE_LETTERS)
+        self.value_letters = VALUE_LETTERS + "".join(c for c in self.letters if c not in VALUE_LETTERS)
         extra = " ".join(sorted({*self.tcp_codes, *self.quiet_codes, "G28", "G53"}))
         self.reader_name = f"the 5-axis G-code reader (source {source.name})"
-        self.codes_read = (" ".join(c for c in _CODES_READ.split() if c.rstrip(";") not in _NOT_READ.values())
+        self.codes_read = (" ".join(c for c in CODES_READ.split() if c.rstrip(";") not in _NOT_READ.values())
                            + f"; {extra}")
         tcp_hint = f"a TCP code of another source machine (source {source.name} switches TCP with " + "/".join(
             (*tcp_on, *tcp_off)) + ")"
         self.hints = {code: tcp_hint if code in ("G43.4", "G43.5", "G234", "M428", "M429") else why
-                      for code, why in _HINTS.items() if code not in ("G28", "G53")}
+                      for code, why in HINTS.items() if code not in ("G28", "G53")}
         self.words_read = f"G M N X Y Z {' '.join(self.letters)} I J K R P F S T H; O alone on its line"
         # state
         self.tcp = False
@@ -423,7 +423,7 @@ class _FivexReader(_Reader):
         return self.convention.axes_from_rotary(np.array([values]))[0]
 
     # ---- one line
-    def block(self, block: _Block) -> None:
+    def block(self, block: Block) -> None:
         self.code_text = " ".join(text for _, text in (*block.g.values(), *block.m.values(), *block.values.values()))
         named = {code_name(letter, value): (letter, group)
                  for letter, codes in (("G", block.g), ("M", block.m)) for group, (value, _) in codes.items()}
@@ -470,7 +470,7 @@ class _FivexReader(_Reader):
         if self.pending and not has_xyz:
             self.turn_only(motion)
 
-    def machine_block(self, block: _Block, value: float, text: str) -> None:
+    def machine_block(self, block: Block, value: float, text: str) -> None:
         """``G28``/``G53``: the source machine moves in its own coordinates; nothing here (module docstring)."""
         others = [t for group, (_, t) in block.g.items() if group not in ("non-modal", "motion", "distance")]
         others += [t for _, t in block.m.values()]
@@ -526,7 +526,7 @@ class _FivexReader(_Reader):
                           "a rotary move takes the tip depends on the source machine's pivot geometry, which the "
                           "source file does not give; it cannot be converted")
 
-    def move(self, block: _Block) -> None:
+    def move(self, block: Block) -> None:
         if self.machine_line and self.motion != 0.0:
             raise self.error(f"{code_name('G', self.motion or 1.0)} after the machine-coordinate block of line "
                              f"{self.machine_line}: the source machine moved in its own coordinates, so the tool's "
@@ -585,7 +585,7 @@ class _FivexReader(_Reader):
         self.tcp_moves += 1
         self.add_rows(np.array(self.position), 0, 0.0, self.number)
 
-    def sort(self, words: tuple[Word, ...]) -> _Block:
+    def sort(self, words: tuple[Word, ...]) -> Block:
         for letter, _, text in words:
             if letter in "ABC" and letter not in self.letters:
                 has = (f"its rotary words are {self.orientation_words()}" if not self.vector

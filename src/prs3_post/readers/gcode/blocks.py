@@ -25,21 +25,21 @@ from prs3_post.readers.common import MAX_FEED_MM_MIN, MAX_RECORD_CHARS, MIN_FEED
 from prs3_post.readers.gcode.summary import GcodeCounts, GcodeCycle, GcodeFile, GcodePlane
 from prs3_post.readers.gcode.words import (
     _AXES,
-    _CODES_READ,
     _CYCLES,
     _FEED,
-    _G_GROUPS,
-    _HINTS,
-    _M_GROUPS,
     _OFFSETS,
     _P3_MAX_COSINE,
     _PLANES,
     _RAPID,
     _USES,
-    _VALUE_LETTERS,
     _WORDS_READ,
+    CODES_READ,
+    G_GROUPS,
+    HINTS,
+    M_GROUPS,
     PECK_GAP_MM,
-    _Block,
+    VALUE_LETTERS,
+    Block,
     _Cycle,
     _PendingP3,
 )
@@ -53,9 +53,9 @@ class _Blocks:
     def __init__(self, path: str, work_plane: WorkPlane, tolerance: float, circle_tolerance: float):
         self.path, self.tolerance, self.circle_tolerance = path, tolerance, circle_tolerance
         # what :meth:`sort` accepts (the 5-axis reader, a subclass, adds its codes and rotary words)
-        self.g_groups, self.m_groups, self.value_letters = _G_GROUPS, _M_GROUPS, _VALUE_LETTERS
-        self.reader_name, self.codes_read, self.words_read = "the 3+2 G-code reader", _CODES_READ, _WORDS_READ
-        self.hints = _HINTS
+        self.g_groups, self.m_groups, self.value_letters = G_GROUPS, M_GROUPS, VALUE_LETTERS
+        self.reader_name, self.codes_read, self.words_read = "the 3+2 G-code reader", CODES_READ, _WORDS_READ
+        self.hints = HINTS
         self.number = 0
         # rows, flat (x, y, z per row), in the coordinates of plane ``plane_of`` (index into planes)
         self.tip, self.kind, self.feed = array("d"), array("q"), array("d")
@@ -222,10 +222,10 @@ class _Blocks:
         else:
             raise self.error("'%' in the middle of the program: '%' opens the program (first line) and closes it")
 
-    def sort(self, words: tuple[Word, ...]) -> _Block:
+    def sort(self, words: tuple[Word, ...]) -> Block:
         """The words of one line by kind, checked: known letters and codes, one code per group, each
         letter once, N first."""
-        block = _Block()
+        block = Block()
         for position, (letter, value, text) in enumerate(words):
             if not math.isfinite(value):
                 raise self.error(f"word {text[:24]!r}: the number is too large")
@@ -260,7 +260,7 @@ class _Blocks:
         return block
 
     # ---- one line's words, in LinuxCNC's order of execution
-    def block(self, block: _Block) -> None:
+    def block(self, block: Block) -> None:
         g = {group: value for group, (value, _) in block.g.items()}
         m = {group: value for group, (value, _) in block.m.items()}
         if self.pending_p3 is not None and g.get("tilt") != 68.2:
@@ -349,7 +349,7 @@ class _Blocks:
         self.event(self.spindle_kind, value=self.spindle_rpm)
 
     # ---- planes
-    def tilt_code(self, code: float, block: _Block) -> None:
+    def tilt_code(self, code: float, block: Block) -> None:
         if code == 53.1:
             if self.tilt is None:
                 raise self.error("G53.1 without a tilted plane: G53.1 turns the tool axis to the plane of a G68.2, "
@@ -435,7 +435,7 @@ class _Blocks:
         self.frame = index
 
     # ---- motion
-    def motion_block(self, code: float | None, block: _Block) -> None:
+    def motion_block(self, code: float | None, block: Block) -> None:
         has_axes = any(a in block.values for a in _AXES)
         if code is not None:
             if code in _CYCLES:
@@ -468,7 +468,7 @@ class _Blocks:
         else:
             self.move(block)
 
-    def target(self, block: _Block) -> list[float]:
+    def target(self, block: Block) -> list[float]:
         """The end point of a move, mm in the current plane (NaN where still unknown)."""
         end = list(self.position)
         for index, letter in enumerate(_AXES):
@@ -496,7 +496,7 @@ class _Blocks:
             raise self.error(f"{code} before any F: the feed rate is unknown (give F, in units per minute)")
         return word * self.scale
 
-    def inverse_time_feed(self, block: _Block, length: float) -> float | None:
+    def inverse_time_feed(self, block: Block, length: float) -> float | None:
         """Under G93: mm/min that makes the move of ``length`` mm take 1/F minutes (F of this line)."""
         if not self.inverse_time:
             return None
@@ -512,7 +512,7 @@ class _Blocks:
                              f"(allowed: {MIN_FEED_MM_MIN:g} to {MAX_FEED_MM_MIN:g} mm/min)")
         return feed
 
-    def move(self, block: _Block) -> None:
+    def move(self, block: Block) -> None:
         end = self.target(block)
         rapid = self.motion == 0.0
         if not all(math.isfinite(v) for v in end):
@@ -532,7 +532,7 @@ class _Blocks:
         feed = self.inverse_time_feed(block, length)
         self.add_rows(np.array(end), _FEED, feed if feed is not None else self.feed_for(length), self.number)
 
-    def arc(self, block: _Block) -> None:
+    def arc(self, block: Block) -> None:
         code = code_name("G", self.motion or 2.0)
         if not np.isfinite(self.position).all():
             raise self.error(f"{code} while the position is not fully known: the arc has no start point")
@@ -620,7 +620,7 @@ class _Blocks:
         self.cycles.append(GcodeCycle(cycle.line, code_name("G", cycle.code), cycle.holes))
         self.cycle = None
 
-    def hole(self, block: _Block) -> None:
+    def hole(self, block: Block) -> None:
         cycle = self.cycle
         assert cycle is not None  # motion is a cycle code only while one is active
         code = code_name("G", cycle.code)

@@ -154,7 +154,7 @@ class _BlockLines(Sequence[str]):
         return comment, [data[a:b].decode("ascii") for a, b in spans.tolist()]
 
 
-class _Reader(_Blocks):
+class LineReader(_Blocks):
     """A program's blocks as the lines go by: runs of plain moves and quiet lines in bulk, every other line
     block by block."""
 
@@ -309,7 +309,7 @@ def _line_roles_numpy(values: FloatArray, kinds: np.ndarray) -> tuple[BoolArray,
 
 def _fill_moves(values: FloatArray, moves: BoolArray, state: FloatArray, scale: float,
                 first: int) -> native.FilledMoves | None:
-    """The rows of a run of bulk lines (:meth:`_Reader.bulk`), its state after them and its G0 and G1
+    """The rows of a run of bulk lines (:meth:`LineReader.bulk`), its state after them and its G0 and G1
     words (:data:`~prs3_post.core.native.FilledMoves`); None where a line needs the careful reader. In C
     (csrc/lex.c's prs3_fill_moves) where it was built, else :func:`_fill_moves_numpy`: the same."""
     from prs3_post.core import native  # ctypes: loaded only where lines are read in bulk

@@ -80,7 +80,7 @@ from prs3_post.core.lexer import (
 from prs3_post.core.toolpath import Toolpath
 from prs3_post.part.workplane import WorkPlane
 from prs3_post.readers.common import join_toolpaths
-from prs3_post.readers.gcode.bulk import _Reader, _refuse_rotary, _rotary_hint, _scan_bytes
+from prs3_post.readers.gcode.bulk import LineReader, _refuse_rotary, _rotary_hint, _scan_bytes
 from prs3_post.readers.gcode.summary import GcodeCounts, GcodeCycle, GcodeFile, GcodePlane
 from prs3_post.readers.gcode.words import _ROTARY_HINT, PECK_GAP_MM
 from prs3_post.readers.protocol import SourceNotes, StreamDefaults
@@ -208,9 +208,9 @@ class GcodeStream(StreamDefaults):
                 if _ROTARY_HINT.search(line):
                     _refuse_rotary(line, number, self.path)
 
-    def _reader(self) -> _Reader:
+    def _reader(self) -> LineReader:
         """The interpreter of the lines (a hook: the 5-axis reader, ``readers.fivex.reader``, gives its own)."""
-        return _Reader(self.path, self.work_plane, self.tolerance, self.circle_tolerance)
+        return LineReader(self.path, self.work_plane, self.tolerance, self.circle_tolerance)
 
     def _pieces(self) -> Iterator[tuple[int, bytes]]:
         """The file's bytes in ``(offset, bytes)`` pieces that end at line ends (``text``: its UTF-8 bytes);

@@ -19,21 +19,21 @@ _P3_MAX_COSINE = math.cos(math.radians(85.0))
 _RAPID, _FEED = int(MoveKind.RAPID), int(MoveKind.FEED)
 
 # G codes by modal group (the value as a float: G68.2 is 68.2)
-_G_GROUPS: dict[float, str] = {
+G_GROUPS: dict[float, str] = {
     0: "motion", 1: "motion", 2: "motion", 3: "motion", 80: "motion", 81: "motion", 82: "motion",
     83: "motion", 73: "motion", 4: "dwell", 17: "plane", 18: "plane", 19: "plane", 20: "units", 21: "units",
     90: "distance", 91: "distance", 93: "feed mode", 94: "feed mode", 98: "return", 99: "return",
     68.2: "tilt", 69: "tilt", 53.1: "tilt", 40: "compensation", 43: "length offset", 49: "length offset",
     54: "coordinate system", 91.1: "arc distance",
 }
-_M_GROUPS: dict[float, str] = {
+M_GROUPS: dict[float, str] = {
     0: "stop", 1: "stop", 2: "stop", 30: "stop", 3: "spindle", 4: "spindle", 5: "spindle", 6: "tool change",
     7: "coolant", 8: "coolant", 9: "coolant",
 }
-_CODES_READ = ("G0 G1 G2 G3 G4 G17 G18 G19 G20 G21 G40 G43 G49 G53.1 G54 G68.2 G69 G73 G80 G81 G82 G83 G90 "
+CODES_READ = ("G0 G1 G2 G3 G4 G17 G18 G19 G20 G21 G40 G43 G49 G53.1 G54 G68.2 G69 G73 G80 G81 G82 G83 G90 "
                "G91 G91.1 G93 G94 G98 G99; M0 M1 M2 M3 M4 M5 M6 M7 M8 M9 M30")
 #: Why some codes CAM posts write are not read (the message says it before the codes that are).
-_HINTS = {
+HINTS = {
     **dict.fromkeys(("G28", "G30"), "a return to the machine's reference point is no position on the part; "
                     "leave it out (the converted program starts and ends at the machine's safe position)"),
     "G53": "machine coordinates are no position on the part",
@@ -43,7 +43,7 @@ _HINTS = {
     "G95": "feed per revolution: have the CAM system write a feed per minute (G94)",
     "G90.1": "absolute arc centres: have the CAM system write I J K relative to the start (G91.1)",
 }
-_VALUE_LETTERS = "XYZIJKRPQFSTH"
+VALUE_LETTERS = "XYZIJKRPQFSTH"
 _WORDS_READ = "G M N X Y Z I J K R P Q F S T H; O alone on its line"
 _CYCLES = {81.0: Pecking.NONE, 82.0: Pecking.NONE, 83.0: Pecking.FULL_RETRACT, 73.0: Pecking.CHIP_BREAK}
 #: The letters of the bulk path, in the order a regular motion line writes them.
@@ -66,7 +66,7 @@ _OFFSETS = "IJK"
 # Interpretation
 # --------------------------------------------------------------------------------------------
 @dataclass(slots=True)
-class _Block:
+class Block:
     """One line's words, sorted by kind (value: as written, text: for messages)."""
 
     g: dict[str, tuple[float, str]] = field(default_factory=dict)      # group → (code value, text)
