@@ -23,7 +23,8 @@ from click.testing import CliRunner
 from conftest import compare_golden
 from numpy.testing import assert_allclose
 
-from prs3_post.app.convert import ConvertSettings, collect_inputs, convert_batch, convert_file, write_conversion
+from prs3_post.app.batch import collect_inputs, convert_batch
+from prs3_post.app.convert import ConvertSettings, convert_file, write_conversion
 from prs3_post.cli.main import main
 from prs3_post.core.errors import PoseError
 from prs3_post.emit.header import SourceHeader
@@ -244,7 +245,7 @@ def test_output_folder_that_cannot_be_made(tmp_path: Path) -> None:
 def test_an_output_folder_on_a_read_only_file_system_says_so(tmp_path: Path,
                                                               monkeypatch: pytest.MonkeyPatch) -> None:
     """Not "permission denied" (root may write anywhere but there): the file system is read-only."""
-    from prs3_post.app import convert
+    from prs3_post.app import batch as convert
 
     out = tmp_path / "out"
     out.mkdir()

@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from prs3_post.app.convert import ConvertSettings, collect_inputs, convert_file, input_format
+from prs3_post.app.batch import collect_inputs
+from prs3_post.app.convert import ConvertSettings, convert_file, input_format
 from prs3_post.core.toolpath import MoveKind, Toolpath
 from prs3_post.machine.loading import load_dialect, load_machine
 from prs3_post.part.setup_transform import Setup

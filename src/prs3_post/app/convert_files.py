@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from prs3_post.app.convert import BatchResult, ConvertSettings, collect_inputs, convert_batch
+from prs3_post.app.batch import BatchResult, collect_inputs, convert_batch
+from prs3_post.app.convert import ConvertSettings
 from prs3_post.app.kinematics import machine_of
 from prs3_post.core.defaults import DEFAULT_TOLERANCE
 from prs3_post.machine.loading import DEFAULT_DIALECT, DEFAULT_MACHINE, Dialect, Machine, load_dialect

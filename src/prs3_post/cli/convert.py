@@ -51,7 +51,7 @@ from prs3_post.toolpaths.common import TOOL_DIAMETER_RANGE, require_tolerance
 # What only some commands need is imported where it is used (the main job, convert, verify, preview,
 # faces: each about 0.1 s of imports), so that `ik`, `fk` and a small `verify` start fast.
 if TYPE_CHECKING:
-    from prs3_post.app.convert import FileOutcome
+    from prs3_post.app.batch import FileOutcome
 
 
 def _codes_option(text: str | None, flag: str) -> tuple[str, ...] | None:
@@ -144,8 +144,7 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
       prs3-post convert ../shared/corpus/cl/mech491_APT_SimpleMillPlane.cls -o out --part-origin 0,-17.2,-856
       prs3-post convert cam/ -o out --part-origin auto --jobs 2 --report out/report.json
     """
-    from prs3_post.app.convert import (
-        ConvertSettings,
+    from prs3_post.app.batch import (
         batch_summary,
         collect_inputs,
         convert_batch,
@@ -154,6 +153,7 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
         output_path,
         prepare_outdir,
     )
+    from prs3_post.app.convert import ConvertSettings
     from prs3_post.part.workplane import WorkPlaneError, work_plane_from_text
 
     def body() -> int:
@@ -246,7 +246,7 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
 
 def _flag_named(outcome: FileOutcome) -> FileOutcome:
     """A kept program's failure says which option replaces it (the library names no option)."""
-    from prs3_post.app.convert import EXISTS
+    from prs3_post.app.batch import EXISTS
 
     if not outcome.exists:
         return outcome
