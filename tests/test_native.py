@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import ctypes
 import dataclasses
+import functools
 import os
 import shutil
 import subprocess
@@ -197,11 +198,14 @@ def test_compiled_emitter_is_used_and_leaves_ties_to_numpy(monkeypatch: pytest.M
 
 # ----------------------------------------------------------------------------- the compiled lexer
 
+#: 1 to 17 digits: the strings ``st.from_regex(r"\A[0-9]{1,17}\Z")`` gives, drawn several times faster (the
+#: regex strategy was most of what the hypothesis tests below cost).
+_DIGITS = st.text(alphabet="0123456789", min_size=1, max_size=17)
 #: A plain number: an optional minus, 1 to 17 digits (16 and 17: too many for the fast path), the point
 #: anywhere or nowhere (before, inside, after the digits).
 _number = st.builds(lambda sign, digits, point: sign + (digits[:point] + b"." + digits[point:] if point >= 0
                                                         else digits),
-                    st.sampled_from([b"", b"-"]), st.from_regex(rb"\A[0-9]{1,17}\Z"), st.integers(-1, 17))
+                    st.sampled_from([b"", b"-"]), _DIGITS.map(str.encode), st.integers(-1, 17))
 #: What breaks the regular shape: lower case, comments, tab, CR, non-ASCII bytes (UTF-8 and not), a
 #: second point, a lonely point, a minus without digits, a letter without a number, letters not
 #: read in bulk, a sign or exponent, a number without a letter.
@@ -211,21 +215,39 @@ _odd = st.sampled_from([b"x1", b"g0", b"(note)", b";end", b"(", b"\t", b"\r", b"
 
 
 @st.composite
+def _regular_words(draw: st.DrawFn, letters: str) -> list[tuple[bytes, bytes]]:
+    """A regular line's (space, word) pairs: some of ``letters``, each once, in order."""
+    chosen = draw(_chosen_letters(letters))
+    return [(draw(_SPACE), c.encode() + draw(_number)) for c in sorted(chosen, key=letters.index)]
+
+
+_SPACE = st.sampled_from([b"", b" ", b"  "])
+
+
+@functools.cache
+def _chosen_letters(letters: str) -> st.SearchStrategy[list[str]]:
+    return st.lists(st.sampled_from(letters), unique=True)
+
+
+@functools.cache
+def _line_strategy(letters: str) -> st.SearchStrategy[tuple[list[tuple[bytes, bytes]], bytes]]:
+    """One line of :func:`_blocks` for ``letters``: (its (space, piece) pairs, its tail). Built once per
+    letters (building strategies on every draw was most of what the lexer's hypothesis test cost)."""
+    word = st.builds(lambda letter, number: letter + number, st.sampled_from([c.encode() for c in letters]),
+                     _number)
+    regular = _regular_words(letters)
+    spoilt = st.tuples(regular, st.integers(0, 9), _SPACE, st.one_of(_odd, word)).map(
+        lambda r: [*r[0][:r[1]], (r[2], r[3]), *r[0][r[1]:]])
+    mixed = st.lists(st.tuples(_SPACE, st.one_of(word, word, _odd)), max_size=7)
+    return st.tuples(st.one_of(regular, regular, spoilt, mixed), st.sampled_from([b"", b" "]))
+
+
+@st.composite
 def _blocks(draw: st.DrawFn, letters: str) -> bytes:
     """Lines of a block: regular ones (words of ``letters`` in order), regular ones with one word or
     piece that breaks the shape, and mixes of words in any order (repeats) and odd pieces; joined by
     no space, one or two; empty lines; a final LF or not."""
-    word = st.builds(lambda letter, number: letter + number, st.sampled_from([c.encode() for c in letters]),
-                     _number)
-    space = st.sampled_from([b"", b" ", b"  "])
-    regular = st.lists(st.sampled_from(letters), unique=True).flatmap(
-        lambda chosen: st.tuples(*(st.tuples(space, _number.map(lambda n, c=c: c.encode() + n))
-                                   for c in sorted(chosen, key=letters.index))).map(list))
-    spoilt = st.tuples(regular, st.integers(0, 9), space, st.one_of(_odd, word)).map(
-        lambda r: [*r[0][:r[1]], (r[2], r[3]), *r[0][r[1]:]])
-    mixed = st.lists(st.tuples(space, st.one_of(word, word, _odd)), max_size=7)
-    line = st.tuples(st.one_of(regular, regular, spoilt, mixed), st.sampled_from([b"", b" "]))
-    lines = draw(st.lists(line, max_size=25))
+    lines = draw(st.lists(_line_strategy(letters), max_size=25))
     text = b"\n".join(b"".join(gap + piece for gap, piece in words) + tail for words, tail in lines)
     return text + draw(st.sampled_from([b"", b"\n"]))
 
@@ -502,7 +524,7 @@ needs_gotos = pytest.mark.skipif(native.plain_gotos(b"\n", apt._GOTO_CODES, apt.
 #: anywhere or nowhere.
 _cl_number = st.builds(lambda sign, digits, point: sign + (digits[:point] + "." + digits[point:] if point >= 0
                                                            else digits),
-                       st.sampled_from(["", "-", "+"]), st.from_regex(r"\A[0-9]{1,17}\Z"), st.integers(-1, 17))
+                       st.sampled_from(["", "-", "+"]), _DIGITS, st.integers(-1, 17))
 #: Numbers that break a plain GOTO: none, a lone point, a sign alone, two points, an exponent, spaces,
 #: other digits and scripts, a lone surrogate (encoded as '?'), a continuation, a CR inside.
 _cl_odd = st.sampled_from(["", ".", "-.", "+.", "+", "-", "+-1", "1.2.3", "..5", "5..", "1e5", "1E-3", " 1", "1 ",
