@@ -1,7 +1,7 @@
 """Build hook: compiles csrc/*.c into prs3_post/_native.so (the compiled line writer, lexer and CL GOTO reader).
 
 Plain C with no Python API, built with the machine's C compiler (``$CC``, else ``cc``) and loaded with
-ctypes (src/prs3_post/native.py). Where no compiler works, the package is built all the same and
+ctypes (src/prs3_post/core/native.py). Where no compiler works, the package is built all the same and
 numpy writes the lines and lexes the programs (the same results, slower): a message says so, and nothing
 fails.
 """
@@ -28,7 +28,9 @@ def compile_library(root: Path, target: Path) -> bool:
     target.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as scratch:
         built = Path(scratch) / target.name
-        command = [*compiler, "-O2", "-shared", "-fPIC", "-o", str(built),
+        # -Wall -Werror: a warning is a bug here (the library is called with raw addresses and sizes); a
+        # compiler that warns builds no library, and numpy does the work (a message says so)
+        command = [*compiler, "-O2", "-shared", "-fPIC", "-o", str(built), "-Wall", "-Werror",
                    *sorted(str(path) for path in (root / SOURCES).glob("*.c"))]
         try:
             result = subprocess.run(command, capture_output=True, text=True, timeout=120, check=False)
