@@ -18,7 +18,7 @@
  * only when it says the version that module was written for (an editable install whose csrc/ changed
  * since it was built falls back to numpy instead of calling a function with other arguments).
  * Raise it with NATIVE_VERSION in native.py whenever a function or its arguments change. */
-int64_t prs3_native_version(void) { return 4; }
+int64_t prs3_native_version(void) { return 5; }
 
 static const char PAIRS[] =
     "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
@@ -147,9 +147,17 @@ static inline __attribute__((always_inline)) uint8_t *number(uint8_t *at, int64_
     return at;
 }
 
-/* Returns the bytes written, or -1 when out (capacity bytes) would overflow (nothing is promised
- * about out then). kind[c]: 0 a number (value = printed digits, decimals[c] after the point, text
- * first_text[c] its prefix), 1 a choice (value = k, text first_text[c] + k). Text t is
+/* What prs3_render_lines returns besides the bytes written (prs3_post.core.native names them too). */
+enum { RENDER_OVERFLOW = -1, RENDER_BAD_COLUMN = -2 };
+/* The most digits after the point a number column may have (POWERS, divide_power). */
+enum { MAX_DECIMALS = 19 };
+
+/* Returns the bytes written; RENDER_OVERFLOW when out (capacity bytes) would overflow;
+ * RENDER_BAD_COLUMN where a column is neither kind, a number column's decimals are not 0 to
+ * MAX_DECIMALS, or a choice is not one of its column's texts (nothing is promised about out then).
+ * kind[c]: 0 a number (value = printed digits, decimals[c] after the point, text first_text[c] its
+ * prefix), 1 a choice (value = k, text first_text[c] + k, k < first_text[c + 1] - first_text[c]):
+ * first_text has columns + 1 entries, the last the count of texts. Text t is
  * text_bytes[text_start[t]:text_start[t + 1]]. present is (rows, columns) bytes, row-major.
  * lengths[r]: line r's length with its ending. */
 int64_t prs3_render_lines(int64_t columns, int64_t rows, const int64_t *const *values, const int32_t *kind,
@@ -159,6 +167,10 @@ int64_t prs3_render_lines(int64_t columns, int64_t rows, const int64_t *const *v
                           const int64_t *override_row, const int64_t *override_col,
                           const int64_t *override_start, const uint8_t *override_bytes, uint8_t *out,
                           int64_t capacity, int64_t *lengths) {
+    for (int64_t c = 0; c < columns; c++) {
+        if (kind[c] == 0 ? decimals[c] < 0 || decimals[c] > MAX_DECIMALS : kind[c] != 1) return RENDER_BAD_COLUMN;
+        if (first_text[c + 1] < first_text[c] + 1) return RENDER_BAD_COLUMN;   /* a number: its prefix */
+    }
     uint8_t *at = out;
     uint8_t *const limit = out + capacity;
     int64_t next = 0;
@@ -173,14 +185,15 @@ int64_t prs3_render_lines(int64_t columns, int64_t rows, const int64_t *const *v
                 continue;
             }
             /* the longest word: separator, text, sign, 20 digits, point, 19 decimals */
-            if (limit - at < 64 + (text_start[first_text[c] + 1] - text_start[first_text[c]])) return -1;
+            if (limit - at < 64 + (text_start[first_text[c] + 1] - text_start[first_text[c]])) return RENDER_OVERFLOW;
             if (!first) *at++ = separator;
             first = 0;
             int64_t value = values[c][r];
             if (kind[c] == 1) {
+                if (value < 0 || value >= first_text[c + 1] - first_text[c]) return RENDER_BAD_COLUMN;
                 int64_t t = first_text[c] + value;
                 int64_t size = text_start[t + 1] - text_start[t];
-                if (limit - at < size) return -1;
+                if (limit - at < size) return RENDER_OVERFLOW;
                 at = copy(at, text_bytes + text_start[t], size);
                 continue;
             }
@@ -188,7 +201,7 @@ int64_t prs3_render_lines(int64_t columns, int64_t rows, const int64_t *const *v
             at = copy(at, text_bytes + text_start[t], text_start[t + 1] - text_start[t]);
             if (overridden) {
                 int64_t size = override_start[next + 1] - override_start[next];
-                if (limit - at < size) return -1;
+                if (limit - at < size) return RENDER_OVERFLOW;
                 memcpy(at, override_bytes + override_start[next], (size_t)size);
                 at += size;
                 next++;
@@ -196,7 +209,7 @@ int64_t prs3_render_lines(int64_t columns, int64_t rows, const int64_t *const *v
             }
             at = number(at, value, decimals[c]);
         }
-        if (limit - at < ending_length) return -1;
+        if (limit - at < ending_length) return RENDER_OVERFLOW;
         memcpy(at, ending, (size_t)ending_length);
         at += ending_length;
         lengths[r] = at - line;

@@ -7,9 +7,11 @@ import ctypes
 import dataclasses
 import functools
 import os
+import re
 import shutil
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -20,8 +22,8 @@ from hypothesis import strategies as st
 from prs3_post.core import input_files as files
 from prs3_post.core import lexer, native
 from prs3_post.core import numbers as fixed
-from prs3_post.core.errors import LimitError
-from prs3_post.core.numbers import ChoiceColumn, render_rows, scale_column
+from prs3_post.core.errors import LimitError, Prs3Warning
+from prs3_post.core.numbers import ChoiceColumn, ScaledColumn, render_rows, scale_column
 from prs3_post.core.toolpath import Event, EventKind, JointProgram
 from prs3_post.emit import gcode as emit_gcode
 from prs3_post.emit.gcode import emit_program
@@ -32,6 +34,8 @@ from prs3_post.readers.cl import bulk as apt
 from prs3_post.readers.gcode import bulk as gcode
 
 ROOT = Path(__file__).resolve().parents[1]
+INSTALLED = native.LIBRARY
+LIBRARY_BUILT = INSTALLED.is_file()
 needs_native = pytest.mark.skipif(not native.available(), reason="the compiled line writer was not built here")
 needs_lexer = pytest.mark.skipif(native.lex_text(b"\n", b"\0" * 256, 0) is None,
                                  reason="the compiled lexer was not built here")
@@ -89,6 +93,7 @@ def test_numpy_writes_the_lines_where_it_is_turned_off(monkeypatch: pytest.Monke
 
 
 @pytest.mark.skipif(shutil.which("cc") is None, reason="needs a C compiler")
+@pytest.mark.filterwarnings("ignore::prs3_post.core.errors.Prs3Warning")     # the fall back's (tested below)
 def test_a_library_of_another_version_is_not_used(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """An editable install whose csrc/ changed after its build: numpy writes the lines, nothing crashes."""
     source = tmp_path / "old.c"
@@ -102,6 +107,100 @@ def test_a_library_of_another_version_is_not_used(tmp_path: Path, monkeypatch: p
     assert native.library() is None and not native.available()
     buffer, _ = render_rows([(b"X", scale_column(np.array([-2.5]), 3))], np.ones((1, 1), dtype=bool))
     assert buffer.tobytes() == b"X-2.500\n"
+
+
+#: C parameter types and the ctypes type that passes each (a pointer: an address, or bytes as ``char *``).
+_C_TYPES = {"int64_t": {ctypes.c_int64}, "int32_t": {ctypes.c_int32}, "uint8_t": {ctypes.c_uint8},
+            "pointer": {ctypes.c_void_p, ctypes.c_char_p}}
+
+
+def _c_functions() -> dict[str, list[str]]:
+    """Each exported function of csrc/*.c (not static): its parameters' types (``pointer`` for any pointer)."""
+    found = {}
+    for source in sorted((ROOT / "csrc").glob("*.c")):
+        text = re.sub(r"/\*.*?\*/", "", source.read_text(), flags=re.S)
+        for name, parameters in re.findall(r"^int64_t (prs3_\w+)\(([^)]*)\)\s*\{", text, flags=re.M):
+            pieces = [] if parameters.strip() == "void" else [p.strip() for p in parameters.split(",")]
+            found[name] = ["pointer" if "*" in p else p.split()[-2] for p in pieces]
+    return found
+
+
+def test_every_c_function_has_its_argument_types_in_one_table() -> None:
+    """native.SIGNATURES holds every exported function of csrc/ with one ctypes type per C parameter, of
+    the C parameter's width: a function added or changed in C without its types there fails here."""
+    functions = _c_functions()
+    assert set(functions) == set(native.SIGNATURES) and len(functions) == 10
+    for name, parameters in functions.items():
+        types = native.SIGNATURES[name]
+        assert len(types) == len(parameters), name
+        for position, (c_type, passed) in enumerate(zip(parameters, types, strict=True)):
+            assert passed in _C_TYPES[c_type], (name, position, c_type, passed)
+
+
+@needs_native
+@pytest.mark.parametrize("column", [
+    (b"X", ScaledColumn(np.array([1], dtype=np.int64), 20, np.zeros(0, dtype=np.int64), ())),
+    (b"X", ScaledColumn(np.array([1], dtype=np.int64), -1, np.zeros(0, dtype=np.int64), ())),
+    ChoiceColumn(np.array([2]), (b"G0", b"G1")),
+    ChoiceColumn(np.array([-1]), (b"G0", b"G1")),
+    ChoiceColumn(np.array([0]), ()),
+], ids=["decimals 20", "decimals -1", "choice 2 of 2", "choice -1", "no texts"])
+def test_compiled_writer_refuses_decimals_and_choices_it_cannot_write(column: fixed.Column) -> None:
+    """prs3_render_lines checks what it would otherwise read or write out of bounds (as prs3_emit_lines
+    checks its decimals): an error, not a line made of another column's texts."""
+    with pytest.raises(ValueError, match="decimals are not 0 to 19, or a choice is not one of its column"):
+        native.render_block([column], np.ones((1, 1), dtype=bool), 0, 1, b" ", b"\n")
+    good = native.render_block([ChoiceColumn(np.array([1]), (b"G0", b"G1")),
+                                (b"X", ScaledColumn(np.array([-15], dtype=np.int64), 19, np.zeros(0, dtype=np.int64),
+                                                    ()))], np.ones((1, 2), dtype=bool), 0, 1, b" ", b"\n")
+    assert good[0].tobytes() == b"G1 X-0.0000000000000000015\n"
+
+
+def _fresh(monkeypatch: pytest.MonkeyPatch, library: Path | None = None) -> None:
+    """The native module as in a new process (nothing loaded, nothing reported), with ``library``."""
+    for name in ("_library", "_function"):
+        monkeypatch.setattr(native, name, None)
+    monkeypatch.setattr(native, "_warned", False)
+    if library is not None:
+        monkeypatch.setattr(native, "LIBRARY", library)
+
+
+@pytest.mark.skipif(shutil.which("cc") is None, reason="needs a C compiler")
+def test_a_stale_or_missing_library_is_reported_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """numpy taking over from a library of another version or none at all: one Prs3Warning a process,
+    naming the reason; the output is the same."""
+    source = tmp_path / "old.c"
+    source.write_text("#include <stdint.h>\nint64_t prs3_native_version(void) { return 3; }\n")
+    stale = tmp_path / "_native.so"
+    subprocess.run(["cc", "-shared", "-fPIC", "-o", str(stale), str(source)], check=True)
+    _fresh(monkeypatch, stale)
+    with pytest.warns(Prs3Warning, match=rf"is version 3, this package needs {native.NATIVE_VERSION} .*; numpy "
+                                         r"writes and reads instead \(the same output, slower; PRS3_POST_NATIVE=0"):
+        assert not native.available()
+    monkeypatch.setattr(native, "_library", None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert native.library() is None                                   # once a process
+        buffer, _ = render_rows([(b"X", scale_column(np.array([-2.5]), 3))], np.ones((1, 1), dtype=bool))
+    assert buffer.tobytes() == b"X-2.500\n"
+    _fresh(monkeypatch, tmp_path / "missing.so")
+    with pytest.warns(Prs3Warning, match="no compiled library at .*missing.so"):
+        assert native.library() is None
+
+
+def test_numpy_chosen_with_the_environment_is_not_reported(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``PRS3_POST_NATIVE=0`` (the user's choice) and the installed library: no warning."""
+    monkeypatch.setenv(native.ENV, "0")
+    _fresh(monkeypatch, tmp_path / "missing.so")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert native.library() is None
+    if LIBRARY_BUILT:                                     # (without it, the missing library is reported)
+        monkeypatch.delenv(native.ENV)
+        _fresh(monkeypatch, INSTALLED)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            assert native.library() is not None
 
 
 # ----------------------------------------------------------------------------- the compiled emitter

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ctypes
 import os
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -25,10 +26,11 @@ from typing import Any
 import numpy as np
 
 from prs3_post.core.columns import ChoiceColumn
+from prs3_post.core.errors import Prs3Warning
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 
-__all__ = ["ENV", "LIBRARY", "NATIVE_VERSION", "FilledMoves", "available", "emit_rows", "fill_moves", "lex_text",
-           "library", "line_end", "plain_gotos", "render_block", "scan_text"]
+__all__ = ["ENV", "LIBRARY", "NATIVE_VERSION", "SIGNATURES", "FilledMoves", "available", "emit_rows", "fill_moves",
+           "lex_text", "library", "line_end", "plain_gotos", "render_block", "scan_text"]
 
 #: The compiled library, beside this module.
 LIBRARY = Path(__file__).parent.parent / "_native.so"
@@ -36,9 +38,34 @@ LIBRARY = Path(__file__).parent.parent / "_native.so"
 ENV = "PRS3_POST_NATIVE"
 #: What ``prs3_native_version()`` of the library must say (csrc/render.c): another version (an old build
 #: beside newer sources) is not used.
-NATIVE_VERSION = 4
+NATIVE_VERSION = 5
 _NUMBER, _CHOICE = 0, 1
+#: csrc/render.c's prs3_render_lines results other than a size: out too small, a column it refuses.
+_RENDER_OVERFLOW, _RENDER_BAD_COLUMN = -1, -2
+
+_POINTER, _I64, _I32, _U8, _TEXT = ctypes.c_void_p, ctypes.c_int64, ctypes.c_int32, ctypes.c_uint8, ctypes.c_char_p
+#: Every function of the compiled library with its argument types, in the order of its C definition
+#: (csrc/*.c; each returns an int64): the one place they are written (tests/test_native.py checks each
+#: against its C definition). Arrays are passed as addresses, bytes objects as ``char *``.
+SIGNATURES: dict[str, list[Any]] = {
+    "prs3_native_version": [],
+    "prs3_render_lines": [_I64, _I64, _POINTER, _POINTER, _POINTER, _POINTER, _POINTER, _POINTER, _POINTER, _U8,
+                          _POINTER, _I64, _I64, _POINTER, _POINTER, _POINTER, _POINTER, _POINTER, _I64, _POINTER],
+    "prs3_emit_lines": [_I64, _I64, _POINTER, _POINTER, _I32, _POINTER, _POINTER, _I64, _I64, _POINTER, _I32, _I32,
+                        _POINTER, _POINTER, _POINTER, _U8, _TEXT, _I64, _I64, _POINTER, _POINTER, _POINTER,
+                        _POINTER, _I64, _POINTER, _POINTER],
+    "prs3_lex_columns": [_TEXT, _I64, _TEXT, _I64, _POINTER, _POINTER, _POINTER, _I64, _POINTER],
+    "prs3_scan_text": [_TEXT, _I64, _POINTER],
+    "prs3_line_end": [_TEXT, _I64, _I64, _I64],
+    "prs3_fill_moves": [_POINTER, _POINTER, _I64, _POINTER, _POINTER, _POINTER, _I64, _POINTER, _POINTER, _POINTER,
+                        _POINTER, _POINTER],
+    "prs3_rows_to_part": [_POINTER, _I64, _POINTER, _POINTER, _POINTER],
+    "prs3_line_roles": [_POINTER, _POINTER, _I64, _POINTER, _POINTER],
+    "prs3_plain_gotos": [_TEXT, _I64, _TEXT, _TEXT, _POINTER, _POINTER, _I64],
+}
+
 _library: Any = None                                    # None: not loaded yet; False: not there
+_warned = False                                         # the fall back to numpy was reported (once a process)
 _function: Any = None                                   # prs3_render_lines, once loaded
 _lexer: Any = None                                      # prs3_lex_columns, once loaded (False: not there)
 _gotos: Any = None                                      # prs3_plain_gotos, once loaded (False: not there)
@@ -51,42 +78,60 @@ _emitter: Any = None                                    # prs3_emit_lines, once 
 
 
 def library() -> Any:
-    """The compiled library (ctypes.CDLL), or None where it was not built or is turned off."""
+    """The compiled library (ctypes.CDLL), or None where it was not built or is turned off.
+
+    Where it is missing, cannot be loaded or is of another version (an editable install whose csrc/
+    changed since it was built), numpy takes over, and a :class:`Prs3Warning` says so once a process
+    (the output is the same, only slower); not where ``PRS3_POST_NATIVE=0`` asked for numpy."""
     global _library
     if _library is None:
         _library = False
-        if os.environ.get(ENV, "1") != "0" and LIBRARY.is_file():
-            try:
-                loaded = ctypes.CDLL(str(LIBRARY))
-                version = loaded.prs3_native_version
-            except (OSError, AttributeError):            # built for another machine, or before versions
-                return None
-            version.restype, version.argtypes = ctypes.c_int64, []
-            if version() == NATIVE_VERSION:
-                _library = loaded
+        if os.environ.get(ENV, "1") == "0":
+            return None
+        if not LIBRARY.is_file():
+            _fall_back(f"no compiled library at {LIBRARY} (no C compiler when the package was installed?)")
+            return None
+        try:
+            loaded = ctypes.CDLL(str(LIBRARY))
+            version = loaded.prs3_native_version
+        except (OSError, AttributeError) as error:       # built for another machine, or before versions
+            _fall_back(f"the compiled library {LIBRARY} cannot be used ({error})")
+            return None
+        version.restype, version.argtypes = ctypes.c_int64, SIGNATURES["prs3_native_version"]
+        found = version()
+        if found != NATIVE_VERSION:
+            _fall_back(f"the compiled library {LIBRARY} is version {found}, this package needs {NATIVE_VERSION} "
+                       "(csrc/ changed since it was built: reinstall the package to rebuild it)")
+            return None
+        _library = loaded
     return _library or None
 
 
-def _bind(name: str, argtypes: list[Any]) -> Any:
-    """The library's function ``name`` with its argument types (it returns an int64), or False where the
-    library or the function is not there (a library built before the function was added)."""
+def _fall_back(reason: str) -> None:
+    """Say once a process that numpy writes and reads instead of the compiled library, and why."""
+    global _warned
+    if not _warned:
+        _warned = True
+        warnings.warn(f"{reason}; numpy writes and reads instead (the same output, slower; "
+                      f"{ENV}=0 chooses numpy without this warning)", Prs3Warning, stacklevel=3)
+
+
+def _bind(name: str) -> Any:
+    """The library's function ``name`` with its argument types from :data:`SIGNATURES` (it returns an
+    int64), or False where the library or the function is not there (a library built before the
+    function was added)."""
     loaded = library()
     function = getattr(loaded, name, None) if loaded is not None else None
     if function is None:
         return False
-    function.restype, function.argtypes = ctypes.c_int64, argtypes
+    function.restype, function.argtypes = ctypes.c_int64, SIGNATURES[name]
     return function
-
-
-_POINTER, _I64, _TEXT = ctypes.c_void_p, ctypes.c_int64, ctypes.c_char_p
 
 
 def _load() -> Any:
     global _function
     if _function is None:
-        _function = _bind("prs3_render_lines", [
-            _I64, _I64, _POINTER, _POINTER, _POINTER, _POINTER, _POINTER, _POINTER, _POINTER, ctypes.c_uint8,
-            _POINTER, _I64, _I64, _POINTER, _POINTER, _POINTER, _POINTER, _POINTER, _I64, _POINTER])
+        _function = _bind("prs3_render_lines")
     return _function
 
 
@@ -106,7 +151,7 @@ def render_block(columns: Sequence, present: BoolArray, lo: int, hi: int, separa
     m, width = hi - lo, len(columns)
     kind = np.zeros(width, dtype=np.int32)
     decimals = np.zeros(width, dtype=np.int32)
-    first_text = np.zeros(width, dtype=np.int64)
+    first_text = np.zeros(width + 1, dtype=np.int64)    # and the count of texts: each column's choices
     kept: list[np.ndarray] = []                          # the value columns, alive through the call
     texts: list[bytes] = []
     overrides: list[tuple[int, int, bytes]] = []         # (row, column, text after the prefix)
@@ -129,6 +174,7 @@ def render_block(columns: Sequence, present: BoolArray, lo: int, hi: int, separa
                                                                 strict=True)]
         room += 1 + len(prefix) + max(44, max((len(t) for t in odd_texts), default=0))
     overrides.sort(key=lambda item: (item[0], item[1]))
+    first_text[width] = len(texts)
     text_start = np.zeros(len(texts) + 1, dtype=np.int64)
     np.cumsum([len(t) for t in texts], out=text_start[1:])
     text_bytes = np.frombuffer(b"".join(texts) + b"\0", dtype=np.uint8)
@@ -148,6 +194,9 @@ def render_block(columns: Sequence, present: BoolArray, lo: int, hi: int, separa
                    _address(ending_bytes), len(ending), len(overrides), _address(override_row),
                    _address(override_col), _address(override_start), _address(override_bytes), _address(out),
                    capacity, _address(lengths))
+    if size == _RENDER_BAD_COLUMN:
+        raise ValueError("prs3_render_lines: a number column's decimals are not 0 to 19, or a choice is not one "
+                         "of its column's texts")
     if size < 0:
         raise AssertionError("prs3_render_lines: the output buffer was too small")   # room is an upper bound
     return out[:size], lengths
@@ -184,10 +233,7 @@ def emit_rows(axis_values: Sequence[FloatArray], decimals: int, first_present: S
     """
     global _emitter
     if _emitter is None:
-        _emitter = _bind("prs3_emit_lines", [
-            _I64, _I64, _POINTER, _POINTER, ctypes.c_int32, _POINTER, _POINTER, _I64, _I64, _POINTER, ctypes.c_int32,
-            ctypes.c_int32, _POINTER, _POINTER, _POINTER, ctypes.c_uint8, _TEXT, _I64, _I64, _POINTER,
-            _POINTER, _POINTER, _POINTER, _I64, _POINTER, _POINTER])
+        _emitter = _bind("prs3_emit_lines")
     if not _emitter:
         return None
     m, axes = len(kind), len(axis_values)
@@ -244,7 +290,7 @@ def lex_text(text: bytes, codes: bytes, width: int, rows: int | None = None
     N, to skip counting the lines (they are counted where the text has more)."""
     global _lexer
     if _lexer is None:
-        _lexer = _bind("prs3_lex_columns", [_TEXT, _I64, _TEXT, _I64, _POINTER, _POINTER, _POINTER, _I64, _POINTER])
+        _lexer = _bind("prs3_lex_columns")
     if not _lexer:
         return None
     lexed = _lex_into(text, codes, width, rows) if rows else None
@@ -274,7 +320,7 @@ def scan_text(data: bytes) -> tuple[int, bool, int, int] | None:
     there or turned off."""
     global _scan
     if _scan is None:
-        _scan = _bind("prs3_scan_text", [_TEXT, _I64, _POINTER])
+        _scan = _bind("prs3_scan_text")
     if not _scan:
         return None
     found = np.zeros(4, dtype=np.int64)
@@ -288,7 +334,7 @@ def line_end(data: bytes, start: int, count: int) -> int | None:
     there)`` where it has fewer (csrc/lex.c's prs3_line_end); None where the compiled library is not there."""
     global _line_end
     if _line_end is None:
-        _line_end = _bind("prs3_line_end", [_TEXT, _I64, _I64, _I64])
+        _line_end = _bind("prs3_line_end")
     if not _line_end:
         return None
     return int(_line_end(data, len(data), start, count))
@@ -307,8 +353,7 @@ def fill_moves(values: FloatArray, moves: np.ndarray, state: FloatArray, limits:
     compiled library is not there or turned off (numpy then)."""
     global _fill
     if _fill is None:
-        _fill = _bind("prs3_fill_moves", [_POINTER, _POINTER, _I64, _POINTER, _POINTER, _POINTER, _I64, _POINTER,
-                                          _POINTER, _POINTER, _POINTER, _POINTER])
+        _fill = _bind("prs3_fill_moves")
     if not _fill:
         return True
     values = np.ascontiguousarray(values, dtype=np.float64)
@@ -337,7 +382,7 @@ def line_roles(values: FloatArray, kinds: np.ndarray) -> tuple[BoolArray, BoolAr
     blank); None where the compiled library is not there or turned off."""
     global _roles
     if _roles is None:
-        _roles = _bind("prs3_line_roles", [_POINTER, _POINTER, _I64, _POINTER, _POINTER])
+        _roles = _bind("prs3_line_roles")
     if not _roles:
         return None
     values = np.ascontiguousarray(values, dtype=np.float64)
@@ -357,7 +402,7 @@ def rows_to_part(rows: FloatArray, rotation: FloatArray, origin: FloatArray | No
     is not there or turned off."""
     global _to_part
     if _to_part is None:
-        _to_part = _bind("prs3_rows_to_part", [_POINTER, _I64, _POINTER, _POINTER, _POINTER])
+        _to_part = _bind("prs3_rows_to_part")
     if not _to_part:
         return None
     rows = np.ascontiguousarray(rows, dtype=np.float64).reshape(-1, 3)
@@ -379,7 +424,7 @@ def plain_gotos(text: bytes, codes: bytes, pair_bad: bytes, rows: int) -> tuple[
     the reader's byte-code and bad-pair tables; None where the compiled reader is not there or turned off."""
     global _gotos
     if _gotos is None:
-        _gotos = _bind("prs3_plain_gotos", [_TEXT, _I64, _TEXT, _TEXT, _POINTER, _POINTER, _I64])
+        _gotos = _bind("prs3_plain_gotos")
     if not _gotos:
         return None
     values = np.zeros((rows, 6))                         # every cell written (calloc: no pass over it)
