@@ -9,6 +9,7 @@ clearance (a parameter's default, a keyword argument, a field or a fallback name
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 import prs3_post
@@ -32,29 +33,29 @@ ALLOWED = {
 }
 
 
-def _owner(stack: list[ast.AST]) -> str:
-    """The innermost function or module-level constant a node is in ("" at module level otherwise)."""
-    for node in reversed(stack):
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
-            return node.name
-        if isinstance(node, ast.Assign) and isinstance(node.targets[0], ast.Name):
-            return node.targets[0].id
-        if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
-            return node.target.id
-    return ""
+@functools.cache
+def _parsed(path: Path) -> tuple[list[tuple[ast.Constant, str]], list[ast.Constant]]:
+    """A module read once (one walk of its tree): each number equal to one of :data:`KNOWN` with its owner
+    (the innermost function or constant it is in, "" where none) and each ``1.0`` used as a clearance."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    spans: list[tuple[int, int, str]] = []              # (first line, last line, name)
+    known: list[ast.Constant] = []
+    ones: list[ast.Constant] = []
+    for node in ast.walk(tree):
+        name = (node.name if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) else
+                node.targets[0].id if isinstance(node, ast.Assign) and isinstance(node.targets[0], ast.Name) else
+                node.target.id if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name) else None)
+        if name is not None:
+            spans.append((node.lineno, node.end_lineno or node.lineno, name))
+        if isinstance(node, ast.Constant) and type(node.value) in (int, float) and node.value in KNOWN:
+            known.append(node)
+        ones += _clearance_ones(node)
 
+    def owner(node: ast.Constant) -> str:
+        around = [(last - first, name) for first, last, name in spans if first <= node.lineno <= last]
+        return min(around)[1] if around else ""
 
-def _owners(tree: ast.AST) -> dict[int, str]:
-    """Each constant's owner (:func:`_owner`), by the constant's id."""
-    owners: dict[int, str] = {}
-    todo: list[tuple[ast.AST, list[ast.AST]]] = [(tree, [])]
-    while todo:
-        node, stack = todo.pop()
-        stack = [*stack, node]
-        if isinstance(node, ast.Constant):
-            owners[id(node)] = _owner(stack)
-        todo += [(child, stack) for child in ast.iter_child_nodes(node)]
-    return owners
+    return [(node, owner(node)) for node in known], ones
 
 
 def _names(node: ast.AST) -> set[str]:
@@ -74,34 +75,36 @@ def _names(node: ast.AST) -> set[str]:
     return found
 
 
-def _clearance_ones(tree: ast.AST) -> list[ast.Constant]:
-    """``1.0`` as a clearance: a default of a parameter, a keyword argument, a field, a fallback or an
-    argument of a call whose name says clearance."""
+def _one(node: ast.AST | None) -> bool:
+    return isinstance(node, ast.Constant) and type(node.value) is float and node.value == 1.0
+
+
+def _clearance(names: set[str] | str) -> bool:
+    return any("clearance" in name for name in ([names] if isinstance(names, str) else names))
+
+
+def _clearance_ones(node: ast.AST) -> list[ast.Constant]:
+    """``1.0`` as a clearance in ``node`` itself (not its children): a default of a parameter, a keyword
+    argument, a field, a fallback or an argument of a call whose name says clearance."""
     found: list[ast.Constant] = []
-
-    def one(node: ast.AST | None) -> bool:
-        return isinstance(node, ast.Constant) and type(node.value) is float and node.value == 1.0
-
-    def clearance(names: set[str] | str) -> bool:
-        return any("clearance" in name for name in ([names] if isinstance(names, str) else names))
-
-    for node in ast.walk(tree):
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
-            args = node.args
-            positional = args.posonlyargs + args.args
-            pairs = list(zip(positional[len(positional) - len(args.defaults):], args.defaults, strict=True))
-            pairs += [(a, d) for a, d in zip(args.kwonlyargs, args.kw_defaults, strict=True) if d is not None]
-            found += [d for a, d in pairs if one(d) and clearance(a.arg)]
-        elif isinstance(node, ast.keyword) and node.arg and one(node.value) and clearance(node.arg):
-            found.append(node.value)                                   # type: ignore[arg-type]
-        elif isinstance(node, ast.AnnAssign) and one(node.value) and clearance(_names(node.target)):
-            found.append(node.value)                                   # type: ignore[arg-type]
-        elif isinstance(node, ast.Assign) and one(node.value) and clearance(_names(node.targets[0])):
-            found.append(node.value)                                   # type: ignore[arg-type]
-        elif isinstance(node, ast.IfExp) and clearance(_names(node.test)):
-            found += [b for b in (node.body, node.orelse) if one(b)]   # type: ignore[misc]
-        elif isinstance(node, ast.Call) and clearance(_names(node)):   # .get("clearance_min", 1.0), an option's default
-            found += [a for a in [*node.args, *(k.value for k in node.keywords)] if one(a)]   # type: ignore[misc]
+    one, clearance = _one, _clearance
+    if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+        args = node.args
+        positional = args.posonlyargs + args.args
+        pairs = list(zip(positional[len(positional) - len(args.defaults):], args.defaults, strict=True))
+        pairs += [(a, d) for a, d in zip(args.kwonlyargs, args.kw_defaults, strict=True) if d is not None]
+        found += [d for a, d in pairs if one(d) and clearance(a.arg)]
+    elif isinstance(node, ast.keyword) and node.arg and one(node.value) and clearance(node.arg):
+        found.append(node.value)
+    elif isinstance(node, ast.AnnAssign) and one(node.value) and clearance(_names(node.target)):
+        found.append(node.value)
+    elif isinstance(node, ast.Assign) and one(node.value) and clearance(_names(node.targets[0])):
+        found.append(node.value)
+    elif isinstance(node, ast.IfExp) and clearance(_names(node.test)):
+        found += [b for b in (node.body, node.orelse) if one(b)]
+    elif isinstance(node, ast.Call):                   # .get("clearance_min", 1.0), an option's default
+        ones = [a for a in [*node.args, *(k.value for k in node.keywords)] if one(a)]
+        found += ones if ones and clearance(_names(node)) else []
     return found
 
 
@@ -112,13 +115,9 @@ def repeated_defaults(root: Path = PACKAGE) -> list[str]:
         module = path.relative_to(root).as_posix()
         if module == "core/defaults.py":
             continue
-        tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
-        owners = _owners(tree)
-        flagged = {id(node): (node, "DEFAULT_CLEARANCE_MIN") for node in _clearance_ones(tree)}
-        for node in ast.walk(tree):
-            if (isinstance(node, ast.Constant) and type(node.value) in (int, float) and node.value in KNOWN
-                    and owners.get(id(node), "") not in ALLOWED):
-                flagged[id(node)] = (node, KNOWN[node.value])
+        known, ones = _parsed(path)
+        flagged = {id(node): (node, "DEFAULT_CLEARANCE_MIN") for node in ones}
+        flagged |= {id(node): (node, KNOWN[node.value]) for node, owner in known if owner not in ALLOWED}
         problems += [f"{module}:{node.lineno}: {node.value!r} (use core.defaults.{name})"
                      for node, name in sorted(flagged.values(), key=lambda pair: (pair[0].lineno, pair[0].col_offset))]
     return problems
@@ -132,10 +131,7 @@ def test_each_allowed_number_is_still_there():
     """An entry of ALLOWED whose number went away is removed, so the list stays the reasons that hold."""
     seen = set()
     for path in PACKAGE.rglob("*.py"):
-        tree = ast.parse(path.read_text(encoding="utf-8"))
-        owners = _owners(tree)
-        seen |= {owners[id(node)] for node in ast.walk(tree) if isinstance(node, ast.Constant)
-                 and type(node.value) in (int, float) and node.value in KNOWN and owners[id(node)] in ALLOWED}
+        seen |= {owner for _, owner in _parsed(path)[0] if owner in ALLOWED}
     assert seen == set(ALLOWED)
 
 
