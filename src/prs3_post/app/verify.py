@@ -699,7 +699,6 @@ def verify_file(setting: ProgramSetting, *, tolerance: float, axis_tolerance_deg
     InputError
         An unreadable program, or one without moves.
     """
-    _keep_freed_memory()
     stream = ProgramStream(setting.path, setting.dialect, stage=setting.machine.stage.present, chunk_lines=chunk_lines,
                            kinematics=kinematics_of(setting.machine))
     decimals = setting.dialect.decimals
@@ -713,30 +712,6 @@ def verify_file(setting: ProgramSetting, *, tolerance: float, axis_tolerance_deg
         raise InputError("no moves (G0/G1 lines) in the program", path=setting.path)
     check_program_moves(setting.header, verifier.rows)
     return verifier.report(blending_lines=stream.blending_lines)
-
-
-#: glibc's mallopt parameters (malloc.h): M_TRIM_THRESHOLD, M_TOP_PAD, M_MMAP_THRESHOLD.
-_M_TRIM_THRESHOLD, _M_TOP_PAD, _M_MMAP_THRESHOLD = -1, -2, -3
-
-
-def _keep_freed_memory() -> None:
-    """Let glibc keep the memory a chunk frees for the next chunk (no effect elsewhere).
-
-    A streamed replay allocates and frees the same arrays of a few hundred kB to a few MB for every
-    chunk; by default glibc hands each back to the kernel (munmap, heap trim) and the next chunk
-    page-faults it in again: about a fifth of verify's CPU time on a 1,000,000-line program. Arrays
-    up to 64 MB now come from the heap, which keeps up to 256 MB free at its top. The peak memory
-    does not change (the same arrays, reused), only the time.
-    """
-    try:
-        import ctypes
-
-        libc = ctypes.CDLL(None)
-        mallopt = libc.mallopt
-    except (OSError, AttributeError):                  # not glibc
-        return
-    for option, value in ((_M_MMAP_THRESHOLD, 64 << 20), (_M_TRIM_THRESHOLD, 256 << 20), (_M_TOP_PAD, 16 << 20)):
-        mallopt(ctypes.c_int(option), ctypes.c_int(value))
 
 
 def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str, *,
