@@ -72,7 +72,6 @@ from prs3_post.check.collision_rapids import (
     RAPID_TOUCH_MM,
     RapidClearance,
     check_rapids,
-    rapid_diameter_from_entry,
     rapid_tool_clearance,
     tool_words,
 )
@@ -85,8 +84,7 @@ from prs3_post.part.setup_transform import Setup
 
 __all__ = ["BODY_NAMES", "RAPID_TOUCH_MM", "Approach", "Clearance", "ProgramClearance", "RapidClearance",
            "approach_label", "body_cylinders", "check_program", "check_rapids", "clearance", "feed_tips_of",
-           "inside", "measure_program", "point_triangle_distance", "rapid_diameter_from_entry", "rapid_tool_clearance",
-           "tool_words"]
+           "inside", "measure_program", "point_triangle_distance", "rapid_tool_clearance", "tool_words"]
 
 
 def check_program(machine: Machine, program: JointProgram, setup: Setup, triangles: FloatArray, face: Face | None,

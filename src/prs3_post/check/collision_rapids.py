@@ -5,7 +5,6 @@ converted program): a feed cuts what the CAM program removes, a rapid must not.
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -17,8 +16,8 @@ from prs3_post.core.types import FloatArray
 from prs3_post.machine.model import Machine
 from prs3_post.part.setup_transform import Setup
 
-__all__ = ["RAPID_TOUCH_MM", "RETRACT_SIDEWAYS_MM", "RapidClearance", "check_rapids", "rapid_diameter_from_entry",
-           "rapid_tool_clearance", "tool_words"]
+__all__ = ["RAPID_TOUCH_MM", "RETRACT_SIDEWAYS_MM", "RapidClearance", "check_rapids", "rapid_tool_clearance",
+           "tool_words"]
 
 #: mm: how far a rapid's tool may reach into the part's triangles unrefused. A CAM program's rapid
 #: may start or end where a cut left the tool touching the finished part (retracting past the wall
@@ -74,20 +73,6 @@ class RapidClearance:
         what = f"hits the part in a rapid, {-d:.3f} mm deep" if d < 0 else f"comes within {d:.3f} mm of the part"
         return (f"{program.describe(self.row)}: the tool {what} (a rapid may touch the part, not cut it: "
                 f"{RAPID_TOUCH_MM:.3f} mm at most; {tool_words(self.diameter)})")
-
-
-def rapid_diameter_from_entry(text: str) -> float:
-    """mm: the tool diameter a converted program's ``collision`` entry says its rapids were checked
-    with (:meth:`RapidClearance.entry`, its parentheses perhaps brackets); 0 where it says none (the
-    diameter unknown, or a program converted without a part: the tool is then its axis).
-
-    >>> rapid_diameter_from_entry("clear of the part by at least 1.000 mm: tool in rapids 2.000 mm [6.000 mm diameter]")
-    6.0
-    >>> rapid_diameter_from_entry("not checked (no part given)")
-    0.0
-    """
-    found = re.search(r"tool in rapids [^(\[]*[(\[]([0-9]+\.[0-9]+) mm diameter", text)
-    return float(found.group(1)) if found else 0.0
 
 
 def tool_words(diameter: float) -> str:

@@ -220,7 +220,6 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext,
         intended_from_source,
         rebuild_job,
     )
-    from prs3_post.check.collision import rapid_diameter_from_entry
     from prs3_post.emit.header import SourceHeader
     from prs3_post.part.stl import load_part
 
@@ -229,7 +228,7 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext,
         mesh = load_part(against, units=opts["units"], up=opts["up"])
         return None, CamPart(triangles=np.asarray(mesh.triangles, dtype=np.float64),
                              tool_length=context.header.tool_length, setup=context.header.setup,
-                             tool_diameter=rapid_diameter_from_entry(context.header.collision))
+                             tool_diameter=context.header.rapids_tool_diameter)
     if isinstance(context.header, SourceHeader):            # a converted program: its CAM source
         try:
             return intended_from_source(context, against), None

@@ -250,7 +250,9 @@ class SourceHeader(_HeaderLines):
     counts : SourceCounts | None — what the input held and the program has (None: a program written
         before the header had them, or a header not yet complete)
     collision : str — the ``collision`` entry convert writes (read back as written, its parentheses as the
-        dialect left them: verify takes the tool diameter its rapids were checked with from it)
+        dialect left them)
+    rapids_tool_diameter : float — mm, read back: the tool diameter the ``collision`` entry says the
+        rapids were checked with (0: none stated: the diameter unknown, or converted without a part)
     """
 
     version: str
@@ -279,3 +281,4 @@ class SourceHeader(_HeaderLines):
     tcp_off: tuple[str, ...] = ()
     counts: SourceCounts | None = None
     collision: str = ""
+    rapids_tool_diameter: float = 0.0

@@ -497,7 +497,23 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
         line_numbers=numbers, line_start=start, line_step=step, lines=tuple((k, v[0]) for k, v in found.items()),
         path=path, five_axis=five_axis, tcp_on=tcp_on, tcp_off=tcp_off, counts=counts,
         collision=found["collision"][1] if "collision" in found else "",
+        rapids_tool_diameter=_rapids_tool_diameter(found["collision"][1]) if "collision" in found else 0.0,
     )
+
+
+def _rapids_tool_diameter(text: str) -> float:
+    """mm: the tool diameter a converted program's ``collision`` entry says its rapids were checked
+    with (:meth:`prs3_post.check.collision_rapids.RapidClearance.entry`, its parentheses perhaps
+    brackets); 0 where it says none (the diameter unknown, or a program converted without a part:
+    the tool is then its axis).
+
+    >>> _rapids_tool_diameter("clear of the part by at least 1.000 mm: tool in rapids 2.000 mm [6.000 mm diameter]")
+    6.0
+    >>> _rapids_tool_diameter("not checked (no part given)")
+    0.0
+    """
+    found = re.search(r"tool in rapids [^(\[]*[(\[]([0-9]+\.[0-9]+) mm diameter", text)
+    return float(found.group(1)) if found else 0.0
 
 
 def header_comments(text: str, *, open_: str = "(", close: str = ")") -> list[tuple[int, str]]:
