@@ -56,6 +56,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from prs3_post.check import collision_scan
 from prs3_post.check.collision_bodies import BODY_NAMES, _Region, _swept, body_cylinders
 from prs3_post.check.collision_distance import (
     REACH_MM,
@@ -75,8 +76,11 @@ from prs3_post.check.collision_rapids import (
     rapid_tool_clearance,
     tool_words,
 )
-from prs3_post.core.toolpath import JointProgram
+from prs3_post.core.errors import LimitError
+from prs3_post.core.numbers import exact_text
+from prs3_post.core.toolpath import JointProgram, MoveKind, program_from_columns
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
+from prs3_post.kinematics.replay import replay
 from prs3_post.machine.model import Machine
 from prs3_post.part.face import Face
 from prs3_post.part.meshdist import inside, point_triangle_distance
@@ -153,8 +157,6 @@ class ProgramClearance:
         """The header's ``collision`` entry: ``clear of the part by at least 1.000 mm: tool 3.250 mm,
         holder over 11.000 mm, spindle nose over 11.000 mm`` (``cam``: the tool is not checked;
         ``rapids``: a CAM program's tool, checked in its rapids only)."""
-        from prs3_post.core.numbers import exact_text
-
         shown = [f"{name} {'' if exact else 'over '}{d:.3f} mm" for name, d, exact in zip(
             BODY_NAMES, self.distance.tolist(), self.exact.tolist(), strict=True)]
         if cam:
@@ -217,8 +219,6 @@ def measure_program(machine: Machine, program: JointProgram, setup: Setup, trian
     LimitError
         A body closer than ``clearance_min`` (:func:`check_program`).
     """
-    from prs3_post.core.errors import LimitError
-
     if machine.holder is None:
         return "not checked: no [holder] in the machine file"
     length = machine.geometry.tool_length - machine.geometry.gauge_offset     # gauge line to tip
@@ -246,7 +246,7 @@ def measure_program(machine: Machine, program: JointProgram, setup: Setup, trian
         d = float(result.distance[b])
         what = (f"hits the part, {-d:.3f} mm deep" if d < 0 else f"comes within {d:.3f} mm of the part")
         raise LimitError(f"{program.describe(row)}: the {BODY_NAMES[b]} {what} (clearance min "
-                         f"{_exact(clearance_min)} mm)")
+                         f"{exact_text(clearance_min, 3)} mm)")
     return ProgramClearance(distance=np.where(result.exact, result.distance, clearance_min + REACH_MM),
                             exact=result.exact.copy())   # not reached: the stream found a body too close
 
@@ -254,15 +254,7 @@ def measure_program(machine: Machine, program: JointProgram, setup: Setup, trian
 def feed_tips_of(machine: Machine, program: JointProgram) -> FloatArray:
     """(M, 3) mm, machine frame: the end tips of ``program``'s FEED rows, as :func:`measure_program`
     draws its swept region from them."""
-    from prs3_post.check.collision_scan import scan_program
-
-    return scan_program(machine, program, np.eye(3)).feed_tips
-
-
-def _exact(value: float) -> str:
-    from prs3_post.core.numbers import exact_text
-
-    return exact_text(value, 3)
+    return collision_scan.scan_program(machine, program, np.eye(3)).feed_tips
 
 
 #: mm: the header's resolution; the streamed minima are found to it (:meth:`_Stream.minima`).
@@ -273,10 +265,8 @@ def _streamed(machine: Machine, program: JointProgram, setup: Setup, triangles: 
               bodies: FloatArray, clearance_min: float, feed_tips: FloatArray | None = None
               ) -> ProgramClearance | None:
     """:func:`measure_program`'s streamed check; None once a body is found closer than ``clearance_min``."""
-    from prs3_post.check.collision_scan import scan_program
-
     frame = np.eye(3) if face is None else np.stack([face.u, face.v, face.normal])   # part frame, rows
-    scan = scan_program(machine, program, setup.axes_to_part(np.eye(3)) @ frame.T)
+    scan = collision_scan.scan_program(machine, program, setup.axes_to_part(np.eye(3)) @ frame.T)
     part = _Part.of(triangles, face, clearance_min)
     region = _swept(face, scan.feed_tips if feed_tips is None else feed_tips, float(bodies[0, 0]) + 1e-6,
                     setup=setup)
@@ -321,9 +311,7 @@ _GROUPS_AT_ONCE = 8
 
 def _runs(groups: BoolArray, n: int) -> list[tuple[int, int]]:
     """The row ranges [lo, hi) of the runs of consecutive True groups (GROUP_ROWS rows each, ``n`` rows)."""
-    from prs3_post.check.collision_scan import GROUP_ROWS
-
-    keep = np.repeat(groups, GROUP_ROWS)[:n]
+    keep = np.repeat(groups, collision_scan.GROUP_ROWS)[:n]
     edges = np.flatnonzero(np.diff(np.concatenate([[False], keep, [False]]).astype(np.int8)))
     return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
 
@@ -331,9 +319,6 @@ def _runs(groups: BoolArray, n: int) -> list[tuple[int, int]]:
 def _replay_rows(machine: Machine, program: JointProgram, lo: int, hi: int) -> tuple[IntArray, FloatArray, FloatArray]:
     """verify's samples of rows ``lo`` .. ``hi`` replayed from the row before (its end is where row
     ``lo``'s move starts, and the first sample): each sample's row, tip and axis (machine frame)."""
-    from prs3_post.core.toolpath import program_from_columns
-    from prs3_post.kinematics.replay import replay
-
     start = max(lo - 1, 0)
     columns = {name: getattr(program, name)[start:hi] for name in ("kind", "stage", "strokes", "inverse_time",
                                                                   "source")}
@@ -439,9 +424,6 @@ def _replayed(machine: Machine, program: JointProgram) -> tuple[IntArray, FloatA
     """verify's FK samples of ``program`` (machine frame), REPLAY_ROWS program rows at a time, each piece
     from the previous one's last row (its end is where the piece's first move starts: the samples are
     those of one replay): the row, tip and axis of each sample, and the end tips of the FEED rows."""
-    from prs3_post.core.toolpath import MoveKind, program_from_columns
-    from prs3_post.kinematics.replay import replay
-
     out_row, out_tip, out_axis, out_feed = [], [], [], []
     n, rows = len(program), REPLAY_ROWS
     for lo in range(0, max(n, 1), rows):

@@ -11,8 +11,11 @@ import numpy as np
 
 from prs3_post.check.collision_bodies import body_cylinders
 from prs3_post.check.collision_distance import REACH_MM, clearance
-from prs3_post.core.toolpath import JointProgram
+from prs3_post.core.errors import LimitError
+from prs3_post.core.numbers import fixed
+from prs3_post.core.toolpath import JointProgram, MoveKind, program_from_columns
 from prs3_post.core.types import FloatArray
+from prs3_post.kinematics.replay import replay
 from prs3_post.machine.model import Machine
 from prs3_post.part.setup_transform import Setup
 
@@ -62,9 +65,7 @@ class RapidClearance:
         if self.rapids == 0:
             shown = "none to check"
         else:
-            text = f"{self.distance:.3f}"
-            text = text[1:] if text.startswith("-") and float(text) == 0 else text     # never -0.000
-            shown = f"{'' if self.exact else 'over '}{text} mm"
+            shown = f"{'' if self.exact else 'over '}{fixed(self.distance, 3)} mm"
         return f"tool in rapids {shown} ({tool_words(self.diameter)})"
 
     def message(self, program: JointProgram) -> str:
@@ -100,9 +101,6 @@ def rapid_tool_clearance(machine: Machine, program: JointProgram, setup: Setup, 
     ValueError
         The machine has no ``[holder]`` (the tool ends where it begins).
     """
-    from prs3_post.core.toolpath import MoveKind, program_from_columns
-    from prs3_post.kinematics.replay import replay
-
     if machine.holder is None:
         raise ValueError(f"machine {machine.name} has no [holder]")
     erosion = 2.0 * RAPID_TOUCH_MM
@@ -171,8 +169,6 @@ def check_rapids(machine: Machine, program: JointProgram, setup: Setup, triangle
         ``part.cls:12: the tool hits the part in a rapid, 4.950 mm deep (a rapid may touch the part,
         not cut it: 0.050 mm at most; 6.000 mm diameter)``.
     """
-    from prs3_post.core.errors import LimitError
-
     found = rapid_tool_clearance(machine, program, setup, triangles, tool_diameter)
     if found.distance < -RAPID_TOUCH_MM:
         raise LimitError(found.message(program))

@@ -33,6 +33,7 @@ import numpy as np
 
 from prs3_post.core.toolpath import JointProgram, MoveKind
 from prs3_post.core.types import BoolArray, FloatArray
+from prs3_post.kinematics.replay import _forward_parts, _shift_keys
 from prs3_post.machine.model import Machine
 
 __all__ = ["FLAT_KEY_MM", "GROUP_ROWS", "SCAN_ROWS", "Scan", "scan_program"]
@@ -103,8 +104,6 @@ def _scan_rows(machine: Machine, program: JointProgram, lo: int, hi: int, frame:
                ) -> tuple[FloatArray, ...]:
     """Rows ``lo`` .. ``hi`` (``lo`` a multiple of GROUP_ROWS), with the row before: the feed tips and
     the groups' tip, axis, half, turn, wobble, feeding and flat (the last two as 0/1)."""
-    from prs3_post.kinematics.replay import _forward_parts, _shift_keys
-
     start = max(lo - 1, 0)
     stage, strokes = program.stage[start:hi], program.strokes[start:hi]
     canonical, index = _shift_keys(strokes)
@@ -146,8 +145,6 @@ def _scan_rows(machine: Machine, program: JointProgram, lo: int, hi: int, frame:
 def _rates(machine: Machine, canonical: FloatArray) -> tuple[FloatArray, FloatArray]:
     """(K,), (K,): Σ_j |∂tip/∂key_j| (mm/mm) and Σ_j |∂axis/∂key_j| (1/mm) at head pose keys (K, 3)
     (strokes with T1 = 0), by central differences in T2 and T3."""
-    from prs3_post.kinematics.replay import _forward_parts
-
     parts = []
     for leg in range(1, canonical.shape[1]):
         delta = np.zeros(canonical.shape[1])
