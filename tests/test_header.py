@@ -15,11 +15,11 @@ from numpy.testing import assert_array_equal
 
 from prs3_post.app.job import JobSpec, run_job, run_operations, spec_from_header, specs_from_header
 from prs3_post.core.errors import InputError
-from prs3_post.core.numbers import exact_text
+from prs3_post.core.numbers import degrees_text, exact_text
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.emit.header import SourceCounts, SourceHeader
 from prs3_post.emit.header_read import header_comments, parse_header, read_header
-from prs3_post.emit.header_write import degrees_text, source_header_entries
+from prs3_post.emit.header_write import source_header_entries
 from prs3_post.machine.loading import load_dialect, load_machine
 from prs3_post.part.setup_transform import Setup
 from prs3_post.toolpaths import (

@@ -22,7 +22,7 @@ are formatted one by one with :func:`fixed`; the rest never touch Python floats.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,8 +30,8 @@ import numpy as np
 from prs3_post.core.columns import ChoiceColumn, Column, ScaledColumn
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 
-__all__ = ["ChoiceColumn", "Column", "ScaledColumn", "fixed", "fixed_column", "fixed_or_na", "render_rows",
-           "scale_column"]
+__all__ = ["ChoiceColumn", "Column", "ScaledColumn", "degrees_text", "exact_list", "exact_text", "fixed",
+           "fixed_column", "fixed_list", "fixed_or_na", "format_word", "render_rows", "scale_column", "short_text"]
 
 #: |value·10^d| below this is written from exact integers; at or above it (and nan/inf) one by one.
 _EXACT_LIMIT = 2.0**52
@@ -593,3 +593,51 @@ def format_word(letter: str, value: float, decimals: int) -> str:
     if not math.isfinite(value):
         raise ValueError(f"{letter}: {value!r} is not a finite number")
     return f"{letter}{fixed(value, decimals)}"
+
+
+def degrees_text(radians: float, decimals: int) -> str:
+    """An angle kept in radians, in degrees such that ``math.radians(float(text)) == radians``.
+
+    >>> degrees_text(math.radians(15.0), 3), degrees_text(math.radians(3.0), 3)
+    ('15.000', '3.000')
+    """
+    degrees = math.degrees(radians)
+    candidate = degrees
+    for _ in range(64):                                # radians() may not invert degrees(): nudge
+        if math.radians(candidate) == radians:
+            break
+        candidate = float(np.nextafter(candidate, math.inf if math.radians(candidate) < radians else -math.inf))
+    else:
+        candidate = degrees
+    for places in range(decimals, 25):
+        text = fixed(candidate, places)
+        if math.radians(float(text)) == radians:
+            return text
+    return repr(candidate)
+
+
+def exact_list(values: Iterable[float], decimals: int) -> str:
+    """``[a, b, c]``, each :func:`exact_text` (read back as the same float).
+
+    >>> exact_list([1.0, 0.1 + 0.2], 1)
+    '[1.0, 0.30000000000000004]'
+    """
+    return "[" + ", ".join(exact_text(float(v), decimals) for v in values) + "]"
+
+
+def fixed_list(values: Iterable[float], decimals: int) -> str:
+    """``[a, b, c]`` in fixed decimals, for people (not read back).
+
+    >>> fixed_list([1.0, -0.00001], 3)
+    '[1.000, 0.000]'
+    """
+    return "[" + ", ".join(fixed(float(v), decimals) for v in values) + "]"
+
+
+def short_text(value: float) -> str:
+    """A number for a message, in at most six significant digits (never 300 digits; may be exponent notation).
+
+    >>> short_text(1.0), short_text(1e300), short_text(-0.1234567)
+    ('1', '1e+300', '-0.123457')
+    """
+    return f"{value:.6g}"

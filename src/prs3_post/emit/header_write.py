@@ -6,13 +6,10 @@ from __future__ import annotations
 
 import hashlib
 import math
-from collections.abc import Iterable
-
-import numpy as np
 
 from prs3_post.core.errors import InputError
 from prs3_post.core.input_files import open_input
-from prs3_post.core.numbers import exact_text
+from prs3_post.core.numbers import degrees_text, exact_list, exact_text, fixed_list
 from prs3_post.core.numbers import fixed as _fixed
 from prs3_post.core.types import FloatArray
 from prs3_post.emit.header import (
@@ -32,7 +29,7 @@ from prs3_post.part.setup_transform import Setup
 from prs3_post.toolpaths import SquareShape
 from prs3_post.toolpaths.work import HoleJob, ProfileJob
 
-__all__ = ["degrees_text", "file_sha256", "header_entries", "source_header_entries"]
+__all__ = ["file_sha256", "header_entries", "source_header_entries"]
 
 
 def file_sha256(path: str) -> str:
@@ -51,37 +48,6 @@ def file_sha256(path: str) -> str:
         except OSError as exc:
             raise InputError(f"cannot read the file: {exc.strerror or exc}", path=path) from exc
     return digest.hexdigest()
-
-
-def degrees_text(radians: float, decimals: int) -> str:
-    """An angle kept in radians, in degrees such that ``math.radians(float(text)) == radians``.
-
-    >>> degrees_text(math.radians(15.0), 3), degrees_text(math.radians(3.0), 3)
-    ('15.000', '3.000')
-    """
-    degrees = math.degrees(radians)
-    candidate = degrees
-    for _ in range(64):                                # radians() may not invert degrees(): nudge
-        if math.radians(candidate) == radians:
-            break
-        candidate = float(np.nextafter(candidate, math.inf if math.radians(candidate) < radians else -math.inf))
-    else:
-        candidate = degrees
-    for places in range(decimals, 25):
-        text = _fixed(candidate, places)
-        if math.radians(float(text)) == radians:
-            return text
-    return repr(candidate)
-
-
-def _numbers(values: Iterable[float], decimals: int) -> str:
-    """``[a, b, c]``, each exact (read back as the same float)."""
-    return "[" + ", ".join(exact_text(float(v), decimals) for v in values) + "]"
-
-
-def _shown(values: Iterable[float], decimals: int) -> str:
-    """``[a, b, c]`` in fixed decimals, for people (not read back)."""
-    return "[" + ", ".join(_fixed(float(v), decimals) for v in values) + "]"
 
 
 def _item_values(work: HoleJob | ProfileJob) -> list[str]:
@@ -111,9 +77,9 @@ def _join(items: tuple[tuple[str, str], ...], values: list[str]) -> str:
 def _positions(at_uv: FloatArray, at_xyz: FloatArray) -> str:
     parts = []
     if len(at_uv):
-        parts.append("at face [u, v] " + ", ".join(_numbers(p, 4) for p in at_uv) + " mm")
+        parts.append("at face [u, v] " + ", ".join(exact_list(p, 4) for p in at_uv) + " mm")
     if len(at_xyz):
-        parts.append("at part [x, y, z] " + ", ".join(_numbers(p, 4) for p in at_xyz) + " mm")
+        parts.append("at part [x, y, z] " + ", ".join(exact_list(p, 4) for p in at_xyz) + " mm")
     return " and ".join(parts) if parts else "at the face origin"
 
 
@@ -161,7 +127,7 @@ def _operation_entries(record: OperationRecord, face: Face) -> list[tuple[str, s
     how = "chosen automatically" if record.face is None else "as given"
     return [
         ("face", f"{face.index}, {how}: inclination {_fixed(math.degrees(face.inclination), 4)} deg, "
-                 f"normal {_shown(face.normal, 6)}, origin {_shown(face.origin, 4)} mm"),
+                 f"normal {fixed_list(face.normal, 6)}, origin {fixed_list(face.origin, 4)} mm"),
         ("", f"{record.work.operation.value} {_positions(record.at_uv, record.at_xyz)}"),
         ("parameters", _join(_items_of(record.work), _item_values(record.work))),
         ("tool", f"T{cut.tool_number} " + _join(_TOOL_ITEMS, [
@@ -221,8 +187,9 @@ def source_header_entries(header: SourceHeader, *, description: str = "") -> tup
                                      f"off {','.join(header.tcp_off)}"))
     if header.work_plane is not None:
         plane = header.work_plane
-        entries.append(("work plane", f"origin {_numbers(plane.origin, 4)} mm, x {_numbers(plane.rotation[:, 0], 6)}, "
-                                      f"z {_numbers(plane.rotation[:, 2], 6)}"))
+        x_axis, z_axis = plane.rotation[:, 0], plane.rotation[:, 2]
+        entries.append(("work plane", f"origin {exact_list(plane.origin, 4)} mm, x {exact_list(x_axis, 6)}, "
+                                      f"z {exact_list(z_axis, 6)}"))
     entries += [
         ("setup", _setup_text(header.setup)),
         ("tool length", f"{exact_text(header.tool_length, 3)} mm, "
@@ -236,5 +203,5 @@ def source_header_entries(header: SourceHeader, *, description: str = "") -> tup
 
 
 def _setup_text(setup: Setup) -> str:
-    return (f"part origin at machine {_numbers(setup.origin, 4)} mm, "
+    return (f"part origin at machine {exact_list(setup.origin, 4)} mm, "
             f"rotation {exact_text(setup.rotation_deg, 4)} deg about z")

@@ -18,6 +18,7 @@ import numpy as np
 
 from prs3_post.core.errors import Prs3Error
 from prs3_post.core.numbers import fixed as _fixed
+from prs3_post.core.numbers import short_text
 from prs3_post.core.types import FloatArray
 from prs3_post.machine.model import Machine
 
@@ -78,13 +79,13 @@ class Setup:
         if len(origin) != 3:
             raise SetupError(f"part origin: expected 3 numbers x, y, z in mm, got {len(origin)}", field="origin")
         if not all(math.isfinite(v) and abs(v) <= MAX_ORIGIN_MM for v in origin):
-            shown = ", ".join(_short(v) for v in origin)
+            shown = ", ".join(short_text(v) for v in origin)
             raise SetupError(f"part origin: each of x, y, z must be a finite number within ±{MAX_ORIGIN_MM:g} mm, "
                              f"got [{shown}]", field="origin")
         rotation = float(self.rotation_deg)
         if not (math.isfinite(rotation) and abs(rotation) <= MAX_ROTATION_DEG):
             raise SetupError(f"part rotation: must be a finite number within ±{MAX_ROTATION_DEG:g} degrees, "
-                             f"got {_short(rotation)}", field="rotation")
+                             f"got {short_text(rotation)}", field="rotation")
         object.__setattr__(self, "origin", origin)
         object.__setattr__(self, "rotation_deg", rotation)
 
@@ -173,8 +174,3 @@ class Setup:
         """``part origin at machine [x, y, z] mm, rotation θ deg about z`` (the header's form)."""
         return (f"part origin at machine [{', '.join(_fixed(v, 4) for v in self.origin)}] mm, "
                 f"rotation {_fixed(self.rotation_deg, 4)} deg about z")
-
-
-def _short(value: float) -> str:
-    """A number for a message: never 300 digits."""
-    return f"{value:.6g}"

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from prs3_post.core.errors import InputError, Prs3Error
+from prs3_post.core.numbers import short_text
 from prs3_post.core.types import FloatArray
 from prs3_post.part.face import Face, frame_from_normal
 
@@ -192,11 +193,11 @@ class WorkPlane:
             raise WorkPlaneError(f"work plane: expected 6 numbers (origin x,y,z and normal x,y,z) or 9 (and the "
                                  f"x direction), got {len(values)}")
         return cls.from_vectors(values[:3], values[3:6], values[6:] or None,
-                                name=name or f"work plane {','.join(f'{v:g}' for v in values)}")
+                                name=name or f"work plane {','.join(short_text(v) for v in values)}")
 
 
 def _shown(vector: FloatArray) -> str:
-    return "(" + ", ".join(f"{v:g}" for v in np.asarray(vector).tolist()) + ")"
+    return "(" + ", ".join(short_text(v) for v in np.asarray(vector).tolist()) + ")"
 
 
 def work_plane_from_part(path: str | os.PathLike[str], face: int | None = None, *, units: str = "mm",
