@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from prs3_post.app.work_plane import work_plane_from_text
 from prs3_post.core.errors import FeatureError, InputError
 from prs3_post.core.toolpath import EventKind, MoveKind
 from prs3_post.part.faces import find_faces, select_face
 from prs3_post.part.stl import load_part
-from prs3_post.part.workplane import WorkPlane, WorkPlaneError, euler_zxz_deg, rotate_rows, work_plane_from_text
+from prs3_post.part.workplane import WorkPlane, WorkPlaneError, euler_zxz_deg, rotate_rows
 from prs3_post.readers.detect import detect_format
 from prs3_post.readers.gcode.reader import PECK_GAP_MM, GcodeFile, GcodeStream, parse_gcode, read_gcode
 

@@ -154,7 +154,7 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
         prepare_outdir,
     )
     from prs3_post.app.convert import ConvertSettings
-    from prs3_post.part.workplane import WorkPlaneError, work_plane_from_text
+    from prs3_post.app.work_plane import WorkPlaneError, work_plane_from_text
 
     def body() -> int:
         require_tolerance(tolerance)

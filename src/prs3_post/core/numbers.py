@@ -31,7 +31,8 @@ from prs3_post.core.columns import ChoiceColumn, Column, ScaledColumn
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 
 __all__ = ["ChoiceColumn", "Column", "ScaledColumn", "degrees_text", "exact_list", "exact_text", "fixed",
-           "fixed_column", "fixed_list", "fixed_or_na", "format_word", "render_rows", "scale_column", "short_text"]
+           "fixed_column", "fixed_list", "fixed_or_na", "format_word", "render_rows", "scale_column", "short_text",
+           "short_tuple"]
 
 #: |value·10^d| below this is written from exact integers; at or above it (and nan/inf) one by one.
 _EXACT_LIMIT = 2.0**52
@@ -641,3 +642,12 @@ def short_text(value: float) -> str:
     ('1', '1e+300', '-0.123457')
     """
     return f"{value:.6g}"
+
+
+def short_tuple(values: Iterable[float]) -> str:
+    """``(a, b, c)``, each :func:`short_text` (a vector in a message).
+
+    >>> short_tuple([0.0, 1.5, 1 / 3])
+    '(0, 1.5, 0.333333)'
+    """
+    return "(" + ", ".join(short_text(float(v)) for v in values) + ")"

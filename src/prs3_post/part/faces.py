@@ -35,7 +35,7 @@ Order: faces are sorted by area, largest first; equal areas (to 9 significant di
 (z, then y, then x, larger first: upward faces first), then by origin (x, y, z, smaller first). Index
 ``i`` in the returned tuple is ``Face.index``.
 
-Precondition: the mesh is closed and wound outward (``readers.stl.load_part`` makes it so); all
+Precondition: the mesh is closed and wound outward (:func:`prs3_post.part.stl.load_part` makes it so); all
 lengths are mm.
 """
 

@@ -14,21 +14,17 @@ The plane's z axis (``normal``) is the tool axis of every move in it: unit, tool
 from __future__ import annotations
 
 import math
-import os
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from prs3_post.core.errors import InputError, Prs3Error
-from prs3_post.core.numbers import short_text
+from prs3_post.core.errors import Prs3Error
+from prs3_post.core.numbers import short_text, short_tuple
 from prs3_post.core.types import FloatArray
 from prs3_post.part.face import Face, frame_from_normal
 
-__all__ = ["PERPENDICULAR_TOLERANCE", "WorkPlane", "WorkPlaneError", "euler_zxz_deg", "rotate_rows",
-           "work_plane_from_part",
-           "work_plane_from_text"]
+__all__ = ["PERPENDICULAR_TOLERANCE", "WorkPlane", "WorkPlaneError", "euler_zxz_deg", "rotate_rows"]
 
 #: |cos| of the angle between a given x direction and the normal, above which they are not
 #: perpendicular (1e-3: 0.06°, the rounding of vectors written with 4 decimals).
@@ -153,10 +149,10 @@ class WorkPlane:
         normal_ = np.asarray(normal, dtype=np.float64).reshape(3)
         if not np.isfinite(origin_).all() or np.abs(origin_).max() > MAX_ORIGIN_MM:
             raise WorkPlaneError(f"work plane: the origin must be finite numbers within ±{MAX_ORIGIN_MM:g} mm, got "
-                                 f"{_shown(origin_)}")
+                                 f"{short_tuple(origin_)}")
         length = math.hypot(*normal_.tolist())         # hypot: no overflow for components near 1e308
         if not (math.isfinite(length) and length > 0.0):
-            raise WorkPlaneError(f"work plane: the normal {_shown(normal_)} is not a direction (it must be a "
+            raise WorkPlaneError(f"work plane: the normal {short_tuple(normal_)} is not a direction (it must be a "
                                  "non-zero vector, the tool axis from the tip toward the spindle)")
         z = normal_ / length
         if x_direction is None:
@@ -165,14 +161,14 @@ class WorkPlane:
             x_ = np.asarray(x_direction, dtype=np.float64).reshape(3)
             x_length = math.hypot(*x_.tolist())
             if not (math.isfinite(x_length) and x_length > 0.0):
-                raise WorkPlaneError(f"work plane: the x direction {_shown(x_)} is not a direction (it must be a "
+                raise WorkPlaneError(f"work plane: the x direction {short_tuple(x_)} is not a direction (it must be a "
                                      "non-zero vector)")
             x_unit = x_ / x_length
             cosine = float(x_unit @ z)
             if abs(cosine) > PERPENDICULAR_TOLERANCE:
                 angle = math.degrees(math.acos(max(-1.0, min(1.0, cosine))))   # clip: rounding past ±1
-                raise WorkPlaneError(f"work plane: the x direction {_shown(x_)} is at {angle:.3f}° to the normal "
-                                     f"{_shown(normal_)}; it must be perpendicular to it (90° within "
+                raise WorkPlaneError(f"work plane: the x direction {short_tuple(x_)} is at {angle:.3f}° to the normal "
+                                     f"{short_tuple(normal_)}; it must be perpendicular to it (90° within "
                                      f"{math.degrees(math.asin(PERPENDICULAR_TOLERANCE)):.2f}°)")
             x = x_unit - cosine * z                 # made exactly perpendicular
             x /= np.linalg.norm(x)
@@ -194,72 +190,3 @@ class WorkPlane:
                                  f"x direction), got {len(values)}")
         return cls.from_vectors(values[:3], values[3:6], values[6:] or None,
                                 name=name or f"work plane {','.join(short_text(v) for v in values)}")
-
-
-def _shown(vector: FloatArray) -> str:
-    return "(" + ", ".join(short_text(v) for v in np.asarray(vector).tolist()) + ")"
-
-
-def work_plane_from_part(path: str | os.PathLike[str], face: int | None = None, *, units: str = "mm",
-                         up: str = "z") -> tuple[WorkPlane, str]:
-    """The work plane on a face of an STL part: program X, Y, Z = the face frame u, v, w of the main job.
-
-    Parameters
-    ----------
-    path : the STL file; units, up : as :func:`prs3_post.part.stl.load_part`
-    face : int or None — the face's index (it must face up), or None: the face the main job picks
-        automatically (the largest upward-facing inclined face)
-
-    Returns
-    -------
-    plane : WorkPlane — named ``face N of NAME``
-    note : str — how the face was picked (:func:`prs3_post.part.faces.select_face`'s note)
-
-    Raises
-    ------
-    InputError, FeatureError
-        From loading the part and selecting the face.
-    """
-    from prs3_post.part.faces import find_faces, select_face  # trimesh and shapely load only when needed
-    from prs3_post.part.stl import load_part
-
-    chosen, note = select_face(find_faces(load_part(path, units=units, up=up)), face)
-    return WorkPlane.from_face(chosen, name=f"face {chosen.index} of {os.path.basename(os.fspath(path))}"), note
-
-
-_NUMBERS = re.compile(r"\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*(?:,\s*[-+]?(?:\d+\.?\d*|\.\d+)"
-                      r"(?:[eE][-+]?\d+)?\s*)*")
-
-
-def work_plane_from_text(text: str, *, units: str = "mm", up: str = "z") -> tuple[WorkPlane, str]:
-    """A work plane as a user writes it: ``PART.stl[:FACE]`` or ``OX,OY,OZ,NX,NY,NZ[,XX,XY,XZ]`` (mm).
-
-    Returns
-    -------
-    plane : WorkPlane
-    note : str — how it was made (the face selection's note, or the numbers read)
-
-    Raises
-    ------
-    WorkPlaneError
-        Numbers that make no plane (:meth:`WorkPlane.from_values`).
-    InputError, FeatureError
-        As :func:`work_plane_from_part`; ``TEXT: file not found, and not 6 or 9 plain decimal numbers: ...``
-        for text that is neither numbers nor a file (``nan``).
-
-    >>> work_plane_from_text("0,0,5,0,0,1")[0].origin.tolist()
-    [0.0, 0.0, 5.0]
-    """
-    if _NUMBERS.fullmatch(text):
-        plane = WorkPlane.from_values([float(v) for v in text.split(",")])
-        return plane, f"{plane.name}: origin {_shown(plane.origin)} mm, normal {_shown(plane.normal)}"
-    path, colon, index = text.rpartition(":")
-    if not (colon and index.strip().isdigit() and index.strip().isascii()):
-        if colon and os.path.lexists(path) and not os.path.lexists(text):     # `part.stl:-1`: the file is there
-            raise InputError(f"the face after ':' must be a face number (0, 1, ... as `prs3-post faces` lists them), "
-                             f"got {index!r}", path=text)
-        path, index = text, ""
-    if not os.path.lexists(path):                     # `nan`, `1,2,x`: say what a work plane is, not only "no file"
-        raise InputError("file not found, and not 6 or 9 plain decimal numbers: a work plane is PART.stl[:FACE] or "
-                         "OX,OY,OZ,NX,NY,NZ[,XX,XY,XZ] (mm)", path=text)
-    return work_plane_from_part(path, int(index) if index else None, units=units, up=up)
