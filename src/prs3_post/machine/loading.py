@@ -76,6 +76,7 @@ __all__ = [
     "load_machine",
     "load_source",
     "postproc_dir",
+    "read_toml",
     "resolve",
     "shipped_names",
 ]
@@ -248,8 +249,10 @@ class _Table:
             raise self._error(shortened(unknown[0]), "unknown key")
 
 
-def _read_toml(path: Path) -> dict[str, Any]:
-    """The TOML file at ``path`` (UTF-8, a regular file of at most 1 MB) as a dict.
+def read_toml(path: Path) -> dict[str, Any]:
+    """The TOML file at ``path`` (UTF-8, a regular file of at most 1 MB) as a dict: the one place the
+    package parses TOML (machine, dialect and source-convention files here; job files in
+    :mod:`prs3_post.readers.jobfile`). Only the syntax is checked; what the keys mean is the caller's.
 
     Raises
     ------
@@ -292,7 +295,7 @@ def load_machine(name_or_path: str) -> Machine:
     """
     path = resolve("machines", name_or_path)
     shown = _display(path)
-    top = _Table(_read_toml(path), shown)
+    top = _Table(read_toml(path), shown)
     description = top.text("description")
     kinematics = top.text("kinematics", DEFAULT_KINEMATICS)
     if kinematics not in KINEMATICS_NAMES:
@@ -417,7 +420,7 @@ def _holder(table: _Table | None) -> Holder | None:
 # =============================================================================================
 # ----------------------------------------------------------------------------- dialects
 # (G-code dialects for the emitter. Owned separately from the machine part above; it only reuses
-# the strict-reading helpers `_Table`, `_read_toml`, `resolve` and `_display`.)
+# the strict-reading helpers `_Table`, `read_toml`, `resolve` and `_display`.)
 
 def _printable(text: str) -> bool:
     """Only printable ASCII (space to ``~``)."""
@@ -483,7 +486,7 @@ def load_dialect(name_or_path: str) -> Dialect:
     """
     path = resolve("dialects", name_or_path)
     shown = _display(path)
-    top = _Table(_read_toml(path), shown)
+    top = _Table(read_toml(path), shown)
     description = top.text("description")
 
     # Tables are read in the order their checks depend on: program (line length) before blocks.
@@ -708,7 +711,7 @@ def load_source(name_or_path: str) -> SourceConvention:
 
     path = resolve("sources", name_or_path)
     shown = _display(path)
-    data = _read_toml(path)
+    data = read_toml(path)
     top = _Table(data, shown)
     description = top.text("description")
     kind = top.text("orientation")

@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from prs3_post.core.errors import InputError, quoted, shortened
-from prs3_post.machine.loading import _read_toml
+from prs3_post.machine.loading import read_toml as _read_toml
 from prs3_post.part.setup_transform import AUTO
 
 #: The keys of an ``[[operation]]`` table: the main job's option names with ``_`` for ``-``
