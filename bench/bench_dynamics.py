@@ -24,7 +24,7 @@ import trimesh
 
 from prs3_post.app.job import JobSpec, plan
 from prs3_post.check.collision import check_program
-from prs3_post.core.defaults import DEFAULT_CLEARANCE_MIN
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_CLEARANCE_MIN
 from prs3_post.core.toolpath import Toolpath
 from prs3_post.machine.loading import load_dialect, load_machine
 from prs3_post.part.face import Face
@@ -62,7 +62,8 @@ def main() -> None:
     for _ in range(args.repeat):
         for machine, out in ((job.machine, with_dyn), (bare, without)):
             start = time.process_time()
-            post = post_process(machine, path, job.setup, tolerance=job.tolerance, length_decimals=4)
+            post = post_process(machine, path, job.setup, tolerance=job.tolerance, length_decimals=4,
+                                angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
             out.append(time.process_time() - start)
     print(f"post_process of {len(post.program)} rows: with [dynamics] {statistics.median(with_dyn):.3f} s CPU, "
           f"without {statistics.median(without):.3f} s (median of {args.repeat}); ratio "
@@ -79,7 +80,8 @@ def collision(job: JobSpec, mesh: trimesh.Trimesh, face: Face, path: Toolpath, r
     posting, checking = [], []
     for _ in range(repeat):
         start = time.process_time()
-        post = post_process(job.machine, path, job.setup, tolerance=job.tolerance, length_decimals=4)
+        post = post_process(job.machine, path, job.setup, tolerance=job.tolerance, length_decimals=4,
+                            angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
         posting.append(time.process_time() - start)
         start = time.process_time()
         text = check_program(job.machine, post.program, job.setup, np.asarray(mesh.triangles), face, 6.0,

@@ -22,6 +22,7 @@ from _measure import measure
 from bench_cl_reader import write_cl
 
 from prs3_post.app.streaming import program_text
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.emit.gcode import emit_program
 from prs3_post.emit.output_files import write_atomic
 from prs3_post.machine.loading import load_dialect, load_machine
@@ -46,12 +47,14 @@ def post_only(path: str) -> None:
 
 
 def streamed(path: str, out: str) -> None:
-    write_atomic(out, program_text(MACHINE, ClStream(path, tolerance=0.002), SETUP, DIALECT))
+    write_atomic(out, program_text(MACHINE, ClStream(path, tolerance=0.002), SETUP, DIALECT,
+                                   tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE))
 
 
 def whole(path: str, out: str) -> None:
     result = post_process(MACHINE, read_cl(path, tolerance=0.002).toolpath, SETUP,
-                          length_decimals=DIALECT.decimals.length)
+                          length_decimals=DIALECT.decimals.length,
+                          tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     write_atomic(out, emit_program(result.program, DIALECT))
 
 

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE
 from prs3_post.core.errors import InputError
 from prs3_post.core.toolpath import EventKind, MoveKind
 from prs3_post.readers.cl.reader import ClFile, ClStream, parse_cl, read_cl
@@ -412,7 +413,7 @@ def test_corpus_toolpaths_post_process_and_replay_onto_the_cl_points(name: str, 
 
     machine, setup = load_machine("patel2020"), Setup(origin)
     cl = _read(name)
-    post = post_process(machine, cl.toolpath, setup, tolerance=TOL)
+    post = post_process(machine, cl.toolpath, setup, tolerance=TOL, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert len(post.program) == rows
     fk = forward(machine.geometry, post.program.strokes, post.program.stage)
     assert_allclose(fk.tip, post.path.tip, atol=1e-9)
@@ -438,13 +439,13 @@ def test_a_toolpath_past_the_tilt_limit_fails_at_its_first_bad_row_before_any_su
     setup = Setup.resolve(machine)
     path = _read(name).toolpath
     with pytest.raises(LimitError) as caught:
-        post_process(machine, path, setup, tolerance=TOL)
+        post_process(machine, path, setup, tolerance=TOL, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert str(caught.value) == (f"{CORPUS / name}:11: stage Y -1396.5000 mm is below the minimum -300.0000 mm by "
                                  "1096.5000 mm (546 points outside limits in all)")
     assert suggest_origin(machine, path, setup, tolerance=TOL) is None
     # automatic placement evaluates the rows as given (no subdivision: no setup can run them)
     with pytest.raises(LimitError) as caught:
-        place(machine, path, tolerance=TOL)
+        place(machine, path, tolerance=TOL, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     where = f"{CORPUS / name}:261"
     clauses = str(caught.value).split("; ")
     assert clauses[0].startswith("no part origin and rotation about z puts every point inside the machine's limits: ")
@@ -470,7 +471,7 @@ def test_subdividing_a_move_through_the_singularity_stops_at_the_row_cap_naming_
     placed = place_toolpath(path.take(path.source <= 177), Setup.resolve(machine))
     placed = replace(placed, axis=placed.axis / np.linalg.norm(placed.axis, axis=1, keepdims=True))
     with pytest.raises(LimitError) as caught:
-        subdivide_axis_changes(machine.geometry, placed, tolerance=TOL)
+        subdivide_axis_changes(machine.geometry, placed, tolerance=TOL, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert MAX_INSERTED == 1000
     assert str(caught.value) == (f"{CORPUS / name}:177: the joint-space move to this point would need more than 1000 "
                                  "inserted points: it still strays 134.6 mm / 42.32 deg from the intended one after 9 "

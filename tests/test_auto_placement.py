@@ -21,6 +21,7 @@ from prs3_post.app.job import JobSpec, job_in_part_frame, run_job, run_operation
 from prs3_post.check.placement import place
 from prs3_post.cli.main import main
 from prs3_post.cli.run import _job_specs
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.core.errors import LimitError, ReachError
 from prs3_post.core.toolpath import Toolpath
 from prs3_post.emit.header_read import read_header
@@ -61,7 +62,8 @@ def worst_margins(machine: Machine, pieces: list[Toolpath], lengths: list[float]
     worst = np.full(len(origins), np.inf)
     for piece, length in zip(pieces, lengths, strict=True):
         tooled = replace(machine, geometry=replace(machine.geometry, tool_length=length))
-        path = machine_path(tooled, piece, Setup((0.0, 0.0, 0.0), rotation_deg))
+        path = machine_path(tooled, piece, Setup((0.0, 0.0, 0.0), rotation_deg),
+                            tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
         n = len(path)
         tip = (path.tip[None, :, :] + origins[:, None, :]).reshape(-1, 3)
         axis = np.tile(path.axis, (len(origins), 1))
@@ -166,7 +168,8 @@ def test_same_input_same_program(tmp_path):
 
 
 def test_rotation_auto_with_a_given_origin_keeps_the_origin():
-    chosen = place(MACHINE, run_job(hole_spec(WEDGE)).path_part, origin=(-79.4, -190.9, -1028.4))
+    chosen = place(MACHINE, run_job(hole_spec(WEDGE)).path_part, origin=(-79.4, -190.9, -1028.4),
+                   tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert chosen.setup.origin == (-79.4, -190.9, -1028.4)
     assert (chosen.origin_chosen, chosen.rotation_chosen) == (False, True)
     assert chosen.worst.margin > 0.0
@@ -219,7 +222,7 @@ def test_the_library_raises_a_limit_error_with_the_same_message():
     narrow = replace(MACHINE, limits=replace(MACHINE.limits, max_tilt=math.radians(20.0)))
     path = run_job(hole_spec(WEDGE)).path_part
     with pytest.raises(LimitError) as caught:
-        place(narrow, path, rotation_deg=0.0)
+        place(narrow, path, rotation_deg=0.0, tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert str(caught.value) == (
         "no part origin puts every point inside the machine's limits: the tilt cannot be met, by 6.5651 deg at best "
         "(hole 1 approach: tilt 26.5651 deg is above the maximum 20.0000 deg by 6.5651 deg); the best setup found: "
@@ -235,7 +238,7 @@ def test_an_axis_the_head_cannot_reach_at_any_setup_is_a_reach_error(rotation, s
     path = Toolpath(kind=np.array([0, 1]), tip=np.array([2.0 * axis, np.zeros(3)]), axis=np.tile(axis, (2, 1)),
                     feed=np.array([0.0, 100.0]), source=np.arange(2), source_labels=("clearance", "feed"))
     with pytest.raises(ReachError) as caught:
-        place(short, path, rotation_deg=rotation)
+        place(short, path, rotation_deg=rotation, tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert str(caught.value) == (f"clearance: the head cannot reach this tool axis at {scope} (a link cannot reach "
                                  "its joint; 2 points unreachable)")
 

@@ -13,7 +13,7 @@ from click.testing import CliRunner
 
 from prs3_post.check.collision import body_cylinders, clearance, inside, point_triangle_distance
 from prs3_post.cli.main import main
-from prs3_post.core.defaults import DEFAULT_CLEARANCE_MIN
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE
 from prs3_post.machine.loading import load_machine
 from prs3_post.part.faces import find_faces, select_face
 from prs3_post.part.stl import load_part
@@ -133,7 +133,8 @@ def _round_pocket(depth: float):
                    machine=MACHINE, dialect=load_dialect("linuxcnc"), setup=Setup.resolve(MACHINE), tolerance=0.0001)
     mesh = load_part(part)
     face, _ = select_face(find_faces(mesh), None, min_width=6.0)
-    post = post_process(MACHINE, plan(spec, face), spec.setup, tolerance=spec.tolerance, length_decimals=4)
+    post = post_process(MACHINE, plan(spec, face), spec.setup, tolerance=spec.tolerance, length_decimals=4,
+                        angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     return post.program, spec.setup, np.asarray(mesh.triangles), face
 
 
@@ -180,7 +181,7 @@ def test_the_replay_in_pieces_gives_the_samples_of_one_replay(monkeypatch):
     from prs3_post.core.toolpath import MoveKind
 
     program = _round_pocket(0.5)[0]
-    whole = replay(MACHINE, program)
+    whole = replay(MACHINE, program, tolerance=DEFAULT_TOLERANCE)
     monkeypatch.setattr(collision, "REPLAY_ROWS", 1000)
     row, tip, axis, feed = collision._replayed(MACHINE, program)
     assert len(program) > 3000 and row.tolist() == whole.row.tolist()
@@ -197,7 +198,7 @@ def test_the_swept_region_drawn_in_pieces_is_the_region_drawn_at_once(monkeypatc
     from prs3_post.core.toolpath import MoveKind
 
     program, setup, _, face = _round_pocket(0.5)
-    whole = replay(MACHINE, program)
+    whole = replay(MACHINE, program, tolerance=DEFAULT_TOLERANCE)
     tips = whole.tip[whole.end[program.kind == MoveKind.FEED]]          # machine frame
     at_once = collision._swept(face, collision._to_part(setup, tips), 3.0)
     assert len(tips) > 3000 and 0 < at_once.cells.sum() < at_once.cells.size

@@ -25,6 +25,7 @@ from prs3_post.cli.main import main
 from prs3_post.cli.options import demo_part
 from prs3_post.cli.run import demo
 from prs3_post.cli.run import job_spec as _job_spec
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.core.errors import ConfigError, FeatureError, Prs3Error
 from prs3_post.core.numbers import format_word
 from prs3_post.core.toolpath import MoveKind
@@ -144,7 +145,8 @@ def _feed_problems(result: JobResult, dialect: Dialect, machine_name: str = "pat
     intended = Intended(tip=path.tip, axis=path.axis, feed=np.where(path.kind == MoveKind.FEED, path.feed, np.nan),
                         kind=path.kind, label="job")
     report = verify_program(load_machine(machine_name), program.moves, setup=result.setup, intended=intended,
-                            length_decimals=dialect.decimals.length, feed_decimals=dialect.decimals.inverse_time)
+                            length_decimals=dialect.decimals.length, feed_decimals=dialect.decimals.inverse_time,
+                            tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE)
     return [p.message for p in (*report.problems, *report.warnings) if p.kind == "feed"]
 
 

@@ -13,6 +13,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.core.errors import LimitError
 from prs3_post.core.toolpath import EventKind, JointProgram, MoveKind, Toolpath
 from prs3_post.kinematics.prs3.forward import forward
@@ -56,11 +57,13 @@ def test_machine_file_dynamics_and_holder():
 
 
 def test_feed_needing_three_times_a_stroke_speed_is_clamped_to_exactly_the_limit():
-    free = post_process(replace(MACHINE, dynamics=None), plunge(300.0), SETUP)
+    free = post_process(replace(MACHINE, dynamics=None), plunge(300.0), SETUP,
+                        tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     deltas = joint_deltas(joint_columns(free.program.stage, free.program.strokes))
     need = float(deltas[1, 2:].max() * free.program.inverse_time[1])       # mm/min, the fastest stroke
     slow = replace(MACHINE, dynamics=replace(DYN, stroke_speed=need / 3.0))
-    post = post_process(slow, plunge(300.0), SETUP)
+    post = post_process(slow, plunge(300.0), SETUP,
+                        tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert post.dynamics is not None and post.dynamics.clamped == 1
     assert post.dynamics.worst_ratio == pytest.approx(3.0, rel=1e-12)
     assert post.dynamics.worst_where == "line 2" and post.dynamics.worst_axis.startswith("stroke")
@@ -77,12 +80,14 @@ def test_feed_needing_three_times_a_stroke_speed_is_clamped_to_exactly_the_limit
 
 
 def test_no_clamp_names_the_line():
-    free = post_process(replace(MACHINE, dynamics=None), plunge(300.0), SETUP)
+    free = post_process(replace(MACHINE, dynamics=None), plunge(300.0), SETUP,
+                        tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     deltas = joint_deltas(joint_columns(free.program.stage, free.program.strokes))
     need = float(deltas[1, 2:].max() * free.program.inverse_time[1])
     slow = replace(MACHINE, dynamics=replace(DYN, stroke_speed=need / 3.0))
     with pytest.raises(LimitError) as caught:
-        post_process(slow, plunge(300.0), SETUP, clamp=False)
+        post_process(slow, plunge(300.0), SETUP, clamp=False,
+                     tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     axis = int(np.argmax(deltas[1, 2:])) + 1
     assert str(caught.value) == (f"line 2: the feed needs stroke T{axis} at {need:.1f} mm/min, 3.00 x its top speed "
                                  f"{need / 3:.1f} mm/min (slow the feed, or let it be clamped)")
@@ -90,7 +95,8 @@ def test_no_clamp_names_the_line():
 
 def test_machine_without_dynamics_clamps_nothing():
     tally = DynamicsTally(replace(MACHINE, dynamics=None))
-    post = post_process(replace(MACHINE, dynamics=None), plunge(1e6), SETUP)
+    post = post_process(replace(MACHINE, dynamics=None), plunge(1e6), SETUP,
+                        tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert post.program.inverse_time[1] == pytest.approx(1e6 / 5.0, rel=1e-12)   # not clamped
     assert tally.feed(post.program) is post.program.inverse_time
     assert (tally.clamped, tally.worst_ratio, tally.worst_where) == (0, 1.0, "")

@@ -13,6 +13,7 @@ from click.testing import CliRunner
 from numpy.testing import assert_allclose
 
 from prs3_post.cli.main import main
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.core.errors import ConfigError, InputError
 from prs3_post.core.toolpath import EventKind, MoveKind
 from prs3_post.machine.cam_conventions import Rotary
@@ -147,7 +148,8 @@ def test_c_wraps_around_on_the_short_great_circle() -> None:
     azimuth = np.degrees(np.arctan2(read.toolpath.axis[:, 1], read.toolpath.axis[:, 0]))
     assert_allclose(azimuth, [-1.0, 1.0, 1.0], atol=1e-9)
     machine = load_machine("patel2020")
-    result = post_process(machine, read.toolpath, Setup((0.0, 0.0, -900.0)))
+    result = post_process(machine, read.toolpath, Setup((0.0, 0.0, -900.0)),
+                          tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     between = np.degrees(np.arctan2(result.path.axis[:, 1], result.path.axis[:, 0]))
     assert np.all(np.abs(between) <= 1.0 + 1e-9)
     assert len(result.path) < 20
@@ -160,7 +162,8 @@ def test_inverse_time_feeds_keep_each_move_time() -> None:
     read = _parse(text, "xyzac-trt")
     # without [dynamics]: the reorientations at these feeds need faster strokes than the machine's (clamped)
     machine = dataclasses.replace(load_machine("patel2020"), dynamics=None)
-    result = post_process(machine, read.toolpath, Setup((0.0, 0.0, -900.0)))
+    result = post_process(machine, read.toolpath, Setup((0.0, 0.0, -900.0)),
+                          tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     program = result.program
     for line, f in ((5, 12.5), (6, 40.0), (7, 80.0)):
         rows = program.source == line

@@ -15,6 +15,7 @@ import pytest
 import shapely
 from numpy.testing import assert_allclose, assert_array_equal
 
+from prs3_post.core.defaults import DEFAULT_TOLERANCE
 from prs3_post.core.errors import FeatureError
 from prs3_post.core.toolpath import EventKind, MoveKind, Toolpath
 from prs3_post.part.face import Face, frame_from_normal
@@ -388,7 +389,7 @@ def test_rounded_square_outside_contour() -> None:
     center = np.array([10.0, 5.0])
     contour = tool_center_contour(
         center, SquareShape(40.0, corner_radius=2.0), Side.OUTSIDE, Direction.CONVENTIONAL, 6.0
-    )
+    , tolerance=DEFAULT_TOLERANCE)
     assert contour.shape == (1 + 4 * 29 + 1, 2)
     assert_allclose(contour[0], center + np.array([23.0, 0.0]), rtol=0, atol=1e-12)
     assert_array_equal(contour[-1], contour[0])
@@ -405,20 +406,23 @@ def test_rounded_square_outside_contour() -> None:
 
 
 def test_sharp_square_on_the_outline_and_its_direction() -> None:
-    climb = tool_center_contour(np.zeros(2), SquareShape(30.0), Side.ON, Direction.CLIMB, 6.0)
+    climb = tool_center_contour(np.zeros(2), SquareShape(30.0), Side.ON, Direction.CLIMB, 6.0,
+                                tolerance=DEFAULT_TOLERANCE)
     # ON runs as an outside contour: climb is clockwise seen from the spindle (negative area in u, v)
     assert_allclose(climb, [[15, 0], [15, -15], [-15, -15], [-15, 15], [15, 15], [15, 0]], rtol=0, atol=0)
     assert signed_area(climb) == pytest.approx(-900.0, abs=1e-9)
 
 
 def test_inside_square_with_corner_radius_equal_to_the_tool_radius_has_sharp_centre_corners() -> None:
-    contour = tool_center_contour(np.zeros(2), SquareShape(40.0, corner_radius=3.0), Side.INSIDE, Direction.CLIMB, 6.0)
+    contour = tool_center_contour(np.zeros(2), SquareShape(40.0, corner_radius=3.0), Side.INSIDE, Direction.CLIMB, 6.0,
+                                  tolerance=DEFAULT_TOLERANCE)
     assert_allclose(contour, [[17, 0], [17, 17], [-17, 17], [-17, -17], [17, -17], [17, 0]], rtol=0, atol=0)
     assert signed_area(contour) > 0                                           # climb inside: counter-clockwise
 
 
 def test_square_that_is_a_circle_has_no_zero_length_sides() -> None:
-    contour = tool_center_contour(np.zeros(2), SquareShape(20.0, corner_radius=10.0), Side.ON, Direction.CLIMB, 6.0)
+    contour = tool_center_contour(np.zeros(2), SquareShape(20.0, corner_radius=10.0), Side.ON, Direction.CLIMB, 6.0,
+                                  tolerance=DEFAULT_TOLERANCE)
     assert np.all(np.linalg.norm(np.diff(contour, axis=0), axis=1) > 1e-6)
     assert_allclose(np.linalg.norm(contour, axis=1), 10.0, rtol=0, atol=1e-12)
 
@@ -427,7 +431,7 @@ def test_rotated_square_starts_at_the_rotated_side_middle() -> None:
     rotation = math.radians(30.0)
     contour = tool_center_contour(
         np.array([1.0, 2.0]), SquareShape(30.0, rotation=rotation), Side.ON, Direction.CLIMB, 6.0
-    )
+    , tolerance=DEFAULT_TOLERANCE)
     assert_allclose(contour[0], [1.0 + 15.0 * math.cos(rotation), 2.0 + 15.0 * math.sin(rotation)], rtol=0, atol=1e-12)
     corner = np.array([math.cos(rotation) + math.sin(rotation), math.sin(rotation) - math.cos(rotation)])
     assert_allclose(contour[1], [1.0, 2.0] + 15.0 * corner, atol=1e-12)
@@ -447,7 +451,7 @@ def test_rotated_square_starts_at_the_rotated_side_middle() -> None:
 def test_lap_direction_in_the_toolpath(side: Side, direction: Direction, clockwise: bool) -> None:
     path = plan_profile(
         FACE, np.zeros(2), RoundShape(30.0), profile_params(side=side, direction=direction, depth=2.0), CUT
-    )
+    , tolerance=DEFAULT_TOLERANCE)
     lap = face_uvw(path)[[i for i, name in enumerate(labels(path)) if name.endswith("lap")]]
     start = face_uvw(path)[[i for i, name in enumerate(labels(path)) if name.endswith("plunge")]]
     area = signed_area(np.concatenate([start[:, :2], lap[:, :2]]))
@@ -462,7 +466,7 @@ def rows_labelled(path: Toolpath, suffix: str) -> np.ndarray:
 
 
 def test_plunge_profile_passes_sit_at_the_programmed_depths() -> None:
-    path = plan_profile(FACE, np.zeros(2), SquareShape(30.0), profile_params(), CUT)
+    path = plan_profile(FACE, np.zeros(2), SquareShape(30.0), profile_params(), CUT, tolerance=DEFAULT_TOLERANCE)
     uvw = face_uvw(path)
     assert len(path) == 3 + 3 * (1 + 5) + 2                                   # approach+face, 3×(plunge+lap), out
     # feed moves of a profile sit at the programmed depth: w = −d_k exactly on every lap row
@@ -492,7 +496,7 @@ def test_plunge_profile_passes_sit_at_the_programmed_depths() -> None:
 
 
 def test_square_profile_starts_at_the_papers_profile_point() -> None:
-    path = plan_profile(FACE, np.zeros(2), SquareShape(30.0), profile_params(), CUT)
+    path = plan_profile(FACE, np.zeros(2), SquareShape(30.0), profile_params(), CUT, tolerance=DEFAULT_TOLERANCE)
     face_row = int(rows_labelled(path, "down to face")[0])
     assert_allclose(face_uvw(path)[face_row], [15.0, 0.0, 0.0], rtol=0, atol=1e-12)
     # the paper's point is printed to 4 decimals and lies 2.7e-4 mm off the face (3.0e-4 mm in z)
@@ -502,7 +506,8 @@ def test_square_profile_starts_at_the_papers_profile_point() -> None:
 
 
 def test_step_down_with_floating_error_makes_no_extra_pass() -> None:
-    path = plan_profile(FACE, np.zeros(2), RoundShape(20.0), profile_params(depth=0.9, step_down=0.3), CUT)
+    path = plan_profile(FACE, np.zeros(2), RoundShape(20.0), profile_params(depth=0.9, step_down=0.3), CUT,
+                        tolerance=DEFAULT_TOLERANCE)
     assert labels(path)[-3] == "round pass 3/3 lap"
     assert_allclose(face_uvw(path)[rows_labelled(path, "3/3 lap"), 2], -0.9, rtol=0, atol=1e-12)
 
@@ -511,7 +516,7 @@ def test_ramp_entry_follows_the_contour_and_the_feature_ends_where_the_ramp_did(
     ramp_angle = math.radians(3.0)
     path = plan_profile(
         FACE, np.zeros(2), SquareShape(30.0), profile_params(entry=Entry.RAMP, ramp_angle=ramp_angle), CUT
-    )
+    , tolerance=DEFAULT_TOLERANCE)
     uvw = face_uvw(path)
     names = labels(path)
     # pass 1 from (15, 0, 0): 2/tan 3° = 38.1623 mm clockwise: 15 mm down the +u side, 23.1623 along −v side
@@ -544,10 +549,12 @@ def test_ramp_entry_follows_the_contour_and_the_feature_ends_where_the_ramp_did(
 
 def test_ramp_longer_than_a_lap_is_steepened_and_says_so() -> None:
     # Ø10 on the outline: one lap is 31.416 mm (and a bit less as a polygon); 2 mm at 3° needs 38.162 mm
-    path = plan_profile(FACE, np.zeros(2), RoundShape(10.0), profile_params(entry=Entry.RAMP, depth=2.0), CUT)
+    path = plan_profile(FACE, np.zeros(2), RoundShape(10.0), profile_params(entry=Entry.RAMP, depth=2.0), CUT,
+                        tolerance=DEFAULT_TOLERANCE)
     uvw = face_uvw(path)
     ramp = rows_labelled(path, "ramp")
-    contour = tool_center_contour(np.zeros(2), RoundShape(10.0), Side.ON, Direction.CLIMB, 6.0)
+    contour = tool_center_contour(np.zeros(2), RoundShape(10.0), Side.ON, Direction.CLIMB, 6.0,
+                                  tolerance=DEFAULT_TOLERANCE)
     lap_length = float(np.sum(np.linalg.norm(np.diff(contour, axis=0), axis=1)))
     assert_allclose(uvw[ramp[-1]], [5.0, 0.0, -2.0], rtol=0, atol=1e-12)    # a whole lap down, back at the start
     assert_allclose(uvw[ramp, :2], contour[1:], rtol=0, atol=1e-12)
@@ -561,13 +568,14 @@ def test_ramp_longer_than_a_lap_is_steepened_and_says_so() -> None:
 def test_outside_profile_that_overshoots_the_face_edge() -> None:
     # square 40 at u = 40 on the outline: its +u side at u = 60, the tool reaches 63; edge at 55.9017
     with pytest.raises(FeatureError) as err:
-        plan_profile(FACE, np.array([40.0, 0.0]), SquareShape(40.0), profile_params(), CUT)
+        plan_profile(FACE, np.array([40.0, 0.0]), SquareShape(40.0), profile_params(), CUT, tolerance=DEFAULT_TOLERANCE)
     assert str(err.value) == (
         "square 40.000 mm at (u 40.000, v 0.000) with tool Ø6.000: does not fit on face 0: "
         "overshoots its edge by 7.098 mm"
     )
     with pytest.raises(FeatureError) as err:   # outside a Ø30 at u = 40: tool centre radius 18, reach 21 → u 61
-        plan_profile(FACE, np.array([40.0, 0.0]), RoundShape(30.0), profile_params(side=Side.OUTSIDE), CUT)
+        plan_profile(FACE, np.array([40.0, 0.0]), RoundShape(30.0), profile_params(side=Side.OUTSIDE), CUT,
+                     tolerance=DEFAULT_TOLERANCE)
     assert str(err.value) == (
         "round Ø30.000 mm at (u 40.000, v 0.000) with tool Ø6.000: does not fit on face 0: "
         "overshoots its edge by 5.098 mm"
@@ -606,12 +614,13 @@ def test_outside_profile_that_overshoots_the_face_edge() -> None:
 )
 def test_inside_profiles_the_tool_cannot_cut(shape: SquareShape | RoundShape, message: str) -> None:
     with pytest.raises(FeatureError) as err:
-        plan_profile(FACE, np.zeros(2), shape, profile_params(side=Side.INSIDE), CUT)
+        plan_profile(FACE, np.zeros(2), shape, profile_params(side=Side.INSIDE), CUT, tolerance=DEFAULT_TOLERANCE)
     assert str(err.value) == message
 
 
 def test_smallest_inside_round_still_plans() -> None:
-    path = plan_profile(FACE, np.zeros(2), RoundShape(6.01), profile_params(side=Side.INSIDE, depth=1.0), CUT)
+    path = plan_profile(FACE, np.zeros(2), RoundShape(6.01), profile_params(side=Side.INSIDE, depth=1.0), CUT,
+                        tolerance=DEFAULT_TOLERANCE)
     lap = face_uvw(path)[rows_labelled(path, "lap")]
     assert_allclose(np.linalg.norm(lap[:, :2], axis=1), 0.005, rtol=0, atol=1e-12)
 
@@ -640,7 +649,8 @@ def test_smallest_inside_round_still_plans() -> None:
             "--tolerance must be from 0.0001 mm (the resolution of the program) to 1 mm (got 0)",
         ),
         (
-            lambda: plan_profile(FACE, np.zeros(3), RoundShape(10.0), profile_params(), CUT),
+            lambda: plan_profile(FACE, np.zeros(3), RoundShape(10.0), profile_params(), CUT,
+                                 tolerance=DEFAULT_TOLERANCE),
             "profile centre: expected a finite face point (u, v) in mm, got array([0., 0., 0.])",
         ),
     ],

@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.core.errors import LimitError, ReachError
 from prs3_post.core.rowwise import row_lengths
 from prs3_post.core.toolpath import Event, EventKind, MoveKind, Toolpath
@@ -91,7 +92,7 @@ def test_inverse_time_is_each_rows_feed_over_its_length_bit_for_bit(seed, rows, 
 def test_post_process_places_the_part_and_matches_case_2a():
     tip_part = np.array([18.9736, 221.2132, 290.5135])         # the paper's point 2a on the wedge
     p = path([tip_part + 10 * A, tip_part], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100])
-    result = post_process(MACHINE, p, ORIGIN)
+    result = post_process(MACHINE, p, ORIGIN, tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert_allclose(result.path.tip[1], [-81.0264, 21.2132, -679.4865], atol=1e-12)
     # DESIGN's -2.7639 is for the rounded axis (0.447214, 0, 0.894427); the exact normal gives -2.76402
     assert_allclose(result.program.stage[1], [-2.7639, 12.0703], atol=2e-4)
@@ -112,7 +113,8 @@ def test_the_limit_report_is_made_when_read_and_is_that_of_the_rows_kept(turning
     steps = np.array([[-20.0, 0.0, 5.0], [-10.0, 0.0, 5.0], [-10.0, 0.00001, 5.0], [0.0, 5.0, 5.0]])
     tips = np.array([18.9736, 221.2132, 290.5135]) + steps      # about the paper's point 2a
     p = path(tips, [A, A, A, b], [MoveKind.RAPID, MoveKind.FEED, MoveKind.FEED, MoveKind.FEED], [0, 300, 300, 300])
-    result = post_process(MACHINE, p, ORIGIN, length_decimals=4)
+    result = post_process(MACHINE, p, ORIGIN, length_decimals=4,
+                          tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert 2 not in result.path.source.tolist()                  # the 0.00001 mm step goes
     assert (len(result.path) > 3) == turning                     # the turn is subdivided, its rows checked after
     report = result.limits
@@ -129,7 +131,7 @@ def test_limit_error_names_the_step():
     p = path([far, far - A], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100],
              labels=("hole 1 approach", "hole 1 feed"))
     with pytest.raises(LimitError) as caught:
-        post_process(MACHINE, p, ORIGIN)
+        post_process(MACHINE, p, ORIGIN, tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert str(caught.value) == ("hole 1 approach: T1 stroke -573.2621 mm is below the minimum -100.0000 mm "
                                  "by 473.2621 mm (2 points outside limits in all)")
 
@@ -140,7 +142,7 @@ def test_head_machine_reports_how_far_off_the_tip_is():
     p = path([tip_part + 10 * A, tip_part], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100],
              labels=("hole 1 approach", "hole 1 feed"))
     with pytest.raises(ReachError) as caught:
-        post_process(head, p, ORIGIN)
+        post_process(head, p, ORIGIN, tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert str(caught.value) == (
         "hole 1 approach: machine patel2020-head has no stage and its head alone misses the tip "
         "(-76.5543, 21.2132, -670.5422) by 12.1906 mm (x 1.7081, y 12.0703) (2 points unreachable in all)"
@@ -158,7 +160,7 @@ def test_head_alone_moves_its_tip_only_vertically_at_a_fixed_tilt():
     p = path([tip_part + np.array([0, 0, 10]), tip_part], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100])
     # the part placed under the head's tip
     shifted = ORIGIN.with_origin(ORIGIN.shift - np.array([-2.7640208, 12.0703266, 0.0]))
-    result = post_process(head, p, shifted)
+    result = post_process(head, p, shifted, tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert_allclose(result.program.stage, 0.0, atol=0.0)
     assert_allclose(result.ik.stage, 0.0, atol=1e-6)
     assert_allclose(np.diff(result.program.strokes, axis=0), [[10.0, 10.0, 10.0]], atol=1e-9)
@@ -179,7 +181,7 @@ def test_axis_changing_feed_is_subdivided_until_within_tolerance():
     p = path(tips, axes, [MoveKind.RAPID, MoveKind.FEED, MoveKind.FEED], [0, 100, 100], events=events)
     before = joint_path_deviation(MACHINE.geometry, p.tip, p.axis, np.array([1]))
     assert before[0] > 0.1                                      # the raw joint-space line strays far
-    out = subdivide_axis_changes(MACHINE.geometry, p, tolerance=0.002)
+    out = subdivide_axis_changes(MACHINE.geometry, p, tolerance=0.002, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert len(out) > len(p)
     assert_allclose(out.tip[[0, 1, -1]], tips, atol=0.0)        # original rows kept, in order
     # every inserted row lies on the intended move: tip on the segment, axis on the great circle
@@ -207,7 +209,8 @@ def test_axis_changing_feed_is_subdivided_until_within_tolerance():
 def test_constant_axis_moves_are_not_subdivided():
     tips = np.array([[-80.0, 20.0, -690.0], [-40.0, 60.0, -670.0]])
     p = path(tips, [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100])
-    out = subdivide_axis_changes(MACHINE.geometry, p)
+    out = subdivide_axis_changes(MACHINE.geometry, p,
+                                 tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert len(out) == 2
     assert joint_path_deviation(MACHINE.geometry, p.tip, p.axis, np.array([0]))[0] <= 1e-9
 
@@ -217,7 +220,7 @@ def test_machine_without_stage_refuses_a_feed_along_a_tilted_axis():
     tip_part = np.array([0.0, 200.0, 300.0])
     p = path([tip_part + 10 * A, tip_part], [A, A], [MoveKind.RAPID, MoveKind.FEED], [0, 100])
     with pytest.raises(ReachError):
-        post_process(head, p, ORIGIN)
+        post_process(head, p, ORIGIN, tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
 
 
 def test_the_angle_tolerance_bounds_the_tool_axis_of_subdivided_moves():
@@ -236,8 +239,10 @@ def test_the_angle_tolerance_bounds_the_tool_axis_of_subdivided_moves():
     assert np.degrees(angle.max()) <= 0.01
     assert tip_gap.max() > 0.002                                  # the tip alone would have asked for more
     # the defaults bound both: here the tip bound (0.002 mm) is the tighter one
-    both = subdivide_axis_changes(MACHINE.geometry, p)
-    assert len(both) == len(subdivide_axis_changes(MACHINE.geometry, p, angle_tolerance=np.inf)) == 66
+    both = subdivide_axis_changes(MACHINE.geometry, p,
+                                  tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
+    assert len(both) == len(subdivide_axis_changes(MACHINE.geometry, p, angle_tolerance=np.inf,
+                                                   tolerance=DEFAULT_TOLERANCE)) == 66
 
 
 def test_a_move_that_bisection_cannot_bring_within_tolerance_is_an_error():
@@ -247,20 +252,23 @@ def test_a_move_that_bisection_cannot_bring_within_tolerance_is_an_error():
     p = path(tips, [start_axis, start_axis, A], [MoveKind.RAPID, MoveKind.FEED, MoveKind.FEED], [0, 100, 100],
              labels=("approach", "down", "turn"))
     with pytest.raises(LimitError) as caught:
-        subdivide_axis_changes(MACHINE.geometry, p, max_rounds=1)
+        subdivide_axis_changes(MACHINE.geometry, p, max_rounds=1,
+                               tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert str(caught.value) == ("turn: the joint-space move still strays 1.708 mm / 0.3002 deg from the intended one "
                                  "after 1 rounds of bisection (allowed: 0.002 mm, 0.01 deg); the tool axis may pass "
                                  "a singularity")
-    done = linearize(MACHINE.geometry, p)
+    done = linearize(MACHINE.geometry, p, tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert_allclose([done.tip_before, np.degrees(done.angle_before)], [6.2503, 0.9713], atol=1e-4)
     assert 0.0 < done.tip_after <= 0.002 and len(done.path) == 66
     # the same move needs 63 inserted rows: with room for 40 the bisection stops, naming it
     with pytest.raises(LimitError) as caught:
-        subdivide_axis_changes(MACHINE.geometry, p, max_inserted=40)
+        subdivide_axis_changes(MACHINE.geometry, p, max_inserted=40,
+                               tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert str(caught.value) == ("turn: the joint-space move to this point would need more than 40 inserted points: "
                                  "it still strays 0.007515 mm / 0.001484 deg from the intended one after 5 rounds of "
                                  "bisection (allowed: 0.002 mm, 0.01 deg); the tool axis may pass a singularity")
-    assert len(subdivide_axis_changes(MACHINE.geometry, p, max_inserted=63)) == 66
+    assert len(subdivide_axis_changes(MACHINE.geometry, p, max_inserted=63,
+                                      tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)) == 66
 
 
 def test_a_move_through_the_singularity_names_the_limit_its_end_breaks():
@@ -273,12 +281,15 @@ def test_a_move_through_the_singularity_names_the_limit_its_end_breaks():
     p = path([[20.0, 220.0, 290.0], [60.0, 220.0, 290.0]], [[0.0, 0.0, 1.0], tilted], [MoveKind.RAPID, MoveKind.FEED],
              [0, 100], labels=("approach", "turn"))
     with pytest.raises(LimitError) as caught:
-        subdivide_axis_changes(MACHINE.geometry, machine_path(MACHINE, p, ORIGIN))
+        subdivide_axis_changes(MACHINE.geometry, machine_path(MACHINE, p, ORIGIN,
+            tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE),
+                               tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert str(caught.value) == ("turn: the joint-space move to this point would need more than 1000 inserted "
                                  "points: it still strays 59.85 mm / 17.97 deg from the intended one after 12 rounds "
                                  "of bisection (allowed: 0.002 mm, 0.01 deg); the tool axis may pass a singularity")
     # the placement's machine path leaves a path that tilts past the limit as given (no setup runs it)
-    assert len(machine_path(MACHINE, p, ORIGIN)) == 2
+    assert len(machine_path(MACHINE, p, ORIGIN,
+                            tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)) == 2
     with pytest.raises(LimitError) as caught:
-        post_process(MACHINE, p, ORIGIN)
+        post_process(MACHINE, p, ORIGIN, tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert str(caught.value) == "turn: T2 stroke 412.4087 mm is above the maximum 400.0000 mm by 12.4087 mm"

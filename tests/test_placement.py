@@ -17,6 +17,7 @@ import prs3_post.app.job as job_module
 from prs3_post.app.job import JobSpec, check_job, run_job
 from prs3_post.check.placement import PlacementLimitError, shift_ranges, suggest_origin
 from prs3_post.cli.main import main
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.core.errors import LimitError
 from prs3_post.core.toolpath import MoveKind, Toolpath
 from prs3_post.machine.loading import load_dialect, load_machine
@@ -67,15 +68,17 @@ def test_the_suggestion_is_the_centre_of_the_allowed_shifts():
     axis = np.array([math.sin(math.radians(30.0)), 0.0, math.cos(math.radians(30.0))])
     part_path = _drill(axis, np.array([0.0, 0.0, 600.0]))       # 600 mm too high: strokes far below their minimum
     with pytest.raises(LimitError) as caught:
-        post_process(MACHINE, part_path, DEFAULT)
+        post_process(MACHINE, part_path, DEFAULT, tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert "stroke" in str(caught.value)
     texts = suggest_origin(MACHINE, part_path, DEFAULT, tolerance=0.002)
     assert texts is not None
     origin = tuple(float(t) for t in texts)
     assert texts == tuple(f"{v:.1f}" for v in origin)            # 0.1 mm steps where they pass
     placed = Setup(origin)
-    post_process(MACHINE, part_path, placed)                      # passes: no exception
-    ranges = shift_ranges(MACHINE, machine_path(MACHINE, part_path, placed))
+    post_process(MACHINE, part_path, placed, tolerance=DEFAULT_TOLERANCE,
+                 angle_tolerance=DEFAULT_ANGLE_TOLERANCE)                                 # passes: no exception
+    ranges = shift_ranges(MACHINE, machine_path(MACHINE, part_path, placed,
+                                                tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE))
     assert ranges is not None
     assert_allclose(ranges.sum(axis=1), 0.0, atol=0.2)            # centred, up to the 0.1 mm rounding
 

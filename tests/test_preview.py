@@ -14,6 +14,7 @@ from numpy.testing import assert_allclose
 
 from prs3_post.check.verify import row_times, verify_program
 from prs3_post.cli.main import main
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.core.errors import Prs3Error
 from prs3_post.core.toolpath import MoveKind
 from prs3_post.kinematics import forward
@@ -44,7 +45,8 @@ def drawn():
     program = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc"))
     mesh = load_part(WEDGE)
     face, _ = select_face(find_faces(mesh), None)
-    report = verify_program(MACHINE, program.moves, setup=SETUP)
+    report = verify_program(MACHINE, program.moves, setup=SETUP,
+                            tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE)
     figure = render_preview(report, MACHINE, mesh=mesh.triangles, face_triangles=face.triangles, face_label="face 4")
     return program.moves, report, figure
 
@@ -129,7 +131,8 @@ def test_preview_without_matplotlib_is_a_clear_error(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     program = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc"))
     with pytest.raises(Prs3Error) as caught:
-        render_preview(verify_program(MACHINE, program.moves, setup=SETUP), MACHINE)
+        render_preview(verify_program(MACHINE, program.moves, setup=SETUP,
+                                      tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE), MACHINE)
     assert str(caught.value) == "preview needs matplotlib: pip install 'prs3-post[plot]'"
     out, ngc = tmp_path / "p.png", tmp_path / "p.ngc"
     for args in (("preview", VERIFY / "small.ngc", "-o", out),
@@ -174,7 +177,8 @@ def test_stage_panel_draws_each_axis_travel_in_its_own_colour(tmp_path):
     path.write_text(text.replace("travel_y_mm = [-300.0, 300.0]", "travel_y_mm = [-20.0, 20.0]"))
     machine = load_machine(str(path))
     program = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc"))
-    report = verify_program(machine, program.moves, setup=SETUP)
+    report = verify_program(machine, program.moves, setup=SETUP,
+                            tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE)
     ax_xy = render_preview(report, machine).axes[2]
     x_colour, y_colour = "#9467bd", "#8c564b"
     limit_lines = [(ln.get_label(), ln.get_color(), ln.get_linestyle(), list(ln.get_ydata()))

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from prs3_post.app.streaming import program_text
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.core.errors import LimitError, ReachError
 from prs3_post.core.toolpath import Event, EventKind, MoveKind, Toolpath
 from prs3_post.emit.gcode import emit_program
@@ -93,7 +94,8 @@ def chunked(path: Toolpath, size: int, *, boundary_events_late: bool = True) -> 
 
 
 def whole_program(path: Toolpath) -> str:
-    result = post_process(MACHINE, path, SETUP, length_decimals=DIALECT.decimals.length)
+    result = post_process(MACHINE, path, SETUP, length_decimals=DIALECT.decimals.length,
+                          tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     return emit_program(result.program, DIALECT, header=(("source", CL),))
 
 
@@ -109,7 +111,8 @@ def whole(path: Toolpath) -> str:
 
 def test_the_synthetic_path_exercises_every_carried_state(path: Toolpath, whole: str):
     stream = PostStream(MACHINE, SETUP, length_decimals=DIALECT.decimals.length)
-    text = "".join(program_text(MACHINE, [path], SETUP, DIALECT, header=(("source", CL),), stream=stream))
+    text = "".join(program_text(MACHINE, [path], SETUP, DIALECT, header=(("source", CL),), stream=stream,
+                                tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE))
     assert text == whole
     counts = stream.finish()
     assert counts.input_rows == 2000
@@ -125,7 +128,8 @@ def test_the_synthetic_path_exercises_every_carried_state(path: Toolpath, whole:
 @pytest.mark.parametrize(("size", "late"), [(7, True), (10_000, True), (10_000, False)])
 def test_chunks_of_any_size_give_the_same_bytes(path: Toolpath, whole: str, size: int, late: bool):
     pieces = list(program_text(MACHINE, chunked(path, size, boundary_events_late=late), SETUP, DIALECT,
-                               header=(("source", CL),)))
+                               header=(("source", CL),),
+                               tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE))
     assert len(pieces) == len(chunked(path, size)) + 2                # begin, one per chunk, end
     assert "".join(pieces) == whole
 
@@ -136,7 +140,8 @@ def test_chunks_of_one_row_give_the_same_bytes(late: bool):
     change, dwells, subdivided and dropped rows among them)."""
     path = synthetic(500)
     text = "".join(program_text(MACHINE, chunked(path, 1, boundary_events_late=late), SETUP, DIALECT,
-                                header=(("source", CL),)))
+                                header=(("source", CL),),
+                                tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE))
     assert text == whole_program(path)
 
 
@@ -158,12 +163,14 @@ def test_chunks_of_random_sizes_give_the_same_bytes(path: Toolpath, whole: str):
                                feed=path.feed[lo:hi], source=path.source[lo:hi], events=events, source_file=CL))
     assert sum(len(p.events) for p in pieces) == len(path.events)
     assert sum(1 for p in pieces if not len(p) and p.events) > 10
-    assert "".join(program_text(MACHINE, pieces, SETUP, DIALECT, header=(("source", CL),))) == whole
+    assert "".join(program_text(MACHINE, pieces, SETUP, DIALECT, header=(("source", CL),),
+                                tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)) == whole
 
 
 def test_the_atomic_writer_takes_the_chunks(path: Toolpath, whole: str, tmp_path: Path):
     out = tmp_path / "streamed.ngc"
-    write_atomic(str(out), program_text(MACHINE, chunked(path, 300), SETUP, DIALECT, header=(("source", CL),)))
+    write_atomic(str(out), program_text(MACHINE, chunked(path, 300), SETUP, DIALECT, header=(("source", CL),),
+                                        tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE))
     assert out.read_bytes() == whole.encode("ascii")
 
 
@@ -175,7 +182,8 @@ def test_a_failing_chunk_leaves_no_file(path: Toolpath, tmp_path: Path):
                    events=path.events, source_file=CL)
     out = tmp_path / "bad.ngc"
     with pytest.raises((LimitError, ReachError)) as caught:
-        write_atomic(str(out), program_text(MACHINE, chunked(bad, 1000), SETUP, DIALECT))
+        write_atomic(str(out), program_text(MACHINE, chunked(bad, 1000), SETUP, DIALECT,
+                                            tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE))
     assert str(caught.value).startswith(f"{CL}:{1500 * 2 + 10}: ")
     assert list(tmp_path.iterdir()) == []
 
@@ -185,7 +193,7 @@ def test_limit_and_reach_errors_name_the_file_and_line():
     tips = np.array([[0.0, 200.0, 290.0], [0.0, 200.0, 280.0], [0.0, 200.0, 890.0]])
     path = Toolpath(kind=[0, 1, 0], tip=tips, axis=axis, feed=[0, 100, 0], source=[4, 5, 9], source_file=CL)
     with pytest.raises(LimitError) as caught:
-        post_process(MACHINE, path, SETUP)
+        post_process(MACHINE, path, SETUP, tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert str(caught.value) == f"{CL}:9: T1 stroke -524.4730 mm is below the minimum -100.0000 mm by 424.4730 mm"
     stream = PostStream(MACHINE, SETUP)
     stream.feed(Toolpath(kind=[0, 1], tip=tips[:2], axis=axis[:2], feed=[0, 100], source=[4, 5], source_file=CL))
@@ -199,7 +207,8 @@ def test_limit_and_reach_errors_name_the_file_and_line():
     tilted = np.tile([0.6, 0.0, 0.8], (2, 1))                     # the head alone cannot put a tilted tip here
     with pytest.raises(ReachError) as caught:
         post_process(load_machine("patel2020-head"), Toolpath(kind=[0, 1], tip=tips[:2], axis=tilted, feed=[0, 100],
-                                                              source=[4, 5], source_file=CL), SETUP)
+                                                              source=[4, 5], source_file=CL), SETUP,
+        tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert str(caught.value).startswith(f"{CL}:4: machine patel2020-head has no stage and its head alone misses")
 
 

@@ -14,6 +14,7 @@ from numpy.testing import assert_allclose
 from prs3_post.app.job import run_job
 from prs3_post.check.verify import Intended, replay, verify_program
 from prs3_post.cli.main import main
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.core.errors import InputError
 from prs3_post.core.toolpath import EventKind, MoveKind
 from prs3_post.kinematics import forward
@@ -86,7 +87,8 @@ def test_a_counter_clockwise_spindle_and_an_optional_stop_are_m4_and_m1_and_read
           "GOTO/5,0,0\nSTOP\nSPINDL/OFF\nFINI\n")
     path = parse_cl(cl, path="t.cls", tolerance=0.002).toolpath
     dialect, setup = load_dialect("linuxcnc"), Setup.resolve(MACHINE)
-    made = post_process(MACHINE, path, setup, length_decimals=dialect.decimals.length).program
+    made = post_process(MACHINE, path, setup, length_decimals=dialect.decimals.length,
+                        tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE).program
     text = emit_program(made, dialect)
     assert text == (
         "(axes: X Y = stage X Y mm, U V W = actuator strokes T1 T2 T3 mm)\n"
@@ -115,7 +117,8 @@ def test_a_counter_clockwise_spindle_and_an_optional_stop_are_m4_and_m1_and_read
     assert events == [(0, EventKind.TOOL_CHANGE, 1.0), (0, EventKind.SPINDLE_ON_CCW, 1200.0),
                       (2, EventKind.OPTIONAL_STOP, 0.0), (3, EventKind.STOP, 0.0), (3, EventKind.SPINDLE_OFF, 0.0)]
     assert events == [(e.before, e.kind, e.value) for e in made.events if e.kind is not EventKind.COMMENT]
-    assert verify_program(MACHINE, read.moves, setup=setup).ok
+    assert verify_program(MACHINE, read.moves, setup=setup,
+                          tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE).ok
     assert run("verify", out).exit_code == 0
 
 
@@ -352,7 +355,8 @@ def test_sampling_rule_refines_curved_moves_and_keeps_straight_ones():
     assert_allclose(np.nanmin(probed.limits.margin, axis=0), np.nanmin(flat.limits.margin, axis=0), atol=1e-9)
     # N = 1 works: one sample, no move
     one = replay(MACHINE, type(square)(kind=square.kind[:1], stage=square.stage[:1], strokes=square.strokes[:1],
-                                         inverse_time=square.inverse_time[:1], source=square.source[:1]))
+                                         inverse_time=square.inverse_time[:1], source=square.source[:1]),
+                                         tolerance=DEFAULT_TOLERANCE)
     assert (one.tip.shape, one.intervals.tolist(), one.bound.tolist()) == ((1, 3), [1], [0.0])
 
 
@@ -419,7 +423,8 @@ def test_verify_help_has_an_example():
 
 def test_verify_program_library_call_reports_rounding():
     program = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc")).moves
-    report = verify_program(MACHINE, program, setup=Setup.resolve(MACHINE))
+    report = verify_program(MACHINE, program, setup=Setup.resolve(MACHINE),
+                            tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert report.ok
     # half a unit of 4 decimals on X, Y and the three strokes moves the tip by less than 5 × 5e-5 mm
     assert np.all((report.rounding > 5e-5) & (report.rounding < 2.5e-4))
@@ -455,7 +460,8 @@ def test_text_report_against_line_comes_from_the_summary_not_the_json_record(mon
     axis[3] = (axis[3] + [0.001, 0.0, 0.0]) / np.linalg.norm(axis[3] + [0.001, 0.0, 0.0])   # line 12's axis
     intended = Intended(tip=tip, axis=axis, feed=np.full(len(tip), np.nan), kind=np.full(len(tip), -1),
                         label="shifted.csv")
-    report = verify_program(MACHINE, moves, setup=Setup.resolve(MACHINE), intended=intended)
+    report = verify_program(MACHINE, moves, setup=Setup.resolve(MACHINE), intended=intended,
+                            tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE)
     record = fmt.report_record(report, path="small.ngc", dialect="linuxcnc")
     assert fmt.against_summary(report) == record["against"]
     turned = math.degrees(math.acos(np.clip(fk.axis[3] @ axis[3], -1.0, 1.0)))   # clip: rounding past 1

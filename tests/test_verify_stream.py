@@ -12,6 +12,7 @@ from prs3_post.app.read_ahead import read_ahead
 from prs3_post.app.verify import open_program, open_setting, tool_lengths_of, verify_file, verify_loaded
 from prs3_post.app.verify_report import report_record, report_text
 from prs3_post.check.verify import Intended, verify_program
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.machine.loading import load_machine
 from prs3_post.readers.poses import read_poses
 
@@ -65,7 +66,8 @@ def test_json_report_is_the_same_in_chunks_of_1_7_and_10000_rows(name, tmp_path)
 
     def record(rows: int) -> str:
         report = verify_program(machine, moves, setup=context.setup, chunk_rows=rows,
-                                blending_lines=context.program.blending_lines)
+                                blending_lines=context.program.blending_lines,
+                                tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE)
         return json.dumps(report_record(report, path="p", dialect="linuxcnc"), allow_nan=False)
 
     expected = record(1 << 30)
@@ -81,7 +83,8 @@ def test_against_report_is_the_same_in_chunks():
                         kind=np.full(len(unit), -1, dtype=np.int64), label="paper_2a_2b.csv")
     machine = load_machine("patel2020")
     records = [json.dumps(report_record(verify_program(machine, context.program.moves, setup=context.setup,
-                                                       intended=intended, chunk_rows=rows), path="p"))
+                                                       intended=intended, chunk_rows=rows,
+        tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE), path="p"))
                for rows in (1, 7, 10_000)]
     assert records[0] == records[1] == records[2]
     assert json.loads(records[0])["problems"]                 # the rigid head's axis errors, as before
@@ -129,7 +132,8 @@ def test_json_report_of_a_job_program_is_the_same_in_chunks_of_7_and_65536_rows(
         report = verify_program(context.machine, context.program.moves, setup=context.setup, chunk_rows=rows,
                                 blending_lines=context.program.blending_lines,
                                 tool_lengths=tool_lengths_of(context.header), length_decimals=decimals.length,
-                                feed_decimals=decimals.inverse_time)
+                                feed_decimals=decimals.inverse_time,
+                                tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE)
         return json.dumps(report_record(report, path="p", dialect=context.dialect.name), allow_nan=False)
 
     if name == "twofaces-job-example.ngc":

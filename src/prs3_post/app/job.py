@@ -28,7 +28,7 @@ import numpy as np
 from prs3_post import __version__
 from prs3_post.check.collision import Approach, ProgramClearance, feed_tips_of, measure_program
 from prs3_post.check.placement import PlacementResult, place, placement_error, suggest_origin
-from prs3_post.core.defaults import DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE
 from prs3_post.core.errors import FeatureError, InputError, LimitError, ReachError
 from prs3_post.core.numbers import exact_text
 from prs3_post.core.toolpath import (
@@ -406,7 +406,8 @@ def _post_operation(machine: Machine, paths: list[Toolpath], k: int, spec: JobSp
     try:
         if keep:
             return _Posted.of(post_process(machine, path_part, spec.setup, tolerance=spec.tolerance,
-                                           length_decimals=decimals, clamp=spec.clamp))
+                                           length_decimals=decimals, clamp=spec.clamp,
+                                           angle_tolerance=DEFAULT_ANGLE_TOLERANCE))
         paths[k] = _NO_ROWS
         labels, file, events = path_part.source_labels, path_part.source_file, path_part.events
         columns = {name: getattr(path_part, name) for name in ("kind", "tip", "axis", "feed", "source")}
@@ -427,7 +428,7 @@ def _post_operation(machine: Machine, paths: list[Toolpath], k: int, spec: JobSp
         except (LimitError, ReachError):
             whole = replan()
             post_process(machine, whole, spec.setup, tolerance=spec.tolerance, length_decimals=decimals,
-                         clamp=spec.clamp)
+                         clamp=spec.clamp, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
             raise                                      # (not reached: the whole path fails too)
     except (LimitError, ReachError) as error:          # say the setup, and one that fits if there is one
         whole = replan() if whole is None else whole
@@ -561,7 +562,7 @@ def choose_setup(specs: tuple[JobSpec, ...], operations: list[OperationResult],
     pieces, lengths = job_in_part_frame(specs, operations, triangles)
     chosen = place(first.machine, pieces, origin=None if first.auto_origin else first.setup.origin,
                    rotation_deg=None if first.auto_rotation else first.setup.rotation_deg, tool_lengths=lengths,
-                   tolerance=first.tolerance)
+                   tolerance=first.tolerance, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     return tuple(replace(s, setup=chosen.setup, auto_origin=False, auto_rotation=False) for s in specs), chosen
 
 
@@ -576,7 +577,8 @@ def job_in_part_frame(specs: tuple[JobSpec, ...], operations: list[OperationResu
     for k in range(1, len(operations)):
         before, after = operations[k - 1], operations[k]
         pair = (before.tool_length, after.tool_length)
-        ends = [machine_path(spec.machine.with_tool_length(op.tool_length), op.path_part, MACHINE_FRAME)
+        ends = [machine_path(spec.machine.with_tool_length(op.tool_length), op.path_part, MACHINE_FRAME,
+                             tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
                 for spec, op in ((specs[k - 1], before), (specs[k], after))]
         lift, turn = transition_paths(ends[0], ends[1], pair, height, labels=(
             f"{before.label}, lift to the safe height", f"{after.label}, turn the tool axis at the safe height"))
@@ -701,14 +703,17 @@ def post_transition(machine: Machine, before: Toolpath, after: Toolpath, lengths
     lifted = None
     if len(lift):
         lifted = post_process(machine.with_tool_length(lengths[0]), lift, MACHINE_FRAME,
-                              length_decimals=length_decimals)
+                              length_decimals=length_decimals,
+                              tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     next_tool = machine.with_tool_length(lengths[1])
     as_feed = replace(turn, kind=np.full(len(turn), MoveKind.FEED))
-    fine = subdivide_axis_changes(next_tool.geometry, as_feed, tolerance=tolerance)
+    fine = subdivide_axis_changes(next_tool.geometry, as_feed, tolerance=tolerance,
+                                  angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     fine = replace(fine, kind=np.full(len(fine), MoveKind.RAPID))
     keep = np.ones(len(fine), dtype=bool)
     keep[0] = False                                    # the lift's end again, for the subdivision to start from
-    return lifted, post_process(next_tool, fine.take(keep), MACHINE_FRAME, length_decimals=length_decimals)
+    return lifted, post_process(next_tool, fine.take(keep), MACHINE_FRAME, length_decimals=length_decimals,
+                                tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
 
 
 #: The identity setup: machine-frame rows (the transitions) go through the same post-processing.

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 
-from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.core.toolpath import JointProgram, Toolpath
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.kinematics.registry import kinematics_of
@@ -21,8 +20,8 @@ from prs3_post.post.pipeline import PostStream
 __all__ = ["emitted_text", "program_text"]
 
 def program_text(machine: Machine, chunks: Iterable[Toolpath], setup: Setup, dialect: Dialect, *,
-                 header: tuple[tuple[str, str], ...] = (), tolerance: float = DEFAULT_TOLERANCE,
-                 angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, line_numbers: bool | None = None,
+                 header: tuple[tuple[str, str], ...] = (), tolerance: float,
+                 angle_tolerance: float, line_numbers: bool | None = None,
                  line_start: int | None = None, line_step: int | None = None,
                  stream: PostStream | None = None) -> Iterator[str]:
     """The program of a toolpath given in chunks, as chunks of G-code text (begin, one per chunk, end).

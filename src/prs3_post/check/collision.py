@@ -76,6 +76,7 @@ from prs3_post.check.collision_rapids import (
     rapid_tool_clearance,
     tool_words,
 )
+from prs3_post.core.defaults import DEFAULT_TOLERANCE
 from prs3_post.core.errors import LimitError
 from prs3_post.core.numbers import exact_text
 from prs3_post.core.toolpath import JointProgram, MoveKind, program_from_columns
@@ -322,7 +323,7 @@ def _replay_rows(machine: Machine, program: JointProgram, lo: int, hi: int) -> t
     start = max(lo - 1, 0)
     columns = {name: getattr(program, name)[start:hi] for name in ("kind", "stage", "strokes", "inverse_time",
                                                                   "source")}
-    rep = replay(machine, program_from_columns(columns))
+    rep = replay(machine, program_from_columns(columns), tolerance=DEFAULT_TOLERANCE)
     return rep.row + start, rep.tip, rep.axis
 
 
@@ -430,7 +431,7 @@ def _replayed(machine: Machine, program: JointProgram) -> tuple[IntArray, FloatA
         start, hi = max(lo - 1, 0), min(n, lo + rows)
         columns = {name: getattr(program, name)[start:hi] for name in ("kind", "stage", "strokes", "inverse_time",
                                                                       "source")}
-        rep = replay(machine, program_from_columns(columns))
+        rep = replay(machine, program_from_columns(columns), tolerance=DEFAULT_TOLERANCE)
         mine = rep.row >= lo - start                     # not the previous piece's last row again
         out_row.append(rep.row[mine] + start)
         out_tip.append(rep.tip[mine])

@@ -11,6 +11,7 @@ import numpy as np
 
 from prs3_post.check.collision_bodies import body_cylinders
 from prs3_post.check.collision_distance import REACH_MM, clearance
+from prs3_post.core.defaults import DEFAULT_TOLERANCE
 from prs3_post.core.errors import LimitError
 from prs3_post.core.numbers import fixed
 from prs3_post.core.toolpath import JointProgram, MoveKind, program_from_columns
@@ -120,7 +121,7 @@ def rapid_tool_clearance(machine: Machine, program: JointProgram, setup: Setup, 
     is_rapid = np.zeros(len(rows), dtype=bool)
     is_rapid[np.searchsorted(rows, rapid)] = True
     columns = {name: getattr(program, name)[rows] for name in ("kind", "stage", "strokes", "inverse_time", "source")}
-    rep = replay(machine, program_from_columns(columns))
+    rep = replay(machine, program_from_columns(columns), tolerance=DEFAULT_TOLERANCE)
     tip, axis = setup.points_to_part(rep.tip), setup.axes_to_part(rep.axis)
     # a retract: the axis kept, the tip moved along it (up, away from the part), barely sideways
     end_tip, end_axis = tip[rep.end], axis[rep.end]

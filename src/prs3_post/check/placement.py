@@ -38,7 +38,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE
 from prs3_post.core.errors import LimitError, ReachError
 from prs3_post.core.numbers import exact_text
 from prs3_post.core.numbers import fixed as _fixed
@@ -181,7 +181,7 @@ def suggest_origin(machine: Machine, path_part: Toolpath, setup: Setup, *, toler
     if shift_ranges(machine, path) is None:
         return None
     try:
-        path = machine_path(machine, path_part, setup, tolerance=tolerance)
+        path = machine_path(machine, path_part, setup, tolerance=tolerance, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     except (ReachError, LimitError):                   # a bad axis, or a move bisection gives up on
         return None
     ranges = shift_ranges(machine, path)
@@ -194,7 +194,7 @@ def suggest_origin(machine: Machine, path_part: Toolpath, setup: Setup, *, toler
         texts = tuple(exact_text(v, decimals) for v in np.round(np.asarray(setup.origin) + centre, decimals))
         try:
             post_process(machine, path_part, setup.with_origin(tuple(float(t) for t in texts)), tolerance=tolerance,
-                         length_decimals=length_decimals)
+                         length_decimals=length_decimals, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
         except (LimitError, ReachError, SetupError):
             continue
         return texts  # type: ignore[return-value]
@@ -527,7 +527,7 @@ def _margins(rows: _Rows) -> tuple[LimitMargin, ...]:
 
 def place(machine: Machine, paths: Toolpath | Sequence[Toolpath], *, origin: Sequence[float] | None = None,
           rotation_deg: float | None = None, tool_lengths: Sequence[float] | None = None,
-          tolerance: float = DEFAULT_TOLERANCE, angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE) -> PlacementResult:
+          tolerance: float, angle_tolerance: float) -> PlacementResult:
     """Choose the setup with the largest worst-case normalized margin (module docstring).
 
     Parameters

@@ -106,7 +106,7 @@ def _with_limits(machine: Machine, rep: kinematic.Replay) -> Replay:
     return Replay(**{f.name: getattr(rep, f.name) for f in dataclasses.fields(rep)}, limits=limits)
 
 
-def replay(machine: Machine, program: JointProgram, *, tolerance: float = DEFAULT_TOLERANCE,
+def replay(machine: Machine, program: JointProgram, *, tolerance: float,
            translations: bool = True) -> Replay:
     """:func:`prs3_post.kinematics.replay.replay` and the machine's limits on every sample."""
     return _with_limits(machine, kinematic.replay(machine, program, tolerance=tolerance, translations=translations))
@@ -343,8 +343,8 @@ def verify_program(
     program: JointProgram,
     *,
     setup: Setup,
-    tolerance: float = DEFAULT_TOLERANCE,
-    axis_tolerance: float = DEFAULT_ANGLE_TOLERANCE,
+    tolerance: float,
+    axis_tolerance: float,
     length_decimals: int = 4,
     feed_decimals: int = 4,
     intended: Intended | None = None,

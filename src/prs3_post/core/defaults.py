@@ -2,9 +2,11 @@
 header's), the clearance a collision check keeps, the nominal rapid rate, the inch, and the range of feeds any
 input may ask for. What is a machine's own (its limits, speeds, holder) is in its machine file instead.
 
-A value a user gives overrides these; a program header records the one used. Inside the library a value that
-has a default here is a required keyword argument (a value someone forgets to pass is an error, not silently
-the default): only the edges (the command line, a job file, a request's fields) fill it in from this module.
+A value a user gives overrides these; a program header records the one used. The stages take them as
+required keyword arguments (the post pipeline and linearization, the profiles, placement, the replay and
+verify_program, the collision check, the preview), so a value someone forgets to pass is an error, not
+silently the default: the edges (the command line, a job file, a request's fields, the readers' public
+functions) fill them in from this module.
 tests/test_defaults.py fails on a new copy of these numbers elsewhere in the package.
 """
 

@@ -52,7 +52,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prs3_post.core.defaults import DEFAULT_TOLERANCE
 from prs3_post.core.toolpath import JointProgram
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 from prs3_post.kinematics.registry import kinematics_of
@@ -328,7 +327,7 @@ def _translation_bound(machine: Machine, joints: FloatArray, ends: _Poses, moves
     return bound
 
 
-def replay(machine: Machine, program: JointProgram, *, tolerance: float = DEFAULT_TOLERANCE,
+def replay(machine: Machine, program: JointProgram, *, tolerance: float,
            translations: bool = True) -> Replay:
     """Sample every move of ``program`` in joint space and run FK (and exact IK) on the samples.
 

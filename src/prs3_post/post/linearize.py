@@ -20,7 +20,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.core.errors import LimitError
 from prs3_post.core.toolpath import MoveKind, Toolpath
 from prs3_post.core.types import FloatArray, IntArray
@@ -119,8 +118,8 @@ class Linearized:
 
 
 def subdivide_axis_changes(
-    geometry: Geometry | Kinematics, path: Toolpath, *, tolerance: float = DEFAULT_TOLERANCE,
-    angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, max_rounds: int = MAX_ROUNDS, max_inserted: int = MAX_INSERTED,
+    geometry: Geometry | Kinematics, path: Toolpath, *, tolerance: float,
+    angle_tolerance: float, max_rounds: int = MAX_ROUNDS, max_inserted: int = MAX_INSERTED,
     start: Toolpath | None = None,
 ) -> Toolpath:
     """Insert intended poses into FEED moves whose axis changes until they stay within the tolerances.
@@ -132,8 +131,8 @@ def subdivide_axis_changes(
 
 
 def linearize(
-    geometry: Geometry | Kinematics, path: Toolpath, *, tolerance: float = DEFAULT_TOLERANCE,
-    angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, max_rounds: int = MAX_ROUNDS, max_inserted: int = MAX_INSERTED,
+    geometry: Geometry | Kinematics, path: Toolpath, *, tolerance: float,
+    angle_tolerance: float, max_rounds: int = MAX_ROUNDS, max_inserted: int = MAX_INSERTED,
     start: Toolpath | None = None,
 ) -> Linearized:
     """Insert intended poses into FEED moves whose axis changes until they stay within the tolerances.

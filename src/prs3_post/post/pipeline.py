@@ -131,8 +131,8 @@ def _unit_path(path: Toolpath, first_row: int) -> Toolpath:
     return replace(path, axis=unit)
 
 
-def machine_path(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float = DEFAULT_TOLERANCE,
-                 angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE) -> Toolpath:
+def machine_path(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float,
+                 angle_tolerance: float) -> Toolpath:
     """The part-frame toolpath placed on the machine, with unit axes, its axis-changing moves subdivided.
 
     Not subdivided when a row tilts past the machine's limit: no setup runs such a path (the tilt
@@ -264,8 +264,8 @@ class PostStream:
         return f"among the {self._program_rows + rows} checked so far"
 
 
-def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float = DEFAULT_TOLERANCE,
-                 angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, length_decimals: int | None = None,
+def post_process(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float,
+                 angle_tolerance: float, length_decimals: int | None = None,
                  clamp: bool = True) -> PostResult:
     """Turn a part-frame toolpath into a checked joint-space program.
 

@@ -34,7 +34,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prs3_post.core.defaults import DEFAULT_TOLERANCE
 from prs3_post.core.errors import FeatureError
 from prs3_post.core.toolpath import Toolpath
 from prs3_post.core.types import FloatArray
@@ -277,7 +276,7 @@ def tool_center_contour(
     direction: Direction,
     tool_diameter: float,
     *,
-    tolerance: float = DEFAULT_TOLERANCE,
+    tolerance: float,
 ) -> FloatArray:
     """The closed path of the tool centre in face (u, v), in cutting order.
 
@@ -401,7 +400,7 @@ def plan_profile(
     params: ProfileParams,
     cutting: Cutting,
     *,
-    tolerance: float = DEFAULT_TOLERANCE,
+    tolerance: float,
     resolution: float = MIN_TOLERANCE,
 ) -> Toolpath:
     """Mill a square or round profile into ``face`` in depth passes (see the module docstring).
