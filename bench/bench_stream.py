@@ -23,8 +23,8 @@ from bench_cl_reader import write_cl
 
 from prs3_post.app.streaming import program_text
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
+from prs3_post.core.output_files import write_atomic
 from prs3_post.emit.gcode import emit_program
-from prs3_post.emit.output_files import write_atomic
 from prs3_post.machine.loading import load_dialect, load_machine
 from prs3_post.part.setup_transform import Setup
 from prs3_post.post.pipeline import PostStream, post_process

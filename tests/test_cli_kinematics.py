@@ -238,7 +238,7 @@ def test_ik_batch_streams_in_chunks(tmp_path):
 def test_ik_batch_bad_line_in_a_later_chunk_writes_nothing(tmp_path):
     from prs3_post.app.ik_batch import IKBatch
     from prs3_post.core.errors import InputError
-    from prs3_post.emit.output_files import write_atomic
+    from prs3_post.core.output_files import write_atomic
     from prs3_post.machine.loading import load_machine
 
     path = _pose_file(tmp_path, 40, bad_line=31)

@@ -516,7 +516,7 @@ _HELD_BATCH = """
 import os, signal, sys
 from prs3_post.app import convert
 from prs3_post.cli.main import main
-from prs3_post.emit.output_files import HeadLast
+from prs3_post.core.output_files import HeadLast
 
 ready, write_atomic = int(sys.argv[1]), convert.write_atomic
 

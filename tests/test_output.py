@@ -17,9 +17,9 @@ from click.testing import CliRunner
 
 from prs3_post.cli.main import main
 from prs3_post.cli.options import demo_part
+from prs3_post.core import output_files as output_module
 from prs3_post.core.errors import InputError
-from prs3_post.emit import output_files as output_module
-from prs3_post.emit.output_files import HeadLast, write_atomic, write_outputs
+from prs3_post.core.output_files import HeadLast, write_atomic, write_outputs
 
 REPO = Path(__file__).resolve().parents[1]
 WEDGE = REPO / "fixtures" / "parts" / "wedge.stl"
@@ -164,7 +164,7 @@ def test_a_failed_rename_undoes_the_ones_before(tmp_path: Path, monkeypatch: pyt
 
 _SIGNAL_SCRIPT = """
 import os, signal, sys
-from prs3_post.emit.output_files import write_atomic
+from prs3_post.core.output_files import write_atomic
 def chunks():
     yield "first half\\n"
     os.kill(os.getpid(), signal.{name})

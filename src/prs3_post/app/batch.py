@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 from prs3_post.app.convert import ConvertReport, ConvertSettings, write_conversion
 from prs3_post.core.errors import InputError, Prs3Error
-from prs3_post.emit.output_files import refuse_overwriting
+from prs3_post.core.output_files import refuse_overwriting
 from prs3_post.kinematics.prs3.blocks import THREADS_VARIABLE
 from prs3_post.machine.loading import Dialect
 from prs3_post.readers.registry import suffixes

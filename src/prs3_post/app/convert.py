@@ -8,7 +8,7 @@ the source file's name and SHA-256, the setup, the tolerances, the tool length u
 counts, so that ``verify --against INPUT`` can rebuild what the program should do.
 
 A batch (:func:`prs3_post.app.batch.convert_batch`) runs the files in worker processes; each file either completes (its
-program written atomically, :func:`prs3_post.emit.output_files.write_atomic`) or leaves nothing behind, and a
+program written atomically, :func:`prs3_post.core.output_files.write_atomic`) or leaves nothing behind, and a
 failing file does not stop the others unless asked. Messages name files, lines and values, never a
 command-line flag.
 """
@@ -30,12 +30,12 @@ from prs3_post.app.streaming import program_text
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE
 from prs3_post.core.errors import InputError, LimitError, PoseError, ReachError
 from prs3_post.core.input_files import open_input
+from prs3_post.core.output_files import HeadLast, write_atomic
 from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpath, join_programs
 from prs3_post.core.types import FloatArray
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.emit.header import SourceCounts, SourceHeader
 from prs3_post.emit.header_write import source_header_entries
-from prs3_post.emit.output_files import HeadLast, write_atomic
 from prs3_post.kinematics import unit_axes
 from prs3_post.kinematics.prs3.blocks import default_workers
 from prs3_post.kinematics.registry import kinematics_of
@@ -429,7 +429,7 @@ def _placed(error: LimitError | ReachError, run: _Run) -> Exception:
 def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) -> tuple[_Run, HeadLast]:
     """The conversion of one file as program text whose header is made last: the body's chunks are
     lazy (see :func:`prs3_post.app.streaming.program_text`), and the head, with the counts, is made once
-    they are through (:class:`prs3_post.emit.output_files.HeadLast`: a writer spools the body, then writes the
+    they are through (:class:`prs3_post.core.output_files.HeadLast`: a writer spools the body, then writes the
     head and the body). The run's :meth:`_Run.report` follows the body."""
     run = _start(path, settings)
     stream = run.post

@@ -34,7 +34,7 @@ from prs3_post.cli.options import (
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARANCE_MIN
 from prs3_post.core.errors import ConfigError, FeatureError, InputError, quoted
 from prs3_post.core.lexer import code_name
-from prs3_post.emit.output_files import (
+from prs3_post.core.output_files import (
     check_writable,
     refuse_overwriting,
     write_atomic,

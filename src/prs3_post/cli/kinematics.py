@@ -7,7 +7,7 @@ import json
 import click
 
 from prs3_post.cli.options import RATIO, Command, Numbers, OutputPath, machine_option, run_reported, was_given
-from prs3_post.emit.output_files import (
+from prs3_post.core.output_files import (
     write_outputs,
 )
 from prs3_post.kinematics import IKModel

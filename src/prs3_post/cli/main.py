@@ -21,7 +21,7 @@ from prs3_post.cli.options import Command
 from prs3_post.cli.run import demo, job, run
 from prs3_post.cli.verify import preview, verify
 from prs3_post.core.errors import quoted
-from prs3_post.emit.output_files import (
+from prs3_post.core.output_files import (
     stdout_error,
 )
 

@@ -23,7 +23,7 @@ from prs3_post.core.defaults import (
     MAX_SPINDLE_RPM,
 )
 from prs3_post.core.errors import Prs3Error, Prs3Warning, quoted
-from prs3_post.emit.output_files import (
+from prs3_post.core.output_files import (
     refuse_overwriting,
     stdout_error,
 )

@@ -48,7 +48,7 @@ from prs3_post.core.defaults import (
     FEED_RANGE_MM_MIN,
 )
 from prs3_post.core.errors import FeatureError, FieldError, InputError, UnusedFields
-from prs3_post.emit.output_files import (
+from prs3_post.core.output_files import (
     is_stdout,
     refuse_overwriting,
     write_outputs,

@@ -32,7 +32,7 @@ from prs3_post.core.defaults import (
     NOMINAL_RAPID_RATE,
 )
 from prs3_post.core.errors import InputError
-from prs3_post.emit.output_files import (
+from prs3_post.core.output_files import (
     write_atomic,
 )
 from prs3_post.machine.loading import (

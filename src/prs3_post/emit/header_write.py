@@ -171,7 +171,7 @@ def source_header_entries(header: SourceHeader, *, description: str = "") -> tup
     description : str — the machine's one-line description
 
     The counts (what the input held, what the program has) are only known at the end of a streamed
-    conversion: its writer makes the header last and puts it first (:class:`prs3_post.emit.output_files.HeadLast`).
+    conversion: its writer makes the header last and puts it first (:class:`prs3_post.core.output_files.HeadLast`).
     """
     entries = [
         (PROGRAM_KEY, header.version),

@@ -11,7 +11,7 @@ from the rows before it (the last pose, for the subdivision of the move to the n
 its inverse-time feed; the last row kept, for the resolution guard), so that the rows it makes are
 those of :func:`post_process` on the whole toolpath, cut in the same places. ``app.streaming.program_text``
 adds the emitter: an iterator of toolpath chunks becomes an iterator of G-code text chunks, ready
-for :func:`prs3_post.emit.output_files.write_atomic`, whose bytes do not depend on the chunking.
+for :func:`prs3_post.core.output_files.write_atomic`, whose bytes do not depend on the chunking.
 """
 
 from __future__ import annotations
