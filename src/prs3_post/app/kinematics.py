@@ -12,13 +12,16 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from prs3_post.app.pose_tables import fk_records, ik_records
 from prs3_post.core.errors import ReachError
 from prs3_post.kinematics import FKResult, IKModel, IKResult, forward, inverse, unit_axes
 from prs3_post.machine.loading import DEFAULT_MACHINE, Machine, load_machine
 from prs3_post.post.limits import check_limits
 
-__all__ = ["forward_kinematics", "inverse_kinematics", "machine_of", "pose_record", "setting_record"]
+#: The inverse kinematics models ``ik --model`` offers.
+IK_MODELS = tuple(model.value for model in IKModel)
+
+__all__ = ["IK_MODELS", "IKModel", "forward_kinematics", "inverse_kinematics", "machine_of", "pose_record",
+           "setting_record"]
 
 
 def machine_of(machine: Machine | str) -> Machine:
@@ -82,6 +85,8 @@ def pose_record(machine: Machine, tip: tuple[float, ...], axis: tuple[float, ...
     ReachError
         The head does not assemble there, or (``head``) misses the tip by the parasitic shift.
     """
+    from prs3_post.app.pose_tables import ik_records  # the tables: only `ik` and `fk` need them
+
     tips = np.array([tip])
     axes = unit_axes(tips, np.array([axis]), row_name="pose")
     result = inverse(machine.geometry, tips, axes, model=model)
@@ -105,6 +110,8 @@ def setting_record(machine: Machine, strokes: tuple[float, ...], xy: tuple[float
     ReachError
         Strokes that do not assemble the head.
     """
+    from prs3_post.app.pose_tables import fk_records
+
     result = forward(machine.geometry, np.array([strokes]), np.array([xy]))
     if not result.converged[0]:
         raise ReachError(

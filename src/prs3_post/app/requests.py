@@ -38,7 +38,7 @@ from prs3_post.app.values import (
 from prs3_post.core.defaults import DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE, FEED_RANGE_MM_MIN
 from prs3_post.core.errors import FeatureError, FieldError, InputError, UnusedFields, quoted
 from prs3_post.core.toolpath import Coolant
-from prs3_post.machine.loading import DEFAULT_DIALECT, DEFAULT_MACHINE, Dialect, load_dialect, load_machine
+from prs3_post.machine.loading import DEFAULT_DIALECT, DEFAULT_MACHINE, Dialect, Machine, load_dialect, load_machine
 from prs3_post.part.setup_transform import AUTO, UP_ROTATION, Setup, SetupError
 from prs3_post.toolpaths.common import TOOL_DIAMETER_RANGE
 from prs3_post.toolpaths.profiles import Direction, Entry, Side
@@ -48,7 +48,19 @@ if TYPE_CHECKING:
     from prs3_post.app.job import JobSpec
     from prs3_post.readers.tooltable import ToolTable
 
-__all__ = ["OPERATION_FIELDS", "SETTING_FIELDS", "Field", "JobRequest", "job_request", "job_specs", "used_by"]
+__all__ = [
+    "AUTO",
+    "OPERATION_FIELDS",
+    "SETTING_FIELDS",
+    "UP_ROTATION",
+    "Field",
+    "JobRequest",
+    "choices",
+    "job_request",
+    "job_specs",
+    "resolve_setup",
+    "used_by",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -139,6 +151,14 @@ DEFAULT_TOOL_DIAMETER = 6.0
 _TAKEN_AS_GIVEN = ("machine", "dialect", "tool_table", "line_numbers", "clamp", "collision_check")
 
 
+def choices(key: str) -> tuple[str, ...]:
+    """The words an operation's or a setting's key takes (``side``: on, inside, outside)."""
+    kind = {**SETTING_FIELDS, **OPERATION_FIELDS}[key].kind
+    if not isinstance(kind, ChoiceKind):
+        raise ValueError(f"{key} takes no fixed words")
+    return kind.choices
+
+
 def used_by(profile: str, key: str) -> bool:
     """Whether an operation of ``profile`` uses ``key`` (``diameter``: only a round one)."""
     profiles = OPERATION_FIELDS[key].profiles
@@ -218,8 +238,19 @@ def _face_index(choice: str | int, number: int) -> int | None:
     raise FieldError(f"expected auto or a face index, got {quoted(text)}", field="face", operation=number)
 
 
-def _setup(request: JobRequest, machine: Any) -> Setup:
-    origin, rotation = request.part_origin, request.part_rotation_deg
+def _setup(request: JobRequest, machine: Machine) -> Setup:
+    return resolve_setup(machine, request.part_origin, request.part_rotation_deg)
+
+
+def resolve_setup(machine: Machine, origin: tuple[float, ...] | str | None, rotation: float | str | None) -> Setup:
+    """The setup a job starts from: the machine's default, with the part origin and rotation given
+    (None: the default's; ``auto``: the default's until the job chooses it).
+
+    Raises
+    ------
+    FieldError
+        A value out of range, naming ``setup.part_origin`` or ``setup.part_rotation_deg``.
+    """
     try:
         return Setup.resolve(machine, None if origin == AUTO else origin,  # type: ignore[arg-type]
                              None if rotation == AUTO else rotation)  # type: ignore[arg-type]

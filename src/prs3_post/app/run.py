@@ -15,8 +15,17 @@ from prs3_post.core.defaults import NOMINAL_RAPID_RATE
 
 if TYPE_CHECKING:
     from prs3_post.app.job import JobProgram, JobSpec
+    from prs3_post.readers.jobfile import JobFile
 
-__all__ = ["check_request", "check_specs", "job_preview", "post_part", "run_job_file"]
+__all__ = ["check_request", "check_specs", "job_preview", "post_part", "read_job", "run_job_file"]
+
+
+def read_job(path: str) -> JobFile:
+    """A job file, its structure checked (:func:`~prs3_post.readers.jobfile.read_job_file`; its values are
+    the request's to check: :meth:`~prs3_post.readers.jobfile.JobFile.as_data`)."""
+    from prs3_post.readers.jobfile import read_job_file
+
+    return read_job_file(path)
 
 
 def check_request(request: JobRequest) -> tuple[tuple[JobSpec, ...], JobProgram]:
@@ -114,9 +123,7 @@ def run_job_file(path: str, **overrides: Any) -> str:
     FieldError, FeatureError, LimitError, ReachError, ConfigError
         As :func:`post_part`.
     """
-    from prs3_post.readers.jobfile import read_job_file
-
-    data = read_job_file(path).as_data()
+    data = read_job(path).as_data()
     setup = {**data.get("setup", {}), **overrides.pop("setup", {})}
     _, job = check_request(job_request({**data, **overrides, "setup": setup}))
     return "".join(job.chunks())

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, TypeVar
 import numpy as np
 
 from prs3_post.app.read_ahead import read_ahead
+from prs3_post.app.requests import resolve_setup
 from prs3_post.check.verify import Intended, Problem, Verifier, VerifyReport, verify_program
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE
 from prs3_post.core.errors import ConfigError, InputError, PoseError, Prs3Error, quoted
@@ -48,6 +49,7 @@ from prs3_post.machine.loading import (
 from prs3_post.part.face import Face
 from prs3_post.part.setup_transform import Setup
 from prs3_post.readers.program import CHUNK_LINES, ProgramFile, ProgramStream, load_program
+from prs3_post.toolpaths.common import require_tolerance as require_tolerance  # the front ends check theirs
 
 # The main job (to rebuild one) and the collision measure load only for `verify --against` and
 # `preview --part`: a plain verify starts without them.
@@ -167,6 +169,8 @@ def open_setting(path: str, *, machine: str | None = None, dialect: str | None =
     ------
     HeaderConflict
         A given value that is not the header's.
+    FieldError
+        A setup given out of range (``setup.part_origin``, ``setup.part_rotation_deg``).
     InputError, ConfigError
         An unreadable header, machine or dialect.
     """
@@ -177,7 +181,7 @@ def open_setting(path: str, *, machine: str | None = None, dialect: str | None =
     if header is None:
         chosen_machine = load_machine(machine if machine is not None else DEFAULT_MACHINE)
         chosen_dialect = given_dialect or load_dialect(DEFAULT_DIALECT)
-        setup = Setup.resolve(chosen_machine, origin, rotation_deg)
+        setup = resolve_setup(chosen_machine, origin, rotation_deg)
     else:
         chosen_machine = _recorded_or_given(header, "machine", load_machine,
                                             load_machine(machine) if machine is not None else None)

@@ -12,10 +12,10 @@ from typing import TYPE_CHECKING
 
 import click
 
+from prs3_post.app.convert_files import INPUT_FORMATS, convert_settings
+from prs3_post.app.values import ANGLE, LENGTH
 from prs3_post.cli.options import (
-    ANGLE,
     CLEARANCE_MIN,
-    LENGTH,
     Command,
     Decimal,
     Integer,
@@ -25,28 +25,20 @@ from prs3_post.cli.options import (
     job_part_rotation_option,
     line_number_options,
     machine_option,
-    resolve_setup,
+    option_error,
     run_reported,
     tolerance_option,
     up_option,
     was_given,
 )
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARANCE_MIN
-from prs3_post.core.errors import ConfigError, FeatureError, InputError, quoted
+from prs3_post.core.errors import FieldError, quoted
 from prs3_post.core.lexer import code_name
 from prs3_post.core.output_files import (
     check_writable,
     refuse_overwriting,
     write_atomic,
 )
-from prs3_post.machine.loading import (
-    load_dialect,
-    load_machine,
-    load_source,
-)
-from prs3_post.part.setup_transform import AUTO
-from prs3_post.readers.detect import FORMATS
-from prs3_post.toolpaths.common import TOOL_DIAMETER_RANGE, require_tolerance
 
 # What only some commands need is imported where it is used (the main job, convert, verify, preview,
 # faces: each about 0.1 s of imports), so that `ik`, `fk` and a small `verify` start fast.
@@ -77,7 +69,7 @@ def _codes_option(text: str | None, flag: str) -> tuple[str, ...] | None:
 @click.option("--fail-fast", is_flag=True, help="Stop at the first file that fails (files under way finish).")
 @click.option("--force", is_flag=True,
               help="Replace programs that exist already (default: keep them; that file fails).")
-@click.option("--format", "input_format", type=click.Choice(list(FORMATS)), default="auto", show_default=True,
+@click.option("--format", "input_format", type=click.Choice(list(INPUT_FORMATS)), default="auto", show_default=True,
               help="Input format: by content (CL records or G-code words), or forced.")
 @click.option("--report", "report_path", type=OutputPath(), metavar="FILE.json",
               help="Write every file's accounting (records by word, moves, subdivisions, deviations) as JSON.")
@@ -153,11 +145,8 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
         output_path,
         prepare_outdir,
     )
-    from prs3_post.app.convert import ConvertSettings
-    from prs3_post.app.work_plane import WorkPlaneError, work_plane_from_text
 
     def body() -> int:
-        require_tolerance(tolerance)
         if outdir == "-":                                # it made a folder named '-'
             raise click.BadParameter("'-' is no folder: convert writes one program per input into OUTDIR, standard "
                                      "output cannot take them (a folder named '-' is ./-)",
@@ -174,39 +163,23 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
                 if was_given(ctx, name):
                     raise click.UsageError(f"{flag} is used only with --part PART.stl (the check against the part): "
                                            "give the part, or leave it out")
-        low, high = TOOL_DIAMETER_RANGE
-        if tool_diameter is not None and not low <= tool_diameter <= high:
-            raise click.BadParameter(f"must be from {low:g} to {high:g} mm (got {tool_diameter:g})",
-                                     param_hint="'--tool-diameter'")
-        machine = load_machine(machine_name)
-        dialect = load_dialect(dialect_name)
-        try:
-            plane = (work_plane_from_text(work_plane_text, units=part_units, up=up)[0]
-                     if work_plane_text is not None else None)
-        except (WorkPlaneError, InputError, FeatureError) as error:
-            raise click.BadParameter(str(error), param_hint="'--work-plane'") from error
-        source = None if source_name is None else load_source(source_name)
-        if source is None:                               # else taken and ignored: a 3+2 or CL input has no TCP
+        if source_name is None:                          # else taken and ignored: a 3+2 or CL input has no TCP
             for flag, text in (("--tcp-on", tcp_on), ("--tcp-off", tcp_off)):
                 if text is not None:
                     raise click.UsageError(f"{flag} is used only with --source (a 5-axis program's TCP codes): "
                                            "give the source machine, or leave it out")
-        codes_on, codes_off = _codes_option(tcp_on, "--tcp-on"), _codes_option(tcp_off, "--tcp-off")
         try:
-            settings = ConvertSettings(
-                machine=machine, dialect=dialect, setup=resolve_setup(machine, part_origin, part_rotation),
+            settings = convert_settings(
+                machine=machine_name, dialect=dialect_name, part_origin=part_origin, part_rotation=part_rotation,
                 tolerance=tolerance, angle_tolerance_deg=angle_tolerance_deg, tool_length=tool_length,
-                input_format=input_format, units=units, ignore=tuple(w.upper() for w in ignore_words),
-                work_plane=plane, source=source, tcp_on=codes_on, tcp_off=codes_off,
+                input_format=input_format, units=units, ignore=ignore_words, work_plane=work_plane_text,
+                part=part_path, part_units=part_units, part_up=up, source=source_name,
+                tcp_on=_codes_option(tcp_on, "--tcp-on"), tcp_off=_codes_option(tcp_off, "--tcp-off"),
                 line_numbers=line_numbers, line_start=line_start, line_step=line_step,
-                auto_origin=part_origin == AUTO, auto_rotation=part_rotation == AUTO, part=part_path,
-                part_units=part_units, part_up=up, collision_check=collision_check, clearance_min=clearance_min,
-                tool_diameter=tool_diameter)
-        except ConfigError as error:                     # the TCP codes given do not work with the source
-            given = [f"'{flag}'" for flag, codes in (("--tcp-on", codes_on), ("--tcp-off", codes_off)) if codes]
-            if source is None or not given:
-                raise
-            raise click.BadParameter(f"{error.args[0]} (source {source.name})", param_hint=" / ".join(given)) from error
+                collision_check=collision_check, clearance_min=clearance_min, tool_diameter=tool_diameter)
+        except FieldError as error:
+            raise option_error(error) from error
+        dialect = settings.dialect
         repeats: list[tuple[str, str]] = []
         files = collect_inputs(inputs, exclude=outdir, exclude_suffix=dialect.extension, repeats=repeats)
         if report_path is not None:

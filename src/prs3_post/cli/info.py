@@ -2,17 +2,10 @@
 
 from __future__ import annotations
 
-import json
-
 import click
 
+from prs3_post.app.listings import faces_json, faces_text, shipped_machines, shipped_sources
 from prs3_post.cli.options import Command, run_reported, up_option
-from prs3_post.core.errors import FeatureError
-from prs3_post.machine.loading import (
-    load_machine,
-    load_source,
-    shipped_names,
-)
 
 
 @click.command(cls=Command)
@@ -29,8 +22,7 @@ def machines() -> None:
     """
 
     def body() -> int:
-        for name in shipped_names("machines"):
-            machine = load_machine(name)
+        for name, machine in shipped_machines():
             stage = "XY stage" if machine.stage.present else "no stage"
             click.echo(f"{name:<18} {stage:<9} {machine.description}")
         return 0
@@ -52,8 +44,7 @@ def sources() -> None:
     """
 
     def body() -> int:
-        for name in shipped_names("sources"):
-            source = load_source(name)
+        for name, source in shipped_sources():
             words = " ".join(source.words or source.vector_words)
             tcp = f"{'/'.join(source.tcp_on)} {'/'.join(source.tcp_off)}"
             click.echo(f"{name:<14} {words:<6} {tcp:<12} {source.description}")
@@ -81,20 +72,9 @@ def faces(part: str, units: str, up: str, as_json: bool) -> None:
       prs3-post faces part.stl --json
       prs3-post faces angle_block.STL --units inch --up y
     """
-    from prs3_post.part.faces import face_table, find_faces, format_face_table, select_face
-    from prs3_post.part.stl import load_part
-
-
     def body() -> int:
-        found = find_faces(load_part(part, units=units, up=up))
-        if as_json:
-            click.echo(json.dumps(face_table(found), indent=2, allow_nan=False))
-            return 0
-        click.echo(format_face_table(found), nl=False)
-        try:
-            click.echo(select_face(found, None)[1])
-        except FeatureError as error:
-            click.echo(f"auto: {error}")
+        click.echo(faces_json(part, units=units, up=up) if as_json else faces_text(part, units=units, up=up),
+                   nl=as_json)
         return 0
 
     run_reported(body)

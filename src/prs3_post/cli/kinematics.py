@@ -6,13 +6,18 @@ import json
 
 import click
 
-from prs3_post.cli.options import RATIO, Command, Numbers, OutputPath, machine_option, run_reported, was_given
+from prs3_post.app.kinematics import IK_MODELS, IKModel, machine_of
+from prs3_post.app.values import RATIO
+from prs3_post.cli.options import (
+    Command,
+    Numbers,
+    OutputPath,
+    machine_option,
+    run_reported,
+    was_given,
+)
 from prs3_post.core.output_files import (
     write_outputs,
-)
-from prs3_post.kinematics import IKModel
-from prs3_post.machine.loading import (
-    load_machine,
 )
 
 
@@ -26,7 +31,7 @@ from prs3_post.machine.loading import (
 )
 @click.option("-o", "--output", "out_path", type=OutputPath(), help="Batch output CSV (default: standard output).")
 @click.option(
-    "--model", type=click.Choice([m.value for m in IKModel]), default="exact", show_default=True,
+    "--model", type=click.Choice(list(IK_MODELS)), default="exact", show_default=True,
     help="exact: rigid platform + XY stage; head: no stage; paper: the paper's per-leg method (validation).",
 )
 @machine_option
@@ -47,7 +52,7 @@ def ik(tip: tuple[float, ...] | None, axis: tuple[float, ...] | None, batch_path
     from prs3_post.app.pose_tables import ik_text
 
     def body() -> int:
-        machine = load_machine(machine_name)
+        machine = machine_of(machine_name)
         if batch_path is not None:
             if tip is not None or axis is not None:
                 raise click.UsageError("--batch cannot be combined with --tip/--axis")
@@ -88,7 +93,7 @@ def fk(strokes: tuple[float, ...], xy: tuple[float, ...], machine_name: str, as_
     from prs3_post.app.pose_tables import fk_text
 
     def body() -> int:
-        machine = load_machine(machine_name)
+        machine = machine_of(machine_name)
         if not machine.stage.present and was_given(click.get_current_context(), "xy"):
             raise click.BadParameter(f"machine {machine.name} has no stage (stage.present = false): the tip is "
                                      "where the head puts it; leave --xy out", param_hint="'--xy'")

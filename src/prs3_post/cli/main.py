@@ -13,7 +13,6 @@ from typing import Any
 
 import click
 
-from prs3_post import __version__
 from prs3_post.cli.convert import convert
 from prs3_post.cli.info import faces, machines, sources
 from prs3_post.cli.kinematics import fk, ik
@@ -24,6 +23,7 @@ from prs3_post.core.errors import quoted
 from prs3_post.core.output_files import (
     stdout_error,
 )
+from prs3_post.core.version import __version__
 
 
 class _MainGroup(click.Group):

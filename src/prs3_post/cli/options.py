@@ -17,48 +17,30 @@ from typing import Any
 
 import click
 
-from prs3_post.core.defaults import (
-    DEFAULT_TOLERANCE,
-    FEED_RANGE_MM_MIN,
-    MAX_SPINDLE_RPM,
-)
-from prs3_post.core.errors import Prs3Error, Prs3Warning, quoted
+from prs3_post.app.listings import demo_part
+from prs3_post.app.requests import AUTO, SETTING_FIELDS, UP_ROTATION
+from prs3_post.app.values import ANGLE, LENGTH, DecimalKind, IntegerKind, Kind, NumbersKind, ValueProblem
+from prs3_post.core.defaults import DEFAULT_TOLERANCE
+from prs3_post.core.errors import FieldError, Prs3Error, Prs3Warning, UnusedFields, quoted
 from prs3_post.core.output_files import (
     refuse_overwriting,
     stdout_error,
 )
-from prs3_post.machine.loading import (
-    DEFAULT_DIALECT,
-    DEFAULT_MACHINE,
-    Machine,
-    postproc_dir,
-)
-from prs3_post.part.setup_transform import AUTO, UP_ROTATION, Setup, SetupError
-
-#: Plain decimal numbers only: ``-12.5``, ``.5``, ``5.``, ``1e-3``; not ``1_0``, ``nan``, ``inf``, ``0x1p3``,
-#: ``٣`` or surrounding spaces, which Python's float() would take.
-_PLAIN_DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
-
-#: The magnitudes an option may have (physically meaningful, with room to spare): (limit, unit).
-LENGTH = (1e6, "mm")            # a kilometre
-ANGLE = (3600.0, "degrees")     # ten turns
-FEED = (FEED_RANGE_MM_MIN[1], "mm/min")  # a kilometre a minute
-SPEED = (MAX_SPINDLE_RPM, "rpm")  # spindles reach some 100,000 rpm
-TIME = (1e4, "s")               # almost three hours
-RATIO = (1e6, "")               # direction components (normalized later)
 
 
-def compact(value: float) -> str:
-    """A number for a message: at most 6 significant digits, ``1e+308`` rather than 309 digits."""
-    return f"{value:.6g}"
+class _Checked(click.ParamType):
+    """An option type that checks its value with a kind of :mod:`prs3_post.app.values` (shared with job files)."""
+
+    kind: Kind
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        try:
+            return self.kind.check(value)
+        except ValueProblem as problem:
+            self.fail(str(problem), param, ctx)
 
 
-def _plain_decimal(text: str) -> float | None:
-    """``text`` as a float if it is a plain decimal number, else None."""
-    return float(text) if _PLAIN_DECIMAL.fullmatch(text) else None
-
-
-class Decimal(click.ParamType):
+class Decimal(_Checked):
     """A plain, finite decimal number within ``[low, high]`` (default ``±magnitude``); ``low_open``
     excludes ``low`` itself. The library checks what the value means (``--depth`` > 0); this type
     keeps out what no machine means (``1e308``, ``nan``, ``1_0``)."""
@@ -66,82 +48,31 @@ class Decimal(click.ParamType):
     name = "number"
 
     def __init__(self, magnitude: tuple[float, str], *, low: float | None = None, low_open: bool = False):
-        self.limit, self.unit = magnitude
-        self.low = -self.limit if low is None else low
-        self.low_open = low_open
-
-    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> float:
-        number = float(value) if isinstance(value, (int, float)) else _plain_decimal(str(value))
-        if number is None:
-            self.fail(f"expected a plain decimal number (like 12.5 or -0.25), got {quoted(str(value))}", param, ctx)
-        too_low = number <= self.low if self.low_open else number < self.low
-        if too_low or not number <= self.limit:          # `not <=`: also NaN from a default
-            unit = f" {self.unit}" if self.unit else ""
-            allowed = (f"> {compact(self.low)} and ≤ {compact(self.limit)}" if self.low_open
-                       else f"{compact(self.low)} to {compact(self.limit)}")
-            self.fail(f"{compact(number)}{unit} is out of range (allowed: {allowed}{unit})", param, ctx)
-        return number
+        self.kind = DecimalKind(magnitude, low=low, low_open=low_open)
 
 
 #: ``--clearance-min`` (the main job and convert): a distance kept from the part, so never negative.
 CLEARANCE_MIN = Decimal(LENGTH, low=0.0)
 
 
-class Integer(click.ParamType):
-    """A plain whole number (``12``, ``-3``; not ``1_0``, ``1e3``, ``٣`` or ``+ 1``) within ``[low, high]``.
-
-    Without bounds only a count of digits no controller takes is refused (more than 30), so that no
-    message prints a 300-digit number; what the value means is checked where it is used."""
+class Integer(_Checked):
+    """A plain whole number (``12``, ``-3``; not ``1_0``, ``1e3``, ``٣`` or ``+ 1``) within ``[low, high]``
+    (:class:`~prs3_post.app.values.IntegerKind`)."""
 
     name = "integer"
 
     def __init__(self, low: int | None = None, high: int | None = None):
-        self.low, self.high = low, high
-
-    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> int:
-        if isinstance(value, int):
-            number = value
-        elif _PLAIN_INTEGER.fullmatch(str(value)):
-            number = int(str(value))
-        else:
-            self.fail(f"expected a whole number (like 12), got {quoted(str(value))}", param, ctx)
-        low = -_INTEGER_LIMIT if self.low is None else self.low
-        high = _INTEGER_LIMIT if self.high is None else self.high
-        if not low <= number <= high:
-            shown = str(number) if abs(number) < 10**12 else compact(float(number))
-            allowed = f"{low} to {high}" if self.low is not None or self.high is not None else "at most 30 digits"
-            self.fail(f"{shown} is out of range (allowed: {allowed})", param, ctx)
-        return number
+        self.kind = IntegerKind(low, high)
 
 
-_PLAIN_INTEGER = re.compile(r"[+-]?[0-9]+")
-_INTEGER_LIMIT = 10**30 - 1
-
-
-class Numbers(click.ParamType):
+class Numbers(_Checked):
     """``X,Y,Z``-style option values: a fixed count of comma-separated plain decimal numbers, each
     within ``±magnitude``."""
 
     def __init__(self, names: str, magnitude: tuple[float, str] = LENGTH):
-        self.names = names
-        self.count = len(names.split(","))
+        self.kind = NumbersKind(names, magnitude)
         self.name = names
-        self.limit, self.unit = magnitude
-
-    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> tuple[float, ...]:
-        if isinstance(value, tuple):
-            return value
-        parts = [_plain_decimal(p) for p in str(value).split(",")]
-        if len(parts) != self.count or None in parts:
-            self.fail(f"expected {self.count} plain decimal numbers {self.names}, got {quoted(str(value))}",
-                      param, ctx)
-        numbers = tuple(float(p) for p in parts if p is not None)
-        for name, number in zip(self.names.split(","), numbers, strict=True):
-            if not abs(number) <= self.limit:
-                unit = f" {self.unit}" if self.unit else ""
-                self.fail(f"{name} = {compact(number)}{unit} is out of range (allowed: within ±{compact(self.limit)}"
-                          f"{unit})", param, ctx)
-        return numbers
+        self.count = len(names.split(","))
 
 
 class OutputPath(click.Path):
@@ -218,11 +149,6 @@ OUT_OF_MEMORY = ("out of memory: the machine, or a limit on this process (ulimit
                  "was written (free some memory, or convert the files one at a time with --jobs 1)")
 
 
-def demo_part() -> Path:
-    """The bundled demo part: the paper's wedge."""
-    return postproc_dir() / "parts" / "patel2020-wedge.stl"
-
-
 up_option = click.option(
     "--up", type=click.Choice(list(UP_ROTATION)), default="z", show_default=True,
     help="The STL's up axis; the part is turned so that it becomes +z: "
@@ -266,25 +192,14 @@ job_part_rotation_option = click.option(
 )
 
 
-def resolve_setup(machine: Machine, origin: tuple[float, ...] | str | None, rotation_deg: float | str | None) -> Setup:
-    """The job's :class:`Setup` from --part-origin / --part-rotation (None: the machine's default; ``auto``:
-    the default until the job chooses it)."""
-    try:
-        return Setup.resolve(machine, None if origin == AUTO else origin,  # type: ignore[arg-type]
-                             None if rotation_deg == AUTO else rotation_deg)  # type: ignore[arg-type]
-    except SetupError as error:
-        hint = "'--part-rotation'" if error.field == "rotation" else "'--part-origin'"
-        raise click.BadParameter(str(error), param_hint=hint) from error
-
-
 machine_option = click.option(
-    "--machine", "machine_name", default=DEFAULT_MACHINE, show_default=True, metavar="NAME|PATH",
+    "--machine", "machine_name", default=SETTING_FIELDS["machine"].default, show_default=True, metavar="NAME|PATH",
     help="Shipped machine name (see `prs3-post machines`) or path to a machine TOML file.",
 )
 
 
 dialect_option = click.option(
-    "--dialect", "dialect_name", default=DEFAULT_DIALECT, show_default=True, metavar="NAME|PATH",
+    "--dialect", "dialect_name", default=SETTING_FIELDS["dialect"].default, show_default=True, metavar="NAME|PATH",
     help="G-code dialect: linuxcnc, fanuc, or a dialect TOML file.",
 )
 line_number_options = (
@@ -378,3 +293,22 @@ def face_index(choice: str) -> int | None:
         return int(choice)
     raise click.BadParameter(f"expected auto or a face index, got {quoted(choice)}", param_hint="'--face'")
 
+
+#: The flag of each request key whose flag is not ``--`` + the key with - for _.
+_FLAG_OF = {"at": "--at", "tool": "--tool-number", "setup.part_origin": "--part-origin",
+            "setup.part_rotation_deg": "--part-rotation"}
+
+
+def flag_of(key: str) -> str:
+    """The command line's flag of a request key (``tool`` → ``--tool-number``)."""
+    return _FLAG_OF.get(key, "--" + key.replace("_", "-"))
+
+
+def option_error(error: FieldError) -> click.ClickException:
+    """A request's error, worded for the command line (the option's flag, click's usage error)."""
+    if isinstance(error, UnusedFields):
+        flags = ", ".join(f"{flag_of(key)} ({' and '.join(profiles)} only)" for key, profiles in error.keys)
+        return click.UsageError(f"--profile {error.profile} does not use {flags}: leave "
+                                f"{'it' if len(error.keys) == 1 else 'them'} out")
+    return click.BadParameter(error.worded(flag_of),
+                              param_hint=" / ".join(f"'{flag_of(key)}'" for key in (error.field, *error.also)))

@@ -15,18 +15,15 @@ from prs3_post.app.requests import (
     DEFAULT_TOOL_DIAMETER,
     OPERATION_FIELDS,
     SETTING_FIELDS,
+    choices,
     job_request,
     job_specs,
     used_by,
 )
-from prs3_post.app.run import check_specs, job_preview
+from prs3_post.app.run import check_specs, job_preview, read_job
+from prs3_post.app.values import ANGLE, FEED, LENGTH, SPEED, TIME
 from prs3_post.cli.options import (
-    ANGLE,
     CLEARANCE_MIN,
-    FEED,
-    LENGTH,
-    SPEED,
-    TIME,
     Command,
     Decimal,
     Integer,
@@ -39,6 +36,7 @@ from prs3_post.cli.options import (
     job_part_rotation_option,
     line_number_options,
     machine_option,
+    option_error,
     run_reported,
     tolerance_option,
     up_option,
@@ -53,19 +51,12 @@ from prs3_post.core.output_files import (
     refuse_overwriting,
     write_outputs,
 )
-from prs3_post.toolpaths import (
-    Coolant,
-    Direction,
-    Entry,
-    Side,
-)
-from prs3_post.toolpaths.work import Operation
 
 # What only some commands need is imported where it is used (the main job, convert, verify, preview,
 # faces: each about 0.1 s of imports), so that `ik`, `fk` and a small `verify` start fast.
 if TYPE_CHECKING:
     from prs3_post.app.job import JobProgram, JobSpec
-    from prs3_post.readers.jobfile import JobFile
+    from prs3_post.app.run import JobFile
 
 
 #: The defaults of the request's keys (shown by --help; the request applies them).
@@ -86,7 +77,7 @@ def job_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """The options of the main job (``run`` and ``demo``), grouped as ``--help`` shows them."""
     options = [
         # what to cut
-        click.option("--profile", type=click.Choice([o.value for o in Operation]), required=True,
+        click.option("--profile", type=click.Choice(list(choices("profile"))), required=True,
                      help="Operation: hole (drill, optional pecking), square or round (groove or wall)."),
         click.option("--face", "face_choice", default=_OP["face"], show_default=True, metavar="auto|N",
                      help="Face to work on: auto = largest upward inclined face; N = index from `prs3-post faces`."),
@@ -115,15 +106,15 @@ def job_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="square: rotation about the face normal from the down-slope direction u, degrees."),
         click.option("--diameter", type=Decimal(LENGTH), default=_OP["diameter"],
                      show_default=True, help="round: diameter, mm."),
-        click.option("--side", type=click.Choice([s.value for s in Side]), default=_OP["side"], show_default=True,
+        click.option("--side", type=click.Choice(list(choices("side"))), default=_OP["side"], show_default=True,
                      help="Tool centre on the outline (a groove), inside it or outside it "
                           "(offset by the tool radius)."),
         click.option("--step-down", type=Decimal(LENGTH), default=_OP["step_down"], show_default=True,
                      help="square/round: depth per pass, mm."),
-        click.option("--direction", type=click.Choice([d.value for d in Direction]), default=_OP["direction"],
+        click.option("--direction", type=click.Choice(list(choices("direction"))), default=_OP["direction"],
                      show_default=True,
                      help="square/round: climb or conventional milling (spindle clockwise, M3)."),
-        click.option("--entry", type=click.Choice([e.value for e in Entry]), default=_OP["entry"], show_default=True,
+        click.option("--entry", type=click.Choice(list(choices("entry"))), default=_OP["entry"], show_default=True,
                      help="square/round: how each pass enters the material."),
         click.option("--ramp-angle", type=Decimal(ANGLE), default=_OP["ramp_angle"], show_default=True,
                      help="Ramp entry angle, degrees."),
@@ -144,7 +135,7 @@ def job_options(func: Callable[..., Any]) -> Callable[..., Any]:
         click.option("--spindle", type=Decimal(SPEED, low=0.0, low_open=True), default=_OP["spindle"],
                      show_default=True,
                      help="Spindle speed, rpm (clockwise)."),
-        click.option("--coolant", type=click.Choice([c.value for c in Coolant]), default=_OP["coolant"],
+        click.option("--coolant", type=click.Choice(list(choices("coolant"))), default=_OP["coolant"],
                      show_default=True,
                      help="Coolant during cutting: flood (M8), mist (M7) or off."),
         click.option("--tool-table", "tool_table", type=click.Path(dir_okay=False), metavar="TOOL.tbl",
@@ -176,16 +167,6 @@ def job_options(func: Callable[..., Any]) -> Callable[..., Any]:
 #: The main job's option of each request key whose name differs (``--tool-number`` is ``tool``).
 _OPTION_OF = {"face": "face_choice", "at": "at_uv", "tool": "tool_number", "machine": "machine_name",
               "dialect": "dialect_name"}
-#: The flag of each request key whose flag is not ``--`` + the key with - for _.
-_FLAG_OF = {"at": "--at", "tool": "--tool-number", "setup.part_origin": "--part-origin",
-            "setup.part_rotation_deg": "--part-rotation"}
-
-
-def flag_of(key: str) -> str:
-    """The command line's flag of a request key (``tool`` → ``--tool-number``)."""
-    return _FLAG_OF.get(key, "--" + key.replace("_", "-"))
-
-
 def request_data(part: str, opts: dict[str, Any], *, given: tuple[str, ...] = ()) -> dict[str, Any]:
     """The main job's options as a request's plain data (shaped as a job file: settings, ``setup``, one
     ``operation``): the values of the keys the profile uses, and of any other option in ``given`` (the
@@ -206,15 +187,6 @@ def request_data(part: str, opts: dict[str, Any], *, given: tuple[str, ...] = ()
     data["setup"] = {"part_origin": opts.get("part_origin"), "part_rotation_deg": opts.get("part_rotation")}
     data["operation"] = [operation]
     return data
-
-
-def option_error(error: FieldError) -> click.ClickException:
-    """A request's error, worded for the command line (the option's flag, click's usage error)."""
-    if isinstance(error, UnusedFields):
-        flags = ", ".join(f"{flag_of(key)} ({' and '.join(profiles)} only)" for key, profiles in error.keys)
-        return click.UsageError(f"--profile {error.profile} does not use {flags}: leave "
-                                f"{'it' if len(error.keys) == 1 else 'them'} out")
-    return click.BadParameter(error.worded(flag_of), param_hint=f"'{flag_of(error.field)}'")
 
 
 def job_specs_of(part: str, opts: dict[str, Any], *, given: tuple[str, ...] = ()) -> tuple[JobSpec, ...]:
@@ -410,11 +382,10 @@ def job(job_path: str, out_path: str | None, machine_name: str, part_origin: tup
     Example:
       prs3-post job fixtures/jobs/example.toml -o example.ngc
     """
-    from prs3_post.readers.jobfile import read_job_file
 
     def body() -> int:
         ctx = click.get_current_context()
-        job_file = read_job_file(job_path)
+        job_file = read_job(job_path)
         named = {"part": job_file.part} | {key: job_file.settings.get(key)
                                             for key in ("tool_table", "machine", "dialect")}
         refuse_overwriting({"--output": out_path}, {f"{key} of {job_path}": path for key, path in named.items()

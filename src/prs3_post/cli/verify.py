@@ -9,17 +9,27 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
-import numpy as np
 
+from prs3_post.app.requests import AUTO, OPERATION_FIELDS, SETTING_FIELDS
+from prs3_post.app.values import ANGLE, FEED
+from prs3_post.app.verify_inputs import (
+    cam_part,
+    header_contradictions,
+    is_cl_file,
+    is_converted,
+    part_drawing,
+    recorded_part,
+    spec_contradictions,
+)
 from prs3_post.cli.options import (
-    ANGLE,
-    FEED,
     Command,
     Decimal,
     OutputPath,
     face_index,
+    flag_of,
     image_format,
     machine_option,
+    option_error,
     part_origin_option,
     part_rotation_option,
     run_reported,
@@ -31,26 +41,15 @@ from prs3_post.core.defaults import (
     DEFAULT_ANGLE_TOLERANCE_DEG,
     NOMINAL_RAPID_RATE,
 )
-from prs3_post.core.errors import InputError
+from prs3_post.core.errors import FieldError, InputError
 from prs3_post.core.output_files import (
     write_atomic,
 )
-from prs3_post.machine.loading import (
-    DEFAULT_DIALECT,
-)
-from prs3_post.part.setup_transform import AUTO, SetupError
-from prs3_post.toolpaths import (
-    SquareShape,
-)
-from prs3_post.toolpaths.common import require_tolerance
-from prs3_post.toolpaths.work import HoleJob
 
 # What only some commands need is imported where it is used (the main job, convert, verify, preview,
 # faces: each about 0.1 s of imports), so that `ik`, `fk` and a small `verify` start fast.
 if TYPE_CHECKING:
-    from prs3_post.app.job import JobSpec
-    from prs3_post.app.verify import CamPart, ProgramContext, ProgramSetting, RebuiltJob
-    from prs3_post.check.verify import Intended
+    from prs3_post.app.verify import CamPart, Intended, ProgramContext, ProgramSetting, RebuiltJob
 
 #: What _open_program opens: the whole program, or only what it was made for.
 _Opened = TypeVar("_Opened", "ProgramContext", "ProgramSetting")
@@ -112,90 +111,38 @@ def _open_program(ctx: click.Context, path: str, machine_name: str, dialect_name
         return opener(path, machine=machine_name if was_given(ctx, "machine_name") else None,
                       dialect=dialect_name if was_given(ctx, "dialect_name") else None,
                       origin=part_origin, rotation_deg=part_rotation)
-    except SetupError as error:
-        raise click.BadParameter(str(error), param_hint=_SETUP_HINTS[error.field]) from error
+    except FieldError as error:
+        raise option_error(error) from error
     except HeaderConflict as error:
         raise InputError(f"{_HEADER_FLAGS[error.what]}: {error.args[0]}", path=error.path, line=error.line) from error
 
 
 def _refuse_cl_file(path: str) -> None:
     """CAM output given where a program for this machine goes (verify, preview): say so, not 'not G-code'.
-    Only a file that starts as an APT CL file does (:func:`~prs3_post.readers.detect.detect_format`); any
-    other problem is the program reader's to name."""
-    from prs3_post.core.input_files import open_input
-    from prs3_post.readers.detect import DETECT_BYTES, detect_format
-
-    try:
-        with open_input(path, "a file") as stream:
-            cl = detect_format(stream.read(DETECT_BYTES)) == "cl"
-    except (InputError, OSError):
-        return
-    if cl:
+    Only a file that starts as an APT CL file does; any other problem is the program reader's to name."""
+    if is_cl_file(path):
         raise InputError(f"an APT CL file (CAM output), not a program for this machine: convert it first "
                          f"(prs3-post convert {path} -o OUTDIR), then give the program, with --against {path} to "
                          "compare them", path=path)
 
 
-_SETUP_HINTS = {"origin": "'--part-origin'", "rotation": "'--part-rotation'"}
-#: Options given in degrees whose JobSpec value is in radians.
-_DEGREE_OPTIONS = ("rotation", "ramp_angle")
+#: The operation's keys a program's header records, in the order a contradiction names them.
+_HEADER_KEYS = (*tuple(OPERATION_FIELDS)[:4], "units", "up", *tuple(OPERATION_FIELDS)[4:])
+#: The main job's option of each request key whose name differs.
+_OPTION_OF = {"face": "face_choice", "at": "at_uv", "tool": "tool_number"}
 
 
-def _operation_values(spec: JobSpec) -> dict[str, Any]:
-    """The operation options of the main job that ``spec`` answers, in JobSpec units (angles in
-    radians, positions as arrays, the face as an index or None)."""
-    cut = spec.cutting
-    values: dict[str, Any] = {
-        "profile": spec.operation.value, "face_choice": spec.face, "at_uv": spec.at_uv, "at_xyz": spec.at_xyz,
-        "units": spec.units, "up": spec.up, "tool_diameter": cut.tool_diameter, "tool_number": cut.tool_number,
-        "feed": cut.feed, "plunge_feed": cut.plunge_feed, "spindle": cut.spindle_rpm, "coolant": cut.coolant.value,
-    }
-    work = spec.work
-    if isinstance(work, HoleJob):
-        h = work.params
-        values |= {"depth": h.depth, "peck": h.peck, "reapproach_gap": h.reapproach_gap, "dwell": h.dwell,
-                   "clearance": h.clearance, "retract": h.retract}
-        return values
-    p, shape = work.params, work.shape
-    if isinstance(shape, SquareShape):
-        values |= {"size": shape.size, "corner_radius": shape.corner_radius, "rotation": shape.rotation}
-    else:
-        values |= {"diameter": shape.diameter}
-    values |= {"side": p.side.value, "depth": p.depth, "step_down": p.step_down, "direction": p.direction.value,
-               "entry": p.entry.value, "ramp_angle": p.ramp_angle, "clearance": p.clearance, "retract": p.retract}
-    return values
+def _given_values(ctx: click.Context, opts: dict[str, Any], keys: tuple[str, ...]) -> dict[str, Any]:
+    """The values of the request ``keys`` whose options were given (not defaults), a face index checked."""
+    given = {key: opts[_OPTION_OF.get(key, key)] for key in keys if was_given(ctx, _OPTION_OF.get(key, key))}
+    if "face" in given:
+        face_index(given["face"])
+    return given
 
 
-def _as_spec_value(name: str, value: Any) -> Any:
-    """An option's value in JobSpec units (see _operation_values)."""
-    if name in _DEGREE_OPTIONS:
-        return math.radians(value)
-    if name == "face_choice":
-        return face_index(value)
-    if name in ("at_uv", "at_xyz"):
-        return np.array(value, dtype=np.float64).reshape(-1, 2 if name == "at_uv" else 3)
-    return value
-
-
-def _check_operation_options(ctx: click.Context, spec: JobSpec, opts: dict[str, Any]) -> None:
-    """Operation options given with a program that has a header must say what the header says."""
-    recorded = _operation_values(spec)
-    wrong = []
-    for name in _OPERATION_OPTIONS:
-        if not was_given(ctx, name) or name not in recorded:
-            continue
-        given, header = _as_spec_value(name, opts[name]), recorded[name]
-        same = np.array_equal(given, header) if isinstance(header, np.ndarray) else given == header
-        if not same:
-            shown = header
-            if name in _DEGREE_OPTIONS:
-                shown = math.degrees(header)
-            elif isinstance(header, np.ndarray):
-                shown = " ".join(",".join(f"{v:g}" for v in row) for row in header) or "none"
-            elif header is None:
-                shown = "auto"
-            wrong.append(f"{_option_flags(ctx, [f'--{name.replace(chr(95), chr(45))}'])[0]} (header: {shown})")
-    _refuse_contradictions(wrong)
+def _refuse_header_contradictions(wrong: list[tuple[str, Any]]) -> None:
+    """The options given that say otherwise than the program's header: a usage error naming each."""
+    _refuse_contradictions([f"{flag_of(key)} (header: {shown})" for key, shown in wrong])
 
 
 def _refuse_contradictions(wrong: list[str]) -> None:
@@ -213,23 +160,17 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext,
     (or, without a header, the options), with that job (for the clearance from the part), or POSES.csv;
     a converted program's CAM input, or its part (PART.stl: the clearance only, no path)."""
     from prs3_post.app.verify import (
-        CamPart,
         HeaderConflict,
         header_job,
         intended_from_poses,
         intended_from_source,
         rebuild_job,
     )
-    from prs3_post.emit.header import SourceHeader
-    from prs3_post.part.stl import load_part
-
     suffix = Path(against).suffix.lower()
-    if isinstance(context.header, SourceHeader) and suffix == ".stl":   # the part a CAM program cuts
-        mesh = load_part(against, units=opts["units"], up=opts["up"])
-        return None, CamPart(triangles=np.asarray(mesh.triangles, dtype=np.float64),
-                             tool_length=context.header.tool_length, setup=context.header.setup,
-                             tool_diameter=context.header.rapids_tool_diameter)
-    if isinstance(context.header, SourceHeader):            # a converted program: its CAM source
+    converted = is_converted(context.header)
+    if converted and suffix == ".stl":                       # the part a CAM program cuts
+        return None, cam_part(context, against, units=opts["units"], up=opts["up"])
+    if converted:                                            # a converted program: its CAM source
         try:
             return intended_from_source(context, against), None
         except HeaderConflict as error:
@@ -240,8 +181,9 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext,
                 specs = header_job(context, against)
             except HeaderConflict as error:
                 raise InputError(f"--against: {error.args[0]}", path=error.path, line=error.line) from error
+            given = _given_values(ctx, opts, _HEADER_KEYS)
             for spec in specs:                         # an option given must be what every operation says
-                _check_operation_options(ctx, spec, opts)
+                _refuse_header_contradictions(spec_contradictions(spec, given))
             rebuilt = rebuild_job(specs)
         elif not opts["profile"]:
             raise click.UsageError("--against PART.stl needs --profile and the other operation options the "
@@ -312,6 +254,7 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
         odd_feeds_warned,
         open_program,
         open_setting,
+        require_tolerance,
         tool_lengths_of,
         verify_file,
         verify_loaded,
@@ -380,7 +323,8 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
               help="Length unit of the STL.")
 @up_option
 @machine_option
-@click.option("--dialect", "dialect_name", default=DEFAULT_DIALECT, show_default=True, metavar="NAME|PATH",
+@click.option("--dialect", "dialect_name", default=SETTING_FIELDS["dialect"].default, show_default=True,
+              metavar="NAME|PATH",
               help="G-code dialect of the program: linuxcnc, fanuc, or a dialect TOML file.")
 @part_origin_option
 @part_rotation_option
@@ -417,10 +361,6 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
         rebuild_job,
         tool_lengths_of,
     )
-    from prs3_post.emit.header import ProgramHeader
-    from prs3_post.part.faces import find_faces, select_face
-    from prs3_post.part.stl import load_part
-
 
     def body() -> int:
         ctx = click.get_current_context()
@@ -441,19 +381,14 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
                     check_part(header, part_path)
                 except HeaderConflict as error:
                     raise InputError(f"--part: {error.args[0]}", path=error.path, line=error.line) from error
-                assert isinstance(header, ProgramHeader)   # check_part refuses a converted program's header
-                recorded = {"face_choice": header.face, "units": header.units, "up": header.up}
-                wrong = [f"{flag} (header: {'auto' if recorded[name] is None else recorded[name]})"
-                         for name, flag in (("face_choice", "--face"), ("units", "--units"), ("up", "--up"))
-                         if was_given(ctx, name) and _as_spec_value(name, {"face_choice": face_choice, "units": units,
-                                                                         "up": up}[name]) != recorded[name]]
-                _refuse_contradictions(wrong)
-                choice, part_units, part_up = header.face, header.units, header.up
+                recorded = recorded_part(header)       # check_part refuses a converted program's header
+                given = _given_values(ctx, {"face_choice": face_choice, "units": units, "up": up},
+                                      ("face", "units", "up"))
+                _refuse_header_contradictions(header_contradictions(recorded, given))
+                choice, part_units, part_up = recorded["face"], recorded["units"], recorded["up"]
                 # the job it was made by: where its tool, holder and nose come closest to the part
                 rebuilt = rebuild_job(header_job(context, part_path)) if context.machine.holder is not None else None
-            loaded = load_part(part_path, units=part_units, up=part_up)
-            face, _ = select_face(find_faces(loaded), choice)
-            mesh = loaded.triangles
+            mesh, face = part_drawing(part_path, choice, units=part_units, up=part_up)
         image = preview_bytes(context.program, context.machine, context.setup, fmt, dialect=context.dialect,
                               mesh=mesh, face=face, rapid_rate=rapid_rate, tool_lengths=tool_lengths_of(context.header),
                               title=Path(part_path).name if part_path else "", rebuilt=rebuilt)

@@ -94,13 +94,14 @@ class FieldError(Prs3Error):
     field : str — the key at fault, as a job file spells it (``depth``, ``tool``, ``line_start``,
         ``setup.part_origin``)
     operation : int | None — which operation (1-based) the key belongs to; None for a job's setting
+    also : tuple of str — other keys at fault with it (two values that do not go together)
     """
 
     exit_code = 2
 
-    def __init__(self, message: str, *, field: str, operation: int | None = None):
+    def __init__(self, message: str, *, field: str, operation: int | None = None, also: tuple[str, ...] = ()):
         super().__init__(message)
-        self.field, self.operation = field, operation
+        self.field, self.operation, self.also = field, operation, also
 
     def worded(self, spell: Callable[[str], str] = str) -> str:
         """The message, each ``{key}`` in it as ``spell(key)`` (default: the key itself)."""
