@@ -3,7 +3,7 @@
     INPUT ──► format (content) ──► reader (part frame, mm) ──► post_process (setup, exact IK,
           subdivision, limits on every emitted point) ──► emitter + dialect ──► OUTDIR/<stem><extension>
 
-The program opens with a self-describing header (:func:`prs3_post.emit.header.source_header_entries`):
+The program opens with a self-describing header (:func:`prs3_post.emit.header_write.source_header_entries`):
 the source file's name and SHA-256, the setup, the tolerances, the tool length used by the IK and the
 counts, so that ``verify --against INPUT`` can rebuild what the program should do.
 
