@@ -46,7 +46,8 @@ def drawn():
     mesh = load_part(WEDGE)
     face, _ = select_face(find_faces(mesh), None)
     report = verify_program(MACHINE, program.moves, setup=SETUP,
-                            tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE)
+                            tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE,
+                            length_decimals=4, feed_decimals=4)
     figure = render_preview(report, MACHINE, mesh=mesh.triangles, face_triangles=face.triangles, face_label="face 4")
     return program.moves, report, figure
 
@@ -132,7 +133,8 @@ def test_preview_without_matplotlib_is_a_clear_error(tmp_path, monkeypatch):
     program = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc"))
     with pytest.raises(Prs3Error) as caught:
         render_preview(verify_program(MACHINE, program.moves, setup=SETUP,
-                                      tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE), MACHINE)
+                                      tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE,
+                                      length_decimals=4, feed_decimals=4), MACHINE)
     assert str(caught.value) == "preview needs matplotlib: pip install 'prs3-post[plot]'"
     out, ngc = tmp_path / "p.png", tmp_path / "p.ngc"
     for args in (("preview", VERIFY / "small.ngc", "-o", out),
@@ -178,7 +180,8 @@ def test_stage_panel_draws_each_axis_travel_in_its_own_colour(tmp_path):
     machine = load_machine(str(path))
     program = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc"))
     report = verify_program(machine, program.moves, setup=SETUP,
-                            tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE)
+                            tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE,
+                            length_decimals=4, feed_decimals=4)
     ax_xy = render_preview(report, machine).axes[2]
     x_colour, y_colour = "#9467bd", "#8c564b"
     limit_lines = [(ln.get_label(), ln.get_color(), ln.get_linestyle(), list(ln.get_ydata()))

@@ -118,7 +118,8 @@ def test_a_counter_clockwise_spindle_and_an_optional_stop_are_m4_and_m1_and_read
                       (2, EventKind.OPTIONAL_STOP, 0.0), (3, EventKind.STOP, 0.0), (3, EventKind.SPINDLE_OFF, 0.0)]
     assert events == [(e.before, e.kind, e.value) for e in made.events if e.kind is not EventKind.COMMENT]
     assert verify_program(MACHINE, read.moves, setup=setup,
-                          tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE).ok
+                          tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE,
+                          length_decimals=4, feed_decimals=4).ok
     assert run("verify", out).exit_code == 0
 
 
@@ -424,7 +425,8 @@ def test_verify_help_has_an_example():
 def test_verify_program_library_call_reports_rounding():
     program = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc")).moves
     report = verify_program(MACHINE, program, setup=Setup.resolve(MACHINE),
-                            tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE)
+                            tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE,
+                            length_decimals=4, feed_decimals=4)
     assert report.ok
     # half a unit of 4 decimals on X, Y and the three strokes moves the tip by less than 5 × 5e-5 mm
     assert np.all((report.rounding > 5e-5) & (report.rounding < 2.5e-4))
@@ -461,7 +463,8 @@ def test_text_report_against_line_comes_from_the_summary_not_the_json_record(mon
     intended = Intended(tip=tip, axis=axis, feed=np.full(len(tip), np.nan), kind=np.full(len(tip), -1),
                         label="shifted.csv")
     report = verify_program(MACHINE, moves, setup=Setup.resolve(MACHINE), intended=intended,
-                            tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE)
+                            tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE,
+                            length_decimals=4, feed_decimals=4)
     record = fmt.report_record(report, path="small.ngc", dialect="linuxcnc")
     assert fmt.against_summary(report) == record["against"]
     turned = math.degrees(math.acos(np.clip(fk.axis[3] @ axis[3], -1.0, 1.0)))   # clip: rounding past 1

@@ -67,7 +67,8 @@ def test_json_report_is_the_same_in_chunks_of_1_7_and_10000_rows(name, tmp_path)
     def record(rows: int) -> str:
         report = verify_program(machine, moves, setup=context.setup, chunk_rows=rows,
                                 blending_lines=context.program.blending_lines,
-                                tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE)
+                                tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE,
+                                length_decimals=4, feed_decimals=4)
         return json.dumps(report_record(report, path="p", dialect="linuxcnc"), allow_nan=False)
 
     expected = record(1 << 30)
@@ -84,7 +85,8 @@ def test_against_report_is_the_same_in_chunks():
     machine = load_machine("patel2020")
     records = [json.dumps(report_record(verify_program(machine, context.program.moves, setup=context.setup,
                                                        intended=intended, chunk_rows=rows,
-        tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE), path="p"))
+        tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE,
+        length_decimals=4, feed_decimals=4), path="p"))
                for rows in (1, 7, 10_000)]
     assert records[0] == records[1] == records[2]
     assert json.loads(records[0])["problems"]                 # the rigid head's axis errors, as before

@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE, NOMINAL_RAPID_RATE
+from prs3_post.core.defaults import NOMINAL_RAPID_RATE
 from prs3_post.core.errors import Prs3Error
 from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind, program_from_columns
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
@@ -345,8 +345,8 @@ def verify_program(
     setup: Setup,
     tolerance: float,
     axis_tolerance: float,
-    length_decimals: int = 4,
-    feed_decimals: int = 4,
+    length_decimals: int,
+    feed_decimals: int,
     intended: Intended | None = None,
     blending_lines: tuple[int, ...] = (),
     keep_samples: bool = True,
@@ -425,8 +425,8 @@ class Verifier:
     (as :func:`verify_program`).
     """
 
-    def __init__(self, machine: Machine, *, setup: Setup, tolerance: float = DEFAULT_TOLERANCE,
-                 axis_tolerance: float = DEFAULT_ANGLE_TOLERANCE, length_decimals: int = 4, feed_decimals: int = 4,
+    def __init__(self, machine: Machine, *, setup: Setup, tolerance: float, axis_tolerance: float,
+                 length_decimals: int, feed_decimals: int,
                  intended: Intended | None = None, keep_samples: bool = False, keep_rows: bool = True,
                  capacity: int = 0, tool_lengths: dict[int, float] | None = None, odd_feeds: bool = True):
         self.machine, self.setup, self.tolerance, self.axis_tolerance = machine, setup, tolerance, axis_tolerance

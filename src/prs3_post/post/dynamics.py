@@ -199,8 +199,7 @@ def program_time(dynamics: Dynamics, program: JointProgram) -> float:
 
 
 def speed_excess(dynamics: Dynamics, program: JointProgram, *, names: tuple[str, ...], first: int = 0,
-                 length_decimals: int = 4, feed_decimals: int = 4
-                 ) -> tuple[FloatArray, np.ndarray, list[tuple[int, str]]]:
+                 length_decimals: int, feed_decimals: int) -> tuple[FloatArray, np.ndarray, list[tuple[int, str]]]:
     """The G1 moves of an existing program that drive an axis over its top speed.
 
     Row 0 is where the program (or the chunk, carried from the one before) starts: not a move here.
