@@ -28,7 +28,8 @@ shared 2-core machine at a load of 4-6, main job ``demo --profile round --diamet
 
 The last is what verify set for itself from inside the library (over the entry's); it is verify's
 best by 10-25 %, and the main job cannot tell it from the entry's 4 MB / 8 MB within the machine's
-noise, so it is the one setting for all (peak memory unchanged).
+noise, so it is the one setting for all (peak memory unchanged). A 1,000,000-line 3+2 conversion
+(bench/bench_convert.py's input, ``--jobs 1``) takes 0.72-0.75 CPU s and 59-60 MB with each of the three.
 """
 
 from __future__ import annotations
