@@ -24,7 +24,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from prs3_post import __version__
 from prs3_post.app.read_ahead import read_ahead
 from prs3_post.app.streaming import program_text
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE
@@ -33,6 +32,7 @@ from prs3_post.core.input_files import open_input
 from prs3_post.core.output_files import HeadLast, write_atomic
 from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpath, join_programs
 from prs3_post.core.types import FloatArray
+from prs3_post.core.version import __version__
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.emit.header import SourceCounts, SourceHeader
 from prs3_post.emit.header_write import source_header_entries

@@ -25,7 +25,6 @@ from pathlib import Path
 
 import numpy as np
 
-from prs3_post import __version__
 from prs3_post.check.collision import Approach, ProgramClearance, feed_tips_of, measure_program
 from prs3_post.check.placement import PlacementResult, place, placement_error, suggest_origin
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE
@@ -42,6 +41,7 @@ from prs3_post.core.toolpath import (
     toolpath_pieces,
 )
 from prs3_post.core.types import FloatArray
+from prs3_post.core.version import __version__
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.emit.header import OperationRecord, ProgramHeader, ToolRecord
 from prs3_post.emit.header_write import file_sha256, header_entries
