@@ -174,8 +174,8 @@ def test_plain_decimals_are_accepted(value: str) -> None:
 def test_every_program_reader_refuses_a_fifo(tmp_path: Path) -> None:
     """The streaming reader, the header reader and the source hash open files through open_input too."""
     from prs3_post.core.errors import InputError
+    from prs3_post.core.input_files import file_sha256
     from prs3_post.emit.header_read import read_header
-    from prs3_post.emit.header_write import file_sha256
     from prs3_post.machine.loading import load_dialect
     from prs3_post.readers.program import ProgramStream
 

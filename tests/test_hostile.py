@@ -234,8 +234,8 @@ def _short_dialect(tmp_path: Path, length: int, ending: str = "\\n") -> Path:
 def test_a_header_wrapped_at_the_shortest_line_reads_back(tmp_path: Path, ending: str) -> None:
     """A 60-character line limit split the part's SHA-256 over two lines: verify could not read its own
     program back. At the shortest limit allowed (80) every fixed field keeps its words whole."""
+    from prs3_post.core.input_files import file_sha256
     from prs3_post.emit.header_read import read_header
-    from prs3_post.emit.header_write import file_sha256
 
     dialect = _short_dialect(tmp_path, 80, ending)
     program = tmp_path / "p.ngc"

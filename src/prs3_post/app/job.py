@@ -29,6 +29,7 @@ from prs3_post.check.collision import Approach, ProgramClearance, feed_tips_of, 
 from prs3_post.check.placement import PlacementResult, place, placement_error, suggest_origin
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE
 from prs3_post.core.errors import FeatureError, InputError, LimitError, ReachError
+from prs3_post.core.input_files import file_sha256
 from prs3_post.core.numbers import exact_text
 from prs3_post.core.toolpath import (
     Event,
@@ -44,7 +45,7 @@ from prs3_post.core.types import FloatArray
 from prs3_post.core.version import __version__
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.emit.header import OperationRecord, ProgramHeader, ToolRecord
-from prs3_post.emit.header_write import file_sha256, header_entries
+from prs3_post.emit.header_write import header_entries
 from prs3_post.kinematics import IKResult
 from prs3_post.kinematics.registry import Kinematics, kinematics_of
 from prs3_post.machine.loading import Dialect, Machine, file_given

@@ -30,11 +30,11 @@ from prs3_post.app.requests import resolve_setup
 from prs3_post.check.verify import Intended, Problem, Verifier, VerifyReport, verify_program
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE
 from prs3_post.core.errors import ConfigError, InputError, PoseError, Prs3Error, quoted
+from prs3_post.core.input_files import file_sha256
 from prs3_post.core.toolpath import MoveKind
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 from prs3_post.emit.header import ProgramHeader, SourceCounts, SourceHeader
 from prs3_post.emit.header_read import read_counts, read_header
-from prs3_post.emit.header_write import file_sha256
 from prs3_post.kinematics import unit_axes
 from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.loading import (

@@ -8,6 +8,7 @@ memory.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import stat
 from collections.abc import Callable, Iterable, Iterator
@@ -125,6 +126,24 @@ def read_text(path: str, what: str) -> str:
         line = data.count(b"\n", 0, exc.start) + 1
         raise InputError(f"not UTF-8 text (byte 0x{data[exc.start]:02x}): save the file as UTF-8",
                          path=path, line=line) from exc
+
+
+def file_sha256(path: str) -> str:
+    """Lower-case hex SHA-256 of a file's bytes.
+
+    Raises
+    ------
+    InputError
+        The file cannot be read.
+    """
+    with open_input(path, "a file") as stream:          # read in pieces: a part may be large
+        digest = hashlib.sha256()
+        try:
+            for piece in iter(lambda: stream.read(1 << 20), b""):
+                digest.update(piece)
+        except OSError as exc:
+            raise InputError(f"cannot read the file: {exc.strerror or exc}", path=path) from exc
+    return digest.hexdigest()
 
 
 def format_bytes(size: int) -> str:

@@ -4,11 +4,8 @@ or :class:`~prs3_post.emit.header.SourceHeader` (the module docstring of :mod:`p
 
 from __future__ import annotations
 
-import hashlib
 import math
 
-from prs3_post.core.errors import InputError
-from prs3_post.core.input_files import open_input
 from prs3_post.core.numbers import degrees_text, exact_list, exact_text, fixed_list
 from prs3_post.core.numbers import fixed as _fixed
 from prs3_post.core.types import FloatArray
@@ -29,25 +26,7 @@ from prs3_post.part.setup_transform import Setup
 from prs3_post.toolpaths import SquareShape
 from prs3_post.toolpaths.work import HoleJob, ProfileJob
 
-__all__ = ["file_sha256", "header_entries", "source_header_entries"]
-
-
-def file_sha256(path: str) -> str:
-    """Lower-case hex SHA-256 of a file's bytes.
-
-    Raises
-    ------
-    InputError
-        The file cannot be read.
-    """
-    with open_input(path, "a file") as stream:          # read in pieces: a part may be large
-        digest = hashlib.sha256()
-        try:
-            for piece in iter(lambda: stream.read(1 << 20), b""):
-                digest.update(piece)
-        except OSError as exc:
-            raise InputError(f"cannot read the file: {exc.strerror or exc}", path=path) from exc
-    return digest.hexdigest()
+__all__ = ["header_entries", "source_header_entries"]
 
 
 def _item_values(work: HoleJob | ProfileJob) -> list[str]:
