@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 from prs3_post.app.job import JobResult, run_job
 from prs3_post.check.verify import Intended, verify_program
 from prs3_post.cli.main import main
-from prs3_post.cli.options import demo_part
+from prs3_post.cli.options import demo_part, error_text
 from prs3_post.cli.run import demo
 from prs3_post.cli.run import job_spec as _job_spec
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
@@ -276,10 +276,10 @@ def test_a_row_after_a_dropped_one_is_compared_with_the_last_kept_row():
 def test_a_step_finer_than_the_resolution_is_refused():
     with pytest.raises(FeatureError) as caught:
         pass_depths(0.5, 5e-5)
-    assert str(caught.value) == "--step-down must be ≥ 0.0001 mm, the resolution of the program (got 5e-05)"
+    assert error_text(caught.value) == "--step-down must be ≥ 0.0001 mm, the resolution of the program (got 5e-05)"
     with pytest.raises(FeatureError) as caught:
-        pass_depths(3.0, 0.0005, resolution=0.001, option="--peck")
-    assert str(caught.value) == "--peck must be ≥ 0.001 mm, the resolution of the program (got 0.0005)"
+        pass_depths(3.0, 0.0005, resolution=0.001, key="peck")
+    assert error_text(caught.value) == "--peck must be ≥ 0.001 mm, the resolution of the program (got 0.0005)"
     assert pass_depths(3e-5, 5e-5).tolist() == [3e-5]             # one pass: the step does not matter
 
 

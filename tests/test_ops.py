@@ -15,6 +15,7 @@ import pytest
 import shapely
 from numpy.testing import assert_allclose, assert_array_equal
 
+from prs3_post.cli.options import error_text
 from prs3_post.core.defaults import DEFAULT_TOLERANCE
 from prs3_post.core.errors import FeatureError
 from prs3_post.core.toolpath import EventKind, MoveKind, Toolpath
@@ -221,7 +222,7 @@ def test_one_hole_at_the_edge_does_not_fit_and_says_by_how_much() -> None:
     # disc of radius 3 around u = 54 reaches u = 57; the face edge is at 55.9017: 1.0983 mm over
     with pytest.raises(FeatureError) as err:
         plan_holes(FACE, np.array([[0.0, 0.0], [54.0, 0.0]]), hole_params(), CUT)
-    assert str(err.value) == (
+    assert error_text(err.value) == (
         "hole 2 at (u 54.000, v 0.000) with tool Ø6.000: does not fit on face 0: overshoots its edge by 1.098 mm"
     )
 
@@ -232,20 +233,20 @@ def test_hole_near_a_hole_in_the_face() -> None:
     )
     with pytest.raises(FeatureError) as err:   # reaches u = -26.5: 1.5 mm into the opening that starts at -25
         plan_holes(with_opening, np.array([[-23.5, 0.0]]), hole_params(), CUT)
-    assert str(err.value) == (
+    assert error_text(err.value) == (
         "hole 1 at (u -23.500, v 0.000) with tool Ø6.000: does not fit on face 0: "
         "cuts 1.500 mm into the hole in the face at (u -30.000, v 0.000)"
     )
     with pytest.raises(FeatureError) as err:   # reaches u = -25 exactly
         plan_holes(with_opening, np.array([[-22.0, 0.0]]), hole_params(), CUT)
-    assert str(err.value) == (
+    assert error_text(err.value) == (
         "hole 1 at (u -22.000, v 0.000) with tool Ø6.000: does not fit on face 0: "
         "touches the hole in the face at (u -30.000, v 0.000)"
     )
     with pytest.raises(FeatureError) as err:   # a big tool swallows the whole opening: 5 mm (its half-width)
         plan_holes(with_opening, np.array([[-30.0, 0.0]]), hole_params(),
                    Cutting(30.0, 600.0, 200.0, 8000.0, Coolant.OFF, 1))
-    assert str(err.value) == (
+    assert error_text(err.value) == (
         "hole 1 at (u -30.000, v 0.000) with tool Ø30.000: does not fit on face 0: "
         "cuts 5.000 mm into the hole in the face at (u -30.000, v 0.000)"
     )
@@ -256,7 +257,7 @@ def test_check_fits_far_outside_and_inside() -> None:
     check_fits(FACE, swept_region(np.array([[0.0, 0.0]]), 3.0), "x")
     with pytest.raises(FeatureError) as err:   # a disc of radius 1 centred 10 mm beyond the v edge: 11 mm
         check_fits(FACE, swept_region(np.array([[0.0, 60.0]]), 1.0), "probe")
-    assert str(err.value) == "probe: does not fit on face 0: overshoots its edge by 11.000 mm"
+    assert error_text(err.value) == "probe: does not fit on face 0: overshoots its edge by 11.000 mm"
 
 
 @pytest.mark.parametrize(
@@ -285,7 +286,7 @@ def test_check_fits_far_outside_and_inside() -> None:
 def test_hole_params_refused(changes: dict[str, float], message: str) -> None:
     with pytest.raises(FeatureError) as err:
         hole_params(**changes)
-    assert str(err.value) == message
+    assert error_text(err.value) == message
 
 
 @pytest.mark.parametrize(
@@ -299,7 +300,7 @@ def test_hole_params_refused(changes: dict[str, float], message: str) -> None:
 def test_hole_positions_refused(centers: np.ndarray, message: str) -> None:
     with pytest.raises(FeatureError) as err:
         plan_holes(FACE, centers, hole_params(), CUT)
-    assert str(err.value) == message
+    assert error_text(err.value) == message
 
 
 @pytest.mark.parametrize(
@@ -316,7 +317,7 @@ def test_hole_positions_refused(centers: np.ndarray, message: str) -> None:
 def test_the_same_hole_twice_is_refused(centers: np.ndarray, message: str) -> None:
     with pytest.raises(FeatureError) as err:
         plan_holes(FACE, centers, hole_params(), CUT, resolution=0.001)
-    assert str(err.value) == message
+    assert error_text(err.value) == message
 
 
 def test_holes_one_output_unit_apart_are_two_holes() -> None:
@@ -348,7 +349,7 @@ def test_cutting_refused(changes: dict[str, float], message: str) -> None:
     values.update(changes)
     with pytest.raises(FeatureError) as err:
         Cutting(**values)  # type: ignore[arg-type]
-    assert str(err.value) == message
+    assert error_text(err.value) == message
 
 
 # ------------------------------------------------------------------------------------------------
@@ -569,14 +570,14 @@ def test_outside_profile_that_overshoots_the_face_edge() -> None:
     # square 40 at u = 40 on the outline: its +u side at u = 60, the tool reaches 63; edge at 55.9017
     with pytest.raises(FeatureError) as err:
         plan_profile(FACE, np.array([40.0, 0.0]), SquareShape(40.0), profile_params(), CUT, tolerance=DEFAULT_TOLERANCE)
-    assert str(err.value) == (
+    assert error_text(err.value) == (
         "square 40.000 mm at (u 40.000, v 0.000) with tool Ø6.000: does not fit on face 0: "
         "overshoots its edge by 7.098 mm"
     )
     with pytest.raises(FeatureError) as err:   # outside a Ø30 at u = 40: tool centre radius 18, reach 21 → u 61
         plan_profile(FACE, np.array([40.0, 0.0]), RoundShape(30.0), profile_params(side=Side.OUTSIDE), CUT,
                      tolerance=DEFAULT_TOLERANCE)
-    assert str(err.value) == (
+    assert error_text(err.value) == (
         "round Ø30.000 mm at (u 40.000, v 0.000) with tool Ø6.000: does not fit on face 0: "
         "overshoots its edge by 5.098 mm"
     )
@@ -615,7 +616,7 @@ def test_outside_profile_that_overshoots_the_face_edge() -> None:
 def test_inside_profiles_the_tool_cannot_cut(shape: SquareShape | RoundShape, message: str) -> None:
     with pytest.raises(FeatureError) as err:
         plan_profile(FACE, np.zeros(2), shape, profile_params(side=Side.INSIDE), CUT, tolerance=DEFAULT_TOLERANCE)
-    assert str(err.value) == message
+    assert error_text(err.value) == message
 
 
 def test_smallest_inside_round_still_plans() -> None:
@@ -658,19 +659,19 @@ def test_smallest_inside_round_still_plans() -> None:
 def test_profile_options_refused(make: object, message: str) -> None:
     with pytest.raises(FeatureError) as err:
         make()  # type: ignore[operator]
-    assert str(err.value) == message
+    assert error_text(err.value) == message
 
 
 @pytest.mark.parametrize(("call", "message"), [
     (lambda: pass_depths(1e6, 1e-6), "--depth 1e+06 mm in --step-down 1e-06 mm steps would take 1e+12 passes "
                                      "(at most 10000): use a larger --step-down"),
-    (lambda: pass_depths(5.0, 1e-6, option="--peck"), "--depth 5 mm in --peck 1e-06 mm steps would take 5e+06 passes "
+    (lambda: pass_depths(5.0, 1e-6, key="peck"), "--depth 5 mm in --peck 1e-06 mm steps would take 5e+06 passes "
                                                        "(at most 10000): use a larger --peck"),
 ])
 def test_absurd_pass_counts_are_refused(call, message):
     with pytest.raises(FeatureError) as caught:
         call()
-    assert str(caught.value) == message
+    assert error_text(caught.value) == message
     assert len(pass_depths(10_000.0, 1.0)) == 10_000                  # the limit itself is allowed
 
 
@@ -679,7 +680,7 @@ def test_overshoot_of_a_far_away_feature_terminates():
     (which a float near 1e10 cannot resolve: the search used to loop for ever)."""
     with pytest.raises(FeatureError) as caught:
         plan_holes(FACE, np.array([[1e10, 0.0]]), HoleParams(depth=5, peck=0, dwell=0, clearance=2, retract=10), CUT)
-    assert str(caught.value).startswith(
+    assert error_text(caught.value).startswith(
         "hole 1 at (u 10000000000.000, v 0.000) with tool Ø6.000: does not fit on face 0: "
                                         "overshoots its edge by 99999999")
 
@@ -687,4 +688,4 @@ def test_overshoot_of_a_far_away_feature_terminates():
 def test_absurd_lengths_are_refused():
     with pytest.raises(FeatureError) as caught:
         SquareShape(size=1e300)
-    assert str(caught.value) == "--size must be ≤ 1e+06 mm (got 1e+300)"
+    assert error_text(caught.value) == "--size must be ≤ 1e+06 mm (got 1e+300)"

@@ -193,7 +193,7 @@ def plan(spec: JobSpec, face: Face) -> Toolpath:
     if isinstance(work, HoleJob):
         return plan_holes(face, centres, work.params, spec.cutting, resolution=resolution)
     if len(centres) > 1:
-        raise FeatureError(f"--profile {spec.operation.value} cuts one feature: give one --at or --at-xyz "
+        raise FeatureError(f"{{profile}} {spec.operation.value} cuts one feature: give one {{at}} or {{at_xyz}} "
                            f"(got {len(centres)})", key="at")
     return plan_profile(face, centres[0], work.shape, work.params, spec.cutting, tolerance=spec.tolerance,
                         resolution=resolution)
@@ -454,7 +454,7 @@ def _planned(spec: JobSpec, face: Face, number: int, several: bool) -> Toolpath:
     try:
         path_part = plan(spec, face)
     except FeatureError as error:                     # say which operation (a job file names it)
-        raise FeatureError(str(error), key=error.key, operation=number) from error
+        raise FeatureError(error.args[0], key=error.key, operation=number) from error
     if several:
         label = operation_label(number, spec, face)
         path_part = replace(path_part, source_labels=tuple(f"{label}, {t}" for t in path_part.source_labels))

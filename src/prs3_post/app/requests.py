@@ -291,7 +291,7 @@ def job_specs(request: JobRequest, *, table: ToolTable | None = None) -> tuple[J
         except FeatureError as error:                # which operation: the front end says it
             if error.operation is not None:
                 raise
-            raise FeatureError(str(error), key=error.key, operation=number) from error
+            raise FeatureError(error.args[0], key=error.key, operation=number) from error
     return tuple(specs)
 
 

@@ -21,7 +21,7 @@ from prs3_post.app.listings import demo_part
 from prs3_post.app.requests import AUTO, SETTING_FIELDS, UP_ROTATION
 from prs3_post.app.values import ANGLE, LENGTH, DecimalKind, IntegerKind, Kind, NumbersKind, ValueProblem
 from prs3_post.core.defaults import DEFAULT_TOLERANCE
-from prs3_post.core.errors import FieldError, Prs3Error, Prs3Warning, UnusedFields, quoted
+from prs3_post.core.errors import FeatureError, FieldError, Prs3Error, Prs3Warning, UnusedFields, quoted
 from prs3_post.core.output_files import (
     refuse_overwriting,
     stdout_error,
@@ -136,7 +136,7 @@ def run_reported(action: Callable[[], int | None]) -> None:
                 raise                                # not standard output: a bug, and its traceback helps
             raise failed from exc
     except Prs3Error as error:
-        click.echo(f"prs3-post: error: {error}", err=True)
+        click.echo(f"prs3-post: error: {error_text(error)}", err=True)
         sys.exit(error.exit_code)
     except MemoryError:                              # no traceback: it would say nothing more (and need memory)
         click.echo(f"prs3-post: error: {OUT_OF_MEMORY}", err=True)
@@ -312,3 +312,10 @@ def option_error(error: FieldError) -> click.ClickException:
                                 f"{'it' if len(error.keys) == 1 else 'them'} out")
     return click.BadParameter(error.worded(flag_of),
                               param_hint=" / ".join(f"'{flag_of(key)}'" for key in (error.field, *error.also)))
+
+
+def error_text(error: Prs3Error) -> str:
+    """A library error as the command line says it: the keys its message names as the flags that set them."""
+    if isinstance(error, FeatureError | FieldError):
+        return error.worded(flag_of)
+    return str(error)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import re
 import stat
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -334,19 +333,10 @@ def _job_specs(job: JobFile, overrides: dict[str, Any] | None = None) -> tuple[J
                          path=job.path) from error
     except FieldError as error:
         raise InputError(f"{job_file_key(error)}: {error}", path=job.path) from error
-    except FeatureError as error:                  # worded for the options: say the job file's keys
+    except FeatureError as error:                  # its keys, as the job file spells them
         where = "" if error.operation is None else f"operation[{error.operation}]"
-        raise InputError(f"{where}: {_job_keys(str(error))}" if where else _job_keys(str(error)),
+        raise InputError(f"{where}: {error!s}" if where else str(error),
                          path=job.path) from error
-
-
-#: The job file's key of a main-job flag whose name differs (``--tool-number`` → ``tool``).
-_JOB_KEY_OF = {"tool-number": "tool"}
-
-
-def _job_keys(text: str) -> str:
-    """A message worded for the options, with the job file's keys instead (``--tool-number`` → ``tool``)."""
-    return re.sub(r"--([a-z-]+)", lambda m: _JOB_KEY_OF.get(m.group(1), m.group(1).replace("-", "_")), text)
 
 
 #: The main job's options that `job` takes too (they replace the job file's): option name → request key.
@@ -395,10 +385,10 @@ def job(job_path: str, out_path: str | None, machine_name: str, part_origin: tup
         fmt = image_format(preview_path, "'--preview'") if preview_path else None
         try:
             job = check_specs(specs)
-        except FeatureError as error:                  # worded for the options: say the job file and its key
+        except FeatureError as error:                  # the job file, the operation and its key
             where = "" if error.operation is None else f"operation[{error.operation}]"
             where += f".{error.key}" if where and error.key else ""
-            raise InputError(f"{where}: {_job_keys(str(error))}" if where else _job_keys(str(error)),
+            raise InputError(f"{where}: {error!s}" if where else str(error),
                              path=job_path) from error
         text = _ProgramText(job, whole=fmt is not None or not _streamable(out_path))
         image = None

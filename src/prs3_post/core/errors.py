@@ -82,6 +82,12 @@ class PoseError(Prs3Error):
     exit_code = 2
 
 
+def spelled(message: str, spell: Callable[[str], str] = str) -> str:
+    """A message that names keys as ``{key}`` (``{depth} must be > 0 mm``), each as ``spell(key)``: the
+    command line spells them as its flags (``--depth``), a job file as its keys."""
+    return re.sub(r"\{([a-z_.]+)\}", lambda match: spell(match[1]), message)
+
+
 class FieldError(Prs3Error):
     """A value of a request (the main job's, from the command line or a job file) is wrong.
 
@@ -105,7 +111,7 @@ class FieldError(Prs3Error):
 
     def worded(self, spell: Callable[[str], str] = str) -> str:
         """The message, each ``{key}`` in it as ``spell(key)`` (default: the key itself)."""
-        return re.sub(r"\{([a-z_.]+)\}", lambda match: spell(match[1]), self.args[0])
+        return spelled(self.args[0], spell)
 
     def __str__(self) -> str:
         return self.worded()
@@ -129,6 +135,9 @@ class UnusedFields(FieldError):
 class FeatureError(Prs3Error):
     """An operation cannot be placed as asked (does not fit the face, tool too big, bad size).
 
+    The message names the keys it is about as ``{key}`` (``{depth} must be > 0 mm``); ``str()`` gives
+    them bare, and each front end words them (:meth:`worded`: ``--depth``, or a job file's ``depth``).
+
     Attributes
     ----------
     key : str | None — the operation's parameter at fault, as a job file's key (``at``, ``side``), if one is
@@ -140,6 +149,13 @@ class FeatureError(Prs3Error):
     def __init__(self, message: str, *, key: str | None = None, operation: int | None = None):
         super().__init__(message)
         self.key, self.operation = key, operation
+
+    def worded(self, spell: Callable[[str], str] = str) -> str:
+        """The message, each key it names as ``{key}`` spelled ``spell(key)`` (:func:`spelled`)."""
+        return spelled(self.args[0], spell)
+
+    def __str__(self) -> str:
+        return self.worded()
 
 
 class Prs3Warning(UserWarning):

@@ -67,55 +67,55 @@ def _unit_suffix(unit: str) -> str:
     return f" {unit}" if unit else ""
 
 
-def require_positive(option: str, value: float, unit: str = "") -> None:
+def require_positive(key: str, value: float, unit: str = "") -> None:
     """Raise unless ``value`` is a finite number > 0 (and, for lengths in mm, ≤ MAX_LENGTH).
 
     Parameters
     ----------
-    option : str — the CLI option, e.g. ``--feed``
+    key : str — the value's key, e.g. ``feed`` (the message names it ``{feed}``: each front end words it)
     value : float — what the user gave
     unit : str — unit for the message (``mm``, ``mm/min``, or empty)
 
     Raises
     ------
     FeatureError
-        ``--feed must be > 0 mm/min (got 0)``, ``--size must be ≤ 1e+06 mm (got 1e+300)``.
+        ``{feed} must be > 0 mm/min (got 0)``, ``{size} must be ≤ 1e+06 mm (got 1e+300)``.
     """
     if not (math.isfinite(value) and value > 0):
-        raise FeatureError(f"{option} must be > 0{_unit_suffix(unit)} (got {value:g})")
-    _require_plausible_length(option, value, unit)
+        raise FeatureError(f"{{{key}}} must be > 0{_unit_suffix(unit)} (got {value:g})")
+    _require_plausible_length(key, value, unit)
 
 
-def require_feed(option: str, value: float, key: str) -> None:
+def require_feed(key: str, value: float) -> None:
     """Raise unless ``value`` is a feed within :data:`~prs3_post.core.defaults.FEED_RANGE_MM_MIN` (mm/min).
 
     Raises
     ------
     FeatureError
-        ``--feed must be > 0 mm/min (got 0)``, ``--feed must be from 0.1 to 1e+06 mm/min (got 1e-07)``.
+        ``{feed} must be > 0 mm/min (got 0)``, ``{feed} must be from 0.1 to 1e+06 mm/min (got 1e-07)``.
     """
-    require_positive(option, value, "mm/min")
+    require_positive(key, value, "mm/min")
     low, high = FEED_RANGE_MM_MIN
     if not low <= value <= high:
-        raise FeatureError(f"{option} must be from {low:g} to {high:g} mm/min (got {value:g})", key=key)
+        raise FeatureError(f"{{{key}}} must be from {low:g} to {high:g} mm/min (got {value:g})", key=key)
 
 
-def _require_plausible_length(option: str, value: float, unit: str) -> None:
+def _require_plausible_length(key: str, value: float, unit: str) -> None:
     if unit == "mm" and value > MAX_LENGTH:
-        raise FeatureError(f"{option} must be ≤ {MAX_LENGTH:g} mm (got {value:g})")
+        raise FeatureError(f"{{{key}}} must be ≤ {MAX_LENGTH:g} mm (got {value:g})")
 
 
-def require_nonnegative(option: str, value: float, unit: str = "") -> None:
+def require_nonnegative(key: str, value: float, unit: str = "") -> None:
     """Raise unless ``value`` is a finite number ≥ 0 (same wording as :func:`require_positive`).
 
     Raises
     ------
     FeatureError
-        ``--dwell must be ≥ 0 s (got -1)``.
+        ``{dwell} must be ≥ 0 s (got -1)``.
     """
     if not (math.isfinite(value) and value >= 0):
-        raise FeatureError(f"{option} must be ≥ 0{_unit_suffix(unit)} (got {value:g})")
-    _require_plausible_length(option, value, unit)
+        raise FeatureError(f"{{{key}}} must be ≥ 0{_unit_suffix(unit)} (got {value:g})")
+    _require_plausible_length(key, value, unit)
 
 
 def check_heights(clearance: float, retract: float) -> None:
@@ -124,15 +124,15 @@ def check_heights(clearance: float, retract: float) -> None:
     Raises
     ------
     FeatureError
-        ``--clearance must be > 0 mm (got 0)``, or
-        ``--retract must be ≥ --clearance (got --retract 1.000 mm < --clearance 2.000 mm)``.
+        ``{clearance} must be > 0 mm (got 0)``, or
+        ``{retract} must be ≥ {clearance} (got {retract} 1.000 mm < {clearance} 2.000 mm)``.
     """
-    require_positive("--clearance", clearance, "mm")
-    require_positive("--retract", retract, "mm")
+    require_positive("clearance", clearance, "mm")
+    require_positive("retract", retract, "mm")
     if retract < clearance:
         raise FeatureError(
-            f"--retract must be ≥ --clearance "
-            f"(got --retract {retract:.3f} mm < --clearance {clearance:.3f} mm)"
+            f"{{retract}} must be ≥ {{clearance}} "
+            f"(got {{retract}} {retract:.3f} mm < {{clearance}} {clearance:.3f} mm)"
         )
 
 
@@ -147,15 +147,15 @@ TOOL_DIAMETER_RANGE = (0.01, 500.0)
 
 
 def require_tolerance(tolerance: float) -> None:
-    """Raise unless ``--tolerance`` is a finite number from MIN_TOLERANCE to MAX_TOLERANCE (mm)."""
+    """Raise unless the tolerance is a finite number from MIN_TOLERANCE to MAX_TOLERANCE (mm)."""
     if not (math.isfinite(tolerance) and MIN_TOLERANCE <= tolerance <= MAX_TOLERANCE):
         raise FeatureError(
-            f"--tolerance must be from {MIN_TOLERANCE:g} mm (the resolution of the program) to {MAX_TOLERANCE:g} mm "
+            f"{{tolerance}} must be from {MIN_TOLERANCE:g} mm (the resolution of the program) to {MAX_TOLERANCE:g} mm "
             f"(got {tolerance:g})", key="tolerance")
 
 
 def pass_depths(depth: float, step: float, *, resolution: float = MIN_TOLERANCE, rel_tol: float = 1e-9,
-                option: str = "--step-down") -> FloatArray:
+                key: str = "step_down") -> FloatArray:
     """Depths of successive passes (pecks, step-downs): ``d_k = min(k·step, depth)``.
 
     ``k = 1 .. ceil(depth/step)``; a last pass less than ``resolution`` below the one before it
@@ -168,7 +168,7 @@ def pass_depths(depth: float, step: float, *, resolution: float = MIN_TOLERANCE,
     step : float — mm, > 0, depth per pass
     resolution : float — mm, > 0, the program's length resolution (one unit of its last digit)
     rel_tol : float — fraction of a step below which a last pass is merged into the previous one
-    option : str — the option that sets ``step`` (``--step-down``, ``--peck``), for the message
+    key : str — the key that sets ``step`` (``step_down``, ``peck``), which the message names
 
     Returns
     -------
@@ -190,11 +190,11 @@ def pass_depths(depth: float, step: float, *, resolution: float = MIN_TOLERANCE,
     if passes > MAX_PASSES:
         shown = f"{math.ceil(passes):g}" if math.isfinite(passes) else "infinitely many"  # a subnormal step
         raise FeatureError(
-            f"--depth {depth:g} mm in {option} {step:g} mm steps would take {shown} passes "
-            f"(at most {MAX_PASSES}): use a larger {option}"
+            f"{{depth}} {depth:g} mm in {{{key}}} {step:g} mm steps would take {shown} passes "
+            f"(at most {MAX_PASSES}): use a larger {{{key}}}"
         )
     if step < resolution and passes > 1:
-        raise FeatureError(f"{option} must be ≥ {resolution:g} mm, the resolution of the program (got {step:g})")
+        raise FeatureError(f"{{{key}}} must be ≥ {resolution:g} mm, the resolution of the program (got {step:g})")
     count = max(1, math.ceil(passes))
     depths = np.minimum(np.arange(1, count + 1, dtype=np.float64) * step, depth)
     depths[-1] = depth
@@ -233,7 +233,7 @@ class Cutting:
     Raises
     ------
     FeatureError
-        On a value out of range, naming the option: ``--feed must be > 0 mm/min (got 0)``.
+        On a value out of range, naming its key: ``{feed} must be > 0 mm/min (got 0)``.
     """
 
     tool_diameter: float
@@ -246,14 +246,14 @@ class Cutting:
     def __post_init__(self) -> None:
         low, high = TOOL_DIAMETER_RANGE
         if not (math.isfinite(self.tool_diameter) and low <= self.tool_diameter <= high):
-            raise FeatureError(f"--tool-diameter must be from {low:g} to {high:g} mm (got {self.tool_diameter:g})",
+            raise FeatureError(f"{{tool_diameter}} must be from {low:g} to {high:g} mm (got {self.tool_diameter:g})",
                                key="tool_diameter")
-        require_feed("--feed", self.feed, "feed")
-        require_feed("--plunge-feed", self.plunge_feed, "plunge_feed")
-        require_positive("--spindle", self.spindle_rpm, "rpm")
+        require_feed("feed", self.feed)
+        require_feed("plunge_feed", self.plunge_feed)
+        require_positive("spindle", self.spindle_rpm, "rpm")
         number_ok = isinstance(self.tool_number, numbers.Integral) and not isinstance(self.tool_number, bool)
         if not (number_ok and self.tool_number >= 1):
-            raise FeatureError(f"--tool-number must be an integer ≥ 1 (got {self.tool_number!r})")
+            raise FeatureError(f"{{tool}} must be an integer ≥ 1 (got {self.tool_number!r})")
 
     @property
     def tool_radius(self) -> float:

@@ -64,7 +64,7 @@ class HoleParams:
     Raises
     ------
     FeatureError
-        On a value out of range, naming the option: ``--depth must be > 0 mm (got 0)``.
+        On a value out of range, naming its key: ``{depth} must be > 0 mm (got 0)``.
     """
 
     depth: float
@@ -75,16 +75,16 @@ class HoleParams:
     reapproach_gap: float = 0.5
 
     def __post_init__(self) -> None:
-        require_positive("--depth", self.depth, "mm")
-        require_nonnegative("--peck", self.peck, "mm")
-        require_nonnegative("--dwell", self.dwell, "s")
+        require_positive("depth", self.depth, "mm")
+        require_nonnegative("peck", self.peck, "mm")
+        require_nonnegative("dwell", self.dwell, "s")
         check_heights(self.clearance, self.retract)
-        require_nonnegative("--reapproach-gap", self.reapproach_gap, "mm")
+        require_nonnegative("reapproach_gap", self.reapproach_gap, "mm")
         if self.peck > 0 and self.reapproach_gap >= self.peck:
             raise FeatureError(
-                f"--reapproach-gap must be < --peck when pecking "
-                f"(got --reapproach-gap {self.reapproach_gap:.6g} mm ≥ --peck {self.peck:.6g} mm; "
-                f"use a smaller gap, a larger peck, or --peck 0 for no pecking)"
+                f"{{reapproach_gap}} must be < {{peck}} when pecking "
+                f"(got {{reapproach_gap}} {self.reapproach_gap:.6g} mm ≥ {{peck}} {self.peck:.6g} mm; "
+                f"use a smaller gap, a larger peck, or {{peck}} 0 for no pecking)"
             )
 
 
@@ -112,7 +112,7 @@ def _refuse_repeated(centers: FloatArray, resolution: float) -> None:
                 raise FeatureError(
                     f"hole {index + 1} at {format_uv(centers[index])} is hole {j + 1} at {format_uv(centers[j])} "
                     f"again (closer than the program's resolution, {resolution:g} mm): it would be drilled twice; "
-                    f"give each position once (--at, --at-xyz)", key="at")
+                    f"give each position once ({{at}}, {{at_xyz}})", key="at")
         cells.setdefault((ku, kv), []).append(index)
 
 
@@ -156,7 +156,7 @@ def plan_holes(face: Face, centers_uv: FloatArray, params: HoleParams, cutting: 
         check_fits(face, swept_region(center, cutting.tool_radius), _hole_name(index, center, cutting))
     _refuse_repeated(centers, resolution)
 
-    depths = (pass_depths(params.depth, params.peck, resolution=resolution, option="--peck") if params.peck > 0
+    depths = (pass_depths(params.depth, params.peck, resolution=resolution, key="peck") if params.peck > 0
               else np.array([params.depth]))
     count = len(centers)
     builder = ToolpathBuilder(face)

@@ -120,15 +120,15 @@ class SquareShape:
     rotation: float = 0.0
 
     def __post_init__(self) -> None:
-        require_positive("--size", self.size, "mm")
-        require_nonnegative("--corner-radius", self.corner_radius, "mm")
+        require_positive("size", self.size, "mm")
+        require_nonnegative("corner_radius", self.corner_radius, "mm")
         if self.corner_radius > 0.5 * self.size:
             raise FeatureError(
-                f"--corner-radius must be ≤ half the --size (got --corner-radius {self.corner_radius:.3f} mm "
+                f"{{corner_radius}} must be ≤ half the {{size}} (got {{corner_radius}} {self.corner_radius:.3f} mm "
                 f"> {0.5 * self.size:.3f} mm)"
             )
         if not math.isfinite(self.rotation):
-            raise FeatureError(f"--rotation must be a finite angle (got {self.rotation:g})")
+            raise FeatureError(f"{{rotation}} must be a finite angle (got {self.rotation:g})")
 
     def describe(self) -> str:
         """``square 40.000 mm``."""
@@ -152,7 +152,7 @@ class RoundShape:
     diameter: float
 
     def __post_init__(self) -> None:
-        require_positive("--diameter", self.diameter, "mm")
+        require_positive("diameter", self.diameter, "mm")
 
     def describe(self) -> str:
         """``round Ø30.000 mm``."""
@@ -181,7 +181,7 @@ class ProfileParams:
     Raises
     ------
     FeatureError
-        On a value out of range, naming the option: ``--step-down must be > 0 mm (got 0)``.
+        On a value out of range, naming its key: ``{step_down} must be > 0 mm (got 0)``.
     """
 
     side: Side
@@ -194,10 +194,10 @@ class ProfileParams:
     retract: float
 
     def __post_init__(self) -> None:
-        require_positive("--depth", self.depth, "mm")
-        require_positive("--step-down", self.step_down, "mm")
+        require_positive("depth", self.depth, "mm")
+        require_positive("step_down", self.step_down, "mm")
         if not (math.isfinite(self.ramp_angle) and 0.0 < self.ramp_angle < 0.5 * math.pi):
-            raise FeatureError(f"--ramp-angle must be > 0° and < 90° (got {math.degrees(self.ramp_angle):g}°)")
+            raise FeatureError(f"{{ramp_angle}} must be > 0° and < 90° (got {math.degrees(self.ramp_angle):g}°)")
         check_heights(self.clearance, self.retract)
 
 
@@ -309,17 +309,17 @@ def tool_center_contour(
         if isinstance(shape, SquareShape):
             if shape.size <= tool_diameter:
                 raise FeatureError(
-                    f"--side inside: the tool Ø{tool_diameter:.3f} mm does not fit inside the {shape.describe()} "
+                    f"{{side}} inside: the tool Ø{tool_diameter:.3f} mm does not fit inside the {shape.describe()} "
                     f"(use a tool smaller than Ø{shape.size:.3f})", key="side"
                 )
             if shape.corner_radius < radius:
                 raise FeatureError(
-                    f"--side inside: corner radius {shape.corner_radius:.3f} mm is smaller than the tool radius "
-                    f"{radius:.3f} mm (use --corner-radius ≥ {radius:.3f} or a smaller tool)", key="side"
+                    f"{{side}} inside: corner radius {shape.corner_radius:.3f} mm is smaller than the tool radius "
+                    f"{radius:.3f} mm (use {{corner_radius}} ≥ {radius:.3f} or a smaller tool)", key="side"
                 )
         elif shape.diameter <= tool_diameter:
             raise FeatureError(
-                f"--side inside: the tool Ø{tool_diameter:.3f} mm does not fit inside the {shape.describe()} "
+                f"{{side}} inside: the tool Ø{tool_diameter:.3f} mm does not fit inside the {shape.describe()} "
                 f"(use a tool smaller than Ø{shape.diameter:.3f})", key="side"
             )
 
