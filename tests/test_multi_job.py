@@ -12,7 +12,8 @@ from click.testing import CliRunner
 from conftest import compare_golden
 from numpy.testing import assert_allclose
 
-from prs3_post.app.job import JobResult, post_transition, run_operations, specs_from_header
+from prs3_post.app.job import JobResult, run_operations, specs_from_header
+from prs3_post.app.job_transitions import post_transition
 from prs3_post.cli.main import main
 from prs3_post.core.errors import InputError
 from prs3_post.core.toolpath import EventKind, MoveKind, Toolpath

@@ -17,7 +17,6 @@ as text for the CLI to write.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 from functools import partial
@@ -25,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from prs3_post.app.job_transitions import MACHINE_FRAME, post_transition, safe_height, transition_paths
 from prs3_post.check.collision import Approach, ProgramClearance, feed_tips_of, measure_program
 from prs3_post.check.placement import PlacementResult, place, placement_error, suggest_origin
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE
@@ -54,7 +54,6 @@ from prs3_post.part.faces import MIN_FACE_WIDTH_MM, find_faces, project_onto_fac
 from prs3_post.part.setup_transform import Setup
 from prs3_post.part.stl import load_part
 from prs3_post.post.dynamics import DynamicsTally, dynamics_entry
-from prs3_post.post.linearize import slerp, subdivide_axis_changes
 from prs3_post.post.pipeline import PostResult, PostStream, machine_path, post_process
 from prs3_post.post.visible_moves import length_resolution
 from prs3_post.readers.tooltable import Tool, ToolTable
@@ -509,8 +508,8 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
             raise LimitError(f"{error}; {PLACEMENT_CANNOT_FIX}") from error
         posts.append(posted)
     if several:
-        pieces, lengths, starts, transitions = _assemble(specs, done, posts, safe_height(triangles, first.setup, specs),
-                                                         triangles)
+        height = safe_height(triangles, first.setup, _retract(specs))
+        pieces, lengths, starts, transitions = _assemble(specs, done, posts, height, triangles)
         program = _join_programs([p.program for p in pieces])
         measured = [m.shifted(start) if isinstance(m, ProgramClearance) else m
                     for m, start in zip(measured, starts, strict=True)]
@@ -574,7 +573,7 @@ def job_in_part_frame(specs: tuple[JobSpec, ...], operations: list[OperationResu
     (the safe height moves with the part; turning about z turns the great circles with it). The
     turns are FEED rows here, so that placing them subdivides them as :func:`post_transition` does."""
     pieces, lengths = [operations[0].path_part], [operations[0].tool_length]
-    height = safe_height(triangles, MACHINE_FRAME, specs)
+    height = safe_height(triangles, MACHINE_FRAME, _retract(specs))
     for k in range(1, len(operations)):
         before, after = operations[k - 1], operations[k]
         pair = (before.tool_length, after.tool_length)
@@ -630,95 +629,9 @@ def _operation_error(error: LimitError | ReachError, machine: Machine, path_part
     return type(error)(f"{error}; setup: {spec.setup.describe()}; {advice}")
 
 
-def safe_height(triangles: FloatArray, setup: Setup, specs: tuple[JobSpec, ...]) -> float:
-    """mm, machine z of the transitions between operations: the part's highest point plus the largest
-    ``retract`` of the operations (the tool tip there is above every point of the part, and so is
-    the whole tool, whose axis points up)."""
-    top = float(setup.points_to_machine(triangles.reshape(-1, 3))[:, 2].max())
-    return top + max(spec.work.params.retract for spec in specs)
-
-
-#: rad, the largest axis turn between two rows of a reorientation before subdivision checks it.
-REORIENT_STEP = math.radians(5.0)
-
-
-def transition_paths(before: Toolpath, after: Toolpath, lengths: tuple[float, float], height: float, *,
-                     labels: tuple[str, str]) -> tuple[Toolpath, Toolpath]:
-    """The rows between two operations (machine frame), as two pieces: (lift, turn and approach).
-
-    ``before``'s last row is the first operation's end (its retract height above its face), ``after``'s
-    first row the second's start (above its first feature). The lift (first tool) goes up along the
-    current axis until the next tool's tip would be at ``height`` (at least), so that it is there
-    after the change. The second piece (next tool) turns the axis
-    there with the tip fixed, on the great circle, as RAPID rows every :data:`REORIENT_STEP` at most
-    (its first row repeats the lift's end pose, for the subdivision to start from: drop it after
-    IK), then goes over to ``height`` above the next start; the next operation's first row goes down.
-
-    Parameters
-    ----------
-    before, after : Toolpath — machine frame, unit axes
-    lengths : (first, next) float — mm, tool lengths "TL"
-    height : float — mm, machine z of the transition
-    labels : (lift label, turn label)
-    """
-    tip_a, axis_a = before.tip[-1], before.axis[-1]
-    tip_b, axis_b = after.tip[0], after.axis[0]
-    longer = max(0.0, lengths[1] - lengths[0])
-    # the next tool's tip (at the same joints: longer·axis below) at ``height``; axis_z > 0: a tool points up
-    rise = max(0.0, (height + longer * axis_a[2] - tip_a[2]) / axis_a[2])
-    lifted = tip_a + rise * axis_a
-    rows = 1 if rise > 0.0 else 0                                  # already there: no lift
-    lift = _rapids(np.tile(lifted, (rows, 1)), np.tile(axis_a, (rows, 1)), labels[0])
-    turn_at = lifted - (lengths[1] - lengths[0]) * axis_a          # the next tool's tip, same joints
-    angle = math.acos(min(1.0, max(-1.0, float(axis_a @ axis_b))))
-    steps = max(1, math.ceil(angle / REORIENT_STEP))
-    fractions = np.linspace(0.0, 1.0, steps + 1)
-    axes = slerp(np.tile(axis_a, (steps + 1, 1)), np.tile(axis_b, (steps + 1, 1)), fractions)
-    over = max(0.0, (height - tip_b[2]) / axis_b[2])
-    tips = np.vstack([np.tile(turn_at, (steps + 1, 1)), tip_b + over * axis_b])
-    turn = _rapids(tips, np.vstack([axes, axis_b]), labels[1])
-    return lift, turn
-
-
-def _rapids(tip: FloatArray, axis: FloatArray, label: str) -> Toolpath:
-    """RAPID rows at the given poses, all of step ``label``."""
-    count = len(tip)
-    return Toolpath(kind=np.full(count, MoveKind.RAPID), tip=tip, axis=axis, feed=np.zeros(count),
-                    source=np.zeros(count, dtype=np.int64), source_labels=(label,))
-
-
-def post_transition(machine: Machine, before: Toolpath, after: Toolpath, lengths: tuple[float, float],
-                    height: float, *, labels: tuple[str, str], tolerance: float = DEFAULT_TOLERANCE,
-                    length_decimals: int | None = None) -> tuple[PostResult | None, PostResult]:
-    """The transition between two operations (:func:`transition_paths`), checked: the lift with the
-    first tool (None when the tool is already high enough) and the turn and approach with the next,
-    the turn subdivided like any move whose axis changes (until the joint-space line between rows
-    stays within ``tolerance`` of the fixed tip), then IK and limits on every row.
-
-    Raises
-    ------
-    LimitError, ReachError
-        A row of the transition outside a limit (the label names it).
-    """
-    lift, turn = transition_paths(before, after, lengths, height, labels=labels)
-    lifted = None
-    if len(lift):
-        lifted = post_process(machine.with_tool_length(lengths[0]), lift, MACHINE_FRAME,
-                              length_decimals=length_decimals,
-                              tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
-    next_tool = machine.with_tool_length(lengths[1])
-    as_feed = replace(turn, kind=np.full(len(turn), MoveKind.FEED))
-    fine = subdivide_axis_changes(next_tool.geometry, as_feed, tolerance=tolerance,
-                                  angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
-    fine = replace(fine, kind=np.full(len(fine), MoveKind.RAPID))
-    keep = np.ones(len(fine), dtype=bool)
-    keep[0] = False                                    # the lift's end again, for the subdivision to start from
-    return lifted, post_process(next_tool, fine.take(keep), MACHINE_FRAME, length_decimals=length_decimals,
-                                tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
-
-
-#: The identity setup: machine-frame rows (the transitions) go through the same post-processing.
-MACHINE_FRAME = Setup((0.0, 0.0, 0.0), 0.0)
+def _retract(specs: tuple[JobSpec, ...]) -> float:
+    """mm, the largest retract of the operations: how far above the part the transitions go."""
+    return max(spec.work.params.retract for spec in specs)
 
 
 def _assemble(specs: tuple[JobSpec, ...], done: list[OperationResult], posts: list[_Posted],
