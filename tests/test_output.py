@@ -201,6 +201,54 @@ def test_full_standard_output_is_a_clear_error(args: list[str]) -> None:
         2, "prs3-post: error: standard output: cannot write: No space left on device\n")
 
 
+_CONSOLE_SCRIPT = "from prs3_post.cli.entry import main; main()"
+_CLOSED = "prs3-post: error: standard output: cannot write: it is closed (redirect it to a file or to /dev/null)\n"
+
+
+def _with_stdout_closed(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    """The console script run as ``prs3-post ARGS >&-`` (DEVNULL is an open standard output, not a closed one)."""
+    return subprocess.run([sys.executable, "-c", _CONSOLE_SCRIPT, *args], cwd=cwd, stdout=None,
+                          stderr=subprocess.PIPE, text=True, timeout=120, check=False,
+                          preexec_fn=lambda: os.close(1))
+
+
+@pytest.mark.parametrize("args", [
+    ["machines"], ["demo", "--profile", "hole"], ["faces", str(WEDGE)], ["fk", "--strokes", "300,300,300"],
+    ["verify", "prog.ngc"], ["ik", "--batch", "poses.csv"], ["--version"]],
+    ids=["machines", "demo", "faces", "fk", "verify", "ik-batch", "version"])
+def test_closed_standard_output_is_a_clear_error(args: list[str], tmp_path: Path) -> None:
+    """``prs3-post machines >&-``: Python's standard output is None, and every command ended in
+    "AttributeError: 'NoneType' object has no attribute 'flush'" (a traceback, exit 1)."""
+    (tmp_path / "poses.csv").write_text(POSES)
+    assert invoke("demo", "--profile", "hole", "-o", str(tmp_path / "prog.ngc")).exit_code == 0
+    done = _with_stdout_closed(*args, cwd=tmp_path)
+    assert (done.returncode, done.stderr) == (2, _CLOSED)
+
+
+def test_closed_standard_output_still_writes_complete_files(tmp_path: Path) -> None:
+    """Files named by -o are written in full as with an open standard output: the program and the IK table
+    (nothing for standard output: exit 0), convert's programs (its summary line for standard output: exit 2,
+    as with a full one). Before, each ended in an AttributeError traceback."""
+    (tmp_path / "poses.csv").write_text(POSES)
+    (tmp_path / "part.cls").write_text("FEDRAT/100\nRAPID\nGOTO/0,0,100\nGOTO/0,0,0\nGOTO/10,0,0\n")
+    open_dir, closed_dir = tmp_path / "open", tmp_path / "closed"
+    runs = [(["demo", "--profile", "hole", "-o", "{}/prog.ngc"], 0, ""),
+            (["ik", "--batch", str(tmp_path / "poses.csv"), "-o", "{}/strokes.csv"], 0, ""),
+            (["convert", str(tmp_path / "part.cls"), "-o", "{}/programs", "--jobs", "1"], 2, _CLOSED)]
+    for args, code, stderr in runs:
+        for where in (open_dir, closed_dir):
+            where.mkdir(exist_ok=True)
+        assert invoke(*[a.format(open_dir) for a in args]).exit_code == 0
+        done = _with_stdout_closed(*[a.format(closed_dir) for a in args], cwd=tmp_path)
+        assert done.returncode == code, done.stderr
+        if code:
+            assert done.stderr == stderr
+    written = sorted(str(p.relative_to(closed_dir)) for p in closed_dir.rglob("*") if p.is_file())
+    assert written == ["prog.ngc", "programs/part.ngc", "strokes.csv"]
+    for name in written:
+        assert (closed_dir / name).read_bytes() == (open_dir / name).read_bytes(), name
+
+
 _INTERRUPTED_IMPORT = """
 import sys
 class Interrupt:                       # Ctrl-C while the CLI's modules (numpy, click, ...) load

@@ -21,6 +21,7 @@ from prs3_post.cli.run import demo, job, run
 from prs3_post.cli.verify import preview, verify
 from prs3_post.core.errors import quoted
 from prs3_post.core.output_files import (
+    guard_closed_stdout,
     stdout_error,
 )
 from prs3_post.core.version import __version__
@@ -33,7 +34,9 @@ class _MainGroup(click.Group):
 
     def main(self, *args: Any, **kwargs: Any) -> Any:
         """click's main; a standard output that cannot take what click itself prints (``--help``,
-        ``--version``, usage errors go to standard error) is reported as the commands report it."""
+        ``--version``, usage errors go to standard error) is reported as the commands report it; so
+        is a closed one (``>&-``)."""
+        guard_closed_stdout()
         try:
             return super().main(*args, **kwargs)
         except OSError as exc:

@@ -9,7 +9,8 @@
 - SIGTERM, SIGINT and SIGHUP during a write remove the temp files, then act as they would have.
 - Several outputs (a program and its preview) are written together, both or neither: every temp
   file is written first, then all are renamed (a rename that still fails undoes the ones before it).
-- Standard output that cannot be written (``> /dev/full``, a closed pipe) is an :class:`InputError`.
+- Standard output that cannot be written (``> /dev/full``, a closed pipe, closed with ``>&-``) is an
+  :class:`InputError`.
 
 The data is text (written as UTF-8), bytes, or an iterable of such chunks, so that a large program
 can be streamed without holding it whole. A :class:`HeadLast` is data whose opening is known only
@@ -60,6 +61,32 @@ STDOUT = "standard output"
 _SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGINT", "SIGHUP") if hasattr(signal, name))
 _STREAM_ERRNOS = {errno.ENOSPC, errno.EPIPE, errno.EIO, errno.EDQUOT, errno.EFBIG, errno.ENXIO, errno.ECONNRESET}
 _TEMP_NAME_MAX = 60  # characters of the target's name kept in its temp file's name
+_CLOSED_STDOUT = "it is closed (redirect it to a file or to /dev/null)"
+_stdout_was_closed = False  # set once by guard_closed_stdout, for the process
+
+
+def guard_closed_stdout() -> None:
+    """Make a standard output closed by the caller (``prs3-post machines >&-``) fail like a full one.
+
+    Python then starts with ``sys.stdout = None``: every command ended in an AttributeError
+    traceback, and file descriptor 1 was free for the next file opened (a program's temp file),
+    which anything written to descriptor 1 would have gone into. /dev/null is opened on
+    descriptor 1 read-only, and ``sys.stdout`` writes to it: the first write to standard output
+    fails (EBADF) and is reported as one that cannot be written (exit 2), while files named by
+    ``-o`` are written as always. An open standard output is left alone.
+    """
+    global _stdout_was_closed
+    try:
+        os.fstat(1)
+        return
+    except OSError:
+        pass
+    fd = os.open(os.devnull, os.O_RDONLY)
+    if fd != 1:
+        os.dup2(fd, 1)
+        os.close(fd)
+    sys.stdout = open(1, "w", encoding="utf-8", closefd=False)  # standard output, for the process
+    _stdout_was_closed = True
 
 
 def is_stdout(path: str | None) -> bool:
@@ -155,7 +182,7 @@ def stdout_error(exc: OSError) -> InputError | None:
     standard output does not. Standard output is then silenced, so that the interpreter's own
     flush at exit does not fail again with a traceback.
     """
-    if exc.filename is not None or exc.errno not in _STREAM_ERRNOS:
+    if exc.filename is not None or not (exc.errno in _STREAM_ERRNOS or _closed_stdout(exc)):
         return None
     return _stdout_error(exc)
 
@@ -327,13 +354,19 @@ def _same_file(a: str, b: str) -> bool:
         return False
 
 
+def _closed_stdout(exc: OSError) -> bool:
+    """A write to the standard output that :func:`guard_closed_stdout` found closed."""
+    return _stdout_was_closed and exc.errno == errno.EBADF
+
+
 def _stdout_error(exc: OSError) -> InputError:
     """The error for a standard output that cannot be written; silences it for the exit flush."""
     with contextlib.suppress(OSError, ValueError):
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         os.close(devnull)
-    return InputError(f"cannot write: {exc.strerror or exc}", path=STDOUT)
+    reason = _CLOSED_STDOUT if _closed_stdout(exc) else exc.strerror or exc
+    return InputError(f"cannot write: {reason}", path=STDOUT)
 
 
 class _Interrupted(BaseException):
