@@ -311,6 +311,8 @@ def test_shipped_sources_load_as_documented() -> None:
     (("axis = [0.0, 1.0, 0.0]", "axis = [0.0, 2.0, 0.0]", 1),
      "table[0].axis: must be a unit vector, got [0.0, 2.0, 0.0] (length 2)"),
     (('off = ["G49"]', 'off = ["G234"]', 1), "tcp.off: G234 is also in tcp.on"),
+    # a word that is no rotary letter was reported as "table[0].axis: unknown key" (the keys after it unread)
+    (('word = "B"', 'word = "X"', 1), "table[0].word: must be A, B or C, got 'X'"),
 ])
 def test_bad_source_files(tmp_path: Path, change: tuple[str, str, int], message: str) -> None:
     text = (REPO / "postproc" / "sources" / "haas-umc750.toml").read_text()

@@ -684,8 +684,7 @@ def _rotary(table: _Table, is_table: bool) -> Rotary:
 
     word = table.text("word")
     if word not in ("A", "B", "C"):
-        table.finish()
-        raise table._error("word", f"expected \"A\", \"B\" or \"C\", got {quoted(word)}")
+        raise table._error("word", f"must be A, B or C, got {quoted(word)}")
     axis = np.array(table.numbers("axis", 3, "[x, y, z], a unit vector"))
     length = float(np.linalg.norm(axis))
     if abs(length - 1.0) > 1e-6:
