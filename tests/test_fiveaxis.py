@@ -313,7 +313,21 @@ def test_shipped_sources_load_as_documented() -> None:
     (('off = ["G49"]', 'off = ["G234"]', 1), "tcp.off: G234 is also in tcp.on"),
     # a word that is no rotary letter was reported as "table[0].axis: unknown key" (the keys after it unread)
     (('word = "B"', 'word = "X"', 1), "table[0].word: must be A, B or C, got 'X'"),
-])
+    # inert and clamp codes are dropped from their blocks: G1 made every cut a rapid, M30 hid the program's end
+    (('inert = ["G255"]', 'inert = ["G255", "G1", "M30"]', 1), "codes.inert[1]: G1 is a motion code, it cannot be "
+     "inert (inert and clamp codes must change nothing in a conversion: no motion code G0-G3, G73, G80-G89, no feed "
+     "mode G93-G95, no program end M2, M30)"),
+    (('clamps = ["M10", "M11", "M12", "M13"]', 'clamps = ["M10", "M30"]', 1), "codes.clamps[1]: M30 is a program "
+     "end, it cannot be a clamp (inert and clamp codes must change nothing in a conversion: no motion code G0-G3, "
+     "G73, G80-G89, no feed mode G93-G95, no program end M2, M30)"),
+    (('inert = ["G255"]', 'inert = ["G85"]', 1), "codes.inert[0]: G85 is a motion code, it cannot be inert (inert "
+     "and clamp codes must change nothing in a conversion: no motion code G0-G3, G73, G80-G89, no feed mode "
+     "G93-G95, no program end M2, M30)"),
+    (('inert = ["G255"]', 'inert = ["G93"]', 1), "codes.inert[0]: G93 is a feed mode, it cannot be inert (inert "
+     "and clamp codes must change nothing in a conversion: no motion code G0-G3, G73, G80-G89, no feed mode "
+     "G93-G95, no program end M2, M30)"),
+], ids=["sign", "unknown-key", "word-twice", "tcp-code", "axis", "tcp-both", "word", "inert-g1", "clamp-m30",
+        "inert-cycle", "inert-feed-mode"])
 def test_bad_source_files(tmp_path: Path, change: tuple[str, str, int], message: str) -> None:
     text = (REPO / "postproc" / "sources" / "haas-umc750.toml").read_text()
     old, new, count = change
@@ -410,6 +424,29 @@ def test_convert_bad_source_options(args: list[str], message: str, tmp_path: Pat
     result = CliRunner().invoke(main, ["convert", str(program), "-o", str(out), "--jobs", "1", *args])
     assert result.exit_code == 2
     assert message in result.output.splitlines()
+    assert not out.exists() or list(out.iterdir()) == []
+
+
+@pytest.mark.parametrize(("inert", "message"), [
+    ('["G255", "G1", "M30"]', "codes.inert[1]: G1 is a motion code, it cannot be inert (inert and clamp codes must "
+     "change nothing in a conversion: no motion code G0-G3, G73, G80-G89, no feed mode G93-G95, no program end M2, "
+     "M30)"),
+    ('["G90"]', "codes.inert: G90 is read as itself (distance group), it cannot be inert"),
+    ('["M6"]', "codes.inert: M6 is read as itself (tool change group), it cannot be inert"),
+], ids=["motion", "distance", "tool-change"])
+def test_convert_refuses_a_source_whose_inert_codes_are_read(inert: str, message: str, tmp_path: Path) -> None:
+    """A copy of haas-umc750.toml with inert = ["G255", "G1", "M30"] turned every cut into a rapid: the Haas
+    program came out with 348 G0 and 1 G1 instead of 3 G0 and 1336 G1, exit 0, and verify said OK."""
+    source = tmp_path / "haas.toml"
+    source.write_text((REPO / "postproc" / "sources" / "haas-umc750.toml").read_text().replace(
+        'inert = ["G255"]', f"inert = {inert}"))
+    program = tmp_path / "in.nc"
+    program.write_text("G21 G90\nG234 H1\nG0 X0 Y0 Z5 B0 C0\nG1 X10 F300\nG1 X20\nG49\nM30\n")
+    out = tmp_path / "out"
+    result = CliRunner().invoke(main, ["convert", str(program), "-o", str(out), "--jobs", "1", "--source",
+                                       str(source), "--part-origin", "0,0,-900"])
+    assert result.exit_code == 2, result.output
+    assert result.stderr == f"prs3-post: error: {source}: {message}\n"
     assert not out.exists() or list(out.iterdir()) == []
 
 

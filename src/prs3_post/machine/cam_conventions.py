@@ -38,7 +38,20 @@ import numpy as np
 
 from prs3_post.core.types import FloatArray
 
-__all__ = ["Orientation", "Rotary", "SourceConvention", "rotations"]
+__all__ = ["NOT_QUIET", "NOT_QUIET_SHOWN", "Orientation", "Rotary", "SourceConvention", "rotations"]
+
+
+#: Codes a source may not list as clamps or inert codes (``codes.clamps``, ``codes.inert``), with what
+#: each is. The reader drops such codes from their blocks: a motion code would leave the moves it
+#: starts in the previous motion (every cut a rapid), a feed mode would leave the feeds misread, a
+#: program end would be lost (and what follows it read).
+NOT_QUIET: dict[str, str] = {
+    **dict.fromkeys(("G0", "G1", "G2", "G3", "G73", *(f"G{n}" for n in range(80, 90))), "a motion code"),
+    **dict.fromkeys(("G93", "G94", "G95"), "a feed mode"),
+    **dict.fromkeys(("M2", "M30"), "a program end"),
+}
+#: :data:`NOT_QUIET` as messages list it.
+NOT_QUIET_SHOWN = "no motion code G0-G3, G73, G80-G89, no feed mode G93-G95, no program end M2, M30"
 
 
 class Orientation(enum.Enum):

@@ -706,7 +706,7 @@ def load_source(name_or_path: str) -> SourceConvention:
     ConfigError
         ``file: dotted.key: problem`` for anything missing, unknown, mistyped or out of range.
     """
-    from prs3_post.machine.cam_conventions import Orientation, SourceConvention
+    from prs3_post.machine.cam_conventions import NOT_QUIET, NOT_QUIET_SHOWN, Orientation, SourceConvention
 
     path = resolve("sources", name_or_path)
     shown = _display(path)
@@ -729,6 +729,11 @@ def load_source(name_or_path: str) -> SourceConvention:
     extra = top.table("codes")
     clamps, inert = _codes(extra, "clamps"), _codes(extra, "inert")
     extra.finish()
+    for key, codes, role in (("clamps", clamps, "a clamp"), ("inert", inert, "inert")):
+        for i, code in enumerate(codes):
+            if code in NOT_QUIET:
+                raise extra._error(f"{key}[{i}]", f"{code} is {NOT_QUIET[code]}, it cannot be {role} (inert and "
+                                   f"clamp codes must change nothing in a conversion: {NOT_QUIET_SHOWN})")
     rotaries: dict[str, list[Rotary]] = {"table": [], "head": []}
     for key in ("table", "head"):
         entries = top._get(key, [])

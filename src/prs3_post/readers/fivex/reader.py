@@ -76,7 +76,8 @@ from prs3_post.readers.gcode.summary import GcodeFile
 from prs3_post.readers.gcode.words import CODES_READ, G_GROUPS, HINTS, M_GROUPS, VALUE_LETTERS, Block
 from prs3_post.readers.protocol import SourceNotes
 
-__all__ = ["FivexCounts", "FivexFile", "FivexStream", "check_tcp_codes", "parse_fivex", "read_fivex"]
+__all__ = ["FivexCounts", "FivexFile", "FivexStream", "check_quiet_codes", "check_tcp_codes", "parse_fivex",
+           "read_fivex"]
 
 _XYZ = "XYZ"
 #: A LinuxCNC expression or parameter somewhere in a line (checked on the code without comments).
@@ -189,6 +190,7 @@ class FivexStream(GcodeStream):
         self.tcp_on = source.tcp_on if tcp_on is None else tuple(tcp_on)
         self.tcp_off = source.tcp_off if tcp_off is None else tuple(tcp_off)
         check_tcp_codes(source, self.tcp_on, self.tcp_off)
+        check_quiet_codes(source)
         self.fivex: FivexFile | None = None
         self._percents = 0                             # '%' lines seen by _scan (the second closes the program)
         self._five: _FivexReader | None = None
@@ -292,6 +294,24 @@ def check_tcp_codes(source: SourceConvention, tcp_on: tuple[str, ...], tcp_off: 
     both = sorted(set(tcp_on) & set(tcp_off))
     if both:
         raise ConfigError(f"tcp: {both[0]} both switches TCP on and off", path=source.source)
+
+
+def check_quiet_codes(source: SourceConvention) -> None:
+    """Clamp and inert codes must be codes the reader does not read as something else (it drops them
+    from their blocks; the source loader has refused motion, feed-mode and program-end codes).
+
+    Raises
+    ------
+    ConfigError
+        ``codes.inert: G90 is read as itself (distance group), it cannot be inert``.
+    """
+    for name, codes, role in (("codes.clamps", source.clamps, "a clamp"), ("codes.inert", source.inert, "inert")):
+        for code in codes:
+            groups = G_GROUPS if code[0] == "G" else M_GROUPS
+            value = float(code[1:])
+            if value in groups:
+                raise ConfigError(f"{name}: {code} is read as itself ({groups[value]} group), it cannot be {role}",
+                                  path=source.source)
 
 
 class _FivexReader(LineReader):

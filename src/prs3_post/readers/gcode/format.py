@@ -30,13 +30,15 @@ class GcodeReader:
         return _GCODE_LINE.match(line) is not None
 
     def check(self, options: ReadOptions) -> None:
-        """A source convention's TCP codes (:func:`~prs3_post.readers.fivex.reader.check_tcp_codes`)."""
+        """A source convention's TCP, clamp and inert codes (:func:`~prs3_post.readers.fivex.reader.check_tcp_codes`,
+        :func:`~prs3_post.readers.fivex.reader.check_quiet_codes`)."""
         source = options.source
         if source is not None:
-            from prs3_post.readers.fivex.reader import check_tcp_codes  # only a 5-axis program needs it
+            from prs3_post.readers.fivex.reader import check_quiet_codes, check_tcp_codes  # only 5-axis needs them
 
             check_tcp_codes(source, source.tcp_on if options.tcp_on is None else options.tcp_on,
                             source.tcp_off if options.tcp_off is None else options.tcp_off)
+            check_quiet_codes(source)
 
     def open(self, path: str, options: ReadOptions) -> CamStream:
         """A 3+2 stream on the options' work plane, or with a source convention a 5-axis one.
