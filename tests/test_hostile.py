@@ -532,3 +532,69 @@ def test_convert_refuses_an_empty_word_to_ignore(tmp_path: Path, monkeypatch: py
     assert _usage_error(result) == (f"Error: Invalid value for '--ignore': {word!r}: give a CL major word, "
                                     "like PAINT")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc"]
+
+
+# ----------------------------------------------------------------------------- line ends and a byte-order mark
+
+_CL = ("$$ line ends\nUNITS/MM\nFEDRAT/MMPM,100\nRAPID\nGOTO/0,0,5\nGOTO/0,0,-1\nGOTO/5,0,-1,$\n0,0,1\n"
+       "CIRCLE/5,5,-1,0,0,1,5\nGOTO/10,5,-1\nFINI\n")
+
+
+def _ascii_wedge() -> str:
+    import trimesh
+
+    return trimesh.exchange.stl.export_stl_ascii(trimesh.load(str(WEDGE), file_type="stl", force="mesh"))
+
+
+@pytest.mark.parametrize("form", ["crlf", "cr", "one-line", "bom", "bom-cr"])
+def test_an_ascii_stl_reads_alike_with_any_line_ends_and_a_bom(tmp_path: Path, form: str) -> None:
+    """CR-only line ends (or the whole file on one line) said "'solid' has no matching 'endsolid'"; a UTF-8
+    byte-order mark said "text starting with '\\ufeffsolid ...'" (the mark invisible)."""
+    from prs3_post.part.stl import load_part
+
+    text = _ascii_wedge()
+    made = {"crlf": text.replace("\n", "\r\n"), "cr": text.replace("\n", "\r"), "one-line": text.replace("\n", " "),
+            "bom": "\ufeff" + text, "bom-cr": "\ufeff" + text.replace("\n", "\r")}[form]
+    (tmp_path / "lf.stl").write_bytes(text.encode())
+    (tmp_path / "other.stl").write_bytes(made.encode())
+    expected = load_part(str(tmp_path / "lf.stl"))
+    read = load_part(str(tmp_path / "other.stl"))
+    np.testing.assert_array_equal(read.vertices, expected.vertices)
+    np.testing.assert_array_equal(read.faces, expected.faces)
+    result = invoke("faces", str(tmp_path / "other.stl"))
+    assert (result.exit_code, result.stdout) == (0, invoke("faces", str(tmp_path / "lf.stl")).stdout)
+
+
+@pytest.mark.parametrize("ending", ["\r", "\r\n"])
+def test_an_ascii_stl_error_names_its_line_with_any_line_ends(tmp_path: Path, ending: str) -> None:
+    part = tmp_path / "bad.stl"
+    part.write_bytes("\ufeffsolid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertx 1 0 0\nvertex 0 1 0\n"
+                     "endloop\nendfacet\nendsolid t\n".replace("\n", ending).encode())
+    result = invoke("faces", str(part))
+    assert (result.exit_code, result.stderr) == (2, f"prs3-post: error: {part}:5: expected 'vertex', found 'vertx'\n")
+
+
+@pytest.mark.parametrize("ending", ["\r", "\r\n"])
+def test_a_cl_file_reads_alike_with_any_line_ends(tmp_path: Path, ending: str) -> None:
+    """A CL file with CR-only line ends said "no moves in the file" (it was one line)."""
+    from prs3_post.readers.cl.reader import read_cl
+
+    (tmp_path / "lf.cls").write_bytes(_CL.encode())
+    (tmp_path / "other.cls").write_bytes(("\ufeff" + _CL.replace("\n", ending)).encode())
+    expected = read_cl(str(tmp_path / "lf.cls"), tolerance=0.01).toolpath
+    read = read_cl(str(tmp_path / "other.cls"), tolerance=0.01).toolpath
+    assert len(expected) > 4
+    for column in ("kind", "tip", "axis", "feed", "source"):
+        np.testing.assert_array_equal(getattr(read, column), getattr(expected, column))
+    out = tmp_path / "out"
+    result = invoke("convert", str(tmp_path / "other.cls"), "-o", str(out), "--part-origin=0,0,-850", "--jobs", "1")
+    assert result.exit_code == 0, result.output
+
+
+@pytest.mark.parametrize("ending", ["\r", "\r\n"])
+def test_a_cl_error_names_its_line_with_any_line_ends(tmp_path: Path, ending: str) -> None:
+    source = tmp_path / "bad.cls"
+    source.write_bytes(_CL.replace("GOTO/10,5,-1", "GOTO/10,5").replace("\n", ending).encode())
+    result = invoke("convert", str(source), "-o", str(tmp_path / "out"), "--part-origin=0,0,-850", "--jobs", "1")
+    assert result.exit_code == 2
+    assert result.stdout.split("\t")[3].startswith(f"{source}:10: "), result.stdout

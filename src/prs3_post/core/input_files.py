@@ -190,6 +190,19 @@ def iter_pieces(path: str, what: str, piece_bytes: int = 1 << 20,
             yield offset, rest
 
 
+def lf_line_ends(text: str) -> str:
+    """``text`` with its CR and CRLF line ends made LF where it has a CR that is no CRLF's (CR-only line
+    ends, as old Mac editors write them, or mixed ones); else ``text`` itself, not copied (a reader
+    that takes CRLF strips the CR, or reads it as whitespace). Each CR, CRLF or LF ends one line.
+
+    >>> lf_line_ends("a\\rb\\r\\nc\\n"), lf_line_ends("a\\r\\nb")
+    ('a\\nb\\nc\\n', 'a\\r\\nb')
+    """
+    if "\r" in text and text.count("\r") != text.count("\r\n"):
+        return text.replace("\r\n", "\n").replace("\r", "\n")
+    return text
+
+
 def line_chunks(texts: Iterable[str], chunk_lines: int) -> Iterator[list[str]]:
     """The lines of text pieces that end at line ends (as :func:`iter_pieces` cuts them, decoded), without
     their line ends, ``chunk_lines`` at a time (the last chunk shorter).

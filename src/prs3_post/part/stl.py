@@ -7,6 +7,8 @@ Formats
   many CAD exporters (SolidWorks among them) start the *binary* header with ``solid`` too.
 - ASCII STL: ``solid [name]``, then ``facet normal nx ny nz / outer loop / vertex x y z (3x) /
   endloop / endfacet`` records, then ``endsolid [name]``; several solids in one file are joined.
+  Lines end in LF, CRLF or CR alike (line numbers in messages count each), or the whole solid is on
+  one line; a leading UTF-8 byte-order mark is read as nothing.
 
 Why not just ``trimesh.load``: trimesh 5.2's STL loader is lenient. A text file, random bytes, an
 empty file and a truncated ASCII STL all come back as an *empty mesh* without an error, and a bad
@@ -51,7 +53,7 @@ import numpy as np
 
 from prs3_post.core.defaults import MM_PER_INCH
 from prs3_post.core.errors import InputError, Prs3Warning
-from prs3_post.core.input_files import read_input
+from prs3_post.core.input_files import lf_line_ends, read_input
 from prs3_post.core.types import FloatArray
 from prs3_post.part.setup_transform import (
     UP_ROTATION,  # defined with the setup, so that the CLI's --up needs no STL reader
@@ -85,6 +87,14 @@ _ASCII_RECORD: tuple[str | None, ...] = (
 )  # fmt: skip
 _ASCII_VERTEX_COLUMNS = (8, 9, 10, 12, 13, 14, 16, 17, 18)
 _SOLID_LINE = re.compile(r"^[ \t]*(end)?solid\b[^\n]*", re.MULTILINE)
+#: A solid or endsolid line whose facet records share its line (a file on one line): its name ends
+#: before them, and an endsolid may follow an endfacet. Three times slower than _SOLID_LINE: used
+#: only where that finds records on a solid line, or solids that do not pair up.
+_SOLID_INLINE = re.compile(
+    r"(?:^[ \t]*|(?<=endfacet)[ \t]+)(end)?solid\b(?:(?![ \t]+(?:facet[ \t]+normal|endsolid)\b)[^\n])*", re.MULTILINE
+)
+_RECORD_ON_SOLID_LINE = re.compile(r"solid\b.*?[ \t](?:facet[ \t]+normal|endsolid)\b")
+_BOM = "\xef\xbb\xbf"  # a UTF-8 byte-order mark, its bytes read as Latin-1
 
 
 def up_rotation(up: str) -> FloatArray:
@@ -187,7 +197,7 @@ def _triangles_from_bytes(data: bytes, where: str) -> FloatArray:
             )
         raise InputError(_NOT_STL + reason, path=where)
     # latin-1 maps every byte to one character, so it cannot fail and keeps positions.
-    text = data.decode("latin-1")
+    text = lf_line_ends(data.decode("latin-1").removeprefix(_BOM))
     stripped = text.strip()
     if not stripped:
         raise InputError(_NOT_STL + "the file contains only whitespace", path=where)
@@ -238,8 +248,14 @@ def _triangles_from_ascii(text: str, where: str) -> FloatArray:
     """Parse an ASCII STL strictly; every error names the line."""
     lowered = text.lower()
     # 1. solid / endsolid lines must alternate, starting with solid and ending with endsolid.
+    solid = _SOLID_LINE
+    matches = list(solid.finditer(lowered))
+    opened = sum(match.group(1) is None for match in matches)
+    if 2 * opened != len(matches) or any(_RECORD_ON_SOLID_LINE.search(m.group()) for m in matches):
+        solid = _SOLID_INLINE                          # records on a solid's line (or an error: said as before)
+        matches = list(solid.finditer(lowered))
     open_line = None
-    for match in _SOLID_LINE.finditer(lowered):
+    for match in matches:
         line = lowered.count("\n", 0, match.start()) + 1
         if match.group(1) is None:  # solid
             if open_line is not None:
@@ -258,7 +274,7 @@ def _triangles_from_ascii(text: str, where: str) -> FloatArray:
             "'solid' has no matching 'endsolid' (is the file truncated?)", path=where, line=open_line
         )
     # 2. What is left (solid lines blanked, newlines kept for line numbers) must be whole facet records.
-    body = _SOLID_LINE.sub("", lowered)
+    body = solid.sub("", lowered)
     tokens = np.array(body.split(), dtype=object)
     per_record = len(_ASCII_RECORD)
     count = -(-len(tokens) // per_record)  # records, the last one possibly incomplete

@@ -76,7 +76,7 @@ from collections.abc import Iterable, Iterator
 
 from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE, MM_PER_INCH
 from prs3_post.core.errors import InputError
-from prs3_post.core.input_files import iter_pieces, line_chunks
+from prs3_post.core.input_files import iter_pieces, lf_line_ends, line_chunks
 from prs3_post.core.toolpath import Toolpath
 from prs3_post.readers.cl.bulk import _Reader
 from prs3_post.readers.cl.summary import ClCounts, ClCycle, ClFile, ClFrame, ClToolData
@@ -187,17 +187,18 @@ class ClStream(StreamDefaults):
         self.sha256: str | None = None                 # of the bytes read, once read (the header's)
 
     def _pieces(self) -> Iterator[str]:
-        """The file's text in pieces that end at line ends (a leading byte-order mark removed); once
-        through, :attr:`sha256` is the hash of the bytes read (the last pass's: the records')."""
+        """The file's text in pieces that end at line ends (a leading byte-order mark removed; CR and CRLF
+        line ends made LF where there are CR-only ones); once through, :attr:`sha256` is the hash of the
+        bytes read (the last pass's: the records')."""
         digest = hashlib.sha256()
         if self._text is not None:
             digest.update(self._text.encode("utf-8"))
-            yield self._text.removeprefix("\ufeff")
+            yield lf_line_ends(self._text.removeprefix("\ufeff"))
         else:
             for offset, piece in iter_pieces(self.path, "a CL file", self.piece_bytes, digest):
                 if offset == 0 and piece.startswith(b"\xef\xbb\xbf"):
                     piece, offset = piece[3:], 3
-                yield _text(piece, self.path, offset)
+                yield lf_line_ends(_text(piece, self.path, offset))
         self.sha256 = digest.hexdigest()
 
     def __iter__(self) -> Iterator[Toolpath]:
