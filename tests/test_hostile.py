@@ -598,3 +598,19 @@ def test_a_cl_error_names_its_line_with_any_line_ends(tmp_path: Path, ending: st
     result = invoke("convert", str(source), "-o", str(tmp_path / "out"), "--part-origin=0,0,-850", "--jobs", "1")
     assert result.exit_code == 2
     assert result.stdout.split("\t")[3].startswith(f"{source}:10: "), result.stdout
+
+
+@pytest.mark.parametrize("ending", ["\r", "\r\n"])
+def test_a_pose_table_reads_alike_with_any_line_ends(tmp_path: Path, ending: str) -> None:
+    """A table with CR-only line ends (a spreadsheet's "CSV (Macintosh)") was read as its header alone:
+    ik --batch wrote no pose and exited 0."""
+    table = f"{POSES_HEADER}0,200,-680,0,0,1\n5,200,-680,0,0,1\n\n0,210,-680,0,0,1\n"
+    (tmp_path / "lf.csv").write_text(table)
+    (tmp_path / "other.csv").write_bytes(table.replace("\n", ending).encode())
+    expected = invoke("ik", "--batch", str(tmp_path / "lf.csv"))
+    assert (expected.exit_code, len(expected.stdout.splitlines())) == (0, 4)
+    result = invoke("ik", "--batch", str(tmp_path / "other.csv"))
+    assert (result.exit_code, result.stdout) == (0, expected.stdout)
+    (tmp_path / "bad.csv").write_bytes(table.replace("5,200", "x,200").replace("\n", ending).encode())
+    result = invoke("ik", "--batch", str(tmp_path / "bad.csv"))
+    assert (result.exit_code, result.stderr) == (2, f"prs3-post: error: {tmp_path / 'bad.csv'}:3: not a number: 'x'\n")

@@ -73,9 +73,10 @@ def iter_poses(path: str, *, chunk_lines: int = 65536) -> Iterator[PoseTable]:
             if not raw:
                 break
             if number == 0:
-                _check_header(raw[0], path)
-                offset, number = len(raw[0]), 1
-                raw = raw[1:]
+                header = _first_line(raw[0])
+                _check_header(header, path)
+                offset, number = len(header), 1
+                raw[0] = raw[0][len(header):]            # CR-only line ends: the whole table (see _first_line)
             data = b"".join(raw)
             table, count = _parse_plain(data, number)
             if table is None:
@@ -90,6 +91,16 @@ def iter_poses(path: str, *, chunk_lines: int = 65536) -> Iterator[PoseTable]:
             offset, number = offset + len(data), number + count
         if number == 0:
             raise InputError(f"expected the header {expected}, got an empty file", path=path, line=1)
+
+
+def _first_line(line: bytes) -> bytes:
+    """``line`` (from a file read in lines cut at LF) up to its first line end: CR, LF or CRLF. A table
+    with CR-only line ends is one such line, of which the header is only the start (the rest is read
+    as the table's lines, cut at CR as the text readers cut them)."""
+    cr = line.find(b"\r")
+    if cr < 0 or line[cr:] in (b"\r", b"\r\n"):
+        return line
+    return line[:cr + 2] if line[cr + 1:cr + 2] == b"\n" else line[:cr + 1]
 
 
 def _check_header(line: bytes, path: str) -> None:
