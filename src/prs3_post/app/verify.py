@@ -651,6 +651,58 @@ def odd_feeds_warned(header: ProgramHeader | SourceHeader | None) -> bool:
     return not isinstance(header, SourceHeader)
 
 
+@dataclass(frozen=True, slots=True)
+class Verified:
+    """What `verify` found: the report, what the program was made for, and its clearance from the part
+    (None: not measured; a text: why not)."""
+
+    report: VerifyReport
+    setting: ProgramSetting
+    clearance: PartClearance | str | None
+
+
+def verify_steps(path: str, *, machine: str | None, dialect: str | None, origin: tuple[float, ...] | None,
+                 rotation_deg: float | None, tolerance: float | None, axis_tolerance_deg: float, whole: bool,
+                 intended_of: Callable[[ProgramContext], tuple[Intended | None, RebuiltJob | CamPart | None]] | None,
+                 collision_check: bool, clearance_min: float | None) -> Verified:
+    """Verify a program, in the order the checks need: what it was made for (its header, or the values
+    given), the tolerance (:func:`check_tolerance`), then either the whole program read with its
+    intended path (``intended_of``: the front end's reading of what it is compared with) and its
+    clearance from the part, or, for a text report without a path (``whole`` False), the program
+    streamed through a chunk at a time.
+
+    Parameters
+    ----------
+    machine, dialect, origin, rotation_deg : as :func:`open_setting` (None: the header's)
+    tolerance : float | None — mm, as given (None: the program's)
+    whole : bool — read the whole program (a report of every move) even without an intended path
+    intended_of : callable, optional — the intended path and the job or part it comes from
+    collision_check : bool — measure the clearance from the part when the intended path has one
+    clearance_min : float | None — mm, as given (None: each operation's)
+
+    Raises
+    ------
+    HeaderConflict, FieldError, InputError, ConfigError
+        As :func:`open_setting` and :func:`open_program`, and as ``intended_of``.
+    """
+    setting = open_setting(path, machine=machine, dialect=dialect, origin=origin, rotation_deg=rotation_deg)
+    checked = check_tolerance(setting.header, tolerance)
+    if not (whole or intended_of is not None):        # no samples needed: the program streams through
+        return Verified(verify_file(setting, tolerance=checked, axis_tolerance_deg=axis_tolerance_deg), setting, None)
+    context = open_program(path, machine=machine, dialect=dialect, origin=origin, rotation_deg=rotation_deg)
+    check_program_moves(context.header, len(context.program.moves))
+    intended, rebuilt = intended_of(context) if intended_of is not None else (None, None)
+    report = verify_loaded(context.program, context.machine, context.setup, context.dialect, tolerance=checked,
+                           axis_tolerance_deg=axis_tolerance_deg, intended=intended,
+                           tool_lengths=tool_lengths_of(context.header), odd_feeds=odd_feeds_warned(context.header))
+    clearance: PartClearance | str | None = None
+    if rebuilt is not None and not collision_check:
+        clearance = "not measured (asked not to)"
+    elif rebuilt is not None:                          # the clearance min: as given, else each operation's
+        report, clearance = with_clearance(report, context.machine, rebuilt, clearance_min=clearance_min)
+    return Verified(report, setting, clearance)
+
+
 def check_tolerance(header: ProgramHeader | SourceHeader | None, given: float | None) -> float:
     """The tip deviation a program is checked with, mm: the one given, else the one its header says it
     was made with, else :data:`~prs3_post.core.defaults.DEFAULT_TOLERANCE`."""

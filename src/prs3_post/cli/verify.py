@@ -103,10 +103,7 @@ def _open_program(ctx: click.Context, path: str, machine_name: str, dialect_name
     of its header, or those given."""
     from prs3_post.app.verify import HeaderConflict
 
-    for value, flag in ((part_origin, "--part-origin"), (part_rotation, "--part-rotation")):
-        if value == AUTO:
-            raise click.BadParameter("auto chooses the setup when a program is made; a program is read with the "
-                                     "setup its header states (or the one given as numbers)", param_hint=f"'{flag}'")
+    _refuse_auto(part_origin, part_rotation)
     try:
         return opener(path, machine=machine_name if was_given(ctx, "machine_name") else None,
                       dialect=dialect_name if was_given(ctx, "dialect_name") else None,
@@ -115,6 +112,14 @@ def _open_program(ctx: click.Context, path: str, machine_name: str, dialect_name
         raise option_error(error) from error
     except HeaderConflict as error:
         raise InputError(f"{_HEADER_FLAGS[error.what]}: {error.args[0]}", path=error.path, line=error.line) from error
+
+
+def _refuse_auto(part_origin: tuple[float, ...] | str | None, part_rotation: float | str | None) -> None:
+    """``auto`` chooses a setup when a program is made: reading one, it is a usage error."""
+    for value, flag in ((part_origin, "--part-origin"), (part_rotation, "--part-rotation")):
+        if value == AUTO:
+            raise click.BadParameter("auto chooses the setup when a program is made; a program is read with the "
+                                     "setup its header states (or the one given as numbers)", param_hint=f"'{flag}'")
 
 
 def _refuse_cl_file(path: str) -> None:
@@ -247,19 +252,7 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
       prs3-post verify sq.ngc --against postproc/parts/patel2020-wedge.stl --json
       prs3-post verify paper_2a_2b.ngc --against paper_2a_2b.csv
     """
-    from prs3_post.app.verify import (
-        PartClearance,
-        check_program_moves,
-        check_tolerance,
-        odd_feeds_warned,
-        open_program,
-        open_setting,
-        require_tolerance,
-        tool_lengths_of,
-        verify_file,
-        verify_loaded,
-        with_clearance,
-    )
+    from prs3_post.app.verify import HeaderConflict, require_tolerance, verify_steps
     from prs3_post.app.verify_report import report_record, report_text
 
 
@@ -276,29 +269,23 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
             if given:
                 raise click.UsageError(f"{', '.join(_option_flags(ctx, given))}: the operation options are only "
                                        "used with --against PART.stl")
-        where = (ctx, program_path, opts["machine_name"], opts["dialect_name"], opts["part_origin"],
-                 opts["part_rotation"])
-        # the text report without an intended path needs no samples: the program streams through
-        setting = _open_program(*where, open_setting)
-        # the check's tolerance: as given, else the one the program was made with
-        tolerance = check_tolerance(setting.header, opts["tolerance"] if was_given(ctx, "tolerance") else None)
-        clearance: PartClearance | str | None = None
-        if as_json or against_path:
-            context = _open_program(*where, open_program)
-            check_program_moves(context.header, len(context.program.moves))
-            intended, rebuilt = _intended(ctx, against_path, context, opts) if against_path else (None, None)
-            report = verify_loaded(context.program, context.machine, context.setup, context.dialect,
-                                   tolerance=tolerance, axis_tolerance_deg=axis_tolerance_deg, intended=intended,
-                                   tool_lengths=tool_lengths_of(context.header),
-                                   odd_feeds=odd_feeds_warned(context.header))
-            if rebuilt is not None and not opts["collision_check"]:
-                clearance = "not measured (asked not to)"
-            elif rebuilt is not None:                  # the clearance min: as given, else each operation's
-                report, clearance = with_clearance(
-                    report, context.machine, rebuilt,
-                    clearance_min=opts["clearance_min"] if was_given(ctx, "clearance_min") else None)
-        else:
-            report = verify_file(setting, tolerance=tolerance, axis_tolerance_deg=axis_tolerance_deg)
+        _refuse_auto(opts["part_origin"], opts["part_rotation"])
+        try:
+            verified = verify_steps(
+                program_path, machine=opts["machine_name"] if was_given(ctx, "machine_name") else None,
+                dialect=opts["dialect_name"] if was_given(ctx, "dialect_name") else None,
+                origin=opts["part_origin"], rotation_deg=opts["part_rotation"],
+                tolerance=opts["tolerance"] if was_given(ctx, "tolerance") else None,
+                axis_tolerance_deg=axis_tolerance_deg, whole=as_json,
+                intended_of=(lambda context: _intended(ctx, against_path, context, opts)) if against_path else None,
+                collision_check=opts["collision_check"],
+                clearance_min=opts["clearance_min"] if was_given(ctx, "clearance_min") else None)
+        except FieldError as error:
+            raise option_error(error) from error
+        except HeaderConflict as error:
+            raise InputError(f"{_HEADER_FLAGS[error.what]}: {error.args[0]}", path=error.path,
+                             line=error.line) from error
+        report, setting, clearance = verified.report, verified.setting, verified.clearance
         dialect = setting.dialect.name
         if as_json:
             click.echo(json.dumps(report_record(report, path=program_path, dialect=dialect, clearance=clearance),
