@@ -614,3 +614,28 @@ def test_a_pose_table_reads_alike_with_any_line_ends(tmp_path: Path, ending: str
     (tmp_path / "bad.csv").write_bytes(table.replace("5,200", "x,200").replace("\n", ending).encode())
     result = invoke("ik", "--batch", str(tmp_path / "bad.csv"))
     assert (result.exit_code, result.stderr) == (2, f"prs3-post: error: {tmp_path / 'bad.csv'}:3: not a number: 'x'\n")
+
+
+@pytest.mark.parametrize("ending", ["\r", "\r\n"])
+def test_a_cam_gcode_program_reads_alike_with_any_line_ends(tmp_path: Path, ending: str) -> None:
+    """convert of a CAM program with CR-only line ends said "cannot read 'G0 X0 Y0 Z5<CR>G1 Z-1 ...' as words",
+    its CRs printed raw into the message (a terminal overwrote the line with them)."""
+    from prs3_post.readers.gcode.reader import read_gcode
+
+    program = "G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F100\n\nG1 X5\nG2 X10 Y0 I2.5 J0\nM2\n"
+    (tmp_path / "lf.ngc").write_text(program)
+    (tmp_path / "other.nc").write_bytes(program.replace("\n", ending).encode())
+    expected = read_gcode(str(tmp_path / "lf.ngc"), tolerance=0.01).toolpath
+    read = read_gcode(str(tmp_path / "other.nc"), tolerance=0.01).toolpath
+    assert len(expected) > 4
+    for column in ("kind", "tip", "axis", "feed", "source"):
+        np.testing.assert_array_equal(getattr(read, column), getattr(expected, column))
+    result = invoke("convert", str(tmp_path / "other.nc"), "-o", str(tmp_path / "out"), "--part-origin=0,0,-850",
+                    "--jobs", "1")
+    assert result.exit_code == 0, result.output
+    (tmp_path / "bad.nc").write_bytes(program.replace("X5", "X5 Q").replace("\n", ending).encode())
+    result = invoke("convert", str(tmp_path / "bad.nc"), "-o", str(tmp_path / "out2"), "--part-origin=0,0,-850",
+                    "--jobs", "1")
+    assert result.exit_code == 2
+    assert result.stdout.split("\t")[3].startswith(f"{tmp_path / 'bad.nc'}:5: "), result.stdout
+    assert "\r" not in result.output

@@ -71,7 +71,7 @@ from collections.abc import Iterator
 
 from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE
 from prs3_post.core.errors import InputError, LexError
-from prs3_post.core.input_files import iter_pieces, line_blocks
+from prs3_post.core.input_files import iter_pieces, lf_line_end_bytes, line_blocks
 from prs3_post.core.lexer import (
     BYTE_ORDER_MARK,
     EMPTY,
@@ -157,6 +157,7 @@ class GcodeStream(StreamDefaults):
         self.work_plane = work_plane if work_plane is not None else WorkPlane.identity()
         self.chunk_lines, self.piece_bytes = max(1, int(chunk_lines)), max(1, int(piece_bytes))
         self._text = text
+        self._cr_line_ends = False                     # set by _check: a piece has CR-only line ends
         self.summary: GcodeFile | None = None
         self.sha256: str | None = None                 # of the bytes read, once read (the header's)
 
@@ -166,7 +167,7 @@ class GcodeStream(StreamDefaults):
         :meth:`_check_piece`."""
         if self._text is not None:
             try:
-                text = decode(self._text.encode("utf-8"))
+                text = decode(lf_line_end_bytes(self._text.encode("utf-8")))
             except LexError as exc:
                 raise InputError(str(exc), path=self.path) from exc
             self._scan(text, 1)
@@ -175,6 +176,9 @@ class GcodeStream(StreamDefaults):
         for offset, piece in iter_pieces(self.path, "a G-code program", self.piece_bytes):
             if offset == 0 and piece.startswith(b"\xef\xbb\xbf"):   # (a file with a mark is not blank)
                 raise InputError(BYTE_ORDER_MARK, path=self.path)
+            lf = lf_line_end_bytes(piece)
+            if lf is not piece:                          # CR-only line ends: _pieces makes them LF too
+                self._cr_line_ends, piece = True, lf
             blank = blank and not piece.strip()
             if problem is None:
                 try:
@@ -213,15 +217,17 @@ class GcodeStream(StreamDefaults):
         return LineReader(self.path, self.work_plane, self.tolerance, self.circle_tolerance)
 
     def _pieces(self) -> Iterator[tuple[int, bytes]]:
-        """The file's bytes in ``(offset, bytes)`` pieces that end at line ends (``text``: its UTF-8 bytes);
-        once through, :attr:`sha256` is theirs."""
+        """The file's bytes in ``(offset, bytes)`` pieces that end at line ends (``text``: its UTF-8 bytes),
+        CR and CRLF line ends made LF where there are CR-only ones (a CAM program is read, not run: its
+        lines end as its system wrote them); once through, :attr:`sha256` is that of the bytes read."""
         digest = hashlib.sha256()
         if self._text is not None:
             data = self._text.encode("utf-8")
             digest.update(data)
-            yield 0, data
+            yield 0, lf_line_end_bytes(data)
         else:
-            yield from iter_pieces(self.path, "a G-code program", self.piece_bytes, digest)
+            for offset, piece in iter_pieces(self.path, "a G-code program", self.piece_bytes, digest):
+                yield offset, lf_line_end_bytes(piece) if self._cr_line_ends else piece
         self.sha256 = digest.hexdigest()
 
     def __iter__(self) -> Iterator[Toolpath]:
