@@ -200,11 +200,11 @@ def test_the_swept_region_drawn_in_pieces_is_the_region_drawn_at_once(monkeypatc
     program, setup, _, face = _round_pocket(0.5)
     whole = replay(MACHINE, program, tolerance=DEFAULT_TOLERANCE)
     tips = whole.tip[whole.end[program.kind == MoveKind.FEED]]          # machine frame
-    at_once = collision._swept(face, collision._to_part(setup, tips), 3.0)
+    at_once = collision.swept_region(face, collision._to_part(setup, tips), 3.0)
     assert len(tips) > 3000 and 0 < at_once.cells.sum() < at_once.cells.size
     monkeypatch.setattr(collision, "_SWEPT_ROWS", rows)
     in_part = collision._to_part(setup, tips)
-    for pieces in (collision._swept(face, tips, 3.0, setup=setup), collision._swept(face, in_part, 3.0)):
+    for pieces in (collision.swept_region(face, tips, 3.0, setup=setup), collision.swept_region(face, in_part, 3.0)):
         np.testing.assert_array_equal(pieces.low, at_once.low)
         np.testing.assert_array_equal(pieces.cells, at_once.cells)
 

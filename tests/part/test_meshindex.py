@@ -192,12 +192,12 @@ def test_the_triangles_near_a_cylinders_box_give_its_whole_penetration(seed, tri
 @given(seed=st.integers(0, 2 ** 32 - 1), poses=st.integers(1, 70), height=st.floats(-2.0, 30.0),
        spread=st.booleans())
 def test_the_groups_plane_bound_drops_only_pairs_no_pose_bounds_under_the_reach(seed, poses, height, spread):
-    """_bounds gives the same bounds and near pairs with the groups' plane test (collision._plane_gap) as
+    """pose_bounds gives the same bounds and near pairs with the groups' plane test (collision._plane_gap) as
     without it, for poses one at a time and for the scan's groups (a spread round each)."""
     from prs3_post.check import collision_distance as collision
 
     triangles, face, bodies = _wall_part()
-    part = collision._Part.of(triangles, face, 1.0)
+    part = collision.Part.of(triangles, face, 1.0)
     rng = np.random.default_rng(seed)
     uv = np.cumsum(rng.normal(0.0, 1.5, (poses, 2)), axis=0) + rng.uniform(-30.0, 30.0, 2)
     tip = face.origin + uv[:, :1] * face.u + uv[:, 1:] * face.v + (height + np.cumsum(
@@ -205,12 +205,12 @@ def test_the_groups_plane_bound_drops_only_pairs_no_pose_bounds_under_the_reach(
     axis = face.normal + np.cumsum(rng.normal(0.0, 0.01, (poses, 3)), axis=0)
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)
     cutting = rng.uniform(size=poses) < 0.5
-    group = collision._Spread(frame=np.stack([face.u, face.v, face.normal]), half=rng.uniform(0.0, 2.0, (poses, 3)),
-                              turn=rng.uniform(0.0, 0.01, poses)) if spread else None
+    group = collision.Spread(frame=np.stack([face.u, face.v, face.normal]), half=rng.uniform(0.0, 2.0, (poses, 3)),
+                             turn=rng.uniform(0.0, 0.01, poses)) if spread else None
 
     def run() -> tuple[list, ...]:
-        out, key, tri = collision._bounds(part, tip, axis, cutting & (group is None), collision._pieces(bodies),
-                                          reach=11.0, near=3.0, spread=group)
+        out, key, tri = collision.pose_bounds(part, tip, axis, cutting & (group is None), collision.body_pieces(bodies),
+                                              reach=11.0, near=3.0, spread=group)
         return out.tolist(), key.tolist(), tri.tolist()
 
     pruned = run()

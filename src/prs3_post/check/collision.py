@@ -57,17 +57,17 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from prs3_post.check import collision_scan
-from prs3_post.check.collision_bodies import BODY_NAMES, _Region, _swept, body_cylinders
+from prs3_post.check.collision_bodies import BODY_NAMES, Region, body_cylinders, swept_region
 from prs3_post.check.collision_distance import (
     REACH_MM,
     Clearance,
-    _between,
-    _bounds,
-    _Part,
-    _pieces,
-    _Poses,
-    _Spread,
+    ClearancePoses,
+    Part,
+    Spread,
+    body_pieces,
+    check_between,
     clearance,
+    pose_bounds,
 )
 from prs3_post.check.collision_rapids import (
     RAPID_TOUCH_MM,
@@ -268,9 +268,9 @@ def _streamed(machine: Machine, program: JointProgram, setup: Setup, triangles: 
     """:func:`measure_program`'s streamed check; None once a body is found closer than ``clearance_min``."""
     frame = np.eye(3) if face is None else np.stack([face.u, face.v, face.normal])   # part frame, rows
     scan = collision_scan.scan_program(machine, program, setup.axes_to_part(np.eye(3)) @ frame.T)
-    part = _Part.of(triangles, face, clearance_min)
-    region = _swept(face, scan.feed_tips if feed_tips is None else feed_tips, float(bodies[0, 0]) + 1e-6,
-                    setup=setup)
+    part = Part.of(triangles, face, clearance_min)
+    region = swept_region(face, scan.feed_tips if feed_tips is None else feed_tips, float(bodies[0, 0]) + 1e-6,
+                          setup=setup)
     stream = _Stream(part, face, region, bodies, clearance_min)
     bound = np.full((len(scan.flat), 3), -np.inf)        # each group's bound per body (−inf: none)
     groups = np.flatnonzero(scan.flat)
@@ -278,11 +278,11 @@ def _streamed(machine: Machine, program: JointProgram, setup: Setup, triangles: 
     # a group of feed moves (and the row before) follows the feed tips' polyline, which the region
     # is drawn round with the tool's radius and a cell more: every pose of it is over the region
     cutting = scan.feeding[groups] & (region.cells.size > 0) & (scan.wobble[groups] < 0.2 * region.cell)
-    spread = _Spread(frame=frame, half=scan.half[groups], turn=scan.turn[groups])
+    spread = Spread(frame=frame, half=scan.half[groups], turn=scan.turn[groups])
     del scan                                             # its feed tips (a row each) before the bounds
     if len(groups):                                      # each flat group bounded as a whole
-        bound[groups] = _bounds(part, tip, axis, cutting, stream.pieces, reach=stream.reach, near=stream.reach,
-                                spread=spread)[0]
+        bound[groups] = pose_bounds(part, tip, axis, cutting, stream.pieces, reach=stream.reach, near=stream.reach,
+                                    spread=spread)[0]
     bound[:, stream.unchecked] = np.inf
     # safe: no pose, no motion of the group comes too close
     safe: BoolArray = np.asarray((bound >= clearance_min).all(axis=1), dtype=np.bool_)
@@ -341,12 +341,12 @@ class _Stream:
     minimum does not depend on the pieces' sizes.
     """
 
-    def __init__(self, part: _Part, face: Face | None, region: _Region, cylinders: FloatArray,
+    def __init__(self, part: Part, face: Face | None, region: Region, cylinders: FloatArray,
                  clearance_min: float):
         self.part, self.face, self.region, self.cylinders = part, face, region, cylinders
         self.clearance_min = clearance_min
         self.reach = clearance_min + REACH_MM
-        self.pieces = _pieces(cylinders)
+        self.pieces = body_pieces(cylinders)
         self.unchecked = cylinders[:, 2] <= cylinders[:, 1]
         self.found = np.full(3, np.inf)
         self.best = np.full(3, np.inf)
@@ -361,11 +361,11 @@ class _Stream:
         starts = ~linked
         if carried and len(starts):
             starts[0] = False
-        poses = _Poses(self.part, self.face, self.region, self.cylinders, self.clearance_min)
+        poses = ClearancePoses(self.part, self.face, self.region, self.cylinders, self.clearance_min)
         poses.found = self.found.copy()
         samples = poses.add(tip[ok], axis[ok], row[ok], starts=starts[ok])
         if (poses.found >= self.clearance_min).all():
-            _between(poses, self.cylinders, np.flatnonzero(linked[ok]))
+            check_between(poses, self.cylinders, np.flatnonzero(linked[ok]))
         self.found = poses.found
         if (poses.found < self.clearance_min).any():
             return False
@@ -376,10 +376,10 @@ class _Stream:
         """Lower ``best`` by the samples of groups whose every pose is ``clearance_min`` clear (their
         bounds say so: nothing is measured under it, the motion is not checked further)."""
         ok = np.isfinite(tip).all(axis=1) & np.isfinite(axis).all(axis=1)
-        poses = _Poses(self.part, self.face, self.region, self.cylinders, self.clearance_min)
+        poses = ClearancePoses(self.part, self.face, self.region, self.cylinders, self.clearance_min)
         self.minima(poses, poses.add(tip[ok], axis[ok], row[ok], starts=np.zeros(int(ok.sum()), dtype=bool)))
 
-    def minima(self, poses: _Poses, samples: IntArray, block: int = 64) -> None:
+    def minima(self, poses: ClearancePoses, samples: IntArray, block: int = 64) -> None:
         """Lower ``best`` by the ``samples`` of ``poses`` (not the midpoints the motion check added):
         measure, body by body, in order of the bound (module docstring of :class:`_Stream`)."""
         half = 0.5 * RESOLUTION_MM
@@ -397,7 +397,7 @@ class _Stream:
                 poses.measure(rows, b, block, reach=self.reach)
                 self._lower(b, poses, rows[poses.exact[rows, b]])
 
-    def _lower(self, b: int, poses: _Poses, measured: IntArray) -> None:
+    def _lower(self, b: int, poses: ClearancePoses, measured: IntArray) -> None:
         """Lower ``best`` of body ``b`` by the poses ``measured`` (their values exact), keeping the row and
         the body's point of the minimum: the earliest row of those that round to it."""
         if not len(measured):

@@ -15,7 +15,8 @@ from prs3_post.machine.model import Holder
 from prs3_post.part.face import Face
 from prs3_post.part.setup_transform import Setup
 
-__all__ = ["AZIMUTHS", "BODY_NAMES", "RING_SPACING_MM", "body_cylinders"]
+__all__ = ["AZIMUTHS", "BODY_NAMES", "RING_SPACING_MM", "Region", "body_cylinders", "frames", "surface_points",
+           "swept_region"]
 
 #: The bodies, bottom up.
 BODY_NAMES = ("tool", "holder", "spindle nose")
@@ -33,7 +34,7 @@ def body_cylinders(tool_diameter: float, tool_length: float, holder: Holder) -> 
                      [holder.nose_diameter / 2, gauge, gauge + holder.nose_length]])
 
 
-def _surface_points(cylinders: FloatArray) -> tuple[FloatArray, IntArray]:
+def surface_points(cylinders: FloatArray) -> tuple[FloatArray, IntArray]:
     """Points on the cylinders' surfaces in the tool frame (z along the axis from the tip): (P, 3), body (P,)."""
     points, body = [], []
     angle = 2 * np.pi * np.arange(AZIMUTHS) / AZIMUTHS
@@ -50,7 +51,7 @@ def _surface_points(cylinders: FloatArray) -> tuple[FloatArray, IntArray]:
     return np.concatenate(points), np.concatenate(body)
 
 
-def _frames(axis: FloatArray) -> tuple[FloatArray, FloatArray]:
+def frames(axis: FloatArray) -> tuple[FloatArray, FloatArray]:
     """(S, 3) unit x and y vectors perpendicular to each unit axis."""
     helper = np.where(np.abs(axis[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
     x = np.cross(axis, helper)
@@ -59,7 +60,7 @@ def _frames(axis: FloatArray) -> tuple[FloatArray, FloatArray]:
 
 
 @dataclass(frozen=True, slots=True)
-class _Region:
+class Region:
     """The feature's swept region: cells of a grid in the face's (u, v) plane (none: no region)."""
 
     face: Face | None
@@ -101,8 +102,8 @@ class _Region:
 _SWEPT_ROWS = 1 << 16
 
 
-def _swept(face: Face | None, feed_tips: FloatArray, radius: float, *, cell: float = 0.25,
-           setup: Setup | None = None) -> _Region:
+def swept_region(face: Face | None, feed_tips: FloatArray, radius: float, *, cell: float = 0.25,
+                 setup: Setup | None = None) -> Region:
     """The region within about ``radius`` of the polyline of the feed tips (M, 3) in the face's (u, v).
 
     The polyline is drawn on a grid of ``cell`` mm (points every half cell along each segment),
@@ -112,7 +113,7 @@ def _swept(face: Face | None, feed_tips: FloatArray, radius: float, *, cell: flo
     (the grid's extent first, then each piece drawn from the last tip of the one before): the same
     cells as all at once, without arrays as long as the program.
     """
-    none = _Region(face=face, cells=np.zeros((0, 0), dtype=bool), low=np.zeros(2), cell=cell)
+    none = Region(face=face, cells=np.zeros((0, 0), dtype=bool), low=np.zeros(2), cell=cell)
     if face is None or not len(feed_tips):
         return none
     tips = np.asarray(feed_tips, dtype=np.float64).reshape(-1, 3)
@@ -141,7 +142,7 @@ def _swept(face: Face | None, feed_tips: FloatArray, radius: float, *, cell: flo
                 continue
             wide[max(du, 0):size[0] + min(du, 0), max(dv, 0):size[1] + min(dv, 0)] |= \
                 grid[max(-du, 0):size[0] + min(-du, 0), max(-dv, 0):size[1] + min(-dv, 0)]
-    return _Region(face=face, cells=wide, low=low, cell=cell)
+    return Region(face=face, cells=wide, low=low, cell=cell)
 
 
 def _draw(grid: BoolArray, u: FloatArray, v: FloatArray, low: FloatArray, cell: float) -> None:

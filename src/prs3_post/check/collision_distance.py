@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prs3_post.check.collision_bodies import _frames, _Region, _surface_points, _swept
+from prs3_post.check.collision_bodies import Region, frames, surface_points, swept_region
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 from prs3_post.part.face import Face
 from prs3_post.part.meshdist import (
@@ -22,8 +22,8 @@ from prs3_post.part.meshdist import (
 )
 from prs3_post.part.meshindex import TriangleIndex
 
-__all__ = ["AFTER_HIT", "LEVELS", "PIECE_MM", "REACH_MM", "SWEEP_SLACK_MM", "Clearance", "clearance",
-           "cylinder_penetration"]
+__all__ = ["AFTER_HIT", "LEVELS", "PIECE_MM", "REACH_MM", "SWEEP_SLACK_MM", "Clearance", "ClearancePoses", "Part",
+           "Spread", "body_pieces", "check_between", "clearance", "cylinder_penetration", "pose_bounds"]
 
 #: mm, the longest piece a body is cut into for the bounds (or its radius, if longer).
 PIECE_MM = 10.0
@@ -69,7 +69,7 @@ class Clearance:
 
 
 @dataclass(frozen=True, slots=True)
-class _Part:
+class Part:
     """The part's triangles with what the bounds need of them (part frame, mm)."""
 
     triangles: FloatArray          # (T, 3, 3)
@@ -83,7 +83,7 @@ class _Part:
     index: TriangleIndex           # the triangles' boxes, for the queries that need only the near ones
 
     @classmethod
-    def of(cls, triangles: FloatArray, face: Face | None, band: float) -> _Part:
+    def of(cls, triangles: FloatArray, face: Face | None, band: float) -> Part:
         normal = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
         others = np.ones(len(triangles), dtype=bool)
@@ -94,7 +94,7 @@ class _Part:
                    low=index.low, high=index.high, others=others, face=face, band=band, index=index)
 
 
-def _pieces(cylinders: FloatArray) -> FloatArray:
+def body_pieces(cylinders: FloatArray) -> FloatArray:
     """(Q, 4): radius, start, end (mm along the axis from the tip) and body of each piece."""
     out = []
     for b, (radius, z0, z1) in enumerate(cylinders):
@@ -106,12 +106,12 @@ def _pieces(cylinders: FloatArray) -> FloatArray:
     return np.array(out, dtype=np.float64)
 
 
-def _pose_pairs(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, pieces: FloatArray,
-                s: IntArray, q: IntArray, t: IntArray, near: float, spread: _Spread | None = None) -> FloatArray:
+def _pose_pairs(part: Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, pieces: FloatArray,
+                s: IntArray, q: IntArray, t: IntArray, near: float, spread: Spread | None = None) -> FloatArray:
     """(K,) mm: a lower bound of the distance of piece ``q`` at pose ``s`` from triangle ``t``, pair by
     pair (inf: a pair that does not count: the cutting tool's part below the band, or the face).
 
-    ``spread``: each pose stands for a group of poses (:class:`_Spread`): every body point of the
+    ``spread``: each pose stands for a group of poses (:class:`Spread`): every body point of the
     group is the representative cylinder's moved by a vector of the tip's box plus at most
     ``(|z| + radius) · spread.turn`` (z: the piece's farthest station from the tip), so the plane
     bound is lower by the box's reach along the plane's normal and the axial one by the box's half
@@ -123,7 +123,7 @@ def _pose_pairs(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArr
     gone = cut & ~part.others[t]
     if cut.any() and spread is None:                # keep only what is above the band (less the tilt's reach)
         face = part.face
-        assert face is not None                     # a tool cuts only with a face (_swept)
+        assert face is not None                     # a tool cuts only with a face (swept_region)
         along = a @ face.normal
         height = (p - face.origin) @ face.normal
         tilt = radius * np.sqrt(np.clip(1.0 - along ** 2, 0.0, 1.0))
@@ -158,7 +158,7 @@ def _pose_pairs(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArr
 
 
 @dataclass(frozen=True, slots=True)
-class _Spread:
+class Spread:
     """How far the poses a representative pose stands for may be from it (:func:`_pose_pairs`).
 
     Attributes
@@ -175,8 +175,8 @@ class _Spread:
     turn: FloatArray
 
 
-def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, pieces: FloatArray, *,
-            reach: float, near: float, spread: _Spread | None = None) -> tuple[FloatArray, IntArray, IntArray]:
+def pose_bounds(part: Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, pieces: FloatArray, *,
+                reach: float, near: float, spread: Spread | None = None) -> tuple[FloatArray, IntArray, IntArray]:
     """(S, 3) mm: a lower bound of each body's clearance at each pose (at most ``reach``), coarse to
     fine (module docstring, stage 1); and the (pose × 3 + body, triangle) pairs whose bound is under
     ``near`` (the triangles a measurement of that body there needs: the others are that far), sorted.
@@ -243,7 +243,7 @@ def _bounds(part: _Part, tip: FloatArray, axis: FloatArray, cutting: BoolArray, 
 
 @dataclass(frozen=True, slots=True)
 class _Level:
-    """A level of :func:`_bounds`: ``size`` poses per group, each group's largest tip move (mm) and axis
+    """A level of :func:`pose_bounds`: ``size`` poses per group, each group's largest tip move (mm) and axis
     chord from its first pose, and whether all its poses cut (each (G,))."""
 
     size: int
@@ -252,9 +252,9 @@ class _Level:
     all_cut: BoolArray
 
 
-def _group_pairs(part: _Part, tip: FloatArray, axis: FloatArray, pieces: FloatArray, level: _Level, reach: float,
+def _group_pairs(part: Part, tip: FloatArray, axis: FloatArray, pieces: FloatArray, level: _Level, reach: float,
                  beyond: float, g: IntArray, q: IntArray, t: IntArray) -> BoolArray:
-    """(K,) bool: the (group ``g``, piece ``q``, triangle ``t``) pairs of a level of :func:`_bounds` that
+    """(K,) bool: the (group ``g``, piece ``q``, triangle ``t``) pairs of a level of :func:`pose_bounds` that
     may be within ``reach``: the triangle is nearer than that to the sphere round the group's first
     pose's piece widened by how far the group moves it (and is not the face, for a group that cuts),
     and the piece's cylinder, so widened, is nearer than ``beyond`` to the triangle's plane
@@ -277,7 +277,7 @@ def _group_pairs(part: _Part, tip: FloatArray, axis: FloatArray, pieces: FloatAr
 _PLANE_SLACK_MM = 1e-6
 
 
-def _plane_gap(part: _Part, tip: FloatArray, axis: FloatArray, pieces: FloatArray, level: _Level, g: IntArray,
+def _plane_gap(part: Part, tip: FloatArray, axis: FloatArray, pieces: FloatArray, level: _Level, g: IntArray,
                q: IntArray, t: IntArray) -> FloatArray:
     """(K,) mm: a lower bound of the gap between triangle ``t``'s plane and piece ``q`` at every pose of
     group ``g``, less than the plane bound :func:`_pose_pairs` gives any of those poses.
@@ -286,7 +286,7 @@ def _plane_gap(part: _Part, tip: FloatArray, axis: FloatArray, pieces: FloatArra
     plane (h: its end centres' heights; 0 where it crosses it); at another pose of the group each of
     its points is at most ``moved`` + (max |z| + r)·``turned`` from one of those (the tip's move, the
     axis's turn about the tip), and a cutting tool cut at the band, or spread by a group of the scan
-    (:class:`_Spread`, within ``moved``), is no nearer. Less :data:`_PLANE_SLACK_MM`."""
+    (:class:`Spread`, within ``moved``), is no nearer. Less :data:`_PLANE_SLACK_MM`."""
     at = g * level.size
     a, p = axis[at], tip[at]
     radius, z0, z1 = pieces[q, 0], pieces[q, 1], pieces[q, 2]
@@ -305,7 +305,7 @@ def _plane_gap(part: _Part, tip: FloatArray, axis: FloatArray, pieces: FloatArra
 _CAP_STRIDE = 8
 
 
-def _signed(points: FloatArray, part: _Part, cutting: BoolArray, face: Face | None, reach: float,
+def _signed(points: FloatArray, part: Part, cutting: BoolArray, face: Face | None, reach: float,
             outside: BoolArray, *, per: int = 0) -> FloatArray:
     """(P,) mm: signed distance of points to the part (negative inside; at most ``reach``: farther is
     not measured); where ``cutting`` (the tool in its swept region) a point below ``part.band`` over the face is
@@ -345,7 +345,7 @@ def _signed(points: FloatArray, part: _Part, cutting: BoolArray, face: Face | No
     return dist
 
 
-def _row_caps(points: FloatArray, part: _Part, near: BoolArray, off: BoolArray, mine: BoolArray, reach: float,
+def _row_caps(points: FloatArray, part: Part, near: BoolArray, off: BoolArray, mine: BoolArray, reach: float,
               per: int) -> FloatArray:
     """(P,) mm: for each point, the least value (at most ``reach``) of one in :data:`_CAP_STRIDE` of its
     row's points ``mine`` (rows of ``per`` points; ``off``: measured without the face; inf: none)."""
@@ -392,7 +392,7 @@ def cylinder_penetration(tip: FloatArray, axis: FloatArray, cylinder: FloatArray
     radius, z0, z1 = (float(v) for v in cylinder)
     if len(triangles) == 0 or z1 <= z0 or radius <= 0.0:
         return 0.0
-    x, y = _frames(axis[None, :])
+    x, y = frames(axis[None, :])
     frame = np.stack([x[0], y[0], axis])                          # rows: x, y, z of the tool frame
     local = (triangles - tip) @ frame.T                            # (T, 3, 3): x, y, z per corner
     z = local[..., 2]
@@ -429,17 +429,17 @@ def cylinder_penetration(tip: FloatArray, axis: FloatArray, cylinder: FloatArray
     return max(0.0, float(depth.max()))
 
 
-class _Poses:
+class ClearancePoses:
     """The poses checked so far (the given ones, then the midpoints of intervals), with each body's
     clearance: a lower bound, or measured on its surface (``exact``)."""
 
-    def __init__(self, part: _Part, face: Face | None, region: _Region, cylinders: FloatArray, clearance_min: float,
+    def __init__(self, part: Part, face: Face | None, region: Region, cylinders: FloatArray, clearance_min: float,
                  *, near: float | None = None):
         self.part, self.face, self.region, self.clearance_min = part, face, region, clearance_min
-        self.pieces = _pieces(cylinders)
+        self.pieces = body_pieces(cylinders)
         self.cylinders = cylinders
         self.unchecked = cylinders[:, 2] <= cylinders[:, 1]      # bodies given no length
-        self.local, self.body = _surface_points(cylinders)
+        self.local, self.body = surface_points(cylinders)
         self.reach = clearance_min + REACH_MM
         self.tip = np.zeros((0, 3))
         self.axis = np.zeros((0, 3))
@@ -456,7 +456,7 @@ class _Poses:
         """Add poses, bound them and measure those that may be too close; their indices. ``starts``:
         the poses that no checked motion leads to (a body inside the part there is looked for)."""
         cutting = self.region.contains(tip)
-        value, key, tri = _bounds(self.part, tip, axis, cutting, self.pieces, reach=self.reach, near=self.near)
+        value, key, tri = pose_bounds(self.part, tip, axis, cutting, self.pieces, reach=self.reach, near=self.near)
         value[:, self.unchecked] = np.inf
         first = np.flatnonzero(starts)
         if len(first):                                  # a body inside the part with nothing near it
@@ -525,7 +525,7 @@ class _Poses:
         far as :attr:`near`: a body farther is at least that far), or with ``reach`` against every
         triangle as far as that."""
         mine = self.local[self.body == b]
-        x, y = _frames(self.axis[rows]) if len(rows) else (np.zeros((0, 3)), np.zeros((0, 3)))
+        x, y = frames(self.axis[rows]) if len(rows) else (np.zeros((0, 3)), np.zeros((0, 3)))
         for k in range(0, len(rows), block):
             r = rows[k:k + block]
             xr, yr = x[k:k + block], y[k:k + block]
@@ -602,15 +602,15 @@ def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinder
     tip = np.asarray(tip, dtype=np.float64).reshape(-1, 3)
     axis = np.asarray(axis, dtype=np.float64).reshape(-1, 3)
     triangles = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
-    part = _Part.of(triangles, face, clearance_min)
-    poses = _Poses(part, face, _swept(face, feed_tips, float(cylinders[0, 0]) + 1e-6), cylinders, clearance_min,
-                   near=near)
+    part = Part.of(triangles, face, clearance_min)
+    poses = ClearancePoses(part, face, swept_region(face, feed_tips, float(cylinders[0, 0]) + 1e-6), cylinders,
+                           clearance_min, near=near)
     linked = np.zeros(len(tip), dtype=bool) if connected is None else np.asarray(connected, dtype=bool).copy()
     if len(linked):
         linked[0] = False
     poses.add(tip, axis, np.arange(len(tip)), starts=~linked)
     if (poses.found >= clearance_min).all():            # else refused already: the motion adds nothing
-        _between(poses, cylinders, np.flatnonzero(linked))
+        check_between(poses, cylinders, np.flatnonzero(linked))
     _refine(poses, refine_max, block)
     best = np.full(3, np.inf)
     where = np.full(3, -1, dtype=np.int64)
@@ -627,7 +627,7 @@ def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinder
     return Clearance(distance=best, sample=where, point=point, exact=exact)
 
 
-def _between(poses: _Poses, cylinders: FloatArray, later: IntArray) -> None:
+def check_between(poses: ClearancePoses, cylinders: FloatArray, later: IntArray) -> None:
     """Check the motion between each pose ``later`` and the one before it (module docstring, stage 3)."""
     farthest = np.array([max(math.hypot(r, z0), math.hypot(r, z1)) for r, z0, z1 in cylinders])
     start, end = later - 1, later
@@ -654,7 +654,7 @@ def _between(poses: _Poses, cylinders: FloatArray, later: IntArray) -> None:
         start, end = np.concatenate([start, mid]), np.concatenate([mid, end])
 
 
-def _refine(poses: _Poses, refine_max: int, block: int) -> None:
+def _refine(poses: ClearancePoses, refine_max: int, block: int) -> None:
     """Measure up to ``refine_max`` more poses per body, in order of their bound, while a bound is
     below the smallest clearance measured."""
     for b in range(3):

@@ -7,7 +7,7 @@ pose and how far the group's motion may stray from it, so that :mod:`prs3_post.c
 a whole group against the part and replay only the groups that may come near it.
 
 The poses of the rows' end points are the replay's own: the FK of the rows' distinct head poses up
-to a common stroke shift (:func:`prs3_post.kinematics.replay._shift_keys`: the guides are parallel, so adding
+to a common stroke shift (:func:`prs3_post.kinematics.replay.shift_keys`: the guides are parallel, so adding
 ``s`` to every stroke moves the head by −s along z and changes nothing else), shifted by the stage
 and the common stroke. A move's samples lie on its joint-space segment, so their stage and common
 stroke lie between the two rows', and their head pose key (T2 − T1, T3 − T1) between the two keys:
@@ -33,7 +33,7 @@ import numpy as np
 
 from prs3_post.core.toolpath import JointProgram, MoveKind
 from prs3_post.core.types import BoolArray, FloatArray
-from prs3_post.kinematics.replay import _forward_parts, _shift_keys
+from prs3_post.kinematics.replay import forward_parts, shift_keys
 from prs3_post.machine.model import Machine
 
 __all__ = ["FLAT_KEY_MM", "GROUP_ROWS", "SCAN_ROWS", "Scan", "scan_program"]
@@ -106,8 +106,8 @@ def _scan_rows(machine: Machine, program: JointProgram, lo: int, hi: int, frame:
     the groups' tip, axis, half, turn, wobble, feeding and flat (the last two as 0/1)."""
     start = max(lo - 1, 0)
     stage, strokes = program.stage[start:hi], program.strokes[start:hi]
-    canonical, index = _shift_keys(strokes)
-    key_tip, key_axis, _, key_ok = _forward_parts(machine, [canonical])[0]
+    canonical, index = shift_keys(strokes)
+    key_tip, key_axis, _, key_ok = forward_parts(machine, [canonical])[0]
     linear = np.column_stack([stage, -strokes[:, 0]])           # (X, Y, −T1): the tip's part besides the head's
     feed = np.flatnonzero(program.kind[lo:hi] == MoveKind.FEED) + (lo - start)
     feed_tips = np.take(key_tip, index[feed], axis=0) + linear[feed]
@@ -150,7 +150,7 @@ def _rates(machine: Machine, canonical: FloatArray) -> tuple[FloatArray, FloatAr
         delta = np.zeros(canonical.shape[1])
         delta[leg] = _STEP
         parts += [canonical + delta, canonical - delta]
-    fk = _forward_parts(machine, parts)
+    fk = forward_parts(machine, parts)
     tip_rate = np.zeros(len(canonical))
     axis_rate = np.zeros(len(canonical))
     for k in range(len(fk) // 2):

@@ -58,18 +58,18 @@ from prs3_post.kinematics import replay as kinematic
 from prs3_post.kinematics.prs3.kinematics import Prs3Kinematics
 from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.kinematics.replay import (
-    _ROUNDING_STEP,
     EPSILON_FRACTION,
-    _condition,
-    _expand,
-    _forward_parts,
-    _replay_joints,
-    _rounding_from,
-    _rounding_strokes,
-    _shift_keys,
-    _translation_bound,
-    _translations,
+    ROUNDING_STEP,
+    condition_numbers,
+    expand,
+    forward_parts,
     joints_of,
+    replay_joints,
+    rounding_from,
+    rounding_strokes,
+    shift_keys,
+    translation_bound,
+    translation_candidates,
 )
 from prs3_post.machine.loading import Machine
 from prs3_post.machine.model import Dynamics
@@ -469,24 +469,24 @@ class Verifier:
         machine = self.machine
         # every FK the chunk needs before sampling, in one call: the rows' distinct head poses, the
         # mirror points of the translation moves (their sampling bound), the rounding's differences
-        canonical, index = _shift_keys(joints[:, 2:])
+        canonical, index = shift_keys(joints[:, 2:])
         translations = self.intended is None
-        moves = _translations(joints) if translations else None
-        mirror_keys = _shift_keys(moves.back[:, 2:]) if moves is not None and len(moves.rows) else None
+        moves = translation_candidates(joints) if translations else None
+        mirror_keys = shift_keys(moves.back[:, 2:]) if moves is not None and len(moves.rows) else None
         parts = [canonical] + ([mirror_keys[0]] if mirror_keys is not None else [])
-        fk = _forward_parts(machine, parts + _rounding_strokes(canonical, _ROUNDING_STEP))
-        ends = _expand(fk[0], _condition(machine, fk[0]), index, joints)
+        fk = forward_parts(machine, parts + rounding_strokes(canonical, ROUNDING_STEP))
+        ends = expand(fk[0], condition_numbers(machine, fk[0]), index, joints)
         flat_bound = None
         if moves is not None:
-            mirror = _expand(fk[1], None, mirror_keys[1], moves.back) if mirror_keys is not None else None
-            flat_bound = _translation_bound(machine, joints, ends, moves, mirror)
-        rep = _with_limits(machine, _replay_joints(machine, joints, tolerance=self.tolerance,
-                                                   translations=translations, ends=ends, flat_bound=flat_bound))
+            mirror = expand(fk[1], None, mirror_keys[1], moves.back) if mirror_keys is not None else None
+            flat_bound = translation_bound(machine, joints, ends, moves, mirror)
+        rep = _with_limits(machine, replay_joints(machine, joints, tolerance=self.tolerance,
+                                                  translations=translations, ends=ends, flat_bound=flat_bound))
         if self.tool_lengths:                                  # each row's tip with the tool in the spindle
             lengths = self._row_tool_lengths(chunk, carried)
             shift = (self.machine.geometry.tool_length - lengths)[rep.row]
             rep = dataclasses.replace(rep, tip=rep.tip + shift[:, None] * rep.axis)
-        rounding = np.take(_rounding_from(machine, fk[len(parts):], self.length_decimals, step=_ROUNDING_STEP), index)
+        rounding = np.take(rounding_from(machine, fk[len(parts):], self.length_decimals, step=ROUNDING_STEP), index)
         self.last = _rows_of(chunk, len(chunk) - 1, len(chunk))
         self.rows += len(chunk)
         self._check(rows, rep, rounding, skip, offset)

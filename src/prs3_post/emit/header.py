@@ -52,8 +52,8 @@ from prs3_post.toolpaths.work import HoleJob, ProfileJob
 if TYPE_CHECKING:
     from prs3_post.part.workplane import WorkPlane
 
-__all__ = ["MAX_POSITION_MM", "PROGRAM_KEY", "OperationRecord", "ProgramHeader", "SourceCounts", "SourceHeader",
-           "ToolRecord"]
+__all__ = ["HOLE_ITEMS", "MAX_POSITION_MM", "PROFILE_ITEMS", "PROGRAM_KEY", "ROUND_ITEMS", "SQUARE_ITEMS", "TOOL_ITEMS",
+           "OperationRecord", "ProgramHeader", "SourceCounts", "SourceHeader", "ToolRecord"]
 
 #: The header's first key; a program without it has no header.
 PROGRAM_KEY = "program"
@@ -61,13 +61,13 @@ PROGRAM_KEY = "program"
 MAX_POSITION_MM = 1e5
 
 #: The items of each entry that lists ``name value unit``, in their order (written and read).
-_HOLE_ITEMS = (("depth", "mm"), ("peck", "mm"), ("dwell", "s"), ("clearance", "mm"), ("retract", "mm"),
-               ("reapproach gap", "mm"))
-_SQUARE_ITEMS = (("size", "mm"), ("corner radius", "mm"), ("rotation", "deg"))
-_ROUND_ITEMS = (("diameter", "mm"),)
-_PROFILE_ITEMS = (("side", ""), ("depth", "mm"), ("step-down", "mm"), ("direction", ""), ("entry", ""),
-                  ("ramp angle", "deg"), ("clearance", "mm"), ("retract", "mm"))
-_TOOL_ITEMS = (("diameter", "mm"), ("feed", "mm/min"), ("plunge", "mm/min"), ("spindle", "rpm"), ("coolant", ""))
+HOLE_ITEMS = (("depth", "mm"), ("peck", "mm"), ("dwell", "s"), ("clearance", "mm"), ("retract", "mm"),
+              ("reapproach gap", "mm"))
+SQUARE_ITEMS = (("size", "mm"), ("corner radius", "mm"), ("rotation", "deg"))
+ROUND_ITEMS = (("diameter", "mm"),)
+PROFILE_ITEMS = (("side", ""), ("depth", "mm"), ("step-down", "mm"), ("direction", ""), ("entry", ""),
+                 ("ramp angle", "deg"), ("clearance", "mm"), ("retract", "mm"))
+TOOL_ITEMS = (("diameter", "mm"), ("feed", "mm/min"), ("plunge", "mm/min"), ("spindle", "rpm"), ("coolant", ""))
 
 
 @dataclass(frozen=True, slots=True)

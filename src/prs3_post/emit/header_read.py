@@ -14,13 +14,13 @@ import numpy as np
 from prs3_post.core.errors import InputError, Prs3Error, quoted
 from prs3_post.core.input_files import open_input
 from prs3_post.emit.header import (
-    _HOLE_ITEMS,
-    _PROFILE_ITEMS,
-    _ROUND_ITEMS,
-    _SQUARE_ITEMS,
-    _TOOL_ITEMS,
+    HOLE_ITEMS,
     MAX_POSITION_MM,
+    PROFILE_ITEMS,
     PROGRAM_KEY,
+    ROUND_ITEMS,
+    SQUARE_ITEMS,
+    TOOL_ITEMS,
     OperationRecord,
     ProgramHeader,
     SourceCounts,
@@ -133,16 +133,16 @@ def _work(operation: str, text: str) -> HoleJob | ProfileJob:
     op = operation.lower()
     try:
         if op == "hole":
-            v = _items(text, _HOLE_ITEMS)
+            v = _items(text, HOLE_ITEMS)
             return HoleJob(HoleParams(depth=_float(v[0]), peck=_float(v[1]), dwell=_float(v[2]),
                                       clearance=_float(v[3]), retract=_float(v[4]), reapproach_gap=_float(v[5])))
         shape: SquareShape | RoundShape
         if op == "square":
-            v = _items(text, _SQUARE_ITEMS + _PROFILE_ITEMS)
+            v = _items(text, SQUARE_ITEMS + PROFILE_ITEMS)
             shape = SquareShape(size=_float(v[0]), corner_radius=_float(v[1]), rotation=_radians(v[2]))
             v = v[3:]
         else:
-            v = _items(text, _ROUND_ITEMS + _PROFILE_ITEMS)
+            v = _items(text, ROUND_ITEMS + PROFILE_ITEMS)
             shape = RoundShape(diameter=_float(v[0]))
             v = v[1:]
         return ProfileJob(shape, ProfileParams(
@@ -154,7 +154,7 @@ def _work(operation: str, text: str) -> HoleJob | ProfileJob:
 
 def _cutting(text: str) -> Cutting:
     found = _match(_TOOL, text)
-    v = _items(found.group(2), _TOOL_ITEMS)
+    v = _items(found.group(2), TOOL_ITEMS)
     try:
         return Cutting(tool_diameter=_float(v[0]), feed=_float(v[1]), plunge_feed=_float(v[2]),
                        spindle_rpm=_float(v[3]), coolant=Coolant(v[4].lower()), tool_number=int(found.group(1)))

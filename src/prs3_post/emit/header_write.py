@@ -10,12 +10,12 @@ from prs3_post.core.numbers import degrees_text, exact_list, exact_text, fixed_l
 from prs3_post.core.numbers import fixed as _fixed
 from prs3_post.core.types import FloatArray
 from prs3_post.emit.header import (
-    _HOLE_ITEMS,
-    _PROFILE_ITEMS,
-    _ROUND_ITEMS,
-    _SQUARE_ITEMS,
-    _TOOL_ITEMS,
+    HOLE_ITEMS,
+    PROFILE_ITEMS,
     PROGRAM_KEY,
+    ROUND_ITEMS,
+    SQUARE_ITEMS,
+    TOOL_ITEMS,
     OperationRecord,
     ProgramHeader,
     SourceHeader,
@@ -44,8 +44,8 @@ def _item_values(work: HoleJob | ProfileJob) -> list[str]:
 
 def _items_of(work: HoleJob | ProfileJob) -> tuple[tuple[str, str], ...]:
     if isinstance(work, HoleJob):
-        return _HOLE_ITEMS
-    return (*(_SQUARE_ITEMS if isinstance(work.shape, SquareShape) else _ROUND_ITEMS), *_PROFILE_ITEMS)
+        return HOLE_ITEMS
+    return (*(SQUARE_ITEMS if isinstance(work.shape, SquareShape) else ROUND_ITEMS), *PROFILE_ITEMS)
 
 
 def _join(items: tuple[tuple[str, str], ...], values: list[str]) -> str:
@@ -109,7 +109,7 @@ def _operation_entries(record: OperationRecord, face: Face) -> list[tuple[str, s
                  f"normal {fixed_list(face.normal, 6)}, origin {fixed_list(face.origin, 4)} mm"),
         ("", f"{record.work.operation.value} {_positions(record.at_uv, record.at_xyz)}"),
         ("parameters", _join(_items_of(record.work), _item_values(record.work))),
-        ("tool", f"T{cut.tool_number} " + _join(_TOOL_ITEMS, [
+        ("tool", f"T{cut.tool_number} " + _join(TOOL_ITEMS, [
             exact_text(cut.tool_diameter, 3), exact_text(cut.feed, 1), exact_text(cut.plunge_feed, 1),
             exact_text(cut.spindle_rpm, 0), cut.coolant.value])),
     ]

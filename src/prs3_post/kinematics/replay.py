@@ -71,7 +71,7 @@ SAFETY = 2.0
 #: the head along z plus a small rest, sampled at its end point only when its bound allows.
 TRANSLATION_SPREAD = 0.01
 #: mm: the stroke step of the rounding allowance's central differences.
-_ROUNDING_STEP = 1e-3
+ROUNDING_STEP = 1e-3
 
 
 @dataclass(frozen=True, slots=True)
@@ -125,7 +125,7 @@ class _Poses:
     condition: FloatArray      # (N,) exact IK of the FK pose
 
 
-def _shift_keys(strokes: FloatArray) -> tuple[FloatArray, IntArray]:
+def shift_keys(strokes: FloatArray) -> tuple[FloatArray, IntArray]:
     """The distinct head poses of ``strokes`` up to a common shift: (U, 3) strokes with T1 = 0 and,
     for each of the N rows, its index in them.
 
@@ -149,7 +149,7 @@ def _shift_keys(strokes: FloatArray) -> tuple[FloatArray, IntArray]:
 
 
 def _shift_keys_of_rows(strokes: FloatArray) -> tuple[FloatArray, IntArray]:
-    """:func:`_shift_keys` of (N, J) joints, J ≠ 3: the differences to the first joint as rows."""
+    """:func:`shift_keys` of (N, J) joints, J ≠ 3: the differences to the first joint as rows."""
     key = strokes[:, 1:] - strokes[:, :1]
     head = np.ones(len(key), dtype=bool)
     head[1:] = (key[1:] != key[:-1]).any(axis=1)
@@ -162,19 +162,19 @@ def _poses(machine: Machine, joints: FloatArray, *, keys: tuple[FloatArray, IntA
            condition: bool = True) -> _Poses:
     """FK and condition number of (N, 2 + J) joints (X, Y, the joints), once per distinct head pose.
 
-    ``keys``: :func:`_shift_keys` of the strokes, if at hand; ``condition``: False skips the exact IK
+    ``keys``: :func:`shift_keys` of the strokes, if at hand; ``condition``: False skips the exact IK
     (the condition numbers are NaN).
     """
-    canonical, index = _shift_keys(joints[:, 2:]) if keys is None else keys
-    (fk,) = _forward_parts(machine, [canonical])
-    return _expand(fk, _condition(machine, fk) if condition else None, index, joints)
+    canonical, index = shift_keys(joints[:, 2:]) if keys is None else keys
+    (fk,) = forward_parts(machine, [canonical])
+    return expand(fk, condition_numbers(machine, fk) if condition else None, index, joints)
 
 
 #: FK of distinct head poses: tip, axis, link angle (each (K, 3)) and converged (K,).
 _KeyFK = tuple[FloatArray, FloatArray, FloatArray, BoolArray]
 
 
-def _forward_parts(machine: Machine, parts: list[FloatArray]) -> list[_KeyFK]:
+def forward_parts(machine: Machine, parts: list[FloatArray]) -> list[_KeyFK]:
     """FK of several (K_i, 3) stroke arrays in one call: FK solves every row on its own, so each part
     gets the values a call of its own would give, without that call's fixed cost."""
     sizes = [len(part) for part in parts]
@@ -187,12 +187,12 @@ def _forward_parts(machine: Machine, parts: list[FloatArray]) -> list[_KeyFK]:
     return out
 
 
-def _condition(machine: Machine, fk: _KeyFK) -> FloatArray:
+def condition_numbers(machine: Machine, fk: _KeyFK) -> FloatArray:
     """(K,) the actuator-Jacobian condition number of FK poses (exact IK; NaN where FK failed)."""
     return kinematics_of(machine).condition(fk[0], fk[1])
 
 
-def _expand(fk: _KeyFK, condition: FloatArray | None, index: IntArray, joints: FloatArray) -> _Poses:
+def expand(fk: _KeyFK, condition: FloatArray | None, index: IntArray, joints: FloatArray) -> _Poses:
     """The poses of (N, 2 + J) joints from the FK of their distinct head poses (``index``: each row's)."""
     key_tip, key_axis, key_angle, key_converged = fk
     tip = np.take(key_tip, index, axis=0)
@@ -257,8 +257,8 @@ class _Translations:
     back: FloatArray
 
 
-def _translations(joints: FloatArray) -> _Translations:
-    """The translation candidates of (N, 2 + J) joints (:func:`_translation_bound`)."""
+def translation_candidates(joints: FloatArray) -> _Translations:
+    """The translation candidates of (N, 2 + J) joints (:func:`translation_bound`)."""
     n, width = joints.shape
     if n < 2:
         return _Translations(rows=np.zeros(0, dtype=np.int64), common=np.zeros(0), back=np.zeros((0, width)))
@@ -279,11 +279,11 @@ def _translations(joints: FloatArray) -> _Translations:
     return _Translations(rows=moves + 1, common=common[moves], back=back)
 
 
-def _translation_bound(machine: Machine, joints: FloatArray, ends: _Poses, moves: _Translations | None = None,
-                       mirror: _Poses | None = None) -> FloatArray:
+def translation_bound(machine: Machine, joints: FloatArray, ends: _Poses, moves: _Translations | None = None,
+                      mirror: _Poses | None = None) -> FloatArray:
     """(N,) mm — the sampling bound of each move whose strokes change alike (within TRANSLATION_SPREAD)
     when it is sampled at its end point only; NaN for the other moves, row 0, and where the head
-    does not assemble. ``moves`` (:func:`_translations`) and ``mirror`` (the poses of its ``back``
+    does not assemble. ``moves`` (:func:`translation_candidates`) and ``mirror`` (the poses of its ``back``
     joints, no condition numbers needed), if at hand.
 
     Move k: q(t) = q_{k-1} + t (c·(1, 1, 1) + d), c the mean stroke change, |d_i| ≤ TRANSLATION_SPREAD.
@@ -294,7 +294,7 @@ def _translation_bound(machine: Machine, joints: FloatArray, ends: _Poses, moves
     """
     n = len(joints)
     bound = np.full(n, np.nan)
-    moves = _translations(joints) if moves is None else moves
+    moves = translation_candidates(joints) if moves is None else moves
     rows = moves.rows
     if not len(rows):
         return bound
@@ -343,20 +343,20 @@ def replay(machine: Machine, program: JointProgram, *, tolerance: float,
     -------
     Replay
     """
-    return _replay_joints(machine, joints_of(program), tolerance=tolerance, translations=translations)
+    return replay_joints(machine, joints_of(program), tolerance=tolerance, translations=translations)
 
 
-def _replay_joints(machine: Machine, joints: FloatArray, *, tolerance: float, translations: bool,
-                   ends: _Poses | None = None, flat_bound: FloatArray | None = None) -> Replay:
+def replay_joints(machine: Machine, joints: FloatArray, *, tolerance: float, translations: bool,
+                  ends: _Poses | None = None, flat_bound: FloatArray | None = None) -> Replay:
     """:func:`replay` of (N, 2 + J) joints; row 0 is sampled at its end only (its start is unknown, or it is
     the previous chunk's last row, replayed again to start the next move from). ``ends``: the poses
-    of the rows, and ``flat_bound``: :func:`_translation_bound` (with ``translations``), if at hand."""
+    of the rows, and ``flat_bound``: :func:`translation_bound` (with ``translations``), if at hand."""
     link_length = kinematics_of(machine).link_length
     n = len(joints)
     epsilon = tolerance * EPSILON_FRACTION
     ends = _poses(machine, joints) if ends is None else ends
     if flat_bound is None:
-        flat_bound = _translation_bound(machine, joints, ends) if translations else np.full(n, np.nan)
+        flat_bound = translation_bound(machine, joints, ends) if translations else np.full(n, np.nan)
     flat = flat_bound <= epsilon                        # NaN: False
     intervals = np.where(flat, 1, PROBE_INTERVALS).astype(np.int64)
     if n:
@@ -394,22 +394,22 @@ def _replay_joints(machine: Machine, joints: FloatArray, *, tolerance: float, tr
 
 
 def rounding_allowance(machine: Machine, program: JointProgram, decimals: int, *,
-                       step: float = _ROUNDING_STEP) -> FloatArray:
+                       step: float = ROUNDING_STEP) -> FloatArray:
     """(N,) float — mm, the most the tip of each row can move when every axis word is off by half a
     unit of its last decimal: ½·10^-decimals · Σ_j |∂tip/∂q_j| (FK Jacobian by central differences,
     once per distinct head pose: it does not change with a common stroke shift)."""
-    canonical, index = _shift_keys(np.asarray(program.strokes))
+    canonical, index = shift_keys(np.asarray(program.strokes))
     return _rounding_of_keys(machine, canonical, decimals, step=step)[index]
 
 
 def _rounding_of_keys(machine: Machine, canonical: FloatArray, decimals: int, *,
-                      step: float = _ROUNDING_STEP) -> FloatArray:
-    """:func:`rounding_allowance` of the distinct head poses of :func:`_shift_keys`."""
-    return _rounding_from(machine, _forward_parts(machine, _rounding_strokes(canonical, step)), decimals, step=step)
+                      step: float = ROUNDING_STEP) -> FloatArray:
+    """:func:`rounding_allowance` of the distinct head poses of :func:`shift_keys`."""
+    return rounding_from(machine, forward_parts(machine, rounding_strokes(canonical, step)), decimals, step=step)
 
 
-def _rounding_strokes(canonical: FloatArray, step: float) -> list[FloatArray]:
-    """The strokes whose FK :func:`_rounding_from` needs: each pose with one stroke ± ``step``."""
+def rounding_strokes(canonical: FloatArray, step: float) -> list[FloatArray]:
+    """The strokes whose FK :func:`rounding_from` needs: each pose with one stroke ± ``step``."""
     out = []
     for leg in range(canonical.shape[1]):
         delta = np.zeros(canonical.shape[1])
@@ -418,8 +418,8 @@ def _rounding_strokes(canonical: FloatArray, step: float) -> list[FloatArray]:
     return out
 
 
-def _rounding_from(machine: Machine, fk: list[_KeyFK], decimals: int, *, step: float = _ROUNDING_STEP) -> FloatArray:
-    """:func:`_rounding_of_keys` from the FK of :func:`_rounding_strokes` (in its order)."""
+def rounding_from(machine: Machine, fk: list[_KeyFK], decimals: int, *, step: float = ROUNDING_STEP) -> FloatArray:
+    """:func:`_rounding_of_keys` from the FK of :func:`rounding_strokes` (in its order)."""
     half = 0.5 * 10.0 ** (-decimals)
     total = np.full(len(fk[0][0]), 2.0 if machine.stage.present else 0.0)   # ∂tip/∂X, ∂tip/∂Y: unit vectors
     for leg in range(len(fk) // 2):

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["AXIS_LETTERS", "COMMENT_CONTINUATION", "TOOL_NUMBER_LIMIT", "AxisLetters", "CommentStyle", "Decimals",
-           "Dialect", "LineNumbers"]
+__all__ = ["AXIS_LETTERS", "COMMENT_CONTINUATION", "DWELL_UNITS", "END_CODES", "LINE_ENDINGS", "TOOL_NUMBER_LIMIT",
+           "AxisLetters", "CommentStyle", "Decimals", "Dialect", "LineNumbers"]
 
 #: Indent of the continuation lines of a comment too long for one line (the emitter writes them, the
 #: header reader joins them, the dialect's line length leaves room for them).
@@ -14,11 +14,11 @@ COMMENT_CONTINUATION = "  "
 #: something in a motion block (G, M, F, S, T, P, N, O, and the arc/cycle words D E H I J K L Q R).
 AXIS_LETTERS = "ABCUVWXYZ"
 #: Program end codes the emitter may write (both end the program and rewind).
-_END_CODES = ("M2", "M30")
+END_CODES = ("M2", "M30")
 #: Line endings a dialect may choose (LinuxCNC counts the CR of CRLF towards the line length).
-_LINE_ENDINGS = {"\n": "LF", "\r\n": "CRLF"}
+LINE_ENDINGS = {"\n": "LF", "\r\n": "CRLF"}
 #: Units of the G4 P word: LinuxCNC reads seconds, Fanuc (P without a decimal point) milliseconds.
-_DWELL_UNITS = ("s", "ms")
+DWELL_UNITS = ("s", "ms")
 #: The largest ``words.tool_number_max`` (8 digits, as program.number): far beyond it a tool
 #: number no longer survives the float of an event value (and LinuxCNC reads T2147483648 as negative).
 TOOL_NUMBER_LIMIT = 99_999_999
@@ -159,9 +159,9 @@ class Dialect:
     extension: str = ".ngc"
 
     def __post_init__(self) -> None:
-        if self.end_code not in _END_CODES:
-            raise ValueError(f"end_code must be one of {_END_CODES}, got {self.end_code!r}")
-        if self.line_ending not in _LINE_ENDINGS:
+        if self.end_code not in END_CODES:
+            raise ValueError(f"end_code must be one of {END_CODES}, got {self.end_code!r}")
+        if self.line_ending not in LINE_ENDINGS:
             raise ValueError(f"line_ending must be LF or CRLF, got {self.line_ending!r}")
-        if self.dwell_unit not in _DWELL_UNITS:
-            raise ValueError(f"dwell_unit must be one of {_DWELL_UNITS}, got {self.dwell_unit!r}")
+        if self.dwell_unit not in DWELL_UNITS:
+            raise ValueError(f"dwell_unit must be one of {DWELL_UNITS}, got {self.dwell_unit!r}")

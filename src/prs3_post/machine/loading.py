@@ -29,11 +29,11 @@ from prs3_post.core.input_files import read_text
 from prs3_post.core.lexer import code_name
 from prs3_post.machine.controller_rules import block_problem
 from prs3_post.machine.dialect import (
-    _DWELL_UNITS,
-    _END_CODES,
-    _LINE_ENDINGS,
     AXIS_LETTERS,
     COMMENT_CONTINUATION,
+    DWELL_UNITS,
+    END_CODES,
+    LINE_ENDINGS,
     TOOL_NUMBER_LIMIT,
     AxisLetters,
     CommentStyle,
@@ -587,10 +587,10 @@ def load_dialect(name_or_path: str) -> Dialect:
     if program_name and not program_number:
         raise prog._error("name", "needs program.number > 0 (the name is a comment on the O line)")
     end_code = prog.text("end_code")
-    if end_code not in _END_CODES:
-        raise prog._error("end_code", f"expected one of {', '.join(_END_CODES)}, got {quoted(end_code)}")
+    if end_code not in END_CODES:
+        raise prog._error("end_code", f"expected one of {', '.join(END_CODES)}, got {quoted(end_code)}")
     line_ending = prog.text("line_ending")
-    if line_ending not in _LINE_ENDINGS:
+    if line_ending not in LINE_ENDINGS:
         raise prog._error("line_ending", f'expected "\\n" or "\\r\\n", got {quoted(line_ending)}')
     max_line_length = prog.integer("max_line_length")
     if not MIN_LINE_LENGTH <= max_line_length <= 252:
@@ -619,8 +619,8 @@ def load_dialect(name_or_path: str) -> Dialect:
     words = top.table("words")                         # before the blocks: their T words need tool_number_max
     modal_motion = words.boolean("modal_motion")
     dwell_unit = words.text("dwell_unit")
-    if dwell_unit not in _DWELL_UNITS:
-        raise words._error("dwell_unit", f"expected one of {', '.join(_DWELL_UNITS)}, got {quoted(dwell_unit)}")
+    if dwell_unit not in DWELL_UNITS:
+        raise words._error("dwell_unit", f"expected one of {', '.join(DWELL_UNITS)}, got {quoted(dwell_unit)}")
     tool_number_max = words.integer("tool_number_max", minimum=1)
     if tool_number_max > TOOL_NUMBER_LIMIT:
         raise words._error("tool_number_max", f"must be 1..{TOOL_NUMBER_LIMIT}, got {tool_number_max}")

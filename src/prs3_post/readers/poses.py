@@ -74,7 +74,7 @@ def iter_poses(path: str, *, chunk_lines: int = 65536) -> Iterator[PoseTable]:
                 break
             if number == 0:
                 header = _first_line(raw[0])
-                _check_header(header, path)
+                check_header(header, path)
                 offset, number = len(header), 1
                 raw[0] = raw[0][len(header):]            # CR-only line ends: the whole table (see _first_line)
             data = b"".join(raw)
@@ -86,7 +86,7 @@ def iter_poses(path: str, *, chunk_lines: int = 65536) -> Iterator[PoseTable]:
                     raise InputError(f"not UTF-8 text: {exc.reason} at byte {offset + exc.start}", path=path) from exc
                 table = _parse_fast(lines, number) or _parse_careful(lines, number, path)
                 count = len(lines)
-            _check_range(table, path)
+            check_range(table, path)
             yield table
             offset, number = offset + len(data), number + count
         if number == 0:
@@ -103,7 +103,7 @@ def _first_line(line: bytes) -> bytes:
     return line[:cr + 2] if line[cr + 1:cr + 2] == b"\n" else line[:cr + 1]
 
 
-def _check_header(line: bytes, path: str) -> None:
+def check_header(line: bytes, path: str) -> None:
     """The first line must be the header (after a spreadsheet's byte order mark, if any).
 
     Raises
@@ -148,7 +148,7 @@ def _parse_plain(data: bytes, before: int) -> tuple[PoseTable | None, int]:
                      line=np.arange(before + 1, before + 1 + count, dtype=np.int64)), count
 
 
-def _check_range(table: PoseTable, path: str) -> None:
+def check_range(table: PoseTable, path: str) -> None:
     """Refuse a value beyond POSE_LIMITS (or NaN, infinity): the first such line, its column and the range.
 
     Raises

@@ -28,7 +28,7 @@ import numpy as np
 from prs3_post.core.errors import InputError
 from prs3_post.core.input_files import open_input
 from prs3_post.core.types import FloatArray
-from prs3_post.readers.poses import POSE_COLUMNS, PoseTable, _check_header, _check_range, iter_poses
+from prs3_post.readers.poses import POSE_COLUMNS, PoseTable, check_header, check_range, iter_poses
 
 #: Bytes: the smallest table read by pyarrow (about 33,000 poses of 17 digits); below, numpy's reader.
 BULK_BYTES = 4_000_000
@@ -71,7 +71,7 @@ def iter_poses_bulk(path: str, *, chunk_lines: int = 65536, min_bytes: int = BUL
         if bulk:
             first = stream.readline()
             try:
-                _check_header(first, path)
+                check_header(first, path)
             except InputError:
                 bulk = False                        # the numpy reader says what is wrong with it
             else:
@@ -155,7 +155,7 @@ def _plain_table(values: FloatArray, before: int, path: str) -> PoseTable | None
     table = PoseTable(tip=values[:, :3], axis=values[:, 3:],
                       line=np.arange(before + 1, before + 1 + len(values), dtype=np.int64))
     try:
-        _check_range(table, path)
+        check_range(table, path)
     except InputError:
         return None
     return table

@@ -150,7 +150,7 @@ def _inverse_block(geometry: Geometry, tip: FloatArray, axis: FloatArray, out: d
     had that axis, and broadcasts them where the tip comes in: the same operations on the same
     operands as row by row, so the same bits.
     """
-    axis = _block_axes(axis)
+    axis = block_axes(axis)
     if len(axis) == 1:
         part = memo.terms(geometry, axis) if memo is not None else _one_axis(geometry, axis)
         centre_z = tip[:, 2] + part.lift
@@ -160,7 +160,7 @@ def _inverse_block(geometry: Geometry, tip: FloatArray, axis: FloatArray, out: d
             _write_leg(out, leg, centre_z, leg_terms)
         out["condition"][:], out["reachable"][:] = part.condition, part.reachable
         return
-    terms = _axis_terms(axis)
+    terms = axis_terms(axis)
     lift, offset_x, offset_y = _platform_offsets(geometry, axis, terms)
     centre_z = tip[:, 2] + lift
     out["stage"][:, 0] = tip[:, 0] - offset_x
@@ -169,7 +169,7 @@ def _inverse_block(geometry: Geometry, tip: FloatArray, axis: FloatArray, out: d
     def each_leg(leg: int, g: FloatArray, w: FloatArray, sin_t: FloatArray) -> None:
         _write_leg(out, leg, centre_z, _leg_terms(geometry, g, w, sin_t))
 
-    out["condition"][:], out["reachable"][:] = _axis_block(geometry, axis, terms, each_leg)
+    out["condition"][:], out["reachable"][:] = axis_block(geometry, axis, terms, each_leg)
 
 
 def _platform_offsets(geometry: Geometry, axis: FloatArray, terms: tuple[FloatArray, FloatArray, FloatArray]
@@ -217,13 +217,13 @@ class _OneAxis:
 
 def _one_axis(geometry: Geometry, axis: FloatArray) -> _OneAxis:
     """The :class:`_OneAxis` of one unit axis (1, 3)."""
-    terms = _axis_terms(axis)
+    terms = axis_terms(axis)
     legs: list[LegTerms] = []
 
     def each_leg(leg: int, g: FloatArray, w: FloatArray, sin_t: FloatArray) -> None:
         legs.append(_leg_terms(geometry, g, w, sin_t))
 
-    condition, reachable = _axis_block(geometry, axis, terms, each_leg)
+    condition, reachable = axis_block(geometry, axis, terms, each_leg)
     return _OneAxis(*_platform_offsets(geometry, axis, terms), legs=tuple(legs), condition=condition,
                     reachable=reachable)
 
@@ -259,7 +259,7 @@ class AxisMemo:
         return found
 
 
-def _block_axes(axis: FloatArray) -> FloatArray:
+def block_axes(axis: FloatArray) -> FloatArray:
     """A block's axes (n, 3), or its first row alone (1, 3) when every row has that axis (the axis
     terms are then computed once and broadcast: :func:`_inverse_block`)."""
     if len(axis) > 1 and same_rows(axis):            # the same bits on every row: the same results
@@ -267,17 +267,17 @@ def _block_axes(axis: FloatArray) -> FloatArray:
     return axis
 
 
-def _axis_terms(axis: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+def axis_terms(axis: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     """c = 1/(1 + a_z), a_x² − a_y² and a_x·a_y of unit axes (n, 3), each (n,)."""
     ax, ay, az = axis[:, 0], axis[:, 1], axis[:, 2]
     return 1.0 / (1.0 + az), ax * ax - ay * ay, ax * ay
 
 
-def _axis_block(geometry: Geometry, axis: FloatArray, terms: tuple[FloatArray, FloatArray, FloatArray],
-                each_leg: Callable[[int, FloatArray, FloatArray, FloatArray], None] | None = None
-                ) -> tuple[FloatArray, BoolArray]:
+def axis_block(geometry: Geometry, axis: FloatArray, terms: tuple[FloatArray, FloatArray, FloatArray],
+               each_leg: Callable[[int, FloatArray, FloatArray, FloatArray], None] | None = None
+               ) -> tuple[FloatArray, BoolArray]:
     """What the tool axis alone decides, for one block of unit axes (n, 3) and their
-    :func:`_axis_terms`: the condition number (n,) and whether the pose assembles (n,): a_z > 0,
+    :func:`axis_terms`: the condition number (n,) and whether the pose assembles (n,): a_z > 0,
     |cos θ_i| ≤ 1 for every leg and a finite condition number. ``each_leg(i, a·e_i, cos θ_i,
     sin θ_i)`` (each (n,)) is called as each leg's terms are made (while they are in the cache:
     :func:`_inverse_block` finishes the leg there). The tip only moves the platform up and down

@@ -19,7 +19,7 @@ import numpy as np
 
 from prs3_post.core.types import FloatArray
 from prs3_post.kinematics.prs3.blocks import BLOCK_ROWS, run_blocks
-from prs3_post.kinematics.prs3.exact import IKResult, _axis_block, _axis_terms, _block_axes
+from prs3_post.kinematics.prs3.exact import IKResult, axis_block, axis_terms, block_axes
 from prs3_post.machine.model import Geometry
 
 
@@ -93,8 +93,8 @@ def _paper_block(geometry: Geometry, tip: FloatArray, axis: FloatArray, out: dic
         out["link_angle"][:, leg] = np.arccos(cos_t)
         out["strokes"][:, leg] = -sz - geometry.link_length * np.sqrt(1.0 - cos_t * cos_t)
     # the exact model's condition and reachability: its axis part alone (the tip does not change them)
-    axes = _block_axes(axis)
-    condition, exact_reach = _axis_block(geometry, axes, _axis_terms(axes))
+    axes = block_axes(axis)
+    condition, exact_reach = axis_block(geometry, axes, axis_terms(axes))
     out["condition"][:] = np.where(exact_reach, condition, np.nan)
     out["reachable"][:] = reach & exact_reach
 
