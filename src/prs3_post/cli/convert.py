@@ -12,13 +12,13 @@ from typing import TYPE_CHECKING
 
 import click
 
-from prs3_post.app.convert_files import INPUT_FORMATS, convert_settings
 from prs3_post.app.values import ANGLE, LENGTH
 from prs3_post.cli.options import (
     CLEARANCE_MIN,
     Command,
     Decimal,
     Integer,
+    LazyChoice,
     OutputPath,
     dialect_option,
     job_part_origin_option,
@@ -41,9 +41,17 @@ from prs3_post.core.output_files import (
 )
 
 # What only some commands need is imported where it is used (the main job, convert, verify, preview,
-# faces: each about 0.1 s of imports), so that `ik`, `fk` and a small `verify` start fast.
+# faces: each about 0.1 s of imports), so that `ik`, `fk` and a small `verify` start fast; so is the
+# reader registry (--format's choices, convert's settings).
 if TYPE_CHECKING:
     from prs3_post.app.batch import FileOutcome
+
+
+def _input_formats() -> tuple[str, ...]:
+    """``--format``'s choices: ``auto`` and the registered readers' names."""
+    from prs3_post.app.convert_files import INPUT_FORMATS
+
+    return INPUT_FORMATS
 
 
 def _codes_option(text: str | None, flag: str) -> tuple[str, ...] | None:
@@ -69,7 +77,7 @@ def _codes_option(text: str | None, flag: str) -> tuple[str, ...] | None:
 @click.option("--fail-fast", is_flag=True, help="Stop at the first file that fails (files under way finish).")
 @click.option("--force", is_flag=True,
               help="Replace programs that exist already (default: keep them; that file fails).")
-@click.option("--format", "input_format", type=click.Choice(list(INPUT_FORMATS)), default="auto", show_default=True,
+@click.option("--format", "input_format", type=LazyChoice(_input_formats), default="auto", show_default=True,
               help="Input format: by content (CL records or G-code words), or forced.")
 @click.option("--report", "report_path", type=OutputPath(), metavar="FILE.json",
               help="Write every file's accounting (records by word, moves, subdivisions, deviations) as JSON.")
@@ -168,6 +176,8 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
                 if text is not None:
                     raise click.UsageError(f"{flag} is used only with --source (a 5-axis program's TCP codes): "
                                            "give the source machine, or leave it out")
+        from prs3_post.app.convert_files import convert_settings
+
         try:
             settings = convert_settings(
                 machine=machine_name, dialect=dialect_name, part_origin=part_origin, part_rotation=part_rotation,

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import click
 
-from prs3_post.app.listings import faces_json, faces_text, shipped_machines, shipped_sources
 from prs3_post.cli.options import Command, run_reported, up_option
 
 
@@ -22,6 +21,8 @@ def machines() -> None:
     """
 
     def body() -> int:
+        from prs3_post.app.listings import shipped_machines
+
         for name, machine in shipped_machines():
             stage = "XY stage" if machine.stage.present else "no stage"
             click.echo(f"{name:<18} {stage:<9} {machine.description}")
@@ -44,6 +45,8 @@ def sources() -> None:
     """
 
     def body() -> int:
+        from prs3_post.app.listings import shipped_sources
+
         for name, source in shipped_sources():
             words = " ".join(source.words or source.vector_words)
             tcp = f"{'/'.join(source.tcp_on)} {'/'.join(source.tcp_off)}"
@@ -73,6 +76,8 @@ def faces(part: str, units: str, up: str, as_json: bool) -> None:
       prs3-post faces angle_block.STL --units inch --up y
     """
     def body() -> int:
+        from prs3_post.app.listings import faces_json, faces_text
+
         click.echo(faces_json(part, units=units, up=up) if as_json else faces_text(part, units=units, up=up),
                    nl=as_json)
         return 0

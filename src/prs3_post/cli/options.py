@@ -11,13 +11,12 @@ import contextlib
 import re
 import sys
 import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
 import click
 
-from prs3_post.app.listings import demo_part
 from prs3_post.app.requests import AUTO, SETTING_FIELDS, UP_ROTATION
 from prs3_post.app.values import ANGLE, LENGTH, DecimalKind, IntegerKind, Kind, NumbersKind, ValueProblem
 from prs3_post.core.defaults import DEFAULT_TOLERANCE
@@ -73,6 +72,34 @@ class Numbers(_Checked):
         self.kind = NumbersKind(names, magnitude)
         self.name = names
         self.count = len(names.split(","))
+
+
+class LazyChoice(click.Choice):
+    """A :class:`click.Choice` whose choices ``load()`` gives when first asked for (parsing the option,
+    ``--help``), not when the CLI is imported: ``convert --format`` lists the registered readers, which
+    no other command loads."""
+
+    def __init__(self, load: Callable[[], Iterable[str]]):
+        super().__init__(())
+        self._load = load
+        self._loaded: tuple[str, ...] | None = None
+
+    @property
+    def choices(self) -> tuple[str, ...]:
+        if self._loaded is None:
+            self._loaded = tuple(self._load())
+        return self._loaded
+
+    @choices.setter
+    def choices(self, value: Iterable[str]) -> None:
+        self._loaded = tuple(value)
+
+
+def demo_part() -> Path:
+    """The bundled demo part (:func:`prs3_post.app.listings.demo_part`)."""
+    from prs3_post.app.listings import demo_part as bundled  # the listings: only `demo` and the listing commands
+
+    return bundled()
 
 
 class OutputPath(click.Path):

@@ -19,7 +19,6 @@ from prs3_post.app.requests import (
     job_specs,
     used_by,
 )
-from prs3_post.app.run import check_specs, job_preview, read_job
 from prs3_post.app.values import ANGLE, FEED, LENGTH, SPEED, TIME
 from prs3_post.cli.options import (
     CLEARANCE_MIN,
@@ -218,6 +217,8 @@ def _placement_hint(origin: tuple[str, str, str] | None) -> str:
 
 def _run_job(part: str, **opts: Any) -> int:
     """Build the request from the options, check the job, write the program (and its preview)."""
+    from prs3_post.app.run import check_specs, job_preview  # the job's modules: only the commands that run one
+
     specs = job_specs_of(part, opts, given=given_options())
     fmt = image_format(opts["preview_path"], "'--preview'") if opts["preview_path"] else None
     job = check_specs(specs, placement_hint=_placement_hint)
@@ -374,6 +375,8 @@ def job(job_path: str, out_path: str | None, machine_name: str, part_origin: tup
     """
 
     def body() -> int:
+        from prs3_post.app.run import check_specs, job_preview, read_job
+
         ctx = click.get_current_context()
         job_file = read_job(job_path)
         named = {"part": job_file.part} | {key: job_file.settings.get(key)

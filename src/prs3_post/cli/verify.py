@@ -12,15 +12,6 @@ import click
 
 from prs3_post.app.requests import AUTO, OPERATION_FIELDS, SETTING_FIELDS
 from prs3_post.app.values import ANGLE, FEED
-from prs3_post.app.verify_inputs import (
-    cam_part,
-    header_contradictions,
-    is_cl_file,
-    is_converted,
-    part_drawing,
-    recorded_part,
-    spec_contradictions,
-)
 from prs3_post.cli.options import (
     Command,
     Decimal,
@@ -125,6 +116,8 @@ def _refuse_auto(part_origin: tuple[float, ...] | str | None, part_rotation: flo
 def _refuse_cl_file(path: str) -> None:
     """CAM output given where a program for this machine goes (verify, preview): say so, not 'not G-code'.
     Only a file that starts as an APT CL file does; any other problem is the program reader's to name."""
+    from prs3_post.app.verify_inputs import is_cl_file
+
     if is_cl_file(path):
         raise InputError(f"an APT CL file (CAM output), not a program for this machine: convert it first "
                          f"(prs3-post convert {path} -o OUTDIR), then give the program, with --against {path} to "
@@ -171,6 +164,8 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext,
         intended_from_source,
         rebuild_job,
     )
+    from prs3_post.app.verify_inputs import cam_part, is_converted, spec_contradictions
+
     suffix = Path(against).suffix.lower()
     converted = is_converted(context.header)
     if converted and suffix == ".stl":                       # the part a CAM program cuts
@@ -348,6 +343,7 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
         rebuild_job,
         tool_lengths_of,
     )
+    from prs3_post.app.verify_inputs import header_contradictions, part_drawing, recorded_part
 
     def body() -> int:
         ctx = click.get_current_context()

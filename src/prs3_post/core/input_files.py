@@ -8,7 +8,6 @@ memory.
 
 from __future__ import annotations
 
-import hashlib
 import os
 import re
 import stat
@@ -137,6 +136,8 @@ def file_sha256(path: str) -> str:
     InputError
         The file cannot be read.
     """
+    import hashlib  # only where a file is hashed (about 3 ms of every start otherwise)
+
     with open_input(path, "a file") as stream:          # read in pieces: a part may be large
         digest = hashlib.sha256()
         try:
