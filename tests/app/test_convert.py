@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
 import select
 import signal
 import subprocess
@@ -736,3 +737,65 @@ def test_a_file_named_twice_is_converted_once_and_said_so(tmp_path: Path) -> Non
     assert code == 0
     assert stderr.splitlines()[-1] == (f"prs3-post: 2 more names of files above, each converted once: "
                                        f"{tmp_path / 'b.cls'} (= {src}), {src} (= {src})")
+
+
+# ----------------------------------------------------------------------------- feeds slowed to the axis speeds
+
+#: A 3-axis program at F20000: every cut is faster than the stage and strokes allow (issue 20, defect 9).
+FAST = """G21 G90 G17
+S3000 M3
+G0 X0 Y0 Z20
+G0 X0 Y0 Z2
+G1 Z-1 F20000
+G1 X40 Y0
+G1 X40 Y30
+G1 X0 Y30
+G1 X0 Y0
+G0 Z20
+M5
+M30
+"""
+_FAST_ORIGIN = "--part-origin=-20,-15,-764"
+
+
+def test_slowed_feeds_are_stated_in_the_header_and_the_report(tmp_path: Path, rs274_check) -> None:
+    """Defect 9: the feeds were lowered to the axis speed limits without a word. The program says so as the
+    main job does (its ``dynamics`` line), the report counts the moves slowed, and verify still accepts it."""
+    src = tmp_path / "fast.ngc"
+    src.write_text(FAST)
+    report = tmp_path / "report.json"
+    code, _, _ = _cli(tmp_path, str(src), "-o", str(tmp_path / "out"), _FAST_ORIGIN, "--report", str(report))
+    assert code == 0
+    out = tmp_path / "out" / "fast.ngc"
+    text = out.read_text()
+    lines = [line for line in text.splitlines() if line.startswith("(dynamics: ")]
+    assert len(lines) == 1
+    found = re.fullmatch(r"\(dynamics: cycle time \d+\.\d{3} min = \d+\.\d s, (\d+) moves slowed to the axis speed "
+                         r"limits, worst \d+\.\d\d x at fast\.ngc:(\d+) [([](stage [XY]|stroke T[123])[])]\)", lines[0])
+    assert found is not None, lines[0]
+    slowed = int(found.group(1))
+    assert slowed == 5                                  # the five G1 moves
+    assert json.loads(report.read_text())["files"][0]["report"]["slowed_moves"] == slowed
+    header = read_header(str(out), open_="(", close=")")
+    assert isinstance(header, SourceHeader)
+    assert header.dynamics == lines[0][len("(dynamics: "):-1]
+    code_, checked = rs274_check(out)
+    assert code_ == 0, checked
+    verified = CliRunner().invoke(main, ["verify", str(out), "--against", str(src)])
+    assert verified.exit_code == 0, verified.output
+    assert verified.output.splitlines()[-1] == "OK: within every limit and tolerance"
+
+
+def test_no_clamp_refuses_a_feed_that_would_be_slowed(tmp_path: Path) -> None:
+    """Defect 9: ``--no-clamp`` refuses instead, naming the first line that would be slowed; nothing is written."""
+    src = tmp_path / "fast.ngc"
+    src.write_text(FAST)
+    out = tmp_path / "out"
+    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(out), _FAST_ORIGIN, "--no-clamp")
+    assert code == 1
+    reason = stdout.split("\t")[3].rstrip("\n")
+    assert reason.startswith(f"{src}:5: the feed needs "), reason
+    assert reason.endswith("x its top speed 5000.0 mm/min (slow the feed, or let it be clamped)"), reason
+    assert not (out / "fast.ngc").exists()
+    code, _, _ = _cli(tmp_path, str(src), "-o", str(tmp_path / "clamped"), _FAST_ORIGIN, "--clamp")
+    assert code == 0

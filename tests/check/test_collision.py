@@ -439,13 +439,13 @@ def test_a_thin_wall_between_the_samples_of_a_long_feed_move_is_caught(tmp_path)
     ends = clearance(np.asarray(trimesh.load(str(tmp_path / "plate.stl")).triangles), samples,
                      np.tile(FACE.normal, (2, 1)), BODIES, None, np.zeros((0, 3)), clearance_min=DEFAULT_CLEARANCE_MIN)
     assert ends.distance[1] == pytest.approx(3.549, abs=1e-3)       # the two samples alone: clear
-    # made without the check, verify finds it on the program's line of that move
+    # made without the check, verify finds it on the program's line of that move (line 20: the header has 11 lines)
     result = CliRunner().invoke(main, [*convert, "-o", str(tmp_path / "unchecked"), "--no-collision-check"])
     assert result.exit_code == 0, result.output
     result = CliRunner().invoke(main, ["verify", str(tmp_path / "unchecked" / "long.ngc"), "--against",
                                        str(tmp_path / "plate.stl")])
     assert result.exit_code == 1
-    assert result.output.splitlines()[-1] == "  line 19: the holder hits the part, 15.000 mm deep (clearance min " \
+    assert result.output.splitlines()[-1] == "  line 20: the holder hits the part, 15.000 mm deep (clearance min " \
                                               "1.000 mm)"
 
 

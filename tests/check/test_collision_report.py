@@ -218,10 +218,10 @@ def test_a_converted_program_against_its_part_reports_the_holder_and_nose(conver
         "removes: its gouges are the CAM system's to check)):",
         "    tool, rapids  none to check (a retract along the tool axis is not; diameter unknown: its axis, 0 mm "
         "radius)",
-        "    holder             -2.446 mm  line 16",                  # as convert --part finds it
-        "    spindle nose       14.859 mm  line 18",
+        "    holder             -2.446 mm  line 17",                  # as convert --part finds it
+        "    spindle nose       14.859 mm  line 19",
         "FAIL: 1 problem",
-        "  line 16: the holder hits the part, 2.446 mm deep (clearance min 1.000 mm)",
+        "  line 17: the holder hits the part, 2.446 mm deep (clearance min 1.000 mm)",
     ]
     lowered = invoke("verify", converted, "--against", WALL, "--clearance-min", "0", "--json")
     record = json.loads(lowered.output)
@@ -249,17 +249,17 @@ def test_verify_of_a_converted_program_reports_the_tool_in_its_rapids(tmp_path):
     assert result.output.splitlines()[-5:-1] == [
         "  clearance from the part (min 1.000 mm; not counted: the tool in feeds (it cuts what the CAM program "
         "removes: its gouges are the CAM system's to check)):",
-        "    tool, rapids       10.000 mm  line 20 (6.000 mm diameter)",   # as the header's collision entry says
-        "    holder              8.636 mm  line 18",
-        "    spindle nose       14.859 mm  line 18",
+        "    tool, rapids       10.000 mm  line 21 (6.000 mm diameter)",   # as the header's collision entry says
+        "    holder              8.636 mm  line 19",
+        "    spindle nose       14.859 mm  line 19",
     ]
     result = invoke("verify", tmp_path / "out" / "through.ngc", "--against", WALL)
     assert result.exit_code == 1, result.output
     assert result.output.splitlines()[-5:] == [
-        "    tool, rapids       -3.000 mm  line 19 (diameter unknown: its axis, 0 mm radius)",
-        "    holder              8.635 mm  line 21",
-        "    spindle nose       13.859 mm  line 20",
+        "    tool, rapids       -3.000 mm  line 20 (diameter unknown: its axis, 0 mm radius)",
+        "    holder              8.635 mm  line 22",
+        "    spindle nose       13.859 mm  line 21",
         "FAIL: 1 problem",
-        "  line 19: the tool hits the part in a rapid, 3.000 mm deep (a rapid may touch the part, not cut it: "
+        "  line 20: the tool hits the part in a rapid, 3.000 mm deep (a rapid may touch the part, not cut it: "
         "0.050 mm at most)",
     ]

@@ -42,6 +42,7 @@ from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.loading import Dialect, Machine, file_given
 from prs3_post.part.setup_transform import Setup
 from prs3_post.part.workplane import WorkPlane
+from prs3_post.post.dynamics import FeedSpeedError, streamed_entry
 from prs3_post.post.limits import check_limits, raise_first_violation
 from prs3_post.post.pipeline import (
     PostCounts,
@@ -87,6 +88,8 @@ class ConvertSettings:
     clearance_min : float — mm, the least distance the holder and nose must keep from the part
     tool_diameter : float | None — mm, the tool's diameter for its check in the rapids (None: the CAM
         input's, :meth:`~prs3_post.readers.protocol.CamStream.tool_diameter`)
+    clamp : bool — lower a feed that would drive an axis over its top speed (the machine's dynamics;
+        the header and the report say how many); False: such a feed is a LimitError naming its line
     """
 
     machine: Machine
@@ -113,6 +116,7 @@ class ConvertSettings:
     collision_check: bool = True
     clearance_min: float = DEFAULT_CLEARANCE_MIN
     tool_diameter: float | None = None
+    clamp: bool = True
 
     def __post_init__(self) -> None:
         if self.input_format not in formats():
@@ -163,6 +167,7 @@ class ConvertReport:
     setup : str — the setup used (chosen automatically or given), as the header states it
     five_axis : str — what the input is read as where its reader says (a 5-axis G-code program: its source
         convention and the path it is read as; :attr:`~prs3_post.readers.protocol.CamStream.read_as`)
+    slowed_moves : int — G1 moves whose feed was lowered to the axis speed limits (the header's ``dynamics``)
     """
 
     input: str
@@ -190,6 +195,7 @@ class ConvertReport:
     tool_length: float
     setup: str
     five_axis: str = ""
+    slowed_moves: int = 0
 
     @property
     def motion_records(self) -> int:
@@ -366,7 +372,7 @@ class _Run:
             emitted_moves=counts.program_rows, deviation_before=counts.tip_before, deviation_after=counts.tip_after,
             angle_before_deg=math.degrees(counts.angle_before), angle_after_deg=math.degrees(counts.angle_after),
             tool_length=self.settings.ik_machine.geometry.tool_length, setup=self.settings.setup.describe(),
-            five_axis=self.reader.read_as)
+            five_axis=self.reader.read_as, slowed_moves=self.post.dynamics.clamped)
 
 
 def _start(path: str, settings: ConvertSettings) -> _Run:
@@ -388,7 +394,9 @@ def _start(path: str, settings: ConvertSettings) -> _Run:
     machine = settings.ik_machine
     post = PostStream(machine, settings.setup, tolerance=settings.tolerance,
                       angle_tolerance=math.radians(settings.angle_tolerance_deg),
-                      length_decimals=settings.dialect.decimals.length, placed=True)
+                      length_decimals=settings.dialect.decimals.length, placed=True, clamp=settings.clamp,
+                      timed=True)
+    post.dynamics.file_name = Path(path).name           # the header's worst move: as its source entry names the file
     return _Run(path=path, settings=settings, fmt=fmt, sha256="", reader=reader, post=post)
 
 
@@ -414,8 +422,8 @@ def _placed(error: LimitError | ReachError, run: _Run) -> Exception:
     """``error`` with the setup used and a part origin that fits, if one does (the whole file is read
     again for that: only a failure pays for it)."""
     settings = run.settings
-    if not run.placeable or isinstance(error, AxisError):   # no setup turns a tool axis (about z only)
-        return error
+    if not run.placeable or isinstance(error, (AxisError, FeedSpeedError)):   # no setup turns a tool axis (about
+        return error                                    # z only); a feed too fast is the feed's (no clamping)
     try:
         whole = source_stream(run.path, settings, run.fmt).whole()
     except InputError:
@@ -462,6 +470,7 @@ def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) 
         counts = run.report(run.post.finish()).counts()
         collision = _collision(run, triangles)
         entries = source_header_entries(dataclasses.replace(header, counts=counts, collision=collision,
+                                                            dynamics=streamed_entry(run.post.dynamics),
                                                             source_sha256=run.sha256),
                                         description=description)
         # the same opening as program_text's (its comments have no block numbers: the body's agree)

@@ -70,7 +70,7 @@ def convert_settings(*, machine: str, dialect: str, part_origin: tuple[float, ..
                      work_plane: str | None, part: str | None, part_units: str, part_up: str, source: str | None,
                      tcp_on: tuple[str, ...] | None, tcp_off: tuple[str, ...] | None, line_numbers: bool | None,
                      line_start: int | None, line_step: int | None, collision_check: bool, clearance_min: float,
-                     tool_diameter: float | None) -> ConvertSettings:
+                     tool_diameter: float | None, clamp: bool = True) -> ConvertSettings:
     """The settings of a conversion (``prs3-post convert``), from names and plain values: the machine,
     dialect and source loaded, the work plane read (``PART.stl[:FACE]`` or numbers), the setup resolved.
 
@@ -105,7 +105,7 @@ def convert_settings(*, machine: str, dialect: str, part_origin: tuple[float, ..
             line_numbers=line_numbers, line_start=line_start, line_step=line_step,
             auto_origin=part_origin == AUTO, auto_rotation=part_rotation == AUTO, part=part,
             part_units=part_units, part_up=part_up, collision_check=collision_check, clearance_min=clearance_min,
-            tool_diameter=tool_diameter)
+            tool_diameter=tool_diameter, clamp=clamp)
     except ConfigError as error:                     # the TCP codes given do not work with the source
         given = tuple(key for key, codes in (("tcp_on", tcp_on), ("tcp_off", tcp_off)) if codes)
         if convention is None or not given:

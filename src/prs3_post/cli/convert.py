@@ -20,6 +20,7 @@ from prs3_post.cli.options import (
     Integer,
     LazyChoice,
     OutputPath,
+    clamp_option,
     dialect_option,
     job_part_origin_option,
     job_part_rotation_option,
@@ -121,13 +122,15 @@ def _codes_option(text: str | None, flag: str) -> tuple[str, ...] | None:
 @line_number_options[1]
 @line_number_options[2]
 @tolerance_option
+@clamp_option
 def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: bool, force: bool, input_format: str,
             report_path: str | None, tool_length: float | None, angle_tolerance_deg: float, units: str | None,
             work_plane_text: str | None, ignore_words: tuple[str, ...], source_name: str | None,
             tcp_on: str | None, tcp_off: str | None, part_path: str | None, part_units: str, up: str,
             collision_check: bool, clearance_min: float, tool_diameter: float | None, machine_name: str,
             part_origin: tuple[float, ...] | str | None, part_rotation: float | str | None, dialect_name: str,
-            line_numbers: bool | None, line_start: int | None, line_step: int | None, tolerance: float) -> None:
+            line_numbers: bool | None, line_start: int | None, line_step: int | None, tolerance: float,
+            clamp: bool) -> None:
     """Convert CAM output (APT CL files, 3+2 G-code) into programs for this machine.
 
     INPUT is a file, a directory (searched recursively for .cls .clsf .cl .apt .nc .ngc .gcode
@@ -186,7 +189,7 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
                 part=part_path, part_units=part_units, part_up=up, source=source_name,
                 tcp_on=_codes_option(tcp_on, "--tcp-on"), tcp_off=_codes_option(tcp_off, "--tcp-off"),
                 line_numbers=line_numbers, line_start=line_start, line_step=line_step,
-                collision_check=collision_check, clearance_min=clearance_min, tool_diameter=tool_diameter)
+                collision_check=collision_check, clearance_min=clearance_min, tool_diameter=tool_diameter, clamp=clamp)
         except FieldError as error:
             raise option_error(error) from error
         dialect = settings.dialect

@@ -235,6 +235,14 @@ line_number_options = (
     click.option("--line-start", type=Integer(0, 99999), default=None, help="First block number."),
     click.option("--line-step", type=Integer(1, 1000), default=None, help="Block number increment."),
 )
+#: The main job's and convert's: what the machine's [dynamics] do to a feed too fast for an axis.
+clamp_option = click.option(
+    "--clamp/--no-clamp", default=SETTING_FIELDS["clamp"].default, show_default=True,
+    help="Lower G1 feeds that would drive an axis over its top speed (the machine's [dynamics]); "
+         "--no-clamp refuses such a feed, naming its line.",
+)
+
+
 tolerance_option = click.option(
     "--tolerance", type=Decimal(LENGTH), default=DEFAULT_TOLERANCE, show_default=True,
     help="Chordal tolerance of arcs (and of moves that turn the tool axis), mm (0.0001 to 1).",

@@ -27,6 +27,7 @@ from prs3_post.cli.options import (
     Integer,
     Numbers,
     OutputPath,
+    clamp_option,
     demo_part,
     dialect_option,
     image_format,
@@ -147,9 +148,7 @@ def job_options(func: Callable[..., Any]) -> Callable[..., Any]:
         dialect_option,
         *line_number_options,
         tolerance_option,
-        click.option("--clamp/--no-clamp", default=_SET["clamp"], show_default=True,
-                     help="Lower G1 feeds that would drive an axis over its top speed (the machine's [dynamics]); "
-                          "--no-clamp refuses such a feed, naming its line."),
+        clamp_option,
         collision_check_option,
         click.option("--clearance-min", type=CLEARANCE_MIN, default=_SET["clearance_min"], show_default=True,
                      help="Least distance the tool, holder and spindle nose keep from the part, mm."),

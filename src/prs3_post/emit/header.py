@@ -229,6 +229,8 @@ class SourceHeader(_HeaderLines):
         (tool length: 175.000 mm, the machine's)      or "as given"
         (tolerance: 0.002 mm, angle 0.01 deg)
         (counts: 82 records, 33 moves, 2 arcs to 70 rows, ..., skipped PAINT 36)   see SourceCounts
+        (dynamics: cycle time 0.412 min = 24.7 s, 3 moves slowed to ...)   as the main job's
+        (collision: not checked [no part given])
         (units: mm, G93 inverse time: F = 1/minutes of each move)
 
     Attributes
@@ -249,6 +251,8 @@ class SourceHeader(_HeaderLines):
     tcp_on, tcp_off : tuple of str — the codes that switched its TCP on and off
     counts : SourceCounts | None — what the input held and the program has (None: a program written
         before the header had them, or a header not yet complete)
+    dynamics : str — the ``dynamics`` entry convert writes, as the main job's: the cycle time and the feeds
+        slowed to the axis speed limits (:func:`prs3_post.post.dynamics.streamed_entry`; read back as written)
     collision : str — the ``collision`` entry convert writes (read back as written, its parentheses as the
         dialect left them)
     rapids_tool_diameter : float — mm, read back: the tool diameter the ``collision`` entry says the
@@ -280,5 +284,6 @@ class SourceHeader(_HeaderLines):
     tcp_on: tuple[str, ...] = ()
     tcp_off: tuple[str, ...] = ()
     counts: SourceCounts | None = None
+    dynamics: str = ""
     collision: str = ""
     rapids_tool_diameter: float = 0.0

@@ -57,7 +57,7 @@ _VECTOR = rf"\[\s*{_NUMBER}(?:\s*,\s*{_NUMBER})*\s*\]"
 _ENTRY = re.compile(r"^\s*([a-z][a-z0-9 ]*?)\s*:\s?(.*?)\s*$", re.IGNORECASE)
 _KEYS = ("program", "machine", "machine file", "dialect", "dialect file", "part", "face", "setup", "operation",
          "parameters", "tool", "tools", "operations", "tolerance", "units", "source", "ignore", "work plane",
-         "tool length", "five axis", "counts", "collision")
+         "tool length", "five axis", "counts", "dynamics", "collision")
 _REQUIRED = ("program", "machine", "dialect", "part", "face", "setup", "operation", "parameters", "tool", "tolerance",
              "units")
 #: The keys of a job of several operations (and ``operation K ...`` for each).
@@ -391,7 +391,13 @@ _FIVE_AXIS = r"(.+), tcp on ([GM][0-9.]+(?:,[GM][0-9.]+)*), off ([GM][0-9.]+(?:,
 _COUNTS = (r"(\d+) records, (\d+) moves, (\d+) arcs to (\d+) rows, (\d+) cycle holes to (\d+) rows, "
            r"(\d+) comments, (\d+) program moves, (\d+) subdivisions, skipped (.+)")
 _SKIPPED = re.compile(r"(.*\S) (\d+)")
+#: The ``dynamics`` entry (:func:`prs3_post.post.dynamics.dynamics_entry`): the cycle time and the feeds slowed,
+#: or the machine has no dynamics.
+_DYNAMICS = (rf"cycle time {_NUMBER} min = {_NUMBER} s, (?:no feed slowed by the axis speed limits|[1-9][0-9]* "
+             r"moves? slowed to the axis speed limits, worst .+)|none in the machine file: .+")
 _FORMS |= {
+    _DYNAMICS: "'cycle time M min = S s, no feed slowed by the axis speed limits|N moves slowed to the axis "
+               "speed limits, worst R x at LINE [AXIS]', or 'none in the machine file: ...'",
     _COUNTS: "'N records, N moves, N arcs to N rows, N cycle holes to N rows, N comments, N program moves, "
              "N subdivisions, skipped none|WORD N[, WORD N]...'",
     _FIVE_AXIS: "'SOURCE, tcp on CODES, off CODES'",
@@ -477,6 +483,10 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
         if "counts" in found:
             key = "counts"
             counts = read_counts(found["counts"][1])
+        dynamics = ""
+        if "dynamics" in found:
+            key = "dynamics"
+            dynamics = _match(_DYNAMICS, found["dynamics"][1]).group(0)
         key = "tolerance"
         tolerances = _match(_SOURCE_TOLERANCE, found["tolerance"][1])
         tolerance, angle = float(tolerances.group(1)), float(tolerances.group(2))
@@ -496,7 +506,7 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
         tool_length_given=length.group(2).lower() == "as given", tolerance=tolerance, angle_tolerance_deg=angle,
         line_numbers=numbers, line_start=start, line_step=step, lines=tuple((k, v[0]) for k, v in found.items()),
         path=path, five_axis=five_axis, tcp_on=tcp_on, tcp_off=tcp_off, counts=counts,
-        collision=found["collision"][1] if "collision" in found else "",
+        dynamics=dynamics, collision=found["collision"][1] if "collision" in found else "",
         rapids_tool_diameter=_rapids_tool_diameter(found["collision"][1]) if "collision" in found else 0.0,
     )
 

@@ -175,6 +175,7 @@ def source_header_entries(header: SourceHeader, *, description: str = "") -> tup
                         f"{'as given' if header.tool_length_given else 'the machine' + chr(39) + 's'}"),
         ("tolerance", f"{exact_text(header.tolerance, 3)} mm, angle {exact_text(header.angle_tolerance_deg, 2)} deg"),
         *([] if header.counts is None else [("counts", header.counts.text())]),
+        *([("dynamics", header.dynamics)] if header.dynamics else []),
         *([("collision", header.collision)] if header.collision else []),
         ("units", "mm, G93 inverse time: F = 1/minutes of each move"),
     ]

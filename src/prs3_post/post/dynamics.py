@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from prs3_post.core.errors import LimitError
-from prs3_post.core.toolpath import EventKind, JointProgram, MoveKind
+from prs3_post.core.toolpath import EventKind, JointProgram, MoveKind, describe_source
 from prs3_post.core.types import BoolArray, FloatArray
 from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.model import Dynamics, Machine
@@ -33,6 +33,7 @@ __all__ = [
     "NO_DYNAMICS",
     "DynamicsTally",
     "FeedClamp",
+    "FeedSpeedError",
     "axis_names",
     "axis_speed_ratio",
     "clamp_feeds",
@@ -42,6 +43,8 @@ __all__ = [
     "move_times",
     "program_time",
     "speed_excess",
+    "streamed_entry",
+    "timed_entry",
     "trapezoid_time",
 ]
 
@@ -232,13 +235,18 @@ def speed_excess(dynamics: Dynamics, program: JointProgram, *, names: tuple[str,
     return ratio, axis, messages
 
 
+class FeedSpeedError(LimitError):
+    """A feed too fast for an axis, refused (``clamp=False``): the feed is the problem, not the setup."""
+
+
 class DynamicsTally:
     """Feed clamping of a program made in chunks (held by the pipeline's stream).
 
     ``feed(...)`` clamps one chunk's F words; the tally carries the last joint position from chunk
     to chunk. (The cycle time is :func:`program_time` of the finished program: the header needs it
-    once, not per chunk.) With ``clamp=False`` a needed clamp is a LimitError naming the
-    row. A machine without dynamics: F words pass unchanged and nothing is counted.
+    once, not per chunk; a program streamed without being kept, ``timed=True``, has its chunks' times
+    added up here instead, with the same :func:`move_times`.) With ``clamp=False`` a needed clamp is a
+    LimitError naming the row. A machine without dynamics: F words pass unchanged and nothing is counted.
 
     Attributes
     ----------
@@ -246,9 +254,12 @@ class DynamicsTally:
     worst_ratio : float — the largest requested / clamped feed (1: none slowed)
     worst_where : str — the line or step of that move ('' when none)
     worst_axis : str — the axis that limits it
+    minutes : float — with ``timed``: the cycle time of the chunks so far (their moves and dwells)
+    file_name : str | None — how :attr:`worst_where` names a CAM file's line (``part.cls:12``; a header names
+        the file, not its folder); None: as the program names it
     """
 
-    def __init__(self, machine: Machine, *, clamp: bool = True):
+    def __init__(self, machine: Machine, *, clamp: bool = True, timed: bool = False):
         self.dynamics = machine.dynamics
         self.names = axis_names(machine)
         self.clamp = clamp
@@ -256,6 +267,9 @@ class DynamicsTally:
         self.worst_ratio = 1.0
         self.worst_where = ""
         self.worst_axis = ""
+        self.timed = timed
+        self.minutes = 0.0
+        self.file_name: str | None = None
         self._last: FloatArray | None = None
 
     def feed(self, program: JointProgram, joints: FloatArray | None = None) -> FloatArray:
@@ -270,11 +284,14 @@ class DynamicsTally:
             top speed 5000.0 mm/min (slow the feed or allow clamping)``.
         """
         if self.dynamics is None or not len(program):
+            if self.dynamics is not None:                   # a chunk of events alone: its dwells
+                self._time(program, np.zeros((0, 2)), program.inverse_time)
             return program.inverse_time
         joints = joint_columns(program.stage, program.strokes) if joints is None else joints
         deltas = joint_deltas(joints, self._last)
         if not _any_over(self.dynamics, program.kind, deltas, program.inverse_time):
             self._last = joints[-1].copy()              # no move too fast (the common case): nothing to clamp
+            self._time(program, deltas, program.inverse_time)
             return program.inverse_time
         result = clamp_feeds(self.dynamics, program.kind, deltas, program.inverse_time)
         over = np.flatnonzero(result.clamped)
@@ -284,16 +301,31 @@ class DynamicsTally:
                 first = int(over[0])
                 axis = int(result.axis[first])
                 top = self.dynamics.speeds(deltas.shape[1] - 2)[axis]
-                raise LimitError(f"{program.describe(first)}: the feed needs {self.names[axis]} at "
+                raise FeedSpeedError(f"{program.describe(first)}: the feed needs {self.names[axis]} at "
                                  f"{result.ratio[first] * top:.1f} mm/min, {result.ratio[first]:.2f} x its top "
                                  f"speed {top:.1f} mm/min (slow the feed, or let it be clamped)")
             self.clamped += len(over)
             if result.ratio[row] > self.worst_ratio:
                 self.worst_ratio = float(result.ratio[row])
-                self.worst_where = program.describe(row)
+                self.worst_where = describe_source(program.source, program.source_labels, row,
+                                                   program.source_file if self.file_name is None else self.file_name)
                 self.worst_axis = self.names[int(result.axis[row])]
         self._last = joints[-1].copy()
-        return result.inverse_time if len(over) else program.inverse_time
+        feeds = result.inverse_time if len(over) else program.inverse_time
+        self._time(program, deltas, feeds)
+        return feeds
+
+    def _time(self, program: JointProgram, deltas: FloatArray, inverse_time: FloatArray) -> None:
+        """With ``timed``: add the chunk's moves (at the feeds emitted) and dwells to :attr:`minutes`,
+        as :func:`program_time` counts them."""
+        if not self.timed:
+            return
+        assert self.dynamics is not None
+        for lo in range(0, len(program), TIME_ROWS):        # scratch memory: as program_time
+            hi = min(len(program), lo + TIME_ROWS)
+            self.minutes += float(move_times(self.dynamics, program.kind[lo:hi], deltas[lo:hi],
+                                             inverse_time[lo:hi]).sum())
+        self.minutes += sum(e.value for e in program.events if e.kind is EventKind.DWELL) / 60.0
 
 #: The header's ``dynamics`` entry for a machine file without ``[dynamics]``.
 NO_DYNAMICS = "none in the machine file: feeds not checked against axis speeds, no cycle time"
@@ -315,8 +347,22 @@ def dynamics_entry(machine: Machine, program: JointProgram, tallies: list[Dynami
     ``program`` (:func:`program_time`) and the feeds the pieces' ``tallies`` slowed."""
     if machine.dynamics is None:
         return NO_DYNAMICS
-    time = program_time(machine.dynamics, program)
-    return f"cycle time {format_minutes(time)}, {_clamp_text([t for t in tallies if t is not None])}"
+    return timed_entry(program_time(machine.dynamics, program), [t for t in tallies if t is not None])
+
+
+def streamed_entry(tally: DynamicsTally) -> str:
+    """The header's ``dynamics`` entry of a program streamed through one ``timed`` tally (its
+    :attr:`~DynamicsTally.minutes`): as :func:`dynamics_entry` words it."""
+    if tally.dynamics is None:
+        return NO_DYNAMICS
+    if not tally.timed:
+        raise ValueError("streamed_entry: the tally did not add up the cycle time (timed=False)")
+    return timed_entry(tally.minutes, [tally])
+
+
+def timed_entry(minutes: float, tallies: list[DynamicsTally]) -> str:
+    """``cycle time 1.234 min = 74.0 s, no feed slowed ...``: the entry of a machine with dynamics."""
+    return f"cycle time {format_minutes(minutes)}, {_clamp_text(tallies)}"
 
 
 def format_minutes(minutes: float) -> str:

@@ -167,11 +167,12 @@ class PostStream:
     placed : bool — the chunks come placed already: in the machine frame with unit axes, as
         :func:`place_toolpath` through ``setup`` and :func:`~prs3_post.kinematics.unit_axes` make
         them (a caller that checked the axes by input line on the way; False: part frame)
+    timed : bool — add up the cycle time of the rows fed (``dynamics.minutes``, for a program not kept whole)
     """
 
     def __init__(self, machine: Machine, setup: Setup, *, tolerance: float = DEFAULT_TOLERANCE,
                  angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, length_decimals: int | None = None,
-                 clamp: bool = True, placed: bool = False):
+                 clamp: bool = True, placed: bool = False, timed: bool = False):
         self.machine, self.setup, self.placed = machine, setup, placed
         self.tolerance, self.angle_tolerance = tolerance, angle_tolerance
         self.model = model_for(machine)
@@ -181,7 +182,7 @@ class PostStream:
         self._input_rows = self._inserted = self._dropped = self._program_rows = 0
         self._worst = np.zeros(4)                     # tip, angle before; tip, angle after
         self._failed = False
-        self.dynamics = DynamicsTally(machine, clamp=clamp)   # feeds clamped to the axis speeds
+        self.dynamics = DynamicsTally(machine, clamp=clamp, timed=timed)   # feeds clamped to the axis speeds
         self._axes = AxisMemo(machine.geometry)       # the IK's terms of each work plane's axis, made once
 
     def feed(self, chunk: Toolpath) -> PostResult:
