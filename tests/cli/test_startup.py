@@ -90,7 +90,7 @@ def test_verify_loads_no_heavy_library(tmp_path):
 
 
 #: What a conversion needs only with a part (--part: the collision check), an automatic placement,
-#: a 5-axis source, or several files at once (--jobs: a process pool).
+#: a 5-axis source, or several files at once (--jobs: worker processes).
 CONVERT_EXTRAS = ("prs3_post.check.placement", "prs3_post.check.collision", "prs3_post.readers.fivex.reader",
                   "prs3_post.machine.cam_conventions", "prs3_post.app.job", "multiprocessing",
                   "concurrent.futures.process")

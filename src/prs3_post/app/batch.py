@@ -12,18 +12,14 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from prs3_post.app.convert import ConvertReport, ConvertSettings, write_conversion
+from prs3_post.app.workers import Died, run_tasks
 from prs3_post.core.errors import InputError, Prs3Error
-from prs3_post.core.output_files import refuse_overwriting
+from prs3_post.core.output_files import refuse_overwriting, remove_temp_files
 from prs3_post.kinematics.prs3.blocks import THREADS_VARIABLE
 from prs3_post.machine.loading import Dialect
 from prs3_post.readers.registry import suffixes
-
-if TYPE_CHECKING:  # imported where used: one file converted in this process needs neither (test_startup)
-    import multiprocessing.process
-    from concurrent.futures import Future
 
 
 @dataclass(frozen=True, slots=True)
@@ -36,7 +32,8 @@ class FileOutcome:
     output : str — the program's path (written only when ``ok``)
     ok : bool
     error : str — ``path:line: reason`` (empty when ok)
-    exit_code : int — the error's (0 when ok): 2 unreadable input or output, 1 limit or reach
+    exit_code : int — the error's (0 when ok): 2 unreadable input or output, 1 limit or reach, or its
+        worker died (killed, out of memory: ``a worker died while converting FILE (signal 9)``)
     report : ConvertReport | None — None when it failed
     seconds : float — wall time of this file
     exists : bool — it failed because its program exists already (kept: see ``force``)
@@ -236,6 +233,8 @@ def convert_batch(inputs: Sequence[str], outdir: str, settings: ConvertSettings,
     both fail (neither is written: which one wins would depend on timing). An input that would be
     overwritten by its own output fails. With ``fail_fast`` the first failure stops the batch: files
     not started are listed in ``not_started``; files under way finish (each is whole or absent).
+    The workers end with this process however it ends, writing nothing more; one that dies fails
+    only the file it was converting (:mod:`prs3_post.app.workers`).
 
     Parameters
     ----------
@@ -299,64 +298,34 @@ def default_jobs() -> int:
     return _cores()
 
 
-#: Seconds the workers get to stop by themselves after Ctrl-C before they are sent SIGTERM.
-_STOP_GRACE = 2.0
-
-
-def _stop_workers(processes: list[multiprocessing.process.BaseProcess]) -> None:
-    """After Ctrl-C: a terminal sends SIGINT to every worker too, and each interrupted write removes its
-    temp file; a second signal during that cleanup could cut it short, so SIGTERM goes only to the
-    workers still running after :data:`_STOP_GRACE` (those the signal did not reach)."""
-    deadline = time.monotonic() + _STOP_GRACE
-    for process in processes:
-        process.join(max(0.0, deadline - time.monotonic()))
-    for process in processes:
-        if process.is_alive():
-            process.terminate()                         # SIGTERM: write_atomic removes its temp file
-            process.join()
-
-
 def _run_parallel(inputs: Sequence[str], outputs: list[str], todo: list[int], settings: ConvertSettings, jobs: int,
                   fail_fast: bool, force: bool, results: dict[int, FileOutcome],
                   on_done: Callable[[FileOutcome], None] | None) -> list[int]:
-    """Run ``todo`` in a process pool, at most ``jobs`` files at a time; the indices not started."""
+    """Run ``todo`` in worker processes (:mod:`prs3_post.app.workers`), at most ``jobs`` files at a time;
+    the indices not started. A worker that dies fails only the file it was converting."""
     threads = max(1, _cores() // jobs)
-    pending = list(todo)
-    running: dict[Future[FileOutcome], int] = {}
-    import multiprocessing
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    since = time.time()
 
-    context = multiprocessing.get_context("fork")
-    jobs = min(jobs, len(todo))
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init,
-                             initargs=(threads,)) as pool:
-        try:
-            stop = False
-            while pending or running:
-                while pending and len(running) < jobs and not stop:
-                    index = pending.pop(0)
-                    running[pool.submit(convert_one, inputs[index], outputs[index], settings, force=force)] = index
-                if not running:
-                    break
-                done, _ = wait(running, return_when=FIRST_COMPLETED)
-                for future in done:
-                    index = running.pop(future)
-                    outcome = future.result()
-                    results[index] = outcome
-                    if on_done is not None:
-                        on_done(outcome)
-                    if fail_fast and not outcome.ok:
-                        stop = True
-                if stop and not running:
-                    break
-        except BaseException:                           # Ctrl-C, SIGTERM: stop the workers, whose writes clean up
-            for future in running:
-                future.cancel()
-            workers = list(getattr(pool, "_processes", {}).values())         # no public way to reach them
-            pool.shutdown(wait=False, cancel_futures=True)                  # idle workers exit
-            _stop_workers(workers)
-            raise
-    return pending
+    def work(index: int) -> FileOutcome:
+        return convert_one(inputs[index], outputs[index], settings, force=force)
+
+    def done(index: int, result: FileOutcome | Died) -> bool:
+        outcome = result if isinstance(result, FileOutcome) else _died(inputs[index], outputs[index], result, since)
+        results[index] = outcome
+        if on_done is not None:
+            on_done(outcome)
+        return fail_fast and not outcome.ok
+
+    return run_tasks(work, todo, jobs, setup=lambda: _worker_init(threads), done=done)
+
+
+def _died(input_path: str, output: str, death: Died, since: float) -> FileOutcome:
+    """The failure of a file whose worker died (killed, out of memory): its program was not written,
+    and the temp file it left (no cleanup runs in a killed process) is removed: one made since the
+    batch started (``since``, :func:`time.time`) is this batch's, whose outputs are all different."""
+    remove_temp_files(output, since - 1.0)              # a file's time may lag the clock by a tick
+    return FileOutcome(input=input_path, output=output, ok=False, exit_code=1,
+                       error=f"a worker died while converting {input_path} ({death.reason})")
 
 
 def outcome_line(outcome: FileOutcome) -> str:

@@ -9,6 +9,8 @@
 - SIGTERM, SIGINT and SIGHUP during a write remove the temp files, then act as they would have.
 - Several outputs (a program and its preview) are written together, both or neither: every temp
   file is written first, then all are renamed (a rename that still fails undoes the ones before it).
+- A process may guard its renames (:func:`guard_commits`): a batch's worker renames nothing once the
+  command that started it has ended.
 - Standard output that cannot be written (``> /dev/full``, a closed pipe, closed with ``>&-``) is an
   :class:`InputError`.
 
@@ -24,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import glob
 import os
 import signal
 import stat
@@ -63,6 +66,7 @@ _STREAM_ERRNOS = {errno.ENOSPC, errno.EPIPE, errno.EIO, errno.EDQUOT, errno.EFBI
 _TEMP_NAME_MAX = 60  # characters of the target's name kept in its temp file's name
 _CLOSED_STDOUT = "it is closed (redirect it to a file or to /dev/null)"
 _stdout_was_closed = False  # set once by guard_closed_stdout, for the process
+_commit_guard: Callable[[], None] | None = None  # set by guard_commits, for the process
 
 
 def guard_closed_stdout() -> None:
@@ -87,6 +91,30 @@ def guard_closed_stdout() -> None:
         os.close(fd)
     sys.stdout = open(1, "w", encoding="utf-8", closefd=False)  # standard output, for the process
     _stdout_was_closed = True
+
+
+def guard_commits(check: Callable[[], None] | None) -> None:
+    """Call ``check()`` before this process renames any temp file into place, with SIGTERM, SIGINT
+    and SIGHUP held back until the renames are done: when it raises, nothing is renamed, every temp
+    file is removed and its exception propagates. None: no check (the default).
+
+    A batch's worker process checks that the command that started it is still running, so that a
+    program finished after the command has ended (killed) is not written: a signal that comes after
+    the check waits for the renames, and one before it finds the command gone.
+    """
+    global _commit_guard
+    _commit_guard = check
+
+
+def remove_temp_files(path: str, since: float) -> None:
+    """Remove the temp files of ``path`` (``.NAME.*.tmp`` beside it) changed at or after ``since``
+    (:func:`time.time`): what a writer killed by SIGKILL leaves (no cleanup ran in it)."""
+    target = Path(os.path.realpath(path))
+    with contextlib.suppress(OSError):
+        for tmp in target.parent.glob(f"{glob.escape(_temp_prefix(target))}*.tmp"):
+            with contextlib.suppress(OSError):
+                if tmp.lstat().st_mtime >= since:
+                    tmp.unlink()
 
 
 def is_stdout(path: str | None) -> bool:
@@ -148,7 +176,7 @@ def write_outputs(items: Sequence[tuple[str | None, Output]]) -> None:
             for path, data in items:
                 if is_stdout(path):
                     write_stdout(data)
-            _commit([s for s in staged if s.tmp is not None])
+            _guarded_commit([s for s in staged if s.tmp is not None])
         finally:
             for stage in staged:
                 if stage.tmp is not None:
@@ -248,9 +276,8 @@ def _stage(path: str, data: Output) -> _Staged:
             except OSError as exc:
                 raise InputError(f"cannot write the output: {exc.strerror}", path=path) from exc
         return _Staged(path, target, data, None, existed=True)
-    prefix = f".{target.name[:_TEMP_NAME_MAX]}."
     try:
-        fd, name = tempfile.mkstemp(prefix=prefix, suffix=".tmp", dir=target.parent)
+        fd, name = tempfile.mkstemp(prefix=_temp_prefix(target), suffix=".tmp", dir=target.parent)
     except OSError as exc:
         raise InputError(f"cannot write the output here: {exc.strerror}", path=path) from exc
     stage = _Staged(path, target, None, Path(name), existed=mode is not None)
@@ -276,6 +303,24 @@ def _write_direct(stage: _Staged) -> None:
             _write_chunks(stream, stage.data or b"")
     except OSError as exc:
         raise InputError(f"cannot write the output: {exc.strerror}", path=stage.path) from exc
+
+
+def _temp_prefix(target: Path) -> str:
+    return f".{target.name[:_TEMP_NAME_MAX]}."
+
+
+def _guarded_commit(staged: Sequence[_Staged]) -> None:
+    """:func:`_commit`, after the process's :func:`guard_commits` check if it has one."""
+    check = _commit_guard
+    if check is None:
+        _commit(staged)
+        return
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)
+    try:
+        check()
+        _commit(staged)
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
 
 
 def _commit(staged: Sequence[_Staged]) -> None:
