@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from prs3_post.core.numbers import ChoiceColumn, Column, render_rows, scale_column
+from prs3_post.core.numbers import REPORT_DECIMALS, ChoiceColumn, Column, render_rows, scale_column
 from prs3_post.core.numbers import fixed_or_na as fixed
 from prs3_post.core.types import FloatArray
 from prs3_post.kinematics import FKResult, IKResult
@@ -110,7 +110,7 @@ def ik_csv_rows(tip: FloatArray, axis: FloatArray, ik: IKResult, report: LimitRe
 
 def ik_text(record: dict[str, Any]) -> str:
     """A short human-readable report of one IK record."""
-    def show(key: str, decimals: int = 4) -> str:
+    def show(key: str, decimals: int = REPORT_DECIMALS) -> str:
         return fixed(record[key], decimals)
 
     keys = list(record)

@@ -59,6 +59,7 @@ import numpy as np
 from prs3_post.check import collision_scan
 from prs3_post.check.collision_bodies import BODY_NAMES, Region, body_cylinders, swept_region
 from prs3_post.check.collision_distance import (
+    MEASURE_BLOCK,
     REACH_MM,
     Clearance,
     ClearancePoses,
@@ -379,7 +380,7 @@ class _Stream:
         poses = ClearancePoses(self.part, self.face, self.region, self.cylinders, self.clearance_min)
         self.minima(poses, poses.add(tip[ok], axis[ok], row[ok], starts=np.zeros(int(ok.sum()), dtype=bool)))
 
-    def minima(self, poses: ClearancePoses, samples: IntArray, block: int = 64) -> None:
+    def minima(self, poses: ClearancePoses, samples: IntArray, block: int = MEASURE_BLOCK) -> None:
         """Lower ``best`` by the ``samples`` of ``poses`` (not the midpoints the motion check added):
         measure, body by body, in order of the bound (module docstring of :class:`_Stream`)."""
         half = 0.5 * RESOLUTION_MM

@@ -22,8 +22,9 @@ from prs3_post.part.meshdist import (
 )
 from prs3_post.part.meshindex import TriangleIndex
 
-__all__ = ["AFTER_HIT", "LEVELS", "PIECE_MM", "REACH_MM", "SWEEP_SLACK_MM", "Clearance", "ClearancePoses", "Part",
-           "Spread", "body_pieces", "check_between", "clearance", "cylinder_penetration", "pose_bounds"]
+__all__ = ["AFTER_HIT", "LEVELS", "MEASURE_BLOCK", "PIECE_MM", "REACH_MM", "SWEEP_SLACK_MM", "Clearance",
+           "ClearancePoses", "Part", "Spread", "body_pieces", "check_between", "clearance", "cylinder_penetration",
+           "pose_bounds"]
 
 #: mm, the longest piece a body is cut into for the bounds (or its radius, if longer).
 PIECE_MM = 10.0
@@ -34,7 +35,9 @@ REACH_MM = 10.0
 #: mm: the motion between two poses may come this much closer than ``clearance_min`` unseen (the
 #: halving stops there).
 SWEEP_SLACK_MM = 0.05
-#: Blocks of 64 poses measured, closest bound first, once a body is found too close (the depth
+#: Poses measured on their surface points at a time (memory: points × poses × triangles per pass).
+MEASURE_BLOCK = 64
+#: Blocks of :data:`MEASURE_BLOCK` poses measured, closest bound first, once a body is found too close (the depth
 #: reported is the deepest of those: the lowest bounds are where it is).
 AFTER_HIT = 4
 #: mm: minima this close are the same (the report's rounding); the earliest pose is named.
@@ -520,7 +523,7 @@ class ClearancePoses:
             dist = np.where((world - self.face.origin) @ self.face.normal < part.band, np.inf, dist)
         return dist
 
-    def measure(self, rows: IntArray, b: int, block: int = 64, *, reach: float | None = None) -> None:
+    def measure(self, rows: IntArray, b: int, block: int = MEASURE_BLOCK, *, reach: float | None = None) -> None:
         """Measure body ``b`` at poses ``rows`` on its surface points, against the triangles near it (as
         far as :attr:`near`: a body farther is at least that far), or with ``reach`` against every
         triangle as far as that."""
@@ -577,7 +580,7 @@ class ClearancePoses:
 
 
 def clearance(triangles: FloatArray, tip: FloatArray, axis: FloatArray, cylinders: FloatArray, face: Face | None,
-              feed_tips: FloatArray, *, clearance_min: float, block: int = 64, refine_max: int = 0,
+              feed_tips: FloatArray, *, clearance_min: float, block: int = MEASURE_BLOCK, refine_max: int = 0,
               connected: BoolArray | None = None, near: float | None = None) -> Clearance:
     """The clearance of the bodies from the part at every pose (part frame), and between connected ones.
 

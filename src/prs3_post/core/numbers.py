@@ -30,21 +30,24 @@ import numpy as np
 from prs3_post.core.columns import ChoiceColumn, Column, ScaledColumn
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 
-__all__ = ["ChoiceColumn", "Column", "ScaledColumn", "degrees_text", "exact_list", "exact_text", "fixed",
-           "fixed_column", "fixed_list", "fixed_or_na", "format_word", "render_rows", "scale_column", "short_text",
-           "short_tuple"]
+__all__ = ["REPORT_DECIMALS", "ChoiceColumn", "Column", "ScaledColumn", "degrees_text", "exact_list", "exact_text",
+           "fixed", "fixed_column", "fixed_list", "fixed_or_na", "format_word", "render_rows", "scale_column",
+           "short_text", "short_tuple"]
+
+#: Decimals a report or message shows of a number unless told otherwise (mm: 0.1 µm).
+REPORT_DECIMALS = 4
 
 #: |value·10^d| below this is written from exact integers; at or above it (and nan/inf) one by one.
 _EXACT_LIMIT = 2.0**52
 
 
-def fixed(value: float, decimals: int = 4) -> str:
+def fixed(value: float, decimals: int = REPORT_DECIMALS) -> str:
     """``value`` with ``decimals`` digits after the point; never exponent notation, never ``-0.000``.
 
     Parameters
     ----------
     value : float — any float (nan and inf give ``nan``, ``inf``, ``-inf``)
-    decimals : int — ≥ 0 (0: no decimal point), 4 unless given
+    decimals : int — ≥ 0 (0: no decimal point), :data:`REPORT_DECIMALS` unless given
 
     Examples
     --------
@@ -95,7 +98,7 @@ def scale_column(values: FloatArray, decimals: int) -> ScaledColumn:
                         odd_text=tuple(fixed(v, decimals) for v in values[odd].tolist()))
 
 
-def fixed_or_na(value: float | None, decimals: int = 4) -> str:
+def fixed_or_na(value: float | None, decimals: int = REPORT_DECIMALS) -> str:
     """:func:`fixed`, and ``n/a`` for a missing value (NaN in a record; the reports of ik, fk and verify).
 
     >>> fixed_or_na(-0.00001), fixed_or_na(1.23456, 2), fixed_or_na(None)

@@ -19,6 +19,8 @@ POSE_COLUMNS = ("tip_x", "tip_y", "tip_z", "axis_x", "axis_y", "axis_z")
 #: The magnitude each column may have, and its unit: what ``ik --tip``/``--axis`` allow (a kilometre;
 #: direction components, normalized later). Beyond, and NaN or infinity, a value is an input error.
 POSE_LIMITS = ((1e6, "mm"),) * 3 + ((1e6, ""),) * 3
+#: Lines of a pose table read at a time (a chunk of rows: a few MB).
+CHUNK_LINES = 65536
 
 
 @dataclass(frozen=True, slots=True)
@@ -55,7 +57,7 @@ def read_poses(path: str) -> PoseTable:
                      line=np.concatenate([c.line for c in chunks]))
 
 
-def iter_poses(path: str, *, chunk_lines: int = 65536) -> Iterator[PoseTable]:
+def iter_poses(path: str, *, chunk_lines: int = CHUNK_LINES) -> Iterator[PoseTable]:
     """The poses of a CSV (as :func:`read_poses` reads it), ``chunk_lines`` lines of the file at a
     time, so that a table of any length is read in bounded memory.
 

@@ -28,7 +28,7 @@ import numpy as np
 from prs3_post.core.errors import InputError
 from prs3_post.core.input_files import open_input
 from prs3_post.core.types import FloatArray
-from prs3_post.readers.poses import POSE_COLUMNS, PoseTable, check_header, check_range, iter_poses
+from prs3_post.readers.poses import CHUNK_LINES, POSE_COLUMNS, PoseTable, check_header, check_range, iter_poses
 
 #: Bytes: the smallest table read by pyarrow (about 33,000 poses of 17 digits); below, numpy's reader.
 BULK_BYTES = 4_000_000
@@ -55,7 +55,7 @@ def _line_ends_plain(stream: BinaryIO) -> bool:
     return not cr_before
 
 
-def iter_poses_bulk(path: str, *, chunk_lines: int = 65536, min_bytes: int = BULK_BYTES) -> Iterator[PoseTable]:
+def iter_poses_bulk(path: str, *, chunk_lines: int = CHUNK_LINES, min_bytes: int = BULK_BYTES) -> Iterator[PoseTable]:
     """The poses of a CSV, as :func:`~prs3_post.readers.poses.iter_poses` yields them (same tables,
     same line numbers, same chunks, same errors), read by pyarrow when the file has at least
     ``min_bytes`` and is plain.
