@@ -20,6 +20,7 @@ import tempfile
 
 from _measure import measure
 
+from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE as CIRCLE_TOL
 from prs3_post.readers.cl.reader import ClStream, read_cl
 
 
@@ -54,7 +55,7 @@ def baseline(path: str) -> None:
 
 
 def streamed(path: str) -> None:
-    for _ in ClStream(path, tolerance=0.002):
+    for _ in ClStream(path, tolerance=0.002, circle_tolerance=CIRCLE_TOL):
         pass
 
 
@@ -70,7 +71,8 @@ def main() -> None:
         print(f"{args.lines:,} lines, {moves:,} GOTOs, {size / 1e6:.1f} MB")
         results = {
             "baseline (split + float)": measure(lambda: baseline(path), args.repeat),
-            "read_cl (whole)": measure(lambda: read_cl(path, tolerance=0.002), args.repeat),
+            "read_cl (whole)": measure(lambda: read_cl(path, tolerance=0.002,
+                                                       circle_tolerance=CIRCLE_TOL), args.repeat),
             "ClStream (chunks dropped)": measure(lambda: streamed(path), args.repeat),
         }
         base = results["baseline (split + float)"][1]

@@ -24,6 +24,7 @@ import tempfile
 
 from _measure import load, pygcode_rate, spread, timed, traced_peak
 
+from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE as CIRCLE_TOL
 from prs3_post.readers.gcode.reader import GcodeStream, read_gcode
 
 
@@ -49,7 +50,7 @@ def write_program(path: str, lines: int, seed: int = 0) -> int:
 
 
 def streamed(path: str) -> None:
-    for _ in GcodeStream(path, tolerance=0.002):
+    for _ in GcodeStream(path, tolerance=0.002, circle_tolerance=CIRCLE_TOL):
         pass
 
 
@@ -65,7 +66,7 @@ def main() -> None:
         size = os.path.getsize(path)
         print(f"{args.lines:,} lines, {moves:,} moves, {size / 1e6:.1f} MB; {load()}")
         reference_lines = min(args.pygcode_lines, args.lines)
-        calls = (("read_gcode (whole)", lambda: read_gcode(path, tolerance=0.002)),
+        calls = (("read_gcode (whole)", lambda: read_gcode(path, tolerance=0.002, circle_tolerance=CIRCLE_TOL)),
                  ("GcodeStream (chunks dropped)", lambda: streamed(path)))
         reference: list[tuple[float, float]] = []                       # lines/s wall, per CPU s
         rates: dict[str, list[tuple[float, float]]] = {name: [] for name, _ in calls}

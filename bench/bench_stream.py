@@ -23,6 +23,7 @@ from bench_cl_reader import write_cl
 
 from prs3_post.app.streaming import program_text
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
+from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE as CIRCLE_TOL
 from prs3_post.core.output_files import write_atomic
 from prs3_post.emit.gcode import emit_program
 from prs3_post.machine.loading import load_dialect, load_machine
@@ -36,23 +37,24 @@ SETUP = Setup((0.0, 0.0, -690.0))
 
 
 def read_only(path: str) -> None:
-    for _ in ClStream(path, tolerance=0.002):
+    for _ in ClStream(path, tolerance=0.002, circle_tolerance=CIRCLE_TOL):
         pass
 
 
 def post_only(path: str) -> None:
     stream = PostStream(MACHINE, SETUP, length_decimals=DIALECT.decimals.length)
-    for chunk in ClStream(path, tolerance=0.002):
+    for chunk in ClStream(path, tolerance=0.002, circle_tolerance=CIRCLE_TOL):
         stream.feed(chunk)
 
 
 def streamed(path: str, out: str) -> None:
-    write_atomic(out, program_text(MACHINE, ClStream(path, tolerance=0.002), SETUP, DIALECT,
+    write_atomic(out, program_text(MACHINE, ClStream(path, tolerance=0.002,
+                                                     circle_tolerance=CIRCLE_TOL), SETUP, DIALECT,
                                    tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE))
 
 
 def whole(path: str, out: str) -> None:
-    result = post_process(MACHINE, read_cl(path, tolerance=0.002).toolpath, SETUP,
+    result = post_process(MACHINE, read_cl(path, tolerance=0.002, circle_tolerance=CIRCLE_TOL).toolpath, SETUP,
                           length_decimals=DIALECT.decimals.length,
                           tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     write_atomic(out, emit_program(result.program, DIALECT))

@@ -27,6 +27,7 @@ from numpy.testing import assert_allclose
 from prs3_post.app.batch import collect_inputs, convert_batch
 from prs3_post.app.convert import ConvertSettings, convert_file, write_conversion
 from prs3_post.cli.main import main
+from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE as CIRCLE_TOL
 from prs3_post.core.errors import PoseError
 from prs3_post.emit.header import SourceHeader
 from prs3_post.emit.header_read import read_header
@@ -99,7 +100,8 @@ def test_corpus_file_replays_onto_its_cl_points(name: str) -> None:
     rounding = 2e-4                                   # 4 decimals on 5 joint words through the Jacobian (≤ 7.2)
     assert_allclose(tip, conversion.path.tip, atol=1e-6 + rounding)
     # the CL points (MSYS and setup applied): each read row is a row of the program, in order
-    cl = place_toolpath(read_cl(path, tolerance=settings.tolerance).toolpath, settings.setup)
+    cl = place_toolpath(read_cl(path, tolerance=settings.tolerance,
+                                circle_tolerance=CIRCLE_TOL).toolpath, settings.setup)
     hits = np.array([np.flatnonzero(np.linalg.norm(conversion.path.tip - p, axis=1) < 1e-9)[:1].size
                      for p in cl.tip])
     assert hits.all()

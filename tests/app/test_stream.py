@@ -269,13 +269,14 @@ def test_a_long_step_from_a_dropped_row_is_kept_across_chunks():
 ])
 def test_a_cam_file_streamed_names_its_line_in_a_limit_error(name: str, text: str):
     """CL and 3+2 G-code rows keep their file and line through the stream: the error names line 5."""
+    from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE
     from prs3_post.readers.cl.reader import ClStream
     from prs3_post.readers.gcode.reader import GcodeStream
 
     reader = ClStream if name.endswith(".cls") else GcodeStream
     stream = PostStream(MACHINE, SETUP, length_decimals=4)
     with pytest.raises(LimitError) as caught:
-        for chunk in reader(name, tolerance=0.002, text=text, chunk_lines=1):
+        for chunk in reader(name, tolerance=0.002, text=text, chunk_lines=1, circle_tolerance=DEFAULT_CIRCLE_TOLERANCE):
             stream.feed(chunk)
     assert str(caught.value) == f"{name}:5: T1 stroke -524.4730 mm is below the minimum -100.0000 mm by 424.4730 mm"
 

@@ -12,7 +12,7 @@ from prs3_post.app.read_ahead import read_ahead
 from prs3_post.app.verify import open_program, open_setting, tool_lengths_of, verify_file, verify_loaded
 from prs3_post.app.verify_report import report_record, report_text
 from prs3_post.check.verify import Intended, verify_program
-from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE, NOMINAL_RAPID_RATE
 from prs3_post.machine.loading import load_machine
 from prs3_post.readers.poses import read_poses
 
@@ -47,13 +47,13 @@ def test_text_report_is_the_same_in_chunks_of_1_7_and_10000_lines(name, tmp_path
     context = open_program(str(path))
     whole = verify_loaded(context.program, context.machine, context.setup, context.dialect, tolerance=0.002,
                           tool_lengths=tool_lengths_of(context.header))     # as verify_file takes them
-    expected = report_text(whole, path="p", dialect=context.dialect.name)
+    expected = report_text(whole, path="p", dialect=context.dialect.name, rapid_rate=NOMINAL_RAPID_RATE)
     if name == "edited":
         assert not whole.ok and whole.warnings and "FAIL" in expected        # the case has something to say
     for lines in (1, 7, 10_000):
         streamed = verify_file(setting, tolerance=0.002, chunk_lines=lines)
         assert streamed.replay is None
-        assert report_text(streamed, path="p", dialect=context.dialect.name) == expected
+        assert report_text(streamed, path="p", dialect=context.dialect.name, rapid_rate=NOMINAL_RAPID_RATE) == expected
         for name_ in ("rounding", "straightness", "chord", "implied_feed", "feed_slack", "intervals", "bound"):
             np.testing.assert_array_equal(getattr(streamed, name_), getattr(whole, name_), err_msg=name_)
 
@@ -69,7 +69,8 @@ def test_json_report_is_the_same_in_chunks_of_1_7_and_10000_rows(name, tmp_path)
                                 blending_lines=context.program.blending_lines,
                                 tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE,
                                 length_decimals=4, feed_decimals=4)
-        return json.dumps(report_record(report, path="p", dialect="linuxcnc"), allow_nan=False)
+        return json.dumps(report_record(report, path="p", dialect="linuxcnc", rapid_rate=NOMINAL_RAPID_RATE),
+                          allow_nan=False)
 
     expected = record(1 << 30)
     assert [record(rows) for rows in (1, 7, 10_000)] == [expected] * 3
@@ -86,7 +87,7 @@ def test_against_report_is_the_same_in_chunks():
     records = [json.dumps(report_record(verify_program(machine, context.program.moves, setup=context.setup,
                                                        intended=intended, chunk_rows=rows,
         tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE,
-        length_decimals=4, feed_decimals=4), path="p"))
+        length_decimals=4, feed_decimals=4), path="p", rapid_rate=NOMINAL_RAPID_RATE))
                for rows in (1, 7, 10_000)]
     assert records[0] == records[1] == records[2]
     assert json.loads(records[0])["problems"]                 # the rigid head's axis errors, as before
@@ -136,7 +137,8 @@ def test_json_report_of_a_job_program_is_the_same_in_chunks_of_7_and_65536_rows(
                                 tool_lengths=tool_lengths_of(context.header), length_decimals=decimals.length,
                                 feed_decimals=decimals.inverse_time,
                                 tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE)
-        return json.dumps(report_record(report, path="p", dialect=context.dialect.name), allow_nan=False)
+        return json.dumps(report_record(report, path="p", dialect=context.dialect.name,
+                                        rapid_rate=NOMINAL_RAPID_RATE), allow_nan=False)
 
     if name == "twofaces-job-example.ngc":
         assert len(set(tool_lengths_of(context.header).values())) == 2      # the case has two tool lengths

@@ -14,7 +14,7 @@ from numpy.testing import assert_allclose
 
 from prs3_post.check.verify import row_times, verify_program
 from prs3_post.cli.main import main
-from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE, NOMINAL_RAPID_RATE
 from prs3_post.core.errors import Prs3Error
 from prs3_post.core.toolpath import MoveKind
 from prs3_post.kinematics import forward
@@ -48,7 +48,8 @@ def drawn():
     report = verify_program(MACHINE, program.moves, setup=SETUP,
                             tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE,
                             length_decimals=4, feed_decimals=4)
-    figure = render_preview(report, MACHINE, mesh=mesh.triangles, face_triangles=face.triangles, face_label="face 4")
+    figure = render_preview(report, MACHINE, mesh=mesh.triangles, face_triangles=face.triangles, face_label="face 4",
+                            rapid_rate=NOMINAL_RAPID_RATE)
     return program.moves, report, figure
 
 
@@ -81,7 +82,8 @@ def test_the_other_panels_show_program_data(drawn):
     ax3d, ax_t, ax_xy, ax_bar = figure.axes
     assert [c.get_label() for c in ax3d.collections] == ["face 4", "start"]
     assert [ln.get_label() for ln in ax3d.get_lines()] == ["part edges", "G1 (feed)", "G0 (rapid)", "tool axis"]
-    _start, end = row_times(moves, dynamics=MACHINE.dynamics)     # the machine's cycle time, not a nominal rate
+    _start, end = row_times(moves, dynamics=MACHINE.dynamics,     # the machine's cycle time, not a nominal rate
+                            rapid_rate=NOMINAL_RAPID_RATE)
     for leg, line in enumerate(ax_t.get_lines()[:3]):
         assert line.get_label() == f"T{leg + 1}"
         assert_allclose(line.get_xdata()[1::2], end, atol=0)
@@ -134,7 +136,7 @@ def test_preview_without_matplotlib_is_a_clear_error(tmp_path, monkeypatch):
     with pytest.raises(Prs3Error) as caught:
         render_preview(verify_program(MACHINE, program.moves, setup=SETUP,
                                       tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE,
-                                      length_decimals=4, feed_decimals=4), MACHINE)
+                                      length_decimals=4, feed_decimals=4), MACHINE, rapid_rate=NOMINAL_RAPID_RATE)
     assert str(caught.value) == "preview needs matplotlib: pip install 'prs3-post[plot]'"
     out, ngc = tmp_path / "p.png", tmp_path / "p.ngc"
     for args in (("preview", VERIFY / "small.ngc", "-o", out),
@@ -182,7 +184,7 @@ def test_stage_panel_draws_each_axis_travel_in_its_own_colour(tmp_path):
     report = verify_program(machine, program.moves, setup=SETUP,
                             tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE,
                             length_decimals=4, feed_decimals=4)
-    ax_xy = render_preview(report, machine).axes[2]
+    ax_xy = render_preview(report, machine, rapid_rate=NOMINAL_RAPID_RATE).axes[2]
     x_colour, y_colour = "#9467bd", "#8c564b"
     limit_lines = [(ln.get_label(), ln.get_color(), ln.get_linestyle(), list(ln.get_ydata()))
                    for ln in ax_xy.get_lines()[2:]]
@@ -215,7 +217,7 @@ def test_without_dynamics_the_time_axis_says_its_nominal_rapid_rate(drawn):
     assert ax_xy.get_xlabel() == "program time (min), G1 1/F, G0 at 2500 mm/min (no [dynamics]); G0 shaded grey"
     _start, end = row_times(moves, rapid_rate=2500.0)
     assert_allclose(ax_xy.get_lines()[0].get_xdata()[1::2], end, atol=0)
-    assert end[-1] != row_times(moves, dynamics=MACHINE.dynamics)[1][-1]
+    assert end[-1] != row_times(moves, dynamics=MACHINE.dynamics, rapid_rate=NOMINAL_RAPID_RATE)[1][-1]
 
 
 def test_rapid_rate_is_refused_on_a_machine_with_dynamics(tmp_path):

@@ -14,7 +14,8 @@ from numpy.testing import assert_allclose
 from prs3_post.app.job import run_job
 from prs3_post.check.verify import Intended, replay, verify_program
 from prs3_post.cli.main import main
-from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
+from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE, NOMINAL_RAPID_RATE
+from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE as CIRCLE_TOL
 from prs3_post.core.errors import InputError
 from prs3_post.core.toolpath import EventKind, MoveKind
 from prs3_post.kinematics import forward
@@ -85,7 +86,7 @@ def test_a_counter_clockwise_spindle_and_an_optional_stop_are_m4_and_m1_and_read
 
     cl = ("LOADTL/1\nSPINDL/RPM,1200,CCLW\nFEDRAT/100,MMPM\nRAPID\nGOTO/0,0,10\nGOTO/0,0,0\nOPSTOP\n"
           "GOTO/5,0,0\nSTOP\nSPINDL/OFF\nFINI\n")
-    path = parse_cl(cl, path="t.cls", tolerance=0.002).toolpath
+    path = parse_cl(cl, path="t.cls", tolerance=0.002, circle_tolerance=CIRCLE_TOL).toolpath
     dialect, setup = load_dialect("linuxcnc"), Setup.resolve(MACHINE)
     made = post_process(MACHINE, path, setup, length_decimals=dialect.decimals.length,
                         tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE).program
@@ -465,7 +466,7 @@ def test_text_report_against_line_comes_from_the_summary_not_the_json_record(mon
     report = verify_program(MACHINE, moves, setup=Setup.resolve(MACHINE), intended=intended,
                             tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE,
                             length_decimals=4, feed_decimals=4)
-    record = fmt.report_record(report, path="small.ngc", dialect="linuxcnc")
+    record = fmt.report_record(report, path="small.ngc", dialect="linuxcnc", rapid_rate=NOMINAL_RAPID_RATE)
     assert fmt.against_summary(report) == record["against"]
     turned = math.degrees(math.acos(np.clip(fk.axis[3] @ axis[3], -1.0, 1.0)))   # clip: rounding past 1
     assert_allclose([record["against"]["tip_max_mm"], record["against"]["axis_max_deg"]], [0.01, turned], atol=1e-9)
@@ -481,7 +482,7 @@ def test_text_report_against_line_comes_from_the_summary_not_the_json_record(mon
     fmt_row_times = fmt.row_times
     monkeypatch.setattr(fmt, "row_times", counted)
     monkeypatch.setattr(fmt, "report_record", refused)
-    text = fmt.report_text(report, path="small.ngc", dialect="linuxcnc").splitlines()
+    text = fmt.report_text(report, path="small.ngc", dialect="linuxcnc", rapid_rate=NOMINAL_RAPID_RATE).splitlines()
     assert len(summaries) == 1                          # the headline's summary, once
     assert [ln for ln in text if ln.startswith("  against")] == [
         "  against shifted.csv: tip max 0.010000 mm at line 11 (mean 0.004211), axis max 0.0512° at line 12 "

@@ -11,6 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from prs3_post.cli.main import main
+from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE as CIRCLE_TOL
 
 REPO = Path(__file__).resolve().parents[2]
 WEDGE = REPO / "fixtures" / "parts" / "wedge.stl"
@@ -581,8 +582,8 @@ def test_a_cl_file_reads_alike_with_any_line_ends(tmp_path: Path, ending: str) -
 
     (tmp_path / "lf.cls").write_bytes(_CL.encode())
     (tmp_path / "other.cls").write_bytes(("\ufeff" + _CL.replace("\n", ending)).encode())
-    expected = read_cl(str(tmp_path / "lf.cls"), tolerance=0.01).toolpath
-    read = read_cl(str(tmp_path / "other.cls"), tolerance=0.01).toolpath
+    expected = read_cl(str(tmp_path / "lf.cls"), tolerance=0.01, circle_tolerance=CIRCLE_TOL).toolpath
+    read = read_cl(str(tmp_path / "other.cls"), tolerance=0.01, circle_tolerance=CIRCLE_TOL).toolpath
     assert len(expected) > 4
     for column in ("kind", "tip", "axis", "feed", "source"):
         np.testing.assert_array_equal(getattr(read, column), getattr(expected, column))
@@ -625,8 +626,8 @@ def test_a_cam_gcode_program_reads_alike_with_any_line_ends(tmp_path: Path, endi
     program = "G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F100\n\nG1 X5\nG2 X10 Y0 I2.5 J0\nM2\n"
     (tmp_path / "lf.ngc").write_text(program)
     (tmp_path / "other.nc").write_bytes(program.replace("\n", ending).encode())
-    expected = read_gcode(str(tmp_path / "lf.ngc"), tolerance=0.01).toolpath
-    read = read_gcode(str(tmp_path / "other.nc"), tolerance=0.01).toolpath
+    expected = read_gcode(str(tmp_path / "lf.ngc"), tolerance=0.01, circle_tolerance=CIRCLE_TOL).toolpath
+    read = read_gcode(str(tmp_path / "other.nc"), tolerance=0.01, circle_tolerance=CIRCLE_TOL).toolpath
     assert len(expected) > 4
     for column in ("kind", "tip", "axis", "feed", "source"):
         np.testing.assert_array_equal(getattr(read, column), getattr(expected, column))

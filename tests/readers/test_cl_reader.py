@@ -10,6 +10,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE
+from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE as CIRCLE_TOL
 from prs3_post.core.errors import InputError
 from prs3_post.core.toolpath import EventKind, MoveKind
 from prs3_post.readers.cl.reader import ClFile, ClStream, parse_cl, read_cl
@@ -25,11 +26,11 @@ pytestmark = pytest.mark.skipif(not CORPUS.is_dir(), reason="../shared/corpus is
 
 
 def _read(name: str, tolerance: float = TOL) -> ClFile:
-    return read_cl(str(CORPUS / name), tolerance=tolerance)
+    return read_cl(str(CORPUS / name), tolerance=tolerance, circle_tolerance=CIRCLE_TOL)
 
 
 def _parse(text: str, **kwargs: object) -> ClFile:
-    return parse_cl(text, path="t.cls", tolerance=TOL, **kwargs)  # type: ignore[arg-type]
+    return parse_cl(text, path="t.cls", tolerance=TOL, **({"circle_tolerance": CIRCLE_TOL} | kwargs))  # type: ignore[arg-type]
 
 
 # --------------------------------------------------------------------------------------------
@@ -277,7 +278,7 @@ def test_bad_cl_files_give_their_exact_message(name: str, monkeypatch: pytest.Mo
     first = (REPO / path).read_text().splitlines()[0]
     assert first.startswith("$$ expect: ")
     with pytest.raises(InputError) as info:
-        read_cl(path, tolerance=TOL)
+        read_cl(path, tolerance=TOL, circle_tolerance=CIRCLE_TOL)
     assert str(info.value) == first.removeprefix("$$ expect: ")
     assert info.value.exit_code == 2
 
@@ -285,7 +286,7 @@ def test_bad_cl_files_give_their_exact_message(name: str, monkeypatch: pytest.Mo
 def test_not_text_and_empty_files_are_refused(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(REPO)
     with pytest.raises(InputError) as info:
-        read_cl("fixtures/bad/cube.stl", tolerance=TOL)
+        read_cl("fixtures/bad/cube.stl", tolerance=TOL, circle_tolerance=CIRCLE_TOL)
     assert str(info.value) == "fixtures/bad/cube.stl: not a CL file: binary data (byte 0x00 at offset 0)"
     with pytest.raises(InputError) as info:
         _parse("\n  \n")
@@ -329,7 +330,8 @@ def test_chunks_of_1_7_and_10000_lines_read_the_same_rows(name: str) -> None:
     text = (CORPUS / name).read_text()
     whole = _read(name)
     for lines in (1, 7, 10_000):
-        _same(parse_cl(text, path=str(CORPUS / name), tolerance=TOL, chunk_lines=lines), whole)
+        _same(parse_cl(text, path=str(CORPUS / name), tolerance=TOL, chunk_lines=lines,
+                       circle_tolerance=CIRCLE_TOL), whole)
 
 
 @pytest.mark.parametrize("name", ["mech491_APT_Variable_Axis.cls", "humman_ust_a_variable_contour.cls",
@@ -337,14 +339,14 @@ def test_chunks_of_1_7_and_10000_lines_read_the_same_rows(name: str) -> None:
 def test_the_bulk_path_reads_exactly_what_the_record_path_reads(name: str) -> None:
     """A space after GOTO/ sends every GOTO through the record-by-record path."""
     text = (CORPUS / name).read_text()
-    slow = parse_cl(text.replace("GOTO/", "GOTO/ "), path=name, tolerance=TOL)
-    _same(slow, parse_cl(text, path=name, tolerance=TOL))
+    slow = parse_cl(text.replace("GOTO/", "GOTO/ "), path=name, tolerance=TOL, circle_tolerance=CIRCLE_TOL)
+    _same(slow, parse_cl(text, path=name, tolerance=TOL, circle_tolerance=CIRCLE_TOL))
 
 
 def test_stream_chunks_count_events_from_their_own_start(tmp_path: Path) -> None:
     path = tmp_path / "s.cls"
     path.write_text("FEDRAT/MMPM,100\nGOTO/0,0,0\nPPRINT/A\nGOTO/1,0,0\nGOTO/2,0,0\nPPRINT/B\nGOTO/3,0,0\n")
-    stream = ClStream(str(path), tolerance=TOL, chunk_lines=3, piece_bytes=5)
+    stream = ClStream(str(path), tolerance=TOL, chunk_lines=3, piece_bytes=5, circle_tolerance=CIRCLE_TOL)
     chunks = list(stream)
     assert [c.source.tolist() for c in chunks] == [[2], [4, 5], [7]]
     assert [[(e.before, e.text) for e in c.events] for c in chunks] == [[(1, "A")], [(2, "B")], []]
@@ -355,7 +357,7 @@ def test_the_unit_is_found_in_a_feed_record_continued_across_pieces(tmp_path: Pa
     path = tmp_path / "u.cls"
     path.write_text("RAPID\nGOTO/1,0,0\nFEDRAT/$\nIPM,$\n10\nGOTO/2,0,0\n")
     for piece_bytes in (3, 16, 1 << 20):
-        cl = ClStream(str(path), tolerance=TOL, piece_bytes=piece_bytes).whole()
+        cl = ClStream(str(path), tolerance=TOL, piece_bytes=piece_bytes, circle_tolerance=CIRCLE_TOL).whole()
         assert (cl.units, cl.toolpath.tip[:, 0].tolist(), cl.toolpath.feed.tolist()) == ("inch", [25.4, 50.8],
                                                                                         [0.0, 254.0])
 
@@ -363,7 +365,7 @@ def test_the_unit_is_found_in_a_feed_record_continued_across_pieces(tmp_path: Pa
 def test_without_msys_the_points_stay_as_written() -> None:
     """humman_4 drills along local +z, which the flipped MSYS turns into part -z (from below): read as
     written, it is a plain drilling program from above."""
-    cl = read_cl(str(CORPUS / "humman_4_SVERL_63_N2.cls"), tolerance=TOL, apply_msys=False)
+    cl = read_cl(str(CORPUS / "humman_4_SVERL_63_N2.cls"), tolerance=TOL, apply_msys=False, circle_tolerance=CIRCLE_TOL)
     tp = cl.toolpath
     assert cl.frames[0].line == 3                                    # still recorded
     assert_allclose(tp.tip[1], [1558.4057, -837.0281, 418.0], atol=0)
@@ -384,7 +386,7 @@ def test_without_msys_the_points_stay_as_written() -> None:
 ])
 def test_degenerate_arcs_are_input_errors(text: str, message: str) -> None:
     with pytest.raises(InputError) as info:
-        parse_cl(text, path="t.cls", tolerance=0.0001)
+        parse_cl(text, path="t.cls", tolerance=0.0001, circle_tolerance=CIRCLE_TOL)
     assert str(info.value) == message
 
 
@@ -392,7 +394,8 @@ def test_degenerate_arcs_are_input_errors(text: str, message: str) -> None:
 def test_a_spindle_speed_beyond_any_spindle_is_an_input_error(speed: str) -> None:
     """SPINDL/ is bounded as the command line's --spindle is (it was emitted as S1000000000000000019884624838656)."""
     with pytest.raises(InputError) as info:
-        parse_cl(f"SPINDL/RPM,{speed},CLW\nFEDRAT/100\nGOTO/0,0,0\n", path="t.cls", tolerance=0.0001)
+        parse_cl(f"SPINDL/RPM,{speed},CLW\nFEDRAT/100\nGOTO/0,0,0\n", path="t.cls", tolerance=0.0001,
+                 circle_tolerance=CIRCLE_TOL)
     assert str(info.value) == f"t.cls:1: SPINDL/ speed {speed} is more than 1e+06 rpm (allowed: above 0 to 1e+06 rpm)"
 
 
@@ -502,8 +505,9 @@ def test_plain_gotos_read_in_bulk_are_the_lines_the_pattern_matches():
 def test_a_goto_of_long_numbers_reads_as_one_of_short_ones():
     """A plain GOTO whose numbers have more than 15 digits goes through the pattern: the same rows."""
     head = "MULTAX\nFEDRAT/MMPM,600\nGOTO/0,0,0,0,0,1\n"
-    long = parse_cl(head + "GOTO/1.0000000000000000,2,3,0.6000000000000000,0,0.8\n", path="a.cls", tolerance=0.002)
-    short = parse_cl(head + "GOTO/1,2,3,0.6,0,0.8\n", path="a.cls", tolerance=0.002)
+    long = parse_cl(head + "GOTO/1.0000000000000000,2,3,0.6000000000000000,0,0.8\n", path="a.cls", tolerance=0.002,
+                    circle_tolerance=CIRCLE_TOL)
+    short = parse_cl(head + "GOTO/1,2,3,0.6,0,0.8\n", path="a.cls", tolerance=0.002, circle_tolerance=CIRCLE_TOL)
     np.testing.assert_array_equal(long.toolpath.tip, short.toolpath.tip)
     np.testing.assert_array_equal(long.toolpath.axis, short.toolpath.axis)
     np.testing.assert_array_equal(long.toolpath.tip[-1], [1.0, 2.0, 3.0])
@@ -515,7 +519,7 @@ def test_repeated_fedrat_lines_keep_the_first_line_of_each_feed_unit():
     text = ("FEDRAT/MMPM,600\nGOTO/0,0,0\nFEDRAT/MMPM,600\nFEDRAT/IPM,20\nGOTO/1,0,0\nFEDRAT/IPM,20\n"
             "FEDRAT/MMPM,600\nGOTO/2,0,0\n")
     with pytest.raises(InputError) as caught:
-        parse_cl(text, path="both.cls", tolerance=0.002)
+        parse_cl(text, path="both.cls", tolerance=0.002, circle_tolerance=CIRCLE_TOL)
     assert str(caught.value) == ("both.cls: feeds in both MMPM/MMPR (line 1) and IPM/IPR (line 4) and no UNITS/ "
                                  "record: the length unit of the file is ambiguous; give it (mm or inch)")
 
@@ -541,8 +545,8 @@ def test_pprint_and_fedrat_lines_in_a_run_read_as_records_read_them(chunk_lines:
     """Plain PPRINT and FEDRAT lines among bulk GOTOs (the PPRINTs together, a FEDRAT read before taken
     again): the rows, feeds, events and counts of the record-by-record path (a space after GOTO/)."""
     text = _runs_with_marks(300)
-    bulk = parse_cl(text, path="t.cls", tolerance=TOL, chunk_lines=chunk_lines)
-    _same(parse_cl(text.replace("GOTO/", "GOTO/ "), path="t.cls", tolerance=TOL), bulk)
+    bulk = parse_cl(text, path="t.cls", tolerance=TOL, chunk_lines=chunk_lines, circle_tolerance=CIRCLE_TOL)
+    _same(parse_cl(text.replace("GOTO/", "GOTO/ "), path="t.cls", tolerance=TOL, circle_tolerance=CIRCLE_TOL), bulk)
     comments = [(e.before, e.text) for e in bulk.toolpath.events if e.kind is EventKind.COMMENT]
     assert (len(comments), comments[:3], comments[-1]) == (48, [(2, ""), (6, "pass 4"), (15, "pass 13")], (301, "last"))
     assert sorted(set(bulk.toolpath.feed.tolist())) == [0.0, 200.0, 500.0, 600.0]
@@ -559,5 +563,6 @@ def test_a_bad_mark_in_a_run_is_refused_where_it_stands(extra: str, line: int, m
         extra + "\nGOTO/9,0,0\nFEDRAT/MMPM,0\n")
     for careful in (False, True):
         with pytest.raises(InputError) as info:
-            parse_cl(text.replace("GOTO/", "GOTO/ ") if careful else text, path="t.cls", tolerance=TOL)
+            parse_cl(text.replace("GOTO/", "GOTO/ ") if careful else text, path="t.cls", tolerance=TOL,
+                     circle_tolerance=CIRCLE_TOL)
         assert str(info.value) == f"t.cls:{line}: {message}"

@@ -14,6 +14,7 @@ from numpy.testing import assert_allclose
 
 from prs3_post.cli.main import main
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
+from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE as CIRCLE_TOL
 from prs3_post.core.errors import ConfigError, InputError
 from prs3_post.core.toolpath import EventKind, MoveKind
 from prs3_post.machine.cam_conventions import Rotary
@@ -33,7 +34,8 @@ corpus = pytest.mark.skipif(not CORPUS.is_dir(), reason="../shared/corpus is not
 
 
 def _parse(text: str, source: str, **kwargs: object) -> FivexFile:
-    return parse_fivex(text, load_source(source), path="t.ngc", tolerance=TOL, **kwargs)  # type: ignore[arg-type]
+    return parse_fivex(text, load_source(source), path="t.ngc", tolerance=TOL,  # type: ignore[arg-type]
+                       **({"circle_tolerance": CIRCLE_TOL} | kwargs))
 
 
 def _angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -48,8 +50,8 @@ def test_haas_program_lands_on_its_cl_source() -> None:
     """The Haas UMC-750 program read with haas-umc750 gives the tips and tool axes of the CL file it was
     posted from (MSYS applied: its origin (3, 3, 0) in is the program's G54), within the program's
     rounding: 0.0001 in on X Y Z, 0.001° on B C."""
-    gcode = read_fivex(str(HAAS), load_source("haas-umc750"), tolerance=TOL)
-    cl = read_cl(str(HAAS_CL), tolerance=TOL)
+    gcode = read_fivex(str(HAAS), load_source("haas-umc750"), tolerance=TOL, circle_tolerance=CIRCLE_TOL)
+    cl = read_cl(str(HAAS_CL), tolerance=TOL, circle_tolerance=CIRCLE_TOL)
     assert gcode.gcode.units == "inch" and cl.units == "inch"
     assert len(gcode.toolpath) == len(cl.toolpath) == 348
     msys_origin = np.array([3.0, 3.0, 0.0]) * INCH
@@ -66,15 +68,15 @@ def test_haas_other_turning_directions_miss_the_cl_axes(signs: tuple[int, int]) 
     haas = load_source("haas-umc750")
     turned = dataclasses.replace(haas, tables=tuple(dataclasses.replace(r, sign=s)
                                                     for r, s in zip(haas.tables, signs, strict=True)))
-    gcode = read_fivex(str(HAAS), turned, tolerance=TOL)
-    cl = read_cl(str(HAAS_CL), tolerance=TOL)
+    gcode = read_fivex(str(HAAS), turned, tolerance=TOL, circle_tolerance=CIRCLE_TOL)
+    cl = read_cl(str(HAAS_CL), tolerance=TOL, circle_tolerance=CIRCLE_TOL)
     assert _angle_deg(gcode.toolpath.axis, cl.toolpath.axis).max() > 10.0
 
 
 @corpus
 def test_haas_program_accounting() -> None:
     """Every line accounted for: machine-coordinate blocks, clamps, G255, the trailing listing line."""
-    read = read_fivex(str(HAAS), load_source("haas-umc750"), tolerance=TOL)
+    read = read_fivex(str(HAAS), load_source("haas-umc750"), tolerance=TOL, circle_tolerance=CIRCLE_TOL)
     c, g = read.counts, read.gcode.counts
     assert (c.tcp_on, c.tcp_off, c.tcp_moves, c.prepositions) == (1, 1, 348, 1)
     assert c.machine_blocks == (("G28", 4), ("G53", 3))
@@ -208,7 +210,8 @@ def test_tcp_codes_can_be_overridden() -> None:
 def test_linuxcnc_demos_read_and_tilt_beyond_45_degrees(name: str, rows: int, beyond: int) -> None:
     """Both demos are TCP throughout (M428 on line 2): they read completely; then the tilt limit
     (45°) refuses them at their first line beyond it, which is the line and value the pipeline names."""
-    read = read_fivex(str(CORPUS / "gcode" / name), load_source("xyzac-trt"), tolerance=TOL)
+    read = read_fivex(str(CORPUS / "gcode" / name), load_source("xyzac-trt"), tolerance=TOL,
+                      circle_tolerance=CIRCLE_TOL)
     assert len(read.toolpath) == rows and read.counts.tcp_on == 1 and read.counts.tcp_off == 1
     tilt = np.degrees(np.arccos(np.clip(read.toolpath.axis[:, 2], -1.0, 1.0)))
     assert int((tilt > 45.0).sum()) == beyond
@@ -218,7 +221,7 @@ def test_linuxcnc_demos_read_and_tilt_beyond_45_degrees(name: str, rows: int, be
 def test_linuxcnc_expressions_are_refused_with_their_line() -> None:
     path = str(CORPUS / "gcode" / "linuxcnc_xyzab-tdr-demo.ngc")
     with pytest.raises(InputError) as error:
-        read_fivex(path, load_source("xyzac-trt"), tolerance=TOL)
+        read_fivex(path, load_source("xyzac-trt"), tolerance=TOL, circle_tolerance=CIRCLE_TOL)
     assert str(error.value) == (
         f"{path}:10: LinuxCNC expression or parameter in 'g10 l20 p0 x-[#<_hal[xyzab_tdr_kins.x-ro...': its values "
         "exist only in LinuxCNC's interpreter at run time (HAL pins, parameters), so the program cannot be converted; "
@@ -376,9 +379,10 @@ def test_converted_haas_program_replays_onto_the_cl_points(tmp_path: Path, rs274
     program = read_program(conversion.text, settings.dialect, path="haas.ngc")  # type: ignore[attr-defined]
     fk = forward(settings.machine.geometry, program.moves.strokes, program.moves.stage)  # type: ignore[attr-defined]
     assert fk.converged.all() and len(fk.tip) == conversion.report.emitted_moves == 1338
-    lines = read_fivex(str(HAAS), load_source("haas-umc750"), tolerance=TOL).toolpath.source
+    lines = read_fivex(str(HAAS), load_source("haas-umc750"), tolerance=TOL,
+                       circle_tolerance=CIRCLE_TOL).toolpath.source
     last = np.array([np.flatnonzero(conversion.path.source == line)[-1] for line in lines])   # each input move's end
-    cl = place_toolpath(read_cl(str(HAAS_CL), tolerance=TOL).toolpath, Setup(_CL_ORIGIN))
+    cl = place_toolpath(read_cl(str(HAAS_CL), tolerance=TOL, circle_tolerance=CIRCLE_TOL).toolpath, Setup(_CL_ORIGIN))
     rounding = 2e-4                                   # 4 decimals on 5 joint words (as tests/test_convert.py)
     assert_allclose(fk.tip[last], cl.tip, atol=0.0001 * INCH + rounding, rtol=0)
     assert _angle_deg(fk.axis[last], cl.axis).max() < 0.001 + 1e-3
@@ -509,7 +513,8 @@ def test_synthesized_program_converts_and_replays(name: str, tmp_path: Path, rs2
     program = read_program(conversion.text, settings.dialect, path="out.ngc")  # type: ignore[attr-defined]
     fk = forward(settings.machine.geometry, program.moves.strokes, program.moves.stage)  # type: ignore[attr-defined]
     assert fk.converged.all()
-    read = place_toolpath(parse_fivex(program_path.read_text(), load_source(name), path="in", tolerance=TOL).toolpath,
+    read = place_toolpath(parse_fivex(program_path.read_text(), load_source(name), path="in", tolerance=TOL,
+                                      circle_tolerance=CIRCLE_TOL).toolpath,
                           Setup((0.0, 0.0, -780.0)))
     last = np.array([np.flatnonzero(conversion.path.source == line)[-1] for line in read.source])
     assert_allclose(fk.tip[last], read.tip, atol=2e-4, rtol=0)

@@ -13,6 +13,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from prs3_post.app.work_plane import work_plane_from_text
+from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE as CIRCLE_TOL
 from prs3_post.core.errors import FeatureError, InputError
 from prs3_post.core.toolpath import EventKind, MoveKind
 from prs3_post.part.faces import find_faces, select_face
@@ -31,7 +32,7 @@ S30, C30 = 0.5, math.sqrt(3.0) / 2.0
 
 
 def _parse(text: str, **kwargs: object) -> GcodeFile:
-    return parse_gcode(text, path="t.ngc", tolerance=TOL, **kwargs)  # type: ignore[arg-type]
+    return parse_gcode(text, path="t.ngc", tolerance=TOL, **({"circle_tolerance": CIRCLE_TOL} | kwargs))  # type: ignore[arg-type]
 
 
 def _segments(radius: float, sweep: float) -> int:
@@ -56,7 +57,7 @@ def test_euler_angles_of_g68_2_are_z_x_z_intrinsic() -> None:
 def test_g68_2_program_with_a_g83_peck_cycle_and_a_g2_arc_in_g18() -> None:
     """fixtures/gcode/g68-peck-arc.ngc, row by row: the plane I90 J30 K0 has x = (0, 1, 0),
     y = (−cos 30°, 0, sin 30°), z = (sin 30°, 0, cos 30°) (Rz(90°)·Rx(30°), multiplied out by hand)."""
-    f = read_gcode(str(PROGRAMS / "g68-peck-arc.ngc"), tolerance=TOL)
+    f = read_gcode(str(PROGRAMS / "g68-peck-arc.ngc"), tolerance=TOL, circle_tolerance=CIRCLE_TOL)
     rotation = np.array([[0.0, -C30, S30], [1.0, 0.0, 0.0], [0.0, S30, C30]])
     origin = np.array([20.0, 10.0, 5.0])
     gap = 2 - 4 + PECK_GAP_MM                          # the rapid back stops 0.254 mm above the last depth
@@ -126,7 +127,7 @@ def test_3_axis_program_on_the_wedge_face_work_plane() -> None:
     slope, v = (0, 1, 0), w = (sin β, 0, cos β), β = atan(1/2)."""
     face, _ = select_face(find_faces(load_part(str(REPO / "fixtures" / "parts" / "wedge.stl"))), None)
     plane = WorkPlane.from_face(face, name="face 4 of wedge.stl")
-    f = read_gcode(str(PROGRAMS / "wedge-face-3axis.ngc"), tolerance=TOL, work_plane=plane)
+    f = read_gcode(str(PROGRAMS / "wedge-face-3axis.ngc"), tolerance=TOL, work_plane=plane, circle_tolerance=CIRCLE_TOL)
     sb, cb = 1 / math.sqrt(5), 2 / math.sqrt(5)
     u, v, w, origin = np.array([cb, 0, -sb]), np.array([0.0, 1, 0]), np.array([sb, 0, cb]), np.array([0.0, 200, 300])
     n = _segments(20.0, math.pi / 2)
@@ -304,7 +305,7 @@ def _same(a: GcodeFile, b: GcodeFile) -> None:
 @pytest.mark.parametrize("chunk_lines", [1, 7, 10_000])
 def test_chunks_of_any_size_give_the_same_rows(chunk_lines: int) -> None:
     text = _program(300)
-    read = parse_gcode(text, path="t", tolerance=TOL, chunk_lines=chunk_lines)
+    read = parse_gcode(text, path="t", tolerance=TOL, chunk_lines=chunk_lines, circle_tolerance=CIRCLE_TOL)
     _same(read, _parse(text))
     counts = read.counts                                 # every line is accounted for, once
     assert counts.lines == counts.records + counts.comment_lines + counts.blank_lines + dict(counts.skipped)["%"]
@@ -321,10 +322,11 @@ def test_bulk_lines_read_as_the_careful_reader_reads_them() -> None:
 def test_the_stream_reads_a_file_in_pieces(tmp_path: Path) -> None:
     path = tmp_path / "p.ngc"
     path.write_text(_program(50).replace("\n", "\r\n"))
-    stream = GcodeStream(str(path), tolerance=TOL, chunk_lines=4, piece_bytes=9)
+    stream = GcodeStream(str(path), tolerance=TOL, chunk_lines=4, piece_bytes=9, circle_tolerance=CIRCLE_TOL)
     chunks = list(stream)
     assert len(chunks) > 5 and stream.summary is not None
-    _same(GcodeStream(str(path), tolerance=TOL, piece_bytes=9).whole(), _parse(_program(50)))
+    _same(GcodeStream(str(path), tolerance=TOL, piece_bytes=9,
+                      circle_tolerance=CIRCLE_TOL).whole(), _parse(_program(50)))
 
 
 # --------------------------------------------------------------------------------------------
@@ -427,7 +429,7 @@ def test_bad_gcode_files_give_their_exact_message(name: str, monkeypatch: pytest
     first = (REPO / path).read_text().splitlines()[0]
     assert first.startswith("; expect: ")
     with pytest.raises(InputError) as info:
-        read_gcode(path, tolerance=TOL)
+        read_gcode(path, tolerance=TOL, circle_tolerance=CIRCLE_TOL)
     assert str(info.value) == first.removeprefix("; expect: ")
     assert info.value.exit_code == 2
 
@@ -461,7 +463,7 @@ def test_corpus_5_axis_programs_are_refused_at_their_first_rotary_word(name: str
     line, word = ROTARY[name]
     path = str(CORPUS / "gcode" / name)
     with pytest.raises(InputError) as info:
-        read_gcode(path, tolerance=TOL)
+        read_gcode(path, tolerance=TOL, circle_tolerance=CIRCLE_TOL)
     assert str(info.value) == (
         f"{path}:{line}: 5-axis program: rotary word '{word}' (A, B and C words turn rotary axes); the 3+2 reader "
         "reads programs whose tool axis is set by G68.2/G53.1 or by the work plane, so it refuses this program "
@@ -645,12 +647,12 @@ def test_the_whole_file_is_checked_in_pieces_first_problem_first(tmp_path: Path,
     path.write_bytes(content)
     whole = "offset 268" in message
     with pytest.raises(InputError) as info:
-        list(GcodeStream(str(path), tolerance=TOL, piece_bytes=1 << 20 if whole else 16))
+        list(GcodeStream(str(path), tolerance=TOL, piece_bytes=1 << 20 if whole else 16, circle_tolerance=CIRCLE_TOL))
     shown = str(info.value).replace(str(path), "t.ngc")
     assert shown.split(" (A, B and C")[0] == message
     if not whole and not content.startswith(b"G0 X0 Y0 Z0\nG1 A5"):       # the others: the same in one piece
         with pytest.raises(InputError) as info:
-            list(GcodeStream(str(path), tolerance=TOL, piece_bytes=1 << 20))
+            list(GcodeStream(str(path), tolerance=TOL, piece_bytes=1 << 20, circle_tolerance=CIRCLE_TOL))
         assert str(info.value).replace(str(path), "t.ngc").split(" (A, B and C")[0] == message
 
 
@@ -665,9 +667,9 @@ def test_runs_of_blank_and_comment_lines_are_read_in_bulk_as_one_by_one(tmp_path
             + "G1 X1 Y2 Z-1 F100\n" + "\n(last)\n" * 200 + "M30\n%\n" + "\n" * 20)
     path = tmp_path / "quiet.ngc"
     path.write_text(text)
-    from_file = GcodeStream(str(path), tolerance=TOL, chunk_lines=97).whole()
+    from_file = GcodeStream(str(path), tolerance=TOL, chunk_lines=97, circle_tolerance=CIRCLE_TOL).whole()
     monkeypatch.setattr(gcode.LineReader, "quiet_lines", lambda self, lines: False)
-    from_text = GcodeStream(str(path), tolerance=TOL, chunk_lines=97).whole()
+    from_text = GcodeStream(str(path), tolerance=TOL, chunk_lines=97, circle_tolerance=CIRCLE_TOL).whole()
     assert from_file.counts == from_text.counts
     assert from_file.counts.blank_lines == 500 + 1 + 1 + 200 + 20
     assert from_file.counts.comments == 3 + 2 + 200

@@ -26,7 +26,12 @@ import numpy as np
 
 from prs3_post.app.read_ahead import read_ahead
 from prs3_post.app.streaming import program_text
-from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE
+from prs3_post.core.defaults import (
+    DEFAULT_ANGLE_TOLERANCE_DEG,
+    DEFAULT_CIRCLE_TOLERANCE,
+    DEFAULT_CLEARANCE_MIN,
+    DEFAULT_TOLERANCE,
+)
 from prs3_post.core.errors import InputError, LimitError, PoseError, ReachError
 from prs3_post.core.input_files import open_input
 from prs3_post.core.output_files import HeadLast, write_atomic
@@ -71,6 +76,7 @@ class ConvertSettings:
     setup : Setup — part → machine
     tolerance : float — mm, chordal tolerance of arcs and of axis-changing moves
     angle_tolerance_deg : float — degrees, allowed tool-axis deviation of subdivided moves
+    circle_tolerance : float — mm, how far a CAM arc's ends may be from its circle
     tool_length : float | None — mm, platform centre to tool tip for the IK (None: the machine's)
     input_format : str — ``auto``, ``cl`` or ``gcode``
     units : str | None — a CL file's length unit when it has no UNITS/ record (None: from its feeds)
@@ -97,6 +103,7 @@ class ConvertSettings:
     setup: Setup
     tolerance: float = DEFAULT_TOLERANCE
     angle_tolerance_deg: float = DEFAULT_ANGLE_TOLERANCE_DEG
+    circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE
     tool_length: float | None = None
     input_format: str = "auto"
     units: str | None = None
@@ -130,8 +137,9 @@ class ConvertSettings:
     @property
     def read_options(self) -> ReadOptions:
         """How the inputs are to be read (each format takes what concerns it)."""
-        return ReadOptions(tolerance=self.tolerance, units=self.units, ignore=self.ignore, work_plane=self.work_plane,
-                           source=self.source, tcp_on=self.tcp_on, tcp_off=self.tcp_off)
+        return ReadOptions(tolerance=self.tolerance, circle_tolerance=self.circle_tolerance, units=self.units,
+                           ignore=self.ignore, work_plane=self.work_plane, source=self.source, tcp_on=self.tcp_on,
+                           tcp_off=self.tcp_off)
 
     @property
     def ik_machine(self) -> Machine:

@@ -50,7 +50,7 @@ def _worst(values: FloatArray, rows: IntArray, lines: IntArray) -> tuple[float |
     return float(values[i]), int(lines[rows[i]]), i
 
 
-def summary(report: VerifyReport, *, rapid_rate: float = NOMINAL_RAPID_RATE) -> dict[str, Any]:
+def summary(report: VerifyReport, *, rapid_rate: float) -> dict[str, Any]:
     """Headline numbers shared by the text and JSON reports (from the per-move values: no samples needed)."""
     program = report.program
     feed_row = program.kind == MoveKind.FEED
@@ -159,8 +159,7 @@ def _clearance_lines(clearance: PartClearance | str | None) -> list[str]:
     return out
 
 
-def report_record(report: VerifyReport, *, path: str = "", dialect: str = "",
-                  rapid_rate: float = NOMINAL_RAPID_RATE,
+def report_record(report: VerifyReport, *, path: str = "", dialect: str = "", rapid_rate: float,
                   clearance: PartClearance | str | None = None) -> dict[str, Any]:
     """The complete report as JSON-ready data (angles in degrees where the key says ``_deg``);
     ``clearance``: :func:`clearance_record`."""
@@ -225,9 +224,13 @@ def report_record(report: VerifyReport, *, path: str = "", dialect: str = "",
     }
 
 
-def report_text(report: VerifyReport, *, path: str = "", dialect: str = "",
-                rapid_rate: float = NOMINAL_RAPID_RATE, clearance: PartClearance | str | None = None) -> str:
-    """A short readable report: headline, limits, feeds, deviation, clearance from the part, result."""
+def report_text(report: VerifyReport, *, path: str = "", dialect: str = "", rapid_rate: float,
+                clearance: PartClearance | str | None = None, all_listed: str = "") -> str:
+    """A short readable report: headline, limits, feeds, deviation, clearance from the part, result.
+
+    ``all_listed``: what lists every warning and problem when some are left out (the command line's
+    ``--json lists all``), said after the count of those left out; empty: nothing said."""
+    hint = f" ({all_listed})" if all_listed else ""
     head = summary(report, rapid_rate=rapid_rate)
     out = [
         f"{path}: {head['moves']} moves ({head['feed_moves']} G1, {head['rapid_moves']} G0), dialect {dialect}, "
@@ -270,12 +273,12 @@ def report_text(report: VerifyReport, *, path: str = "", dialect: str = "",
     for w in report.warnings[:SHOWN_PROBLEMS]:
         out.append(f"  warning: {w.message}")
     if len(report.warnings) > SHOWN_PROBLEMS:
-        out.append(f"  ... and {len(report.warnings) - SHOWN_PROBLEMS} more warnings (--json lists all)")
+        out.append(f"  ... and {len(report.warnings) - SHOWN_PROBLEMS} more warnings{hint}")
     if report.ok:
         out.append("OK: within every limit and tolerance")
     else:
         out.append(f"FAIL: {len(report.problems)} problem{'s' if len(report.problems) > 1 else ''}")
         out += [f"  {p.message}" for p in report.problems[:SHOWN_PROBLEMS]]
         if len(report.problems) > SHOWN_PROBLEMS:
-            out.append(f"  ... and {len(report.problems) - SHOWN_PROBLEMS} more (--json lists all)")
+            out.append(f"  ... and {len(report.problems) - SHOWN_PROBLEMS} more{hint}")
     return "\n".join(out) + "\n"

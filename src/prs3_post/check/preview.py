@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from prs3_post.check.verify import NOMINAL_RAPID_RATE, VerifyReport, row_times
+from prs3_post.check.verify import VerifyReport, row_times
 from prs3_post.core.errors import Prs3Error
 from prs3_post.core.toolpath import MoveKind
 from prs3_post.core.types import FloatArray, IntArray
@@ -189,7 +189,7 @@ def render_preview(
     face_triangles: IntArray | None = None,
     face_label: str = "face",
     title: str = "",
-    rapid_rate: float = NOMINAL_RAPID_RATE,
+    rapid_rate: float,
     axis_marks: int = 6,
     closest: tuple[FloatArray, str, bool] | None = None,
 ) -> Figure:
@@ -339,7 +339,7 @@ def render_preview(
     return fig
 
 
-def time_label(report: VerifyReport, rapid_rate: float = NOMINAL_RAPID_RATE) -> str:
+def time_label(report: VerifyReport, rapid_rate: float) -> str:
     """The time axis's label: how the moves were timed (the machine's dynamics, or a nominal rapid rate)."""
     if report.dynamics is not None:
         return "cycle time (min), the machine's [dynamics]; G0 shaded grey"

@@ -112,7 +112,7 @@ def replay(machine: Machine, program: JointProgram, *, tolerance: float,
     return _with_limits(machine, kinematic.replay(machine, program, tolerance=tolerance, translations=translations))
 
 
-def move_durations(program: JointProgram, *, rapid_rate: float = NOMINAL_RAPID_RATE,
+def move_durations(program: JointProgram, *, rapid_rate: float,
                    dynamics: Dynamics | None = None) -> FloatArray:
     """(N,) min, the time of every row's move from the row before (G1: 1/F; G0: longest joint travel /
     rapid_rate; row 0: 0, its start being unknown); with the machine's ``dynamics``, each move's
@@ -135,7 +135,7 @@ def move_durations(program: JointProgram, *, rapid_rate: float = NOMINAL_RAPID_R
     return duration
 
 
-def row_times(program: JointProgram, *, rapid_rate: float = NOMINAL_RAPID_RATE,
+def row_times(program: JointProgram, *, rapid_rate: float,
               dynamics: Dynamics | None = None, durations: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
     """Start and end time of every row's move, min: :func:`move_durations` (``durations``, if at hand),
     and G4 dwells before a row delay it (row 0 starts and ends at 0).
@@ -602,9 +602,9 @@ class Verifier:
             against = _against(rep, rows, local_intended, rounding, tolerance)
             _against_problems(against, rep, rows, local_intended, self.axis_tolerance, problems, skip)
 
+        durations = move_durations(rows, rapid_rate=NOMINAL_RAPID_RATE, dynamics=self.machine.dynamics)
         self.per_move.append({name: values[skip:] for name, values in zip(
-            _PER_MOVE, (rounding, chord, implied, slack, worst, rep.intervals, rep.bound,
-                        move_durations(rows, dynamics=self.machine.dynamics)), strict=True)})
+            _PER_MOVE, (rounding, chord, implied, slack, worst, rep.intervals, rep.bound, durations), strict=True)})
         self.samples += len(rep.row) - own.start
         if self.keep_samples:
             self.kept.append((_replay_from(rep, own, skip, offset), straightness[own],

@@ -283,10 +283,12 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
         report, setting, clearance = verified.report, verified.setting, verified.clearance
         dialect = setting.dialect.name
         if as_json:
-            click.echo(json.dumps(report_record(report, path=program_path, dialect=dialect, clearance=clearance),
-                                  allow_nan=False))
+            record = report_record(report, path=program_path, dialect=dialect, rapid_rate=NOMINAL_RAPID_RATE,
+                                   clearance=clearance)
+            click.echo(json.dumps(record, allow_nan=False))
         else:
-            click.echo(report_text(report, path=program_path, dialect=dialect, clearance=clearance), nl=False)
+            click.echo(report_text(report, path=program_path, dialect=dialect, rapid_rate=NOMINAL_RAPID_RATE,
+                                   clearance=clearance, all_listed="--json lists all"), nl=False)
         return 0 if report.ok else 1
 
     run_reported(body)

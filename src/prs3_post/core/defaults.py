@@ -4,9 +4,10 @@ input may ask for. What is a machine's own (its limits, speeds, holder) is in it
 
 A value a user gives overrides these; a program header records the one used. The stages take them as
 required keyword arguments (the post pipeline and linearization, the profiles, placement, the replay and
-verify_program, the collision check, the preview), so a value someone forgets to pass is an error, not
-silently the default: the edges (the command line, a job file, a request's fields, the readers' public
-functions) fill them in from this module.
+verify_program, the verify report and the move times, the collision check, the preview, the CAM readers),
+so a value someone forgets to pass is an error, not
+silently the default: the edges (the command line, a job file, a request's fields, a conversion's settings)
+fill them in from this module.
 tests/test_defaults.py fails on a new copy of these numbers elsewhere in the package.
 """
 

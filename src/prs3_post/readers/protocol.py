@@ -35,6 +35,7 @@ class ReadOptions:
     Attributes
     ----------
     tolerance : float — mm, chordal tolerance of expanded arcs
+    circle_tolerance : float — mm, how far an arc's ends may be from its circle
     units : str | None — a CL file's length unit when it states none (None: from its feeds)
     ignore : tuple of str — CL major words skipped (and counted) instead of refused
     work_plane : WorkPlane | None — where a G-code program's X, Y, Z are in the part (None: the part frame)
@@ -43,6 +44,7 @@ class ReadOptions:
     """
 
     tolerance: float
+    circle_tolerance: float
     units: str | None = None
     ignore: tuple[str, ...] = ()
     work_plane: WorkPlane | None = None

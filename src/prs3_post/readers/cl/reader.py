@@ -74,7 +74,7 @@ import hashlib
 import math
 from collections.abc import Iterable, Iterator
 
-from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE, MM_PER_INCH
+from prs3_post.core.defaults import MM_PER_INCH
 from prs3_post.core.errors import InputError
 from prs3_post.core.input_files import iter_pieces, lf_line_ends, line_chunks
 from prs3_post.core.toolpath import Toolpath
@@ -106,7 +106,7 @@ _PIECE_BYTES = 1 << 20
 
 
 def read_cl(path: str, *, tolerance: float, units: str | None = None, ignore: frozenset[str] = frozenset(),
-            circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE, apply_msys: bool = True) -> ClFile:
+            circle_tolerance: float, apply_msys: bool = True) -> ClFile:
     """Read a whole CL file (see the module docstring for what is understood).
 
     Parameters
@@ -138,7 +138,7 @@ def read_cl(path: str, *, tolerance: float, units: str | None = None, ignore: fr
 
 
 def parse_cl(text: str, *, path: str, tolerance: float, units: str | None = None,
-             ignore: frozenset[str] = frozenset(), circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE,
+             ignore: frozenset[str] = frozenset(), circle_tolerance: float,
              chunk_lines: int = CHUNK_LINES, apply_msys: bool = True) -> ClFile:
     """Read CL text; ``path`` is only used in messages. Parameters as :func:`read_cl`."""
     return ClStream(path, tolerance=tolerance, units=units, ignore=ignore, circle_tolerance=circle_tolerance,
@@ -165,7 +165,7 @@ class ClStream(StreamDefaults):
     """
 
     def __init__(self, path: str, *, tolerance: float, units: str | None = None,
-                 ignore: Iterable[str] = (), circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE,
+                 ignore: Iterable[str] = (), circle_tolerance: float,
                  chunk_lines: int = CHUNK_LINES, piece_bytes: int = _PIECE_BYTES, text: str | None = None,
                  apply_msys: bool = True):
         if units not in (None, "mm", "inch"):

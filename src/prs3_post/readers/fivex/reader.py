@@ -61,7 +61,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE
 from prs3_post.core.errors import ConfigError, InputError, LexError
 from prs3_post.core.lexer import Word, code_name, decode, quote, split_comments
 from prs3_post.core.toolpath import EventKind, Toolpath
@@ -144,7 +143,7 @@ class FivexFile:
 
 
 def read_fivex(path: str, source: SourceConvention, *, tolerance: float, tcp_on: tuple[str, ...] | None = None,
-               tcp_off: tuple[str, ...] | None = None, circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE) -> FivexFile:
+               tcp_off: tuple[str, ...] | None = None, circle_tolerance: float) -> FivexFile:
     """Read a whole 5-axis G-code file (see the module docstring).
 
     Parameters
@@ -166,7 +165,7 @@ def read_fivex(path: str, source: SourceConvention, *, tolerance: float, tcp_on:
 
 def parse_fivex(text: str, source: SourceConvention, *, path: str, tolerance: float,
                 tcp_on: tuple[str, ...] | None = None, tcp_off: tuple[str, ...] | None = None,
-                circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE, chunk_lines: int = CHUNK_LINES) -> FivexFile:
+                circle_tolerance: float, chunk_lines: int = CHUNK_LINES) -> FivexFile:
     """Read 5-axis G-code text; ``path`` only names it. Parameters as :func:`read_fivex`."""
     return FivexStream(path, source, tolerance=tolerance, tcp_on=tcp_on, tcp_off=tcp_off,
                        circle_tolerance=circle_tolerance, chunk_lines=chunk_lines, text=text).whole_fivex()
@@ -182,7 +181,7 @@ class FivexStream(GcodeStream):
 
     def __init__(self, path: str, source: SourceConvention, *, tolerance: float,
                  tcp_on: tuple[str, ...] | None = None, tcp_off: tuple[str, ...] | None = None,
-                 circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE, chunk_lines: int = CHUNK_LINES,
+                 circle_tolerance: float, chunk_lines: int = CHUNK_LINES,
                  text: str | None = None):
         super().__init__(path, tolerance=tolerance, circle_tolerance=circle_tolerance, chunk_lines=chunk_lines,
                          text=text)

@@ -56,10 +56,11 @@ class GcodeReader:
             from prs3_post.readers.fivex.reader import FivexStream  # only a 5-axis program needs it
 
             return FivexStream(path, options.source, tolerance=options.tolerance, tcp_on=options.tcp_on,
-                               tcp_off=options.tcp_off)
+                               tcp_off=options.tcp_off, circle_tolerance=options.circle_tolerance)
         from prs3_post.readers.gcode.reader import GcodeStream  # numpy: loaded where a file is read
 
-        return GcodeStream(path, tolerance=options.tolerance, work_plane=options.work_plane)
+        return GcodeStream(path, tolerance=options.tolerance, work_plane=options.work_plane,
+                           circle_tolerance=options.circle_tolerance)
 
 
 #: The registered G-code reader.

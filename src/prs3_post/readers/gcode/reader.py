@@ -69,7 +69,6 @@ import hashlib
 import math
 from collections.abc import Iterator
 
-from prs3_post.core.defaults import DEFAULT_CIRCLE_TOLERANCE
 from prs3_post.core.errors import InputError, LexError
 from prs3_post.core.input_files import iter_pieces, lf_line_end_bytes, line_blocks
 from prs3_post.core.lexer import (
@@ -99,7 +98,7 @@ _PIECE_BYTES = 1 << 20
 # Entry points
 # --------------------------------------------------------------------------------------------
 def read_gcode(path: str, *, tolerance: float, work_plane: WorkPlane | None = None,
-               circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE) -> GcodeFile:
+               circle_tolerance: float) -> GcodeFile:
     """Read a whole 3+2 G-code file (see the module docstring for what is understood).
 
     Parameters
@@ -122,7 +121,7 @@ def read_gcode(path: str, *, tolerance: float, work_plane: WorkPlane | None = No
 
 
 def parse_gcode(text: str, *, path: str, tolerance: float, work_plane: WorkPlane | None = None,
-                circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE, chunk_lines: int = CHUNK_LINES) -> GcodeFile:
+                circle_tolerance: float, chunk_lines: int = CHUNK_LINES) -> GcodeFile:
     """Read G-code text; ``path`` is only used in messages. Parameters as :func:`read_gcode`."""
     return GcodeStream(path, tolerance=tolerance, work_plane=work_plane, circle_tolerance=circle_tolerance,
                        chunk_lines=chunk_lines, text=text).whole()
@@ -146,7 +145,7 @@ class GcodeStream(StreamDefaults):
     """
 
     def __init__(self, path: str, *, tolerance: float, work_plane: WorkPlane | None = None,
-                 circle_tolerance: float = DEFAULT_CIRCLE_TOLERANCE, chunk_lines: int = CHUNK_LINES,
+                 circle_tolerance: float, chunk_lines: int = CHUNK_LINES,
                  piece_bytes: int = _PIECE_BYTES, text: str | None = None):
         if not (math.isfinite(tolerance) and tolerance > 0):
             raise ValueError(f"GcodeStream: tolerance must be > 0 mm, got {tolerance!r}")
