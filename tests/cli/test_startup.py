@@ -147,3 +147,13 @@ def test_the_console_script_keeps_a_chunks_temporaries_on_the_heap() -> None:
                               check=True)
         faults[mode] = int(done.stdout)
     assert faults["set"] * 20 < faults["unset"], faults
+
+
+def test_the_console_script_freezes_what_it_loaded_for_the_garbage_collector() -> None:
+    """The collections the CLI's loading triggered were some 7 % of a short command's CPU time: the
+    collector is off while it loads, what it loaded is frozen, and the collector is on again."""
+    code = ("import gc, sys\nfrom prs3_post.cli import entry\nsys.argv = ['prs3-post', '--version']\n"
+            "try:\n    entry.main()\nexcept SystemExit:\n    pass\n"
+            "print(gc.get_freeze_count() > 10_000, gc.isenabled())")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.split()[-2:] == ["True", "True"]
