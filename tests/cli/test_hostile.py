@@ -193,7 +193,9 @@ def test_a_machine_name_too_long_for_the_system_is_a_config_error() -> None:
     (["demo", "--profile", "hole", "--feed", "2e6"],          # the range named was -1e+06 to 1e+06
      "Invalid value for '--feed': 2e+06 mm/min is out of range (allowed: 0.1 to 1e+06 mm/min)"),
     (["demo", "--profile", "hole", "--spindle", "2e6"],
-     "Invalid value for '--spindle': 2e+06 rpm is out of range (allowed: > 0 and ≤ 1e+06 rpm)"),
+     "Invalid value for '--spindle': 2e+06 rpm is out of range (allowed: 1 to 1e+06 rpm)"),
+    (["demo", "--profile", "hole", "--spindle", "1e-9"],     # was exit 1: "spindle_on event before row ..."
+     "Invalid value for '--spindle': 1e-09 rpm is out of range (allowed: 1 to 1e+06 rpm)"),
 ])
 def test_a_feed_too_slow_to_mean_anything_is_bad_input(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                        args: list[str], message: str) -> None:
@@ -213,6 +215,17 @@ def test_a_job_file_feed_too_slow_names_its_key(tmp_path: Path) -> None:
     assert (result.exit_code, result.stdout) == (2, "")
     assert result.stderr == f"prs3-post: error: {job}: operation[1].plunge_feed: 0.001 mm/min is out of range " \
                             "(allowed: 0.1 to 1e+06 mm/min)\n"
+    assert not (tmp_path / "j.ngc").exists()
+
+
+def test_a_job_file_spindle_speed_that_prints_as_zero_names_its_key(tmp_path: Path) -> None:
+    """spindle = 1e-9 was a limit error (exit 1) about an event before row 2, with a part-origin suggestion."""
+    job = tmp_path / "j.toml"
+    job.write_text(f'part = "{WEDGE}"\n[[operation]]\nprofile = "hole"\nspindle = 1e-9\n')
+    result = invoke("job", str(job), "-o", str(tmp_path / "j.ngc"))
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == f"prs3-post: error: {job}: operation[1].spindle: 1e-09 rpm is out of range " \
+                            "(allowed: 1 to 1e+06 rpm)\n"
     assert not (tmp_path / "j.ngc").exists()
 
 

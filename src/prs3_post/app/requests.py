@@ -25,6 +25,7 @@ from prs3_post.app.values import (
     FEED,
     LENGTH,
     SPEED,
+    SPINDLE_LOW,
     TIME,
     ChoiceKind,
     DecimalKind,
@@ -121,7 +122,7 @@ OPERATION_FIELDS: dict[str, Field] = {
     "tool": Field(IntegerKind(), 1),
     "feed": Field(_FEED, 300.0),
     "plunge_feed": Field(_FEED, 100.0),
-    "spindle": Field(DecimalKind(SPEED, low=0.0, low_open=True), 3000.0),
+    "spindle": Field(DecimalKind(SPEED, low=SPINDLE_LOW), 3000.0),
     "coolant": Field(ChoiceKind(tuple(c.value for c in Coolant)), Coolant.FLOOD.value),
 }
 

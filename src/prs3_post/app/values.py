@@ -13,7 +13,7 @@ import re
 from dataclasses import dataclass
 from typing import Any
 
-from prs3_post.core.defaults import FEED_RANGE_MM_MIN, MAX_SPINDLE_RPM
+from prs3_post.core.defaults import FEED_RANGE_MM_MIN, MAX_SPINDLE_RPM, MIN_SPINDLE_RPM
 from prs3_post.core.errors import quoted
 
 #: The magnitudes a value may have (physically meaningful, with room to spare): (limit, unit).
@@ -23,6 +23,8 @@ FEED = (FEED_RANGE_MM_MIN[1], "mm/min")  # a kilometre a minute
 SPEED = (MAX_SPINDLE_RPM, "rpm")  # spindles reach some 100,000 rpm
 TIME = (1e4, "s")               # almost three hours
 RATIO = (1e6, "")               # direction components (normalized later)
+#: A spindle speed: at least :data:`~prs3_post.core.defaults.MIN_SPINDLE_RPM` (less prints as S0).
+SPINDLE_LOW = MIN_SPINDLE_RPM
 
 #: Plain decimal numbers only: ``-12.5``, ``.5``, ``5.``, ``1e-3``; not ``1_0``, ``nan``, ``inf``, ``0x1p3``,
 #: ``٣`` or surrounding spaces, which Python's float() would take.

@@ -19,7 +19,7 @@ from prs3_post.app.requests import (
     job_specs,
     used_by,
 )
-from prs3_post.app.values import ANGLE, FEED, LENGTH, SPEED, TIME
+from prs3_post.app.values import ANGLE, FEED, LENGTH, SPEED, SPINDLE_LOW, TIME
 from prs3_post.cli.options import (
     CLEARANCE_MIN,
     Command,
@@ -131,7 +131,7 @@ def job_options(func: Callable[..., Any]) -> Callable[..., Any]:
         click.option("--plunge-feed", type=Decimal(FEED, low=FEED_RANGE_MM_MIN[0]), default=_OP["plunge_feed"],
                      show_default=True,
                      help="Feed into the material (drilling, plunges, ramps), mm/min."),
-        click.option("--spindle", type=Decimal(SPEED, low=0.0, low_open=True), default=_OP["spindle"],
+        click.option("--spindle", type=Decimal(SPEED, low=SPINDLE_LOW), default=_OP["spindle"],
                      show_default=True,
                      help="Spindle speed, rpm (clockwise)."),
         click.option("--coolant", type=click.Choice(list(choices("coolant"))), default=_OP["coolant"],

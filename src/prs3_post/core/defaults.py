@@ -17,7 +17,7 @@ import math
 
 __all__ = [
     "DEFAULT_ANGLE_TOLERANCE", "DEFAULT_ANGLE_TOLERANCE_DEG", "DEFAULT_CIRCLE_TOLERANCE", "DEFAULT_CLEARANCE_MIN",
-    "DEFAULT_TOLERANCE", "FEED_RANGE_MM_MIN", "MAX_SPINDLE_RPM", "MM_PER_INCH", "NOMINAL_RAPID_RATE",
+    "DEFAULT_TOLERANCE", "FEED_RANGE_MM_MIN", "MAX_SPINDLE_RPM", "MIN_SPINDLE_RPM", "MM_PER_INCH", "NOMINAL_RAPID_RATE",
 ]
 
 DEFAULT_TOLERANCE = 0.002
@@ -50,3 +50,7 @@ minute (faster is a typo; the controller could not follow)."""
 MAX_SPINDLE_RPM = 1e6
 """rpm, the spindle speed an option, a job file, a CAM file (SPINDL/, G-code S) may ask for at most: spindles reach
 some 100,000 rpm; more is a typo (a CAM file's ``SPINDL/RPM,1e30`` was written as a 32-digit S word)."""
+
+MIN_SPINDLE_RPM = 1.0
+"""rpm, the spindle speed an option or a job file may ask for at least: slower is a typo or a unit error, and
+printed with no decimals (a dialect's ``decimals.spindle = 0``) it would be an S0 that does not turn the spindle."""

@@ -15,6 +15,7 @@ from prs3_post.core.defaults import MAX_SPINDLE_RPM
 from prs3_post.core.errors import InputError
 from prs3_post.core.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath
 from prs3_post.core.types import FloatArray
+from prs3_post.machine.dialect import TOOL_NUMBER_LIMIT
 from prs3_post.part.stl import MAX_COORDINATE_MM
 from prs3_post.part.workplane import rotate_rows
 from prs3_post.readers.cl.summary import ClCounts, ClCycle, ClFile, ClFrame, ClToolData
@@ -40,6 +41,9 @@ from prs3_post.toolpaths.arcs import MAX_ARC_SEGMENTS, arc_points_3d, arc_segmen
 from prs3_post.toolpaths.cycles import MAX_PECKS, DrillCycle, Pecking, drill_rows, peck_count
 
 _CYCLE_KINDS = {"DRILL": Pecking.NONE, "DEEP": Pecking.FULL_RETRACT, "BRKCHP": Pecking.CHIP_BREAK}
+
+#: What Python's float() reads as NaN or infinity, words to a CL file: refused where a number goes.
+_NOT_FINITE = frozenset({"NAN", "INF", "INFINITY"})
 
 
 # --------------------------------------------------------------------------------------------
@@ -435,11 +439,28 @@ class _Records:
         (number,) = self.numbers(record, args[:1])
         if number < 0 or number != int(number):
             raise self.error(f"{record.word}/ tool number must be a whole number ≥ 0, got {args[0]}")
+        if number > TOOL_NUMBER_LIMIT:
+            raise self.error(f"{record.word}/ tool number {args[0]} is out of range (allowed: whole numbers 0 to "
+                             f"{TOOL_NUMBER_LIMIT})")
         if record.word != "SELECT":
             shape = f": TLDATA/{','.join(self.tool_data[-1].words)}" if self.tool_data else ""
             self.event(EventKind.TOOL_CHANGE, value=float(number), text=f"tool {int(number)}{shape}")
 
     def tldata(self, record: _Record) -> None:
+        """The cutter's shape: words (MILL, DRILL), then numbers, the first the diameter; a NaN or a diameter
+        ≤ 0 is refused (it would shrink the tool the rapids are checked with to nothing)."""
+        diameter = True
+        for index, arg in enumerate(record.args, start=1):
+            text = arg.strip()
+            word = not _NUMBER.match(text) and any(c.isalpha() for c in text)
+            if word and text.lstrip("+-").upper() not in _NOT_FINITE:     # MILL, DRILL; not NaN, -inf
+                continue
+            value = _number(text, f"TLDATA/ value {index}")
+            if isinstance(value, str):
+                raise self.error(value)
+            if diameter and not value > 0:
+                raise self.error(f"TLDATA/ value {index}: the tool diameter must be above 0, got {text}")
+            diameter = False
         self.tool_data.append(ClToolData(record.line, record.args))
 
     def spindl(self, record: _Record) -> None:

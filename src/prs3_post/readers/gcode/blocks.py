@@ -20,6 +20,7 @@ from prs3_post.core.lexer import (
 )
 from prs3_post.core.toolpath import Coolant, Event, EventKind, Toolpath
 from prs3_post.core.types import FloatArray
+from prs3_post.machine.dialect import TOOL_NUMBER_LIMIT
 from prs3_post.part.workplane import WorkPlane, euler_zxz_deg
 from prs3_post.readers.common import MAX_FEED_MM_MIN, MAX_RECORD_CHARS, MIN_FEED_MM_MIN, join_toolpaths
 from prs3_post.readers.gcode.summary import GcodeCounts, GcodeCycle, GcodeFile, GcodePlane
@@ -294,6 +295,9 @@ class _Blocks:
         if tool is not None:
             if tool < 0 or tool != int(tool):
                 raise self.error(f"T must be a whole tool number ≥ 0, got {block.values['T'][1]}")
+            if tool > TOOL_NUMBER_LIMIT:
+                raise self.error(f"{block.values['T'][1]} is out of range (allowed: whole tool numbers 0 to "
+                                 f"{TOOL_NUMBER_LIMIT})")
             self.tool = int(tool)
         if "tool change" in m:
             if self.tool is None:
