@@ -20,8 +20,11 @@ from prs3_post.cli.main import main
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_TOLERANCE
 from prs3_post.core.errors import LimitError
 from prs3_post.core.toolpath import MoveKind, Toolpath
+from prs3_post.kinematics import IKModel
+from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.loading import load_dialect, load_machine
 from prs3_post.part.setup_transform import Setup
+from prs3_post.post.limits import check_limits, within_limits
 from prs3_post.post.pipeline import machine_path, post_process
 from prs3_post.toolpaths import Coolant, Cutting, HoleParams
 from prs3_post.toolpaths.work import HoleJob
@@ -88,6 +91,21 @@ def test_no_suggestion_where_the_tool_axis_breaks_a_limit():
     axis = np.array([math.sin(math.radians(50.0)), 0.0, math.cos(math.radians(50.0))])
     part_path = _drill(axis, np.array([0.0, 200.0, 300.0]))
     assert suggest_origin(MACHINE, part_path, DEFAULT, tolerance=0.002) is None
+
+
+def test_a_tilt_at_the_limit_to_the_last_bit_is_not_a_violation():
+    """[1, 0, 1]/√2 is 45° (max_tilt) to the last bit, but its arccos is 1.1e-16 rad more: it was refused,
+    "above the maximum 45.0000 deg by 0.0000 deg". Limits are compared with LIMIT_TOLERANCE."""
+    axis = np.array([[1.0, 0.0, 1.0]]) / math.sqrt(2.0)
+    ik = kinematics_of(MACHINE).inverse(np.array([[0.0, 0.0, -700.0]]), axis, model=IKModel.EXACT)
+    report = check_limits(MACHINE, ik, axis)
+    tilt = report.names.index("tilt")
+    assert report.value[0, tilt] > MACHINE.limits.max_tilt            # the float noise is there ...
+    assert report.ok.all() and report.margin[0, tilt] == 0.0         # ... and within the limit
+    assert within_limits(MACHINE, ik, axis)
+    beyond = np.array([[math.sin(math.radians(45.001)), 0.0, math.cos(math.radians(45.001))]])
+    ik = kinematics_of(MACHINE).inverse(np.array([[0.0, 0.0, -700.0]]), beyond, model=IKModel.EXACT)
+    assert not check_limits(MACHINE, ik, beyond).ok.any() and not within_limits(MACHINE, ik, beyond)
 
 
 def _wedge_hole_at_the_machine_origin() -> JobSpec:

@@ -146,6 +146,16 @@ def test_fk_checks_the_machines_limits():
                                                              "unit": "mm"}])
 
 
+def test_fk_at_the_stroke_limits_is_within_them():
+    """fk --strokes 400,400,400 (the maximum) reported "LIMIT T1 stroke: 400.0000 mm (margin 0.0000 mm)" and
+    exit 1: its IK round trip gives 400.00000000000006 mm. A stroke visibly beyond the limit still fails."""
+    at = run("fk", "--strokes", "400,400,400")
+    assert (at.exit_code, at.output.splitlines()[-1]) == (0, "ok: within every limit")
+    beyond = run("fk", "--strokes", "400.0001,400,400")
+    assert beyond.exit_code == 1
+    assert beyond.output.splitlines()[-1].startswith("LIMIT T1 stroke: 400.0001 mm (margin -0.0001 mm)")
+
+
 def test_fk_does_not_assemble():
     result = run("fk", "--strokes", "0,0,2000")
     assert result.exit_code == 1

@@ -14,6 +14,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
+from prs3_post.core.defaults import LIMIT_TOLERANCE
 from prs3_post.core.errors import LimitError
 from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, _named_problems, forward, inverse, unit_axes
 from prs3_post.kinematics.protocol import tilt_of
@@ -498,6 +499,18 @@ def _report_with(limits_change=None, stage_change=None):
     return check_limits(machine, ik, AXES[:1]), ik
 
 
+def _past(bound, toward, angle=False):
+    """``bound`` moved toward ``toward`` by twice LIMIT_TOLERANCE (in rad for an angle): a value at the old
+    bound is beyond the new one by more than float noise."""
+    step = 2.0 * (math.radians(LIMIT_TOLERANCE) if angle else LIMIT_TOLERANCE)
+    return bound + math.copysign(step, toward - bound)
+
+
+def _one_float(bound, toward, angle=False):
+    """``bound`` moved one float toward ``toward``: a value at the old bound is beyond it by float noise."""
+    return float(np.nextafter(bound, toward))
+
+
 @pytest.mark.parametrize(("limit", "broken"), [
     ("stroke_max", ["T2 stroke"]), ("stroke_min", ["T1 stroke"]),
     ("link_min", ["θ1 link angle", "θ2 link angle"]),           # case 2a: θ1 = θ2 exactly (pose symmetric in x)
@@ -505,25 +518,31 @@ def _report_with(limits_change=None, stage_change=None):
     ("stage_x", ["stage X"]), ("stage_y", ["stage Y"]),
 ])
 def test_each_limit_fires_exactly_at_its_boundary(limit, broken):
+    """A value at a bound is inside; one float past it too (float noise, within LIMIT_TOLERANCE); past it by
+    more than LIMIT_TOLERANCE it breaks that limit and only that one."""
     _, ik = _report_with()
     t2, t1 = ik.strokes[0, 1], ik.strokes[0, 0]
     th_max, th_min = ik.link_angle[0].max(), ik.link_angle[0].min()
     tilt = math.acos(AXES[0, 2])
     x, y = ik.stage[0]
-    at, beyond = {
-        "stroke_max": ({"stroke": (-100.0, t2)}, {"stroke": (-100.0, np.nextafter(t2, -np.inf))}),
-        "stroke_min": ({"stroke": (t1, 400.0)}, {"stroke": (np.nextafter(t1, np.inf), 400.0)}),
-        "link_min": ({"link_angle": (th_min, 1.4)}, {"link_angle": (np.nextafter(th_min, 9), 1.4)}),
-        "link_max": ({"link_angle": (0.5, th_max)}, {"link_angle": (0.5, np.nextafter(th_max, 0))}),
-        "tilt": ({"max_tilt": tilt}, {"max_tilt": np.nextafter(tilt, 0)}),
-        "condition": ({"max_condition": ik.condition[0]}, {"max_condition": np.nextafter(ik.condition[0], 0)}),
-        "stage_x": ({"travel_x": (x, 300.0)}, {"travel_x": (np.nextafter(x, 9), 300.0)}),
-        "stage_y": ({"travel_y": (-300.0, y)}, {"travel_y": (-300.0, np.nextafter(y, 0))}),
-    }[limit]
+
+    def changes(past):
+        return {
+            "stroke_max": {"stroke": (-100.0, past(t2, -np.inf))},
+            "stroke_min": {"stroke": (past(t1, np.inf), 400.0)},
+            "link_min": {"link_angle": (past(th_min, 9, True), 1.4)},
+            "link_max": {"link_angle": (0.5, past(th_max, 0, True))},
+            "tilt": {"max_tilt": past(tilt, 0, True)},
+            "condition": {"max_condition": past(ik.condition[0], 0)},
+            "stage_x": {"travel_x": (past(x, 9), 300.0)},
+            "stage_y": {"travel_y": (-300.0, past(y, 0))},
+        }[limit]
+
     key = "stage_change" if limit.startswith("stage") else "limits_change"
-    inside, _ = _report_with(**{key: at})
-    outside, _ = _report_with(**{key: beyond})
-    assert inside.ok[0] and not outside.ok[0]
+    inside, _ = _report_with(**{key: changes(lambda bound, toward, angle=False: bound)})
+    noise, _ = _report_with(**{key: changes(_one_float)})
+    outside, _ = _report_with(**{key: changes(_past)})
+    assert inside.ok[0] and noise.ok[0] and not outside.ok[0]
     assert [outside.names[c] for c in np.flatnonzero(outside.margin[0] < 0)] == broken
 
 
@@ -533,7 +552,8 @@ def test_each_limit_fires_exactly_at_its_boundary(limit, broken):
                              "inf", "-inf"]))
 def test_within_limits_is_the_reports_ok_all(seed, rows, one_axis, column, edge):
     """The stream's quick test (each limit's least and greatest value) says what the report's ok.all()
-    says: bounds at a column's extreme value or one float past it, NaN and ±inf among the values."""
+    says: bounds at a column's extreme value or past it by more than LIMIT_TOLERANCE, NaN and ±inf among the
+    values."""
     rng = np.random.default_rng(seed)
     tilt = np.full(rows, 20.0) if one_axis else rng.uniform(0.0, 40.0, rows)
     tip, axis = poses_from(tilt, np.full(rows, 75.0) if one_axis else rng.uniform(0, 360, rows),
@@ -545,8 +565,9 @@ def test_within_limits_is_the_reports_ok_all(seed, rows, one_axis, column, edge)
         group = {0: slice(0, 3), 1: slice(3, 6)}.get(column // 3, slice(column, column + 1))   # one bound's columns
         values = check_limits(MACHINE, ik, axis).value[:, group]
         top, bottom = float(values.max()), float(values.min())
-        bound = {"at the top": (-1e9, top), "past the top": (-1e9, np.nextafter(top, -np.inf)),
-                 "at the bottom": (bottom, 1e9), "past the bottom": (np.nextafter(bottom, np.inf), 1e9)}.get(edge)
+        angle = 3 <= column < 7                        # link angles and tilt: rad
+        bound = {"at the top": (-1e9, top), "past the top": (-1e9, _past(top, -np.inf, angle)),
+                 "at the bottom": (bottom, 1e9), "past the bottom": (_past(bottom, np.inf, angle), 1e9)}.get(edge)
         if bound is not None:
             if column < 3:
                 machine = dataclasses.replace(machine, limits=dataclasses.replace(machine.limits, stroke=bound))

@@ -48,7 +48,7 @@ from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, unit_axes
 from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.loading import Machine
 from prs3_post.part.setup_transform import MAX_ORIGIN_MM, Setup, SetupError
-from prs3_post.post.limits import LimitReport, check_limits
+from prs3_post.post.limits import LimitReport, check_limits, limit_margins
 from prs3_post.post.pipeline import machine_path, model_for, place_toolpath, post_process
 
 #: A value that moves by less than this (per mm of shift) does not depend on that shift direction.
@@ -98,7 +98,7 @@ def _span(report: LimitReport) -> FloatArray:
 
 def _with_values(report: LimitReport, value: FloatArray) -> LimitReport:
     """``report``'s limits with other values (N, L): margins and verdicts recomputed."""
-    margin = np.minimum(value - report.low, report.high - value)
+    margin = limit_margins(value, report.low, report.high, report.units)
     with np.errstate(invalid="ignore"):
         ok = np.all(margin >= 0.0, axis=1)             # NaN (unreachable) is never ok
     return replace(report, value=value, margin=margin, ok=ok)
@@ -143,7 +143,8 @@ def shift_ranges(machine: Machine, path: Toolpath) -> FloatArray | None:
     """(3, 2) mm — for x, y, z, the interval of part shifts that keeps every point inside every limit
     (machine-frame path); None when no translation can (a limit that does not move with the part is
     already broken, a value moves with more than one direction, or an interval is empty)."""
-    value, low, high = _values(machine, path, np.zeros(3))
+    columns = _columns(machine, path, np.zeros(3))
+    value, low, high = columns.value, columns.low, columns.high
     if not np.isfinite(value).all():                   # a pose that does not assemble: the axis, not the place
         return None
     slopes = [_values(machine, path, unit)[0] - value for unit in np.eye(3)]   # per mm along x, y, z
@@ -157,7 +158,7 @@ def shift_ranges(machine: Machine, path: Toolpath) -> FloatArray | None:
                                  np.broadcast_to(high, value.shape)[moves[k]])
     fixed = ~moves.any(axis=0)
     with np.errstate(invalid="ignore"):
-        inside = (value >= low) & (value <= high)
+        inside = limit_margins(value, low, high, columns.units) >= 0.0       # at a bound within LIMIT_TOLERANCE too
     if not inside[fixed].all() or (ranges[:, 0] > ranges[:, 1]).any():
         return None
     return ranges

@@ -17,7 +17,8 @@ import math
 
 __all__ = [
     "DEFAULT_ANGLE_TOLERANCE", "DEFAULT_ANGLE_TOLERANCE_DEG", "DEFAULT_CIRCLE_TOLERANCE", "DEFAULT_CLEARANCE_MIN",
-    "DEFAULT_TOLERANCE", "FEED_RANGE_MM_MIN", "MAX_SPINDLE_RPM", "MIN_SPINDLE_RPM", "MM_PER_INCH", "NOMINAL_RAPID_RATE",
+    "DEFAULT_TOLERANCE", "FEED_RANGE_MM_MIN", "LIMIT_TOLERANCE", "MAX_SPINDLE_RPM", "MIN_SPINDLE_RPM", "MM_PER_INCH",
+    "NOMINAL_RAPID_RATE",
 ]
 
 DEFAULT_TOLERANCE = 0.002
@@ -54,3 +55,8 @@ some 100,000 rpm; more is a typo (a CAM file's ``SPINDL/RPM,1e30`` was written a
 MIN_SPINDLE_RPM = 1.0
 """rpm, the spindle speed an option or a job file may ask for at least: slower is a typo or a unit error, and
 printed with no decimals (a dialect's ``decimals.spindle = 0``) it would be an S0 that does not turn the spindle."""
+
+LIMIT_TOLERANCE = 1e-9
+"""mm, deg (or a plain number: the condition number): how far a value may pass a machine limit and still be at
+it, not beyond: the float noise of a round trip (a stroke of 400 mm comes back as 400.00000000000006), far below
+the 0.0001 mm and deg printed. Every limit check (post.limits, the placement search) compares with it."""

@@ -1,7 +1,9 @@
 """Machine limits on every point: values, margins, and the error for the first violation.
 
 A margin is the distance from a value to the nearest bound of its limit, in the limit's unit
-(mm, rad or plain number): positive inside, 0 on the boundary (still allowed), negative outside.
+(mm, rad or plain number): positive inside, 0 on the boundary (still allowed), negative outside. A value
+beyond a bound by no more than :data:`~prs3_post.core.defaults.LIMIT_TOLERANCE` (float noise) is on it:
+its margin is 0.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from prs3_post.core.defaults import LIMIT_TOLERANCE
 from prs3_post.core.errors import LimitError
 from prs3_post.core.types import BoolArray, FloatArray
 from prs3_post.kinematics import IKResult
@@ -63,6 +66,23 @@ def _shown(value: float) -> str:
     return f"{value:.4f}" if abs(value) < 1e9 else f"{value:.6g}"
 
 
+def _slack(unit: str) -> float:
+    """:data:`LIMIT_TOLERANCE` in a limit's code unit (rad for ``deg``)."""
+    return math.radians(LIMIT_TOLERANCE) if unit == "deg" else LIMIT_TOLERANCE
+
+
+def limit_margins(value: FloatArray, low: FloatArray, high: FloatArray, units: tuple[str, ...]) -> FloatArray:
+    """(N, L) float — each value's margin to its limit (``value`` (N, L); ``low``, ``high``, ``units`` (L,)):
+    min(value − low, high − value), 0 where a value is beyond a bound by no more than
+    :data:`LIMIT_TOLERANCE`; NaN stays NaN."""
+    margin = np.minimum(value - low, high - value)
+    if not np.fmin.reduce(margin, axis=None, initial=0.0) < 0.0:     # all inside (or NaN): the common case
+        return margin
+    slack = np.array([_slack(unit) for unit in units])
+    with np.errstate(invalid="ignore"):
+        return np.where((margin < 0.0) & (margin >= -slack), 0.0, margin)
+
+
 def _groups(machine: Machine, ik: IKResult, axis: FloatArray) -> LimitColumns:
     """The limits of ``machine`` by the bounds they share: names, unit, bounds and the points' values
     (N, one column per name): its kinematics' columns, then the stage's travel."""
@@ -93,7 +113,7 @@ def check_limits(machine: Machine, ik: IKResult, axis: FloatArray) -> LimitRepor
     # one limit per row of (L, N) arrays: each step runs along a contiguous row (the report holds
     # their (N, L) transposes, views)
     value = np.stack([c[4] for c in columns]).reshape(len(columns), len(ik.strokes))
-    margin = np.minimum(value - low[:, None], high[:, None] - value)
+    margin = limit_margins(value.T, low, high, tuple(c[1] for c in columns)).T
     with np.errstate(invalid="ignore"):
         ok = np.logical_and.reduce(margin >= 0.0, axis=0)   # NaN (unreachable) is never ok
     return LimitReport(
@@ -114,12 +134,13 @@ def within_limits(machine: Machine, ik: IKResult, axis: FloatArray) -> bool:
     A point is ok exactly where each of its values is finite and low ≤ value ≤ high (a margin
     min(value − low, high − value) of two floats is ≥ 0 exactly then; an infinite value makes one
     term NaN or negative, NaN makes both NaN), and a NaN or infinite value makes its column's least
-    or greatest value NaN or infinite, so the extremes of the columns decide.
+    or greatest value NaN or infinite, so the extremes of the columns decide. Both allow
+    :data:`LIMIT_TOLERANCE` beyond a bound.
     """
-    for _, _, low, high, values in _groups(machine, ik, axis):   # (strokes, link angles: one reduction each)
+    for _, unit, low, high, values in _groups(machine, ik, axis):   # (strokes, link angles: one reduction each)
         if len(values):
-            least, most = float(values.min()), float(values.max())
-            if not (math.isfinite(least) and math.isfinite(most) and low <= least and most <= high):
+            least, most, slack = float(values.min()), float(values.max()), _slack(unit)
+            if not (math.isfinite(least) and math.isfinite(most) and low - slack <= least and most <= high + slack):
                 return False
     return True
 
