@@ -396,7 +396,15 @@ def test_a_spindle_speed_beyond_any_spindle_is_an_input_error(speed: str) -> Non
     with pytest.raises(InputError) as info:
         parse_cl(f"SPINDL/RPM,{speed},CLW\nFEDRAT/100\nGOTO/0,0,0\n", path="t.cls", tolerance=0.0001,
                  circle_tolerance=CIRCLE_TOL)
-    assert str(info.value) == f"t.cls:1: SPINDL/ speed {speed} is more than 1e+06 rpm (allowed: above 0 to 1e+06 rpm)"
+    assert str(info.value) == f"t.cls:1: SPINDL/ speed {speed} is more than 1e+06 rpm (allowed: 1 to 1e+06 rpm)"
+
+
+def test_a_spindle_speed_that_prints_as_zero_is_an_input_error() -> None:
+    """SPINDL/RPM,0.001 was a limit error (exit 1) in the emitter: "spindle_on event before row 0 ..."."""
+    with pytest.raises(InputError) as info:
+        parse_cl("SPINDL/RPM,0.001,CLW\nFEDRAT/100\nGOTO/0,0,0\n", path="t.cls", tolerance=0.0001,
+                 circle_tolerance=CIRCLE_TOL)
+    assert str(info.value) == "t.cls:1: SPINDL/ speed 0.001 is less than 1 rpm (allowed: 1 to 1e+06 rpm)"
 
 
 

@@ -394,7 +394,9 @@ BAD = [
     ("G20\nG0 X0 Y0 Z1\nG1 Z0 F50000\n", 3, "F50000 is 1.27e+06 mm/min, more than 1e+06 mm/min"),
     ("G0 X0 Y0 Z1\nG1 Z0 F100000000\nG1 X1\n", 2, "F100000000 is 1e+08 mm/min, more than 1e+06 mm/min"),
     ("G0 X0 Y0 Z1\nS99999999999999999999999 M3\n", 2, "S99999999999999999999999 is more than 1e+06 rpm (allowed: "
-     "0 to 1e+06 rpm)"),
+     "0, or 1 to 1e+06 rpm)"),
+    # it was a limit error (exit 1) in the emitter: "spindle_on event before row 0 ...", printed as S0
+    ("G0 X0 Y0 Z1\nS0.001 M3\n", 2, "S0.001 is less than 1 rpm (allowed: 0, or 1 to 1e+06 rpm)"),
     ("G68.2 X0 Y0 Z0 I10 J20 K0 Q121\n", 1, "G68.2 Q121: the Euler angles are read in the order Z-X-Z only (Q313, "
      "the default)"),
     ("G64 P0.01\n", 1, "code G64 is not read by the 3+2 G-code reader (codes read: G0 G1 G2 G3 G4 G17 G18 G19 G20 G21 "

@@ -53,8 +53,9 @@ MAX_SPINDLE_RPM = 1e6
 some 100,000 rpm; more is a typo (a CAM file's ``SPINDL/RPM,1e30`` was written as a 32-digit S word)."""
 
 MIN_SPINDLE_RPM = 1.0
-"""rpm, the spindle speed an option or a job file may ask for at least: slower is a typo or a unit error, and
-printed with no decimals (a dialect's ``decimals.spindle = 0``) it would be an S0 that does not turn the spindle."""
+"""rpm, the spindle speed an option, a job file, a CAM file (SPINDL/, a G-code S other than S0) may ask for at
+least: slower is a typo or a unit error, and printed with no decimals (a dialect's ``decimals.spindle = 0``) it
+would be an S0 that does not turn the spindle."""
 
 LIMIT_TOLERANCE = 1e-9
 """mm, deg (or a plain number: the condition number): how far a value may pass a machine limit and still be at

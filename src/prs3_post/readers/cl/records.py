@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from prs3_post.core.defaults import MAX_SPINDLE_RPM
+from prs3_post.core.defaults import MAX_SPINDLE_RPM, MIN_SPINDLE_RPM
 from prs3_post.core.errors import InputError
 from prs3_post.core.toolpath import Coolant, Event, EventKind, MoveKind, Toolpath
 from prs3_post.core.types import FloatArray
@@ -492,9 +492,12 @@ class _Records:
         (rpm,) = self.numbers(record, tuple(speed))
         if not rpm > 0:
             raise self.error(f"SPINDL/ speed must be > 0 rpm, got {speed[0]}")
+        if rpm < MIN_SPINDLE_RPM:                      # it would print as S0
+            raise self.error(f"SPINDL/ speed {speed[0]} is less than {MIN_SPINDLE_RPM:g} rpm (allowed: "
+                             f"{MIN_SPINDLE_RPM:g} to {MAX_SPINDLE_RPM:g} rpm)")
         if rpm > MAX_SPINDLE_RPM:
-            raise self.error(f"SPINDL/ speed {speed[0]} is more than {MAX_SPINDLE_RPM:g} rpm (allowed: above 0 to "
-                             f"{MAX_SPINDLE_RPM:g} rpm)")
+            raise self.error(f"SPINDL/ speed {speed[0]} is more than {MAX_SPINDLE_RPM:g} rpm (allowed: "
+                             f"{MIN_SPINDLE_RPM:g} to {MAX_SPINDLE_RPM:g} rpm)")
         self.spindle_rpm, self.spindle_on = rpm, True
         self.spindle_kind = EventKind.SPINDLE_ON_CCW if direction == "CCLW" else EventKind.SPINDLE_ON
         self.event(self.spindle_kind, value=rpm)

@@ -9,7 +9,7 @@ from collections import Counter
 
 import numpy as np
 
-from prs3_post.core.defaults import MAX_SPINDLE_RPM, MM_PER_INCH
+from prs3_post.core.defaults import MAX_SPINDLE_RPM, MIN_SPINDLE_RPM, MM_PER_INCH
 from prs3_post.core.errors import InputError, LexError
 from prs3_post.core.lexer import (
     Word,
@@ -285,9 +285,11 @@ class _Blocks:
         if speed is not None:
             if speed < 0:
                 raise self.error(f"S must be ≥ 0 rpm, got {block.values['S'][1]}")
+            allowed = f"(allowed: 0, or {MIN_SPINDLE_RPM:g} to {MAX_SPINDLE_RPM:g} rpm)"
+            if 0 < speed < MIN_SPINDLE_RPM:              # it would print as S0
+                raise self.error(f"{block.values['S'][1]} is less than {MIN_SPINDLE_RPM:g} rpm {allowed}")
             if speed > MAX_SPINDLE_RPM:
-                raise self.error(f"{block.values['S'][1]} is more than {MAX_SPINDLE_RPM:g} rpm (allowed: 0 to "
-                                 f"{MAX_SPINDLE_RPM:g} rpm)")
+                raise self.error(f"{block.values['S'][1]} is more than {MAX_SPINDLE_RPM:g} rpm {allowed}")
             self.spindle_rpm = speed
             if self.spindle_on and "spindle" not in m:
                 self.event(self.spindle_kind, value=speed)
