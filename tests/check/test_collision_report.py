@@ -152,12 +152,13 @@ def test_a_larger_clearance_min_fails_the_same_program_on_the_holders_line(wall_
     assert result.output.splitlines()[-6:-1] == [
         f"  clearance from the part (min 9.000 mm; {_ALLOWANCE}):",
         "    tool               27.036 mm  line 24 (hole 1 approach)",
-        "    holder              8.635 mm  line 25 (hole 1 approach)",
+        # its side as close as its rim at line 25: the earliest pose of that clearance is named
+        "    holder              8.635 mm  line 24 (hole 1 approach)",
         "    spindle nose       12.859 mm  line 27 (hole 1 feed)",
         "FAIL: 1 problem",
     ]
     assert result.output.splitlines()[-1] == (
-        "  line 25 (hole 1 approach): the holder comes within 8.635 mm of the part (clearance min 9.000 mm)")
+        "  line 24 (hole 1 approach): the holder comes within 8.635 mm of the part (clearance min 9.000 mm)")
 
 
 def test_verify_can_be_asked_not_to_measure_the_clearance(wall_programs):
@@ -263,3 +264,20 @@ def test_verify_of_a_converted_program_reports_the_tool_in_its_rapids(tmp_path):
         "  line 20: the tool hits the part in a rapid, 3.000 mm deep (a rapid may touch the part, not cut it: "
         "0.050 mm at most)",
     ]
+
+
+def test_the_header_states_the_clearance_verify_measures(tmp_path):
+    """Defect 10 (issue 20): beside the wall's edge the holder's clearance is its axis's distance from the edge
+    less its radius, 1.000 mm; the header said 1.019 mm (its surface points, 15° apart, miss the nearest
+    one by up to r (1 - cos 7.5°)) where verify --against said 1.000 mm. Both are the exact value now."""
+    out = tmp_path / "edge.ngc"
+    result = invoke("run", WALL, "--face", "4", "--profile", "hole", "--at", "15.735,0", "--depth", "5",
+                    "--tool-diameter", "6", "-o", out)
+    assert result.exit_code == 0, result.output
+    entry = [line for line in out.read_text().splitlines() if line.startswith("(collision: ")]
+    assert entry == ["(collision: clear of the part by at least 1.000 mm: tool over 11.000 mm, holder 1.000 mm, "
+                     "spindle nose over 11.000 mm)"]
+    verified = invoke("verify", out, "--against", WALL)
+    assert verified.exit_code == 0, verified.output
+    assert [line for line in verified.output.splitlines() if line.startswith("    holder ")] == [
+        "    holder              1.000 mm  line 27 (hole 1 feed)"]

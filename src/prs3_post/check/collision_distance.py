@@ -42,6 +42,9 @@ MEASURE_BLOCK = 64
 AFTER_HIT = 4
 #: mm: minima this close are the same (the report's rounding); the earliest pose is named.
 _TIE_MM = 5e-4
+#: mm: how much closer than at the segment's ends (or as close at its middle) a triangle must be for its
+#: nearest point of the segment to be an inner one (:meth:`ClearancePoses._side`).
+_INNER_MM = 1e-9
 #: Pairs measured at a time (memory).
 _CHUNK = PAIR_BUDGET
 
@@ -542,7 +545,7 @@ class ClearancePoses:
                 dist = _signed(world.reshape(-1, 3), self.part, cut, self.face, reach, outside,
                                per=len(mine)).reshape(len(r), -1)
             best = np.argmin(dist, axis=1)
-            measured = dist[np.arange(len(r)), best]
+            measured = self._side(r, b, dist[np.arange(len(r)), best])
             self._solid(r, b, measured)
             exact = measured < (self.near if reach is None else reach)
             self.value[r, b] = np.where(exact, measured, np.maximum(measured, self.value[r, b]))  # two bounds
@@ -550,6 +553,37 @@ class ClearancePoses:
             self.exact[r, b] = exact
             self.found[b] = min(self.found[b], float(self.value[r, b].min()))
 
+
+    def _side(self, rows: IntArray, b: int, measured: FloatArray) -> FloatArray:
+        """``measured`` (the surface points' minimum at ``rows``) lowered to the exact clearance of body
+        ``b``'s side where a triangle near it is nearest to an inner point of its axis segment: there the
+        body's nearest point is on its side, across from it, and the clearance is that distance less the
+        radius. The surface points alone overstate it by up to r (1 − cos(π / AZIMUTHS)) (0.128 mm for a
+        15 mm holder) by where their azimuths fall, so the header's minimum (the main job's poses) and
+        verify's (its own) would differ by that much; this is the same value at any pose and azimuth.
+        A pose nearest to an end of the axis (its rim) keeps the points' value; so does the cutting tool."""
+        radius, z0, z1 = (float(v) for v in self.cylinders[b])
+        todo = np.flatnonzero((measured > 0.0) & ~(self.cutting[rows] & (b == 0)))
+        if z1 <= z0 or not len(todo):
+            return measured
+        near = [self.triangles_near(int(rows[k]), b) for k in todo.tolist()]
+        count = np.array([len(t) for t in near])
+        if not count.sum():
+            return measured
+        pose = np.repeat(todo, count)
+        tri = self.part.triangles[np.concatenate(near)]
+        tip, axis = self.tip[rows[pose]], self.axis[rows[pose]]
+        p0, p1 = tip + z0 * axis, tip + z1 * axis
+        a, b_, c = tri[:, 0], tri[:, 1], tri[:, 2]
+        gap = segment_triangle_distance(p0, p1, tri)
+        ends = np.minimum(triangle_distance(p0, a, b_, c), triangle_distance(p1, a, b_, c))
+        middle = triangle_distance(0.5 * (p0 + p1), a, b_, c)
+        # the distance along the segment is convex: below both ends, or as low at the middle, is inside it
+        inner = (gap < ends - _INNER_MM) | (middle <= gap + _INNER_MM)
+        side = np.where(inner & (gap > radius), gap - radius, np.inf)
+        lowest = np.full(len(measured), np.inf)
+        np.minimum.at(lowest, pose, side)
+        return np.minimum(measured, lowest)
 
     def _solid(self, rows: IntArray, b: int, measured: FloatArray) -> None:
         """Where the surface points found body ``b`` clear of the part at ``rows`` (``measured`` > 0), make
