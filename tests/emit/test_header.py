@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 
 from prs3_post.app.job import JobSpec, run_job, run_operations, spec_from_header, specs_from_header
+from prs3_post.cli.options import flag_of
 from prs3_post.core.errors import InputError
 from prs3_post.core.numbers import degrees_text, exact_text
 from prs3_post.emit.gcode import ProgramEmitter
@@ -168,7 +169,7 @@ def test_a_header_tolerance_outside_the_options_range_is_refused(tmp_path, name,
     bad.write_text("\n".join(lines), encoding="utf-8")
     with pytest.raises(InputError) as caught:
         read_header(str(bad))
-    assert str(caught.value) == f"{bad}:{number + 1}: header: tolerance: {expected}"
+    assert caught.value.worded(flag_of) == f"{bad}:{number + 1}: header: tolerance: {expected}"   # as the CLI says it
 
 
 def test_a_missing_entry_is_an_error(tmp_path):

@@ -16,6 +16,7 @@ import shapely
 import trimesh
 from numpy.testing import assert_allclose
 
+from prs3_post.cli.options import flag_of
 from prs3_post.core.errors import FeatureError, InputError, Prs3Warning
 from prs3_post.part.face import frame_from_normal
 from prs3_post.part.faces import (
@@ -299,7 +300,7 @@ def test_bad_fixture_load_errors(name, message):
     path = str(BAD / name)
     with pytest.raises(InputError) as caught:
         load_part(path)
-    assert str(caught.value) == f"{path}: {message}"
+    assert caught.value.worded(flag_of) == f"{path}: {message}"              # as the command line words it
     assert caught.value.path == path
 
 
@@ -562,7 +563,7 @@ def test_part_size_warnings(tmp_path, recwarn, scale, units, message):
         load_part(path, units=units)
     except InputError as error:
         assert message is None and "largest extent under 1 mm" in error.args[0]
-    shown = [str(w.message) for w in recwarn if issubclass(w.category, Prs3Warning)]
+    shown = [w.message.worded(flag_of) for w in recwarn if isinstance(w.message, Prs3Warning)]   # as the CLI words it
     assert shown == ([] if message is None else [f"{path}: {message}"])
 
 

@@ -37,6 +37,9 @@ class FileOutcome:
     report : ConvertReport | None — None when it failed
     seconds : float — wall time of this file
     exists : bool — it failed because its program exists already (kept: see ``force``)
+    keyed : str — ``error`` with the request keys it names as ``{key}``, for a front end to word
+        (:class:`~prs3_post.core.errors.KeyedMessage`); empty when it names none
+    keys : tuple of str — the keys ``keyed`` names (empty: any ``{key}`` in it)
     """
 
     input: str
@@ -47,6 +50,8 @@ class FileOutcome:
     report: ConvertReport | None = None
     seconds: float = 0.0
     exists: bool = False
+    keyed: str = ""
+    keys: tuple[str, ...] = ()
 
     def record(self) -> dict[str, object]:
         """JSON-ready data."""
@@ -206,13 +211,14 @@ def convert_one(input_path: str, output: str, settings: ConvertSettings, *, forc
             raise OutputExists(f"{EXISTS} (it is replaced only when forced)", path=output)
         report = write_conversion(input_path, output, settings)
     except Prs3Error as error:
-        message = str(error)
+        message, keyed = str(error), error.carried() if error.names_keys else ""
         # an InputError starts with the file it is about; a limit or reach error found by no line (no
         # placement fits the whole file) says which input it is about first, as every failure does
         if not isinstance(error, InputError) and not message.startswith(input_path):
-            message = f"{input_path}: {message}"
+            message, keyed = f"{input_path}: {message}", keyed and f"{input_path}: {keyed}"
         return FileOutcome(input=input_path, output=output, ok=False, error=message, exit_code=error.exit_code,
-                           seconds=time.perf_counter() - start, exists=isinstance(error, OutputExists))
+                           seconds=time.perf_counter() - start, exists=isinstance(error, OutputExists), keyed=keyed,
+                           keys=() if isinstance(error.names_keys, bool) else error.names_keys)
     return FileOutcome(input=input_path, output=output, ok=True, report=report,
                        seconds=time.perf_counter() - start)
 

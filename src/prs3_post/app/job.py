@@ -626,7 +626,7 @@ def _operation_error(error: LimitError | ReachError, machine: Machine, path_part
     advice = ("no translation of the part puts this operation inside the machine's limits" if origin is None else
               f"a part origin at machine [{', '.join(origin)}] mm puts this operation (alone) inside the machine's "
               "limits")
-    return type(error)(f"{error}; setup: {spec.setup.describe()}; {advice}")
+    return type(error)(f"{error.carried()}; setup: {spec.setup.describe()}; {advice}", names_keys=error.names_keys)
 
 
 def _retract(specs: tuple[JobSpec, ...]) -> float:

@@ -74,8 +74,9 @@ class Placement(Exception):
         (None: no translation does)
     """
 
-    def __init__(self, message: str, *, setup: Setup, suggested_origin: tuple[str, str, str] | None):
-        super().__init__(message)
+    def __init__(self, message: str, *, setup: Setup, suggested_origin: tuple[str, str, str] | None,
+                 names_keys: bool | tuple[str, ...] = False):
+        super().__init__(message, names_keys=names_keys)  # type: ignore[call-arg]  # the Prs3Error mixed in takes it
         self.setup, self.suggested_origin = setup, suggested_origin
 
 
@@ -211,7 +212,8 @@ def placement_error(error: LimitError | ReachError, machine: Machine, path_part:
     else:
         advice = f"a part origin at machine [{', '.join(origin)}] mm puts every point inside the machine's limits"
     kind = PlacementReachError if isinstance(error, ReachError) else PlacementLimitError
-    return kind(f"{error}; setup: {setup.describe()}; {advice}", setup=setup, suggested_origin=origin)
+    return kind(f"{error.carried()}; setup: {setup.describe()}; {advice}", setup=setup, suggested_origin=origin,
+                names_keys=error.names_keys)
 
 
 # ============================================================================ automatic placement

@@ -22,6 +22,7 @@ from prs3_post.cli.options import (
     OutputPath,
     clamp_option,
     dialect_option,
+    flag_of,
     job_part_origin_option,
     job_part_rotation_option,
     line_number_options,
@@ -33,7 +34,7 @@ from prs3_post.cli.options import (
     was_given,
 )
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARANCE_MIN
-from prs3_post.core.errors import FieldError, quoted
+from prs3_post.core.errors import FieldError, quoted, spelled
 from prs3_post.core.lexer import code_name
 from prs3_post.core.output_files import (
     check_writable,
@@ -231,9 +232,12 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
 
 
 def _flag_named(outcome: FileOutcome) -> FileOutcome:
-    """A kept program's failure says which option replaces it (the library names no option)."""
+    """A kept program's failure says which option replaces it, and an error the keys it names as the
+    options that set them (the library names no option)."""
     from prs3_post.app.batch import EXISTS
 
+    if outcome.keyed:
+        return dataclasses.replace(outcome, error=spelled(outcome.keyed, flag_of, outcome.keys or None))
     if not outcome.exists:
         return outcome
     return dataclasses.replace(outcome, error=f"{outcome.output}: {EXISTS} (convert with --force to replace it)")

@@ -20,7 +20,7 @@ import click
 from prs3_post.app.requests import AUTO, SETTING_FIELDS, UP_ROTATION
 from prs3_post.app.values import ANGLE, LENGTH, DecimalKind, IntegerKind, Kind, NumbersKind, ValueProblem
 from prs3_post.core.defaults import DEFAULT_TOLERANCE
-from prs3_post.core.errors import FeatureError, FieldError, Prs3Error, Prs3Warning, UnusedFields, quoted
+from prs3_post.core.errors import FieldError, KeyedMessage, Prs3Error, Prs3Warning, UnusedFields, quoted
 from prs3_post.core.output_files import (
     refuse_overwriting,
     stdout_error,
@@ -127,6 +127,11 @@ def _refuse_overwriting_inputs(ctx: click.Context) -> None:
     refuse_overwriting(outputs, inputs)
 
 
+def _worded(message: Warning | str) -> str:
+    """A warning as the command line says it: the keys it names as the flags that set them."""
+    return message.worded(flag_of) if isinstance(message, KeyedMessage) else str(message)
+
+
 @contextlib.contextmanager
 def warnings_to_stderr() -> Iterator[None]:
     """Print every :class:`Prs3Warning` as ``prs3-post: warning: message`` on standard error, when it happens."""
@@ -136,7 +141,7 @@ def warnings_to_stderr() -> Iterator[None]:
 
         def show(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:
             if issubclass(category, Prs3Warning):
-                click.echo(f"prs3-post: warning: {message}", err=True)
+                click.echo(f"prs3-post: warning: {_worded(message)}", err=True)
             else:
                 shown(message, category, *args, **kwargs)
 
@@ -351,6 +356,4 @@ def option_error(error: FieldError) -> click.ClickException:
 
 def error_text(error: Prs3Error) -> str:
     """A library error as the command line says it: the keys its message names as the flags that set them."""
-    if isinstance(error, FeatureError | FieldError):
-        return error.worded(flag_of)
-    return str(error)
+    return error.worded(flag_of)

@@ -7,7 +7,7 @@ as ``where: message`` and exits non-zero, never with a traceback.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 
 ECHO_LIMIT = 40
 """Characters of a user's value that a message shows (a longer one is cut, with ``…``)."""
@@ -32,8 +32,43 @@ def shortened(text: str, limit: int = ECHO_LIMIT) -> str:
     return text if len(text) <= limit else text[:limit - 1] + "…"
 
 
-class Prs3Error(Exception):
-    """Reported by the CLI as `where: message`; never a traceback."""
+class KeyedMessage(Exception):
+    """A message (of an error or a warning) that may name the request keys it concerns as ``{key}``
+    (``{depth} must be > 0 mm``, ``check {setup.part_origin}``): such a message says which (``names_keys``,
+    per class or per instance: True for any, or the keys) and each front end words them (:meth:`worded`: the
+    command line's ``--depth``, a job file's ``depth``); ``str()`` names them bare. Nothing else in a
+    message, which may echo a user's text braces and all, is rewritten."""
+
+    names_keys: bool | tuple[str, ...] = False
+
+    def __init__(self, *args: object, names_keys: bool | tuple[str, ...] = False):
+        super().__init__(*args)
+        if names_keys:
+            self.names_keys = names_keys
+
+    def worded(self, spell: Callable[[str], str] = str) -> str:
+        """The message, each key it names as ``{key}`` spelled ``spell(key)`` (default: the key itself)."""
+        message = super().__str__()
+        names = self.names_keys
+        if names:
+            message = spelled(message, spell, None if isinstance(names, bool) else names)
+        return self._framed(message)
+
+    def carried(self) -> str:
+        """The message with its keys still as ``{key}``: for an error that wraps this one (and passes
+        ``names_keys=error.names_keys`` on), so that its front end still words them."""
+        return self.worded(lambda key: "{" + key + "}")
+
+    def _framed(self, message: str) -> str:
+        """The message as :meth:`worded` gives it (an :class:`InputError` puts its file and line first)."""
+        return message
+
+    def __str__(self) -> str:
+        return self.worded()
+
+
+class Prs3Error(KeyedMessage):
+    """Reported by the CLI as `where: message`; never a traceback (its keys worded: :class:`KeyedMessage`)."""
 
     exit_code = 1
 
@@ -55,13 +90,14 @@ class InputError(Prs3Error):
 
     exit_code = 2
 
-    def __init__(self, message: str, *, path: str, line: int | None = None):
-        super().__init__(message)
+    def __init__(self, message: str, *, path: str, line: int | None = None,
+                 names_keys: bool | tuple[str, ...] = False):
+        super().__init__(message, names_keys=names_keys)
         self.path, self.line = path, line
 
-    def __str__(self) -> str:
+    def _framed(self, message: str) -> str:
         where = self.path if self.line is None else f"{self.path}:{self.line}"
-        return f"{where}: {self.args[0]}"
+        return f"{where}: {message}"
 
 
 class ConfigError(InputError):
@@ -82,10 +118,13 @@ class PoseError(Prs3Error):
     exit_code = 2
 
 
-def spelled(message: str, spell: Callable[[str], str] = str) -> str:
+def spelled(message: str, spell: Callable[[str], str] = str, keys: Iterable[str] | None = None) -> str:
     """A message that names keys as ``{key}`` (``{depth} must be > 0 mm``), each as ``spell(key)``: the
-    command line spells them as its flags (``--depth``), a job file as its keys."""
-    return re.sub(r"\{([a-z_.]+)\}", lambda match: spell(match[1]), message)
+    command line spells them as its flags (``--depth``), a job file as its keys. With ``keys``, only those
+    (the rest of the message, a user's text among it, stays as it is)."""
+    only = None if keys is None else frozenset(keys)
+    return re.sub(r"\{([a-z_.]+)\}", lambda match: spell(match[1]) if only is None or match[1] in only
+                  else match[0], message)
 
 
 class FieldError(Prs3Error):
@@ -104,17 +143,11 @@ class FieldError(Prs3Error):
     """
 
     exit_code = 2
+    names_keys = True
 
     def __init__(self, message: str, *, field: str, operation: int | None = None, also: tuple[str, ...] = ()):
         super().__init__(message)
         self.field, self.operation, self.also = field, operation, also
-
-    def worded(self, spell: Callable[[str], str] = str) -> str:
-        """The message, each ``{key}`` in it as ``spell(key)`` (default: the key itself)."""
-        return spelled(self.args[0], spell)
-
-    def __str__(self) -> str:
-        return self.worded()
 
 
 class UnusedFields(FieldError):
@@ -145,22 +178,16 @@ class FeatureError(Prs3Error):
     """
 
     exit_code = 2
+    names_keys = True
 
     def __init__(self, message: str, *, key: str | None = None, operation: int | None = None):
         super().__init__(message)
         self.key, self.operation = key, operation
 
-    def worded(self, spell: Callable[[str], str] = str) -> str:
-        """The message, each key it names as ``{key}`` spelled ``spell(key)`` (:func:`spelled`)."""
-        return spelled(self.args[0], spell)
 
-    def __str__(self) -> str:
-        return self.worded()
-
-
-class Prs3Warning(UserWarning):
+class Prs3Warning(KeyedMessage, UserWarning):
     """Something looks wrong but may be meant (a part of an unusual size): the CLI prints it as
-    ``prs3-post: warning: message`` on standard error and goes on."""
+    ``prs3-post: warning: message`` on standard error (its keys worded: :class:`KeyedMessage`) and goes on."""
 
 
 class LexError(Prs3Error):

@@ -11,7 +11,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from prs3_post.core.errors import InputError, Prs3Error, quoted
+from prs3_post.core.errors import InputError, KeyedMessage, Prs3Error, quoted
 from prs3_post.core.input_files import open_input
 from prs3_post.emit.header import (
     HOLE_ITEMS,
@@ -67,7 +67,7 @@ _OPERATION_KEY = re.compile(r"operation [1-9][0-9]{0,3}(?: face| parameters| too
 _SOURCE_REQUIRED = ("program", "machine", "dialect", "source", "setup", "tool length", "tolerance", "units")
 
 
-class _Bad(Exception):
+class _Bad(KeyedMessage):
     """One entry's value is not in the header's form (turned into an InputError with the line)."""
 
 
@@ -271,8 +271,8 @@ def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHe
         key = "tolerance"
         tolerance = float(_match(_TOLERANCE, found["tolerance"][1]).group(1))
         if not (math.isfinite(tolerance) and MIN_TOLERANCE <= tolerance <= MAX_TOLERANCE):   # as --tolerance
-            raise _Bad(f"expected a tolerance from {MIN_TOLERANCE:g} to {MAX_TOLERANCE:g} mm (as --tolerance), "
-                       f"got {quoted(found['tolerance'][1], HEADER_ECHO)}")
+            raise _Bad(f"expected a tolerance from {MIN_TOLERANCE:g} to {MAX_TOLERANCE:g} mm (as {{tolerance}}), "
+                       f"got {quoted(found['tolerance'][1], HEADER_ECHO)}", names_keys=("tolerance",))
         checks = [(True, 1.0)] * max(1, len(operations))
         if "collision" in found:
             key = "collision"
@@ -282,7 +282,8 @@ def parse_header(comments: Iterable[tuple[int, str]], *, path: str) -> ProgramHe
                                for r, (c, m) in zip(operations, checks, strict=True))
     except _Bad as bad:
         key = getattr(bad, "key", key)                  # the entry of an operation that failed
-        raise InputError(f"header: {key}: {bad}", path=path, line=found[key][0]) from bad
+        raise InputError(f"header: {key}: {bad.carried()}", path=path, line=found[key][0],
+                         names_keys=bad.names_keys) from bad
     return ProgramHeader(
         version=found[PROGRAM_KEY][1], machine=machine,
         machine_file=found["machine file"][1] if "machine file" in found else None,
@@ -492,11 +493,12 @@ def _source_header(found: dict[str, tuple[int, str]], path: str) -> SourceHeader
         tolerance, angle = float(tolerances.group(1)), float(tolerances.group(2))
         if not (math.isfinite(tolerance) and MIN_TOLERANCE <= tolerance <= MAX_TOLERANCE and math.isfinite(angle)
                 and 0.0 < angle <= 90.0):
-            raise _Bad(f"expected a tolerance from {MIN_TOLERANCE:g} to {MAX_TOLERANCE:g} mm (as --tolerance) and an "
+            raise _Bad(f"expected a tolerance from {MIN_TOLERANCE:g} to {MAX_TOLERANCE:g} mm (as {{tolerance}}) and an "
                        "angle in (0, 90] deg, "
-                       f"got {quoted(found['tolerance'][1], HEADER_ECHO)}")
+                       f"got {quoted(found['tolerance'][1], HEADER_ECHO)}", names_keys=("tolerance",))
     except _Bad as bad:
-        raise InputError(f"header: {key}: {bad}", path=path, line=found[key][0]) from bad
+        raise InputError(f"header: {key}: {bad.carried()}", path=path, line=found[key][0],
+                         names_keys=bad.names_keys) from bad
     return SourceHeader(
         version=found[PROGRAM_KEY][1], machine=machine,
         machine_file=found["machine file"][1] if "machine file" in found else None,

@@ -364,22 +364,22 @@ def _check_size(mesh: trimesh.Trimesh, units: str, where: str) -> None:
     dims = _dims(extents)
     low, high = WARN_EXTENT_MM
     if largest > high or MIN_EXTENT_MM <= largest < low:
-        warnings.warn(Prs3Warning(f"{where}: {_size_doubt(extents, units)}"), stacklevel=3)
+        warnings.warn(Prs3Warning(f"{where}: {_size_doubt(extents, units)}", names_keys=("units",)), stacklevel=3)
     if largest >= MIN_EXTENT_MM:
         return
     if units == "mm":
         message = (
             f"part is only {dims} mm (largest extent under {MIN_EXTENT_MM:g} mm): "
-            f"if the file is in inches, use --units inch ({_dims(extents * MM_PER_INCH)} mm); "
+            f"if the file is in inches, use {{units}} inch ({_dims(extents * MM_PER_INCH)} mm); "
             f"if it is in metres, scale it by 1000 ({_dims(extents * 1000.0)} mm)"
         )
     else:
         message = (
             f"part is only {dims} mm even in inches (largest extent under {MIN_EXTENT_MM:g} mm): "
-            f"if the file is in metres, scale it by 1000 and load it with --units mm "
+            f"if the file is in metres, scale it by 1000 and load it with {{units}} mm "
             f"({_dims(extents / UNIT_SCALE[units] * 1000.0)} mm)"
         )
-    raise InputError(message, path=where)
+    raise InputError(message, path=where, names_keys=("units",))
 
 
 def _size_doubt(extents: FloatArray, units: str) -> str:
@@ -390,11 +390,11 @@ def _size_doubt(extents: FloatArray, units: str) -> str:
         f"{_dims(extents)} mm (largest extent over {high / 1000.0:g} m)"
     )
     fixes = {
-        (True, "mm"): f"is this STL in inches? use --units inch ({_dims(extents * MM_PER_INCH)} mm)",
-        (True, "inch"): f"is this STL in metres? scale it by 1000 and use --units mm "
+        (True, "mm"): f"is this STL in inches? use {{units}} inch ({_dims(extents * MM_PER_INCH)} mm)",
+        (True, "inch"): f"is this STL in metres? scale it by 1000 and use {{units}} mm "
                         f"({_dims(extents / MM_PER_INCH * 1000.0)} mm)",
         (False, "mm"): f"is this STL in micrometres? scale it by 1/1000 ({_dims(extents / 1000.0)} mm)",
-        (False, "inch"): f"is this STL in mm? use --units mm ({_dims(extents / MM_PER_INCH)} mm)",
+        (False, "inch"): f"is this STL in mm? use {{units}} mm ({_dims(extents / MM_PER_INCH)} mm)",
     }
     return f"part is {size}: {fixes[small, units]}"
 

@@ -349,7 +349,7 @@ def _raise_unreachable(machine: Machine, path: Toolpath, ik: IKResult, model: IK
             f"{np.hypot(dx, dy):.4f} mm (x {dx:.4f}, y {dy:.4f}){count}"
         )
     raise ReachError(f"{where}: the head cannot reach the tip ({tip}) mm with this axis: a link cannot reach "
-                     f"its joint (check --part-origin){count}")
+                     f"its joint (check {{setup.part_origin}}){count}", names_keys=("setup.part_origin",))
 
 
 def inverse_time(path: Toolpath, *, start: FloatArray | None = None, steps: FloatArray | None = None) -> FloatArray:
