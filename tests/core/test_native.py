@@ -609,7 +609,7 @@ def test_numpy_lexes_where_it_is_turned_off(monkeypatch: pytest.MonkeyPatch) -> 
     assert native.rows_to_part(np.zeros((1, 3)), np.eye(3), np.zeros(3)) is None
     assert native.line_roles(np.zeros((1, 6)), np.ones(1, dtype=np.uint8)) is None
     assert native.fill_moves(np.zeros((1, 6)), np.ones(1, dtype=bool), np.zeros(5), np.ones(3), np.zeros(2), 1) is True
-    assert gcode._scan_bytes(b"G0 X1\nA1\x01") == (8, False, 1, 6)
+    assert gcode.scan_bytes(b"G0 X1\nA1\x01") == (8, False, 1, 6)
     assert list(files.line_blocks([(0, b"a\nb\n"), (4, b"c\nd\ne\n")], 2)) == [(0, b"a\nb\n"), (4, b"c\nd\n"),
                                                                              (8, b"e\n")]
 

@@ -13,12 +13,12 @@ from prs3_post.core.lexer import bad_pairs, decimal_numbers
 from prs3_post.core.toolpath import Event, EventKind
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 from prs3_post.part.stl import MAX_COORDINATE_MM
-from prs3_post.readers.cl.records import _Records
-from prs3_post.readers.cl.syntax import _FEED, _RAPID, AXIS_LENGTH_TOLERANCE
+from prs3_post.readers.cl.records import Records
+from prs3_post.readers.cl.syntax import AXIS_LENGTH_TOLERANCE, FEED, RAPID
 from prs3_post.readers.common import MAX_RECORD_CHARS
 
 #: A GOTO as CAM systems write nearly all of them: plain decimals, no spaces, no comment. Such lines,
-#: one after another, are read in bulk (:meth:`_Reader.goto_run`); every other line record by record.
+#: one after another, are read in bulk (:meth:`LineReader.goto_run`); every other line record by record.
 _DECIMAL = r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)"
 _PLAIN_GOTO = re.compile(
     rf"GOTO/({_DECIMAL}),({_DECIMAL}),({_DECIMAL})(?:,({_DECIMAL}),({_DECIMAL}),({_DECIMAL}))?\r?\Z")
@@ -138,14 +138,14 @@ def _goto_values(values: FloatArray, written: dict[int, tuple[str | None, ...]],
     return rows
 
 
-#: Records read inside a bulk run of GOTOs (:meth:`_Reader.lines`): a PPRINT (its text: a comment event
-#: between the rows) and a FEDRAT (read by :meth:`_Reader.fedrat` where it stands), neither with a
+#: Records read inside a bulk run of GOTOs (:meth:`LineReader.lines`): a PPRINT (its text: a comment event
+#: between the rows) and a FEDRAT (read by :meth:`LineReader.fedrat` where it stands), neither with a
 #: ``$`` (continuation or comment).
 _PLAIN_PPRINT = re.compile(r"PPRINT/([^$]*)")
 _PLAIN_FEDRAT = re.compile(r"FEDRAT/[^$]*")
 
 
-class _Reader(_Records):
+class LineReader(Records):
     """A CL file's records as the lines go by: runs of plain GOTOs in bulk, every other line record by record."""
 
     # ---- lines, chunks, the end
@@ -234,9 +234,9 @@ class _Reader(_Records):
         last = np.maximum.accumulate(np.where(with_axis, np.arange(len(run)), -1))
         axes[last < 0] = self.tool_axis
         axes[last >= 0] = axes[last[last >= 0]]
-        kind = np.full(len(run), _FEED, dtype=np.int64)
+        kind = np.full(len(run), FEED, dtype=np.int64)
         if self.rapid_next:
-            kind[0] = _RAPID
+            kind[0] = RAPID
             self.rapid_next = False
         feed = np.zeros(len(run))
         pprints = [(b, index) for b, index in marks if lines[index].startswith("PPRINT/")]
@@ -245,7 +245,7 @@ class _Reader(_Records):
         # the feed of the rows between the marks: the FEDRAT before them (read in order, for its errors)
         feeds = [mark for mark in marks if not lines[mark[1]].startswith("PPRINT/")] if together else marks
         for (a, _), (b, index) in itertools.pairwise([(0, -1), *feeds, (len(run), -1)]):
-            rows = range(max(a, 1) if kind[0] == _RAPID else a, b)
+            rows = range(max(a, 1) if kind[0] == RAPID else a, b)
             if len(rows):
                 self.line = first + run_index[rows[0]]
                 feed[rows.start:b] = self.current_feed()
@@ -260,7 +260,7 @@ class _Reader(_Records):
             self.by_word["PPRINT"] += len(pprints)
             self.comments += len(pprints)
             end_mark, end_index = marks[-1]              # the line the loop over every mark would end on
-            end_start = max(end_mark, 1) if int(kind[0]) == _RAPID else end_mark
+            end_start = max(end_mark, 1) if int(kind[0]) == RAPID else end_mark
             self.line = first + (run_index[end_start] if end_start < len(run) else end_index)
         count = len(run)
         self.records += count

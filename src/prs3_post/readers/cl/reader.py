@@ -78,9 +78,16 @@ from prs3_post.core.defaults import MM_PER_INCH
 from prs3_post.core.errors import InputError
 from prs3_post.core.input_files import iter_pieces, lf_line_ends, line_chunks
 from prs3_post.core.toolpath import Toolpath
-from prs3_post.readers.cl.bulk import _Reader
+from prs3_post.readers.cl.bulk import LineReader
 from prs3_post.readers.cl.summary import ClCounts, ClCycle, ClFile, ClFrame, ClToolData
-from prs3_post.readers.cl.syntax import _KNOWN_WORDS, DISPLAY_WORDS, FRAME_TOLERANCE, _file_units, _text, _unit_records
+from prs3_post.readers.cl.syntax import (
+    DISPLAY_WORDS,
+    FRAME_TOLERANCE,
+    KNOWN_WORDS,
+    decoded_text,
+    unit_records,
+    units_of_file,
+)
 from prs3_post.readers.common import join_toolpaths
 from prs3_post.readers.protocol import SourceNotes, StreamDefaults
 from prs3_post.toolpaths.common import TOOL_DIAMETER_RANGE
@@ -175,7 +182,7 @@ class ClStream(StreamDefaults):
         self.path, self.tolerance, self.units, self.circle_tolerance = path, tolerance, units, circle_tolerance
         self.ignored_words = tuple(ignore)             # as given (the program's header lists them so)
         self.ignore = frozenset(word.upper() for word in self.ignored_words)
-        understood = sorted(self.ignore & {*_KNOWN_WORDS, *DISPLAY_WORDS})
+        understood = sorted(self.ignore & {*KNOWN_WORDS, *DISPLAY_WORDS})
         if understood:
             raise InputError(f"cannot ignore {', '.join(understood)}: the reader understands "
                              f"{'it' if len(understood) == 1 else 'them'} (only unknown major words can be ignored)",
@@ -198,13 +205,13 @@ class ClStream(StreamDefaults):
             for offset, piece in iter_pieces(self.path, "a CL file", self.piece_bytes, digest):
                 if offset == 0 and piece.startswith(b"\xef\xbb\xbf"):
                     piece, offset = piece[3:], 3
-                yield lf_line_ends(_text(piece, self.path, offset))
+                yield lf_line_ends(decoded_text(piece, self.path, offset))
         self.sha256 = digest.hexdigest()
 
     def __iter__(self) -> Iterator[Toolpath]:
-        file_units = _file_units(_unit_records(self._pieces(), self.path), self.path, self.units)
-        reader = _Reader(self.path, MM_PER_INCH if file_units == "inch" else 1.0, self.ignore, self.tolerance,
-                         self.circle_tolerance, self.apply_msys)
+        file_units = units_of_file(unit_records(self._pieces(), self.path), self.path, self.units)
+        reader = LineReader(self.path, MM_PER_INCH if file_units == "inch" else 1.0, self.ignore, self.tolerance,
+                            self.circle_tolerance, self.apply_msys)
         number = 1
         for lines in line_chunks(self._pieces(), self.chunk_lines):
             reader.lines(number, lines)

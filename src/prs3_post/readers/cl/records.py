@@ -20,21 +20,21 @@ from prs3_post.part.stl import MAX_COORDINATE_MM
 from prs3_post.part.workplane import rotate_rows
 from prs3_post.readers.cl.summary import ClCounts, ClCycle, ClFile, ClFrame, ClToolData
 from prs3_post.readers.cl.syntax import (
-    _FEED,
-    _FEED_UNITS,
-    _KNOWN_WORDS,
-    _NUMBER,
-    _NUMBER_LIST,
-    _RAPID,
-    _TRAILER,
     AXIS_LENGTH_TOLERANCE,
     DISPLAY_WORDS,
+    FEED,
+    FEED_UNITS,
     FRAME_TOLERANCE,
+    KNOWN_WORDS,
     LISTING_TRAILER,
-    _Assembler,
-    _number,
-    _quote,
-    _Record,
+    NUMBER,
+    NUMBER_LIST,
+    RAPID,
+    TRAILER,
+    Assembler,
+    Record,
+    parse_number,
+    quote,
 )
 from prs3_post.readers.common import MAX_FEED_MM_MIN, MIN_FEED_MM_MIN, join_toolpaths
 from prs3_post.toolpaths.arcs import MAX_ARC_SEGMENTS, arc_points_3d, arc_segment_count, arc_sweep
@@ -66,7 +66,7 @@ class _ActiveCycle:
     holes: int = 0
 
 
-class _Records:
+class Records:
     """The modal state of a CL file as the records go by; rows in the LOCAL frame (mm) with their frame."""
 
     def __init__(self, path: str, scale: float, ignore: frozenset[str], tolerance: float, circle_tolerance: float,
@@ -84,7 +84,7 @@ class _Records:
         self.rows = 0                                 # rows so far (all chunks)
         self.chunk_start = 0                          # row index of the current chunk's first row
         self.events: list[Event] = []                 # this chunk's, ``before`` counted from its start
-        self.assembler = _Assembler(path)
+        self.assembler = Assembler(path)
         self.frames: list[ClFrame] = [ClFrame(0, np.zeros(3), np.eye(3))]
         self.position: tuple[float, float, float] | None = None    # mm, local frame of the current MSYS
         self.tool_axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
@@ -113,9 +113,9 @@ class _Records:
     def error(self, message: str) -> InputError:
         return InputError(message, path=self.path, line=self.line)
 
-    def numbers(self, record: _Record, args: tuple[str, ...] | None = None) -> list[float]:
+    def numbers(self, record: Record, args: tuple[str, ...] | None = None) -> list[float]:
         rest = record.rest
-        if args is None and rest is not None and _NUMBER_LIST.match(rest):   # the common case, checked at once
+        if args is None and rest is not None and NUMBER_LIST.match(rest):   # the common case, checked at once
             values = [float(text) for text in rest.split(",")]
             if "e" not in rest and "E" not in rest and len(rest) < 300:   # else it may overflow to inf
                 return values
@@ -124,14 +124,14 @@ class _Records:
         values = []
         for index, text in enumerate(record.args if args is None else args, start=1):
             if not text:
-                raise self.error(f"truncated record {_quote(record.text)}: value {index} of {record.word}/ is empty")
-            value = _number(text, f"{record.word}/ value {index}")
+                raise self.error(f"truncated record {quote(record.text)}: value {index} of {record.word}/ is empty")
+            value = parse_number(text, f"{record.word}/ value {index}")
             if isinstance(value, str):
                 raise self.error(value)
             values.append(value)
         return values
 
-    def lengths(self, record: _Record, values: list[float], indices: Iterable[int]) -> None:
+    def lengths(self, record: Record, values: list[float], indices: Iterable[int]) -> None:
         """Refuse a coordinate or length ``values[i]`` (file units) beyond :data:`MAX_COORDINATE_MM`."""
         for index in indices:
             if not abs(values[index]) * self.scale <= MAX_COORDINATE_MM:        # inf and nan too
@@ -139,7 +139,7 @@ class _Records:
 
     def length_message(self, text: str, what: str) -> str:
         unit = "mm" if self.scale == 1.0 else "inch"
-        return (f"{what}: {_quote(text, 40)} is out of range (allowed: within ±{MAX_COORDINATE_MM / self.scale:g} "
+        return (f"{what}: {quote(text, 40)} is out of range (allowed: within ±{MAX_COORDINATE_MM / self.scale:g} "
                 f"{unit}; is the file in the right units?)")
 
     def unit_axis(self, values: list[float], what: str) -> tuple[float, float, float]:
@@ -205,18 +205,18 @@ class _Records:
         return feed
 
     # ---- dispatch
-    def record(self, record: _Record) -> None:
+    def record(self, record: Record) -> None:
         self.line = record.line
         self.records += 1
         word = record.word
-        if self.finished and not _TRAILER.match(record.text):
-            raise self.error(f"{_quote(record.text)} after FINI: FINI ends the CL data")
+        if self.finished and not TRAILER.match(record.text):
+            raise self.error(f"{quote(record.text)} after FINI: FINI ends the CL data")
         if word != "$$" and record.comment is not None:
             self.comments += 1
             self.event(EventKind.COMMENT, text=record.comment)
         if self.arc is not None and word not in ("GOTO", "$$", "PPRINT") and word not in DISPLAY_WORDS:
             raise self.error(f"CIRCLE/ at line {self.arc.line} must be followed by its end GOTO/, found "
-                             f"{_quote(record.text)}")
+                             f"{quote(record.text)}")
         handler = _HANDLERS.get(word)
         if handler is not None:
             self.by_word[word] += 1
@@ -225,23 +225,23 @@ class _Records:
         elif word in DISPLAY_WORDS or word in self.ignore:
             self.by_word[word] += 1
             self.skipped[word] += 1
-        elif _TRAILER.match(record.text):
+        elif TRAILER.match(record.text):
             if not self.after_end:
-                raise self.error(f"listing trailer {_quote(record.text)} before END-OF-PATH/FINI: not CL data")
+                raise self.error(f"listing trailer {quote(record.text)} before END-OF-PATH/FINI: not CL data")
             self.by_word[LISTING_TRAILER] += 1
             self.skipped[LISTING_TRAILER] += 1
         else:
             raise self.error(
-                f"unknown major word {word[:40]!r} in {_quote(record.text)} (understood: {', '.join(_KNOWN_WORDS)}; "
+                f"unknown major word {word[:40]!r} in {quote(record.text)} (understood: {', '.join(KNOWN_WORDS)}; "
                 f"display-only, skipped: {', '.join(sorted(DISPLAY_WORDS))}; other words can be ignored on purpose "
                 "by listing them as words to ignore)")
 
     # ---- motion
-    def goto(self, record: _Record) -> None:
+    def goto(self, record: Record) -> None:
         values = self.numbers(record)
         if len(values) not in (3, 6):
             raise self.error(f"{record.word}/ has {len(values)} values: expected 3 (x,y,z) or 6 (x,y,z,i,j,k); "
-                             f"found {_quote(record.text)}")
+                             f"found {quote(record.text)}")
         if len(values) == 6 and self.multax_on is False:
             raise self.error(f"{record.word}/ with i,j,k under MULTAX/OFF: give x,y,z only, or MULTAX/ON first")
         self.lengths(record, values, range(3))
@@ -268,20 +268,20 @@ class _Records:
                              "first")
         self.moves += 1
         if rapid:
-            self.add_row(point, axis, _RAPID, 0.0, record.line)
+            self.add_row(point, axis, RAPID, 0.0, record.line)
         else:
-            self.add_row(point, axis, _FEED, self.current_feed(), record.line)
+            self.add_row(point, axis, FEED, self.current_feed(), record.line)
 
-    def rapid(self, record: _Record) -> None:
+    def rapid(self, record: Record) -> None:
         if record.args:
-            raise self.error(f"RAPID takes no values; found {_quote(record.text)}")
+            raise self.error(f"RAPID takes no values; found {quote(record.text)}")
         self.rapid_next = True
 
-    def circle(self, record: _Record) -> None:
+    def circle(self, record: Record) -> None:
         values = self.numbers(record)
         if len(values) < 7:
             raise self.error(f"CIRCLE/ has {len(values)} values: expected at least 7 (xc,yc,zc,i,j,k,r); found "
-                             f"{_quote(record.text)}")
+                             f"{quote(record.text)}")
         self.lengths(record, values, (0, 1, 2, 6))
         if self.cycle is not None:
             raise self.error(f"CIRCLE/ inside the CYCLE/ of line {self.cycle.line}: close it with CYCLE/OFF first")
@@ -358,11 +358,11 @@ class _Records:
         self.cycle_rows += len(tip)
 
     # ---- modal state
-    def fedrat(self, record: _Record) -> None:
+    def fedrat(self, record: Record) -> None:
         unit: str | None = None
         values: list[str] = []
         for arg in record.args:
-            if arg.upper() in _FEED_UNITS:
+            if arg.upper() in FEED_UNITS:
                 if unit is not None:
                     raise self.error(f"FEDRAT/ with two units ({unit}, {arg.upper()}): give one")
                 unit = arg.upper()
@@ -370,14 +370,14 @@ class _Records:
                 values.append(arg)
         if len(values) != 1:
             raise self.error(f"FEDRAT/ expects one value and an optional unit (MMPM, IPM, MMPR, IPR) before or after "
-                             f"it; found {_quote(record.text)}")
+                             f"it; found {quote(record.text)}")
         (value,) = self.numbers(record, tuple(values))
         if not value > 0:
             raise self.error(f"FEDRAT/ must be > 0, got {values[0]}")
         if unit is None:
             self.feed_value, self.per_rev = value * self.scale, False
         else:
-            factor, per_rev = _FEED_UNITS[unit]
+            factor, per_rev = FEED_UNITS[unit]
             self.feed_value, self.per_rev = value * factor, per_rev
         if not self.per_rev and self.feed_value > MAX_FEED_MM_MIN:
             raise self.error(f"FEDRAT/ {values[0]} is {self.feed_value:.6g} mm/min, "
@@ -386,23 +386,23 @@ class _Records:
             raise self.error(f"FEDRAT/ {values[0]} is {self.feed_value:.6g} mm/min, less than {MIN_FEED_MM_MIN:g} "
                              f"mm/min (allowed: {MIN_FEED_MM_MIN:g} to {MAX_FEED_MM_MIN:g} mm/min)")
 
-    def multax(self, record: _Record) -> None:
+    def multax(self, record: Record) -> None:
         setting = record.args[0].upper() if record.args else "ON"
         if len(record.args) > 1 or setting not in ("ON", "OFF"):
-            raise self.error(f"MULTAX expects nothing, ON or OFF; found {_quote(record.text)}")
+            raise self.error(f"MULTAX expects nothing, ON or OFF; found {quote(record.text)}")
         self.multax_on = setting == "ON"
 
-    def tlaxis(self, record: _Record) -> None:
+    def tlaxis(self, record: Record) -> None:
         values = self.numbers(record)
         if len(values) != 3:
-            raise self.error(f"TLAXIS/ has {len(values)} values: expected 3 (i,j,k); found {_quote(record.text)}")
+            raise self.error(f"TLAXIS/ has {len(values)} values: expected 3 (i,j,k); found {quote(record.text)}")
         self.tool_axis = self.unit_axis(values, "TLAXIS/")
 
-    def msys(self, record: _Record) -> None:
+    def msys(self, record: Record) -> None:
         values = self.numbers(record)
         if len(values) != 9:
             raise self.error(f"MSYS/ has {len(values)} values: expected 9 (origin x,y,z, x axis i,j,k, y axis i,j,k); "
-                             f"found {_quote(record.text)}")
+                             f"found {quote(record.text)}")
         x_axis, y_axis = np.array(values[3:6]), np.array(values[6:9])
         x_len, y_len, dot = float(np.linalg.norm(x_axis)), float(np.linalg.norm(y_axis)), float(x_axis @ y_axis)
         if abs(x_len - 1) > FRAME_TOLERANCE or abs(y_len - 1) > FRAME_TOLERANCE or abs(dot) > FRAME_TOLERANCE:
@@ -425,17 +425,17 @@ class _Records:
         i, j, k = (rotation.T @ (previous.rotation @ np.array(self.tool_axis))).tolist()
         self.tool_axis = (i, j, k)
 
-    def units(self, record: _Record) -> None:
+    def units(self, record: Record) -> None:
         """Checked and applied to the whole file before the records are read (see _file_units)."""
 
-    def tool_change(self, record: _Record) -> None:
+    def tool_change(self, record: Record) -> None:
         args = record.args
         if record.word == "LOAD" or record.word == "SELECT":
             if not args or args[0].upper() != "TOOL":
-                raise self.error(f"{record.word}/ expects TOOL,n; found {_quote(record.text)}")
+                raise self.error(f"{record.word}/ expects TOOL,n; found {quote(record.text)}")
             args = args[1:]
         if not args:
-            raise self.error(f"{record.word}/ without a tool number; found {_quote(record.text)}")
+            raise self.error(f"{record.word}/ without a tool number; found {quote(record.text)}")
         (number,) = self.numbers(record, args[:1])
         if number < 0 or number != int(number):
             raise self.error(f"{record.word}/ tool number must be a whole number ≥ 0, got {args[0]}")
@@ -446,16 +446,16 @@ class _Records:
             shape = f": TLDATA/{','.join(self.tool_data[-1].words)}" if self.tool_data else ""
             self.event(EventKind.TOOL_CHANGE, value=float(number), text=f"tool {int(number)}{shape}")
 
-    def tldata(self, record: _Record) -> None:
+    def tldata(self, record: Record) -> None:
         """The cutter's shape: words (MILL, DRILL), then numbers, the first the diameter; a NaN or a diameter
         ≤ 0 is refused (it would shrink the tool the rapids are checked with to nothing)."""
         diameter = True
         for index, arg in enumerate(record.args, start=1):
             text = arg.strip()
-            word = not _NUMBER.match(text) and any(c.isalpha() for c in text)
+            word = not NUMBER.match(text) and any(c.isalpha() for c in text)
             if word and text.lstrip("+-").upper() not in _NOT_FINITE:     # MILL, DRILL; not NaN, -inf
                 continue
-            value = _number(text, f"TLDATA/ value {index}")
+            value = parse_number(text, f"TLDATA/ value {index}")
             if isinstance(value, str):
                 raise self.error(value)
             if diameter and not value > 0:
@@ -463,7 +463,7 @@ class _Records:
             diameter = False
         self.tool_data.append(ClToolData(record.line, record.args))
 
-    def spindl(self, record: _Record) -> None:
+    def spindl(self, record: Record) -> None:
         words = [arg.upper() for arg in record.args]
         if words in (["OFF"],):
             self.spindle_on = False
@@ -482,13 +482,13 @@ class _Records:
                 direction = upper
             elif upper == "RPM":
                 continue
-            elif _NUMBER.match(arg) or not upper.isalpha():
+            elif NUMBER.match(arg) or not upper.isalpha():
                 speed.append(arg)
             else:
                 raise self.error(f"SPINDL/ word {arg!r} is not understood (valid: RPM, a speed, CLW, CCLW; or ON, "
                                  "OFF alone)")
         if len(speed) != 1:
-            raise self.error(f"SPINDL/ expects one speed in rpm; found {_quote(record.text)}")
+            raise self.error(f"SPINDL/ expects one speed in rpm; found {quote(record.text)}")
         (rpm,) = self.numbers(record, tuple(speed))
         if not rpm > 0:
             raise self.error(f"SPINDL/ speed must be > 0 rpm, got {speed[0]}")
@@ -502,7 +502,7 @@ class _Records:
         self.spindle_kind = EventKind.SPINDLE_ON_CCW if direction == "CCLW" else EventKind.SPINDLE_ON
         self.event(self.spindle_kind, value=rpm)
 
-    def coolnt(self, record: _Record) -> None:
+    def coolnt(self, record: Record) -> None:
         words = {arg.upper() for arg in record.args}
         if words == {"OFF"}:
             self.event(EventKind.COOLANT_OFF)
@@ -511,9 +511,9 @@ class _Records:
         elif words in ({"MIST"}, {"MIST", "ON"}):
             self.event(EventKind.COOLANT_ON, text=Coolant.MIST.value)
         else:
-            raise self.error(f"COOLNT/ expects ON, FLOOD, MIST or OFF; found {_quote(record.text)}")
+            raise self.error(f"COOLNT/ expects ON, FLOOD, MIST or OFF; found {quote(record.text)}")
 
-    def cycle_record(self, record: _Record) -> None:
+    def cycle_record(self, record: Record) -> None:
         words = [arg.upper() for arg in record.args]
         if words == ["OFF"]:
             if self.cycle is None:
@@ -526,7 +526,7 @@ class _Records:
             raise self.error(f"CYCLE/ while the CYCLE/ of line {self.cycle.line} is active: close it with CYCLE/OFF")
         self.cycle = _ActiveCycle(record.line, record.args, self.parse_cycle(record, words))
 
-    def parse_cycle(self, record: _Record, words: list[str]) -> DrillCycle:
+    def parse_cycle(self, record: Record, words: list[str]) -> DrillCycle:
         pecking: Pecking | None = None
         params: dict[str, float] = {}
         feed: float | None = None
@@ -536,16 +536,16 @@ class _Records:
             if word in _CYCLE_KINDS:
                 kind = _CYCLE_KINDS[word]
                 if pecking is not None and kind is not Pecking.NONE and pecking is not Pecking.NONE:
-                    raise self.error(f"CYCLE/ with two kinds of pecking; found {_quote(record.text)}")
+                    raise self.error(f"CYCLE/ with two kinds of pecking; found {quote(record.text)}")
                 pecking = kind if pecking in (None, Pecking.NONE) else pecking
                 index += 1
                 continue
-            if word in ("RAPTO", "FEDTO", "RTRCTO", "STEP", "DWELL", *_FEED_UNITS):
+            if word in ("RAPTO", "FEDTO", "RTRCTO", "STEP", "DWELL", *FEED_UNITS):
                 if index + 1 >= len(words):
-                    raise self.error(f"truncated record {_quote(record.text)}: {word} without its value")
+                    raise self.error(f"truncated record {quote(record.text)}: {word} without its value")
                 (value,) = self.numbers(record, (record.args[index + 1],))
-                if word in _FEED_UNITS:
-                    factor, per_rev = _FEED_UNITS[word]
+                if word in FEED_UNITS:
+                    factor, per_rev = FEED_UNITS[word]
                     feed = value * factor * (self.spindle_rpm if per_rev else 1.0)
                     if per_rev and not self.spindle_rpm > 0:
                         raise self.error(f"CYCLE/ feed in {word} before any spindle speed: give SPINDL/ first")
@@ -558,11 +558,11 @@ class _Records:
             raise self.error(f"CYCLE/ word {record.args[index]!r} is not understood (valid: DRILL, DEEP, BRKCHP, "
                              "RAPTO, FEDTO, RTRCTO, STEP, DWELL, MMPM, IPM, MMPR, IPR with their values; OFF)")
         if pecking is None:
-            raise self.error(f"CYCLE/ without a kind (DRILL, DEEP or BRKCHP); found {_quote(record.text)}")
+            raise self.error(f"CYCLE/ without a kind (DRILL, DEEP or BRKCHP); found {quote(record.text)}")
         for needed in ("RAPTO", "FEDTO"):
             if needed not in params:
                 raise self.error(f"CYCLE/ without {needed}: the cycle needs RAPTO (clearance) and FEDTO (depth); "
-                                 f"found {_quote(record.text)}")
+                                 f"found {quote(record.text)}")
         if params["RAPTO"] < 0 or params.get("RTRCTO", 0.0) < 0:
             raise self.error("CYCLE/ RAPTO and RTRCTO are heights above the hole point and must be ≥ 0")
         if feed is None:
@@ -583,18 +583,18 @@ class _Records:
             retract=params.get("RTRCTO", params["RAPTO"]) * self.scale, feed=feed,
             pecking=pecking if peck > 0 else Pecking.NONE, peck=peck, dwell=params.get("DWELL", 0.0))
 
-    def comment_record(self, record: _Record) -> None:
+    def comment_record(self, record: Record) -> None:
         self.comments += 1
         self.event(EventKind.COMMENT, text=(record.comment if record.word == "$$" else record.rest) or "")
 
-    def stop(self, record: _Record) -> None:
+    def stop(self, record: Record) -> None:
         if record.args:
-            raise self.error(f"{record.word} takes no values; found {_quote(record.text)}")
+            raise self.error(f"{record.word} takes no values; found {quote(record.text)}")
         self.event(EventKind.OPTIONAL_STOP if record.word == "OPSTOP" else EventKind.STOP)
 
-    def end(self, record: _Record) -> None:
+    def end(self, record: Record) -> None:
         if record.args:
-            raise self.error(f"{record.word} takes no values; found {_quote(record.text)}")
+            raise self.error(f"{record.word} takes no values; found {quote(record.text)}")
         if self.cycle is not None:
             raise self.error(f"{record.word} while the CYCLE/ of line {self.cycle.line} is active: close it with "
                              "CYCLE/OFF first")
@@ -664,10 +664,10 @@ def _turned(rows: FloatArray, rotation: FloatArray, origin: FloatArray | None) -
 
 
 _HANDLERS = {
-    "GOTO": _Records.goto, "FROM": _Records.goto, "GOHOME": _Records.goto, "RAPID": _Records.rapid,
-    "CIRCLE": _Records.circle, "FEDRAT": _Records.fedrat, "MULTAX": _Records.multax, "TLAXIS": _Records.tlaxis,
-    "MSYS": _Records.msys, "UNITS": _Records.units, "LOADTL": _Records.tool_change, "LOAD": _Records.tool_change,
-    "SELECT": _Records.tool_change, "TLDATA": _Records.tldata, "SPINDL": _Records.spindl, "COOLNT": _Records.coolnt,
-    "CYCLE": _Records.cycle_record, "PPRINT": _Records.comment_record, "$$": _Records.comment_record,
-    "STOP": _Records.stop, "OPSTOP": _Records.stop, "END-OF-PATH": _Records.end, "FINI": _Records.end,
+    "GOTO": Records.goto, "FROM": Records.goto, "GOHOME": Records.goto, "RAPID": Records.rapid,
+    "CIRCLE": Records.circle, "FEDRAT": Records.fedrat, "MULTAX": Records.multax, "TLAXIS": Records.tlaxis,
+    "MSYS": Records.msys, "UNITS": Records.units, "LOADTL": Records.tool_change, "LOAD": Records.tool_change,
+    "SELECT": Records.tool_change, "TLDATA": Records.tldata, "SPINDL": Records.spindl, "COOLNT": Records.coolnt,
+    "CYCLE": Records.cycle_record, "PPRINT": Records.comment_record, "$$": Records.comment_record,
+    "STOP": Records.stop, "OPSTOP": Records.stop, "END-OF-PATH": Records.end, "FINI": Records.end,
 }

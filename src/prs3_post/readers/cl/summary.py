@@ -10,7 +10,7 @@ import numpy as np
 from prs3_post.core.toolpath import Toolpath
 from prs3_post.core.types import FloatArray
 from prs3_post.part.workplane import rotate_rows
-from prs3_post.readers.cl.syntax import _NUMBER
+from prs3_post.readers.cl.syntax import NUMBER
 from prs3_post.toolpaths.cycles import DrillCycle
 
 
@@ -70,7 +70,7 @@ class ClToolData:
     def diameter(self) -> float | None:
         """File units: the record's first number (``TLDATA/MILL,10.0,0.0,50.0`` → 10.0; a CL number, so
         ``1.0E+01`` too), when it is one and finite and > 0; else None."""
-        numbers = [word.strip() for word in self.words if _NUMBER.match(word.strip())]
+        numbers = [word.strip() for word in self.words if NUMBER.match(word.strip())]
         value = float(numbers[0]) if numbers else math.nan
         return value if 0.0 < value < math.inf else None
 

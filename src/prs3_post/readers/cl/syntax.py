@@ -26,22 +26,22 @@ AXIS_LENGTH_TOLERANCE = 1e-3
 # A coordinate or length (GOTO/, CIRCLE/, MSYS/, CYCLE/) must lie within ±MAX_COORDINATE_MM, as an STL part's:
 # a kilometre is far beyond any machine, so more is a typo or a unit error (bad input, not a point out of reach).
 
-_KNOWN_WORDS = ("GOTO", "FROM", "GOHOME", "RAPID", "FEDRAT", "MULTAX", "TLAXIS", "MSYS", "UNITS", "LOADTL",
-                "LOAD", "SELECT", "TLDATA", "SPINDL", "COOLNT", "CYCLE", "CIRCLE", "PPRINT", "END-OF-PATH",
-                "FINI", "STOP", "OPSTOP")
+KNOWN_WORDS = ("GOTO", "FROM", "GOHOME", "RAPID", "FEDRAT", "MULTAX", "TLAXIS", "MSYS", "UNITS", "LOADTL",
+               "LOAD", "SELECT", "TLDATA", "SPINDL", "COOLNT", "CYCLE", "CIRCLE", "PPRINT", "END-OF-PATH",
+               "FINI", "STOP", "OPSTOP")
 _NUMBER_TEXT = r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"   # ASCII digits (\\d takes ١ too)
-_NUMBER = re.compile(rf"{_NUMBER_TEXT}\Z")
-_NUMBER_LIST = re.compile(rf"[ \t]*{_NUMBER_TEXT}[ \t]*(?:,[ \t]*{_NUMBER_TEXT}[ \t]*)*\Z")
-_TRAILER = re.compile(r"Tool Path Listing has \d+ lines\.\Z")
-_FEED_UNITS = {"MMPM": (1.0, False), "IPM": (MM_PER_INCH, False), "MMPR": (1.0, True), "IPR": (MM_PER_INCH, True)}
+NUMBER = re.compile(rf"{_NUMBER_TEXT}\Z")
+NUMBER_LIST = re.compile(rf"[ \t]*{_NUMBER_TEXT}[ \t]*(?:,[ \t]*{_NUMBER_TEXT}[ \t]*)*\Z")
+TRAILER = re.compile(r"Tool Path Listing has \d+ lines\.\Z")
+FEED_UNITS = {"MMPM": (1.0, False), "IPM": (MM_PER_INCH, False), "MMPR": (1.0, True), "IPR": (MM_PER_INCH, True)}
 _UNIT_WORDS = {"MM": "mm", "INCHES": "inch", "INCH": "inch"}
-_RAPID, _FEED = int(MoveKind.RAPID), int(MoveKind.FEED)
+RAPID, FEED = int(MoveKind.RAPID), int(MoveKind.FEED)
 
 
 # --------------------------------------------------------------------------------------------
 # Records
 # --------------------------------------------------------------------------------------------
-class _Record(NamedTuple):
+class Record(NamedTuple):
     line: int
     word: str                   # major word, upper case ("$$" for a comment line)
     rest: str | None            # the text after the slash (None without one; PPRINT: its text)
@@ -54,7 +54,7 @@ class _Record(NamedTuple):
         return () if self.rest is None else tuple(arg.strip() for arg in self.rest.split(","))
 
 
-def _text(data: bytes, path: str, offset: int = 0) -> str:
+def decoded_text(data: bytes, path: str, offset: int = 0) -> str:
     """The text of (a piece of) a file; binary data and non-UTF-8 are refused (``offset``: of the piece).
     The control bytes are looked for by csrc/lex.c's one pass where it was built, else by numpy."""
     from prs3_post.core import native  # ctypes: loaded only where a file is read
@@ -82,7 +82,7 @@ def _split_comment(line: str) -> tuple[str, str | None]:
     return line[:at], line[at + 2:].strip()
 
 
-class _Assembler:
+class Assembler:
     """Lines → records: continuations (a trailing single ``$``) joined, ``$$`` comments split off."""
 
     __slots__ = ("comment", "path", "pending", "size", "start")
@@ -94,20 +94,20 @@ class _Assembler:
         self.start = 0
         self.comment: str | None = None
 
-    def push(self, number: int, raw: str) -> _Record | None:
+    def push(self, number: int, raw: str) -> Record | None:
         """The record that line ``number`` completes, or None (blank line, or continued)."""
         code, comment = _split_comment(raw)
         code = code.strip()
         if not self.pending:
             self.start = number
             if not code:
-                return None if comment is None else _Record(number, "$$", None, raw.strip(), comment)
+                return None if comment is None else Record(number, "$$", None, raw.strip(), comment)
         if comment is not None:
             self.comment = comment if self.comment is None else f"{self.comment} {comment}"
         self.size += len(code)
         if self.size > MAX_RECORD_CHARS:                 # before any work on it (a GOTO of millions of values)
             raise InputError(f"a record of {self.size:,} characters or more: longer than any CL record may be "
-                             f"({MAX_RECORD_CHARS:,} at most); found {_quote(''.join(self.pending) + code)}",
+                             f"({MAX_RECORD_CHARS:,} at most); found {quote(''.join(self.pending) + code)}",
                              path=self.path, line=self.start)
         if code.endswith("$"):
             self.pending.append(code[:-1])
@@ -121,20 +121,20 @@ class _Assembler:
     def close(self) -> None:
         """The end of the file: a continued record there is truncated."""
         if self.pending:
-            raise InputError(f"truncated record: {_quote(''.join(self.pending))} continues with '$' but the file "
+            raise InputError(f"truncated record: {quote(''.join(self.pending))} continues with '$' but the file "
                              "ends (a continued record needs its next line)", path=self.path, line=self.start)
 
 
-def _split(line: int, code: str, comment: str | None) -> _Record:
+def _split(line: int, code: str, comment: str | None) -> Record:
     word, slash, rest = code.partition("/")
     word = word.strip().upper()
     if word == "PPRINT" or (not slash and code.upper().startswith("PPRINT ")):
         text = rest if slash else code[len("PPRINT"):]
-        return _Record(line, "PPRINT", text.strip(), code, comment)
-    return _Record(line, word, rest if slash else None, code, comment)
+        return Record(line, "PPRINT", text.strip(), code, comment)
+    return Record(line, word, rest if slash else None, code, comment)
 
 
-def _quote(text: str, limit: int = 60) -> str:
+def quote(text: str, limit: int = 60) -> str:
     text = text.strip()
     return f"'{text[:limit]}...'" if len(text) > limit else f"'{text}'"
 
@@ -143,11 +143,11 @@ def _quote(text: str, limit: int = 60) -> str:
 _UNIT_LINE = re.compile(r"^[ \t]*(?:UNITS|FEDRAT)[ \t]*/", re.MULTILINE | re.IGNORECASE)
 
 
-def _unit_records(pieces: Iterator[str], path: str) -> list[_Record]:
+def unit_records(pieces: Iterator[str], path: str) -> list[Record]:
     """The UNITS/ and FEDRAT/ records of the whole file, found without reading every record (a FEDRAT/
     line that repeats an earlier one word for word, without ``$``, is left out: its feed unit is known
     already, and only the first line of each unit is used)."""
-    found: list[_Record] = []
+    found: list[Record] = []
     first_line = 1
     carry, carry_line = "", 0                        # a continued record cut by a piece's end
     fedrat_lines: set[str] = set()                   # whole FEDRAT/ lines read already
@@ -169,7 +169,7 @@ def _unit_records(pieces: Iterator[str], path: str) -> list[_Record]:
             # with many FEDRAT/ records costs linear, not quadratic, time
             number += text.count("\n", counted_to, match.start())
             counted_to = match.start()
-            assembler = _Assembler(path)
+            assembler = Assembler(path)
             for offset, raw in enumerate(_lines_from(text, match.start())):
                 record = assembler.push(number + offset, raw)
                 if record is not None:
@@ -216,14 +216,14 @@ def _lines_from(text: str, start: int) -> Iterator[str]:
         start = end + 1
 
 
-def _file_units(records: list[_Record], path: str, caller: str | None) -> str:
+def units_of_file(records: list[Record], path: str, caller: str | None) -> str:
     """The file's length unit: UNITS/, else the caller's, else implied by the feed units, else mm."""
     declared: tuple[str, int] | None = None
     feed_units: dict[str, int] = {}
     for record in records:
         if record.word == "UNITS":
             if len(record.args) != 1 or record.args[0].upper() not in _UNIT_WORDS:
-                raise InputError(f"UNITS/ expects one of MM, INCHES; found {_quote(record.text)}",
+                raise InputError(f"UNITS/ expects one of MM, INCHES; found {quote(record.text)}",
                                  path=path, line=record.line)
             unit = _UNIT_WORDS[record.args[0].upper()]
             if declared is not None and declared[0] != unit:
@@ -232,7 +232,7 @@ def _file_units(records: list[_Record], path: str, caller: str | None) -> str:
             declared = (unit, record.line)
         elif record.word == "FEDRAT":
             for arg in record.args:
-                if arg.upper() in _FEED_UNITS:
+                if arg.upper() in FEED_UNITS:
                     feed_units.setdefault("inch" if arg.upper().startswith("I") else "mm", record.line)
     if declared is not None:
         if caller is not None and caller != declared[0]:
@@ -248,11 +248,11 @@ def _file_units(records: list[_Record], path: str, caller: str | None) -> str:
     return "inch" if "inch" in feed_units else "mm"
 
 
-def _number(text: str, what: str) -> float | str:
+def parse_number(text: str, what: str) -> float | str:
     """A float, or an error text."""
-    if not _NUMBER.match(text):
+    if not NUMBER.match(text):
         return f"{what}: {text!r} is not a number (expected a decimal like -12.5, .5 or 1.5E+02)"
     value = float(text)
     if not math.isfinite(value):
-        return f"{what}: {_quote(text, 40)} is too large to be a finite number"
+        return f"{what}: {quote(text, 40)} is too large to be a finite number"
     return value

@@ -25,37 +25,37 @@ from prs3_post.part.workplane import WorkPlane, euler_zxz_deg
 from prs3_post.readers.common import MAX_FEED_MM_MIN, MAX_RECORD_CHARS, MIN_FEED_MM_MIN, join_toolpaths
 from prs3_post.readers.gcode.summary import GcodeCounts, GcodeCycle, GcodeFile, GcodePlane
 from prs3_post.readers.gcode.words import (
-    _AXES,
-    _CYCLES,
-    _FEED,
-    _OFFSETS,
-    _P3_MAX_COSINE,
-    _PLANES,
-    _RAPID,
-    _USES,
-    _WORDS_READ,
+    AXES,
     CODES_READ,
+    CYCLES,
+    FEED,
     G_GROUPS,
     HINTS,
     M_GROUPS,
+    OFFSETS,
+    P3_MAX_COSINE,
     PECK_GAP_MM,
+    PLANES,
+    RAPID,
+    USES,
     VALUE_LETTERS,
+    WORDS_READ,
     Block,
-    _Cycle,
-    _PendingP3,
+    Cycle,
+    PendingP3,
 )
 from prs3_post.toolpaths.arcs import MAX_ARC_SEGMENTS, arc_points_3d, arc_segment_count, arc_sweep
 from prs3_post.toolpaths.cycles import MAX_PECKS, DrillCycle, Pecking, drill_rows, peck_count
 
 
-class _Blocks:
+class Blocks:
     """The modal state of a program as the lines go by; rows in the coordinates of their plane (mm)."""
 
     def __init__(self, path: str, work_plane: WorkPlane, tolerance: float, circle_tolerance: float):
         self.path, self.tolerance, self.circle_tolerance = path, tolerance, circle_tolerance
         # what :meth:`sort` accepts (the 5-axis reader, a subclass, adds its codes and rotary words)
         self.g_groups, self.m_groups, self.value_letters = G_GROUPS, M_GROUPS, VALUE_LETTERS
-        self.reader_name, self.codes_read, self.words_read = "the 3+2 G-code reader", CODES_READ, _WORDS_READ
+        self.reader_name, self.codes_read, self.words_read = "the 3+2 G-code reader", CODES_READ, WORDS_READ
         self.hints = HINTS
         self.number = 0
         # rows, flat (x, y, z per row), in the coordinates of plane ``plane_of`` (index into planes)
@@ -70,7 +70,7 @@ class _Blocks:
         self.frame = 0
         self.tilt: GcodePlane | None = None            # the active G68.2
         self.tilt_ready = True                         # False between G68.2 and G53.1
-        self.pending_p3: _PendingP3 | None = None
+        self.pending_p3: PendingP3 | None = None
         self.planes: list[GcodePlane] = []
         self.position = [math.nan, math.nan, math.nan]  # mm, current plane; NaN: not known yet
         self.start_pending = False                     # a merged start rapid waits for the full position
@@ -87,7 +87,7 @@ class _Blocks:
         self.spindle_on = False
         self.spindle_kind = EventKind.SPINDLE_ON       # the direction: SPINDLE_ON_CCW after M4
         self.tool: int | None = None
-        self.cycle: _Cycle | None = None
+        self.cycle: Cycle | None = None
         self.cycles: list[GcodeCycle] = []
         self.percent = 0                               # % lines seen (1: opening, 2: closing)
         self.percent_opened = 0                        # the opening % line's number
@@ -333,7 +333,7 @@ class _Blocks:
         self.motion_block(g.get("motion"), block)
         unused = [block.values[letter][1] for letter in block.values if letter not in block.used]
         if unused:
-            raise self.error(f"word {unused[0]!r} is not used by any code on this line ({_USES[unused[0][0]]})")
+            raise self.error(f"word {unused[0]!r} is not used by any code on this line ({USES[unused[0][0]]})")
         if "stop" in m:
             code = m["stop"]
             if code in (0, 1):
@@ -384,8 +384,8 @@ class _Blocks:
         if self.tilt is not None and self.pending_p3 is None:
             raise self.error(f"G68.2 while the tilted plane of line {self.tilt.line} is active: cancel it with G69 "
                              "first")
-        origin = np.array([block.take(a) or 0.0 for a in _AXES]) * self.scale
-        vector = np.array([block.take(a) or 0.0 for a in _OFFSETS])
+        origin = np.array([block.take(a) or 0.0 for a in AXES]) * self.scale
+        vector = np.array([block.take(a) or 0.0 for a in OFFSETS])
         if form == 0.0:
             order = block.take("Q")
             if order is not None and order != 313:
@@ -395,12 +395,12 @@ class _Blocks:
             return
         which = block.take("Q")
         if which == 1.0 and self.pending_p3 is None:
-            self.pending_p3 = _PendingP3(self.number, f"G68.2 {text}", origin, vector)
+            self.pending_p3 = PendingP3(self.number, f"G68.2 {text}", origin, vector)
             return
         if which != 2.0 or self.pending_p3 is None:
             raise self.error("G68.2 P3 is two lines: Q1 X Y Z I J K (origin, x direction), then Q2 I J K (the "
                              f"normal); found Q{which if which is None else f'{which:g}'}")
-        if any(a in block.values for a in _AXES):
+        if any(a in block.values for a in AXES):
             raise self.error("G68.2 P3 Q2 takes no X, Y or Z: the origin is on the Q1 line")
         first = self.pending_p3
         self.pending_p3 = None
@@ -412,7 +412,7 @@ class _Blocks:
             self.number = first.line
             raise self.error("G68.2 P3 Q1: the x direction I J K is the zero vector")
         cosine = float(first.x_direction @ vector) / (x_length * z_length)
-        if abs(cosine) > _P3_MAX_COSINE:
+        if abs(cosine) > P3_MAX_COSINE:
             angle = math.degrees(math.acos(max(-1.0, min(1.0, cosine))))   # clip: rounding past ±1
             raise self.error(f"G68.2 P3: the x direction (line {first.line}) and the normal are {angle:.2f}° apart; "
                              "they must be perpendicular (85° to 95°)")
@@ -442,9 +442,9 @@ class _Blocks:
 
     # ---- motion
     def motion_block(self, code: float | None, block: Block) -> None:
-        has_axes = any(a in block.values for a in _AXES)
+        has_axes = any(a in block.values for a in AXES)
         if code is not None:
-            if code in _CYCLES:
+            if code in CYCLES:
                 if self.cycle is None or self.cycle.code != code:
                     level = None                       # another cycle without G80: the same initial level (G98)
                     if self.cycle is not None:
@@ -455,7 +455,7 @@ class _Blocks:
                 self.end_cycle()
             self.motion = code
         if not has_axes:
-            if code in _CYCLES:
+            if code in CYCLES:
                 raise self.error(f"{code_name('G', code)} without a hole position: give X, Y (and Z, R)")
             return
         if "tilt" in block.g and block.g["tilt"][0] == 68.2:
@@ -467,7 +467,7 @@ class _Blocks:
             assert self.tilt is not None  # tilt_ready is False only after a G68.2
             raise self.error(f"a move in the tilted plane of G68.2 (line {self.tilt.line}) before G53.1: give G53.1 "
                              "first, which turns the tool axis to the plane's normal")
-        if self.motion in _CYCLES:
+        if self.motion in CYCLES:
             self.hole(block)
         elif self.motion in (2.0, 3.0):
             self.arc(block)
@@ -477,7 +477,7 @@ class _Blocks:
     def target(self, block: Block) -> list[float]:
         """The end point of a move, mm in the current plane (NaN where still unknown)."""
         end = list(self.position)
-        for index, letter in enumerate(_AXES):
+        for index, letter in enumerate(AXES):
             value = block.take(letter)
             if value is None:
                 continue
@@ -532,20 +532,20 @@ class _Blocks:
         self.start_pending = False
         self.moves += 1
         if rapid:
-            self.add_rows(np.array(end), _RAPID, 0.0, self.number)
+            self.add_rows(np.array(end), RAPID, 0.0, self.number)
             return
         length = math.dist(end, self.position)
         feed = self.inverse_time_feed(block, length)
-        self.add_rows(np.array(end), _FEED, feed if feed is not None else self.feed_for(length), self.number)
+        self.add_rows(np.array(end), FEED, feed if feed is not None else self.feed_for(length), self.number)
 
     def arc(self, block: Block) -> None:
         code = code_name("G", self.motion or 2.0)
         if not np.isfinite(self.position).all():
             raise self.error(f"{code} while the position is not fully known: the arc has no start point")
-        first, second, normal_axis = _PLANES[self.plane]
+        first, second, normal_axis = PLANES[self.plane]
         plane_name = f"G{self.plane}"
-        offset_letters = (_OFFSETS[first], _OFFSETS[second])
-        wrong = _OFFSETS[normal_axis]
+        offset_letters = (OFFSETS[first], OFFSETS[second])
+        wrong = OFFSETS[normal_axis]
         if wrong in block.values:
             raise self.error(f"{block.values[wrong][1]} in {plane_name}: the arc centre's offsets in {plane_name} "
                              f"are {offset_letters[0]} and {offset_letters[1]}")
@@ -587,7 +587,7 @@ class _Blocks:
                 raise self.error(f"{code} centre offsets are zero: the arc has no radius")
             end_radius = float(np.linalg.norm(b - centre[[first, second]]))
             if abs(end_radius - radius) > self.circle_tolerance:
-                shown = " ".join(f"{_AXES[i]}{end[i] / self.scale:.4f}" for i in range(3))
+                shown = " ".join(f"{AXES[i]}{end[i] / self.scale:.4f}" for i in range(3))
                 raise self.error(f"{code} end point ({shown}) is {abs(end_radius - radius):.4f} mm "
                                  f"{'outside' if end_radius > radius else 'inside'} the circle through its start "
                                  f"(radius {radius / self.scale:.4f}); the end must lie on the circle within "
@@ -605,7 +605,7 @@ class _Blocks:
             raise self.error(f"{code} start or end is at the arc's centre: the arc has no direction there") from exc
         length = math.hypot(sweep * radius, float(end[normal_axis] - start[normal_axis]))
         feed = self.inverse_time_feed(block, length)
-        self.add_rows(points, _FEED, feed if feed is not None else self.feed_for(length), self.number)
+        self.add_rows(points, FEED, feed if feed is not None else self.feed_for(length), self.number)
         self.arcs += 1
         self.arc_segments += len(points)
 
@@ -617,8 +617,8 @@ class _Blocks:
         if not np.isfinite(self.position).all():
             raise self.error(f"{code_name('G', code)} while the position is not fully known: the cycle starts from "
                              "the current position (give X, Y and Z first)")
-        self.cycle = _Cycle(code, self.number, self.position[2] if initial_z is None else initial_z,
-                            fresh=initial_z is None)
+        self.cycle = Cycle(code, self.number, self.position[2] if initial_z is None else initial_z,
+                           fresh=initial_z is None)
 
     def end_cycle(self) -> None:
         cycle = self.cycle
@@ -641,7 +641,7 @@ class _Blocks:
                 setattr(cycle, letter.lower(), value)
         if cycle.z is None or cycle.r is None:
             raise self.error(f"{code} needs Z (the hole's bottom) and R (the retract plane)")
-        pecking = _CYCLES[cycle.code]
+        pecking = CYCLES[cycle.code]
         if pecking is not Pecking.NONE and (cycle.q is None or not cycle.q > 0):
             raise self.error(f"{code} needs Q > 0, the depth of each peck")
         if cycle.code != 82 and "P" in block.values:
@@ -688,9 +688,9 @@ class _Blocks:
         if level == r:                                   # the cycle's first rapid goes nowhere
             tip, kind, bottom = tip[1:], kind[1:], bottom - 1
         rows = np.vstack([np.array(before).reshape(-1, 3), tip])
-        kinds = np.concatenate([np.full(len(before), _RAPID), kind])
+        kinds = np.concatenate([np.full(len(before), RAPID), kind])
         first = self.rows
-        self.add_rows(rows, kinds, np.where(kinds == _FEED, feed, 0.0), self.number)
+        self.add_rows(rows, kinds, np.where(kinds == FEED, feed, 0.0), self.number)
         if drill.dwell > 0:
             self.events.append(Event(before=first - self.chunk_start + len(before) + int(bottom[0]) + 1,
                                      kind=EventKind.DWELL,

@@ -25,26 +25,26 @@ from prs3_post.core.lexer import (
 from prs3_post.core.toolpath import Event, EventKind
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 from prs3_post.readers.common import MAX_FEED_MM_MIN, MIN_FEED_MM_MIN
-from prs3_post.readers.gcode.blocks import _Blocks
-from prs3_post.readers.gcode.words import _BULK_LETTERS, _FEED, _ONE_COMMENT, _QUIET, _RAPID, _ROTARY, _ROTARY_HINT
+from prs3_post.readers.gcode.blocks import Blocks
+from prs3_post.readers.gcode.words import BULK_LETTERS, FEED, ONE_COMMENT, QUIET, RAPID, ROTARY, ROTARY_HINT
 
 if TYPE_CHECKING:
     from prs3_post.core import native
 
 
-#: Bytes of :data:`_ROTARY_HINT`: what may follow a letter in a rotary word.
+#: Bytes of :data:`ROTARY_HINT`: what may follow a letter in a rotary word.
 _ROTARY_NEXT = np.zeros(256, dtype=bool)
 _ROTARY_NEXT[list(b" \t-.0123456789")] = True
-_ROTARY_HINT_BYTES = re.compile(_ROTARY_HINT.pattern.encode("ascii"))
+_ROTARY_HINT_BYTES = re.compile(ROTARY_HINT.pattern.encode("ascii"))
 
 
-def _rotary_hint(text: str) -> bool:
-    """``_ROTARY_HINT.search(text) is not None``, in bulk (:func:`_rotary_at`)."""
+def rotary_hint(text: str) -> bool:
+    """``ROTARY_HINT.search(text) is not None``, in bulk (:func:`_rotary_at`)."""
     return _rotary_at(text.encode("utf-8")) >= 0
 
 
 def _rotary_at(data: bytes) -> int:
-    """Where ``_ROTARY_HINT`` first matches in ``data`` (bytes of UTF-8 text), or -1: only the letters
+    """Where ``ROTARY_HINT`` first matches in ``data`` (bytes of UTF-8 text), or -1: only the letters
     followed by a byte that can continue a rotary word (a letter in a comment's word, ``pass``, is
     followed by another letter) are tried with the pattern."""
     data += b"\n"
@@ -56,7 +56,7 @@ def _rotary_at(data: bytes) -> int:
     return next((at for at in maybe if _ROTARY_HINT_BYTES.match(data, at) is not None), -1)
 
 
-def _scan_bytes(data: bytes) -> tuple[int, bool, int, int]:
+def scan_bytes(data: bytes) -> tuple[int, bool, int, int]:
     """(the offset of the first control byte :func:`~prs3_post.core.lexer.decode` refuses or -1, a
     byte not ASCII, the LFs, :func:`_rotary_at`): csrc/lex.c's one pass where it was built, else numpy."""
     from prs3_post.core import native  # ctypes: loaded only where a file is read
@@ -66,20 +66,20 @@ def _scan_bytes(data: bytes) -> tuple[int, bool, int, int]:
 
 
 def _scan_bytes_numpy(data: bytes) -> tuple[int, bool, int, int]:
-    """:func:`_scan_bytes` with numpy (the reference of csrc/lex.c's prs3_scan_text)."""
+    """:func:`scan_bytes` with numpy (the reference of csrc/lex.c's prs3_scan_text)."""
     codes = np.frombuffer(data, dtype=np.uint8)
     control = np.flatnonzero(((codes < 32) & (codes != 9) & (codes != 10) & (codes != 13)) | (codes == 127))
     return (int(control[0]) if len(control) else -1, bool((codes >= 128).any()), data.count(b"\n"),
             _rotary_at(data))
 
 
-def _refuse_rotary(line: str, number: int, path: str) -> None:
+def refuse_rotary(line: str, number: int, path: str) -> None:
     """Raise the 5-axis refusal if ``line``'s code (without comments) has a rotary word."""
     try:
         code, _ = split_comments(line)
     except LexError:
         return                                           # the careful reader names what is wrong there
-    match = _ROTARY.search(code)
+    match = ROTARY.search(code)
     if match is None:
         return
     word = (match[1] + match[2]).upper().replace(" ", "").replace("\t", "")
@@ -154,7 +154,7 @@ class _BlockLines(Sequence[str]):
         return comment, [data[a:b].decode("ascii") for a, b in spans.tolist()]
 
 
-class LineReader(_Blocks):
+class LineReader(Blocks):
     """A program's blocks as the lines go by: runs of plain moves and quiet lines in bulk, every other line
     block by block."""
 
@@ -168,7 +168,7 @@ class LineReader(_Blocks):
         """
         if not lines:
             return
-        values, fast = lex_columns(lines, _BULK_LETTERS)
+        values, fast = lex_columns(lines, BULK_LETTERS)
         self.runs(first, values, fast, lines)
 
     def read_block(self, first: int, data: bytes, offset: int) -> int:
@@ -185,7 +185,7 @@ class LineReader(_Blocks):
             lines = [line.removesuffix("\r") for line in lines]
             self.lines(first, lines)
             return len(lines)
-        values, kinds, bounds, spans = lex_block_lines(data, _BULK_LETTERS, rows=self.block_lines)
+        values, kinds, bounds, spans = lex_block_lines(data, BULK_LETTERS, rows=self.block_lines)
         self.block_lines = len(kinds)                    # the next block's, but for the last one
         self.runs(first, values, kinds == LINE_READ, _BlockLines(data, bounds, offset, self.path, kinds, spans))
         return len(kinds)
@@ -202,7 +202,7 @@ class LineReader(_Blocks):
             fast &= ~np.isnan(np.fmax(np.fmax(values[:, 2], values[:, 3]), values[:, 4]))   # a move: an axis word
             quiet = np.zeros(len(lines), dtype=bool)     # blank or only comments: nothing but events
             maybe = ~fast
-        quiet[maybe] = [_QUIET.fullmatch(lines[i]) is not None for i in np.flatnonzero(maybe).tolist()]
+        quiet[maybe] = [QUIET.fullmatch(lines[i]) is not None for i in np.flatnonzero(maybe).tolist()]
         span = fast | quiet
         edges = np.flatnonzero(np.diff(span.astype(np.int8))) + 1
         for a, b in itertools.pairwise([0, *edges.tolist(), len(lines)]):
@@ -257,7 +257,7 @@ class LineReader(_Blocks):
                                                                                 strict=True)]
         elif len(others):                                # the comments, each before the next move's row
             before = self.rows - self.chunk_start + np.cumsum(moves)[others]
-            one_comment = _ONE_COMMENT.fullmatch
+            one_comment = ONE_COMMENT.fullmatch
             for index, row in zip(others.tolist(), before.tolist(), strict=True):
                 line = lines[index]
                 match = one_comment(line)                # the usual comment line: split_comments' answer
@@ -283,7 +283,7 @@ class LineReader(_Blocks):
         return True
 
 
-_FILL_CODES = np.array([_RAPID, _FEED], dtype=np.int64)
+_FILL_CODES = np.array([RAPID, FEED], dtype=np.int64)
 
 
 def _line_roles(values: FloatArray, kinds: np.ndarray) -> tuple[BoolArray, BoolArray]:
@@ -340,5 +340,5 @@ def _fill_moves_numpy(values: FloatArray, moves: BoolArray, state: FloatArray, s
     after = np.concatenate([motion[-1:], given_feed[-1:], position[-1]]) if len(values) else np.array(state)
     codes = g[~np.isnan(g)]
     rapids = int((codes == 0.0).sum())
-    return (position, np.where(feeding, _FEED, _RAPID).astype(np.int64), np.where(feeding, given_feed * scale, 0.0),
+    return (position, np.where(feeding, FEED, RAPID).astype(np.int64), np.where(feeding, given_feed * scale, 0.0),
             first + np.flatnonzero(moves), after, np.array([rapids, len(codes) - rapids], dtype=np.int64))

@@ -79,9 +79,9 @@ from prs3_post.core.lexer import (
 from prs3_post.core.toolpath import Toolpath
 from prs3_post.part.workplane import WorkPlane
 from prs3_post.readers.common import join_toolpaths
-from prs3_post.readers.gcode.bulk import LineReader, _refuse_rotary, _rotary_hint, _scan_bytes
+from prs3_post.readers.gcode.bulk import LineReader, refuse_rotary, rotary_hint, scan_bytes
 from prs3_post.readers.gcode.summary import GcodeCounts, GcodeCycle, GcodeFile, GcodePlane
-from prs3_post.readers.gcode.words import _ROTARY_HINT, PECK_GAP_MM
+from prs3_post.readers.gcode.words import PECK_GAP_MM, ROTARY_HINT
 from prs3_post.readers.protocol import SourceNotes, StreamDefaults
 
 __all__ = [
@@ -195,8 +195,8 @@ class GcodeStream(StreamDefaults):
         """A piece of the file from ``offset`` (a line start), whose first line is line ``first``:
         checked as :func:`~prs3_post.core.lexer.decode` checks it, then :meth:`_scan`-ned; returns
         its LFs. Bytes that are plain ASCII and have no rotary hint are not decoded, nor scanned by a
-        pattern (one pass in C where it was built, :func:`_scan_bytes`)."""
-        control, high, lines, rotary = _scan_bytes(piece)
+        pattern (one pass in C where it was built, :func:`scan_bytes`)."""
+        control, high, lines, rotary = scan_bytes(piece)
         if control >= 0 or high:
             self._scan(decode(piece, offset=offset), first)     # raises LexError
         elif rotary >= 0:
@@ -206,10 +206,10 @@ class GcodeStream(StreamDefaults):
     def _scan(self, text: str, first: int) -> None:
         """Refuse what no line of the file may have (here: a rotary word) in a piece whose first line is
         line ``first`` (a hook: the 5-axis reader refuses expressions and parameters instead)."""
-        if _rotary_hint(text):
+        if rotary_hint(text):
             for number, line in enumerate(text.split("\n"), start=first):
-                if _ROTARY_HINT.search(line):
-                    _refuse_rotary(line, number, self.path)
+                if ROTARY_HINT.search(line):
+                    refuse_rotary(line, number, self.path)
 
     def _reader(self) -> LineReader:
         """The interpreter of the lines (a hook: the 5-axis reader, ``readers.fivex.reader``, gives its own)."""

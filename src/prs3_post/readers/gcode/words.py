@@ -15,8 +15,8 @@ from prs3_post.toolpaths.cycles import Pecking
 #: ``delta`` of 0.010 inch.
 PECK_GAP_MM = 0.254
 #: FANUC's G68.2 P3: the x direction and the normal must be 85° to 95° apart.
-_P3_MAX_COSINE = math.cos(math.radians(85.0))
-_RAPID, _FEED = int(MoveKind.RAPID), int(MoveKind.FEED)
+P3_MAX_COSINE = math.cos(math.radians(85.0))
+RAPID, FEED = int(MoveKind.RAPID), int(MoveKind.FEED)
 
 # G codes by modal group (the value as a float: G68.2 is 68.2)
 G_GROUPS: dict[float, str] = {
@@ -44,22 +44,22 @@ HINTS = {
     "G90.1": "absolute arc centres: have the CAM system write I J K relative to the start (G91.1)",
 }
 VALUE_LETTERS = "XYZIJKRPQFSTH"
-_WORDS_READ = "G M N X Y Z I J K R P Q F S T H; O alone on its line"
-_CYCLES = {81.0: Pecking.NONE, 82.0: Pecking.NONE, 83.0: Pecking.FULL_RETRACT, 73.0: Pecking.CHIP_BREAK}
+WORDS_READ = "G M N X Y Z I J K R P Q F S T H; O alone on its line"
+CYCLES = {81.0: Pecking.NONE, 82.0: Pecking.NONE, 83.0: Pecking.FULL_RETRACT, 73.0: Pecking.CHIP_BREAK}
 #: The letters of the bulk path, in the order a regular motion line writes them.
-_BULK_LETTERS = "NGXYZF"
+BULK_LETTERS = "NGXYZF"
 #: A blank line, or one with only comments (closed, not nested), which the bulk path passes as events.
-_QUIET = re.compile(r"[ \t]*(?:\([^()]*\)[ \t]*)*(?:;.*)?")
+QUIET = re.compile(r"[ \t]*(?:\([^()]*\)[ \t]*)*(?:;.*)?")
 #: A line that is one comment in parentheses, nothing else: its text (what split_comments reads there).
-_ONE_COMMENT = re.compile(r"\(([^()]*)\)")
+ONE_COMMENT = re.compile(r"\(([^()]*)\)")
 #: A rotary word (A, B, C and a number) somewhere in a line: a 5-axis program (checked on the code
 #: without comments).
-_ROTARY = re.compile(r"(?<![A-Za-z_<\[#])([ABCabc])[ \t]*(-?[ \t]*[0-9.][0-9. \t]*)")
-_ROTARY_HINT = re.compile(r"[ABCabc][ \t]*-?[ \t]*[0-9.]")
+ROTARY = re.compile(r"(?<![A-Za-z_<\[#])([ABCabc])[ \t]*(-?[ \t]*[0-9.][0-9. \t]*)")
+ROTARY_HINT = re.compile(r"[ABCabc][ \t]*-?[ \t]*[0-9.]")
 # the plane of G17, G18, G19: (first, second, normal) axis indexes, right-handed (first × second = normal)
-_PLANES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
-_AXES = "XYZ"
-_OFFSETS = "IJK"
+PLANES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
+AXES = "XYZ"
+OFFSETS = "IJK"
 
 
 # --------------------------------------------------------------------------------------------
@@ -84,7 +84,7 @@ class Block:
 
 
 @dataclass(slots=True)
-class _Cycle:
+class Cycle:
     """The active canned cycle: its code, sticky words (program units as written) and where it began."""
 
     code: float
@@ -100,7 +100,7 @@ class _Cycle:
 
 
 @dataclass(slots=True)
-class _PendingP3:
+class PendingP3:
     line: int
     text: str
     origin: FloatArray                # mm, outer plane
@@ -108,7 +108,7 @@ class _PendingP3:
 
 
 #: What each value word is for, for the message about a word no code on its line uses.
-_USES = {
+USES = {
     "X": "X Y Z go with a motion code or G68.2", "Y": "X Y Z go with a motion code or G68.2",
     "Z": "X Y Z go with a motion code or G68.2", "I": "I J K go with G2/G3 or G68.2",
     "J": "I J K go with G2/G3 or G68.2", "K": "I J K go with G2/G3 or G68.2",
