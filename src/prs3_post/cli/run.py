@@ -216,26 +216,34 @@ def _placement_hint(origin: tuple[str, str, str] | None) -> str:
 
 def _run_job(part: str, **opts: Any) -> int:
     """Build the request from the options, check the job, write the program (and its preview)."""
-    from prs3_post.app.run import check_specs, job_preview  # the job's modules: only the commands that run one
+    from prs3_post.app.run import check_specs  # the job's modules: only the commands that run one
 
     specs = job_specs_of(part, opts, given=given_options())
     fmt = image_format(opts["preview_path"], "'--preview'") if opts["preview_path"] else None
     job = check_specs(specs, placement_hint=_placement_hint)
     out_path = opts["out_path"]
+    _write_job(job, specs, out_path, opts["preview_path"], fmt, title=Path(part).name, what=f"; {job.face_note}")
+    return 0
+
+
+def _write_job(job: JobProgram, specs: tuple[JobSpec, ...], out_path: str | None, preview_path: str | None,
+               fmt: str | None, *, title: str, what: str) -> None:
+    """Write the checked job's program (and its preview, drawn first: no half results) and say what was
+    written; ``what`` ends the summary line (the main job's face, a job file's operation count)."""
+    from prs3_post.app.run import job_preview
+
     text = _ProgramText(job, whole=fmt is not None or not _streamable(out_path))
     image = None
-    if fmt is not None:                                # draw before writing anything: no half results
-        image = job_preview(job, specs, fmt, text=text.whole, path=out_path or "<program>", title=Path(part).name)
-    write_outputs([(out_path, text.data())] + ([] if image is None else [(opts["preview_path"], image)]))
+    if fmt is not None:
+        image = job_preview(job, specs, fmt, text=text.whole, path=out_path or "<program>", title=title)
+    write_outputs([(out_path, text.data())] + ([] if image is None else [(preview_path, image)]))
     _report_placement(job)
     if not is_stdout(out_path):
-        click.echo(f"prs3-post: wrote {out_path}: {text.lines} lines, "
-                   f"{len(job.program)} moves; {job.face_note}", err=True)
+        click.echo(f"prs3-post: wrote {out_path}: {text.lines} lines, {len(job.program)} moves{what}", err=True)
         if specs[0].machine.dynamics is not None:
             click.echo(f"prs3-post: {job.dynamics}", err=True)
     if image is not None:
-        click.echo(f"prs3-post: wrote {opts['preview_path']}", err=True)
-    return 0
+        click.echo(f"prs3-post: wrote {preview_path}", err=True)
 
 
 def _streamable(path: str | None) -> bool:
@@ -374,7 +382,7 @@ def job(job_path: str, out_path: str | None, machine_name: str, part_origin: tup
     """
 
     def body() -> int:
-        from prs3_post.app.run import check_specs, job_preview, read_job
+        from prs3_post.app.run import check_specs, read_job
 
         ctx = click.get_current_context()
         job_file = read_job(job_path)
@@ -392,20 +400,8 @@ def job(job_path: str, out_path: str | None, machine_name: str, part_origin: tup
             where += f".{error.key}" if where and error.key else ""
             raise InputError(f"{where}: {error!s}" if where else str(error),
                              path=job_path) from error
-        text = _ProgramText(job, whole=fmt is not None or not _streamable(out_path))
-        image = None
-        if fmt is not None:                            # draw before writing anything: no half results
-            image = job_preview(job, specs, fmt, text=text.whole, path=out_path or "<program>",
-                                title=Path(job_file.part).name)
-        write_outputs([(out_path, text.data())] + ([] if image is None else [(preview_path, image)]))
-        _report_placement(job)
-        if not is_stdout(out_path):
-            click.echo(f"prs3-post: wrote {out_path}: {text.lines} lines, "
-                       f"{len(job.program)} moves, {len(specs)} operations", err=True)
-            if specs[0].machine.dynamics is not None:
-                click.echo(f"prs3-post: {job.dynamics}", err=True)
-        if image is not None:
-            click.echo(f"prs3-post: wrote {preview_path}", err=True)
+        _write_job(job, specs, out_path, preview_path, fmt, title=Path(job_file.part).name,
+                   what=f", {len(specs)} operations")
         return 0
 
     run_reported(body)
