@@ -801,3 +801,14 @@ def test_no_clamp_refuses_a_feed_that_would_be_slowed(tmp_path: Path) -> None:
     assert not (out / "fast.ngc").exists()
     code, _, _ = _cli(tmp_path, str(src), "-o", str(tmp_path / "clamped"), _FAST_ORIGIN, "--clamp")
     assert code == 0
+
+
+def test_a_5_axis_program_without_a_source_is_told_to_name_one(tmp_path: Path) -> None:
+    """Issue 20: a rotary program read by the 3+2 reader names --source and the command that lists them."""
+    src = REPO / "fixtures" / "bad" / "gcode" / "rotary_word.ngc"
+    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(tmp_path / "out"))
+    assert (code, stdout) == (2, (
+        f"failed\t{src}\t-\t{src}:4: 5-axis program: rotary word 'A30' (A, B and C words turn rotary axes); the "
+        "3+2 reader reads programs whose tool axis is set by G68.2/G53.1 or by the work plane, so it refuses this "
+        "program rather than misread it; a 5-axis program under TCP converts when --source names the machine it "
+        "was written for (prs3-post sources lists them)\n"))

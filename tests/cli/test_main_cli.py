@@ -467,3 +467,10 @@ def test_verify_against_a_part_refuses_an_option_the_profile_ignores(tmp_path: P
     assert (result.exit_code, result.stdout) == (2, "")
     assert result.stderr.splitlines()[-1] == ("Error: --profile hole does not use --diameter (round only): leave it "
                                               "out")
+
+
+def test_minus_capital_v_is_the_version() -> None:
+    """Issue 20: -V, as --version (and as most tools spell it)."""
+    short = CliRunner().invoke(main, ["-V"])
+    assert (short.exit_code, short.output) == (0, "prs3-post, version 0.1.0\n")
+    assert short.output == CliRunner().invoke(main, ["--version"]).output

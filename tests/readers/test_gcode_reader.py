@@ -469,7 +469,8 @@ def test_corpus_5_axis_programs_are_refused_at_their_first_rotary_word(name: str
     assert str(info.value) == (
         f"{path}:{line}: 5-axis program: rotary word '{word}' (A, B and C words turn rotary axes); the 3+2 reader "
         "reads programs whose tool axis is set by G68.2/G53.1 or by the work plane, so it refuses this program "
-        "rather than misread it")
+        "rather than misread it; a 5-axis program under TCP converts when source names the machine it was written "
+        "for (prs3-post sources lists them)")
 
 
 def test_a_rotary_word_in_a_comment_or_a_parameter_name_is_not_one() -> None:

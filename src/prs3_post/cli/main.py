@@ -59,7 +59,7 @@ class _MainGroup(click.Group):
 
 
 @click.group(cls=_MainGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
-@click.version_option(__version__, prog_name="prs3-post")
+@click.version_option(__version__, "-V", "--version", prog_name="prs3-post")
 def main() -> None:
     """prs3-post: the post-processor for 3-PRS parallel-kinematic machines.
 

@@ -85,7 +85,9 @@ def refuse_rotary(line: str, number: int, path: str) -> None:
     word = (match[1] + match[2]).upper().replace(" ", "").replace("\t", "")
     raise InputError(f"5-axis program: rotary word '{word}' (A, B and C words turn rotary axes); the 3+2 reader "
                      "reads programs whose tool axis is set by G68.2/G53.1 or by the work plane, so it refuses this "
-                     "program rather than misread it", path=path, line=number)
+                     "program rather than misread it; a 5-axis program under TCP converts when {source} names the "
+                     "machine it was written for (prs3-post sources lists them)", path=path, line=number,
+                     names_keys=("source",))
 
 
 def _text_at(data: bytes, path: str, offset: int) -> str:
