@@ -99,7 +99,7 @@ def test_the_machine_file_names_its_kinematics(ram_machine: Path, tmp_path: Path
     bad.write_text(ram_machine.read_text(encoding="utf-8").replace('"ram-4"', '"6-sps"'), encoding="utf-8")
     with pytest.raises(ConfigError) as error:
         load_machine(str(bad))
-    assert str(error.value).endswith("kinematics: unknown kinematics '6-sps' (known: 3-prs, ram-4)")
+    assert str(error.value).endswith("kinematics: unknown kinematics '6-sps' (known: 3-prs, 3-prs-general, ram-4)")
 
 
 def test_the_main_job_and_verify_run_through_the_toy(ram_machine: Path, tmp_path: Path) -> None:

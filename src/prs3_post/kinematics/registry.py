@@ -11,6 +11,7 @@ from collections.abc import Callable
 
 from prs3_post.kinematics.protocol import Kinematics
 from prs3_post.kinematics.prs3.kinematics import Prs3Kinematics
+from prs3_post.kinematics.prs3_general.kinematics import GENERAL_KINEMATICS, Prs3GeneralKinematics
 from prs3_post.machine.model import KINEMATICS_NAMES, Geometry, Machine
 
 __all__ = ["Kinematics", "as_kinematics", "kinematics_of", "register", "unregister"]
@@ -42,3 +43,4 @@ def as_kinematics(given: Geometry | Kinematics) -> Kinematics:
 
 
 register("3-prs", Prs3Kinematics)
+register(GENERAL_KINEMATICS, Prs3GeneralKinematics)   # each leg as built: [[legs]] in the machine file

@@ -5,7 +5,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-__all__ = ["DEFAULT_KINEMATICS", "KINEMATICS_NAMES", "Dynamics", "Geometry", "Holder", "Limits", "Machine", "Stage"]
+__all__ = ["DEFAULT_KINEMATICS", "KINEMATICS_NAMES", "Dynamics", "GeneralGeometry", "Geometry", "Holder", "LegGeometry",
+           "Limits", "Machine", "Stage", "general_from_ideal"]
+
+Vector = tuple[float, float, float]
 
 #: The kinematics of a machine file without a ``kinematics`` key (the files written before it).
 DEFAULT_KINEMATICS = "3-prs"
@@ -28,6 +31,9 @@ class Geometry:
         the machine file assumes; :meth:`with_tool` gives the geometry with another tool)
     gauge_offset : float — mm, platform centre to the spindle's gauge line along the tool axis
         (0 < gauge_offset < tool_length): a tool of length L (gauge line to tip) makes TL = gauge_offset + L
+    general : GeneralGeometry | None — the head as built, leg by leg (a machine file's ``[[legs]]``),
+        with its tool tip at ``tool_length``; None: the ideal head these numbers describe. The numbers
+        above stay the head's nominal ones (the general kinematics start from their closed form).
     """
 
     leg_azimuth: tuple[float, float, float]
@@ -36,6 +42,7 @@ class Geometry:
     platform_radius: float
     tool_length: float
     gauge_offset: float
+    general: GeneralGeometry | None = None
 
     def __post_init__(self) -> None:
         for name in ("guide_radius", "link_length", "platform_radius", "tool_length", "gauge_offset"):
@@ -44,12 +51,120 @@ class Geometry:
 
     def with_tool(self, length: float) -> Geometry:
         """This head with a tool ``length`` mm long from the gauge line to its tip (TL = gauge_offset + length)."""
-        return replace(self, tool_length=self.gauge_offset + length)
+        return self.with_tool_length(self.gauge_offset + length)
+
+    def with_tool_length(self, length: float) -> Geometry:
+        """This head with the tool length "TL" ``length`` mm (a general head's tool tip moves along its
+        tool axis by the difference)."""
+        if self.general is None:
+            return replace(self, tool_length=length)
+        return replace(self, tool_length=length, general=self.general.with_tool_shift(length - self.tool_length))
 
     @property
     def layout_offset(self) -> float:
         """rad, how far the leg layout is turned from the reference 210°/330°/90° (legs 1, 2, 3)."""
         return self.leg_azimuth[0] - math.radians(210.0)
+
+    def general_geometry(self) -> GeneralGeometry:
+        """The head as built: :attr:`general` when the machine file describes its legs, else the
+        ideal head's (:func:`general_from_ideal`)."""
+        return self.general if self.general is not None else general_from_ideal(self)
+
+
+@dataclass(frozen=True, slots=True)
+class LegGeometry:
+    """One leg of a general 3-PRS head (DESIGN.md, "The machine as built"), machine frame unless said.
+
+    Attributes
+    ----------
+    rail_point : (3,) tuple — mm, "P_i": the revolute joint's centre at commanded stroke 0 with
+        ``stroke_offset`` 0 (ideal: K·e_i)
+    rail_direction : (3,) tuple — unit, "d_i": the direction the revolute joint moves as the
+        stroke grows (ideal: (0, 0, −1))
+    revolute_axis : (3,) tuple — unit, "r_i": the revolute joint's axis; the link stays in the plane
+        through the joint's centre normal to it (ideal: t_i)
+    link_length : float — mm, "U_i": revolute joint centre to spherical joint centre
+    platform_joint : (3,) tuple — mm, "s_i": the spherical joint's centre in the platform frame
+        (ideal: r_p·e_i)
+    stroke_offset : float — mm, "o_i": the encoder zero; physical stroke = commanded stroke + offset,
+        so the revolute joint is at P_i + (T_i + o_i)·d_i (ideal: 0)
+    """
+
+    rail_point: Vector
+    rail_direction: Vector
+    revolute_axis: Vector
+    link_length: float
+    platform_joint: Vector
+    stroke_offset: float = 0.0
+
+    def __post_init__(self) -> None:
+        values = (*self.rail_point, *self.rail_direction, *self.revolute_axis, self.link_length,
+                  *self.platform_joint, self.stroke_offset)
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError("leg values must be finite")
+        for name in ("rail_direction", "revolute_axis"):
+            if abs(math.hypot(*getattr(self, name)) - 1.0) > 1e-12:
+                raise ValueError(f"{name} must be a unit vector")
+        if not self.link_length > 0:
+            raise ValueError("link_length must be > 0")
+
+
+@dataclass(frozen=True, slots=True)
+class GeneralGeometry:
+    """A 3-PRS head whose legs each have their own geometry, and its tool in the platform frame.
+
+    The platform frame is the frame the platform joints and the tool are given in; the ideal head's
+    has its origin at the platform centre and z along the platform normal (DESIGN.md).
+
+    Attributes
+    ----------
+    legs : (3,) tuple of LegGeometry — legs 1, 2, 3
+    tool_tip : (3,) tuple — mm, "c": the tool tip in the platform frame, with the tool of the
+        :class:`Geometry` that holds this (its ``tool_length``; ideal: (0, 0, −TL))
+    tool_axis : (3,) tuple — unit, "w": the tool axis in the platform frame, from the tip toward the
+        spindle (ideal: (0, 0, 1))
+    """
+
+    legs: tuple[LegGeometry, LegGeometry, LegGeometry]
+    tool_tip: Vector
+    tool_axis: Vector
+
+    def __post_init__(self) -> None:
+        if len(self.legs) != 3:
+            raise ValueError("a 3-PRS head has 3 legs")
+        if not all(math.isfinite(v) for v in (*self.tool_tip, *self.tool_axis)):
+            raise ValueError("tool values must be finite")
+        if abs(math.hypot(*self.tool_axis) - 1.0) > 1e-12:
+            raise ValueError("tool_axis must be a unit vector")
+
+    def with_tool_shift(self, longer: float) -> GeneralGeometry:
+        """This head with a tool ``longer`` mm longer: its tip moved by −longer along the tool axis."""
+        tip = tuple(c - longer * w for c, w in zip(self.tool_tip, self.tool_axis, strict=True))
+        return replace(self, tool_tip=(tip[0], tip[1], tip[2]))
+
+
+def general_from_ideal(geometry: Geometry) -> GeneralGeometry:
+    """The ideal head of ``geometry`` as a :class:`GeneralGeometry` (DESIGN.md: P_i = K·e_i, d_i = −z,
+    r_i = t_i, U_i = U, s_i = r_p·e_i, o_i = 0, c = (0, 0, −TL), w = z).
+
+    >>> from prs3_post.machine.loading import load_machine
+    >>> g = general_from_ideal(load_machine("patel2020").geometry)
+    >>> [round(v, 4) + 0.0 for v in g.legs[2].rail_point], g.legs[2].rail_direction, g.tool_tip
+    ([0.0, 392.013, 0.0], (0.0, 0.0, -1.0), (0.0, 0.0, -175.0))
+    """
+    legs = []
+    for alpha in geometry.leg_azimuth:
+        cos_a, sin_a = math.cos(alpha), math.sin(alpha)
+        legs.append(LegGeometry(
+            rail_point=(geometry.guide_radius * cos_a, geometry.guide_radius * sin_a, 0.0),
+            rail_direction=(0.0, 0.0, -1.0),
+            revolute_axis=(-sin_a, cos_a, 0.0),
+            link_length=geometry.link_length,
+            platform_joint=(geometry.platform_radius * cos_a, geometry.platform_radius * sin_a, 0.0),
+            stroke_offset=0.0,
+        ))
+    return GeneralGeometry(legs=(legs[0], legs[1], legs[2]), tool_tip=(0.0, 0.0, -geometry.tool_length),
+                           tool_axis=(0.0, 0.0, 1.0))
 
 
 @dataclass(frozen=True, slots=True)
@@ -176,4 +291,4 @@ class Machine:
         a conversion's ``--tool-length``, a converted program's recorded length, placement)."""
         if length == self.geometry.tool_length:
             return self
-        return replace(self, geometry=replace(self.geometry, tool_length=length))
+        return replace(self, geometry=self.geometry.with_tool_length(length))

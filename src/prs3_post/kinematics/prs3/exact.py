@@ -319,11 +319,11 @@ def axis_block(geometry: Geometry, axis: FloatArray, terms: tuple[FloatArray, Fl
         + (jac_x[0] * jac_y[2] - jac_x[2] * jac_y[0])
         - (jac_x[0] * jac_y[1] - jac_x[1] * jac_y[0])
     )
-    condition = _condition_from_gram(gram, det_j)
+    condition = condition_from_gram(gram, det_j)
     return condition, reach & np.isfinite(condition)
 
 
-def _condition_from_gram(gram: FloatArray, det_j: FloatArray) -> FloatArray:
+def condition_from_gram(gram: FloatArray, det_j: FloatArray) -> FloatArray:
     """2-norm condition numbers sqrt(λmax/λmin) of J from G = JᵀJ (N, 6 upper) and det J (N,).
 
     λmax by the closed form for symmetric 3×3 matrices (Smith 1961); the two others from their sum
