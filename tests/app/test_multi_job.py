@@ -162,7 +162,7 @@ def test_header_read_back_rebuilds_the_same_program(example) -> None:
 
 def test_verify_against_the_part_rebuilds_the_job_from_the_header(example) -> None:
     out, _ = example
-    result = run_cli("verify", str(out), "--against", str(TWOFACES), "--json")
+    result = run_cli("verify", str(out), "--part", str(TWOFACES), "--json")
     assert result.exit_code == 0, result.output
     import json
 
@@ -242,7 +242,7 @@ def test_main_job_with_a_tool_table_uses_the_tool_length(tmp_path: Path) -> None
     assert result.exit_code == 0, result.output
     text = out.read_text(encoding="utf-8")
     assert "(tools: T2 diameter 8.000 mm, length 71.250 mm, IK length 191.250 mm)" in text.splitlines()
-    verified = run_cli("verify", str(out), "--against", str(TWOFACES))
+    verified = run_cli("verify", str(out), "--part", str(TWOFACES))
     assert verified.exit_code == 0, verified.output
     wrong = run_cli("run", str(TWOFACES), "--profile", "hole", "--tool-number", "2", "--tool-table",
                     str(JOBS / "tools.tbl"), "-o", str(tmp_path / "x.ngc"))

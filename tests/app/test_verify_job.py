@@ -47,7 +47,7 @@ def _rotated_origin(origin: np.ndarray, point: np.ndarray, rotation_deg: float) 
 
 @needs_corpus
 def test_verify_against_the_part_needs_no_options(slope_round):
-    result = invoke("verify", slope_round, "--against", SLOPE, "--no-collision-check")   # the clearance: below
+    result = invoke("verify", slope_round, "--part", SLOPE, "--no-collision-check")   # the clearance: below
     assert result.exit_code == 0, result.stdout + result.stderr
     assert result.stdout.splitlines()[-1] == "OK: within every limit and tolerance"
 
@@ -55,7 +55,7 @@ def test_verify_against_the_part_needs_no_options(slope_round):
 @needs_corpus
 def test_verify_against_the_part_finds_the_tunnel_the_program_was_made_in(slope_round):
     """Made with --no-collision-check (the header says so): verify measures the clearance anyway."""
-    result = invoke("verify", slope_round, "--against", SLOPE)
+    result = invoke("verify", slope_round, "--part", SLOPE)
     assert result.exit_code == 1
     assert result.stdout.splitlines()[-3:] == [
         "FAIL: 2 problems",
@@ -97,7 +97,7 @@ def test_a_rotated_setup_round_trips_through_verify(tmp_path):
     setup_line = next(ln for ln in out.read_text().splitlines() if ln.startswith("(setup: "))
     assert setup_line == f"(setup: part origin at machine [{', '.join(f'{v:.4f}' for v in origin)}] mm, " \
                          "rotation 30.0000 deg about z)"
-    result = invoke("verify", out, "--against", SLOPE, "--no-collision-check")   # the slope: a tunnel
+    result = invoke("verify", out, "--part", SLOPE, "--no-collision-check")   # the slope: a tunnel
     assert result.exit_code == 0, result.stdout + result.stderr
     # the replay, taken back to part coordinates through the rotation, is on the part (not turned by 30°)
     context = open_program(str(out))
@@ -121,8 +121,8 @@ def test_a_rotated_setup_round_trips_through_verify(tmp_path):
     (("--part-rotation", "5"),
      "prs3-post: error: {p}:6: --part-rotation: the program's header says part rotation 0 deg, but part "
      "rotation 5 deg was given (leave it out to use the header's)"),
-    (("--against", WEDGE),
-     "prs3-post: error: {p}:4: --against: " + WEDGE + " (SHA-256 "
+    (("--part", WEDGE),
+     "prs3-post: error: {p}:4: --part: " + WEDGE + " (SHA-256 "
      "2e6933ec5ebd47f6b894d89f5b6cd77bf2854fed2465f0679a3f148e80163537) is not the part the program was made "
      "from: its header names ssg_slope.stl (SHA-256 "
      "bd29243cd4d56a00320332981856f4a8304640bec79bc31cc23e749cc944be12)"),
@@ -134,10 +134,10 @@ def test_an_option_that_contradicts_the_header_is_an_error(slope_round, args, me
 
 @needs_corpus
 def test_operation_options_must_agree_with_the_header(slope_round):
-    same = invoke("verify", slope_round, "--against", SLOPE, *ROUND, ORIGIN, "--machine", "patel2020",
+    same = invoke("verify", slope_round, "--part", SLOPE, *ROUND, ORIGIN, "--machine", "patel2020",
                   "--depth", "2", "--no-collision-check")
     assert same.exit_code == 0, same.stdout + same.stderr
-    wrong = invoke("verify", slope_round, "--against", SLOPE, "--diameter", "9", "--face", "10", "--feed", "300")
+    wrong = invoke("verify", slope_round, "--part", SLOPE, "--diameter", "9", "--face", "10", "--feed", "300")
     assert wrong.exit_code == 2
     assert wrong.stderr.splitlines()[-1] == ("Error: --face (header: auto), --diameter (header: 8.0): contradict "
                                              "the program's header; leave them out to use the header's values")
@@ -156,12 +156,12 @@ def test_a_program_without_header_works_with_explicit_options(slope_round, tmp_p
     lines = slope_round.read_text().splitlines()
     bare = tmp_path / "bare.ngc"
     bare.write_text("\n".join(ln for ln in lines if not ln.startswith("(")) + "\n")
-    without = invoke("verify", bare, "--against", SLOPE, *ROUND)
+    without = invoke("verify", bare, "--part", SLOPE, *ROUND)
     assert without.exit_code == 1                      # the machine's default setup: not the intended path
-    result = invoke("verify", bare, "--against", SLOPE, *ROUND, ORIGIN, "--no-collision-check")
+    result = invoke("verify", bare, "--part", SLOPE, *ROUND, ORIGIN, "--no-collision-check")
     assert result.exit_code == 0, result.stdout + result.stderr
     assert result.stdout.splitlines()[-1] == "OK: within every limit and tolerance"
-    needs_profile = invoke("verify", bare, "--against", SLOPE)
+    needs_profile = invoke("verify", bare, "--part", SLOPE)
     assert needs_profile.exit_code == 2
 
 

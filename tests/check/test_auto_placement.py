@@ -266,7 +266,7 @@ def test_auto_is_for_making_a_program_not_for_reading_one(tmp_path):
 @needs_corpus
 @pytest.mark.parametrize(("part", "options", "setup"), [
     (SLOPE, (), Setup((-106.5, 1.6, -728.4), 0.0)),
-    (ANGLE_BLOCK, ("--units", "inch", "--up", "y", "--at", "5,0"), Setup((0.0, -70.5, -755.8), 0.0)),
+    (ANGLE_BLOCK, ("--part-units", "inch", "--up", "y", "--at", "5,0"), Setup((0.0, -70.5, -755.8), 0.0)),
 ])
 def test_a_corpus_hole_works_with_part_origin_auto_and_nothing_else(tmp_path, part, options, setup):
     out = tmp_path / "h.ngc"
@@ -287,8 +287,8 @@ def test_a_corpus_hole_works_with_part_origin_auto_and_nothing_else(tmp_path, pa
 @needs_corpus
 def test_a_part_whose_only_face_faces_down_keeps_the_face_error(tmp_path):
     out = tmp_path / "f.ngc"
-    plain = invoke(FEATURETYPE, "--units", "inch", "--profile", "hole", "-o", out)
-    auto = invoke(FEATURETYPE, "--units", "inch", "--profile", "hole", "--part-origin", "auto",
+    plain = invoke(FEATURETYPE, "--part-units", "inch", "--profile", "hole", "-o", out)
+    auto = invoke(FEATURETYPE, "--part-units", "inch", "--profile", "hole", "--part-origin", "auto",
                   "--part-rotation", "auto", "-o", out)
     assert (auto.exit_code, auto.stderr) == (plain.exit_code, plain.stderr) == (2, auto.stderr)
     assert "faces down" in auto.stderr

@@ -61,7 +61,7 @@ def test_a_program_made_without_the_check_is_verified_against_its_part_with_no_o
     out = tmp_path / "far.ngc"
     text = _make(out, "--at", "8.1,0", "--no-collision-check")
     assert "(collision: not checked [asked not to])" in text.split("\n")
-    result = invoke("verify", out, "--against", WALL)
+    result = invoke("verify", out, "--part", WALL)
     assert result.exit_code == 0, result.output
     assert result.output.splitlines()[-1] == "OK: within every limit and tolerance"
     assert _rebuilt(out) == text
@@ -118,7 +118,7 @@ _ALLOWANCE = "not counted: the tool below the worked face, within the feature's 
 
 
 def test_verify_against_the_part_reports_the_holder_in_the_wall_on_its_line(wall_programs):
-    result = invoke("verify", wall_programs["near"], "--against", WALL)
+    result = invoke("verify", wall_programs["near"], "--part", WALL)
     assert result.exit_code == 1, result.output
     assert result.output.splitlines()[-6:] == [
         f"  clearance from the part (min 1.000 mm; {_ALLOWANCE}):",
@@ -131,7 +131,7 @@ def test_verify_against_the_part_reports_the_holder_in_the_wall_on_its_line(wall
 
 
 def test_verify_against_the_part_states_every_clearance_in_json(wall_programs):
-    result = invoke("verify", wall_programs["far"], "--against", WALL, "--json")
+    result = invoke("verify", wall_programs["far"], "--part", WALL, "--json")
     assert result.exit_code == 0, result.output
     record = json.loads(result.output)["clearance"]
     assert (record["measured"], record["closest"]) == (True, "holder")
@@ -147,7 +147,7 @@ def test_verify_against_the_part_states_every_clearance_in_json(wall_programs):
 
 
 def test_a_larger_clearance_min_fails_the_same_program_on_the_holders_line(wall_programs):
-    result = invoke("verify", wall_programs["far"], "--against", WALL, "--clearance-min", "9")
+    result = invoke("verify", wall_programs["far"], "--part", WALL, "--clearance-min", "9")
     assert result.exit_code == 1
     assert result.output.splitlines()[-6:-1] == [
         f"  clearance from the part (min 9.000 mm; {_ALLOWANCE}):",
@@ -162,14 +162,14 @@ def test_a_larger_clearance_min_fails_the_same_program_on_the_holders_line(wall_
 
 
 def test_verify_can_be_asked_not_to_measure_the_clearance(wall_programs):
-    result = invoke("verify", wall_programs["near"], "--against", WALL, "--no-collision-check")
+    result = invoke("verify", wall_programs["near"], "--part", WALL, "--no-collision-check")
     assert result.exit_code == 0, result.output
     assert result.output.splitlines()[-2:] == ["  clearance from the part: not measured (asked not to)",
                                                "OK: within every limit and tolerance"]
     alone = invoke("verify", wall_programs["near"], "--clearance-min", "2")
     assert alone.exit_code == 2
     assert alone.output.splitlines()[-1] == ("Error: --clearance-min: the operation options are only used with "
-                                             "--against PART.stl")
+                                             "--part PART.stl")
 
 
 def test_preview_on_the_part_marks_the_closest_approach_where_verify_finds_it(wall_programs):
@@ -212,7 +212,7 @@ def converted(tmp_path_factory) -> Path:
 
 
 def test_a_converted_program_against_its_part_reports_the_holder_and_nose(converted):
-    result = invoke("verify", converted, "--against", WALL)
+    result = invoke("verify", converted, "--part", WALL)
     assert result.exit_code == 1, result.output
     assert result.output.splitlines()[-6:] == [
         "  clearance from the part (min 1.000 mm; not counted: the tool in feeds (it cuts what the CAM program "
@@ -224,7 +224,7 @@ def test_a_converted_program_against_its_part_reports_the_holder_and_nose(conver
         "FAIL: 1 problem",
         "  line 17: the holder hits the part, 2.446 mm deep (clearance min 1.000 mm)",
     ]
-    lowered = invoke("verify", converted, "--against", WALL, "--clearance-min", "0", "--json")
+    lowered = invoke("verify", converted, "--part", WALL, "--clearance-min", "0", "--json")
     record = json.loads(lowered.output)
     assert record["ok"] is False and [p["kind"] for p in record["problems"]] == ["collision"]   # in the wall: still
     assert record["clearance"]["bodies"][0]["distance_mm"] is None
@@ -245,7 +245,7 @@ def test_verify_of_a_converted_program_reports_the_tool_in_its_rapids(tmp_path):
         result = invoke("convert", source, "-o", tmp_path / "out", "--work-plane", f"{WALL}:4", "--jobs", "1",
                         *options)
         assert result.exit_code == 0, result.output
-    result = invoke("verify", tmp_path / "out" / "above.ngc", "--against", WALL)
+    result = invoke("verify", tmp_path / "out" / "above.ngc", "--part", WALL)
     assert result.exit_code == 0, result.output
     assert result.output.splitlines()[-5:-1] == [
         "  clearance from the part (min 1.000 mm; not counted: the tool in feeds (it cuts what the CAM program "
@@ -254,7 +254,7 @@ def test_verify_of_a_converted_program_reports_the_tool_in_its_rapids(tmp_path):
         "    holder              8.636 mm  line 19",
         "    spindle nose       14.859 mm  line 19",
     ]
-    result = invoke("verify", tmp_path / "out" / "through.ngc", "--against", WALL)
+    result = invoke("verify", tmp_path / "out" / "through.ngc", "--part", WALL)
     assert result.exit_code == 1, result.output
     assert result.output.splitlines()[-5:] == [
         "    tool, rapids       -3.000 mm  line 20 (diameter unknown: its axis, 0 mm radius)",
@@ -277,7 +277,7 @@ def test_the_header_states_the_clearance_verify_measures(tmp_path):
     entry = [line for line in out.read_text().splitlines() if line.startswith("(collision: ")]
     assert entry == ["(collision: clear of the part by at least 1.000 mm: tool over 11.000 mm, holder 1.000 mm, "
                      "spindle nose over 11.000 mm)"]
-    verified = invoke("verify", out, "--against", WALL)
+    verified = invoke("verify", out, "--part", WALL)
     assert verified.exit_code == 0, verified.output
     assert [line for line in verified.output.splitlines() if line.startswith("    holder ")] == [
         "    holder              1.000 mm  line 27 (hole 1 feed)"]

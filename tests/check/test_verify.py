@@ -230,7 +230,7 @@ def test_reader_refuses_stage_words_without_a_stage():
 
 def test_unaltered_program_passes_against_its_part(tmp_path):
     program = square_program(tmp_path)
-    code, report = verify_json(program, "--dialect", DIALECT_8, "--against", WEDGE, "--profile", "square")
+    code, report = verify_json(program, "--dialect", DIALECT_8, "--part", WEDGE, "--profile", "square")
     assert (code, report["ok"], report["problems"], report["warnings"]) == (0, True, [], [])
     assert report["against"]["tip_max_mm"] < 1e-7 and report["against"]["axis_max_deg"] < 1e-6
     assert [g["feed_mm_per_min"] for g in report["feeds"]["groups"]] == pytest.approx([100.0, 300.0], abs=1e-6)
@@ -269,7 +269,7 @@ def test_one_actuator_altered_by_10_um_is_flagged_at_its_line(tmp_path):
     expected = fk.tip[1] - fk.tip[0]                    # the alteration through the Jacobian
     assert np.linalg.norm(expected) > 0.004             # well above the 0.002 mm tolerance
 
-    code, report = verify_json(altered_path, "--dialect", DIALECT_8, "--against", WEDGE, "--profile", "square")
+    code, report = verify_json(altered_path, "--dialect", DIALECT_8, "--part", WEDGE, "--profile", "square")
     assert code == 1 and report["ok"] is False
     against = report["against"]
     assert against["tip_max_line"] == number and against["tip_max_at"] == 1.0
@@ -280,7 +280,7 @@ def test_one_actuator_altered_by_10_um_is_flagged_at_its_line(tmp_path):
         (number, "deviation"), (next_line, "deviation")]
     assert report["problems"][0]["line"] == number
     # the unaltered program passes with the same options
-    assert run("verify", program, "--dialect", DIALECT_8, "--against", WEDGE, "--profile", "square").exit_code == 0
+    assert run("verify", program, "--dialect", DIALECT_8, "--part", WEDGE, "--profile", "square").exit_code == 0
 
 
 def test_limit_crossed_between_two_points_inside_the_joint_interpolation():
@@ -378,7 +378,7 @@ def test_feed_checks_with_and_without_the_part(tmp_path):
     assert [w["line"] for w in report["warnings"]] == [number]
     assert report["warnings"][0]["message"].startswith(f"line {number}: implied tip feed 303.000 mm/min matches "
                                                        "no other G1 (feeds: 100.0 ×4, 300.0 ×11)")
-    code, report = verify_json(edited, "--dialect", DIALECT_8, "--against", WEDGE, "--profile", "square")
+    code, report = verify_json(edited, "--dialect", DIALECT_8, "--part", WEDGE, "--profile", "square")
     assert code == 1
     assert [(p["line"], p["kind"]) for p in report["problems"]] == [(number, "feed")]
     assert report["problems"][0]["message"].startswith(f"line {number}: implied tip feed 303.000 mm/min")
@@ -387,20 +387,20 @@ def test_feed_checks_with_and_without_the_part(tmp_path):
 def test_verify_fanuc_program_against_its_part(tmp_path):
     out = tmp_path / "round.nc"
     assert run("demo", "--profile", "round", "--dialect", "fanuc", "-o", out).exit_code == 0
-    result = run("verify", out, "--dialect", "fanuc", "--against", WEDGE, "--profile", "round")
+    result = run("verify", out, "--dialect", "fanuc", "--part", WEDGE, "--profile", "round")
     assert result.exit_code == 0, result.output
     # 3 decimals: the deviation is the rounding, and it is allowed for
-    _code, report = verify_json(out, "--dialect", "fanuc", "--against", WEDGE, "--profile", "round")
+    _code, report = verify_json(out, "--dialect", "fanuc", "--part", WEDGE, "--profile", "round")
     assert 1e-4 < report["against"]["tip_max_mm"] < 0.002 + max(d["rounding_mm"] for d in report["moves_detail"])
 
 
 @pytest.mark.parametrize(("args", "code", "message"), [
-    (("--against", "{v}/x.apt"), 2, "prs3-post: error: {v}/x.apt: --against takes PART.stl (with the operation "
-     "options the program was made with), POSES.csv (one pose per motion line), or the CAM file a program was "
-     "converted from (its header names it)\n"),
+    (("--against", "{v}/x.apt"), 2, "prs3-post: error: {v}/x.apt: --against takes POSES.csv (one pose per motion "
+     "line) or the CAM file a program was converted from (its header names it); the part the program was made "
+     "from is --part PART.stl\n"),
     (("--against", "{v}/paper_2a_2b.csv"), 2, "prs3-post: error: {v}/paper_2a_2b.csv: 2 poses for the 5 motion "
      "lines of {v}/small.ngc: give one pose per G0/G1 line, in order\n"),
-    (("--against", str(WEDGE), "--profile", "square"), 1, "prs3-post: error: the program has 5 moves, "
+    (("--part", str(WEDGE), "--profile", "square"), 1, "prs3-post: error: the program has 5 moves, "
      "patel2020-wedge.stl (square) has 20: they do not describe the same path (check the options it was made "
      "with)\n"),
 ])
@@ -410,16 +410,16 @@ def test_verify_against_errors(args, code, message):
 
 
 def test_verify_against_part_needs_the_operation():
-    result = run("verify", VERIFY / "small.ngc", "--against", WEDGE)
+    result = run("verify", VERIFY / "small.ngc", "--part", WEDGE)
     assert result.exit_code == 2
-    assert result.output.splitlines()[-1] == ("Error: --against PART.stl needs --profile and the other operation "
+    assert result.output.splitlines()[-1] == ("Error: --part PART.stl needs --profile and the other operation "
                                               "options the program was made with (it has no prs3-post header that "
                                               "records them)")
 
 
 def test_verify_help_has_an_example():
     text = run("verify", "--help").output
-    assert "  prs3-post verify sq.ngc --against postproc/parts/patel2020-wedge.stl --json" in text
+    assert "  prs3-post verify sq.ngc --part postproc/parts/patel2020-wedge.stl --json" in text
     assert "for a program made by `prs3-post convert` its CAM input" in " ".join(text.split())
 
 

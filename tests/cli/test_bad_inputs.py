@@ -90,7 +90,7 @@ def test_an_input_over_its_size_limit_is_refused(tmp_path: Path) -> None:
 def test_a_part_of_zero_area_triangles_is_refused(tmp_path: Path, command: list[str]) -> None:
     """It used to give one face with a NaN normal: NaN rows in `faces`, a ValueError with --json."""
     flat = _ascii_stl(tmp_path / "flat.stl", *FLAT)
-    result = invoke(command[0], str(flat), *command[1:], "-o" if command[0] == "run" else "--units",
+    result = invoke(command[0], str(flat), *command[1:], "-o" if command[0] == "run" else "--part-units",
                     str(tmp_path / "out.ngc") if command[0] == "run" else "mm")
     assert (result.exit_code, result.stdout) == (2, "")
     assert result.stderr == (f"prs3-post: error: {flat}: STL has no triangle with an area (all are flat slivers): "

@@ -58,7 +58,7 @@ BAD = [
      2),
     ("wrong-units", ["run", "fixtures/bad/tiny.stl", "--profile", "hole"],
      "prs3-post: error: fixtures/bad/tiny.stl: part is only 0.1 x 0.1 x 0.325 mm (largest extent under 1 mm): "
-     "if the file is in inches, use --units inch (2.54 x 2.54 x 8.25 mm); if it is in metres, scale it by 1000 "
+     "if the file is in inches, use --part-units inch (2.54 x 2.54 x 8.25 mm); if it is in metres, scale it by 1000 "
      "(100 x 100 x 325 mm)\n", 2),
     ("part-is-a-folder", ["run", "fixtures/parts", "--profile", "hole"],
      _usage("Invalid value for 'PART.stl': File 'fixtures/parts' is a directory."), 2),
@@ -246,7 +246,7 @@ def test_faces_without_inclined_face_says_so(at_repo: Path) -> None:
 # ----------------------------------------------------------------------------- --help
 
 KEY_OPTIONS = {
-    "--profile", "--face", "--at", "--at-xyz", "--units", "--depth", "--peck", "--dwell", "--reapproach-gap",
+    "--profile", "--face", "--at", "--at-xyz", "--part-units", "--depth", "--peck", "--dwell", "--reapproach-gap",
     "--size", "--corner-radius", "--rotation", "--diameter", "--side", "--step-down", "--direction", "--entry",
     "--ramp-angle", "--clearance", "--retract", "--tool-diameter", "--tool-number", "--feed", "--plunge-feed",
     "--spindle", "--coolant", "--machine", "--part-origin", "--dialect", "--line-numbers", "--no-line-numbers",
@@ -341,7 +341,7 @@ def test_verify_refuses_operation_options_without_an_stl(tmp_path):
     result = CliRunner().invoke(main, ["verify", str(program), "--depth", "9", "--size", "80", "--face", "3"])
     assert result.exit_code == 2
     assert result.stderr.splitlines()[-1] == (
-        "Error: --face, --depth, --size: the operation options are only used with --against PART.stl")
+        "Error: --face, --depth, --size: the operation options are only used with --part PART.stl")
     for option, value, message in (
         ("--tolerance", "0",
          "prs3-post: error: --tolerance must be from 0.0001 mm (the resolution of the program) to 1 mm (got 0)"),
@@ -463,7 +463,7 @@ def test_verify_against_a_part_refuses_an_option_the_profile_ignores(tmp_path: P
     made = invoke("demo", "--profile", "hole")
     program = tmp_path / "p.ngc"
     program.write_text("".join(line + "\n" for line in made.stdout.splitlines() if not line.startswith("(")))
-    result = invoke("verify", str(program), "--against", str(REPO / WEDGE), "--profile", "hole", "--diameter", "20")
+    result = invoke("verify", str(program), "--part", str(REPO / WEDGE), "--profile", "hole", "--diameter", "20")
     assert (result.exit_code, result.stdout) == (2, "")
     assert result.stderr.splitlines()[-1] == ("Error: --profile hole does not use --diameter (round only): leave it "
                                               "out")

@@ -46,14 +46,14 @@ def invoke(*args: str):
 
 
 def test_angle_block_in_inches_y_up_picks_its_15_degree_face():
-    result = invoke("faces", ANGLE_BLOCK, "--units", "inch", "--up", "y")
+    result = invoke("faces", ANGLE_BLOCK, "--part-units", "inch", "--up", "y")
     assert (result.exit_code, result.stderr) == (0, "")
     lines = result.stdout.splitlines()
     assert lines[2] == ("   1   750.636     14.25   15.0000   0.000000   0.258819   0.965926    0.0000   16.7531   "
                         "19.6784  inclined up      yes        inclined up, 14.25 mm wide")
     assert lines[-1] == ("auto: face 1 is the largest upward-facing inclined face "
                          "(inclination 15.0000°, area 750.6 mm²)")
-    rows = json.loads(invoke("faces", ANGLE_BLOCK, "--units", "inch", "--up", "y", "--json").stdout)
+    rows = json.loads(invoke("faces", ANGLE_BLOCK, "--part-units", "inch", "--up", "y", "--json").stdout)
     assert [r["index"] for r in rows if r["candidate"]] == [1, 6, 18]  # 6 and 18: smaller faces parallel to it
     assert_allclose(rows[1]["area_mm2"] / SQ_IN, 1.1634888, atol=1e-6)  # 1.163 in²
     assert_allclose(rows[1]["inclination_deg"], 15.0, atol=1e-5)
@@ -65,8 +65,8 @@ def test_angle_block_read_as_mm_is_warned_about_and_its_hole_wall_sliver_is_no_c
     assert result.exit_code == 0
     assert result.stderr == (
         f"prs3-post: warning: {ANGLE_BLOCK}: part is only 1.34 x 1 x 1.35 mm (largest extent under 2 mm): "
-        "is this STL in inches? use --units inch (34 x 25.4 x 34.3 mm)\n")
-    result = invoke("faces", ANGLE_BLOCK, "--units", "inch", "--json")
+        "is this STL in inches? use --part-units inch (34 x 25.4 x 34.3 mm)\n")
+    result = invoke("faces", ANGLE_BLOCK, "--part-units", "inch", "--json")
     assert (result.exit_code, result.stderr) == (0, "")
     sliver = json.loads(result.stdout)[9]  # the 90 mm² 75° sliver of a hole wall auto used to take
     assert (round(sliver["area_mm2"], 3), round(sliver["inclination_deg"], 4)) == (90.364, 75.0)
@@ -83,14 +83,14 @@ def test_slope_picks_a_30_degree_face():
 
 
 def test_featuretype_says_its_only_inclined_planar_face_faces_down(tmp_path):
-    result = invoke("faces", FEATURETYPE, "--units", "inch")
+    result = invoke("faces", FEATURETYPE, "--part-units", "inch")
     assert (result.exit_code, result.stderr) == (0, "")
     assert result.stdout.splitlines()[-1] == f"auto: {CHAMFER_FACES_DOWN}"
-    rows = json.loads(invoke("faces", FEATURETYPE, "--units", "inch", "--json").stdout)
+    rows = json.loads(invoke("faces", FEATURETYPE, "--part-units", "inch", "--json").stdout)
     assert not any(r["candidate"] for r in rows)
     assert (rows[34]["curved"], rows[34]["reason"]) == (True, "strip of a curved surface")  # the 0.86 mm facet
     out = tmp_path / "f.ngc"
-    result = invoke("run", FEATURETYPE, "--units", "inch", "--profile", "hole", "-o", str(out))
+    result = invoke("run", FEATURETYPE, "--part-units", "inch", "--profile", "hole", "-o", str(out))
     assert (result.exit_code, result.stdout) == (2, "")
     assert result.stderr == f"prs3-post: error: {FEATURETYPE}: {CHAMFER_FACES_DOWN}\n"
     assert list(tmp_path.iterdir()) == []
@@ -100,16 +100,16 @@ def test_main_job_and_verify_with_up(tmp_path):
     """--up reaches the main job and its header; `verify --against` takes it from the header (repeating it is
     fine, contradicting it is an error)."""
     out = tmp_path / "ab.ngc"
-    job = ["--units", "inch", "--up", "y", "--profile", "hole", "--at", "5,0", "--part-origin=0,-16.75,-700"]
+    job = ["--part-units", "inch", "--up", "y", "--profile", "hole", "--at", "5,0", "--part-origin=0,-16.75,-700"]
     result = invoke(ANGLE_BLOCK, *job, "-o", str(out))
     assert result.exit_code == 0, result.stderr
     digest = hashlib.sha256(Path(ANGLE_BLOCK).read_bytes()).hexdigest()
     assert out.read_text().splitlines()[3] == f"(part: trimesh_angle_block.STL, units inch, up y, sha256 {digest})"
-    result = invoke("verify", str(out), "--against", ANGLE_BLOCK, *job)
+    result = invoke("verify", str(out), "--part", ANGLE_BLOCK, *job)
     assert result.exit_code == 0, result.stdout + result.stderr
-    result = invoke("verify", str(out), "--against", ANGLE_BLOCK)
+    result = invoke("verify", str(out), "--part", ANGLE_BLOCK)
     assert result.exit_code == 0, result.stdout + result.stderr
-    result = invoke("verify", str(out), "--against", ANGLE_BLOCK, "--up", "z")
+    result = invoke("verify", str(out), "--part", ANGLE_BLOCK, "--up", "z")
     assert result.exit_code == 2
     assert result.stderr.splitlines()[-1] == ("Error: --up (header: y): contradicts the program's header; leave "
                                               "it out to use the header's value")
@@ -129,14 +129,14 @@ def test_main_job_and_verify_measure_the_angle_block_in_pieces_of_the_pair_budge
     monkeypatch.setattr(meshindex, "triangle_distance", spy)     # the index measures its own pairs
     monkeypatch.setattr(collision, "triangle_distance", spy)
     out = tmp_path / "ab.ngc"
-    job = ["--units", "inch", "--up", "y", "--profile", "hole", "--at", "5,0", "--part-origin=0,-16.75,-700"]
+    job = ["--part-units", "inch", "--up", "y", "--profile", "hole", "--at", "5,0", "--part-origin=0,-16.75,-700"]
     result = invoke(ANGLE_BLOCK, *job, "-o", str(out))
     assert result.exit_code == 0, result.stderr
     assert asked and max(asked) <= meshdist.PAIR_BUDGET
     assert ("(collision: clear of the part by at least 1.000 mm: tool 2.042 mm, holder over 11.000 mm, "
             "spindle nose over 11.000 mm)") in out.read_text().splitlines()
     asked.clear()
-    result = invoke("verify", str(out), "--against", ANGLE_BLOCK)
+    result = invoke("verify", str(out), "--part", ANGLE_BLOCK)
     assert result.exit_code == 0, result.stdout + result.stderr
     assert asked and max(asked) <= meshdist.PAIR_BUDGET
     lines = result.stdout.splitlines()
@@ -150,13 +150,13 @@ def test_main_job_and_verify_measure_the_angle_block_in_pieces_of_the_pair_budge
 def test_preview_takes_up(tmp_path):
     pytest.importorskip("matplotlib")
     out = tmp_path / "ab.ngc"
-    job = ["--units", "inch", "--up", "y", "--profile", "hole", "--at", "5,0", "--part-origin=0,-16.75,-700"]
+    job = ["--part-units", "inch", "--up", "y", "--profile", "hole", "--at", "5,0", "--part-origin=0,-16.75,-700"]
     assert invoke(ANGLE_BLOCK, *job, "-o", str(out)).exit_code == 0
     image = tmp_path / "ab.svg"
-    result = invoke("preview", str(out), "--part", ANGLE_BLOCK, "--units", "inch", "--up", "y",
+    result = invoke("preview", str(out), "--part", ANGLE_BLOCK, "--part-units", "inch", "--up", "y",
                     "--part-origin=0,-16.75,-700", "-o", str(image))
     assert (result.exit_code, result.stderr) == (0, f"prs3-post: wrote {image}\n")
-    result = invoke("preview", str(out), "--part", ANGLE_BLOCK, "--units", "inch", "--up", "q", "-o", str(image))
+    result = invoke("preview", str(out), "--part", ANGLE_BLOCK, "--part-units", "inch", "--up", "q", "-o", str(image))
     assert result.exit_code == 2
     assert result.stderr.splitlines()[-1] == (
         "Error: Invalid value for '--up': 'q' is not one of 'z', 'y', '-y', 'x', '-x', '-z'.")
@@ -187,10 +187,10 @@ def test_readme_placement_and_exit_code_examples_do_what_it_says(tmp_path, monke
 
 @pytest.mark.parametrize(("part", "options"), [
     (SLOPE, ["--profile", "hole"]),
-    (ANGLE_BLOCK, ["--units", "inch", "--up", "y", "--profile", "hole", "--at", "5,0"]),
+    (ANGLE_BLOCK, ["--part-units", "inch", "--up", "y", "--profile", "hole", "--at", "5,0"]),
 ])
 def test_corpus_part_works_with_the_part_origin_its_limit_error_suggests(tmp_path, part, options):
-    """Issue 7's done-when: the main job works with --units/--up where the part needs them and the
+    """Issue 7's done-when: the main job works with --part-units/--up where the part needs them and the
     --part-origin the error suggested; the program then verifies with no options."""
     out = tmp_path / "p.ngc"
     first = invoke(part, *options, "-o", str(out))
@@ -199,5 +199,5 @@ def test_corpus_part_works_with_the_part_origin_its_limit_error_suggests(tmp_pat
     assert suggested is not None, first.stderr
     second = invoke(part, *options, suggested.group(1), "--no-collision-check", "-o", str(out))  # the slope: a tunnel
     assert second.exit_code == 0, second.stderr
-    checked = invoke("verify", str(out), "--against", part, "--no-collision-check")   # made without it
+    checked = invoke("verify", str(out), "--part", part, "--no-collision-check")   # made without it
     assert (checked.exit_code, checked.stdout.splitlines()[-1]) == (0, "OK: within every limit and tolerance")

@@ -290,7 +290,7 @@ def test_curved_patch_chained_by_trimesh_is_split():
         (
             "tiny.stl",
             "part is only 0.1 x 0.1 x 0.325 mm (largest extent under 1 mm): "
-            "if the file is in inches, use --units inch (2.54 x 2.54 x 8.25 mm); "
+            "if the file is in inches, use --part-units inch (2.54 x 2.54 x 8.25 mm); "
             "if it is in metres, scale it by 1000 (100 x 100 x 325 mm)",
         ),
         ("missing.stl", "file not found"),
@@ -547,12 +547,12 @@ def _scaled_wedge(tmp_path: Path, scale: float) -> str:
     ("scale", "units", "message"),
     [
         (1 / 254, "mm", "part is only 0.394 x 0.394 x 1.28 mm (largest extent under 2 mm): "
-         "is this STL in inches? use --units inch (10 x 10 x 32.5 mm)"),
+         "is this STL in inches? use --part-units inch (10 x 10 x 32.5 mm)"),
         (1 / 25400, "inch", None),  # 0.0128 mm: an error (below), not a warning
         (8, "mm", "part is 800 x 800 x 2600 mm (largest extent over 2 m): "
          "is this STL in micrometres? scale it by 1/1000 (0.8 x 0.8 x 2.6 mm)"),
         (1, "inch", "part is 2540 x 2540 x 8260 mm (largest extent over 2 m): "
-         "is this STL in mm? use --units mm (100 x 100 x 325 mm)"),
+         "is this STL in mm? use --part-units mm (100 x 100 x 325 mm)"),
         (1 / 200, "inch", None),  # 0.5 x 0.5 x 1.625 in = 12.7 x 12.7 x 41.3 mm: fine
         (0.007, "mm", None),  # 0.7 x 0.7 x 2.275 mm: small, but 2 mm or more
     ],

@@ -70,7 +70,7 @@ def _codes_option(text: str | None, flag: str) -> tuple[str, ...] | None:
     return tuple(codes)
 
 
-@click.command(cls=Command)
+@click.command(cls=Command, aliases={"--units": "--cl-units"})
 @click.argument("inputs", nargs=-1, required=True, metavar="INPUT...")
 @click.option("-o", "--output-dir", "outdir", type=click.Path(file_okay=False), required=True, metavar="OUTDIR",
               help="Folder for the programs, OUTDIR/<input stem><dialect extension> (created if missing).")
@@ -88,7 +88,7 @@ def _codes_option(text: str | None, flag: str) -> tuple[str, ...] | None:
 @click.option("--angle-tolerance", "angle_tolerance_deg", type=Decimal(ANGLE, low=0.0, low_open=True),
               default=DEFAULT_ANGLE_TOLERANCE_DEG,
               show_default=True, metavar="DEG", help="Allowed tool-axis deviation of axis-changing moves, degrees.")
-@click.option("--units", type=click.Choice(["mm", "inch"]), default=None,
+@click.option("--cl-units", "units", type=click.Choice(["mm", "inch"]), default=None,
               help="Length unit of CL files without UNITS/.  [default: inch when the feeds are IPM/IPR, else mm]")
 @click.option("--work-plane", "work_plane_text", default=None, metavar="PART.stl[:FACE]|OX,OY,OZ,NX,NY,NZ[,XX,XY,XZ]",
               help="Where a G-code program's X, Y, Z are in the part: a face frame (u, v, w) or origin, normal, x.")
@@ -105,7 +105,7 @@ def _codes_option(text: str | None, flag: str) -> tuple[str, ...] | None:
                    "spindle nose; the tool in the rapids: in the feeds it cuts what the CAM program removes).  "
                    "[default: not checked]")
 @click.option("--part-units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True,
-              help="Length unit of the --part and --work-plane STL (--units is the CL files').")
+              help="Length unit of the --part and --work-plane STL (--cl-units is the CL files').")
 @up_option
 @click.option("--collision-check/--no-collision-check", default=True, show_default=True,
               help="With --part: check the holder, spindle nose and the tool in the rapids against it; the header "

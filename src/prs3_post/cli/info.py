@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from prs3_post.cli.options import Command, run_reported, up_option
+from prs3_post.cli.options import PART_UNITS_ALIAS, Command, part_units_option, run_reported, up_option
 
 
 @click.command(cls=Command)
@@ -56,10 +56,9 @@ def sources() -> None:
     run_reported(body)
 
 
-@click.command(cls=Command)
+@click.command(cls=Command, aliases=PART_UNITS_ALIAS)
 @click.argument("part", type=click.Path(dir_okay=False), metavar="PART.stl")
-@click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True,
-              help="Length unit of the STL.")
+@part_units_option()
 @up_option
 @click.option("--json", "as_json", is_flag=True, help="Print the table as JSON.")
 def faces(part: str, units: str, up: str, as_json: bool) -> None:
@@ -68,12 +67,12 @@ def faces(part: str, units: str, up: str, as_json: bool) -> None:
     Each face says whether automatic selection may take it and why not: it must face up, be inclined
     between 1° and 89°, be a planar face of the design (not a strip of a tessellated curved surface:
     a fillet, a hole wall) and be at least 3 mm wide (the main job: as wide as its tool). A Y-up export needs
-    --up y; a part that loads with a size warning probably needs --units inch.
+    --up y; a part that loads with a size warning probably needs --part-units inch.
 
     \b
     Examples:
       prs3-post faces part.stl --json
-      prs3-post faces angle_block.STL --units inch --up y
+      prs3-post faces angle_block.STL --part-units inch --up y
     """
     def body() -> int:
         from prs3_post.app.listings import faces_json, faces_text

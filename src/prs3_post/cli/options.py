@@ -181,6 +181,17 @@ OUT_OF_MEMORY = ("out of memory: the machine, or a limit on this process (ulimit
                  "was written (free some memory, or convert the files one at a time with --jobs 1)")
 
 
+#: The old spelling of the STL's unit (``--units``) in the commands that read an STL (convert: the CL file's).
+PART_UNITS_ALIAS = {"--units": "--part-units"}
+
+
+def part_units_option(help_text: str = "Length unit of the STL file.", *,
+                      default: str | None = SETTING_FIELDS["units"].default) -> Callable[[Any], Any]:
+    """``--part-units mm|inch``: the STL's length unit (the request's ``units``)."""
+    return click.option("--part-units", "units", type=click.Choice(["mm", "inch"]), default=default,
+                        show_default=default is not None, help=help_text)
+
+
 up_option = click.option(
     "--up", type=click.Choice(list(UP_ROTATION)), default="z", show_default=True,
     help="The STL's up axis; the part is turned so that it becomes +z: "
@@ -258,14 +269,20 @@ def _takes_value(option: click.Option) -> bool:
     return not (option.is_flag or option.count)
 
 
-def _occurrences(params: list[click.Parameter], args: list[str]) -> Iterator[tuple[click.Option, str]]:
-    """``(option, value as written)`` for each option in ``args`` (a flag's value: its spelling), as
-    click reads them: ``--name VALUE``, ``--name=VALUE``, ``-o VALUE``, ``-oVALUE``, grouped short
-    flags, and nothing after ``--``. An unknown option is passed over (click reports it)."""
+def _occurrences(params: list[click.Parameter], args: list[str],
+                 aliases: dict[str, str] | None = None) -> Iterator[tuple[click.Option, str, int, str]]:
+    """``(option, value as written, index of its name in args, name as written)`` for each option in
+    ``args`` (a flag's value: its spelling), as click reads them: ``--name VALUE``, ``--name=VALUE``,
+    ``-o VALUE``, ``-oVALUE``, grouped short flags, and nothing after ``--``. An unknown option is passed
+    over (click reports it); an old spelling in ``aliases`` (old → new) is read as the new one."""
     named = {name: p for p in params if isinstance(p, click.Option) for name in (*p.opts, *p.secondary_opts)}
+    for old, new in (aliases or {}).items():
+        if new in named:
+            named[old] = named[new]
     i = 0
     while i < len(args):
         arg = args[i]
+        at_name = i
         i += 1
         if arg == "--":
             return
@@ -279,7 +296,7 @@ def _occurrences(params: list[click.Parameter], args: list[str]) -> Iterator[tup
             if _takes_value(option) and not equals:
                 value = " ".join(args[i:i + option.nargs])
                 i += option.nargs
-            yield option, value if _takes_value(option) else name
+            yield option, value if _takes_value(option) else name, at_name, name
             continue
         for at in range(1, len(arg)):                     # -o VALUE, -oVALUE, -ab (flags)
             option = named.get("-" + arg[at])
@@ -290,19 +307,32 @@ def _occurrences(params: list[click.Parameter], args: list[str]) -> Iterator[tup
                 if not value:
                     value = " ".join(args[i:i + option.nargs])
                     i += option.nargs
-                yield option, value
+                yield option, value, at_name, "-" + arg[at]
                 break
-            yield option, "-" + arg[at]
+            yield option, "-" + arg[at], at_name, "-" + arg[at]
 
 
 class Command(click.Command):
     """A command whose single-valued options may be given once: ``--profile hole --profile square``
     (or ``-o a -o b``, ``--collision-check --no-collision-check``) is refused, naming both, instead
-    of click's silent last-one-wins. Options made to repeat (``multiple``, ``count``) may repeat."""
+    of click's silent last-one-wins. Options made to repeat (``multiple``, ``count``) may repeat.
+
+    ``aliases`` (old spelling → new, e.g. ``{"--units": "--part-units"}``) are the old spellings of
+    renamed options: still taken, not shown by ``--help``, each one used noted on standard error
+    (:data:`DEPRECATED`) before the command runs."""
+
+    def __init__(self, *args: Any, aliases: dict[str, str] | None = None, **kwargs: Any):
+        super().__init__(*args, **kwargs)
+        self.aliases = dict(aliases or {})
 
     def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
         first: dict[str, str] = {}
-        for option, value in _occurrences(self.get_params(ctx), args):
+        args = list(args)
+        for option, value, index, written in _occurrences(self.get_params(ctx), args, self.aliases):
+            if written in self.aliases:                  # the old spelling: read as the new one, and noted
+                new = self.aliases[written]
+                args[index] = new + args[index][len(written):]
+                add_note(ctx, DEPRECATED.format(old=written, new=new))
             if option.multiple or option.count or option.is_eager or option.name is None:
                 continue
             if option.name in first:
@@ -310,6 +340,30 @@ class Command(click.Command):
                 ctx.fail(f"{names} given twice ({quoted(first[option.name])} and {quoted(value)}): give it once")
             first[option.name] = value
         return super().parse_args(ctx, args)
+
+    def invoke(self, ctx: click.Context) -> Any:
+        """The command, after the notes its parsing left (old spellings) are printed."""
+        for text in ctx.meta.pop(_NOTES, []):
+            note(text)
+        return super().invoke(ctx)
+
+
+#: The note an old spelling of an option gives (one line on standard error; the option still works).
+DEPRECATED = "{old} is deprecated: use {new} (it means the same)"
+
+_NOTES = "prs3_post.notes"
+
+
+def add_note(ctx: click.Context, text: str) -> None:
+    """A note to print once the command's options are parsed (:meth:`Command.invoke`)."""
+    notes = ctx.meta.setdefault(_NOTES, [])
+    if text not in notes:
+        notes.append(text)
+
+
+def note(text: str) -> None:
+    """``prs3-post: note: TEXT`` on standard error."""
+    click.echo(f"prs3-post: note: {text}", err=True)
 
 
 def image_format(path: str, flag: str) -> str:
@@ -335,7 +389,7 @@ def face_index(choice: str) -> int | None:
 
 
 #: The flag of each request key whose flag is not ``--`` + the key with - for _.
-_FLAG_OF = {"at": "--at", "tool": "--tool-number", "setup.part_origin": "--part-origin",
+_FLAG_OF = {"at": "--at", "tool": "--tool-number", "units": "--part-units", "setup.part_origin": "--part-origin",
             "setup.part_rotation_deg": "--part-rotation"}
 
 

@@ -22,6 +22,7 @@ from prs3_post.app.requests import (
 from prs3_post.app.values import ANGLE, FEED, LENGTH, SPEED, SPINDLE_LOW, TIME
 from prs3_post.cli.options import (
     CLEARANCE_MIN,
+    PART_UNITS_ALIAS,
     Command,
     Decimal,
     Integer,
@@ -36,6 +37,7 @@ from prs3_post.cli.options import (
     line_number_options,
     machine_option,
     option_error,
+    part_units_option,
     run_reported,
     tolerance_option,
     up_option,
@@ -85,8 +87,7 @@ def job_options(func: Callable[..., Any]) -> Callable[..., Any]:
         click.option("--at-xyz", "at_xyz", type=Numbers("X,Y,Z"), multiple=True,
                      help="Feature position in part coordinates, mm: a point on the face "
                           "(within 0.01 mm; repeatable)."),
-        click.option("--units", type=click.Choice(["mm", "inch"]), default=_SET["units"], show_default=True,
-                     help="Length unit of the STL file."),
+        part_units_option(),
         up_option,
         # feature geometry
         click.option("--depth", type=Decimal(LENGTH), default=None,
@@ -284,7 +285,7 @@ def _report_placement(job: JobProgram) -> None:
         click.echo(f"prs3-post: setup: {job.setup.describe()}; {job.placement.describe()}", err=True)
 
 
-@click.command(cls=Command)
+@click.command(cls=Command, aliases=PART_UNITS_ALIAS)
 @click.argument("part", type=click.Path(dir_okay=False), metavar="PART.stl")
 @job_options
 def run(part: str, **opts: Any) -> None:
@@ -304,7 +305,7 @@ def run(part: str, **opts: Any) -> None:
     run_reported(lambda: _run_job(part, **opts))
 
 
-@click.command(cls=Command)
+@click.command(cls=Command, aliases=PART_UNITS_ALIAS)
 @job_options
 def demo(**opts: Any) -> None:
     """The main job on the bundled demo part: the paper's wedge (26.57° face, Patel 2020).
@@ -349,7 +350,7 @@ def _job_specs(job: JobFile, overrides: dict[str, Any] | None = None) -> tuple[J
 
 #: The main job's options that `job` takes too (they replace the job file's): option name → request key.
 _JOB_OVERRIDES = {"machine_name": "machine", "dialect_name": "dialect", "part_origin": "setup.part_origin",
-                  "part_rotation": "setup.part_rotation_deg", "collision_check": "collision_check"}
+                  "part_rotation": "setup.part_rotation_deg", "collision_check": "collision_check", "units": "units"}
 
 
 @click.command(cls=Command)
@@ -360,10 +361,13 @@ _JOB_OVERRIDES = {"machine_name": "machine", "dialect_name": "dialect", "part_or
 @job_part_origin_option
 @job_part_rotation_option
 @dialect_option
+@part_units_option("Length unit of the job file's part (replaces its units).  [default: the job file's, else mm]",
+                   default=None)
 @collision_check_option
 @preview_option
 def job(job_path: str, out_path: str | None, machine_name: str, part_origin: tuple[float, ...] | str | None,
-        part_rotation: float | str | None, dialect_name: str, collision_check: bool, preview_path: str | None) -> None:
+        part_rotation: float | str | None, dialect_name: str, units: str, collision_check: bool,
+        preview_path: str | None) -> None:
     """Run a job file: several operations on one part, on one or more faces, with one or more tools.
 
     JOB.toml names the part (part, units, up), the setup ([setup] part_origin, part_rotation_deg),
@@ -373,8 +377,8 @@ def job(job_path: str, out_path: str | None, machine_name: str, part_origin: tup
     axis to a safe height above the part, the spindle and coolant stop, the tool changes where it
     changes, the axis turns at that height (checked like any move) and the tool goes to the next face.
     Each operation's IK uses its tool's length (the machine's gauge offset plus the table's Z).
-    --machine, --dialect, --part-origin, --part-rotation and --no-collision-check replace what the
-    job file says.
+    --machine, --dialect, --part-origin, --part-rotation, --part-units and --no-collision-check
+    replace what the job file says.
 
     \b
     Example:

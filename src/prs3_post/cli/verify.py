@@ -13,6 +13,8 @@ import click
 from prs3_post.app.requests import AUTO, OPERATION_FIELDS, SETTING_FIELDS
 from prs3_post.app.values import ANGLE, FEED
 from prs3_post.cli.options import (
+    DEPRECATED,
+    PART_UNITS_ALIAS,
     Command,
     Decimal,
     OutputPath,
@@ -20,9 +22,11 @@ from prs3_post.cli.options import (
     flag_of,
     image_format,
     machine_option,
+    note,
     option_error,
     part_origin_option,
     part_rotation_option,
+    part_units_option,
     run_reported,
     up_option,
     was_given,
@@ -47,7 +51,7 @@ _Opened = TypeVar("_Opened", "ProgramContext", "ProgramSetting")
 
 
 def _against_options(func: Callable[..., Any]) -> Callable[..., Any]:
-    """The main job's options, for `verify --against PART.stl` to rebuild the intended path with:
+    """The main job's options, for `verify --part PART.stl` to rebuild the intended path with:
     the same options and defaults, but --profile not required and without the output-only ones (a
     program with a prs3-post header needs none of them: they may only repeat what it says)."""
     probe = job_options(lambda **_: None)
@@ -59,16 +63,16 @@ def _against_options(func: Callable[..., Any]) -> Callable[..., Any]:
             continue
         if param.name == "profile":
             param.required = False
-            param.help = "Operation the program was made with (only with --against PART.stl)."
+            param.help = "Operation the program was made with (only with --part PART.stl)."
         if param.name == "tolerance":
             param.help = ("Allowed tip deviation, mm (0.0001 to 1; plus the output rounding against a path); also "
-                          "the chordal tolerance the job is rebuilt with for --against PART.stl.")
+                          "the chordal tolerance the job is rebuilt with for --part PART.stl.")
         params.append(param)
     func.__click_params__ = params                   # type: ignore[attr-defined]
     return func
 
 
-#: The main job's options that describe the operation: `verify` uses them only with --against PART.stl.
+#: The main job's options that describe the operation: `verify` uses them only with --part PART.stl.
 _OPERATION_OPTIONS = (
     "profile", "face_choice", "at_uv", "at_xyz", "units", "up", "depth", "peck", "reapproach_gap", "dwell", "size",
     "corner_radius", "rotation", "diameter", "side", "step_down", "direction", "entry", "ramp_angle", "clearance",
@@ -84,7 +88,7 @@ def _option_flags(ctx: click.Context, names: list[str]) -> list[str]:
 
 #: The flag of each value a program header records, for messages about a contradiction.
 _HEADER_FLAGS = {"machine": "--machine", "dialect": "--dialect", "part origin": "--part-origin",
-                 "part rotation": "--part-rotation", "part": "--against"}
+                 "part rotation": "--part-rotation", "part": "--part"}
 
 
 def _open_program(ctx: click.Context, path: str, machine_name: str, dialect_name: str,
@@ -152,11 +156,12 @@ def _refuse_contradictions(wrong: list[str]) -> None:
                                "header's values")
 
 
-def _intended(ctx: click.Context, against: str, context: ProgramContext,
+def _intended(ctx: click.Context, against: str | None, part: str | None, context: ProgramContext,
               opts: dict[str, Any]) -> tuple[Intended | None, RebuiltJob | CamPart | None]:
-    """The intended path of `verify --against`: the job rebuilt from PART.stl and the program's header
-    (or, without a header, the options), with that job (for the clearance from the part), or POSES.csv;
-    a converted program's CAM input, or its part (PART.stl: the clearance only, no path)."""
+    """The intended path of `verify --part PART.stl`: the job rebuilt from PART.stl and the program's header
+    (or, without a header, the options), with that job (for the clearance from the part); or of
+    `verify --against POSES.csv`; for a converted program, its CAM input (--against) and its part
+    (--part: the clearance only, the path is the CAM input's), either or both."""
     from prs3_post.app.verify import (
         HeaderConflict,
         header_job,
@@ -166,46 +171,50 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext,
     )
     from prs3_post.app.verify_inputs import cam_part, is_converted, spec_contradictions
 
-    suffix = Path(against).suffix.lower()
-    converted = is_converted(context.header)
-    if converted and suffix == ".stl":                       # the part a CAM program cuts
-        return None, cam_part(context, against, units=opts["units"], up=opts["up"])
-    if converted:                                            # a converted program: its CAM source
+    if is_converted(context.header):                         # a converted program: its CAM source, its part
         try:
-            return intended_from_source(context, against), None
+            source = intended_from_source(context, against) if against is not None else None
         except HeaderConflict as error:
             raise InputError(f"--against: {error.args[0]}", path=error.path, line=error.line) from error
-    if suffix == ".stl":
+        return source, None if part is None else cam_part(context, part, units=opts["units"], up=opts["up"])
+    if part is not None and against is not None:
+        raise click.UsageError(f"--part {part} rebuilds the path the program was made for; --against {against} "
+                               "gives another: give one of them (both only for a program converted from CAM output)")
+    if part is not None:
         if context.header is not None:
             try:
-                specs = header_job(context, against)
+                specs = header_job(context, part)
             except HeaderConflict as error:
-                raise InputError(f"--against: {error.args[0]}", path=error.path, line=error.line) from error
+                raise InputError(f"--part: {error.args[0]}", path=error.path, line=error.line) from error
             given = _given_values(ctx, opts, _HEADER_KEYS)
             for spec in specs:                         # an option given must be what every operation says
                 _refuse_header_contradictions(spec_contradictions(spec, given))
             rebuilt = rebuild_job(specs)
         elif not opts["profile"]:
-            raise click.UsageError("--against PART.stl needs --profile and the other operation options the "
+            raise click.UsageError("--part PART.stl needs --profile and the other operation options the "
                                    "program was made with (it has no prs3-post header that records them)")
         else:
-            rebuilt = rebuild_job(job_specs_of(against, opts, given=given_options())[0])
+            rebuilt = rebuild_job(job_specs_of(part, opts, given=given_options())[0])
         return rebuilt.intended, rebuilt
-    if suffix == ".csv":
+    assert against is not None                               # (verify asks for an intended path only with one)
+    if Path(against).suffix.lower() == ".csv":
         return intended_from_poses(against, context.program), None
-    raise InputError("--against takes PART.stl (with the operation options the program was made with), "
-                     "POSES.csv (one pose per motion line), or the CAM file a program was converted from (its "
-                     "header names it)", path=against)
+    raise InputError("--against takes POSES.csv (one pose per motion line) or the CAM file a program was converted "
+                     "from (its header names it); the part the program was made from is --part PART.stl",
+                     path=against)
 
 
-@click.command(cls=Command)
+@click.command(cls=Command, aliases=PART_UNITS_ALIAS)
 @click.argument("program_path", type=click.Path(dir_okay=False), metavar="PROGRAM.ngc")
-@click.option("--against", "against_path", type=click.Path(dir_okay=False), metavar="PART.stl|POSES.csv|INPUT",
-              help="The intended path: PART.stl (the operation is rebuilt from the program's header; a program "
-                   "without one needs the options it was made with: --profile, --at, --depth, ...), "
-                   "or POSES.csv (the `ik --batch` format, "
-                   "machine frame, one pose per G0/G1 line), or for a program made by `prs3-post convert` its CAM "
-                   "input (APT CL or G-code; checked by the SHA-256 its header records).")
+@click.option("--part", "part_path", type=click.Path(dir_okay=False), metavar="PART.stl",
+              help="The part the program was made from: the operation is rebuilt from the program's header (a "
+                   "program without one needs the options it was made with: --profile, --at, --depth, ...) as the "
+                   "intended path, and the clearance from the part is measured; for a program made by "
+                   "`prs3-post convert`, the clearance only.")
+@click.option("--against", "against_path", type=click.Path(dir_okay=False), metavar="POSES.csv|INPUT",
+              help="The intended path: POSES.csv (the `ik --batch` format, machine frame, one pose per G0/G1 line), "
+                   "or for a program made by `prs3-post convert` its CAM input (APT CL or G-code; checked by the "
+                   "SHA-256 its header records).")
 @click.option("--axis-tolerance", "axis_tolerance_deg", type=Decimal(ANGLE), default=DEFAULT_ANGLE_TOLERANCE_DEG,
               show_default=True,
               help="Allowed tool-axis deviation from the --against path, degrees.")
@@ -213,8 +222,8 @@ def _intended(ctx: click.Context, against: str, context: ProgramContext,
               help="Print the complete report as JSON: every move, the FK tool-tip path in part coordinates, "
                    "every limit's closest approach, feeds, deviations, problems.")
 @_against_options
-def verify(program_path: str, against_path: str | None, axis_tolerance_deg: float, as_json: bool,
-           **opts: Any) -> None:
+def verify(program_path: str, part_path: str | None, against_path: str | None, axis_tolerance_deg: float,
+           as_json: bool, **opts: Any) -> None:
     """Replay a program through forward kinematics and check it: limits, straightness, feeds, deviation.
 
     Reads PROGRAM.ngc in --dialect (letters, decimals, comments), samples every move in joint
@@ -225,26 +234,27 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
     \b
     - limits: the closest approach to each limit of --machine (value, margin, line);
     - straightness: a G1's tip stays within --tolerance of the line between its end points;
-    - feeds: implied tip feed = chord × F (G93, F = 1/min); against PART.stl it must equal the
+    - feeds: implied tip feed = chord × F (G93, F = 1/min); with --part it must equal the
       intended feed within the rounding of F and the points; otherwise a G1 whose feed matches
       no other G1 is warned about (a hand edit?), except in a converted program (the CAM's feeds);
-    - with --against: tip and axis deviation from the intended path (max, mean, line); allowed:
-      --tolerance plus what the output rounding moves the tip, and --axis-tolerance.
+    - with --part or --against: tip and axis deviation from the intended path (max, mean, line);
+      allowed: --tolerance plus what the output rounding moves the tip, and --axis-tolerance;
+    - with --part: the clearance of the tool, holder and spindle nose from the part.
 
     A program made by prs3-post states in its header the machine, dialect, setup and operation it
     was made with: they are used, and an option that says otherwise is an error (leave it out).
     A program without that header is read with the options given (or their defaults).
 
     --tolerance (mm; default: the program's, else 0.002) is the allowed tip deviation. The
-    operation options (--profile ... --retract) are used only with --against PART.stl, and only
-    for a program without a header. Exit status: 0 within every limit and tolerance, 1 if not,
-    2 for a program or option it cannot read.
+    operation options (--profile ... --retract) are used only with --part PART.stl, and only
+    for a program without a header. Exit status: 0 within every limit and
+    tolerance, 1 if not, 2 for a program or option it cannot read.
 
     \b
     Examples:
       prs3-post demo --profile square -o sq.ngc
       prs3-post verify sq.ngc
-      prs3-post verify sq.ngc --against postproc/parts/patel2020-wedge.stl --json
+      prs3-post verify sq.ngc --part postproc/parts/patel2020-wedge.stl --json
       prs3-post verify paper_2a_2b.ngc --against paper_2a_2b.csv
     """
     from prs3_post.app.verify import HeaderConflict, require_tolerance, verify_steps
@@ -253,17 +263,18 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
 
     def body() -> int:
         ctx = click.get_current_context()
+        part, against = _part_and_against(part_path, against_path)
         _refuse_cl_file(program_path)
         require_tolerance(opts["tolerance"])
         if not (math.isfinite(axis_tolerance_deg) and axis_tolerance_deg >= 0):
             raise click.BadParameter(f"must be a number ≥ 0 degrees, got {axis_tolerance_deg:g}",
                                      param_hint="'--axis-tolerance'")
-        if not (against_path and Path(against_path).suffix.lower() == ".stl"):
+        if part is None:
             given = [f"--{name.replace('_', '-')}" for name in (*_OPERATION_OPTIONS, "collision_check", "clearance_min")
                      if was_given(ctx, name)]
             if given:
                 raise click.UsageError(f"{', '.join(_option_flags(ctx, given))}: the operation options are only "
-                                       "used with --against PART.stl")
+                                       "used with --part PART.stl")
         _refuse_auto(opts["part_origin"], opts["part_rotation"])
         try:
             verified = verify_steps(
@@ -272,7 +283,8 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
                 origin=opts["part_origin"], rotation_deg=opts["part_rotation"],
                 tolerance=opts["tolerance"] if was_given(ctx, "tolerance") else None,
                 axis_tolerance_deg=axis_tolerance_deg, whole=as_json,
-                intended_of=(lambda context: _intended(ctx, against_path, context, opts)) if against_path else None,
+                intended_of=((lambda context: _intended(ctx, against, part, context, opts))
+                             if against or part else None),
                 collision_check=opts["collision_check"],
                 clearance_min=opts["clearance_min"] if was_given(ctx, "clearance_min") else None)
         except FieldError as error:
@@ -294,7 +306,18 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
     run_reported(body)
 
 
-@click.command(cls=Command)
+def _part_and_against(part: str | None, against: str | None) -> tuple[str | None, str | None]:
+    """``--part`` and ``--against``, with ``--against PART.stl`` (the old spelling) read as ``--part``."""
+    if against is None or Path(against).suffix.lower() != ".stl":
+        return part, against
+    if part is not None:
+        raise click.UsageError(f"--against {against} is the old spelling of --part, and --part {part} is given: "
+                               "give the part once, as --part")
+    note(DEPRECATED.format(old="--against PART.stl", new="--part PART.stl"))
+    return against, None
+
+
+@click.command(cls=Command, aliases=PART_UNITS_ALIAS)
 @click.argument("program_path", type=click.Path(dir_okay=False), metavar="PROGRAM.ngc")
 @click.option("-o", "--output", "out_path", type=OutputPath(), required=True,
               metavar="OUT.png|OUT.svg",
@@ -303,8 +326,7 @@ def verify(program_path: str, against_path: str | None, axis_tolerance_deg: floa
               help="Draw the part (part coordinates) and highlight its face (--face).")
 @click.option("--face", "face_choice", default="auto", show_default=True, metavar="auto|N",
               help="Face to highlight: auto = the main job's automatic choice; N = index from `prs3-post faces`.")
-@click.option("--units", type=click.Choice(["mm", "inch"]), default="mm", show_default=True,
-              help="Length unit of the STL.")
+@part_units_option("Length unit of the --part STL.")
 @up_option
 @machine_option
 @click.option("--dialect", "dialect_name", default=SETTING_FIELDS["dialect"].default, show_default=True,

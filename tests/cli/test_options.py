@@ -1,0 +1,162 @@
+"""The CLI's shared option names (issue 20 §2): one name per concept on every command, the old
+spellings kept as hidden aliases that say so on standard error.
+
+- the STL's unit is ``--part-units`` on every command that reads an STL (old: ``--units``);
+- convert's CL-file unit is ``--cl-units`` (old: ``--units``);
+- verify's part is ``--part PART.stl`` (old: ``--against PART.stl``); ``--against`` keeps POSES.csv and CAM input.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+import pytest
+from click.testing import CliRunner
+
+from prs3_post.cli.main import main
+
+REPO = Path(__file__).resolve().parents[2]
+WEDGE = str(REPO / "fixtures" / "parts" / "wedge.stl")
+TINY = str(REPO / "fixtures" / "bad" / "tiny.stl")
+DEMO_PART = str(REPO / "postproc" / "parts" / "patel2020-wedge.stl")
+
+PART_UNITS_NOTE = "prs3-post: note: --units is deprecated: use --part-units (it means the same)\n"
+CL_UNITS_NOTE = "prs3-post: note: --units is deprecated: use --cl-units (it means the same)\n"
+AGAINST_NOTE = "prs3-post: note: --against PART.stl is deprecated: use --part PART.stl (it means the same)\n"
+#: A part under 1 mm: the error names the option that sets the STL's unit (the message's {units} key).
+TINY_ERROR = ("part is only 0.1 x 0.1 x 0.325 mm (largest extent under 1 mm): if the file is in inches, use "
+              "--part-units inch (2.54 x 2.54 x 8.25 mm); if it is in metres, scale it by 1000 (100 x 100 x 325 mm)")
+#: A small CL file (mm) that `--part-origin auto` places in inches too.
+CL_TEXT = ("FROM/0.0,0.0,2.0\nFEDRAT/20.0,MMPM\nGOTO/0.0,0.0,0.5,0.0,0.0,1.0\nGOTO/1.0,0.0,0.0,0.0,0.0,1.0\n"
+           "GOTO/1.0,1.0,0.0,0.0,0.0,1.0\nFINI\n")
+
+
+def invoke(*args: object):
+    return CliRunner().invoke(main, [str(a) for a in args], prog_name="prs3-post")
+
+
+def _help_options(command: str) -> set[str]:
+    """Every option name that `prs3-post COMMAND --help` shows."""
+    ctx = click.Context(main.commands[command], info_name=command)
+    return {name for param in main.commands[command].get_params(ctx) if isinstance(param, click.Option)
+            for name in (*param.opts, *param.secondary_opts)}
+
+
+@pytest.mark.parametrize("command", ["run", "demo", "faces", "verify", "preview", "job"])
+def test_the_stl_unit_is_part_units_everywhere_and_units_is_not_shown(command):
+    names = _help_options(command)
+    assert "--part-units" in names and "--units" not in names
+    assert "--units" not in invoke(command, "--help").stdout
+
+
+def test_convert_names_the_cl_unit_and_the_part_unit_apart():
+    names = _help_options("convert")
+    assert {"--cl-units", "--part-units"} <= names and "--units" not in names
+    text = invoke("convert", "--help").stdout
+    assert "--units" not in text
+    assert "Length unit of the --part and --work-plane STL (--cl-units is the CL files')." in " ".join(text.split())
+
+
+@pytest.mark.parametrize("args", [["run", TINY, "--profile", "hole"], ["demo", "--profile", "hole"],
+                                  ["faces", TINY]], ids=["run", "demo", "faces"])
+def test_units_is_a_deprecated_alias_of_part_units(args):
+    new = invoke(*args, "--part-units", "inch")
+    old = invoke(*args, "--units", "inch")
+    glued = invoke(*args, "--units=inch")
+    assert (old.exit_code, old.stdout) == (glued.exit_code, glued.stdout) == (new.exit_code, new.stdout)
+    assert old.stderr == glued.stderr == PART_UNITS_NOTE + new.stderr
+    assert PART_UNITS_NOTE not in new.stderr
+
+
+def test_the_alias_and_the_new_name_together_are_one_option_given_twice():
+    result = invoke("faces", WEDGE, "--units", "mm", "--part-units", "inch")
+    assert result.exit_code == 2
+    assert result.stderr.splitlines()[-1] == "Error: --part-units given twice ('mm' and 'inch'): give it once"
+
+
+@pytest.mark.parametrize("args", [["run", TINY, "--profile", "hole"], ["faces", TINY]], ids=["run", "faces"])
+def test_the_stl_size_error_names_part_units(args):
+    result = invoke(*args)
+    assert (result.exit_code, result.stdout, result.stderr) == (2, "", f"prs3-post: error: {TINY}: {TINY_ERROR}\n")
+
+
+def test_the_size_warning_names_part_units(tmp_path):
+    result = invoke("faces", WEDGE, "--part-units", "inch")
+    assert result.exit_code == 0
+    assert result.stderr == (f"prs3-post: warning: {WEDGE}: part is 2540 x 2540 x 8260 mm (largest extent over 2 m): "
+                             "is this STL in mm? use --part-units mm (100 x 100 x 325 mm)\n")
+
+
+def test_convert_names_part_units_for_its_part_not_the_cl_files_unit(tmp_path):
+    """The STL size error used to say --units, which in convert is the CL file's unit."""
+    source = tmp_path / "tiny.cls"
+    source.write_text(CL_TEXT)
+    result = invoke("convert", source, "-o", tmp_path / "out", "--part-origin", "auto", "--part", TINY)
+    assert result.exit_code == 2
+    assert result.stdout == f"failed\t{source}\t-\t{TINY}: {TINY_ERROR}\n"
+
+
+def test_job_takes_part_units_and_its_size_warning_names_it(tmp_path):
+    job = tmp_path / "job.toml"
+    job.write_text((REPO / "fixtures" / "jobs" / "example.toml").read_text()
+                   .replace('"../parts/twofaces.stl"', repr(str(REPO / "fixtures" / "parts" / "twofaces.stl")))
+                   .replace('"tools.tbl"', repr(str(REPO / "fixtures" / "jobs" / "tools.tbl")))
+                   .replace('units = "mm"', 'units = "inch"'))
+    inch = invoke("job", job, "-o", tmp_path / "inch.ngc")
+    assert inch.exit_code == 1
+    assert inch.stderr.splitlines()[0] == (
+        f"prs3-post: warning: {REPO / 'fixtures' / 'parts' / 'twofaces.stl'}: part is 3050 x 2540 x 7620 mm (largest "
+        "extent over 2 m): is this STL in mm? use --part-units mm (120 x 100 x 300 mm)")
+    replaced = invoke("job", job, "-o", tmp_path / "mm.ngc", "--part-units", "mm")
+    assert replaced.exit_code == 0, replaced.stderr
+    assert "(part: twofaces.stl, units mm, up z, sha256 " in (tmp_path / "mm.ngc").read_text()
+
+
+def test_convert_units_is_a_deprecated_alias_of_cl_units(tmp_path):
+    source = tmp_path / "tiny.cls"
+    source.write_text(CL_TEXT)
+    new = invoke("convert", source, "-o", tmp_path / "new", "--part-origin", "auto", "--cl-units", "inch")
+    old = invoke("convert", source, "-o", tmp_path / "old", "--part-origin", "auto", "--units", "inch")
+    assert (new.exit_code, old.exit_code) == (0, 0), new.stderr
+    assert old.stderr.startswith(CL_UNITS_NOTE) and CL_UNITS_NOTE not in new.stderr
+    made = (tmp_path / "new" / "tiny.ngc").read_text()
+    assert made == (tmp_path / "old" / "tiny.ngc").read_text()
+    assert "(source: tiny.cls, format cl, units inch, sha256 " in made
+
+
+def test_verify_takes_the_part_as_part_and_against_part_stl_still_works(tmp_path):
+    program = tmp_path / "sq.ngc"
+    assert invoke("demo", "--profile", "square", "-o", program).exit_code == 0
+    new = invoke("verify", program, "--part", DEMO_PART)
+    old = invoke("verify", program, "--against", DEMO_PART)
+    assert (new.exit_code, old.exit_code) == (0, 0)
+    assert new.stdout == old.stdout and new.stdout.splitlines()[-1] == "OK: within every limit and tolerance"
+    assert "clearance from the part" in new.stdout
+    assert (new.stderr, old.stderr) == ("", AGAINST_NOTE)
+
+
+def test_verify_against_part_stl_with_part_is_the_part_given_twice(tmp_path):
+    program = tmp_path / "sq.ngc"
+    assert invoke("demo", "--profile", "square", "-o", program).exit_code == 0
+    result = invoke("verify", program, "--part", DEMO_PART, "--against", WEDGE)
+    assert result.exit_code == 2
+    assert result.stderr.splitlines()[-1] == (f"Error: --against {WEDGE} is the old spelling of --part, and --part "
+                                              f"{DEMO_PART} is given: give the part once, as --part")
+
+
+def test_verify_part_and_poses_together_are_refused(tmp_path):
+    result = invoke("verify", REPO / "fixtures" / "verify" / "paper_2a_2b.ngc", "--part", DEMO_PART,
+                    "--against", REPO / "fixtures" / "verify" / "paper_2a_2b.csv")
+    assert result.exit_code == 2
+    assert result.stderr.splitlines()[-1] == (
+        f"Error: --part {DEMO_PART} rebuilds the path the program was made for; --against "
+        f"{REPO / 'fixtures' / 'verify' / 'paper_2a_2b.csv'} gives another: give one of them (both only for a "
+        "program converted from CAM output)")
+
+
+def test_verify_help_names_part_and_against_apart():
+    text = " ".join(invoke("verify", "--help").stdout.split())
+    assert "--part PART.stl The part the program was made from:" in text
+    assert "--against POSES.csv|INPUT The intended path: POSES.csv" in text
+    assert "PART.stl|POSES.csv" not in text
