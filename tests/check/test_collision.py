@@ -31,7 +31,9 @@ def test_hole_near_the_wall_is_refused_naming_the_step_body_and_depth(tmp_path):
     result = CliRunner().invoke(main, ["run", str(WALL), "--profile", "hole", "--at", "30,0", "-o", str(out)])
     assert result.exit_code == 1
     assert result.output == ("prs3-post: error: hole 1 approach: the holder hits the part, 2.446 mm deep "
-                             "(clearance min 1.000 mm)\n")
+                             "(clearance min 1.000 mm); no setup changes that (the part and the tool axes move "
+                             "together): try a longer tool (--tool-table), a shorter holder (the machine file's "
+                             "[holder]), or another --at (or --face)\n")
     assert not out.exists()
 
 

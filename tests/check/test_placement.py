@@ -50,8 +50,9 @@ def _drill(axis: np.ndarray, at: np.ndarray) -> Toolpath:
 
 @pytest.mark.skipif(not CORPUS.is_dir() and not os.environ.get("CI"), reason=f"no corpus at {CORPUS}")
 def test_slope_part_fails_with_the_default_setup_and_works_with_the_suggested_origin(tmp_path):
+    """Without the collision check (the slope is in a tunnel: below) the origin that keeps every limit works."""
     out = tmp_path / "h.ngc"
-    failed = invoke(SLOPE, "--profile", "hole", "-o", out)
+    failed = invoke(SLOPE, "--profile", "hole", "--no-collision-check", "-o", out)
     assert failed.exit_code == 1
     message = failed.stderr.strip()
     assert message.startswith("prs3-post: error: hole 1 approach: T2 stroke 460.0985 mm is above the maximum "
@@ -67,13 +68,37 @@ def test_slope_part_fails_with_the_default_setup_and_works_with_the_suggested_or
     assert invoke("verify", out, "--against", SLOPE, "--no-collision-check").exit_code == 0
 
 
+@pytest.mark.skipif(not CORPUS.is_dir() and not os.environ.get("CI"), reason=f"no corpus at {CORPUS}")
+def test_no_origin_is_suggested_where_the_collision_check_fails_there(tmp_path):
+    """Issue 20 §3: the origin that keeps every limit was suggested, and following it gave "the tool hits the
+    part, 4.890 mm deep" with no next step. A translation cannot change a collision: the message says which
+    check fails at that origin and what to change instead, and offers no --part-origin."""
+    out = tmp_path / "h.ngc"
+    failed = invoke(SLOPE, "--profile", "hole", "-o", out)
+    assert (failed.exit_code, failed.stderr) == (1, (
+        "prs3-post: error: hole 1 approach: T2 stroke 460.0985 mm is above the maximum 400.0000 mm by 60.0985 mm "
+        "(5 points outside limits in all); setup: part origin at machine [-100.0000, -200.0000, -970.0000] mm, "
+        "rotation 0.0000 deg about z; a part origin at machine [-106.5, 1.6, -728.4] mm puts every point inside "
+        "the machine's limits, but the collision check fails there: hole 1 approach: the tool hits the part, "
+        "4.890 mm deep (clearance min 1.000 mm); no setup changes that (the part and the tool axes move "
+        "together): try another --at (or --face), or a smaller --tool-diameter\n"))
+    assert not out.exists()
+    # there, the collision itself says the same next step
+    there = invoke(SLOPE, "--profile", "hole", "--part-origin=-106.5,1.6,-728.4", "-o", out)
+    assert (there.exit_code, there.stderr) == (1, (
+        "prs3-post: error: hole 1 approach: the tool hits the part, 4.890 mm deep (clearance min 1.000 mm); no "
+        "setup changes that (the part and the tool axes move together): try another --at (or --face), or a "
+        "smaller --tool-diameter\n"))
+    assert not out.exists()
+
+
 def test_the_suggestion_is_the_centre_of_the_allowed_shifts():
     axis = np.array([math.sin(math.radians(30.0)), 0.0, math.cos(math.radians(30.0))])
     part_path = _drill(axis, np.array([0.0, 0.0, 600.0]))       # 600 mm too high: strokes far below their minimum
     with pytest.raises(LimitError) as caught:
         post_process(MACHINE, part_path, DEFAULT, tolerance=DEFAULT_TOLERANCE, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert "stroke" in str(caught.value)
-    texts = suggest_origin(MACHINE, part_path, DEFAULT, tolerance=0.002)
+    texts = suggest_origin(MACHINE, part_path, DEFAULT, tolerance=0.002, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert texts is not None
     origin = tuple(float(t) for t in texts)
     assert texts == tuple(f"{v:.1f}" for v in origin)            # 0.1 mm steps where they pass
@@ -90,7 +115,7 @@ def test_no_suggestion_where_the_tool_axis_breaks_a_limit():
     """A 50° tilt breaks max_tilt (45°) wherever the part is: no origin is offered."""
     axis = np.array([math.sin(math.radians(50.0)), 0.0, math.cos(math.radians(50.0))])
     part_path = _drill(axis, np.array([0.0, 200.0, 300.0]))
-    assert suggest_origin(MACHINE, part_path, DEFAULT, tolerance=0.002) is None
+    assert suggest_origin(MACHINE, part_path, DEFAULT, tolerance=0.002, angle_tolerance=DEFAULT_ANGLE_TOLERANCE) is None
 
 
 def test_a_tilt_at_the_limit_to_the_last_bit_is_not_a_violation():
@@ -139,3 +164,22 @@ def test_a_job_checked_in_chunks_fails_with_the_whole_paths_error(monkeypatch):
         check_job(spec)
     assert str(chunked.value) == str(whole.value)
     assert re.search(r"\(\d+ points outside limits in all\)", str(chunked.value))
+
+
+def test_the_suggestion_subdivides_with_the_runs_angle_tolerance(monkeypatch):
+    """convert --angle-tolerance: the origin suggested after a limit error is checked on the path subdivided as
+    the run subdivides it (it used the default angle tolerance whatever the run's was)."""
+    import prs3_post.check.placement as placement
+
+    seen: list[float] = []
+    real = placement.post_process
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs["angle_tolerance"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(placement, "post_process", spy)
+    axis = np.array([math.sin(math.radians(30.0)), 0.0, math.cos(math.radians(30.0))])
+    part_path = _drill(axis, np.array([0.0, 0.0, 600.0]))
+    assert suggest_origin(MACHINE, part_path, DEFAULT, tolerance=0.002, angle_tolerance=math.radians(0.5)) is not None
+    assert seen == [math.radians(0.5)]

@@ -453,7 +453,7 @@ def test_a_toolpath_past_the_tilt_limit_fails_at_its_first_bad_row_before_any_su
         post_process(machine, path, setup, tolerance=TOL, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
     assert str(caught.value) == (f"{CORPUS / name}:11: stage Y -1396.5000 mm is below the minimum -300.0000 mm by "
                                  "1096.5000 mm (546 points outside limits in all)")
-    assert suggest_origin(machine, path, setup, tolerance=TOL) is None
+    assert suggest_origin(machine, path, setup, tolerance=TOL, angle_tolerance=DEFAULT_ANGLE_TOLERANCE) is None
     # automatic placement evaluates the rows as given (no subdivision: no setup can run them)
     with pytest.raises(LimitError) as caught:
         place(machine, path, tolerance=TOL, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)

@@ -19,6 +19,7 @@ import dataclasses
 import math
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -433,13 +434,41 @@ def _placed(error: LimitError | ReachError, run: _Run) -> Exception:
     if not run.placeable or isinstance(error, (AxisError, FeedSpeedError)):   # no setup turns a tool axis (about
         return error                                    # z only); a feed too fast is the feed's (no clamping)
     try:
-        whole = source_stream(run.path, settings, run.fmt).whole()
+        stream = source_stream(run.path, settings, run.fmt)
+        whole = stream.whole()
     except InputError:
         return error
     from prs3_post.check.placement import placement_error
 
+    triangles = _part_triangles(settings)
+    check = None if triangles is None else partial(_collision_at, settings, triangles, stream.tool_diameter())
     return placement_error(error, settings.ik_machine, whole.toolpath, settings.setup, tolerance=settings.tolerance,
-                           length_decimals=settings.dialect.decimals.length)
+                           angle_tolerance=math.radians(settings.angle_tolerance_deg),
+                           length_decimals=settings.dialect.decimals.length, check=check, advise=_collision_advice)
+
+
+def _collision_at(settings: ConvertSettings, triangles: FloatArray, cam_diameter: float, setup: Setup,
+                  posted: PostResult) -> None:
+    """The check :func:`_collision` makes, of the program ``posted`` at ``setup`` (for a part origin an
+    error suggests: :data:`~prs3_post.check.placement.SetupCheck`)."""
+    from prs3_post.check.collision import check_rapids, measure_program
+
+    machine = settings.ik_machine
+    measure_program(machine, posted.program, setup, triangles, None, 0.0, clearance_min=settings.clearance_min)
+    check_rapids(machine, posted.program, setup, triangles,
+                 cam_diameter if settings.tool_diameter is None else settings.tool_diameter)
+
+
+def _collision_advice(error: LimitError) -> tuple[str, tuple[str, ...]]:
+    """What to change for a collision of a CAM program that no setup avoids
+    (:data:`~prs3_post.check.placement.Advise`): a rapid through the part is the CAM program's; the
+    holder or the nose, a longer tool or a shorter holder."""
+    from prs3_post.check.collision import CollisionError
+
+    if isinstance(error, CollisionError) and error.body == "tool":
+        return "the CAM program's rapid moves cut the part: change them in the CAM system", ()
+    return ("try a longer tool ({tool_length}, as the CAM program was made for) or a shorter holder (the machine "
+            "file's [holder])", ("tool_length",))
 
 
 def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) -> tuple[_Run, HeadLast]:

@@ -25,8 +25,15 @@ from pathlib import Path
 import numpy as np
 
 from prs3_post.app.job_transitions import MACHINE_FRAME, post_transition, safe_height, transition_paths
-from prs3_post.check.collision import Approach, ProgramClearance, feed_tips_of, measure_program
-from prs3_post.check.placement import PlacementResult, place, placement_error, suggest_origin
+from prs3_post.check.collision import Approach, CollisionError, ProgramClearance, feed_tips_of, measure_program
+from prs3_post.check.placement import (
+    PlacementResult,
+    SetupCheck,
+    place,
+    placement_error,
+    suggest,
+    suggestion_advice,
+)
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE
 from prs3_post.core.errors import FeatureError, InputError, LimitError, ReachError
 from prs3_post.core.input_files import file_sha256
@@ -387,14 +394,15 @@ def _ends(first: Toolpath, last: Toolpath) -> Toolpath:
 
 
 def _post_operation(machine: Machine, paths: list[Toolpath], k: int, spec: JobSpec, decimals: int, *, keep: bool,
-                    several: bool, replan: Callable[[], Toolpath]) -> _Posted:
+                    several: bool, replan: Callable[[], Toolpath], check: SetupCheck | None) -> _Posted:
     """Operation ``k``'s toolpath ``paths[k]`` post-processed whole (``keep``), or POST_ROWS rows at a
     time into its joint program only: the toolpath is taken out of ``paths`` and cut into pieces that
     own their rows (:func:`~prs3_post.core.toolpath.toolpath_pieces`), each dropped once posted, so that
     the toolpath and its program are not held whole at once. The same program, and the same first
     error: a chunk that fails has the whole path planned again (``replan``: the toolpath ``paths[k]``
     was) and post-processed, for the error :func:`post_process` raises (its count of bad points is of
-    every row).
+    every row). ``check``: the operation's collision check at another setup, for the part origin an error
+    suggests (None: not checked).
 
     Raises
     ------
@@ -433,9 +441,10 @@ def _post_operation(machine: Machine, paths: list[Toolpath], k: int, spec: JobSp
     except (LimitError, ReachError) as error:          # say the setup, and one that fits if there is one
         whole = replan() if whole is None else whole
         if several:                                    # a suggestion would fit this operation alone
-            raise _operation_error(error, machine, whole, spec, decimals) from error
+            raise _operation_error(error, machine, whole, spec, decimals, check) from error
         raise placement_error(error, machine, whole, spec.setup, tolerance=spec.tolerance,
-                              length_decimals=decimals) from error
+                              angle_tolerance=DEFAULT_ANGLE_TOLERANCE, length_decimals=decimals, check=check,
+                              advise=collision_advice) from error
     ends = _ends(first, last) if first is not None and last is not None else _NO_ROWS
     del first, last, result
     return _Posted(join_programs(programs, source_labels=labels, source_file=file), ends, stream.dynamics, None)
@@ -497,15 +506,18 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
         operation = done[k]
         machine = spec.machine.with_tool_length(operation.tool_length)
         posted = _post_operation(machine, paths, k, spec, decimals, keep=keep, several=several,
-                                 replan=partial(_planned, planned[k], done[k].face, k + 1, several))
+                                 replan=partial(_planned, planned[k], done[k].face, k + 1, several),
+                                 check=_collision_check(spec, machine, triangles, operation.face))
         try:
             measured.append(measure_program(machine, posted.program, spec.setup, triangles, operation.face,
                                             spec.cutting.tool_diameter, clearance_min=spec.clearance_min)
                             if spec.collision_check else None)
         except LimitError as error:
-            if placement is None:
-                raise
-            raise LimitError(f"{error}; {PLACEMENT_CANNOT_FIX}") from error
+            if placement is not None:
+                raise LimitError(f"{error}; {PLACEMENT_CANNOT_FIX}") from error
+            words, keys = collision_advice(error)
+            raise LimitError(f"{error.carried()}; no setup changes that (the part and the tool axes move together): "
+                             f"{words}", names_keys=keys) from error
         posts.append(posted)
     if several:
         height = safe_height(triangles, first.setup, _retract(specs))
@@ -619,14 +631,38 @@ def _closest(measured: list[ProgramClearance | str | None], specs: tuple[JobSpec
 
 
 def _operation_error(error: LimitError | ReachError, machine: Machine, path_part: Toolpath, spec: JobSpec,
-                     decimals: int) -> LimitError | ReachError:
+                     decimals: int, check: SetupCheck | None) -> LimitError | ReachError:
     """An operation's limit or reach error in a job of several: the setup, and a part origin that
     fits this operation (only: the job's other operations may not fit there)."""
-    origin = suggest_origin(machine, path_part, spec.setup, tolerance=spec.tolerance, length_decimals=decimals)
-    advice = ("no translation of the part puts this operation inside the machine's limits" if origin is None else
-              f"a part origin at machine [{', '.join(origin)}] mm puts this operation (alone) inside the machine's "
-              "limits")
-    return type(error)(f"{error.carried()}; setup: {spec.setup.describe()}; {advice}", names_keys=error.names_keys)
+    found = suggest(machine, path_part, spec.setup, tolerance=spec.tolerance, angle_tolerance=DEFAULT_ANGLE_TOLERANCE,
+                    length_decimals=decimals, check=check)
+    what = "puts this operation inside the machine's limits" if found.origin is None else \
+        "puts this operation (alone) inside the machine's limits"
+    advice, keys = suggestion_advice(found, collision_advice, error.names_keys, what=what)
+    return type(error)(f"{error.carried()}; setup: {spec.setup.describe()}; {advice}", names_keys=keys)
+
+
+def _collision_check(spec: JobSpec, machine: Machine, triangles: FloatArray, face: Face) -> SetupCheck | None:
+    """The operation's collision check at another setup (as :func:`_check` makes it), for a part origin
+    suggested after an error; None where the operation is not checked."""
+    if not spec.collision_check:
+        return None
+
+    def check(setup: Setup, posted: PostResult) -> None:
+        measure_program(machine, posted.program, setup, triangles, face, spec.cutting.tool_diameter,
+                        clearance_min=spec.clearance_min)
+
+    return check
+
+
+def collision_advice(error: LimitError) -> tuple[str, tuple[str, ...]]:
+    """What to change for a collision no setup avoids (:data:`~prs3_post.check.placement.Advise`): the tool
+    itself needs another place or a smaller tool; the holder or the nose, a longer tool (its length is
+    the tool table's) or a shorter holder (the machine file's ``[holder]``), or another place."""
+    if isinstance(error, CollisionError) and error.body == "tool":
+        return "try another {at} (or {face}), or a smaller {tool_diameter}", ("at", "face", "tool_diameter")
+    return ("try a longer tool ({tool_table}), a shorter holder (the machine file's [holder]), or another {at} "
+            "(or {face})", ("tool_table", "at", "face"))
 
 
 def _retract(specs: tuple[JobSpec, ...]) -> float:

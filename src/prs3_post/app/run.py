@@ -49,7 +49,8 @@ def check_specs(specs: tuple[JobSpec, ...], *,
 
     ``placement_hint`` words, for a job that does not fit its setup, what to do about it: the front
     end's way to give the part origin that works (its argument; None: no translation of the part
-    does); the error's message then ends with it.
+    does); the error's message then ends with it. An error whose message says what to change instead
+    (a collision no setup avoids: ``blocked``) is left as it is.
     """
     from prs3_post.app.job import check_job, check_operations
     from prs3_post.check.placement import Placement
@@ -57,7 +58,7 @@ def check_specs(specs: tuple[JobSpec, ...], *,
     try:
         return check_job(specs[0]) if len(specs) == 1 else check_operations(specs)
     except Placement as error:
-        if placement_hint is None:
+        if placement_hint is None or error.blocked:
             raise
         origin = error.suggested_origin
         raise type(error)(f"{error}: {placement_hint(origin)}", setup=error.setup, suggested_origin=origin) from error

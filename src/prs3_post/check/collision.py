@@ -57,7 +57,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from prs3_post.check import collision_scan
-from prs3_post.check.collision_bodies import BODY_NAMES, Region, body_cylinders, swept_region
+from prs3_post.check.collision_bodies import BODY_NAMES, CollisionError, Region, body_cylinders, swept_region
 from prs3_post.check.collision_distance import (
     MEASURE_BLOCK,
     REACH_MM,
@@ -78,7 +78,6 @@ from prs3_post.check.collision_rapids import (
     tool_words,
 )
 from prs3_post.core.defaults import DEFAULT_TOLERANCE
-from prs3_post.core.errors import LimitError
 from prs3_post.core.numbers import exact_text
 from prs3_post.core.toolpath import JointProgram, MoveKind, program_from_columns
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
@@ -88,9 +87,9 @@ from prs3_post.part.face import Face
 from prs3_post.part.meshdist import inside, point_triangle_distance
 from prs3_post.part.setup_transform import Setup
 
-__all__ = ["BODY_NAMES", "RAPID_TOUCH_MM", "Approach", "Clearance", "ProgramClearance", "RapidClearance",
-           "approach_label", "body_cylinders", "check_program", "check_rapids", "clearance", "feed_tips_of",
-           "inside", "measure_program", "point_triangle_distance", "rapid_tool_clearance", "tool_words"]
+__all__ = ["BODY_NAMES", "RAPID_TOUCH_MM", "Approach", "Clearance", "CollisionError", "ProgramClearance",
+           "RapidClearance", "approach_label", "body_cylinders", "check_program", "check_rapids", "clearance",
+           "feed_tips_of", "inside", "measure_program", "point_triangle_distance", "rapid_tool_clearance", "tool_words"]
 
 
 def check_program(machine: Machine, program: JointProgram, setup: Setup, triangles: FloatArray, face: Face | None,
@@ -225,9 +224,9 @@ def measure_program(machine: Machine, program: JointProgram, setup: Setup, trian
         return "not checked: no [holder] in the machine file"
     length = machine.geometry.tool_length - machine.geometry.gauge_offset     # gauge line to tip
     if length <= machine.holder.holder_length:
-        raise LimitError(f"the tool sticks out {length:.3f} mm below the gauge line, not more than the holder's "
-                         f"length {machine.holder.holder_length:.3f} mm: the holder would cut (a longer tool, or "
-                         "a shorter holder in the machine file)")
+        raise CollisionError(f"the tool sticks out {length:.3f} mm below the gauge line, not more than the holder's "
+                             f"length {machine.holder.holder_length:.3f} mm: the holder would cut (a longer tool, or "
+                             "a shorter holder in the machine file)", body=BODY_NAMES[1])
     bodies = body_cylinders(tool_diameter, length, machine.holder)
     if face is None:
         bodies[0, 2] = bodies[0, 1]                             # the tool: not checked
@@ -247,8 +246,8 @@ def measure_program(machine: Machine, program: JointProgram, setup: Setup, trian
         row = int(sample_row[np.flatnonzero(ok)[result.sample[b]]])
         d = float(result.distance[b])
         what = (f"hits the part, {-d:.3f} mm deep" if d < 0 else f"comes within {d:.3f} mm of the part")
-        raise LimitError(f"{program.describe(row)}: the {BODY_NAMES[b]} {what} (clearance min "
-                         f"{exact_text(clearance_min, 3)} mm)")
+        raise CollisionError(f"{program.describe(row)}: the {BODY_NAMES[b]} {what} (clearance min "
+                             f"{exact_text(clearance_min, 3)} mm)", body=BODY_NAMES[b])
     return ProgramClearance(distance=np.where(result.exact, result.distance, clearance_min + REACH_MM),
                             exact=result.exact.copy())   # not reached: the stream found a body too close
 

@@ -10,18 +10,32 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from prs3_post.core.errors import LimitError
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 from prs3_post.machine.model import Holder
 from prs3_post.part.face import Face
 from prs3_post.part.setup_transform import Setup
 
-__all__ = ["AZIMUTHS", "BODY_NAMES", "RING_SPACING_MM", "Region", "body_cylinders", "frames", "surface_points",
-           "swept_region"]
+__all__ = ["AZIMUTHS", "BODY_NAMES", "RING_SPACING_MM", "CollisionError", "Region", "body_cylinders", "frames",
+           "surface_points", "swept_region"]
 
 #: The bodies, bottom up.
 BODY_NAMES = ("tool", "holder", "spindle nose")
 AZIMUTHS = 24
 RING_SPACING_MM = 2.0
+
+
+class CollisionError(LimitError):
+    """A body closer to the part than the clearance min (or inside it).
+
+    Attributes
+    ----------
+    body : str — which: ``tool``, ``holder`` or ``spindle nose`` (:data:`BODY_NAMES`)
+    """
+
+    def __init__(self, message: str, *, body: str, names_keys: bool | tuple[str, ...] = False):
+        super().__init__(message, names_keys=names_keys)
+        self.body = body
 
 
 def body_cylinders(tool_diameter: float, tool_length: float, holder: Holder) -> FloatArray:

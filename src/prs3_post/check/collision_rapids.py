@@ -9,10 +9,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from prs3_post.check.collision_bodies import body_cylinders
+from prs3_post.check.collision_bodies import BODY_NAMES, CollisionError, body_cylinders
 from prs3_post.check.collision_distance import REACH_MM, clearance
 from prs3_post.core.defaults import DEFAULT_TOLERANCE
-from prs3_post.core.errors import LimitError
 from prs3_post.core.numbers import fixed
 from prs3_post.core.toolpath import JointProgram, MoveKind, program_from_columns
 from prs3_post.core.types import FloatArray
@@ -172,5 +171,5 @@ def check_rapids(machine: Machine, program: JointProgram, setup: Setup, triangle
     """
     found = rapid_tool_clearance(machine, program, setup, triangles, tool_diameter)
     if found.distance < -RAPID_TOUCH_MM:
-        raise LimitError(found.message(program))
+        raise CollisionError(found.message(program), body=BODY_NAMES[0])
     return found

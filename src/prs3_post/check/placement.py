@@ -24,21 +24,22 @@ no part in it. The rotation is a 1-D search: every 5°, then the best three to 1
 so it takes no part in the choice either; it still counts in the margins reported and in the
 verdict. Deterministic: the same path gives the same setup.
 
-:func:`suggest_origin` (after a limit error, for the setup the user gave) measures how each
+:func:`suggest` (after a limit error, for the setup the user gave) measures how each
 limit's value moves with a unit shift along x, y and z, intersects the intervals, takes the centre
-of each, and re-runs the whole post-processing at that origin: a suggestion is only made when it
-passes.
+of each, and re-runs the whole post-processing at that origin, then the run's other checks (the
+collision check): a suggestion is only made when it passes all of them. A translation moves the
+part and the tool axes together, so a collision found there is found at every origin: the error
+then says which check fails and what to change instead.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE
 from prs3_post.core.errors import LimitError, ReachError
 from prs3_post.core.numbers import exact_text
 from prs3_post.core.numbers import fixed as _fixed
@@ -49,7 +50,7 @@ from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.loading import Machine
 from prs3_post.part.setup_transform import MAX_ORIGIN_MM, Setup, SetupError
 from prs3_post.post.limits import LimitReport, check_limits, limit_margins
-from prs3_post.post.pipeline import machine_path, model_for, place_toolpath, post_process
+from prs3_post.post.pipeline import PostResult, machine_path, model_for, place_toolpath, post_process
 
 #: A value that moves by less than this (per mm of shift) does not depend on that shift direction.
 _INDEPENDENT = 1e-6
@@ -72,12 +73,14 @@ class Placement(Exception):
     setup : Setup — the setup used
     suggested_origin : (3,) str | None — mm, a part origin checked to work, as exact decimal texts
         (None: no translation does)
+    blocked : bool — a translation keeps every limit, but the run's other checks (the collision check)
+        fail there, and so at every part origin: the message says what to change instead
     """
 
     def __init__(self, message: str, *, setup: Setup, suggested_origin: tuple[str, str, str] | None,
-                 names_keys: bool | tuple[str, ...] = False):
+                 names_keys: bool | tuple[str, ...] = False, blocked: bool = False):
         super().__init__(message, names_keys=names_keys)  # type: ignore[call-arg]  # the Prs3Error mixed in takes it
-        self.setup, self.suggested_origin = setup, suggested_origin
+        self.setup, self.suggested_origin, self.blocked = setup, suggested_origin, blocked
 
 
 class PlacementLimitError(Placement, LimitError):
@@ -165,55 +168,129 @@ def shift_ranges(machine: Machine, path: Toolpath) -> FloatArray | None:
     return ranges
 
 
-def suggest_origin(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float,
-                   length_decimals: int | None = None) -> tuple[str, str, str] | None:
-    """A part origin (mm, machine frame; same rotation) at which the whole path passes post-processing.
+@dataclass(frozen=True, slots=True)
+class Suggestion:
+    """What :func:`suggest` found for a path that does not fit its setup.
+
+    Attributes
+    ----------
+    origin : (3,) str | None — mm, a part origin at which the path passes post-processing and ``check``,
+        as the exact decimal texts checked (None: none found)
+    within_limits : (3,) str | None — mm, the part origin that keeps every point inside every limit
+        (the same as ``origin`` unless ``check`` failed there; None: no translation does)
+    blocked : LimitError | None — what ``check`` raised at ``within_limits`` (None: it passed, or was not run)
+    """
+
+    origin: tuple[str, str, str] | None
+    within_limits: tuple[str, str, str] | None = None
+    blocked: LimitError | None = None
+
+
+#: The checks a run makes beyond the limits (the collision check), at a setup, on the path posted
+#: there: each raises a :class:`LimitError` where it fails.
+SetupCheck = Callable[[Setup, PostResult], None]
+#: What to change where a :data:`SetupCheck` fails (no setup changes it), for that check's error: the
+#: words (naming request keys as ``{key}``) and the keys they name.
+Advise = Callable[[LimitError], tuple[str, tuple[str, ...]]]
+
+
+def suggest(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float, angle_tolerance: float,
+            length_decimals: int | None = None, check: SetupCheck | None = None) -> Suggestion:
+    """A part origin (mm, machine frame; same rotation) at which the whole path passes post-processing
+    and ``check`` (the run's other checks: the collision check).
 
     The centre of every allowed shift interval (:func:`shift_ranges`), rounded to 0.1 mm where that
-    still passes; checked by running :func:`~prs3_post.post.pipeline.post_process` with it. Returned as
-    the decimal texts (x, y, z) whose values were checked; None when no translation passes.
+    still passes; checked by running :func:`~prs3_post.post.pipeline.post_process` with it, then
+    ``check``. A translation moves the tool and the part together (the tool axes, the part's frame
+    and the path in it stay), so where ``check`` fails at that origin it fails at every origin: the
+    result says so (``blocked``) instead of searching on.
     """
+    none = Suggestion(origin=None)
     try:
         placed = place_toolpath(path_part, setup)
         path = replace(placed, axis=unit_axes(placed.tip, placed.axis))
     except PoseError:
-        return None
+        return none
     # The points as given first: a limit no shift can cure (a tilt past the machine's) ends it here,
     # before subdivision, which cannot converge on moves that cross a singularity.
     if shift_ranges(machine, path) is None:
-        return None
+        return none
     try:
-        path = machine_path(machine, path_part, setup, tolerance=tolerance, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
+        path = machine_path(machine, path_part, setup, tolerance=tolerance, angle_tolerance=angle_tolerance)
     except (ReachError, LimitError):                   # a bad axis, or a move bisection gives up on
-        return None
+        return none
     ranges = shift_ranges(machine, path)
     if ranges is None:
-        return None
+        return none
     # An unbounded side (no limit in that direction) keeps the current origin in that direction.
     centre = np.where(np.isfinite(ranges).all(axis=1), ranges.mean(axis=1),
                       np.clip(np.zeros(3), ranges[:, 0], ranges[:, 1]))
     for decimals in (1, 3, 6):
         texts = tuple(exact_text(v, decimals) for v in np.round(np.asarray(setup.origin) + centre, decimals))
         try:
-            post_process(machine, path_part, setup.with_origin(tuple(float(t) for t in texts)), tolerance=tolerance,
-                         length_decimals=length_decimals, angle_tolerance=DEFAULT_ANGLE_TOLERANCE)
+            moved = setup.with_origin(tuple(float(t) for t in texts))
+            posted = post_process(machine, path_part, moved, tolerance=tolerance, length_decimals=length_decimals,
+                                  angle_tolerance=angle_tolerance)
         except (LimitError, ReachError, SetupError):
             continue
-        return texts  # type: ignore[return-value]
-    return None
+        origin: tuple[str, str, str] = texts  # type: ignore[assignment]
+        if check is not None:
+            try:
+                check(moved, posted)
+            except LimitError as failed:
+                return Suggestion(origin=None, within_limits=origin, blocked=failed)
+        return Suggestion(origin=origin, within_limits=origin)
+    return none
+
+
+def suggest_origin(machine: Machine, path_part: Toolpath, setup: Setup, *, tolerance: float, angle_tolerance: float,
+                   length_decimals: int | None = None, check: SetupCheck | None = None) -> tuple[str, str, str] | None:
+    """:func:`suggest`'s part origin: one at which the whole path passes post-processing and ``check``, as
+    the decimal texts (x, y, z) whose values were checked; None when no translation passes."""
+    return suggest(machine, path_part, setup, tolerance=tolerance, angle_tolerance=angle_tolerance,
+                   length_decimals=length_decimals, check=check).origin
 
 
 def placement_error(error: LimitError | ReachError, machine: Machine, path_part: Toolpath, setup: Setup, *,
-                    tolerance: float, length_decimals: int | None = None) -> Placement:
-    """``error`` (the same kind) with the setup used and, where one exists, a part origin that works."""
-    origin = suggest_origin(machine, path_part, setup, tolerance=tolerance, length_decimals=length_decimals)
-    if origin is None:
-        advice = "no translation of the part puts every point inside the machine's limits"
-    else:
-        advice = f"a part origin at machine [{', '.join(origin)}] mm puts every point inside the machine's limits"
+                    tolerance: float, angle_tolerance: float, length_decimals: int | None = None,
+                    check: SetupCheck | None = None, advise: Advise | None = None) -> Placement:
+    """``error`` (the same kind) with the setup used and, where one exists, a part origin that works:
+    one that passes ``check`` too. Where the origin that keeps every limit fails ``check``, the message
+    says so, with what ``check`` found there and what ``advise`` says to change instead (no setup
+    changes it), and no origin is suggested."""
+    found = suggest(machine, path_part, setup, tolerance=tolerance, angle_tolerance=angle_tolerance,
+                    length_decimals=length_decimals, check=check)
+    advice, keys = suggestion_advice(found, advise, error.names_keys)
     kind = PlacementReachError if isinstance(error, ReachError) else PlacementLimitError
-    return kind(f"{error.carried()}; setup: {setup.describe()}; {advice}", setup=setup, suggested_origin=origin,
-                names_keys=error.names_keys)
+    return kind(f"{error.carried()}; setup: {setup.describe()}; {advice}", setup=setup, suggested_origin=found.origin,
+                names_keys=keys, blocked=found.blocked is not None)
+
+
+def suggestion_advice(found: Suggestion, advise: Advise | None, keys: bool | tuple[str, ...], *,
+                      what: str = "puts every point inside the machine's limits") -> tuple[str, bool | tuple[str, ...]]:
+    """The words that end a placement error about ``found`` (``what`` the origin does; ``advise``: what to
+    change where a check other than the limits fails), and the keys the message names then (``keys``: the
+    error's own)."""
+    if found.blocked is not None:
+        advice = (f"a part origin at machine [{', '.join(found.within_limits or ())}] mm {what}, but the "
+                  f"collision check fails there: {found.blocked.carried()}; no setup changes that (the part and "
+                  "the tool axes move together)")
+        keys = _merged_keys(keys, found.blocked.names_keys)
+        if advise is not None:
+            words, named = advise(found.blocked)
+            advice += f": {words}"
+            keys = _merged_keys(keys, named)
+        return advice, keys
+    if found.origin is None:
+        return f"no translation of the part {what}", keys
+    return f"a part origin at machine [{', '.join(found.origin)}] mm {what}", keys
+
+
+def _merged_keys(a: bool | tuple[str, ...], b: bool | tuple[str, ...]) -> bool | tuple[str, ...]:
+    """The keys a message that joins two messages names (True: any)."""
+    if a is True or b is True:
+        return True
+    return tuple(dict.fromkeys((*(a or ()), *(b or ())))) or False
 
 
 # ============================================================================ automatic placement
