@@ -812,3 +812,20 @@ def test_a_5_axis_program_without_a_source_is_told_to_name_one(tmp_path: Path) -
         "3+2 reader reads programs whose tool axis is set by G68.2/G53.1 or by the work plane, so it refuses this "
         "program rather than misread it; a 5-axis program under TCP converts when --source names the machine it "
         "was written for (prs3-post sources lists them)\n"))
+
+
+def test_a_limit_error_gives_the_part_origin_as_the_option_and_it_converts(tmp_path):
+    """Issue 20 §3: convert's limit errors said the part origin that fits in words only; they give it as
+    --part-origin=X,Y,Z, as the main job does, and that option converts the file."""
+    drill = CORPUS / "humman_deep_drill.clsf"
+    result = CliRunner().invoke(main, ["convert", str(drill), "-o", str(tmp_path / "out")])
+    assert result.exit_code == 1
+    assert result.stdout.splitlines() == [
+        f"failed\t{drill}\t-\t{drill}:10: stage X -355.0000 mm is below the minimum -300.0000 mm by 55.0000 mm (3 "
+        "points outside limits among the 6 checked so far); setup: part origin at machine [-100.0000, -200.0000, "
+        "-970.0000] mm, rotation 0.0000 deg about z; a part origin at machine [94.5, 0.0, -996.0] mm puts every "
+        "point inside the machine's limits: --part-origin=94.5,0.0,-996.0"]
+    option = result.stdout.rsplit(": ", 1)[1].strip()
+    again = CliRunner().invoke(main, ["convert", str(drill), "-o", str(tmp_path / "out"), option])
+    assert again.exit_code == 0, again.output
+    assert (tmp_path / "out" / "humman_deep_drill.ngc").is_file()

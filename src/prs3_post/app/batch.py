@@ -40,6 +40,8 @@ class FileOutcome:
     keyed : str — ``error`` with the request keys it names as ``{key}``, for a front end to word
         (:class:`~prs3_post.core.errors.KeyedMessage`); empty when it names none
     keys : tuple of str — the keys ``keyed`` names (empty: any ``{key}`` in it)
+    suggested_origin : (3,) str | None — mm, the part origin the error found to fit, as exact decimal
+        texts (:class:`~prs3_post.check.placement.Placement`), for a front end to say how to give it
     """
 
     input: str
@@ -52,6 +54,7 @@ class FileOutcome:
     exists: bool = False
     keyed: str = ""
     keys: tuple[str, ...] = ()
+    suggested_origin: tuple[str, str, str] | None = None
 
     def record(self) -> dict[str, object]:
         """JSON-ready data."""
@@ -211,6 +214,8 @@ def convert_one(input_path: str, output: str, settings: ConvertSettings, *, forc
             raise OutputExists(f"{EXISTS} (it is replaced only when forced)", path=output)
         report = write_conversion(input_path, output, settings)
     except Prs3Error as error:
+        from prs3_post.check.placement import Placement  # loaded by the conversion already
+
         message, keyed = str(error), error.carried() if error.names_keys else ""
         # an InputError starts with the file it is about; a limit or reach error found by no line (no
         # placement fits the whole file) says which input it is about first, as every failure does
@@ -218,7 +223,8 @@ def convert_one(input_path: str, output: str, settings: ConvertSettings, *, forc
             message, keyed = f"{input_path}: {message}", keyed and f"{input_path}: {keyed}"
         return FileOutcome(input=input_path, output=output, ok=False, error=message, exit_code=error.exit_code,
                            seconds=time.perf_counter() - start, exists=isinstance(error, OutputExists), keyed=keyed,
-                           keys=() if isinstance(error.names_keys, bool) else error.names_keys)
+                           keys=() if isinstance(error.names_keys, bool) else error.names_keys,
+                           suggested_origin=error.suggested_origin if isinstance(error, Placement) else None)
     return FileOutcome(input=input_path, output=output, ok=True, report=report,
                        seconds=time.perf_counter() - start)
 

@@ -232,10 +232,15 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
 
 
 def _flag_named(outcome: FileOutcome) -> FileOutcome:
-    """A kept program's failure says which option replaces it, and an error the keys it names as the
-    options that set them (the library names no option)."""
+    """A kept program's failure says which option replaces it, an error the keys it names as the
+    options that set them (the library names no option), and a part origin found to fit as the
+    option that gives it (as the main job says it)."""
     from prs3_post.app.batch import EXISTS
 
+    if outcome.suggested_origin is not None:
+        error = spelled(outcome.keyed, flag_of, outcome.keys or None) if outcome.keyed else outcome.error
+        return dataclasses.replace(outcome, error=f"{error}: --part-origin={','.join(outcome.suggested_origin)}",
+                                   keyed="", suggested_origin=None)
     if outcome.keyed:
         return dataclasses.replace(outcome, error=spelled(outcome.keyed, flag_of, outcome.keys or None))
     if not outcome.exists:
