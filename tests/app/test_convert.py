@@ -818,6 +818,7 @@ def test_a_limit_error_gives_the_part_origin_as_the_option_and_it_converts(tmp_p
     """Issue 20 §3: convert's limit errors said the part origin that fits in words only; they give it as
     --part-origin=X,Y,Z, as the main job does, and that option converts the file."""
     drill = CORPUS / "humman_deep_drill.clsf"
+    (tmp_path / "out").mkdir()
     result = CliRunner().invoke(main, ["convert", str(drill), "-o", str(tmp_path / "out")])
     assert result.exit_code == 1
     assert result.stdout.splitlines() == [
