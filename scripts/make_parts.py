@@ -78,6 +78,15 @@ def wall30() -> trimesh.Trimesh:
                  (150.0, 250.0), "xzy")
 
 
+def bracket() -> trimesh.Trimesh:
+    """The tutorial's "own part", as a CAD system exports it: Y up, origin at a corner, a 25° face.
+
+    x 0…60, y (up) 0…40 − x·tan 25° (so 12.02 at x = 60), z 0…40: with ``--up y`` its inclined face
+    has the normal (sin 25°, 0, cos 25°) and the part lies at y −40…0 on the machine."""
+    top = lambda x: 40.0 - x * TAN(RAD(25.0))  # noqa: E731
+    return prism([(0.0, 0.0), (60.0, 0.0), (60.0, top(60.0)), (0.0, top(0.0))], (0.0, 40.0), "xyz")
+
+
 def cube() -> trimesh.Trimesh:
     """An axis-aligned 50 mm cube: no inclined face."""
     return prism([(0.0, 0.0), (50.0, 0.0), (50.0, 50.0), (0.0, 50.0)], (0.0, 50.0), "xzy")
@@ -109,6 +118,7 @@ def main() -> None:
     write(tilt35(), "fixtures/parts/tilt35.stl")
     write(twofaces(), "fixtures/parts/twofaces.stl")
     write(wall30(), "fixtures/parts/wall30.stl")
+    write(bracket(), "fixtures/parts/bracket.stl")
     write(cube(), "fixtures/bad/cube.stl")
     write(downward(), "fixtures/bad/downward.stl")
     write(wedge().apply_scale(0.001), "fixtures/bad/tiny.stl")  # the wedge in metres: 0.1 x 0.1 x 0.3
