@@ -13,14 +13,17 @@ README = Path(__file__).resolve().parents[2] / "README.md"
 
 
 def test_readme_program_excerpt_is_the_demo_output():
+    """The program the README shows begins exactly as the demo's does (its first lines, up to the first
+    ``...``, line for line; tests/docs/test_docs_commands.py checks the lines after it in order)."""
     text = README.read_text(encoding="utf-8")
-    block = re.search(r"writes:\n\n```\n(.*?)\n```", text, re.S)
+    block = re.search(r"```console\n\$ prs3-post demo --profile square\n(.*?)\n```", text, re.S)
     assert block is not None, "README lost its program excerpt"
     shown = block.group(1).splitlines()
-    assert shown[-1] == "..."
+    head = shown[: shown.index("...")]
+    assert len(head) >= 6
     result = CliRunner().invoke(main, ["demo", "--profile", "square"])
     assert result.exit_code == 0
-    assert result.stdout.splitlines()[: len(shown) - 1] == shown[:-1]
+    assert result.stdout.splitlines()[: len(head)] == head
 
 
 def test_readme_has_the_two_setup_commands_ci_runs():
