@@ -162,29 +162,6 @@ def test_preview_takes_up(tmp_path):
         "Error: Invalid value for '--up': 'q' is not one of 'z', 'y', '-y', 'x', '-x', '-z'.")
 
 
-def test_readme_placement_and_exit_code_examples_do_what_it_says(tmp_path, monkeypatch):
-    """The README's "Placing a part" section: its command works, and each exit-code example exits so."""
-    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
-    section = readme.split("## Placing a part", 1)[1].split("\n## ", 1)[0]
-    monkeypatch.chdir(tmp_path)
-    (tmp_path / "ssg_slope.stl").write_bytes(Path(SLOPE).read_bytes())
-    placed = [line.strip() for line in section.splitlines() if line.startswith("      prs3-post ")]
-    assert placed == [
-        "prs3-post ssg_slope.stl --profile hole --part-origin=-18,-10,-688 --no-collision-check -o slope.ngc",
-        "prs3-post ssg_slope.stl --profile hole --part-origin auto --no-collision-check -o slope.ngc",
-    ]
-    assert invoke(*placed[0].split()[1:]).exit_code == 0
-    auto = invoke(*placed[1].split()[1:])                  # prints what the README shows
-    assert auto.exit_code == 0
-    shown = section.split(placed[1], 1)[1].split("```text\n", 1)[1].split("\n  ```", 1)[0].strip()
-    assert auto.stderr.splitlines()[0] == shown
-    rows = re.findall(r"^\| (\d) \| [^|]+ \| `prs3-post ([^`]+)` \| `([^`]+)` \|$", section, re.M)
-    assert [code for code, _, _ in rows] == ["0", "1", "2"]
-    for code, command, begins in rows:
-        result = invoke(*command.split())
-        assert (result.exit_code, result.stderr[: len(begins)]) == (int(code), begins)
-
-
 @pytest.mark.parametrize(("part", "options"), [
     (SLOPE, ["--profile", "hole", "--no-collision-check"]),   # the slope: a tunnel, no origin passes the check
     (ANGLE_BLOCK, ["--part-units", "inch", "--up", "y", "--profile", "hole", "--at", "5,0"]),
