@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -12,6 +13,7 @@ from numpy.testing import assert_allclose
 from prs3_post.cli.main import main
 from prs3_post.core.errors import ConfigError
 from prs3_post.machine.loading import load_machine, postproc_dir, shipped_names
+from prs3_post.machine.model import general_from_ideal
 
 BAD = Path(__file__).resolve().parents[2] / "fixtures" / "bad"
 BAD_MACHINES = sorted((BAD / "machines").glob("*.toml"))
@@ -76,3 +78,29 @@ def test_toml_nested_too_deeply_is_a_config_error(tmp_path: Path, kind: str) -> 
     assert result.stderr == (f"prs3-post: error: {path}: not valid TOML here: arrays or inline tables nested too "
                              "deeply\n")
     assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]
+
+
+def test_a_head_described_leg_by_leg(tmp_path: Path) -> None:
+    """[[legs]] and [platform] of kinematics "3-prs-general": directions scaled to unit length, every key
+    left out the ideal head's value; a file with today's keys only has no per-leg geometry at all."""
+    assert load_machine("patel2020").geometry.general is None
+    machine = load_machine(str(BAD.parent / "machines" / "patel2020-as-built.toml"))
+    general = machine.geometry.general
+    assert machine.kinematics == "3-prs-general" and general is not None
+    assert general.legs[0].rail_point == (-339.2, -196.1, 0.2)
+    assert general.legs[0].rail_direction == pytest.approx((0.0, 0.0017 / math.sqrt(1 + 0.0017**2),
+                                                            -1.0 / math.sqrt(1 + 0.0017**2)), abs=1e-16)
+    assert (general.legs[1].link_length, general.legs[1].stroke_offset) == (481.8, 0.4)
+    assert general.tool_tip == (0.1, -0.2, -175.3)
+    text = (postproc_dir() / "machines" / "patel2020.toml").read_text().replace(
+        'kinematics = "3-prs"', 'kinematics = "3-prs-general"')
+    path = tmp_path / "partial.toml"
+    path.write_text(text + "\n[[legs]]\n[[legs]]\nstroke_offset_mm = 0.25\n[[legs]]\n")
+    partial = load_machine(str(path)).geometry
+    ideal = general_from_ideal(partial)
+    assert partial.general is not None
+    assert partial.general.legs[0] == ideal.legs[0] and partial.general.tool_tip == ideal.tool_tip
+    assert partial.general.legs[1] == dataclasses.replace(ideal.legs[1], stroke_offset=0.25)
+    # no [[legs]] at all: the ideal head, solved by the general kinematics
+    path.write_text(text)
+    assert load_machine(str(path)).geometry.general == general_from_ideal(partial)

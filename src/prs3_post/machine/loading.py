@@ -43,13 +43,17 @@ from prs3_post.machine.dialect import (
 )
 from prs3_post.machine.model import (
     DEFAULT_KINEMATICS,
+    GENERAL_KINEMATICS,
     KINEMATICS_NAMES,
     Dynamics,
+    GeneralGeometry,
     Geometry,
     Holder,
+    LegGeometry,
     Limits,
     Machine,
     Stage,
+    general_from_ideal,
 )
 
 # The five-axis source conventions (only `convert` and a converted program's check need them) load in load_source.
@@ -334,6 +338,7 @@ def load_machine(name_or_path: str) -> Machine:
         tool_length=tool_length,
         gauge_offset=gauge_offset,
     )
+    geometry = _general(top, geometry, kinematics)
 
     lim = top.table("limits")
     stroke = lim.range("stroke_mm", "mm")
@@ -381,6 +386,83 @@ def load_machine(name_or_path: str) -> Machine:
         holder=holder,
         kinematics=kinematics,
     )
+
+
+#: How far a ``[[legs]]`` or ``[platform]`` direction may be from unit length and still be taken (and
+#: scaled to it): rounded components, not a different vector.
+UNIT_LENGTH_SLACK = 1e-3
+#: The most a rail may leave its link's plane, |rail_direction · revolute_axis| = sin 30°.
+MAX_RAIL_TILT = 0.5
+
+
+def _unit(table: _Table, key: str, default: tuple[float, ...]) -> tuple[float, float, float]:
+    """A direction [x, y, z] of unit length (within :data:`UNIT_LENGTH_SLACK`, then scaled to it)."""
+    vector = table.numbers(key, 3, "a unit vector [x, y, z]", list(default))
+    length = math.sqrt(sum(v * v for v in vector))
+    if abs(length - 1.0) > UNIT_LENGTH_SLACK:
+        raise table._error(key, f"expected a unit vector [x, y, z], got {list(vector)} (length {length:.6g})")
+    return (vector[0] / length, vector[1] / length, vector[2] / length)
+
+
+def _general(top: _Table, geometry: Geometry, kinematics: str) -> Geometry:
+    """``geometry`` with the head as built from the ``[[legs]]`` array and the ``[platform]`` table
+    (machines of kinematics ``3-prs-general`` only); every key not given is the ideal head's value.
+
+    Each of the three ``[[legs]]`` (legs 1, 2, 3 in order; machine frame, stroke 0):
+    ``rail_point_mm`` [x, y, z] mm, the revolute joint's centre at commanded stroke 0;
+    ``rail_direction`` unit [x, y, z], the way it moves as the stroke grows;
+    ``revolute_axis`` unit [x, y, z], the revolute joint's axis (the link moves in the plane normal to it);
+    ``link_length_mm`` mm, revolute centre to spherical centre;
+    ``platform_joint_mm`` [x, y, z] mm, the spherical joint's centre in the platform frame;
+    ``stroke_offset_mm`` mm, the encoder zero (physical stroke = commanded + offset).
+    ``[platform]``: ``tool_tip_mm`` [x, y, z] mm, the tool tip in the platform frame with the tool of
+    ``geometry.tool_length_mm``; ``tool_axis`` unit [x, y, z], the tool axis there (tip → spindle).
+    """
+    legs_given = top._get("legs", None)
+    platform = top.optional_table("platform")
+    if kinematics != GENERAL_KINEMATICS:
+        if legs_given is not None or platform is not None:
+            key = "legs" if legs_given is not None else "platform"
+            raise top._error(key, f"a head described leg by leg needs kinematics = {quoted(GENERAL_KINEMATICS)}, "
+                                  f"this file's is {quoted(kinematics)}")
+        return geometry
+    ideal = general_from_ideal(geometry)
+    if legs_given is None:
+        legs_given = [{}, {}, {}]
+    if not isinstance(legs_given, list) or len(legs_given) != 3 or not all(isinstance(t, dict) for t in legs_given):
+        raise top._error("legs", "expected three [[legs]] tables (legs 1, 2, 3 in order)")
+    legs = []
+    for number, (data, nominal) in enumerate(zip(legs_given, ideal.legs, strict=True), start=1):
+        table = _Table(data, top._path, f"legs[{number}].")
+        direction = _unit(table, "rail_direction", nominal.rail_direction)
+        axis = _unit(table, "revolute_axis", nominal.revolute_axis)
+        tilt = abs(sum(d * r for d, r in zip(direction, axis, strict=True)))
+        if tilt > MAX_RAIL_TILT:
+            raise table._error("rail_direction", f"the rail is {math.degrees(math.asin(min(tilt, 1.0))):.3g}° out of "
+                                                 "the link's plane (the plane normal to revolute_axis); at most "
+                                                 f"{math.degrees(math.asin(MAX_RAIL_TILT)):.3g}° is allowed")
+        legs.append(LegGeometry(
+            rail_point=table.numbers("rail_point_mm", 3, "[x, y, z] in mm", list(nominal.rail_point)),  # type: ignore[arg-type]
+            rail_direction=direction,
+            revolute_axis=axis,
+            link_length=table.number("link_length_mm", nominal.link_length, unit="mm", positive=True),
+            platform_joint=table.numbers("platform_joint_mm", 3, "[x, y, z] in mm",  # type: ignore[arg-type]
+                                         list(nominal.platform_joint)),
+            stroke_offset=table.number("stroke_offset_mm", 0.0, unit="mm"),
+        ))
+        table.finish()
+    tool_tip, tool_axis = ideal.tool_tip, ideal.tool_axis
+    if platform is not None:
+        tool_tip = platform.numbers("tool_tip_mm", 3, "[x, y, z] in mm", list(tool_tip))  # type: ignore[assignment]
+        tool_axis = _unit(platform, "tool_axis", tool_axis)
+        platform.finish()
+    if not tool_axis[2] > 0.0:
+        raise ConfigError(f"platform.tool_axis: must point toward the platform frame's +z (from the tip toward "
+                          f"the spindle), got {list(tool_axis)}", path=top._path)
+    general = GeneralGeometry(legs=(legs[0], legs[1], legs[2]), tool_tip=tool_tip, tool_axis=tool_axis)
+    return Geometry(leg_azimuth=geometry.leg_azimuth, guide_radius=geometry.guide_radius,
+                    link_length=geometry.link_length, platform_radius=geometry.platform_radius,
+                    tool_length=geometry.tool_length, gauge_offset=geometry.gauge_offset, general=general)
 
 
 #: The values a machine's drives and tool holder may have: physically meaningful, with room to spare

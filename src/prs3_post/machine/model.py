@@ -5,16 +5,18 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-__all__ = ["DEFAULT_KINEMATICS", "KINEMATICS_NAMES", "Dynamics", "GeneralGeometry", "Geometry", "Holder", "LegGeometry",
-           "Limits", "Machine", "Stage", "general_from_ideal"]
+__all__ = ["DEFAULT_KINEMATICS", "GENERAL_KINEMATICS", "KINEMATICS_NAMES", "Dynamics", "GeneralGeometry", "Geometry",
+           "Holder", "LegGeometry", "Limits", "Machine", "Stage", "general_from_ideal"]
 
 Vector = tuple[float, float, float]
 
 #: The kinematics of a machine file without a ``kinematics`` key (the files written before it).
 DEFAULT_KINEMATICS = "3-prs"
+#: The kinematics of a head whose legs each have their own geometry (a machine file's ``[[legs]]``).
+GENERAL_KINEMATICS = "3-prs-general"
 #: The kinematics a machine file may name: :func:`prs3_post.kinematics.registry.register` adds
 #: each one it registers (this layer cannot import that registry).
-KINEMATICS_NAMES: set[str] = {DEFAULT_KINEMATICS}
+KINEMATICS_NAMES: set[str] = {DEFAULT_KINEMATICS, GENERAL_KINEMATICS}
 
 
 @dataclass(frozen=True, slots=True)

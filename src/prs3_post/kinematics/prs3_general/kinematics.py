@@ -20,12 +20,9 @@ from prs3_post.kinematics import HEAD_XY_TOL, AxisMemo, FKResult, IKModel, IKRes
 from prs3_post.kinematics.protocol import LimitColumns, tilt_of
 from prs3_post.kinematics.prs3_general.forward import forward_general
 from prs3_post.kinematics.prs3_general.inverse import inverse_general
-from prs3_post.machine.model import GeneralGeometry, Geometry, Limits
+from prs3_post.machine.model import GENERAL_KINEMATICS, GeneralGeometry, Geometry, Limits
 
 __all__ = ["GENERAL_KINEMATICS", "Prs3GeneralKinematics"]
-
-#: The name machine files give the general 3-PRS head.
-GENERAL_KINEMATICS = "3-prs-general"
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,6 +39,13 @@ class Prs3GeneralKinematics:
     def general(self) -> GeneralGeometry:
         """The head as built (the ideal head's legs when the machine file gives none)."""
         return self.geometry.general_geometry()
+
+    @property
+    def shift_direction(self) -> tuple[float, float, float] | None:
+        """The rails' direction when all three are parallel (adding s to every stroke moves every revolute
+        joint, so the whole head, by s along it); None when they are not (a common shift then tilts the head)."""
+        first, *others = (leg.rail_direction for leg in self.general.legs)
+        return first if all(other == first for other in others) else None
 
     @property
     def link_length(self) -> float:
