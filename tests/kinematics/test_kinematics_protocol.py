@@ -38,6 +38,7 @@ class RamHead:
     name: ClassVar[str] = "ram-4"
     joint_names: ClassVar[tuple[str, ...]] = ("L1", "L2", "L3", "R")
     default_letters: ClassVar[tuple[str, ...]] = ("A", "B", "C", "Z")
+    shift_direction: ClassVar[tuple[float, float, float] | None] = (0.0, 0.0, -1.0)
 
     @property
     def head(self) -> Prs3Kinematics:

@@ -13,8 +13,10 @@ import numpy as np
 import numpy.typing as npt
 
 from prs3_post.core.errors import ReachError
-from prs3_post.kinematics import FKResult, IKModel, IKResult, forward, inverse, unit_axes
+from prs3_post.kinematics import FKResult, IKModel, IKResult, unit_axes
+from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.loading import DEFAULT_MACHINE, Machine, load_machine
+from prs3_post.machine.model import GENERAL_KINEMATICS
 from prs3_post.post.limits import check_limits
 
 #: The inverse kinematics models ``ik --model`` offers.
@@ -22,6 +24,10 @@ IK_MODELS = tuple(model.value for model in IKModel)
 
 __all__ = ["IK_MODELS", "IKModel", "forward_kinematics", "inverse_kinematics", "machine_of", "pose_record",
            "setting_record"]
+
+
+#: What else stops a head as built (general kinematics) from reaching a pose.
+_NEWTON = ", or its Newton iterations from the ideal head's pose did not converge"
 
 
 def machine_of(machine: Machine | str) -> Machine:
@@ -52,7 +58,7 @@ def inverse_kinematics(tip: npt.ArrayLike, axis: npt.ArrayLike, *, machine: Mach
     """
     tips = np.asarray(tip, dtype=np.float64).reshape(-1, 3)
     axes = unit_axes(tips, np.asarray(axis, dtype=np.float64).reshape(-1, 3))
-    return inverse(machine_of(machine).geometry, tips, axes, model=IKModel(model))
+    return kinematics_of(machine_of(machine)).inverse(tips, axes, model=IKModel(model))
 
 
 def forward_kinematics(strokes: npt.ArrayLike, stage: npt.ArrayLike | None = None, *,
@@ -71,7 +77,7 @@ def forward_kinematics(strokes: npt.ArrayLike, stage: npt.ArrayLike | None = Non
     """
     settings = np.asarray(strokes, dtype=np.float64).reshape(-1, 3)
     xy = None if stage is None else np.asarray(stage, dtype=np.float64).reshape(-1, 2)
-    return forward(machine_of(machine).geometry, settings, xy)
+    return kinematics_of(machine_of(machine)).forward(settings, xy)
 
 
 def pose_record(machine: Machine, tip: tuple[float, ...], axis: tuple[float, ...], *,
@@ -89,7 +95,7 @@ def pose_record(machine: Machine, tip: tuple[float, ...], axis: tuple[float, ...
 
     tips = np.array([tip])
     axes = unit_axes(tips, np.array([axis]), row_name="pose")
-    result = inverse(machine.geometry, tips, axes, model=model)
+    result = kinematics_of(machine).inverse(tips, axes, model=model)
     if model is IKModel.HEAD and not result.reachable[0] and np.isfinite(result.stage[0]).all():
         dx, dy = result.stage[0]
         raise ReachError(
@@ -98,7 +104,8 @@ def pose_record(machine: Machine, tip: tuple[float, ...], axis: tuple[float, ...
             "matched by the part setup, or use a machine with an XY stage"
         )
     if not result.reachable[0]:
-        raise ReachError("this pose cannot be reached: the head does not assemble there (a link cannot reach)")
+        raise ReachError("this pose cannot be reached: the head does not assemble there (a link cannot reach"
+                         f"{_NEWTON if machine.kinematics == GENERAL_KINEMATICS else ''})")
     return ik_records(tips, axes, result, check_limits(machine, result, axes))[0]
 
 
@@ -112,7 +119,8 @@ def setting_record(machine: Machine, strokes: tuple[float, ...], xy: tuple[float
     """
     from prs3_post.app.pose_tables import fk_records
 
-    result = forward(machine.geometry, np.array([strokes]), np.array([xy]))
+    kinematics = kinematics_of(machine)
+    result = kinematics.forward(np.array([strokes]), np.array([xy]))
     if not result.converged[0]:
         raise ReachError(
             f"strokes {', '.join(f'{s:g}' for s in strokes)} mm do not assemble the head of {machine.name} "
@@ -120,5 +128,5 @@ def setting_record(machine: Machine, strokes: tuple[float, ...], xy: tuple[float
             f"side-length error {result.residual[0]:.3g} mm)"
         )
     model = IKModel.EXACT if machine.stage.present else IKModel.HEAD
-    pose = inverse(machine.geometry, result.tip, result.axis, model=model)     # the same strokes, checked
+    pose = kinematics.inverse(result.tip, result.axis, model=model)     # the same strokes, checked
     return fk_records(result, check_limits(machine, pose, result.axis))[0]

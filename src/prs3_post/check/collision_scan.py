@@ -19,6 +19,10 @@ stroke lie between the two rows', and their head pose key (T2 − T1, T3 − T1)
 * axis: |a − a₀| ≤ ``SAFETY`` · J_axis · |Δkey| likewise (0 where the keys are equal: a stretch of
   constant tool axis, the common case).
 
+A head whose joints have no common shift (a head as built with rails not quite parallel: the
+kinematics' ``shift_direction`` is None) keys its poses by all of its strokes (T1, T2, T3) and its
+tip's part besides the head is the stage (X, Y, 0) alone.
+
 A group is "flat" (bounded as a whole) when its rows' keys are within ``FLAT_KEY_MM`` of its
 representative's and every row's head assembles; group 0 never is (its first pose is where the
 check looks for a body inside the part). The representative is the row before the group (the start
@@ -33,7 +37,7 @@ import numpy as np
 
 from prs3_post.core.toolpath import JointProgram, MoveKind
 from prs3_post.core.types import BoolArray, FloatArray
-from prs3_post.kinematics.replay import forward_parts, shift_keys
+from prs3_post.kinematics.replay import forward_parts, head_shift, shift_keys
 from prs3_post.machine.model import Machine
 
 __all__ = ["FLAT_KEY_MM", "GROUP_ROWS", "SCAN_ROWS", "Scan", "scan_program"]
@@ -106,9 +110,10 @@ def _scan_rows(machine: Machine, program: JointProgram, lo: int, hi: int, frame:
     the groups' tip, axis, half, turn, wobble, feeding and flat (the last two as 0/1)."""
     start = max(lo - 1, 0)
     stage, strokes = program.stage[start:hi], program.strokes[start:hi]
-    canonical, index = shift_keys(strokes)
+    direction = head_shift(machine)
+    canonical, index = shift_keys(strokes, shift=direction is not None)
     key_tip, key_axis, _, key_ok = forward_parts(machine, [canonical])[0]
-    linear = np.column_stack([stage, -strokes[:, 0]])           # (X, Y, −T1): the tip's part besides the head's
+    linear = _linear_part(stage, strokes, direction)             # (X, Y, −T1): the tip's part besides the head's
     feed = np.flatnonzero(program.kind[lo:hi] == MoveKind.FEED) + (lo - start)
     feed_tips = np.take(key_tip, index[feed], axis=0) + linear[feed]
     # the groups: rows [g·G, (g+1)·G) with the row before as the representative (row 0 for group 0)
@@ -120,7 +125,8 @@ def _scan_rows(machine: Machine, program: JointProgram, lo: int, hi: int, frame:
     box = linear @ frame                                          # the box's coordinates of (X, Y, −T1)
     low = np.minimum(np.minimum.reduceat(box[own], firsts), box[ref]) if len(own) else np.zeros((0, 3))
     high = np.maximum(np.maximum.reduceat(box[own], firsts), box[ref]) if len(own) else np.zeros((0, 3))
-    keys = canonical[index, 1:]
+    first_key = 0 if direction is None else 1                     # T1 is the shift, not a key, on parallel guides
+    keys = canonical[index, first_key:]
     key_gap = np.abs(keys[own] - keys[ref_of]).max(axis=1)
     dkey = np.maximum.reduceat(key_gap, firsts) if len(own) else np.zeros(0)
     ok = key_ok[index]
@@ -132,7 +138,7 @@ def _scan_rows(machine: Machine, program: JointProgram, lo: int, hi: int, frame:
     wobble = np.zeros(len(firsts))
     moving = np.flatnonzero(flat & (dkey > 0))
     if len(moving):                                               # the head's own change: linearised, ×SAFETY
-        tip_rate, axis_rate = _rates(machine, canonical[index[ref[moving]]])
+        tip_rate, axis_rate = _rates(machine, canonical[index[ref[moving]]], first_key)
         wobble[moving] = SAFETY * tip_rate * dkey[moving]
         turn[moving] = SAFETY * axis_rate * dkey[moving]
         flat[moving] &= np.isfinite(tip_rate) & np.isfinite(axis_rate)
@@ -142,11 +148,23 @@ def _scan_rows(machine: Machine, program: JointProgram, lo: int, hi: int, frame:
     return (feed_tips, tip, axis, half, turn, wobble, feeding.astype(np.float64), flat.astype(np.float64))
 
 
-def _rates(machine: Machine, canonical: FloatArray) -> tuple[FloatArray, FloatArray]:
+def _linear_part(stage: FloatArray, strokes: FloatArray, direction: FloatArray | None) -> FloatArray:
+    """(N, 3) mm: the tip's motion besides the head pose key's: the stage (X, Y, 0) plus the common
+    shift T1 along ``direction`` ((X, Y, −T1) on parallel vertical guides); the stage alone without one."""
+    linear = np.column_stack([stage, np.zeros(len(stage))])
+    if direction is None:
+        return linear
+    if direction[0] == 0.0 and direction[1] == 0.0 and direction[2] == -1.0:
+        linear[:, 2] = -strokes[:, 0]
+        return linear
+    return linear + strokes[:, :1] * direction
+
+
+def _rates(machine: Machine, canonical: FloatArray, first_key: int) -> tuple[FloatArray, FloatArray]:
     """(K,), (K,): Σ_j |∂tip/∂key_j| (mm/mm) and Σ_j |∂axis/∂key_j| (1/mm) at head pose keys (K, 3)
-    (strokes with T1 = 0), by central differences in T2 and T3."""
+    (strokes with T1 = 0, ``first_key`` 1; or whole strokes, 0), by central differences in the keys."""
     parts = []
-    for leg in range(1, canonical.shape[1]):
+    for leg in range(first_key, canonical.shape[1]):
         delta = np.zeros(canonical.shape[1])
         delta[leg] = _STEP
         parts += [canonical + delta, canonical - delta]

@@ -54,6 +54,11 @@ from prs3_post.post.pipeline import PostResult, machine_path, model_for, place_t
 
 #: A value that moves by less than this (per mm of shift) does not depend on that shift direction.
 _INDEPENDENT = 1e-6
+#: A value that moves along one shift direction and by less than this fraction of it along another is
+#: taken to move along the first alone: on a head as built whose rails are a little off parallel
+#: (general kinematics), the stage follows z a little too. The search then places the part with
+#: margins off by that fraction of the shift; the program made at that place is checked exactly.
+_CROSS_SLOPE = 0.02
 #: The rotation search, in tenths of a degree: the coarse step, the candidates refined, the steps.
 _COARSE_STEP, _REFINED, _FINE_STEPS = 50, 3, (10, 1)
 #: Normalized margins closer than this are equal (the tie goes to the smaller rotation).
@@ -135,6 +140,13 @@ def _values(machine: Machine, path: Toolpath, shift: FloatArray) -> tuple[FloatA
 # ============================================================================ suggestion after an error
 
 
+def _dominant(slopes: FloatArray) -> FloatArray:
+    """``slopes`` (3, ...) per mm of shift along x, y, z with those below :data:`_CROSS_SLOPE` of the
+    largest of their entry set to 0 (nothing changes on an ideal head: its cross slopes are 0)."""
+    largest = np.max(np.abs(slopes), axis=0)
+    return np.where(np.abs(slopes) < _CROSS_SLOPE * largest, 0.0, slopes)
+
+
 def _shift_range(value: FloatArray, slope: FloatArray, low: FloatArray, high: FloatArray) -> tuple[float, float]:
     """The interval of shifts t with low ≤ value + slope·t ≤ high for every entry (may be empty: lo > hi)."""
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -151,7 +163,7 @@ def shift_ranges(machine: Machine, path: Toolpath) -> FloatArray | None:
     value, low, high = columns.value, columns.low, columns.high
     if not np.isfinite(value).all():                   # a pose that does not assemble: the axis, not the place
         return None
-    slopes = [_values(machine, path, unit)[0] - value for unit in np.eye(3)]   # per mm along x, y, z
+    slopes = list(_dominant(np.stack([_values(machine, path, unit)[0] - value for unit in np.eye(3)])))  # per mm
     moves = np.stack([np.abs(s) > _INDEPENDENT for s in slopes])                # (3, N, L)
     if (moves.sum(axis=0) > 1).any():
         return None
@@ -458,6 +470,7 @@ class _Search:
                 with np.errstate(invalid="ignore"):
                     change = np.nanmedian(moved - value, axis=0) if len(value) else np.zeros(value.shape[1])
                 slopes[k] = np.where(np.abs(change) > _INDEPENDENT, np.nan_to_num(change), 0.0)
+            slopes = _dominant(slopes)
             if ((slopes != 0.0).sum(axis=0) > 1).any():        # the module docstring's argument fails
                 raise ValueError("placement: a limit moves with more than one direction of the part's shift")
             self._slope = slopes

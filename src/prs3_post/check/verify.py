@@ -63,6 +63,7 @@ from prs3_post.kinematics.replay import (
     condition_numbers,
     expand,
     forward_parts,
+    head_shift,
     joints_of,
     replay_joints,
     rounding_from,
@@ -469,16 +470,17 @@ class Verifier:
         machine = self.machine
         # every FK the chunk needs before sampling, in one call: the rows' distinct head poses, the
         # mirror points of the translation moves (their sampling bound), the rounding's differences
-        canonical, index = shift_keys(joints[:, 2:])
+        direction = head_shift(machine)
+        canonical, index = shift_keys(joints[:, 2:], shift=direction is not None)
         translations = self.intended is None
-        moves = translation_candidates(joints) if translations else None
+        moves = translation_candidates(joints) if translations and direction is not None else None
         mirror_keys = shift_keys(moves.back[:, 2:]) if moves is not None and len(moves.rows) else None
         parts = [canonical] + ([mirror_keys[0]] if mirror_keys is not None else [])
         fk = forward_parts(machine, parts + rounding_strokes(canonical, ROUNDING_STEP))
-        ends = expand(fk[0], condition_numbers(machine, fk[0]), index, joints)
+        ends = expand(fk[0], condition_numbers(machine, fk[0]), index, joints, direction)
         flat_bound = None
         if moves is not None:
-            mirror = expand(fk[1], None, mirror_keys[1], moves.back) if mirror_keys is not None else None
+            mirror = expand(fk[1], None, mirror_keys[1], moves.back, direction) if mirror_keys is not None else None
             flat_bound = translation_bound(machine, joints, ends, moves, mirror)
         rep = _with_limits(machine, replay_joints(machine, joints, tolerance=self.tolerance,
                                                   translations=translations, ends=ends, flat_bound=flat_bound))

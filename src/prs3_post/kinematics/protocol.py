@@ -7,9 +7,11 @@ tables take the joints' names, letters and count from it; none of them names a j
 
 A program row is the stage X, Y (mm) and one value per joint (mm: the joints are linear axes),
 in the order of :attr:`Kinematics.joint_names`; ``IKResult.strokes`` and the ``joints`` given to
-:meth:`Kinematics.forward` are (N, J). A common shift of every joint moves the tool along −z and
-changes nothing else (the replay computes FK once per distinct pose up to such a shift:
-:mod:`prs3_post.kinematics.replay`), as on any head whose joints slide on parallel vertical guides.
+:meth:`Kinematics.forward` are (N, J). Where a common shift s of every joint moves the whole head by
+s along one direction and changes nothing else (:attr:`Kinematics.shift_direction`: −z on a head
+whose joints slide on parallel vertical guides), the replay computes FK once per distinct pose up to
+such a shift (:mod:`prs3_post.kinematics.replay`); where it does not (None: a head as built, whose
+rails are not quite parallel), once per distinct joint row.
 """
 
 from __future__ import annotations
@@ -41,6 +43,8 @@ class Kinematics(Protocol):
     default_letters : (J,) str — each joint's word letter unless the dialect names one (``U``)
     link_length : float — mm, the length an angle of ``link_angle`` counts as in the replay's
         curvature (a link end moves that far per radian)
+    shift_direction : (3,) tuple | None — unit: the head moves by s along it when every joint grows
+        by s, and nothing else changes ((0, 0, −1) on parallel vertical guides); None: no such direction
     """
 
     @property
@@ -54,6 +58,9 @@ class Kinematics(Protocol):
 
     @property
     def link_length(self) -> float: ...
+
+    @property
+    def shift_direction(self) -> tuple[float, float, float] | None: ...
 
     def inverse(self, tip: FloatArray, axis: FloatArray, *, model: IKModel = IKModel.EXACT,
                 memo: AxisMemo | None = None) -> IKResult:

@@ -35,7 +35,9 @@ probe resolves the curvature (h·max|f'''| ≪ max|f''|), which holds for moves 
 the curvature of FK varies on the scale of the link length.
 
 Moves that translate the head: the guides are parallel, so adding s to all three strokes moves the
-whole head by −s along z and changes nothing else. A move whose three stroke changes are equal up
+whole head by −s along z and changes nothing else (by s along the kinematics' ``shift_direction``;
+a head as built whose rails are not parallel has none: it gets no such shortcut, and FK runs once
+per distinct joint row). A move whose three stroke changes are equal up
 to d (|d_i| ≤ TRANSLATION_SPREAD: the output rounding leaves a few units) is a translation (linear:
 the stage and the common stroke change) plus g(t) = FK(q_{k-1} + t d), so its tip path and link
 angles curve only as g does. Such a move is sampled at its end point only (n_k = 1) when the bound
@@ -125,9 +127,17 @@ class _Poses:
     condition: FloatArray      # (N,) exact IK of the FK pose
 
 
-def shift_keys(strokes: FloatArray) -> tuple[FloatArray, IntArray]:
+def head_shift(machine: Machine) -> FloatArray | None:
+    """(3,) — the direction the head moves by s along when every joint grows by s (the kinematics'
+    ``shift_direction``), or None when a common shift does more than move it."""
+    direction = kinematics_of(machine).shift_direction
+    return None if direction is None else np.asarray(direction, dtype=np.float64)
+
+
+def shift_keys(strokes: FloatArray, *, shift: bool = True) -> tuple[FloatArray, IntArray]:
     """The distinct head poses of ``strokes`` up to a common shift: (U, 3) strokes with T1 = 0 and,
-    for each of the N rows, its index in them.
+    for each of the N rows, its index in them. ``shift`` False (a head without a
+    :func:`head_shift`): the distinct rows themselves.
 
     The guides are parallel (z_i = −T_i − U sin θ_i, DESIGN.md): adding s to every stroke moves the
     whole head by −s along z and changes nothing else (link angles, axis, condition number, the FK
@@ -136,6 +146,8 @@ def shift_keys(strokes: FloatArray) -> tuple[FloatArray, IntArray]:
     """
     strokes = np.asarray(strokes, dtype=np.float64)
     strokes = strokes.reshape(-1, strokes.shape[-1])
+    if not shift:
+        return _distinct_rows(strokes)
     if strokes.shape[1] != 3:
         return _shift_keys_of_rows(strokes)
     key = (strokes[:, 1] - strokes[:, 0]) + 1j * (strokes[:, 2] - strokes[:, 0])   # two differences: one number
@@ -158,6 +170,14 @@ def _shift_keys_of_rows(strokes: FloatArray) -> tuple[FloatArray, IntArray]:
     return np.column_stack([np.zeros(len(distinct)), distinct]), inverse_index.reshape(-1)
 
 
+def _distinct_rows(strokes: FloatArray) -> tuple[FloatArray, IntArray]:
+    """:func:`shift_keys` without the shift: the distinct rows of (N, J) joints and each row's index."""
+    head = np.ones(len(strokes), dtype=bool)
+    head[1:] = (strokes[1:] != strokes[:-1]).any(axis=1)
+    distinct, head_index = np.unique(strokes[head], axis=0, return_inverse=True)
+    return distinct.reshape(-1, strokes.shape[1]), head_index.reshape(-1)[np.cumsum(head) - 1]
+
+
 def _poses(machine: Machine, joints: FloatArray, *, keys: tuple[FloatArray, IntArray] | None = None,
            condition: bool = True) -> _Poses:
     """FK and condition number of (N, 2 + J) joints (X, Y, the joints), once per distinct head pose.
@@ -165,9 +185,10 @@ def _poses(machine: Machine, joints: FloatArray, *, keys: tuple[FloatArray, IntA
     ``keys``: :func:`shift_keys` of the strokes, if at hand; ``condition``: False skips the exact IK
     (the condition numbers are NaN).
     """
-    canonical, index = shift_keys(joints[:, 2:]) if keys is None else keys
+    direction = head_shift(machine)
+    canonical, index = shift_keys(joints[:, 2:], shift=direction is not None) if keys is None else keys
     (fk,) = forward_parts(machine, [canonical])
-    return expand(fk, condition_numbers(machine, fk) if condition else None, index, joints)
+    return expand(fk, condition_numbers(machine, fk) if condition else None, index, joints, direction)
 
 
 #: FK of distinct head poses: tip, axis, link angle (each (K, 3)) and converged (K,).
@@ -192,12 +213,19 @@ def condition_numbers(machine: Machine, fk: _KeyFK) -> FloatArray:
     return kinematics_of(machine).condition(fk[0], fk[1])
 
 
-def expand(fk: _KeyFK, condition: FloatArray | None, index: IntArray, joints: FloatArray) -> _Poses:
-    """The poses of (N, 2 + J) joints from the FK of their distinct head poses (``index``: each row's)."""
+def expand(fk: _KeyFK, condition: FloatArray | None, index: IntArray, joints: FloatArray,
+           direction: FloatArray | None) -> _Poses:
+    """The poses of (N, 2 + J) joints from the FK of their distinct head poses (``index``: each row's):
+    :func:`shift_keys` of the joints with ``direction`` (:func:`head_shift`), or without a shift (None)."""
     key_tip, key_axis, key_angle, key_converged = fk
     tip = np.take(key_tip, index, axis=0)
     tip[:, :2] += joints[:, :2]
-    tip[:, 2] -= joints[:, 2]                            # the common shift T1: the head moves by −T1 along z
+    if direction is not None:                            # the common shift T1: the head moves by T1 along it
+        for j in range(3):
+            if direction[j] == -1.0:
+                tip[:, j] -= joints[:, 2]                # (on parallel vertical guides: −T1 along z, exactly)
+            elif direction[j] != 0.0:
+                tip[:, j] += joints[:, 2] * direction[j]
     converged = np.take(key_converged, index)
     converged &= np.isfinite(tip[:, 0])
     converged &= np.isfinite(tip[:, 1])
@@ -294,6 +322,9 @@ def translation_bound(machine: Machine, joints: FloatArray, ends: _Poses, moves:
     """
     n = len(joints)
     bound = np.full(n, np.nan)
+    direction = head_shift(machine)
+    if direction is None:                                # a common shift is no translation: sample every move
+        return bound
     moves = translation_candidates(joints) if moves is None else moves
     rows = moves.rows
     if not len(rows):
@@ -303,7 +334,8 @@ def translation_bound(machine: Machine, joints: FloatArray, ends: _Poses, moves:
         mirror = _poses(machine, back, condition=False)      # the shape of the move only: no limits here
     before = rows - 1
     tip, angle = ends.tip, ends.link_angle
-    # g(1) = FK(q_{k-1} + d) = FK(q_k) + c e_z, g(0), g(−1): the head's tip without the stage, column by column
+    # g(1) = FK(q_{k-1} + d) = FK(q_k) − c·direction (+ c e_z on vertical guides), g(0), g(−1): the head's
+    # tip without the stage, column by column
     second_sq = np.zeros(len(rows))
     for j in range(3):
         head_end = np.take(tip[:, j], rows)
@@ -313,8 +345,10 @@ def translation_bound(machine: Machine, joints: FloatArray, ends: _Poses, moves:
             head_end -= np.take(joints[:, j], rows)
             head_start -= np.take(joints[:, j], before)
             head_back = head_back - back[:, j]
-        else:
+        if direction[j] == -1.0:
             head_end += moves.common
+        elif direction[j] != 0.0:
+            head_end -= moves.common * direction[j]
         second = head_end - 2.0 * head_start + head_back
         second_sq = second * second if j == 0 else second_sq + second * second
     tip2 = np.sqrt(second_sq)
@@ -398,13 +432,13 @@ def rounding_allowance(machine: Machine, program: JointProgram, decimals: int, *
     """(N,) float — mm, the most the tip of each row can move when every axis word is off by half a
     unit of its last decimal: ½·10^-decimals · Σ_j |∂tip/∂q_j| (FK Jacobian by central differences,
     once per distinct head pose: it does not change with a common stroke shift)."""
-    canonical, index = shift_keys(np.asarray(program.strokes))
+    canonical, index = shift_keys(np.asarray(program.strokes), shift=head_shift(machine) is not None)
     return _rounding_of_keys(machine, canonical, decimals, step=step)[index]
 
 
 def _rounding_of_keys(machine: Machine, canonical: FloatArray, decimals: int, *,
                       step: float = ROUNDING_STEP) -> FloatArray:
-    """:func:`rounding_allowance` of the distinct head poses of :func:`shift_keys`."""
+    """:func:`rounding_allowance` of the distinct head poses of :func:`shift_keys` (or distinct rows)."""
     return rounding_from(machine, forward_parts(machine, rounding_strokes(canonical, step)), decimals, step=step)
 
 

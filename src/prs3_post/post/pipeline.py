@@ -30,7 +30,7 @@ from prs3_post.core.types import FloatArray
 from prs3_post.kinematics import AxisMemo, IKModel, IKResult, unit_axes
 from prs3_post.kinematics.protocol import tilt_of
 from prs3_post.kinematics.registry import kinematics_of
-from prs3_post.machine.model import Machine
+from prs3_post.machine.model import GENERAL_KINEMATICS, Machine
 from prs3_post.part.setup_transform import Setup
 from prs3_post.post.dynamics import DynamicsTally, joint_columns
 from prs3_post.post.limits import LimitReport, check_limits, raise_first_violation, within_limits
@@ -348,8 +348,10 @@ def _raise_unreachable(machine: Machine, path: Toolpath, ik: IKResult, model: IK
             f"{where}: machine {machine.name} has no stage and its head alone misses the tip ({tip}) by "
             f"{np.hypot(dx, dy):.4f} mm (x {dx:.4f}, y {dy:.4f}){count}"
         )
+    newton = (", or the Newton iterations of its kinematics from the ideal head's pose did not converge"
+              if machine.kinematics == GENERAL_KINEMATICS else "")
     raise ReachError(f"{where}: the head cannot reach the tip ({tip}) mm with this axis: a link cannot reach "
-                     f"its joint (check {{setup.part_origin}}){count}", names_keys=("setup.part_origin",))
+                     f"its joint{newton} (check {{setup.part_origin}}){count}", names_keys=("setup.part_origin",))
 
 
 def inverse_time(path: Toolpath, *, start: FloatArray | None = None, steps: FloatArray | None = None) -> FloatArray:

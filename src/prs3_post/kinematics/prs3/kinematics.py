@@ -22,6 +22,8 @@ class Prs3Kinematics:
     name: ClassVar[str] = "3-prs"
     joint_names: ClassVar[tuple[str, ...]] = ("T1", "T2", "T3")
     default_letters: ClassVar[tuple[str, ...]] = ("U", "V", "W")
+    #: The guides are parallel and vertical: adding s to every stroke moves the head by −s along z.
+    shift_direction: ClassVar[tuple[float, float, float] | None] = (0.0, 0.0, -1.0)
 
     @property
     def link_length(self) -> float:
