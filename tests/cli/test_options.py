@@ -8,6 +8,7 @@ spellings kept as hidden aliases that say so on standard error.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import click
@@ -160,3 +161,116 @@ def test_verify_help_names_part_and_against_apart():
     assert "--part PART.stl The part the program was made from:" in text
     assert "--against POSES.csv|INPUT The intended path: POSES.csv" in text
     assert "PART.stl|POSES.csv" not in text
+
+
+# ----------------------------------------------------------------------------- -q / -v
+
+QUIET_HELP = ("Errors only on standard error: no summaries (wrote ...), notes or warnings. What the command prints "
+              "on standard output is unchanged.")
+VERBOSE_HELP = "Say more on standard error: the setup, face, files and settings used, and the time of each stage."
+#: The time line -v ends every command with: each stage's, then the whole command's.
+TIME_LINE = r"prs3-post: time: (?:[a-z ,]+ [0-9]+\.[0-9]{3} s, )*total [0-9]+\.[0-9]{3} s"
+
+
+@pytest.mark.parametrize("command", sorted(main.commands))
+def test_every_command_takes_quiet_and_verbose(command):
+    ctx = click.Context(main.commands[command], info_name=command)
+    options = {param.name: param for param in main.commands[command].get_params(ctx) if isinstance(param, click.Option)}
+    assert (options["quiet"].opts, options["quiet"].help) == (["-q", "--quiet"], QUIET_HELP)
+    assert (options["verbose"].opts, options["verbose"].help) == (["-v", "--verbose"], VERBOSE_HELP)
+
+
+@pytest.mark.parametrize("flags", [["-q", "-v"], ["-qv"], ["--verbose", "--quiet"]])
+def test_quiet_and_verbose_together_are_refused(flags):
+    result = invoke("machines", *flags)
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr.splitlines()[-1] == "Error: -q/--quiet and -v/--verbose: give one of them"
+
+
+def test_quiet_says_nothing_but_errors_and_leaves_standard_output_alone(tmp_path):
+    out = tmp_path / "sq.ngc"
+    loud = invoke("demo", "--profile", "square", "-o", out)
+    assert loud.stderr.startswith(f"prs3-post: wrote {out}: 49 lines, 20 moves; ")
+    quiet = invoke("demo", "--profile", "square", "-o", out, "-q")
+    assert (quiet.exit_code, quiet.stdout, quiet.stderr) == (0, "", "")
+    to_stdout = invoke("demo", "--profile", "square", "--quiet")
+    assert (to_stdout.exit_code, to_stdout.stdout, to_stdout.stderr) == (0, out.read_text(), "")
+    warned = invoke("faces", WEDGE, "--part-units", "inch", "-q")                  # a warning: not said
+    assert (warned.exit_code, warned.stderr) == (0, "")
+    assert warned.stdout == invoke("faces", WEDGE, "--part-units", "inch").stdout
+    noted = invoke("faces", WEDGE, "--units", "mm", "-q")                          # an old spelling's note: not said
+    assert (noted.exit_code, noted.stderr) == (0, "")
+    failed = invoke("run", TINY, "--profile", "hole", "-q")                        # an error: said
+    assert (failed.exit_code, failed.stderr) == (2, f"prs3-post: error: {TINY}: {TINY_ERROR}\n")
+
+
+def test_verbose_says_what_the_main_job_was_made_with_and_the_time_of_each_stage(tmp_path):
+    out = tmp_path / "sq.ngc"
+    result = invoke("demo", "--profile", "square", "-o", out, "-v")
+    assert result.exit_code == 0
+    lines = result.stderr.splitlines()
+    assert lines[:-3] == [
+        "prs3-post: machine: patel2020 [Patel 2020 3-PRS head over an XY stage (the paper's numbers, assumed limits)]",
+        "prs3-post: part: patel2020-wedge.stl, units mm, up z, sha256 "
+        "2e6933ec5ebd47f6b894d89f5b6cd77bf2854fed2465f0679a3f148e80163537",
+        "prs3-post: face: 4, chosen automatically: inclination 26.5651 deg, normal [0.447214, 0.000000, 0.894427], "
+        "origin [0.0000, 200.0000, 300.0000] mm",
+        "prs3-post: setup: part origin at machine [-100.0000, -200.0000, -970.0000] mm, rotation 0.0000 deg about z",
+        "prs3-post: tool: T1 diameter 6.000 mm, feed 300.0 mm/min, plunge 100.0 mm/min, spindle 3000 rpm, "
+        "coolant flood",
+        "prs3-post: tolerance: 0.002 mm",
+        "prs3-post: collision: clear of the part by at least 1.000 mm: tool over 11.000 mm, holder over 11.000 mm, "
+        "spindle nose over 11.000 mm",
+        "prs3-post: tool length (platform centre to tip, for the IK): T1 175.000 mm"]
+    assert lines[-3].startswith(f"prs3-post: wrote {out}: 49 lines, 20 moves; ")
+    assert re.fullmatch(r"prs3-post: time: options, machine and dialect [0-9.]+ s, post and check [0-9.]+ s, "
+                        r"write [0-9.]+ s, total [0-9.]+ s", lines[-1])
+    assert re.fullmatch(TIME_LINE, lines[-1])
+
+
+def test_verbose_verify_says_what_the_program_was_read_with(tmp_path):
+    program = tmp_path / "sq.ngc"
+    assert invoke("demo", "--profile", "square", "-o", program).exit_code == 0
+    result = invoke("verify", program, "-v")
+    assert result.exit_code == 0
+    assert result.stdout == invoke("verify", program).stdout
+    lines = result.stderr.splitlines()
+    assert lines[0] == ("prs3-post: read with machine patel2020, dialect linuxcnc (as the program's header states "
+                        "them); setup: part origin at machine [-100.0000, -200.0000, -970.0000] mm, rotation 0.0000 "
+                        "deg about z")
+    assert re.fullmatch(r"prs3-post: time: read and replay [0-9.]+ s, total [0-9.]+ s", lines[1]) and len(lines) == 2
+
+
+@pytest.mark.parametrize(("args", "first"), [
+    (["fk", "--strokes", "36.2244,170.3886,88.9519"], "prs3-post: machine patel2020: machines/patel2020.toml"),
+    (["machines"], "prs3-post: patel2020: machines/patel2020.toml"),
+    (["faces", WEDGE], None),
+], ids=["fk", "machines", "faces"])
+def test_verbose_ends_every_command_with_its_time(args, first):
+    result = invoke(*args, "-v")
+    assert result.exit_code == 0
+    assert result.stdout == invoke(*args).stdout
+    lines = result.stderr.splitlines()
+    assert re.fullmatch(TIME_LINE, lines[-1])
+    assert first is None or lines[0] == first
+
+
+def test_convert_quiet_keeps_the_failures_and_verbose_lists_every_file(tmp_path):
+    source = tmp_path / "tiny.cls"
+    source.write_text(CL_TEXT)
+    out = tmp_path / "out"
+    loud = invoke("convert", source, "-o", out, "--part-origin", "auto", "-v")
+    assert loud.exit_code == 0, loud.stderr
+    lines = loud.stderr.splitlines()
+    assert lines[0] == ("prs3-post: 1 file, 1 at a time; machine patel2020, dialect linuxcnc, setup chosen for each "
+                        "file (auto), tolerance 0.002 mm, axis tolerance 0.01 deg")
+    assert re.fullmatch(rf"prs3-post: ok  {re.escape(str(source))}  {re.escape(str(out / 'tiny.ngc'))}  4 moves, "
+                        r"0 arcs, 0 holes in; 4 program moves, 0 subdivisions; [0-9.]+ s", lines[1])
+    assert lines[2].startswith("prs3-post: converted 1 of 1 files, 4 input moves, arcs and holes in ")
+    assert re.fullmatch(TIME_LINE, lines[3]) and len(lines) == 4
+    kept = invoke("convert", source, "-o", out, "--part-origin", "auto", "-q")   # the program exists: kept
+    assert kept.exit_code == 2
+    assert kept.stderr == f"prs3-post: 1 failed:\n  {out / 'tiny.ngc'}: exists already: kept (convert with --force " \
+                          "to replace it)\n"
+    assert kept.stdout == f"failed\t{source}\t-\t{out / 'tiny.ngc'}: exists already: kept (convert with --force to " \
+                          "replace it)\n"

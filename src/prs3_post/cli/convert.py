@@ -12,15 +12,18 @@ from typing import TYPE_CHECKING
 
 import click
 
+from prs3_post.app.requests import AUTO
 from prs3_post.app.values import ANGLE, LENGTH
 from prs3_post.cli.options import (
     CLEARANCE_MIN,
+    VERBOSE,
     Command,
     Decimal,
     Integer,
     LazyChoice,
     OutputPath,
     clamp_option,
+    detail,
     dialect_option,
     flag_of,
     job_part_origin_option,
@@ -29,8 +32,11 @@ from prs3_post.cli.options import (
     machine_option,
     option_error,
     run_reported,
+    say,
     tolerance_option,
     up_option,
+    verbosity,
+    verbosity_options,
     was_given,
 )
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARANCE_MIN
@@ -124,6 +130,7 @@ def _codes_option(text: str | None, flag: str) -> tuple[str, ...] | None:
 @line_number_options[2]
 @tolerance_option
 @clamp_option
+@verbosity_options
 def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: bool, force: bool, input_format: str,
             report_path: str | None, tool_length: float | None, angle_tolerance_deg: float, units: str | None,
             work_plane_text: str | None, ignore_words: tuple[str, ...], source_name: str | None,
@@ -208,27 +215,46 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
                 prepare_outdir(outdir)
             check_writable(report_path)
         count = jobs or default_jobs()
-        terminal = sys.stderr.isatty()
+        detail(f"{len(files)} file{'s' if len(files) != 1 else ''}, {min(count, len(files))} at a time; machine "
+               f"{settings.machine.name}, dialect {dialect.name}, setup "
+               f"{_setup_words(settings.setup.describe(), part_origin, part_rotation)}, tolerance "
+               f"{settings.tolerance:g} mm, axis tolerance {settings.angle_tolerance_deg:g} deg")
+        terminal = sys.stderr.isatty() and verbosity() < VERBOSE     # -v: a line per file instead of the bar
         if terminal:
             with click.progressbar(length=len(files), label="converting", file=sys.stderr) as bar:
                 result = convert_batch(files, outdir, settings, jobs=count, fail_fast=fail_fast, force=force,
                                        on_done=lambda outcome: bar.update(1))
         else:
             result = convert_batch(files, outdir, settings, jobs=count, fail_fast=fail_fast, force=force,
-                                   on_done=lambda outcome: click.echo(outcome_line(_flag_named(outcome))))
+                                   on_done=lambda outcome: _file_done(outcome_line(_flag_named(outcome))))
         result = dataclasses.replace(result, outcomes=tuple(_flag_named(o) for o in result.outcomes))
         if report_path is not None:
             write_atomic(report_path, json.dumps(result.record(), indent=1, allow_nan=False) + "\n")
-        click.echo(batch_summary(result), err=True, nl=False)
+        counts, _, failures = batch_summary(result).partition("\n")   # the failures are errors: said with -q too
+        say(counts.removeprefix("prs3-post: "))
+        click.echo(failures, err=True, nl=False)
         if repeats:                                  # nothing named is left unsaid
-            click.echo(f"prs3-post: {len(repeats)} more name{'s' if len(repeats) > 1 else ''} of files above, "
-                       "each converted once: " + ", ".join(f"{name} (= {same})" for name, same in repeats), err=True)
+            say(f"{len(repeats)} more name{'s' if len(repeats) > 1 else ''} of files above, each converted once: "
+                 + ", ".join(f"{name} (= {same})" for name, same in repeats))
         # the project's exit codes hold for a batch too: 2 when any file was bad input (unreadable, not
         # understood), else 1 when any failed a limit or reach or was not started, else 0
         codes = [outcome.exit_code for outcome in result.failures] + [1] * bool(result.not_started)
         return max(codes, default=0)
 
     run_reported(body)
+
+
+def _file_done(line: str) -> None:
+    """A file's line (``ok``/``failed``, tab-separated) on standard output, and with ``-v`` on standard error."""
+    click.echo(line)
+    detail(line.replace("\t", "  "))
+
+
+def _setup_words(described: str, part_origin: object, part_rotation: object) -> str:
+    """The setup a batch uses, in words: chosen for each file (``auto``), else the one given or the machine's."""
+    if AUTO in (part_origin, part_rotation):
+        return "chosen for each file (auto)"
+    return described + ("" if part_origin is not None or part_rotation is not None else " (the machine file's)")
 
 
 def _flag_named(outcome: FileOutcome) -> FileOutcome:

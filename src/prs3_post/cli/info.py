@@ -4,10 +4,20 @@ from __future__ import annotations
 
 import click
 
-from prs3_post.cli.options import PART_UNITS_ALIAS, Command, part_units_option, run_reported, up_option
+from prs3_post.cli.options import (
+    PART_UNITS_ALIAS,
+    Command,
+    detail,
+    part_units_option,
+    run_reported,
+    timed,
+    up_option,
+    verbosity_options,
+)
 
 
 @click.command(cls=Command)
+@verbosity_options
 def machines() -> None:
     """List the shipped machines (use a name or a TOML path with --machine).
 
@@ -26,12 +36,14 @@ def machines() -> None:
         for name, machine in shipped_machines():
             stage = "XY stage" if machine.stage.present else "no stage"
             click.echo(f"{name:<18} {stage:<9} {machine.description}")
+            detail(f"{name}: {machine.source}")
         return 0
 
     run_reported(body)
 
 
 @click.command(cls=Command)
+@verbosity_options
 def sources() -> None:
     """List the shipped 5-axis source conventions (how a program for another machine gives its tool axis).
 
@@ -61,6 +73,7 @@ def sources() -> None:
 @part_units_option()
 @up_option
 @click.option("--json", "as_json", is_flag=True, help="Print the table as JSON.")
+@verbosity_options
 def faces(part: str, units: str, up: str, as_json: bool) -> None:
     """List a part's faces: index, area, width, inclination, normal, origin, kind; and the automatic choice.
 
@@ -77,8 +90,9 @@ def faces(part: str, units: str, up: str, as_json: bool) -> None:
     def body() -> int:
         from prs3_post.app.listings import faces_json, faces_text
 
-        click.echo(faces_json(part, units=units, up=up) if as_json else faces_text(part, units=units, up=up),
-                   nl=as_json)
+        with timed("load and find the faces"):
+            table = faces_json(part, units=units, up=up) if as_json else faces_text(part, units=units, up=up)
+        click.echo(table, nl=as_json)
         return 0
 
     run_reported(body)

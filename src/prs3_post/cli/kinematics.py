@@ -12,8 +12,11 @@ from prs3_post.cli.options import (
     Command,
     Numbers,
     OutputPath,
+    detail,
     machine_option,
     run_reported,
+    timed,
+    verbosity_options,
     was_given,
 )
 from prs3_post.core.output_files import (
@@ -36,6 +39,7 @@ from prs3_post.core.output_files import (
 )
 @machine_option
 @click.option("--json", "as_json", is_flag=True, help="Print the single-pose result as JSON (keys = CSV columns).")
+@verbosity_options
 def ik(tip: tuple[float, ...] | None, axis: tuple[float, ...] | None, batch_path: str | None, out_path: str | None,
        model: str, machine_name: str, as_json: bool) -> None:
     """Inverse kinematics: tool pose(s) → stage X, Y, strokes T1..T3, link angles, condition number.
@@ -53,13 +57,15 @@ def ik(tip: tuple[float, ...] | None, axis: tuple[float, ...] | None, batch_path
 
     def body() -> int:
         machine = machine_of(machine_name)
+        detail(f"machine {machine.name}: {machine.source}")
         if batch_path is not None:
             if tip is not None or axis is not None:
                 raise click.UsageError("--batch cannot be combined with --tip/--axis")
             from prs3_post.app.ik_batch import IKBatch
 
             batch = IKBatch(machine, batch_path, model=IKModel(model))
-            write_outputs([(out_path, batch.chunks())])
+            with timed("read, solve and write"):
+                write_outputs([(out_path, batch.chunks())])
             if batch.summary():
                 click.echo(f"prs3-post: {batch.summary()}", err=True)
                 return 1
@@ -79,6 +85,7 @@ def ik(tip: tuple[float, ...] | None, axis: tuple[float, ...] | None, batch_path
 @click.option("--xy", type=Numbers("X,Y"), default="0,0", show_default=True, help="Stage position X, Y, mm.")
 @machine_option
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
+@verbosity_options
 def fk(strokes: tuple[float, ...], xy: tuple[float, ...], machine_name: str, as_json: bool) -> None:
     """Forward kinematics: strokes T1..T3 (and stage X, Y) → tool tip, tool axis and link angles.
 
@@ -94,6 +101,7 @@ def fk(strokes: tuple[float, ...], xy: tuple[float, ...], machine_name: str, as_
 
     def body() -> int:
         machine = machine_of(machine_name)
+        detail(f"machine {machine.name}: {machine.source}")
         if not machine.stage.present and was_given(click.get_current_context(), "xy"):
             raise click.BadParameter(f"machine {machine.name} has no stage (stage.present = false): the tip is "
                                      "where the head puts it; leave --xy out", param_hint="'--xy'")

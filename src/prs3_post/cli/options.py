@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import re
 import sys
+import time
 import warnings
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -141,7 +142,7 @@ def warnings_to_stderr() -> Iterator[None]:
 
         def show(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:
             if issubclass(category, Prs3Warning):
-                click.echo(f"prs3-post: warning: {_worded(message)}", err=True)
+                say(f"warning: {_worded(message)}")
             else:
                 shown(message, category, *args, **kwargs)
 
@@ -153,7 +154,9 @@ def run_reported(action: Callable[[], int | None]) -> None:
     """Run a command body; report :class:`Prs3Error` as one line and exit with its code.
 
     Before anything, outputs that name an input are refused; a standard output that cannot be
-    written (full, closed pipe) is reported like any other error."""
+    written (full, closed pipe) is reported like any other error. With ``-v``, the time of each
+    stage (:func:`timed`) ends it."""
+    started = time.perf_counter()
     try:
         ctx = click.get_current_context(silent=True)
         if ctx is not None:
@@ -173,6 +176,7 @@ def run_reported(action: Callable[[], int | None]) -> None:
     except MemoryError:                              # no traceback: it would say nothing more (and need memory)
         click.echo(f"prs3-post: error: {OUT_OF_MEMORY}", err=True)
         sys.exit(1)
+    detail(_times_line(time.perf_counter() - started))
     sys.exit(code or 0)
 
 
@@ -362,8 +366,72 @@ def add_note(ctx: click.Context, text: str) -> None:
 
 
 def note(text: str) -> None:
-    """``prs3-post: note: TEXT`` on standard error."""
-    click.echo(f"prs3-post: note: {text}", err=True)
+    """``prs3-post: note: TEXT`` on standard error (not with ``-q``)."""
+    say(f"note: {text}")
+
+
+# ----------------------------------------------------------------------------- -q / -v
+
+#: How much a command says on standard error: ``-q`` errors only, ``-v`` also the details.
+QUIET, NORMAL, VERBOSE = -1, 0, 1
+_VERBOSITY = "prs3_post.verbosity"
+_TIMES = "prs3_post.times"
+
+
+def verbosity() -> int:
+    """:data:`QUIET`, :data:`NORMAL` or :data:`VERBOSE`: as the running command was asked (-q, -v)."""
+    ctx = click.get_current_context(silent=True)
+    return NORMAL if ctx is None else int(ctx.meta.get(_VERBOSITY, NORMAL))
+
+
+def say(text: str) -> None:
+    """``prs3-post: TEXT`` on standard error: what was written, a note, a warning (not with ``-q``)."""
+    if verbosity() > QUIET:
+        click.echo(f"prs3-post: {text}", err=True)
+
+
+def detail(text: str) -> None:
+    """``prs3-post: TEXT`` on standard error, with ``-v`` only."""
+    if verbosity() >= VERBOSE:
+        click.echo(f"prs3-post: {text}", err=True)
+
+
+@contextlib.contextmanager
+def timed(stage: str) -> Iterator[None]:
+    """Time a stage of the command; ``-v`` prints every stage's time when the command ends."""
+    started = time.perf_counter()
+    try:
+        yield
+    finally:
+        ctx = click.get_current_context(silent=True)
+        if ctx is not None:
+            ctx.meta.setdefault(_TIMES, []).append((stage, time.perf_counter() - started))
+
+
+def _times_line(total: float) -> str:
+    ctx = click.get_current_context(silent=True)
+    stages = [] if ctx is None else ctx.meta.get(_TIMES, [])
+    return "time: " + ", ".join([*(f"{stage} {seconds:.3f} s" for stage, seconds in stages), f"total {total:.3f} s"])
+
+
+def _set_verbosity(level: int) -> Callable[[click.Context, click.Parameter, bool], None]:
+    def callback(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+        if not value:
+            return
+        if ctx.meta.get(_VERBOSITY, level) != level:
+            raise click.UsageError("-q/--quiet and -v/--verbose: give one of them", ctx)
+        ctx.meta[_VERBOSITY] = level
+    return callback
+
+
+def verbosity_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """``-q/--quiet`` and ``-v/--verbose``, which every command takes (:func:`say`, :func:`detail`)."""
+    func = click.option("-v", "--verbose", is_flag=True, expose_value=False, callback=_set_verbosity(VERBOSE),
+                        help="Say more on standard error: the setup, face, files and settings used, and the time of "
+                             "each stage.")(func)
+    return click.option("-q", "--quiet", is_flag=True, expose_value=False, callback=_set_verbosity(QUIET),
+                        help="Errors only on standard error: no summaries (wrote ...), notes or warnings. What the "
+                             "command prints on standard output is unchanged.")(func)
 
 
 def image_format(path: str, flag: str) -> str:

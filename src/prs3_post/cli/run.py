@@ -30,6 +30,7 @@ from prs3_post.cli.options import (
     OutputPath,
     clamp_option,
     demo_part,
+    detail,
     dialect_option,
     image_format,
     job_part_origin_option,
@@ -39,8 +40,11 @@ from prs3_post.cli.options import (
     option_error,
     part_units_option,
     run_reported,
+    say,
+    timed,
     tolerance_option,
     up_option,
+    verbosity_options,
     was_given,
 )
 from prs3_post.core.defaults import (
@@ -219,9 +223,11 @@ def _run_job(part: str, **opts: Any) -> int:
     """Build the request from the options, check the job, write the program (and its preview)."""
     from prs3_post.app.run import check_specs  # the job's modules: only the commands that run one
 
-    specs = job_specs_of(part, opts, given=given_options())
+    with timed("options, machine and dialect"):
+        specs = job_specs_of(part, opts, given=given_options())
     fmt = image_format(opts["preview_path"], "'--preview'") if opts["preview_path"] else None
-    job = check_specs(specs, placement_hint=_placement_hint)
+    with timed("post and check"):
+        job = check_specs(specs, placement_hint=_placement_hint)
     out_path = opts["out_path"]
     _write_job(job, specs, out_path, opts["preview_path"], fmt, title=Path(part).name, what=f"; {job.face_note}")
     return 0
@@ -236,15 +242,18 @@ def _write_job(job: JobProgram, specs: tuple[JobSpec, ...], out_path: str | None
     text = _ProgramText(job, whole=fmt is not None or not _streamable(out_path))
     image = None
     if fmt is not None:
-        image = job_preview(job, specs, fmt, text=text.whole, path=out_path or "<program>", title=title)
-    write_outputs([(out_path, text.data())] + ([] if image is None else [(preview_path, image)]))
+        with timed("preview"):
+            image = job_preview(job, specs, fmt, text=text.whole, path=out_path or "<program>", title=title)
+    with timed("write"):
+        write_outputs([(out_path, text.data())] + ([] if image is None else [(preview_path, image)]))
     _report_placement(job)
+    _report_details(job, specs)
     if not is_stdout(out_path):
-        click.echo(f"prs3-post: wrote {out_path}: {text.lines} lines, {len(job.program)} moves{what}", err=True)
+        say(f"wrote {out_path}: {text.lines} lines, {len(job.program)} moves{what}")
         if specs[0].machine.dynamics is not None:
-            click.echo(f"prs3-post: {job.dynamics}", err=True)
+            say(job.dynamics)
     if image is not None:
-        click.echo(f"prs3-post: wrote {preview_path}", err=True)
+        say(f"wrote {preview_path}")
 
 
 def _streamable(path: str | None) -> bool:
@@ -282,12 +291,28 @@ class _ProgramText:
 def _report_placement(job: JobProgram) -> None:
     """The setup automatic placement chose, and every limit's margin there, on standard error."""
     if job.placement is not None:
-        click.echo(f"prs3-post: setup: {job.setup.describe()}; {job.placement.describe()}", err=True)
+        say(f"setup: {job.setup.describe()}; {job.placement.describe()}")
+
+
+#: The header's entries that ``-v`` repeats on standard error (the setup: when it was not chosen automatically).
+_DETAILED = ("machine", "part", "face", "faces", "setup", "tool", "tools", "tolerance", "collision")
+
+
+def _report_details(job: JobProgram, specs: tuple[JobSpec, ...]) -> None:
+    """With ``-v``: what the program was made with, as its header states it (machine, part, face, setup, tools,
+    tolerance, the clearance from the part), and the tool lengths the IK used."""
+    for key, value in job.header:
+        if key in _DETAILED and not (key == "setup" and job.placement is not None):
+            detail(f"{key}: {value}")
+    lengths = ", ".join(f"T{spec.cutting.tool_number} {length:.3f} mm" for spec, length in
+                        zip(specs, job.tool_lengths, strict=True))
+    detail(f"tool length{'s' if len(specs) > 1 else ''} (platform centre to tip, for the IK): {lengths}")
 
 
 @click.command(cls=Command, aliases=PART_UNITS_ALIAS)
 @click.argument("part", type=click.Path(dir_okay=False), metavar="PART.stl")
 @job_options
+@verbosity_options
 def run(part: str, **opts: Any) -> None:
     """The main job: cut a hole, square or round profile on a part's inclined face.
 
@@ -307,6 +332,7 @@ def run(part: str, **opts: Any) -> None:
 
 @click.command(cls=Command, aliases=PART_UNITS_ALIAS)
 @job_options
+@verbosity_options
 def demo(**opts: Any) -> None:
     """The main job on the bundled demo part: the paper's wedge (26.57° face, Patel 2020).
 
@@ -365,6 +391,7 @@ _JOB_OVERRIDES = {"machine_name": "machine", "dialect_name": "dialect", "part_or
                    default=None)
 @collision_check_option
 @preview_option
+@verbosity_options
 def job(job_path: str, out_path: str | None, machine_name: str, part_origin: tuple[float, ...] | str | None,
         part_rotation: float | str | None, dialect_name: str, units: str, collision_check: bool,
         preview_path: str | None) -> None:
@@ -395,10 +422,12 @@ def job(job_path: str, out_path: str | None, machine_name: str, part_origin: tup
         refuse_overwriting({"--output": out_path}, {f"{key} of {job_path}": path for key, path in named.items()
                                                     if isinstance(path, str)})
         overrides = {key: ctx.params[name] for name, key in _JOB_OVERRIDES.items() if was_given(ctx, name)}
-        specs = _job_specs(job_file, overrides)
+        with timed("options, machine and dialect"):
+            specs = _job_specs(job_file, overrides)
         fmt = image_format(preview_path, "'--preview'") if preview_path else None
         try:
-            job = check_specs(specs)
+            with timed("post and check"):
+                job = check_specs(specs)
         except FeatureError as error:                  # the job file, the operation and its key
             where = "" if error.operation is None else f"operation[{error.operation}]"
             where += f".{error.key}" if where and error.key else ""

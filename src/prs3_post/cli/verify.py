@@ -18,6 +18,7 @@ from prs3_post.cli.options import (
     Command,
     Decimal,
     OutputPath,
+    detail,
     face_index,
     flag_of,
     image_format,
@@ -28,7 +29,10 @@ from prs3_post.cli.options import (
     part_rotation_option,
     part_units_option,
     run_reported,
+    say,
+    timed,
     up_option,
+    verbosity_options,
     was_given,
 )
 from prs3_post.cli.run import given_options, job_options, job_specs_of
@@ -222,6 +226,7 @@ def _intended(ctx: click.Context, against: str | None, part: str | None, context
               help="Print the complete report as JSON: every move, the FK tool-tip path in part coordinates, "
                    "every limit's closest approach, feeds, deviations, problems.")
 @_against_options
+@verbosity_options
 def verify(program_path: str, part_path: str | None, against_path: str | None, axis_tolerance_deg: float,
            as_json: bool, **opts: Any) -> None:
     """Replay a program through forward kinematics and check it: limits, straightness, feeds, deviation.
@@ -277,22 +282,25 @@ def verify(program_path: str, part_path: str | None, against_path: str | None, a
                                        "used with --part PART.stl")
         _refuse_auto(opts["part_origin"], opts["part_rotation"])
         try:
-            verified = verify_steps(
-                program_path, machine=opts["machine_name"] if was_given(ctx, "machine_name") else None,
-                dialect=opts["dialect_name"] if was_given(ctx, "dialect_name") else None,
-                origin=opts["part_origin"], rotation_deg=opts["part_rotation"],
-                tolerance=opts["tolerance"] if was_given(ctx, "tolerance") else None,
-                axis_tolerance_deg=axis_tolerance_deg, whole=as_json,
-                intended_of=((lambda context: _intended(ctx, against, part, context, opts))
-                             if against or part else None),
-                collision_check=opts["collision_check"],
-                clearance_min=opts["clearance_min"] if was_given(ctx, "clearance_min") else None)
+            with timed("read and replay" + (" and the clearance" if part is not None else "")):
+                verified = verify_steps(
+                    program_path, machine=opts["machine_name"] if was_given(ctx, "machine_name") else None,
+                    dialect=opts["dialect_name"] if was_given(ctx, "dialect_name") else None,
+                    origin=opts["part_origin"], rotation_deg=opts["part_rotation"],
+                    tolerance=opts["tolerance"] if was_given(ctx, "tolerance") else None,
+                    axis_tolerance_deg=axis_tolerance_deg, whole=as_json,
+                    intended_of=((lambda context: _intended(ctx, against, part, context, opts))
+                                 if against or part else None),
+                    collision_check=opts["collision_check"],
+                    clearance_min=opts["clearance_min"] if was_given(ctx, "clearance_min") else None)
         except FieldError as error:
             raise option_error(error) from error
         except HeaderConflict as error:
             raise InputError(f"{_HEADER_FLAGS[error.what]}: {error.args[0]}", path=error.path,
                              line=error.line) from error
         report, setting, clearance = verified.report, verified.setting, verified.clearance
+        _report_setting(setting.header is not None, setting.machine.name, setting.dialect.name,
+                        setting.setup.describe())
         dialect = setting.dialect.name
         if as_json:
             record = report_record(report, path=program_path, dialect=dialect, rapid_rate=NOMINAL_RAPID_RATE,
@@ -304,6 +312,12 @@ def verify(program_path: str, part_path: str | None, against_path: str | None, a
         return 0 if report.ok else 1
 
     run_reported(body)
+
+
+def _report_setting(header: bool, machine: str, dialect: str, setup: str) -> None:
+    """With ``-v``: the machine, dialect and setup a program was read with, and where they came from."""
+    origin = "as the program's header states them" if header else "as given, or the defaults"
+    detail(f"read with machine {machine}, dialect {dialect} ({origin}); setup: {setup}")
 
 
 def _part_and_against(part: str | None, against: str | None) -> tuple[str | None, str | None]:
@@ -337,6 +351,7 @@ def _part_and_against(part: str | None, against: str | None) -> tuple[str | None
 @click.option("--rapid-rate", type=Decimal(FEED, low=0.0, low_open=True), default=NOMINAL_RAPID_RATE, show_default=True,
               help="Joint-space rate of G0 moves for the time axis, mm/min (the longest joint travel at this rate), "
                    "for a machine without [dynamics]; with them the axis shows the cycle time.")
+@verbosity_options
 def preview(program_path: str, out_path: str, part_path: str | None, face_choice: str, units: str, up: str,
             machine_name: str, dialect_name: str, part_origin: tuple[float, ...] | None, part_rotation: float | None,
             rapid_rate: float) -> None:
@@ -373,8 +388,11 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
         ctx = click.get_current_context()
         fmt = image_format(out_path, "'-o' / '--output'")
         _refuse_cl_file(program_path)
-        context = _open_program(ctx, program_path, machine_name, dialect_name, part_origin, part_rotation,
-                                open_program)
+        with timed("read"):
+            context = _open_program(ctx, program_path, machine_name, dialect_name, part_origin, part_rotation,
+                                    open_program)
+        _report_setting(context.header is not None, context.machine.name, context.dialect.name,
+                        context.setup.describe())
         if context.machine.dynamics is not None and was_given(ctx, "rapid_rate"):
             raise click.BadParameter(f"machine {context.machine.name} has [dynamics]: the time axis shows its cycle "
                                      "time (each axis's top speed); leave it out", param_hint="'--rapid-rate'")
@@ -395,12 +413,15 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
                 choice, part_units, part_up = recorded["face"], recorded["units"], recorded["up"]
                 # the job it was made by: where its tool, holder and nose come closest to the part
                 rebuilt = rebuild_job(header_job(context, part_path)) if context.machine.holder is not None else None
-            mesh, face = part_drawing(part_path, choice, units=part_units, up=part_up)
-        image = preview_bytes(context.program, context.machine, context.setup, fmt, dialect=context.dialect,
-                              mesh=mesh, face=face, rapid_rate=rapid_rate, tool_lengths=tool_lengths_of(context.header),
-                              title=Path(part_path).name if part_path else "", rebuilt=rebuilt)
+            with timed("the part"):
+                mesh, face = part_drawing(part_path, choice, units=part_units, up=part_up)
+        with timed("replay and draw"):
+            image = preview_bytes(context.program, context.machine, context.setup, fmt, dialect=context.dialect,
+                                  mesh=mesh, face=face, rapid_rate=rapid_rate,
+                                  tool_lengths=tool_lengths_of(context.header),
+                                  title=Path(part_path).name if part_path else "", rebuilt=rebuilt)
         write_atomic(out_path, image)
-        click.echo(f"prs3-post: wrote {out_path}", err=True)
+        say(f"wrote {out_path}")
         return 0
 
     run_reported(body)
