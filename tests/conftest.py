@@ -17,7 +17,7 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 FIXTURES = REPO / "fixtures"
 SHARED = REPO.parent / "shared"
-RS274_CHECK = SHARED / "tools" / "rs274-check"
+RS274_CHECK = REPO / "scripts" / "rs274-check"       # LinuxCNC's interpreter, with the axes named
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -49,7 +49,7 @@ def compare_golden(text: str, golden: Path, update: bool) -> None:
 def rs274_available() -> tuple[bool, str]:
     """Whether LinuxCNC's interpreter check can run here, and why not."""
     if not RS274_CHECK.exists():
-        return False, f"{RS274_CHECK} not found (../shared missing)"
+        return False, f"{RS274_CHECK} not found"
     if shutil.which("python3") is None:
         return False, "python3 not on PATH"
     probe = subprocess.run([str(RS274_CHECK), "--help"], capture_output=True, text=True, check=False)

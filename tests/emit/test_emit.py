@@ -35,10 +35,8 @@ from prs3_post.machine.loading import Dialect, load_dialect
 
 REPO = Path(__file__).resolve().parents[2]
 BAD_DIALECTS = sorted((REPO / "fixtures" / "bad" / "dialects").glob("*.toml"))
-#: LinuxCNC's interpreter wrapper (see its README); RS274_CHECK overrides where it lives.
-RS274_CHECK = Path(
-    os.environ.get("RS274_CHECK", Path(__file__).resolve().parents[3] / "shared" / "tools" / "rs274-check")
-)
+#: LinuxCNC's interpreter wrapper (scripts/rs274-check); RS274_CHECK overrides where it lives.
+RS274_CHECK = Path(os.environ.get("RS274_CHECK", REPO / "scripts" / "rs274-check"))
 
 R, F = MoveKind.RAPID, MoveKind.FEED
 
