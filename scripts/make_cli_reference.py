@@ -26,8 +26,10 @@ Every command and option, generated from the command-line code by `scripts/make_
 (a test fails when this page is stale). `prs3-post COMMAND --help` prints the same. The options'
 spellings across commands follow one scheme: the part is the positional `PART` where it is the
 command's subject (`run`, `faces`) and `--part` where it is an extra input; `-o/--output` is one
-file. [The main job's options by group](main-job.md) and [the exit codes](exit-codes.md) explain
-them in words.
+file. Every command takes `-q/--quiet` (errors only on standard error), `-v/--verbose` (the setup,
+face, files and settings used, and each stage's time) and `-h/--help`; `prs3-post -V` prints the
+version. [The main job's options by group](main-job.md) and [the exit codes](exit-codes.md)
+explain them in words.
 """
 
 
