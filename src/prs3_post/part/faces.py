@@ -1,8 +1,8 @@
 """Planar faces of a part: find them, pick the one to machine, project points onto it.
 
 A *face* is one planar region of the part's surface: a maximal set of edge-connected, coplanar
-triangles (trimesh's ``Trimesh.facets``), or a single triangle that belongs to no such set (on a
-curved surface every triangle is its own small face).
+triangles (trimesh's ``Trimesh.facets``, grouped by :func:`prs3_post.part.meshgraph.facet_labels`), or a
+single triangle that belongs to no such set (on a curved surface every triangle is its own small face).
 
 Decisions
 ---------
@@ -14,10 +14,11 @@ Decisions
   ``flatness_tol`` off the group's plane, the group is not planar and each of its triangles becomes
   its own face.
 - Normal = area-weighted mean of the triangle normals; origin = area centroid. The boundary is the
-  union of the triangles projected onto the face's (u, v) plane (shapely); the projected triangles of
-  an edge-connected group share exact vertices, so the union is one polygon, with holes where the face
-  has them. Should floating-point noise still split it, the largest piece is the boundary (``area``
-  stays the exact triangle sum).
+  area enclosed by the face's boundary edges (those it shares with another face) projected onto its
+  (u, v) plane (shapely's ``build_area``): the same polygon as the union of its projected triangles,
+  with holes where the face has them, at a cost that grows with the outline, not with the triangles.
+  Should floating-point noise still split it, the largest piece is the boundary (``area`` stays the
+  exact triangle sum).
 - Triangles with zero area have no normal: they add nothing to a group, and alone they are no face.
 - A face is a *curved strip* (``Face.curved``) when it is one of the flat strips a tessellated curved
   surface (a fillet, a hole wall, a cone) is made of: neighbouring faces within ``STRIP_MAX_ANGLE_DEG``
@@ -50,6 +51,7 @@ from prs3_post.core.errors import FeatureError
 from prs3_post.core.numbers import fixed
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 from prs3_post.part.face import Face, frame_from_normal
+from prs3_post.part.meshgraph import facet_labels
 
 if TYPE_CHECKING:  # trimesh (200 ms) and shapely (60 ms) load only where a part is read
     import shapely
@@ -100,7 +102,7 @@ def find_faces(mesh: trimesh.Trimesh, *, flatness_tol: float = 1e-3) -> tuple[Fa
         return ()
     area_tri = np.asarray(mesh.area_faces, dtype=np.float64)  # (T,) mm²
     normal_tri = np.asarray(mesh.face_normals, dtype=np.float64)  # (T, 3); zeros where degenerate
-    labels = _labels_from_facets(mesh.facets, area_tri)
+    labels = _labels_from_facets(facet_labels(mesh), area_tri)
     if not (labels >= 0).any():  # only zero-area triangles
         return ()
     area, normal, origin = _group_stats(labels, triangles, area_tri, normal_tri)
@@ -127,7 +129,7 @@ def find_faces(mesh: trimesh.Trimesh, *, flatness_tol: float = 1e-3) -> tuple[Fa
     area, normal, origin = area[order], normal[order], origin[order]
     u, v = frame_from_normal(normal)  # (G, 3) each
     inclination = np.arccos(np.clip(normal[:, 2], -1.0, 1.0))  # clip: |n_z| may round past 1
-    boundaries = _boundaries(labels, triangles, area_tri, origin, u, v)
+    boundaries = _boundaries(mesh, labels, triangles, area_tri, origin, u, v)
     members = _members(labels, len(area))
     width = _widths(boundaries)
     curved = _curved_strips(mesh, labels, area, normal)
@@ -151,13 +153,12 @@ def find_faces(mesh: trimesh.Trimesh, *, flatness_tol: float = 1e-3) -> tuple[Fa
     )
 
 
-def _labels_from_facets(facets: list[IntArray], area_tri: FloatArray) -> IntArray:
-    """Group label of each triangle ``(T,)``: facets first, then one label per lone triangle, -1 = none."""
-    labels = np.full(len(area_tri), -1, dtype=np.int64)
-    for group, members in enumerate(facets):  # one iteration per facet, not per triangle
-        labels[members] = group
+def _labels_from_facets(facet: IntArray, area_tri: FloatArray) -> IntArray:
+    """Group label of each triangle ``(T,)``: facets first (``facet``: each triangle's, −1 for none), then one
+    label per lone triangle, -1 = none."""
+    labels = facet.copy()
     lone = labels < 0
-    labels[lone] = len(facets) + np.arange(np.count_nonzero(lone))
+    labels[lone] = int(facet.max(initial=-1)) + 1 + np.arange(np.count_nonzero(lone))
     return _drop_degenerate_singletons(labels, area_tri)
 
 
@@ -207,12 +208,19 @@ def _face_order(area: FloatArray, normal: FloatArray, origin: FloatArray) -> Int
 
 
 def _boundaries(
-    labels: IntArray, triangles: FloatArray, area_tri: FloatArray, origin: FloatArray, u: FloatArray, v: FloatArray
+    mesh: trimesh.Trimesh, labels: IntArray, triangles: FloatArray, area_tri: FloatArray, origin: FloatArray,
+    u: FloatArray, v: FloatArray,
 ) -> list[shapely.Polygon]:
     """Outline of each group in its face coordinates (u, v) mm: exterior CCW, holes CW.
 
+    A face of one triangle (with area) is that triangle. A larger face is the area its boundary edges
+    enclose (shapely's ``build_area``): the edges between one of its triangles and a triangle of
+    another face, a few per face however finely it is cut, where a union of all its triangles would
+    grow with them.
+
     Parameters
     ----------
+    mesh : trimesh.Trimesh — the part (its triangles' corners and edge adjacency)
     labels : (T,) int — group of each triangle, -1 for none
     triangles : (T, 3, 3) float — mm, part coordinates
     area_tri : (T,) float — mm²
@@ -225,17 +233,41 @@ def _boundaries(
     import shapely
 
     groups = len(origin)
-    kept = np.flatnonzero((labels >= 0) & (area_tri > 0.0))  # zero-area triangles outline nothing
-    group = labels[kept]
     basis = np.stack([u, v], axis=2)  # (G, 3, 2)
-    uv = np.einsum("kij,kjc->kic", triangles[kept] - origin[group][:, None, :], basis[group])  # (K, 3, 2)
-    pieces = shapely.polygons(uv)  # (K,) one polygon per projected triangle
-    by_group = np.argsort(group, kind="stable")
-    starts = np.searchsorted(group[by_group], np.arange(groups + 1))
+
+    def projected(rows: IntArray) -> FloatArray:
+        """(K, 3, 2) mm: the corners of triangles ``rows`` in their face's (u, v)."""
+        group = labels[rows]
+        out: FloatArray = np.einsum("kij,kjc->kic", triangles[rows] - origin[group][:, None, :], basis[group])
+        return out
+
+    solid = (labels >= 0) & (area_tri > 0.0)  # zero-area triangles outline nothing
+    count = np.bincount(labels[solid], minlength=groups)  # (G,) triangles with area
     outlines = np.full(groups, None, dtype=object)
-    for g in range(groups):  # one union per face; a lone triangle is its own outline
-        mine = pieces[by_group[starts[g] : starts[g + 1]]]
-        outlines[g] = mine[0] if len(mine) == 1 else _main_polygon(shapely.union_all(mine))
+    lone = np.flatnonzero(solid & (count[np.maximum(labels, 0)] == 1))
+    outlines[labels[lone]] = shapely.polygons(projected(lone))
+    # The boundary edges: the sides of an adjacent pair of triangles on two faces, seen from each face.
+    pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)  # (P, 2) triangles sharing an edge
+    ends = np.asarray(mesh.face_adjacency_edges, dtype=np.int64).reshape(-1, 2)  # (P, 2) that edge's vertices
+    across = labels[pairs[:, 0]] != labels[pairs[:, 1]]
+    side = pairs[across].ravel()  # (2B,) a triangle on each side of each boundary edge
+    ends = np.repeat(ends[across], 2, axis=0)  # (2B, 2)
+    mine = (labels[side] >= 0) & (count[np.maximum(labels[side], 0)] >= 2)
+    side, ends = side[mine], ends[mine]
+    corners = np.asarray(mesh.faces, dtype=np.int64)[side]  # (S, 3) vertex ids
+    first = np.argmax(corners == ends[:, :1], axis=1)  # (S,) the corner at the edge's first end
+    second = np.argmax(corners == ends[:, 1:], axis=1)
+    forward = second == (first + 1) % 3  # the triangle runs first -> second: its winding, kept
+    start, stop = np.where(forward, first, second), np.where(forward, second, first)
+    corner_uv = projected(side)  # (S, 3, 2)
+    rows = np.arange(len(side))
+    segments = np.stack([corner_uv[rows, start], corner_uv[rows, stop]], axis=1)  # (S, 2, 2)
+    group = labels[side]
+    by_group = np.argsort(group, kind="stable")
+    shared = np.unique(group)
+    lines = shapely.multilinestrings(shapely.linestrings(segments[by_group]), indices=np.searchsorted(
+        shared, group[by_group]))
+    outlines[shared] = [_main_polygon(area) for area in shapely.build_area(lines)]
     return list(shapely.orient_polygons(outlines, exterior_cw=False))
 
 

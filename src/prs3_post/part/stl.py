@@ -408,8 +408,20 @@ def _dims(extents: FloatArray) -> str:
 
 
 def _orient_outward(mesh: trimesh.Trimesh, where: str) -> None:
-    """Require a closed mesh, then make its winding consistent and outward (in place)."""
-    _, uses = np.unique(mesh.edges_sorted, axis=0, return_counts=True)
+    """Require a closed mesh, then make its winding consistent and outward (in place).
+
+    Each edge, as the pair of its vertex numbers, is counted in one sort of integer keys (not a
+    unique over rows): used once, it is open; more than twice, shared too widely. Where every edge is
+    used once each way (the winding agrees) and every body encloses a positive volume (as an export
+    normally is), nothing changes; otherwise trimesh repairs it (``trimesh.repair.fix_normals``,
+    per connected body).
+    """
+    edges = np.asarray(mesh.edges, dtype=np.int64)  # (3T, 2) each triangle's edges in its winding
+    count = np.int64(len(mesh.vertices))
+    directed = np.sort(edges[:, 0] * count + edges[:, 1])
+    undirected = np.sort(edges.min(axis=1) * count + edges.max(axis=1))
+    starts = np.flatnonzero(np.diff(undirected, prepend=-1))  # (E,) first use of each edge
+    uses = np.diff(np.append(starts, len(undirected)))
     open_edges = int(np.count_nonzero(uses == 1))
     shared_edges = int(np.count_nonzero(uses > 2))
     if open_edges or shared_edges:
@@ -425,6 +437,8 @@ def _orient_outward(mesh: trimesh.Trimesh, where: str) -> None:
             "repair the STL (close its holes) and export it again",
             path=where,
         )
+    if not (directed[1:] == directed[:-1]).any() and (_body_volumes(mesh) >= 0.0).all():
+        return                                          # wound consistently and outward already
     import trimesh.repair
 
     trimesh.repair.fix_normals(mesh, multibody=True)
@@ -433,3 +447,15 @@ def _orient_outward(mesh: trimesh.Trimesh, where: str) -> None:
             "the triangles cannot be wound consistently (self-intersecting or non-orientable surface)",
             path=where,
         )
+
+
+def _body_volumes(mesh: trimesh.Trimesh) -> FloatArray:
+    """(B,) mm³: the signed volume each body of a closed, consistently wound mesh encloses (positive:
+    wound outward), by the divergence theorem over its triangles as trimesh's ``mass_properties`` has it."""
+    from prs3_post.part.meshgraph import body_labels
+
+    corner = np.asarray(mesh.triangles, dtype=np.float64)  # (T, 3, 3) mm
+    ab, ac = corner[:, 1] - corner[:, 0], corner[:, 2] - corner[:, 0]
+    cross_x = ab[:, 1] * ac[:, 2] - ab[:, 2] * ac[:, 1]  # (T,) x of the triangle's doubled area vector
+    volume: FloatArray = np.bincount(body_labels(mesh), weights=cross_x * corner[:, :, 0].sum(axis=1)) / 6.0
+    return volume
