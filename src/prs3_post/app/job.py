@@ -17,6 +17,7 @@ as text for the CLI to write.
 
 from __future__ import annotations
 
+import gc
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 from functools import partial
@@ -481,6 +482,10 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
     mesh = load_part(first.part, units=first.units, up=first.up)
     faces = find_faces(mesh)
     triangles = np.asarray(mesh.triangles, dtype=np.float64)
+    # The mesh, with its cached edges and adjacency (hundreds of MB on a fine part), is not needed past
+    # here; trimesh's helpers refer back to it, so only a collection frees it.
+    del mesh
+    gc.collect()
     several = len(specs) > 1
     decimals = first.dialect.decimals.length
     done: list[OperationResult] = []
