@@ -600,3 +600,35 @@ def test_job_spec_gives_the_cli_program(made: dict[str, Made]) -> None:
     assert result.text == made["tilt35-square.ngc"].text
     assert result.face.index == 4
     assert_allclose(result.setup.shift, [-100.0, -200.0, -970.0], rtol=0, atol=0)
+
+
+@pytest.mark.parametrize(("name", "times", "options", "holder"), [
+    ("wedge.stl", 4, ("--profile", "round", "--diameter", "25", "--depth", "2", "--step-down", "1", "--tolerance",
+                      "0.01"), "holder over 11.000 mm"),
+    # the holder passes 8.6 mm from the wall: the collision header's minimum is measured, not only bounded
+    ("wall30.stl", 3, ("--profile", "hole", "--at", "8.1,0"), "holder 8.637 mm"),
+])
+def test_a_finely_cut_part_gives_the_coarse_parts_program(name: str, times: int, options: tuple[str, ...],
+                                                          holder: str, tmp_path: Path) -> None:
+    """The main job on a part whose every triangle is cut into 4^times writes the coarse part's program,
+    but for the part's own line (its name and checksum)."""
+    import trimesh
+
+    mesh = trimesh.load(PARTS / name)
+    for _ in range(times):
+        mesh = mesh.subdivide()
+    fine = tmp_path / f"fine-{name}"
+    fine.write_bytes(trimesh.exchange.stl.export_stl(mesh))
+    texts = []
+    for part in (PARTS / name, fine):
+        out = tmp_path / f"{part.stem}.ngc"
+        outcome = CliRunner().invoke(main, ["run", str(part), *options, "-o", str(out)])
+        assert outcome.exit_code == 0, outcome.output
+        texts.append(out.read_text().splitlines())
+    coarse_text, fine_text = texts
+    assert [ln for ln in fine_text if not ln.startswith("(part: ")] == \
+        [ln for ln in coarse_text if not ln.startswith("(part: ")]
+    assert next(ln for ln in fine_text if ln.startswith("(part: ")).startswith(f"(part: fine-{name}, units mm")
+    assert next(ln for ln in fine_text if ln.startswith("(collision: ")) == (
+        f"(collision: clear of the part by at least 1.000 mm: tool over 11.000 mm, {holder}, spindle nose over "
+        "11.000 mm)")

@@ -215,6 +215,38 @@ def test_boundary_area_equals_face_area_and_frames_match(name):
         assert_allclose(face.v, v, atol=1e-15)
 
 
+def _cut_finer(name: str, times: int, folder: Path) -> Path:
+    """``fixtures/parts/NAME.stl``, every triangle cut into 4 (trimesh's ``subdivide``) ``times`` times, as an STL."""
+    mesh = trimesh.load(PARTS / name)
+    for _ in range(times):
+        mesh = mesh.subdivide()
+    path = folder / f"fine-{name}"
+    path.write_bytes(trimesh.exchange.stl.export_stl(mesh))
+    return path
+
+
+@pytest.mark.parametrize(("name", "times", "triangles"), [("wedge.stl", 4, 3072), ("twofaces.stl", 4, 4096),
+                                                          ("wall30.stl", 3, 1280)])
+def test_a_finely_cut_part_has_the_coarse_parts_faces(name, times, triangles, tmp_path):
+    """Faces, their order, areas, frames, widths and outlines do not depend on how finely each is cut (to the
+    STL's float32 rounding of the cut points: 3e-5 mm at 300 mm)."""
+    coarse = faces_of(PARTS / name)
+    mesh = load_part(_cut_finer(name, times, tmp_path))
+    fine = find_faces(mesh)
+    assert len(mesh.faces) == triangles
+    assert len(fine) == len(coarse)
+    for a, b in zip(coarse, fine, strict=True):
+        assert len(b.triangles) == len(a.triangles) * 4 ** times
+        assert_allclose([b.area, b.boundary.area, b.width], [a.area, a.boundary.area, a.width], rtol=1e-8)
+        assert_allclose(b.inclination, a.inclination, atol=1e-9)
+        assert_allclose(np.stack([b.normal, b.u, b.v]), np.stack([a.normal, a.u, a.v]), atol=1e-9)
+        assert_allclose(b.origin, a.origin, atol=1e-6)
+        assert not a.curved and not b.curved
+        assert len(b.boundary.interiors) == len(a.boundary.interiors)
+        assert b.boundary.hausdorff_distance(a.boundary) < 1e-4       # the same outline, its cut points on it
+    assert format_face_table(fine) == format_face_table(coarse)
+
+
 # ---------------------------------------------------------------- selection rules
 
 
