@@ -44,7 +44,8 @@ TABLE_MODULES = ("prs3_post.app.pose_tables", "prs3_post.readers.poses")
 REGISTRY_MODULES = ("prs3_post.readers.registry", "prs3_post.app.convert_files", "prs3_post.app.run",
                     "prs3_post.app.verify_inputs", "hashlib")
 #: What a plain verify never needs of those (it asks the registry whether the program is a CL file).
-VERIFY_UNUSED = ("prs3_post.app.convert_files", "prs3_post.app.run", "prs3_post.app.listings", "hashlib")
+VERIFY_UNUSED = ("prs3_post.app.convert_files", "prs3_post.app.run", "prs3_post.app.listings", "hashlib",
+                 "prs3_post.app.cross_check")
 
 _PROBE = """
 import json, sys

@@ -56,6 +56,7 @@ from prs3_post.toolpaths.common import require_tolerance as require_tolerance  #
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
+    from prs3_post.app.cross_check import CrossCheck
     from prs3_post.app.job import JobResult, JobSpec
     from prs3_post.check.collision import Approach
 
@@ -664,7 +665,8 @@ class Verified:
 def verify_steps(path: str, *, machine: str | None, dialect: str | None, origin: tuple[float, ...] | None,
                  rotation_deg: float | None, tolerance: float | None, axis_tolerance_deg: float, whole: bool,
                  intended_of: Callable[[ProgramContext], tuple[Intended | None, RebuiltJob | CamPart | None]] | None,
-                 collision_check: bool, clearance_min: float | None) -> Verified:
+                 collision_check: bool, clearance_min: float | None,
+                 on_cross_check: Callable[[CrossCheck], None] | None = None) -> Verified:
     """Verify a program, in the order the checks need: what it was made for (its header, or the values
     given), the tolerance (:func:`check_tolerance`), then either the whole program read with its
     intended path (``intended_of``: the front end's reading of what it is compared with) and its
@@ -679,6 +681,9 @@ def verify_steps(path: str, *, machine: str | None, dialect: str | None, origin:
     intended_of : callable, optional — the intended path and the job or part it comes from
     collision_check : bool — measure the clearance from the part when the intended path has one
     clearance_min : float | None — mm, as given (None: each operation's)
+    on_cross_check : callable, optional — given the program read again by pygcode
+        (:func:`~prs3_post.app.cross_check.cross_check`) before it is verified, so that what pygcode reads
+        of a line our reader refuses is told before that refusal
 
     Raises
     ------
@@ -687,6 +692,11 @@ def verify_steps(path: str, *, machine: str | None, dialect: str | None, origin:
     """
     setting = open_setting(path, machine=machine, dialect=dialect, origin=origin, rotation_deg=rotation_deg)
     checked = check_tolerance(setting.header, tolerance)
+    if on_cross_check is not None:
+        from prs3_post.app.cross_check import cross_check
+
+        on_cross_check(cross_check(path, setting.dialect, stage=setting.machine.stage.present,
+                                   kinematics=kinematics_of(setting.machine)))
     if not (whole or intended_of is not None):        # no samples needed: the program streams through
         return Verified(verify_file(setting, tolerance=checked, axis_tolerance_deg=axis_tolerance_deg), setting, None)
     context = open_program(path, machine=machine, dialect=dialect, origin=origin, rotation_deg=rotation_deg)
