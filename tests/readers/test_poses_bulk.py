@@ -151,7 +151,7 @@ def test_bulk_reader_messages(tmp_path, content, message):
 
 
 def test_bulk_reader_without_pyarrow_is_the_numpy_reader(tmp_path, monkeypatch):
-    """A venv made before pyarrow was a dependency still reads a large table (the numpy way)."""
+    """Without the optional pyarrow (the fast-csv extra) a large table is still read (the numpy way)."""
     path = tmp_path / "poses.csv"
     path.write_text(_pose_text(20))
     monkeypatch.setitem(sys.modules, "pyarrow", None)          # import pyarrow: ImportError
@@ -217,3 +217,32 @@ def test_pyarrow_is_loaded_only_for_a_large_table(tmp_path, large):
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout) is large
     assert (tmp_path / "out.csv").read_bytes().count(b"\n") == 1 + 100 * copies
+
+
+_BLOCKED = """
+import sys
+sys.modules["pyarrow"] = None                      # import pyarrow: ImportError, as where it is not installed
+from prs3_post.cli.main import main
+try:
+    main(["ik", "--batch", sys.argv[1], "-o", sys.argv[2]])
+except SystemExit as done:
+    print(done.code)
+"""
+
+
+def test_ik_batch_without_pyarrow_writes_what_it_writes_with_it(tmp_path):
+    """The default install has no pyarrow: ``ik --batch`` on a table large enough for the bulk reader,
+    in a process where pyarrow cannot be imported, writes the same bytes and says the same as with it."""
+    path = tmp_path / "poses.csv"
+    body = _pose_text(100).removeprefix(HEADER)
+    copies = poses_bulk.BULK_BYTES // len(body) + 1
+    path.write_text(HEADER + body * copies)
+    blocked = subprocess.run([sys.executable, "-c", _BLOCKED, str(path), str(tmp_path / "numpy.csv")],
+                             capture_output=True, text=True, check=False)
+    with_it = subprocess.run([sys.executable, "-c", _PROBE, str(path), str(tmp_path / "arrow.csv")],
+                             capture_output=True, text=True, check=False)
+    assert json.loads(with_it.stdout) is True                  # pyarrow read it there (the test extras have it)
+    assert blocked.stdout.split() == ["1"]                     # poses outside the limits: exit 1, both ways
+    assert blocked.stderr == with_it.stderr != ""
+    assert (tmp_path / "numpy.csv").read_bytes() == (tmp_path / "arrow.csv").read_bytes()
+    assert (tmp_path / "numpy.csv").read_bytes().count(b"\n") == 1 + 100 * copies

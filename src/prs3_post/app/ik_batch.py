@@ -5,7 +5,8 @@ The table is read, solved, checked and written a chunk of lines at a time
 :func:`~prs3_post.post.limits.check_limits`, :func:`~prs3_post.app.pose_tables.ik_csv_rows`), so memory stays
 flat whatever the table's length; the writer (:mod:`prs3_post.core.output_files`) puts the chunks into a temp
 file and renames it only when the last one is written, so a bad line anywhere leaves no output file.
-A large table is read by pyarrow's CSV parser (:mod:`prs3_post.readers.poses_bulk`).
+A large table is read by pyarrow's CSV parser where it is installed (the optional extra
+``prs3-post[fast-csv]``), else by the numpy reader: the same output (:mod:`prs3_post.readers.poses_bulk`).
 """
 
 from __future__ import annotations

@@ -11,9 +11,11 @@ so that every message (and every value it accepts) is exactly that reader's. Tha
 chunks before again to skip them: a table irregular only near its end costs its numpy reading and
 the bulk one.
 
-pyarrow is imported only here, and only for a table of at least :data:`BULK_BYTES`: its import
-costs about 0.035 CPU s and 27 MB, more than the numpy reader spends on a small table (at 4 MB,
-33,000 poses, the bulk reading with the import takes 0.055 CPU s, the numpy reader 0.09 to 0.15).
+pyarrow is optional (the extra ``prs3-post[fast-csv]``: 170 MB of a 307 MB install): without it every
+table is read by the numpy reader, with the same output. It is imported only here, and only for a
+table of at least :data:`BULK_BYTES`: its import costs about 0.035 CPU s and 27 MB, more than the numpy
+reader spends on a small table (at 4 MB, 33,000 poses, the bulk reading with the import takes 0.055 CPU s,
+the numpy reader 0.09 to 0.15).
 """
 
 from __future__ import annotations
@@ -98,7 +100,7 @@ def _bulk_chunks(path: str, offset: int, chunk_lines: int) -> Iterator[PoseTable
     try:
         import pyarrow as pa
         import pyarrow.csv as pa_csv
-    except ImportError:                             # a venv made before pyarrow was a dependency: slower, same
+    except ImportError:                             # not installed (the optional fast-csv extra): slower, same
         yield None
         return
     columns = list(POSE_COLUMNS)
