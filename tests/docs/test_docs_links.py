@@ -10,12 +10,14 @@ REPO = Path(__file__).resolve().parents[2]
 PAGES = sorted([REPO / "README.md", *(REPO / "docs").rglob("*.md")])
 _LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
 _CODE = re.compile(r"```.*?```|`[^`\n]*`", re.S)
+_FENCED = re.compile(r"```.*?```", re.S)
 
 
 def _anchors(page: Path) -> set[str]:
-    """GitHub's anchors of a page's headings: lower case, punctuation dropped, spaces to '-'."""
+    """GitHub's anchors of a page's headings: lower case, punctuation (and code's backticks) dropped,
+    spaces to '-'."""
     found = set()
-    for line in _CODE.sub("", page.read_text(encoding="utf-8")).splitlines():
+    for line in _FENCED.sub("", page.read_text(encoding="utf-8")).splitlines():
         if line.startswith("#"):
             title = line.lstrip("#").strip().lower()
             found.add(re.sub(r"[^\w\- ]", "", title).replace(" ", "-"))
@@ -58,6 +60,12 @@ def test_the_pages_link_to_each_other() -> None:
                     reached.add(path)
                     todo.append(path)
     assert [str(p.relative_to(REPO)) for p in PAGES if p not in reached] == []
+
+
+def test_the_anchors_are_github_s(tmp_path: Path) -> None:
+    page = tmp_path / "page.md"
+    page.write_text("# A page\n\n## Optional: `ik --batch`, fast\n\n```\n# not a heading\n```\n", encoding="utf-8")
+    assert _anchors(page) == {"a-page", "optional-ik---batch-fast"}
 
 
 def test_the_link_finder() -> None:
