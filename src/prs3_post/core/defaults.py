@@ -17,7 +17,8 @@ import math
 
 __all__ = [
     "DEFAULT_ANGLE_TOLERANCE", "DEFAULT_ANGLE_TOLERANCE_DEG", "DEFAULT_CIRCLE_TOLERANCE", "DEFAULT_CLEARANCE_MIN",
-    "DEFAULT_TOLERANCE", "FEED_RANGE_MM_MIN", "LIMIT_TOLERANCE", "MAX_SPINDLE_RPM", "MIN_SPINDLE_RPM", "MM_PER_INCH",
+    "DEFAULT_MEASUREMENT_NOISE_MM", "DEFAULT_TOLERANCE", "FEED_RANGE_MM_MIN", "LIMIT_TOLERANCE", "MAX_SPINDLE_RPM",
+    "MIN_SPINDLE_RPM", "MM_PER_INCH",
     "NOMINAL_RAPID_RATE",
 ]
 
@@ -61,3 +62,7 @@ LIMIT_TOLERANCE = 1e-9
 """mm, deg (or a plain number: the condition number): how far a value may pass a machine limit and still be at
 it, not beyond: the float noise of a round trip (a stroke of 400 mm comes back as 400.00000000000006), far below
 the 0.0001 mm and deg printed. Every limit check (post.limits, the placement search) compares with it."""
+
+DEFAULT_MEASUREMENT_NOISE_MM = 0.01
+"""mm: the noise of a calibration's measured tool tips (one coordinate, one standard deviation) unless the user
+gives it (``calibrate --noise-mm``): a laser tracker at a couple of metres, or a touch probe on a reference artefact."""

@@ -45,6 +45,7 @@ from prs3_post.machine.model import (
     DEFAULT_KINEMATICS,
     GENERAL_KINEMATICS,
     KINEMATICS_NAMES,
+    Calibration,
     Dynamics,
     GeneralGeometry,
     Geometry,
@@ -373,6 +374,7 @@ def load_machine(name_or_path: str) -> Machine:
     setup.finish()
     dynamics = _dynamics(top.optional_table("dynamics"))
     holder = _holder(top.optional_table("holder"))
+    calibration = _calibration(top.optional_table("calibration"), shown)
     top.finish()
     return Machine(
         name=path.stem,
@@ -385,6 +387,7 @@ def load_machine(name_or_path: str) -> Machine:
         dynamics=dynamics,
         holder=holder,
         kinematics=kinematics,
+        calibration=calibration,
     )
 
 
@@ -497,6 +500,31 @@ def _holder(table: _Table | None) -> Holder | None:
         "holder_diameter", "holder_length", "nose_diameter", "nose_length")})
     table.finish()
     return out
+
+
+def _calibration(table: _Table | None, shown: str) -> Calibration | None:
+    """The ``[calibration]`` table a calibration writes (the identified parameters' names, standard
+    deviations, correlations and the noise), or None without one."""
+    if table is None:
+        return None
+    noise = table.number("noise_mm", unit="mm")
+    names = table.strings("parameters")
+    count = len(names)
+    std = table.numbers("std", count, f"{count} standard deviations (one per parameter)")
+    value = table._get("correlation")
+    ok = isinstance(value, list) and len(value) == count and all(
+        isinstance(row, list) and len(row) == count and all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and abs(v) <= 1.0 for v in row)
+        for row in value)
+    if not ok:
+        raise ConfigError(f"calibration.correlation: expected a {count}×{count} array of numbers within ±1 "
+                          "(one row per parameter)", path=shown)
+    table.finish()
+    try:
+        return Calibration(parameters=names, std=std, correlation=tuple(tuple(float(v) for v in row) for row in value),
+                           noise=noise)
+    except ValueError as exc:
+        raise ConfigError(str(exc), path=shown) from exc
 
 
 # =============================================================================================

@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-__all__ = ["DEFAULT_KINEMATICS", "GENERAL_KINEMATICS", "KINEMATICS_NAMES", "Dynamics", "GeneralGeometry", "Geometry",
-           "Holder", "LegGeometry", "Limits", "Machine", "Stage", "general_from_ideal"]
+__all__ = ["DEFAULT_KINEMATICS", "GENERAL_KINEMATICS", "KINEMATICS_NAMES", "Calibration", "Dynamics", "GeneralGeometry",
+           "Geometry", "Holder", "LegGeometry", "Limits", "Machine", "Stage", "general_from_ideal"]
 
 Vector = tuple[float, float, float]
 
@@ -260,6 +260,34 @@ class Holder:
 
 
 @dataclass(frozen=True, slots=True)
+class Calibration:
+    """How well a calibration determined the head (a calibrated machine file's ``[calibration]`` table):
+    the identified parameters' standard deviations and correlations, for the accuracy they give the tool.
+
+    Attributes
+    ----------
+    parameters : (K,) tuple of str — the identified parameters' names (``leg1.link_length``: see
+        :mod:`prs3_post.kinematics.calibration.parameters`)
+    std : (K,) tuple of float — each one's standard deviation in its unit (mm for lengths, degrees
+        for angles)
+    correlation : (K, K) tuple of tuples — their correlation coefficients (1 on the diagonal)
+    noise : float — mm, the measurement noise the calibration found
+    """
+
+    parameters: tuple[str, ...]
+    std: tuple[float, ...]
+    correlation: tuple[tuple[float, ...], ...]
+    noise: float
+
+    def __post_init__(self) -> None:
+        count = len(self.parameters)
+        if len(self.std) != count or len(self.correlation) != count or any(len(r) != count for r in self.correlation):
+            raise ValueError(f"calibration: expected {count} standard deviations and a {count}×{count} correlation")
+        if not all(math.isfinite(s) and s >= 0 for s in self.std) or not self.noise >= 0:
+            raise ValueError("calibration: standard deviations and the noise must be ≥ 0")
+
+
+@dataclass(frozen=True, slots=True)
 class Machine:
     """A whole machine file: head geometry, limits, stage and default setup.
 
@@ -274,6 +302,7 @@ class Machine:
         ``[dynamics]``: no feed clamping, no cycle time)
     holder : Holder | None — holder and spindle nose (None: no ``[holder]``: no collision check)
     kinematics : str — the kinematics' registered name (:mod:`prs3_post.kinematics.registry`)
+    calibration : Calibration | None — the uncertainties of a calibrated head (None: not calibrated)
     """
 
     name: str
@@ -286,6 +315,7 @@ class Machine:
     dynamics: Dynamics | None = None
     holder: Holder | None = None
     kinematics: str = DEFAULT_KINEMATICS
+    calibration: Calibration | None = None
 
     def with_tool_length(self, length: float) -> Machine:
         """This machine with the tool length "TL" ``length`` mm (platform centre to tool tip); itself when it
