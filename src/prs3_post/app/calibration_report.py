@@ -73,7 +73,7 @@ def plan_json(plan: CalibrationPlan) -> dict[str, Any]:
         "smallest_singular_value_mm": _round(found.smallest_singular),
         "identifiability": IDENTIFIABILITY,
         "expected_std": _parameter_rows(plan.model, plan.plan.std),
-        "held": _held_rows(plan.model, found),
+        "held": _held_rows(plan.model, found), "weak_combinations": list(found.weak),
     }
 
 
@@ -104,11 +104,13 @@ def _parameter_table(model: ErrorModel, std: np.ndarray, values: np.ndarray | No
 
 
 def _held_text(model: ErrorModel, found: Identifiability) -> list[str]:
-    if not len(found.held):
-        return []
-    out = ["Held at nominal (the measurements cannot separate them):"]
-    for h, why in zip(found.held, found.combinations, strict=True):
-        out.append(f"  {model.parameters[h].name}: {why}")
+    out = []
+    if len(found.held):
+        out.append("Held at nominal (no measurement of this kind separates them):")
+        out += [f"  {model.parameters[h].name}: {why}" for h, why in zip(found.held, found.combinations, strict=True)]
+    if found.weak:
+        out.append("Combinations held at nominal (seen too weakly by these poses):")
+        out += [f"  {text}" for text in found.weak]
     return out
 
 
@@ -136,7 +138,7 @@ def calibration_json(result: CalibrationResult) -> dict[str, Any]:
         "identifiability": IDENTIFIABILITY,
         "smallest_singular_value_mm": _round(found.smallest_singular),
         "parameters": _parameter_rows(fit.model, fit.std, fit.values),
-        "held": _held_rows(fit.model, found),
+        "held": _held_rows(fit.model, found), "weak_combinations": list(found.weak),
         "holdout": None, "validation": None, "frame": None, "evaluations": fit.evaluations,
     }
     if result.holdout is not None:
@@ -197,6 +199,7 @@ def calibrated_toml(result: CalibrationResult, *, date: str) -> str:
     machine = replace(result.calibrated, description=f"{result.machine.description} (calibrated from "
                                                      f"{Path(m.path).name}, {date})")
     held = ", ".join(fit.model.parameters[h].name for h in fit.identifiability.held) or "none"
+    weak = len(fit.identifiability.weak)
     axis = (f"; axis RMS {fixed(math.degrees(fit.before.axis_rms))} → {fixed(math.degrees(fit.after.axis_rms))} deg"
             if m.has_axis else "")
     comment = [
@@ -210,7 +213,8 @@ def calibrated_toml(result: CalibrationResult, *, date: str) -> str:
     if result.holdout is not None:
         comment.append(f"Hold-out (5-fold) tip RMS: {fixed(result.holdout[1].tip_rms)} mm "
                        f"(nominal head: {fixed(result.holdout[0].tip_rms)} mm).")
-    comment += [f"{len(fit.identifiability.fitted)} parameters identified; held at nominal: {held}.",
+    comment += [f"{len(fit.identifiability.fitted)} parameters identified; held at nominal: {held}"
+                f"{f'; and {weak} weakly seen combinations' if weak else ''}.",
                 "Limits, stage, setup, dynamics and holder are the machine file's."]
     return machine_toml(machine, comment=comment)
 

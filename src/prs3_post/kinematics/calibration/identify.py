@@ -1,17 +1,21 @@
 """Identification: which parameters the measurements determine, their values and uncertainties.
 
-Identifiability (:func:`select_parameters`). The scaled Jacobian J (mm per expected error) at the
-nominal head is examined column by column in the model's order of preference: a parameter is fitted
-when, with the ones already chosen, the smallest singular value of their columns is at least
-:data:`MIN_INFORMATION` times the measurement noise — the measurements then pin every combination of
-them to a third of its expected size or better. A parameter that fails is *held* at its nominal
-value, and the report names the fitted parameters it moves the tool like (its column's least-squares
-fit by theirs): a rail point along its own rail is an encoder zero, the platform joints and the tool
-share the platform frame, an unmeasured tool axis is seen by nothing. Nothing held is fitted to noise.
+Identifiability (:func:`select_parameters`), from the scaled Jacobian J (mm per expected error) at
+the nominal head, in two steps. First the parameters no measurement of this kind can separate: the
+columns are taken in the model's order of preference, and one is *held* at its nominal value when
+it adds no rank (its singular value below :data:`RANK_RTOL` of the largest); the report names the
+fitted parameters it moves the tool like (its column's least-squares fit by theirs): a rail point
+along its own rail is an encoder zero, the platform joints and the tool share the platform frame,
+an unmeasured tool axis is seen by nothing. Then the combinations of the fitted parameters (the
+right singular vectors of their columns) that are seen too weakly: a combination whose singular
+value is below :data:`MIN_INFORMATION` times the noise (the measurements would know it to worse
+than a third of its expected size) is held at nominal too, and named. Nothing held is fitted to noise.
 
-Fit (:func:`identify`). scipy's ``least_squares`` (trust-region reflective) over the fitted scaled
-parameters, from the nominal head, with the Jacobian by central differences. The noise is estimated
-from the residuals (σ² = SSR / (M − K)), and the parameters' covariance is σ²·(JᵀJ)⁻¹ at the solution.
+Fit (:func:`identify`). scipy's ``least_squares`` (Levenberg-Marquardt, MINPACK) in the fitted
+directions of the scaled parameters, from the nominal head, with the Jacobian of
+:func:`~prs3_post.kinematics.calibration.residuals.jacobian`. The noise is estimated from the
+residuals (σ² = SSR / (M − R), R the directions fitted), and the parameters' covariance is
+σ²·B(BᵀJᵀJB)⁻¹Bᵀ at the solution (B the directions).
 
 Hold-out (:func:`cross_validate`): k-fold; each fold's rows are predicted by the head fitted to the others.
 An axis residual counts as the tip error of its turn a lever away from the tip
@@ -40,8 +44,6 @@ MIN_INFORMATION = 3.0
 #: Relative to the largest singular value: below this a combination is not seen at all (a
 #: structural degeneracy, whatever the noise).
 RANK_RTOL = 1e-7
-#: Scaled units: how far the fit may move a parameter (a hundred times its expected error).
-FIT_BOUND = 100.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -56,8 +58,12 @@ class Identifiability:
         like (``leg1.stroke_offset +1 mm/mm``), or ``not seen by these measurements``
     held_std : (H,) float — code units, the standard deviation a held parameter would get if it
         were fitted too (inf: not seen at all)
-    smallest_singular : float — mm per expected error: the smallest singular value of the fitted
-        parameters' scaled Jacobian
+    smallest_singular : float — mm per expected error: the smallest singular value of the scaled
+        Jacobian in the directions fitted
+    basis : (K, R) float — the directions fitted in the fitted parameters' scaled space (orthonormal
+        columns; R < K when some combinations are too weakly seen)
+    weak : (W,) tuple of str — the combinations of fitted parameters held at nominal because the
+        measurements see them too weakly, in words
     """
 
     fitted: IntArray
@@ -65,6 +71,8 @@ class Identifiability:
     combinations: tuple[str, ...]
     held_std: FloatArray
     smallest_singular: float
+    basis: FloatArray
+    weak: tuple[str, ...]
 
 
 @dataclass(frozen=True, slots=True)
@@ -154,15 +162,16 @@ def _smallest_singular(gram: FloatArray, columns: list[int]) -> float:
 
 def select_parameters(model: ErrorModel, jac: FloatArray, *, noise: float,
                       order: list[int] | None = None) -> Identifiability:
-    """The parameters the scaled Jacobian ``jac`` (M, P) can determine with measurement noise ``noise``
-    mm (see the module's docstring), taken in ``order`` (default: the model's preference)."""
+    """The parameters and combinations the scaled Jacobian ``jac`` (M, P) can determine with measurement
+    noise ``noise`` mm (see the module's docstring), parameters taken in ``order`` (default: the
+    model's preference)."""
     order = model.preference() if order is None else order
     gram = jac.T @ jac
     largest = math.sqrt(max(float(np.linalg.eigvalsh(gram)[-1]), 0.0)) if gram.size else 0.0
-    threshold = max(MIN_INFORMATION * noise, RANK_RTOL * largest)
+    structural = RANK_RTOL * max(largest, 1e-300)
     fitted: list[int] = []
     for column in order:
-        if _smallest_singular(gram, [*fitted, column]) >= threshold:
+        if _smallest_singular(gram, [*fitted, column]) >= structural:
             fitted.append(column)
     fitted.sort()
     held = [i for i in range(jac.shape[1]) if i not in fitted]
@@ -173,17 +182,35 @@ def select_parameters(model: ErrorModel, jac: FloatArray, *, noise: float,
         column_norm = math.sqrt(gram[h, h])
         rest = math.sqrt(max(gram[h, h] - float(gram[fitted, h] @ coefficients), 0.0))
         both = [*fitted, h]
-        if _smallest_singular(gram, both) <= RANK_RTOL * max(largest, 1e-300):
+        if _smallest_singular(gram, both) <= structural:
             held_std.append(math.inf)
         else:
             held_std.append(float(noise * math.sqrt(abs(np.linalg.inv(gram[np.ix_(both, both)])[-1, -1]))
                                   * model.scales[h]))
         combinations.append(_combination(model, fitted, h, coefficients, rest, column_norm))
+    # the fitted parameters' combinations: kept where seen to a third of their expected size or better
+    values, vectors = np.linalg.eigh(gram[np.ix_(fitted, fitted)]) if fitted else (np.zeros(0), np.zeros((0, 0)))
+    singular = np.sqrt(np.maximum(values, 0.0))
+    keep = singular >= MIN_INFORMATION * noise
+    weak = tuple(_weak_combination(model, fitted, vectors[:, k], noise / max(singular[k], 1e-300))
+                 for k in np.flatnonzero(~keep))
     return Identifiability(
         fitted=np.array(fitted, dtype=np.int64), held=np.array(held, dtype=np.int64),
         combinations=tuple(combinations), held_std=np.array(held_std),
-        smallest_singular=_smallest_singular(gram, fitted),
+        smallest_singular=float(singular[keep].min()) if keep.any() else math.inf,
+        basis=vectors[:, keep], weak=weak,
     )
+
+
+def _weak_combination(model: ErrorModel, fitted: list[int], vector: FloatArray, std: float) -> str:
+    """Words for a combination of fitted parameters (a unit vector in their scaled space) held at nominal."""
+    terms = []
+    for k in np.argsort(-np.abs(vector))[:4]:
+        if abs(vector[k]) < 0.1:
+            break
+        terms.append(f"{vector[k]:+.2f} {model.parameters[fitted[k]].name}")
+    return (f"{' '.join(terms)} (in units of their expected errors): the measurements would know it to "
+            f"±{std:.2g} of its expected size")
 
 
 def _combination(model: ErrorModel, fitted: list[int], held: int, coefficients: FloatArray, rest: float,
@@ -236,22 +263,23 @@ def identify(model: ErrorModel, obs: Observations, *, noise: float,
     if identifiability is None:
         identifiability = select_parameters(model, jacobian(model, start, obs), noise=noise)
     fitted = [int(i) for i in identifiability.fitted]
+    basis = identifiability.basis                                  # (K, R): the directions fitted
 
     def full(x: FloatArray) -> FloatArray:
         out = np.zeros(count)
-        out[fitted] = x
+        out[fitted] = basis @ x
         return out
 
     def fun(x: FloatArray) -> FloatArray:
         return residual_vector(predict(model, full(x), obs), obs)
 
     def jac(x: FloatArray) -> FloatArray:
-        return jacobian(model, full(x), obs, fitted)
+        return jacobian(model, full(x), obs, fitted) @ basis
 
-    if fitted:
-        solution = least_squares(fun, np.zeros(len(fitted)), jac=jac, method="trf",
-                                 bounds=(-FIT_BOUND, FIT_BOUND), x_scale=1.0, ftol=1e-12, xtol=1e-10, gtol=1e-12,
-                                 max_nfev=60)
+    rank = basis.shape[1]
+    if rank:
+        solution = least_squares(fun, np.zeros(rank), jac=jac, method="lm", x_scale=1.0, ftol=1e-12,
+                                 xtol=1e-10, gtol=1e-12, max_nfev=60)
         scaled, evaluations = full(solution.x), int(solution.nfev)
         final_jac = jac(solution.x)
         residual = fun(solution.x)
@@ -259,12 +287,12 @@ def identify(model: ErrorModel, obs: Observations, *, noise: float,
         scaled, evaluations = start, 0
         final_jac = np.zeros((3 * len(obs), 0))
         residual = fun(np.zeros(0))
-    dof = max(len(residual) - len(fitted), 1)
+    dof = max(len(residual) - rank, 1)
     noise_estimate = float(np.sqrt(residual @ residual / dof))
     covariance = np.zeros((count, count))
     std = np.full(count, math.nan)
-    if fitted:
-        inverse = np.linalg.pinv(final_jac.T @ final_jac)
+    if rank:
+        inverse = basis @ np.linalg.inv(final_jac.T @ final_jac) @ basis.T      # (K, K) in the fitted directions
         covariance[np.ix_(fitted, fitted)] = noise_estimate**2 * inverse
         std[fitted] = np.sqrt(np.abs(np.diag(inverse))) * noise_estimate * model.scales[fitted]
     return Fit(model=model, scaled=scaled, std=std, covariance=covariance, identifiability=identifiability,

@@ -98,10 +98,11 @@ def plan_poses(model: ErrorModel, candidates: Observations, count: int, *, noise
                            for block in range(per_row // 3)])
     final = select_parameters(model, jac[rows], noise=noise)
     fitted = [int(i) for i in final.fitted]
-    gram = jac[rows][:, fitted].T @ jac[rows][:, fitted] / noise**2
+    basis = final.basis
+    gram = basis.T @ (jac[rows][:, fitted].T @ jac[rows][:, fitted]) @ basis / noise**2
     std = np.full(len(model.parameters), math.nan)
-    if fitted:
-        std[fitted] = np.sqrt(np.diag(np.linalg.inv(gram))) * model.scales[fitted]
+    if basis.shape[1]:
+        std[fitted] = np.sqrt(np.diag(basis @ np.linalg.inv(gram) @ basis.T)) * model.scales[fitted]
     sign, log_det = np.linalg.slogdet(np.eye(k) + sum(g[i].T @ g[i] for i in index))
     return Plan(index=index, identifiability=final, std=std, log_det=float(log_det) if sign > 0 else -math.inf)
 
