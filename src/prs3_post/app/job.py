@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from prs3_post.app.accuracy import header_accuracy
 from prs3_post.app.job_transitions import MACHINE_FRAME, post_transition, safe_height, transition_paths
 from prs3_post.check.collision import Approach, CollisionError, ProgramClearance, feed_tips_of, measure_program
 from prs3_post.check.placement import (
@@ -35,7 +36,12 @@ from prs3_post.check.placement import (
     suggest,
     suggestion_advice,
 )
-from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE, DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE
+from prs3_post.core.defaults import (
+    DEFAULT_ACTUATOR_RESOLUTION_MM,
+    DEFAULT_ANGLE_TOLERANCE,
+    DEFAULT_CLEARANCE_MIN,
+    DEFAULT_TOLERANCE,
+)
 from prs3_post.core.errors import FeatureError, InputError, LimitError, ReachError
 from prs3_post.core.input_files import file_sha256
 from prs3_post.core.numbers import exact_text
@@ -544,6 +550,8 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
     collisions = [m.entry(spec.clearance_min) if isinstance(m, ProgramClearance) else m or ""
                   for m, spec in zip(measured, specs, strict=True)]
     entries += (("dynamics", dynamics), ("collision", _collision_entry(specs, collisions)))
+    accuracy = header_accuracy(first.machine, program, resolution=DEFAULT_ACTUATOR_RESOLUTION_MM)
+    entries += (("accuracy", accuracy),) if accuracy else ()     # a calibrated machine's only: others' unchanged
     job = JobProgram(program=program, header=entries, dialect=first.dialect, stage=first.machine.stage.present,
                      line_numbers=first.line_numbers, line_start=first.line_start, line_step=first.line_step,
                      face=done[0].face, face_note=done[0].face_note, setup=first.setup, triangles=triangles,

@@ -10,8 +10,17 @@ from typing import Any
 import click
 
 from prs3_post.app.values import LENGTH
-from prs3_post.cli.options import Command, Decimal, Integer, OutputPath, image_format, machine_option, run_reported
-from prs3_post.core.defaults import DEFAULT_MEASUREMENT_NOISE_MM
+from prs3_post.cli.options import (
+    Command,
+    Decimal,
+    Integer,
+    Numbers,
+    OutputPath,
+    image_format,
+    machine_option,
+    run_reported,
+)
+from prs3_post.core.defaults import DEFAULT_ACTUATOR_RESOLUTION_MM, DEFAULT_MEASUREMENT_NOISE_MM
 from prs3_post.core.output_files import is_stdout, write_outputs
 
 #: ``--noise-mm``: a measurement's noise, mm (above 0).
@@ -155,6 +164,49 @@ def plan(machine_name: str, poses: int, out_path: str, report_path: str | None, 
             outputs.append((report_path, json.dumps(plan_json(chosen), indent=2, allow_nan=False) + "\n"))
         write_outputs(outputs)
         _summary(plan_text(chosen), is_stdout(out_path) or is_stdout(report_path or ""))
+        return 0
+
+    run_reported(body)
+
+
+@click.command(cls=Command)
+@machine_option
+@click.option("--noise-mm", "noise", type=NOISE, default=None,
+              help="Show what a planned calibration (60 poses) measured with this noise would give, instead of "
+                   "the machine file's calibration.")
+@click.option("--resolution-mm", "resolution", type=Decimal(LENGTH, low=0.0), default=DEFAULT_ACTUATOR_RESOLUTION_MM,
+              show_default=True, help="The step each actuator is set to within, mm.")
+@click.option("--at", "where", type=Numbers("X,Y,Z"), default=None,
+              help="The tool tip's position, machine frame, mm.  [default: the part origin's x, y at the height "
+                   "of the untilted tool at mid-stroke]")
+@click.option("--preview", "preview_path", type=OutputPath(),
+              help="Draw the map (.png or .svg). Needs matplotlib: pip install 'prs3-post[plot]'.")
+@click.option("--json", "as_json", is_flag=True, help="Print the map as JSON.")
+def accuracy(machine_name: str, noise: float | None, resolution: float, where: tuple[float, float, float] | None,
+             preview_path: str | None, as_json: bool) -> None:
+    """How accurate the tool is: actuator resolution and the geometry's uncertainty at the tool tip.
+
+    First order (through the Jacobian), over every tilt and azimuth of the tool axis at one tip
+    position (--at; by default over the part's placement, at mid-stroke height): the tip's
+    uncertainty (mm, one standard deviation of its 3D error) and the axis's
+    (deg). The geometry's uncertainty is the machine file's calibration ([calibration], written by
+    `prs3-post calibrate`), or with --noise-mm a planned calibration's, or for a machine nobody
+    calibrated each parameter's expected error.
+
+    \b
+    Example:
+      prs3-post accuracy --machine calibrated.toml --preview accuracy.png
+    """
+    from prs3_post.app.accuracy import accuracy_json, accuracy_map, accuracy_picture, accuracy_text
+    from prs3_post.app.kinematics import machine_of
+
+    def body() -> int:
+        fmt = image_format(preview_path, "'--preview'") if preview_path else None
+        found = accuracy_map(machine_of(machine_name), resolution=resolution, noise=noise, where=where)
+        if fmt is not None and preview_path:
+            write_outputs([(preview_path, accuracy_picture(found, fmt))])
+        click.echo(json.dumps(accuracy_json(found), indent=2, allow_nan=False) if as_json else accuracy_text(found),
+                   nl=as_json)
         return 0
 
     run_reported(body)

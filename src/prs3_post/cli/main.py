@@ -13,7 +13,7 @@ from typing import Any
 
 import click
 
-from prs3_post.cli.calibrate import calibrate
+from prs3_post.cli.calibrate import accuracy, calibrate
 from prs3_post.cli.convert import convert
 from prs3_post.cli.info import faces, machines, sources
 from prs3_post.cli.kinematics import fk, ik
@@ -78,7 +78,7 @@ def main() -> None:
     """
 
 
-for _command in (calibrate, convert, demo, faces, fk, ik, job, machines, preview, run, sources, verify):
+for _command in (accuracy, calibrate, convert, demo, faces, fk, ik, job, machines, preview, run, sources, verify):
     main.add_command(_command)
 
 

@@ -16,10 +16,9 @@ from __future__ import annotations
 import math
 
 __all__ = [
-    "DEFAULT_ANGLE_TOLERANCE", "DEFAULT_ANGLE_TOLERANCE_DEG", "DEFAULT_CIRCLE_TOLERANCE", "DEFAULT_CLEARANCE_MIN",
-    "DEFAULT_MEASUREMENT_NOISE_MM", "DEFAULT_TOLERANCE", "FEED_RANGE_MM_MIN", "LIMIT_TOLERANCE", "MAX_SPINDLE_RPM",
-    "MIN_SPINDLE_RPM", "MM_PER_INCH",
-    "NOMINAL_RAPID_RATE",
+    "DEFAULT_ACTUATOR_RESOLUTION_MM", "DEFAULT_ANGLE_TOLERANCE", "DEFAULT_ANGLE_TOLERANCE_DEG",
+    "DEFAULT_CIRCLE_TOLERANCE", "DEFAULT_CLEARANCE_MIN", "DEFAULT_MEASUREMENT_NOISE_MM", "DEFAULT_TOLERANCE",
+    "FEED_RANGE_MM_MIN", "LIMIT_TOLERANCE", "MAX_SPINDLE_RPM", "MIN_SPINDLE_RPM", "MM_PER_INCH", "NOMINAL_RAPID_RATE",
 ]
 
 DEFAULT_TOLERANCE = 0.002
@@ -66,3 +65,7 @@ the 0.0001 mm and deg printed. Every limit check (post.limits, the placement sea
 DEFAULT_MEASUREMENT_NOISE_MM = 0.01
 """mm: the noise of a calibration's measured tool tips (one coordinate, one standard deviation) unless the user
 gives it (``calibrate --noise-mm``): a laser tracker at a couple of metres, or a touch probe on a reference artefact."""
+
+DEFAULT_ACTUATOR_RESOLUTION_MM = 0.001
+"""mm: the step an actuator is set to within unless the user gives it (``accuracy --resolution-mm``): a lead screw's
+encoder, and the 4 decimals of a U V W word at most."""

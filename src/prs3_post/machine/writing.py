@@ -85,19 +85,21 @@ def machine_toml(machine: Machine, *, comment: Iterable[str] = ()) -> str:
 
 
 def _general(general: GeneralGeometry) -> list[str]:
-    """The ``[[legs]]`` tables and the tool of a general head."""
-    out = ["", "# The tool in the platform frame (with the tool of tool_length_mm): its tip, mm, and its axis (unit,",
-           "# tip toward the spindle).",
-           f"tool_tip_mm = {exact_list(general.tool_tip, _MM)}",
-           f"tool_axis = {exact_list(general.tool_axis, _UNIT)}"]
+    """The ``[[legs]]`` tables and the ``[platform]`` table (the tool) of a general head."""
+    out = []
     for number, leg in enumerate(general.legs, start=1):
-        out += ["", "[[legs]]", f"# leg {number}",
+        out += ["", "[[legs]]", f"# leg {number}: machine frame at stroke 0, mm; directions unit",
                 f"rail_point_mm = {exact_list(leg.rail_point, _MM)}",
                 f"rail_direction = {exact_list(leg.rail_direction, _UNIT)}",
                 f"revolute_axis = {exact_list(leg.revolute_axis, _UNIT)}",
                 f"link_length_mm = {exact_text(leg.link_length, _MM)}",
                 f"platform_joint_mm = {exact_list(leg.platform_joint, _MM)}",
                 f"stroke_offset_mm = {exact_text(leg.stroke_offset, _MM)}"]
+    out += ["", "[platform]",
+            "# The tool in the platform frame, with the tool of geometry.tool_length_mm: its tip, mm, and",
+            "# its axis (unit, tip toward the spindle).",
+            f"tool_tip_mm = {exact_list(general.tool_tip, _MM)}",
+            f"tool_axis = {exact_list(general.tool_axis, _UNIT)}"]
     return out
 
 

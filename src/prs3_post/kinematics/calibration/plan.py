@@ -37,12 +37,14 @@ class Plan:
     index : (n,) int — the chosen candidates, in the candidates' order
     identifiability : Identifiability — what the chosen poses determine (fitted and held parameters)
     std : (P,) float — code units, each fitted parameter's expected standard deviation (NaN: held)
+    covariance : (P, P) float — scaled units², the parameters' expected covariance (0 for held ones)
     log_det : float — the criterion: log det(I + JᵀJ/σ²) on the fitted parameters
     """
 
     index: IntArray
     identifiability: Identifiability
     std: FloatArray
+    covariance: FloatArray
     log_det: float
 
 
@@ -101,10 +103,13 @@ def plan_poses(model: ErrorModel, candidates: Observations, count: int, *, noise
     basis = final.basis
     gram = basis.T @ (jac[rows][:, fitted].T @ jac[rows][:, fitted]) @ basis / noise**2
     std = np.full(len(model.parameters), math.nan)
+    covariance = np.zeros((len(model.parameters),) * 2)
     if basis.shape[1]:
-        std[fitted] = np.sqrt(np.diag(basis @ np.linalg.inv(gram) @ basis.T)) * model.scales[fitted]
+        covariance[np.ix_(fitted, fitted)] = basis @ np.linalg.inv(gram) @ basis.T
+        std[fitted] = np.sqrt(np.diag(covariance)[fitted]) * model.scales[fitted]
     sign, log_det = np.linalg.slogdet(np.eye(k) + sum(g[i].T @ g[i] for i in index))
-    return Plan(index=index, identifiability=final, std=std, log_det=float(log_det) if sign > 0 else -math.inf)
+    return Plan(index=index, identifiability=final, std=std, covariance=covariance,
+                log_det=float(log_det) if sign > 0 else -math.inf)
 
 
 def _gain(block: FloatArray, information: FloatArray) -> float:
