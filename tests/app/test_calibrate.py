@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from numpy.testing import assert_allclose
 
 from prs3_post.app.calibrate import calibrate_machine, limit_report, plan_calibration
 from prs3_post.app.calibration_report import calibrated_toml, plan_csv
@@ -25,6 +26,7 @@ from prs3_post.machine.loading import load_machine
 from prs3_post.readers.measurements import read_measurements
 
 MACHINE = load_machine("patel2020")
+LEG_FIELDS = ("rail_point", "rail_direction", "revolute_axis", "link_length", "platform_joint", "stroke_offset")
 NOISE = 0.005
 MODEL = error_model(MACHINE.geometry)
 #: The simulated machine as built: scaled parameters (one unit = the expected error).
@@ -225,7 +227,9 @@ def test_the_calibrated_file_loads_and_posts_the_demo_square_onto_the_true_path(
     loaded = load_machine(str(path))
     assert loaded.kinematics == "3-prs-general" and loaded.calibration is not None
     assert loaded.limits == MACHINE.limits and loaded.dynamics == MACHINE.dynamics and loaded.holder == MACHINE.holder
-    assert loaded.geometry.general == result.calibrated.geometry.general
+    for ours, theirs in zip(loaded.geometry.general.legs, result.calibrated.geometry.general.legs, strict=True):
+        assert_allclose(np.hstack([np.ravel(getattr(ours, f)) for f in LEG_FIELDS]),    # unit vectors: scaled on loading
+                        np.hstack([np.ravel(getattr(theirs, f)) for f in LEG_FIELDS]), rtol=0, atol=1e-12)
     dialect = load_dialect("linuxcnc")
     offsets = {}
     for name, machine, machine_file in (("calibrated", loaded, str(path)), ("nominal", MACHINE, "patel2020")):
