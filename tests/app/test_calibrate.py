@@ -228,7 +228,8 @@ def test_the_calibrated_file_loads_and_posts_the_demo_square_onto_the_true_path(
     assert loaded.kinematics == "3-prs-general" and loaded.calibration is not None
     assert loaded.limits == MACHINE.limits and loaded.dynamics == MACHINE.dynamics and loaded.holder == MACHINE.holder
     for ours, theirs in zip(loaded.geometry.general.legs, result.calibrated.geometry.general.legs, strict=True):
-        assert_allclose(np.hstack([np.ravel(getattr(ours, f)) for f in LEG_FIELDS]),    # unit vectors: scaled on loading
+        # unit vectors are scaled to unit length on loading: the same to 1e-12
+        assert_allclose(np.hstack([np.ravel(getattr(ours, f)) for f in LEG_FIELDS]),
                         np.hstack([np.ravel(getattr(theirs, f)) for f in LEG_FIELDS]), rtol=0, atol=1e-12)
     dialect = load_dialect("linuxcnc")
     offsets = {}

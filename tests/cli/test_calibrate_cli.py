@@ -6,8 +6,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
+from numpy.testing import assert_allclose
 
 from prs3_post.cli.main import main
 from prs3_post.machine.loading import load_machine
@@ -115,3 +117,31 @@ def test_accuracy_of_the_nominal_and_the_calibrated_machine(tmp_path):
     tips = [v for row in record["tip_mm"] for v in row if v is not None]
     assert max(tips) < 0.01 and min(tips) > 0.0
     assert (tmp_path / "map.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_fit_frame_finds_the_instruments_frame(tmp_path):
+    """The measured tips and axes in a tracker's frame (turned 20° about z, tilted 1°, 2 m away):
+    refused as they are, calibrated with --fit-frame to the same residuals."""
+    lines = Path(MEASURED).read_text().splitlines()
+    turn = np.radians(20.0)
+    tilt = np.radians(1.0)
+    rz = np.array([[np.cos(turn), -np.sin(turn), 0], [np.sin(turn), np.cos(turn), 0], [0, 0, 1]])
+    rx = np.array([[1, 0, 0], [0, np.cos(tilt), -np.sin(tilt)], [0, np.sin(tilt), np.cos(tilt)]])
+    rotation, shift = rx @ rz, np.array([2000.0, -500.0, 1200.0])
+    rows = []
+    for line in lines[1:]:
+        v = np.array([float(c) for c in line.split(",")])
+        tip, axis = rotation @ v[5:8] + shift, rotation @ v[8:11]
+        rows.append(",".join([*line.split(",")[:5], *(f"{x:.4f}" for x in tip), *(f"{x:.7f}" for x in axis)]))
+    path = tmp_path / "tracker.csv"
+    path.write_text("\n".join([lines[0], *rows]) + "\n")
+    refused = run("calibrate", str(path), "-o", str(tmp_path / "no.toml"))
+    assert refused.exit_code == 2 and "--fit-frame identifies the measurement frame" in refused.output
+    report = tmp_path / "frame.json"
+    result = run("calibrate", str(path), "--fit-frame", "--noise-mm", "0.005", "-o", str(tmp_path / "c.toml"),
+                 "--report", str(report))
+    assert result.exit_code == 0, result.output
+    record = json.loads(report.read_text())
+    assert record["fit_frame"] is True and record["after"]["tip_rms_mm"] < 0.009
+    assert_allclose(record["frame"]["rotation"], rotation, atol=5e-3)
+    assert_allclose(record["frame"]["translation_mm"], shift, atol=10.0)
