@@ -1,7 +1,8 @@
 """Fuzzing every command of the CLI: random option values and mutated input files.
 
 For each command (``run``, ``demo``, ``faces``, ``ik``, ``fk``, ``verify``, ``preview``,
-``machines``, ``job``) hypothesis draws option values for the command's own click parameters (read from
+``machines``, ``job``, ``convert``, ``calibrate`` and ``calibrate plan``, ``accuracy``) hypothesis
+draws option values for the command's own click parameters (read from
 the command, so a new option is fuzzed too): mostly sensible values, sometimes hostile ones
 (``nan``, ``1e308``, ``1_0``, empty, non-ASCII digits), and input files (STL, program, CSV,
 machine and dialect TOML) with bytes flipped, inserted, deleted or truncated. Every run must:
@@ -36,7 +37,7 @@ REPO = Path(__file__).resolve().parents[2]
 #: How many examples each command gets (the whole file runs in ~15 s; preview draws a figure).
 EXAMPLES = {"run": 40, "demo": 50, "faces": 40, "ik": 50, "fk": 50, "verify": 50, "preview": 12, "machines": 5,
             "sources": 5,
-            "job": 25, "convert": 30}
+            "job": 25, "convert": 30, "calibrate": 12, "accuracy": 6}
 #: Options set in one example, besides the required ones.
 MAX_OPTIONS = 4
 
@@ -66,6 +67,8 @@ def originals() -> dict[str, tuple[bytes, ...]]:
                     (REPO / "postproc" / "dialects" / "fanuc.toml").read_bytes()),
         "tbl": ((REPO / "fixtures" / "jobs" / "tools.tbl").read_bytes(),),
         "job": (_example_job(),),
+        "meas": ((REPO / "fixtures" / "calibration" / "measured.csv").read_bytes(),
+                 (REPO / "fixtures" / "calibration" / "validate.csv").read_bytes()),
     }
 
 
@@ -148,11 +151,13 @@ INPUTS = {
     "batch_path": [("csv", "poses.csv")], "against_path": [("stl", "against.stl"), ("csv", "against.csv")],
     "tool_table": [("tbl", "tools.tbl")], "job_path": [("job", "job.toml")],
     "inputs": [("cl", "c.cls"), ("ngc", "p.nc")],
+    "measurements_path": [("meas", "measured.csv")], "validate_path": [("meas", "validate.csv")],
 }
 #: Output names: mostly good ones for the command, sometimes a folder, a missing folder or an input.
 GOOD_OUTPUTS = {"preview": ("out/o.png", "out/o.svg"), "preview_path": ("out/o.png", "out/o.svg"),
                 "ik": ("out/o.csv", "-"), "run": ("out/o.ngc", "-"), "demo": ("out/o.ngc", "-"),
-                "job": ("out/o.ngc", "-")}
+                "job": ("out/o.ngc", "-"), "identify": ("out/o.toml", "-"), "plan": ("out/poses.csv", "-"),
+                "report_path": ("out/r.json", "-")}
 BAD_OUTPUTS = ("out/", "out/missing/o.png", "in/part.stl", "in/prog.ngc", "in/poses.csv", "out/o.txt", "")
 
 
@@ -220,12 +225,16 @@ def _snapshot(folder: Path) -> dict[str, bytes]:
 
 def check_command(name: str, data: st.DataObject, monkeypatch: pytest.MonkeyPatch) -> None:
     command = main.commands[name]
+    group: list[str] = []
+    if isinstance(command, click.Group):             # calibrate: one of its commands (identify, plan)
+        group = [name]
+        command = command.commands[data.draw(st.sampled_from(sorted(command.commands)))]
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         (folder / "in").mkdir()
         (folder / "out").mkdir()
         monkeypatch.chdir(folder)
-        args = _arguments(data.draw, command, folder)
+        args = group + _arguments(data.draw, command, folder)
         inputs = _snapshot(folder)
         result = CliRunner().invoke(main, args, prog_name="prs3-post")
         context = f"prs3-post {' '.join(args)}\nstdout: {result.stdout[-2000:]}\nstderr: {result.stderr[-2000:]}"
@@ -275,3 +284,5 @@ test_fuzz_machines = _fuzz("machines")
 test_fuzz_sources = _fuzz("sources")
 test_fuzz_job = _fuzz("job")
 test_fuzz_convert = _fuzz("convert")
+test_fuzz_calibrate = _fuzz("calibrate")
+test_fuzz_accuracy = _fuzz("accuracy")

@@ -124,7 +124,7 @@ def _lengths(value: str | None) -> tuple[float, ...]:
 
 @calibrate.command("plan", cls=Command)
 @machine_option
-@click.option("--poses", type=Integer(1, 2000), default=60, show_default=True, help="How many poses to measure.")
+@click.option("--poses", type=Integer(1, 500), default=60, show_default=True, help="How many poses to measure.")
 @click.option("-o", "--output", "out_path", type=OutputPath(), required=True,
               help="The poses as a measurement CSV with the measured columns empty (- for standard output).")
 @click.option("--report", "report_path", type=OutputPath(),
