@@ -60,6 +60,8 @@ def render() -> str:
         command = group.get_command(root, name)
         if command is not None and not command.hidden:
             parts.append(_command(name, command, root))
+            if isinstance(command, click.Group):          # calibrate: its commands too (identify, plan)
+                parts += [_command(f"{name} {sub}", command.commands[sub], root) for sub in sorted(command.commands)]
     return "\n".join(parts).rstrip() + "\n"
 
 

@@ -51,7 +51,7 @@ def calibrate() -> None:
 
     The CSV: t1,t2,t3 (commanded strokes, mm), optional x,y (stage), px,py,pz (measured tip, machine
     frame, stage applied), optional ax,ay,az (measured axis), optional tool_length_mm.
-    See `prs3-post calibrate identify --help` and `prs3-post calibrate plan --help`.
+    `prs3-post calibrate MEASUREMENTS.csv` is `prs3-post calibrate identify MEASUREMENTS.csv`.
     """
 
 
@@ -59,7 +59,7 @@ def _summary(text: str, to_stderr: bool) -> None:
     click.echo(text, nl=False, err=to_stderr)
 
 
-@calibrate.command("identify", cls=Command, hidden=True)
+@calibrate.command("identify", cls=Command)
 @click.argument("measurements_path", metavar="MEASUREMENTS.csv", type=click.Path(dir_okay=False))
 @machine_option
 @click.option("-o", "--output", "out_path", type=OutputPath(), required=True,
@@ -69,7 +69,7 @@ def _summary(text: str, to_stderr: bool) -> None:
               help="Draw each pose's tip error before and after (.png or .svg). Needs matplotlib: "
                    "pip install 'prs3-post[plot]'.")
 @click.option("--noise-mm", "noise", type=NOISE, default=DEFAULT_MEASUREMENT_NOISE_MM, show_default=True,
-              help=_NOISE_HELP + " Parameters the measurements cannot determine to a third of their expected error "
+              help=_NOISE_HELP + " Combinations the measurements cannot determine to a third of their expected error "
                                  "at this noise are held at nominal.")
 @click.option("--fit-frame", is_flag=True,
               help="The tips are in the measuring instrument's own frame: identify its placement too.")
@@ -77,7 +77,7 @@ def _summary(text: str, to_stderr: bool) -> None:
               help="Other measured poses to check the calibrated machine on (not used to fit it).")
 def identify_command(measurements_path: str, machine_name: str, out_path: str, report_path: str | None,
                      preview_path: str | None, noise: float, fit_frame: bool, validate_path: str | None) -> None:
-    """Identify the machine as built from measured poses: prs3-post calibrate MEASUREMENTS.csv -o calibrated.toml.
+    """Identify the machine as built from measured poses (also: prs3-post calibrate MEASUREMENTS.csv ...).
 
     Prints the residuals before and after, the hold-out validation, every identified parameter with
     its standard deviation and the ones held at nominal; writes the calibrated machine file.
