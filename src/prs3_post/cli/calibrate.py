@@ -11,6 +11,7 @@ import click
 
 from prs3_post.app.values import LENGTH
 from prs3_post.cli.options import (
+    QUIET,
     Command,
     Decimal,
     Integer,
@@ -19,6 +20,8 @@ from prs3_post.cli.options import (
     image_format,
     machine_option,
     run_reported,
+    verbosity,
+    verbosity_options,
 )
 from prs3_post.core.defaults import DEFAULT_ACTUATOR_RESOLUTION_MM, DEFAULT_MEASUREMENT_NOISE_MM
 from prs3_post.core.output_files import is_stdout, write_outputs
@@ -40,6 +43,7 @@ class _CalibrateGroup(click.Group):
 
 
 @click.group(cls=_CalibrateGroup)
+@verbosity_options
 def calibrate() -> None:
     """Calibrate a machine from measured tool poses, and plan the poses to measure.
 
@@ -56,10 +60,13 @@ def calibrate() -> None:
 
 
 def _summary(text: str, to_stderr: bool) -> None:
-    click.echo(text, nl=False, err=to_stderr)
+    """The command's summary: on standard output, or on standard error (not with -q) when that is taken."""
+    if not to_stderr or verbosity() > QUIET:
+        click.echo(text, nl=False, err=to_stderr)
 
 
 @calibrate.command("identify", cls=Command)
+@verbosity_options
 @click.argument("measurements_path", metavar="MEASUREMENTS.csv", type=click.Path(dir_okay=False))
 @machine_option
 @click.option("-o", "--output", "out_path", type=OutputPath(), required=True,
@@ -123,6 +130,7 @@ def _lengths(value: str | None) -> tuple[float, ...]:
 
 
 @calibrate.command("plan", cls=Command)
+@verbosity_options
 @machine_option
 @click.option("--poses", type=Integer(1, 500), default=60, show_default=True, help="How many poses to measure.")
 @click.option("-o", "--output", "out_path", type=OutputPath(), required=True,
@@ -182,6 +190,7 @@ def plan(machine_name: str, poses: int, out_path: str, report_path: str | None, 
 @click.option("--preview", "preview_path", type=OutputPath(),
               help="Draw the map (.png or .svg). Needs matplotlib: pip install 'prs3-post[plot]'.")
 @click.option("--json", "as_json", is_flag=True, help="Print the map as JSON.")
+@verbosity_options
 def accuracy(machine_name: str, noise: float | None, resolution: float, where: tuple[float, float, float] | None,
              preview_path: str | None, as_json: bool) -> None:
     """How accurate the tool is: actuator resolution and the geometry's uncertainty at the tool tip.
