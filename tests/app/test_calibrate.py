@@ -170,6 +170,13 @@ def test_refusals_name_the_line_or_the_numbers(planned, tmp_path):
         calibrate_machine(MACHINE, read_measurements(str(outside)), noise=NOISE)
     assert str(caught.value) == (f"{outside}:6: outside the limits of patel2020: T{longest + 1} stroke 410.0000 mm is "
                                  "above the maximum 400.0000 mm by 10.0000 mm")
+    head = load_machine("patel2020-head")              # no stage: x, y must be 0
+    moved = tmp_path / "moved.csv"
+    moved.write_text("\n".join([lines[0], "0,0,0,5,0,1,2,3,0,0,1"]) + "\n", encoding="utf-8")
+    with pytest.raises(InputError) as caught:
+        calibrate_machine(head, read_measurements(str(moved)), noise=NOISE)
+    assert str(caught.value) == (f"{moved}:2: stage x, y = 5.0000, 0.0000 mm, but patel2020-head has no stage "
+                                 "(stage.present = false): leave x, y at 0 or out")
     steep = tmp_path / "steep.csv"                      # a link too flat
     steep.write_text("\n".join([*lines[:2], "-100,400,-100," + lines[2].split(",", 3)[3], *lines[3:]]) + "\n",
                      encoding="utf-8")

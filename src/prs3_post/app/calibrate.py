@@ -186,12 +186,20 @@ def observations_of(machine: Machine, measurements: Measurements) -> Observation
 
 
 def check_rows(machine: Machine, measurements: Measurements) -> None:
-    """Refuse the first row that does not assemble the head or is outside a limit, naming its line.
+    """Refuse the first row that does not assemble the head or is outside a limit (or moves a stage the
+    machine does not have), naming its line.
 
     Raises
     ------
     InputError
     """
+    if not machine.stage.present:
+        moved = np.flatnonzero(np.any(measurements.stage != 0.0, axis=1))
+        if len(moved):
+            row = int(moved[0])
+            x, y = (fixed(float(v)) for v in measurements.stage[row])
+            raise InputError(f"stage x, y = {x}, {y} mm, but {machine.name} has no stage (stage.present = false): "
+                             "leave x, y at 0 or out", path=measurements.path, line=int(measurements.line[row]))
     report, placed = limit_report(machine, measurements.strokes, measurements.stage)
     bad = np.flatnonzero(~placed | ~report.ok)
     if not len(bad):
