@@ -34,3 +34,11 @@ def test_readme_has_the_two_setup_commands_ci_runs():
     assert "prs3-post demo" in commands[0]
     ci = (README.parent / ".ci" / "run").read_text(encoding="utf-8")
     assert commands[1] in ci.splitlines()     # CI runs the README's test command verbatim
+
+
+def test_readme_stays_short():
+    """The README is the front page (a picture, what the tool is, set-up, commands, exit codes, where
+    next): at most 200 lines; the rest belongs in docs/."""
+    lines = README.read_text(encoding="utf-8").splitlines()
+    assert len(lines) <= 200, f"README.md has {len(lines)} lines: move sections to docs/"
+    assert lines[2].startswith("![")                    # the picture comes first
