@@ -573,8 +573,11 @@ def test_ctrl_c_leaves_no_program_and_no_temp_file(tmp_path: Path) -> None:
         os.close(ready_read)
     assert len(list(out.glob(".*.tmp"))) == 2          # what the signal must clean up
     os.killpg(process.pid, signal.SIGINT)
-    assert process.wait(timeout=60) != 0
+    assert process.wait(timeout=60) == 130             # one line, no traceback (the workers say nothing)
+    assert process.communicate()[1] == b"prs3-post: interrupted\n"
     assert sorted(os.listdir(out)) == []
+    with pytest.raises(ProcessLookupError):            # the workers ended with it
+        os.killpg(process.pid, 0)
 
 
 def test_a_report_named_like_a_program_is_refused_before_any_work(tmp_path: Path,

@@ -780,6 +780,20 @@ def verify_file(setting: ProgramSetting, *, tolerance: float, axis_tolerance_deg
     return verifier.report(blending_lines=stream.blending_lines)
 
 
+def require_plotting() -> None:
+    """Refuse a picture (``preview``, ``--preview``) before any work is done for it, when matplotlib cannot
+    be imported.
+
+    Raises
+    ------
+    MissingDependency
+        Giving the command that installs it.
+    """
+    from prs3_post.check.preview import require_matplotlib
+
+    require_matplotlib()
+
+
 def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str, *,
                   dialect: Dialect, tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None,
                   face: Face | None = None, title: str = "", rapid_rate: float,

@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from prs3_post.check.verify import VerifyReport, row_times
-from prs3_post.core.errors import Prs3Error
+from prs3_post.core.errors import MissingDependency
 from prs3_post.core.toolpath import MoveKind
 from prs3_post.core.types import FloatArray, IntArray
 from prs3_post.kinematics.registry import kinematics_of
@@ -46,7 +46,8 @@ from prs3_post.machine.loading import Machine
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["FORMATS", "clip_segments", "feature_edges", "figure_bytes", "path_segments", "render_preview", "time_label"]
+__all__ = ["FORMATS", "NO_MATPLOTLIB", "clip_segments", "feature_edges", "figure_bytes", "path_segments",
+           "render_preview", "require_matplotlib", "time_label"]
 
 #: Image formats by file suffix.
 FORMATS = {".png": "png", ".svg": "svg"}
@@ -56,16 +57,31 @@ _STAGE_COLOURS = ("#9467bd", "#8c564b")
 _LIMIT_COLOUR = "#d62728"
 
 
+#: What a picture asked for without matplotlib says (exit status 2).
+NO_MATPLOTLIB = "preview needs matplotlib: pip install 'prs3-post[plot]'"
+
+
 def _matplotlib() -> Any:
-    """Import matplotlib's Figure and the 3D toolkit, or say how to install them."""
+    """Import matplotlib's Figure and the 3D toolkit, or say how to install them.
+
+    Raises
+    ------
+    MissingDependency
+        :data:`NO_MATPLOTLIB`, when matplotlib (or its 3D toolkit) cannot be imported.
+    """
     try:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
         from mpl_toolkits.mplot3d import Axes3D  # noqa: F401  (registers the 3d projection)
         from mpl_toolkits.mplot3d.art3d import Poly3DCollection
     except ImportError as exc:
-        raise Prs3Error("preview needs matplotlib: pip install 'prs3-post[plot]'") from exc
+        raise MissingDependency(NO_MATPLOTLIB) from exc
     return Figure, FigureCanvasAgg, Poly3DCollection
+
+
+def require_matplotlib() -> None:
+    """Refuse a picture before any work is done for it when matplotlib cannot be imported (:func:`_matplotlib`)."""
+    _matplotlib()
 
 
 def path_segments(report: VerifyReport, kind: MoveKind) -> FloatArray:

@@ -1,8 +1,8 @@
 """The console script ``prs3-post``: the CLI, loaded so that Ctrl-C while it loads is no traceback.
 
 Importing :mod:`prs3_post.cli.main` (numpy, click and the package) takes a few tenths of a second; a
-Ctrl-C then raised KeyboardInterrupt outside click, which reports one later as ``Aborted!`` with exit
-status 1. The same is reported here.
+Ctrl-C then raised KeyboardInterrupt outside click. It is reported here as at any later moment
+(:func:`report_interrupted`): ``prs3-post: interrupted`` and exit status 130.
 
 OpenBLAS runs on one thread unless ``OPENBLAS_NUM_THREADS`` says otherwise: its thread pool, started
 when numpy is imported, spent some 0.09 CPU s of every start on the 2-core machine, and nothing here
@@ -45,6 +45,8 @@ import gc
 import os
 import sys
 
+from prs3_post.cli.exits import report_interrupted
+
 #: What the console script sets, unless already set, before numpy is imported (see above).
 BLAS_THREADS = {"OPENBLAS_NUM_THREADS": "1"}
 
@@ -77,15 +79,14 @@ def configure_malloc() -> bool:
 
 
 def main() -> None:
-    """Load the CLI and run it; Ctrl-C while it loads: ``Aborted!`` on standard error, exit 1."""
+    """Load the CLI and run it; Ctrl-C while it loads: as later (:func:`report_interrupted`)."""
     configure_blas()
     configure_malloc()
     gc.disable()                                     # while the CLI loads, then frozen (see above)
     try:
         from prs3_post.cli.main import main as cli
     except KeyboardInterrupt:
-        sys.stderr.write("\nAborted!\n")
-        sys.exit(1)
+        sys.exit(report_interrupted())
     finally:
         gc.freeze()
         gc.enable()

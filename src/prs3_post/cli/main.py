@@ -15,12 +15,13 @@ import click
 
 from prs3_post.cli.calibrate import accuracy, calibrate
 from prs3_post.cli.convert import convert
+from prs3_post.cli.exits import report_interrupted
 from prs3_post.cli.info import faces, machines, sources
 from prs3_post.cli.kinematics import fk, ik
 from prs3_post.cli.options import Command
 from prs3_post.cli.run import demo, job, run
 from prs3_post.cli.verify import preview, verify
-from prs3_post.core.errors import quoted
+from prs3_post.core.errors import OutputClosed, quoted
 from prs3_post.core.output_files import (
     guard_closed_stdout,
     stdout_error,
@@ -44,8 +45,31 @@ class _MainGroup(click.Group):
             failed = stdout_error(exc)
             if failed is None:
                 raise
-            click.echo(f"prs3-post: error: {failed}", err=True)
+            if not isinstance(failed, OutputClosed):    # its reader went away: nothing to say
+                click.echo(f"prs3-post: error: {failed}", err=True)
             sys.exit(failed.exit_code)
+
+    def make_context(self, *args: Any, **kwargs: Any) -> click.Context:
+        """click's, with Ctrl-C and a reader of standard output gone while the options are read (``--help``,
+        ``--version``) as when the command runs (:meth:`invoke`)."""
+        try:
+            return super().make_context(*args, **kwargs)
+        except KeyboardInterrupt:
+            raise click.exceptions.Exit(report_interrupted()) from None
+        except OSError as exc:
+            raise _quiet_exit(exc) from None
+
+    def invoke(self, ctx: click.Context) -> Any:
+        """The command; Ctrl-C (SIGINT) is ``prs3-post: interrupted`` and exit status 130, not click's
+        ``Aborted!`` and 1 (the status of a limit violation). Outputs under way are whole or absent (temp
+        files removed) and convert's workers are stopped before it gets here. A reader of standard output
+        that went away (``| head``) ends it quietly with 141 (click says nothing either, but exits 1)."""
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt:
+            raise click.exceptions.Exit(report_interrupted()) from None
+        except OSError as exc:
+            raise _quiet_exit(exc) from None
 
     def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
         if args and (not args[0].startswith("-") or args[0] == "-") and args[0] not in self.commands:   # '-': run's
@@ -57,6 +81,12 @@ class _MainGroup(click.Group):
                          " or a part file: prs3-post PART.stl --profile ...)")
             args = ["run", *args]
         return super().parse_args(ctx, args)
+
+
+def _quiet_exit(exc: OSError) -> BaseException:
+    """``click.exceptions.Exit(141)`` when ``exc`` is standard output's reader gone, else ``exc`` itself."""
+    failed = stdout_error(exc)
+    return click.exceptions.Exit(failed.exit_code) if isinstance(failed, OutputClosed) else exc
 
 
 @click.group(cls=_MainGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})

@@ -21,7 +21,15 @@ import click
 from prs3_post.app.requests import AUTO, SETTING_FIELDS, UP_ROTATION
 from prs3_post.app.values import ANGLE, LENGTH, DecimalKind, IntegerKind, Kind, NumbersKind, ValueProblem
 from prs3_post.core.defaults import DEFAULT_TOLERANCE
-from prs3_post.core.errors import FieldError, KeyedMessage, Prs3Error, Prs3Warning, UnusedFields, quoted
+from prs3_post.core.errors import (
+    FieldError,
+    KeyedMessage,
+    OutputClosed,
+    Prs3Error,
+    Prs3Warning,
+    UnusedFields,
+    quoted,
+)
 from prs3_post.core.output_files import (
     refuse_overwriting,
     stdout_error,
@@ -170,6 +178,10 @@ def run_reported(action: Callable[[], int | None]) -> None:
             if failed is None:
                 raise                                # not standard output: a bug, and its traceback helps
             raise failed from exc
+    except OutputClosed:                             # the reader of standard output went away (| head): quietly
+        sys.exit(OutputClosed.exit_code)
+    except FieldError as error:                      # a value an option gave (--machine ''): as click's own
+        raise option_error(error) from error
     except Prs3Error as error:
         click.echo(f"prs3-post: error: {error_text(error)}", err=True)
         sys.exit(error.exit_code)

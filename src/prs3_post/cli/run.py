@@ -226,6 +226,10 @@ def _run_job(part: str, **opts: Any) -> int:
     with timed("options, machine and dialect"):
         specs = job_specs_of(part, opts, given=given_options())
     fmt = image_format(opts["preview_path"], "'--preview'") if opts["preview_path"] else None
+    if fmt is not None:
+        from prs3_post.app.verify import require_plotting
+
+        require_plotting()
     with timed("post and check"):
         job = check_specs(specs, placement_hint=_placement_hint)
     out_path = opts["out_path"]
@@ -425,6 +429,10 @@ def job(job_path: str, out_path: str | None, machine_name: str, part_origin: tup
         with timed("options, machine and dialect"):
             specs = _job_specs(job_file, overrides)
         fmt = image_format(preview_path, "'--preview'") if preview_path else None
+        if fmt is not None:
+            from prs3_post.app.verify import require_plotting
+
+            require_plotting()
         try:
             with timed("post and check"):
                 job = check_specs(specs)

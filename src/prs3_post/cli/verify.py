@@ -407,6 +407,7 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
         open_program,
         preview_bytes,
         rebuild_job,
+        require_plotting,
         tool_lengths_of,
     )
     from prs3_post.app.verify_inputs import header_contradictions, part_drawing, recorded_part
@@ -414,6 +415,7 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
     def body() -> int:
         ctx = click.get_current_context()
         fmt = image_format(out_path, "'-o' / '--output'")
+        require_plotting()
         _refuse_cl_file(program_path)
         with timed("read"):
             context = _open_program(ctx, program_path, machine_name, dialect_name, part_origin, part_rotation,

@@ -104,6 +104,21 @@ class ConfigError(InputError):
     """A machine or dialect TOML file is wrong; the message starts with the dotted key."""
 
 
+class OutputClosed(InputError):
+    """Standard output's reader went away before everything was written (``prs3-post machines | head -1``):
+    not the command's error. The command line ends quietly with exit status 141 (128 + SIGPIPE: what a
+    shell reports for a process the signal ended, as it would have without Python's handling)."""
+
+    exit_code = 141
+
+
+class MissingDependency(Prs3Error):
+    """An optional dependency the command needs is not installed (matplotlib for a picture): the message
+    gives the command that installs it. Exit status 2, as for bad input."""
+
+    exit_code = 2
+
+
 class LimitError(Prs3Error):
     """A point would drive the machine past a limit: names the source line/step, limit, value, margin."""
 

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
-from prs3_post.core.errors import InputError
+from prs3_post.core.errors import InputError, OutputClosed
 
 Chunks = str | bytes | Iterable[str | bytes]
 """Text (UTF-8), bytes, or an iterable of text/bytes chunks."""
@@ -411,6 +411,8 @@ def _stdout_error(exc: OSError) -> InputError:
         os.dup2(devnull, sys.stdout.fileno())
         os.close(devnull)
     reason = _CLOSED_STDOUT if _closed_stdout(exc) else exc.strerror or exc
+    if exc.errno == errno.EPIPE:                         # its reader went away (| head): not an error of ours
+        return OutputClosed(f"cannot write: {reason}", path=STDOUT)
     return InputError(f"cannot write: {reason}", path=STDOUT)
 
 

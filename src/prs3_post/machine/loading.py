@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from prs3_post.core.errors import ConfigError, InputError, quoted, shortened
+from prs3_post.core.errors import ConfigError, FieldError, InputError, quoted, shortened
 from prs3_post.core.input_files import read_text
 from prs3_post.core.lexer import code_name
 from prs3_post.machine.controller_rules import block_problem
@@ -115,7 +115,14 @@ def resolve(kind: str, name_or_path: str) -> Path:
     ConfigError
         When it is neither a shipped name nor an existing file (a folder or a FIFO is named as such);
         the message lists the shipped names.
+    FieldError
+        An empty name (or only spaces), as the value of the key ``kind`` names (``machine``, ``dialect``,
+        ``source``): it names no file (a path of the current folder, which is no TOML file).
     """
+    if not name_or_path.strip():
+        names = ", ".join(shipped_names(kind)) or "none"
+        raise FieldError(f"{'empty' if not name_or_path else 'blank'} name (valid: a shipped {kind[:-1]} name: "
+                         f"{names}; or the path of a {kind[:-1]} TOML file)", field=kind[:-1])
     shipped = postproc_dir() / kind / f"{name_or_path}.toml"
     if stat.S_ISREG(_mode(shipped, name_or_path)):
         return shipped
