@@ -189,3 +189,10 @@ def test_an_empty_machine_in_a_job_file_names_its_key(tmp_path: Path) -> None:
     assert (result.exit_code, result.stdout) == (2, "")
     assert result.stderr == (f"prs3-post: error: {job}: machine: empty name (valid: a shipped machine name: "
                              "patel2020, patel2020-head; or the path of a machine TOML file)\n")
+
+
+def test_the_help_lists_every_exit_status() -> None:
+    text = invoke("--help").stdout
+    statuses = text.split("Exit status (every command):\n")[1].split("\n\n")[0].splitlines()
+    assert [line.split()[0] for line in statuses] == ["0", "1", "2", "130", "141"]
+    assert "  prs3-post verify part.ngc --part part.stl\n" in text

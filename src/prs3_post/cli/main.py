@@ -98,13 +98,27 @@ def main() -> None:
     its inclined face, plans the operation and writes a G-code program in actuator space
     (stage X, Y and strokes T1, T2, T3 as U, V, W), checked against every machine limit.
 
+    Every command takes -q (errors only on standard error) and -v (what was used, and the time of
+    each stage). The part is PART.stl where it is the command's subject (run, faces) and --part
+    PART.stl where it is an extra input (convert, verify, preview); --part-units is its unit.
+
     \b
     Examples:
       prs3-post demo --profile square -o demo.ngc        (the paper's wedge, bundled)
       prs3-post part.stl --profile hole --depth 8 --peck 2 -o part.ngc
+      prs3-post part.stl --part-units inch --up y --profile hole -o part.ngc
       prs3-post faces part.stl
+      prs3-post verify part.ngc --part part.stl
       prs3-post ik --tip -81.0264,21.2132,-679.4865 --axis 0.447214,0,0.894427
       prs3-post fk --strokes 36.2244,170.3886,88.9519 --xy -2.7640,12.0703
+
+    \b
+    Exit status (every command):
+      0    done
+      1    a machine limit, the workspace, a collision or a verify check failed (nothing written)
+      2    bad input or usage, or a missing optional dependency (the message gives the install command)
+      130  interrupted (Ctrl-C); outputs under way are not written
+      141  standard output's reader went away (prs3-post machines | head -1); files are whole
     """
 
 
