@@ -142,7 +142,7 @@ def main() -> None:
         # the children's bytecode: cached in the folder, as an installed package has it (compiled once, here)
         child_env = None if args.no_bytecode else {"PYTHONDONTWRITEBYTECODE": "",
                                                    "PYTHONPYCACHEPREFIX": str(folder / "bytecode")}
-        warm = run_cli(["convert", str(folder / "small.ngc"), "-o", str(folder / "out-warm"),
+        warm = run_cli(["convert", str(folder / "small.ngc"), "-d", str(folder / "out-warm"),
                         f"--part-origin={PART_ORIGIN}", "--jobs", "1", "--force"], env=child_env)
         if warm.code != 0:
             raise SystemExit(f"the warm-up conversion failed (exit {warm.code}): {warm.last}")
@@ -156,7 +156,7 @@ def main() -> None:
             reference.append(pygcode_rate(inputs["gcode"], sample))
             for name in names:
                 out, report = folder / f"out-{name}", folder / f"report-{name}.json"
-                run = run_cli(["convert", str(inputs[name]), "-o", str(out), f"--part-origin={PART_ORIGIN}",
+                run = run_cli(["convert", str(inputs[name]), "-d", str(out), f"--part-origin={PART_ORIGIN}",
                                "--jobs", "1", "--force", "--report", str(report)], env=child_env)
                 record = json.loads(report.read_text())["files"][0]["report"] if report.exists() else None
                 converted = record["input_moves"] if record and run.code == 0 else 0

@@ -37,12 +37,12 @@ def main() -> None:
         folder = Path(tmp)
         env = None if args.no_bytecode else {"PYTHONDONTWRITEBYTECODE": "", "PYTHONPYCACHEPREFIX": str(folder / "pyc")}
         program = folder / "hole.ngc"
-        made = run_cli(["demo", "--profile", "hole", "-o", str(program)], env)
+        made = run_cli(["demo", "--profile", "hole", "-d", str(program)], env)
         assert made.code == 0, made.last
         commands = {
             "ik (one pose)": ["ik", *TIP],
             "verify (33 lines)": ["verify", str(program)],
-            "convert (17 lines)": ["convert", str(REPO / "fixtures/gcode/wedge-face-3axis.ngc"), "-o",
+            "convert (17 lines)": ["convert", str(REPO / "fixtures/gcode/wedge-face-3axis.ngc"), "-d",
                                    str(folder / "out"), "--part-origin=-60.9,-10.9,-745.0", "--jobs", "1"],
         }
         for command in commands.values():                   # the byte code cache, and a check that each works

@@ -50,7 +50,7 @@ def test_an_input_replaced_while_it_is_read_is_hashed_as_it_was_read(tmp_path: P
     monkeypatch.setattr(GcodeStream, "_pieces", replaced_after_the_first_piece)
     monkeypatch.setenv("PRS3_POST_THREADS", "2")
     out = tmp_path / "out"
-    result = CliRunner().invoke(main, ["convert", str(src), "-o", str(out), "--jobs", "1", "--part-origin=0,0,-850"])
+    result = CliRunner().invoke(main, ["convert", str(src), "-d", str(out), "--jobs", "1", "--part-origin=0,0,-850"])
     assert result.exit_code == 0, result.output
     header = read_header(str(out / "part.ngc"))
     assert header.source_sha256 == converted
@@ -73,6 +73,6 @@ def test_running_out_of_memory_is_one_line_not_a_traceback(tmp_path: Path,
     src = tmp_path / "part.cls"
     src.write_text("RAPID\nGOTO/0,0,10\nGOTO/1,0,10\n")
     out = tmp_path / "out"
-    result = CliRunner().invoke(main, ["convert", str(src), "-o", str(out), "--jobs", "1", "--part-origin=0,0,-850"])
+    result = CliRunner().invoke(main, ["convert", str(src), "-d", str(out), "--jobs", "1", "--part-origin=0,0,-850"])
     assert (result.exit_code, result.stderr) == (1, f"prs3-post: error: {OUT_OF_MEMORY}\n")
     assert list(out.iterdir()) == []

@@ -111,7 +111,7 @@ def test_corpus_file_replays_onto_its_cl_points(name: str) -> None:
 
 @pytest.mark.parametrize("name", sorted(UNPLACEABLE))
 def test_unplaceable_corpus_file_fails_with_its_reason(name: str, tmp_path: Path) -> None:
-    result = CliRunner().invoke(main, ["convert", str(CORPUS / name), "-o", str(tmp_path), "--jobs", "1"])
+    result = CliRunner().invoke(main, ["convert", str(CORPUS / name), "-d", str(tmp_path), "--jobs", "1"])
     assert result.exit_code == 1
     separator = ":" if name == "humman_ust_a_variable_contour.cls" else ": "
     assert result.stdout == f"failed\t{CORPUS / name}\t-\t{CORPUS / name}{separator}{UNPLACEABLE[name]}\n"
@@ -124,7 +124,7 @@ def test_golden_conversion(name: str, tmp_path: Path, update_golden: bool, rs274
     cwd = os.getcwd()
     os.chdir(CORPUS)
     try:
-        result = CliRunner().invoke(main, ["convert", name, "-o", str(tmp_path), "--jobs", "1",
+        result = CliRunner().invoke(main, ["convert", name, "-d", str(tmp_path), "--jobs", "1",
                                            _origin_option(PLACED[name])])
     finally:
         os.chdir(cwd)
@@ -151,7 +151,7 @@ def test_golden_3_plus_2_conversion(name: str, tmp_path: Path, update_golden: bo
     """A G68.2 program (a G83 peck cycle, a G2 arc in G18) and a 3-axis program put on the wedge's face 4,
     byte for byte; LinuxCNC accepts them and verify --against their G-code rebuilds them."""
     src = REPO / "fixtures" / "gcode" / name
-    result = CliRunner().invoke(main, ["convert", str(src), "-o", str(tmp_path), "--jobs", "1", *GCODE_GOLDEN[name]])
+    result = CliRunner().invoke(main, ["convert", str(src), "-d", str(tmp_path), "--jobs", "1", *GCODE_GOLDEN[name]])
     assert result.exit_code == 0, result.output
     out = tmp_path / name
     compare_golden(out.read_text(), GOLDEN / f"convert-{name}", update_golden)
@@ -164,7 +164,7 @@ def test_golden_3_plus_2_conversion(name: str, tmp_path: Path, update_golden: bo
 
 def test_every_placed_output_passes_linuxcnc(tmp_path: Path, rs274_check) -> None:
     for name, origin in PLACED.items():
-        result = CliRunner().invoke(main, ["convert", str(CORPUS / name), "-o", str(tmp_path), "--jobs", "1",
+        result = CliRunner().invoke(main, ["convert", str(CORPUS / name), "-d", str(tmp_path), "--jobs", "1",
                                            _origin_option(origin)])
         assert result.exit_code == 0, result.output
     outputs = sorted(tmp_path.glob("*.ngc"))
@@ -175,7 +175,7 @@ def test_every_placed_output_passes_linuxcnc(tmp_path: Path, rs274_check) -> Non
 
 def test_verify_against_another_source_is_refused(tmp_path: Path) -> None:
     name = "mech491_APT_SimpleMillPlane.cls"
-    CliRunner().invoke(main, ["convert", str(CORPUS / name), "-o", str(tmp_path), "--jobs", "1",
+    CliRunner().invoke(main, ["convert", str(CORPUS / name), "-d", str(tmp_path), "--jobs", "1",
                               _origin_option(PLACED[name])])
     out = tmp_path / "mech491_APT_SimpleMillPlane.ngc"
     other = CORPUS / "humman_deep_drill.clsf"
@@ -200,7 +200,7 @@ def test_truncated_record_fails_and_writes_nothing(tmp_path: Path) -> None:
     src = tmp_path / "truncated.cls"
     src.write_text("RAPID\nGOTO/1,2,3\nGOTO/1,2,$\n")
     out = tmp_path / "out"
-    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(out))
+    code, stdout, _ = _cli(tmp_path, str(src), "-d", str(out))
     assert code == 2
     reason = stdout.split("\t")[3].rstrip("\n")
     assert reason == (f"{src}:3: truncated record: 'GOTO/1,2,' continues with '$' but the file ends (a continued "
@@ -212,7 +212,7 @@ def test_unreachable_point_fails_and_writes_nothing(tmp_path: Path) -> None:
     src = tmp_path / "far.cls"
     src.write_text("FEDRAT/100\nRAPID\nGOTO/0,0,100\nGOTO/0,0,-500\n")
     out = tmp_path / "out"
-    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(out))
+    code, stdout, _ = _cli(tmp_path, str(src), "-d", str(out))
     assert code == 1
     assert stdout.split("\t")[3].rstrip("\n") == (
         f"{src}:4: T1 stroke 865.5270 mm is above the maximum 400.0000 mm by 465.5270 mm; " + _DEFAULT_SETUP)
@@ -228,7 +228,7 @@ def test_the_first_error_in_the_file_is_the_one_reported(tmp_path: Path) -> None
         moves = "".join(f"GOTO/{k % 7},0,100\n" for k in range(60_000))
         src.write_text(f"FEDRAT/100\nRAPID\nGOTO/0,0,100\n{at_start}\n{moves}{at_end}\n")
         out = tmp_path / f"out-{name}"
-        code, stdout, _ = _cli(tmp_path, str(src), "-o", str(out))
+        code, stdout, _ = _cli(tmp_path, str(src), "-d", str(out))
         reason = stdout.split("\t")[3].rstrip("\n")
         assert reason.startswith(f"{src}:4: "), reason
         assert code == (1 if name == "limit-first" else 2)
@@ -240,7 +240,7 @@ def test_output_folder_that_cannot_be_made(tmp_path: Path) -> None:
     src.write_text("RAPID\nGOTO/0,0,0\n")
     blocker = tmp_path / "file"
     blocker.write_text("")
-    code, stdout, stderr = _cli(tmp_path, str(src), "-o", str(blocker / "out"))
+    code, stdout, stderr = _cli(tmp_path, str(src), "-d", str(blocker / "out"))
     assert (code, stdout) == (2, "")
     assert stderr == f"prs3-post: error: {blocker / 'out'}: cannot create the output folder: Not a directory\n"
 
@@ -269,14 +269,14 @@ def test_existing_output_is_kept_unless_forced(tmp_path: Path) -> None:
     out.mkdir()
     kept = out / "humman_deep_drill.ngc"
     kept.write_text("mine\n")
-    code, stdout, _ = _cli(tmp_path, str(CORPUS / name), "-o", str(out), _origin_option(PLACED[name]))
+    code, stdout, _ = _cli(tmp_path, str(CORPUS / name), "-d", str(out), _origin_option(PLACED[name]))
     assert code == 2
     assert stdout == f"failed\t{CORPUS / name}\t-\t{kept}: exists already: kept (convert with --force to replace it)\n"
     # the library names no option: its outcome says so neutrally
     outcome = convert_batch([str(CORPUS / name)], str(out), _settings(PLACED[name])).outcomes[0]
     assert (outcome.error, outcome.exists) == (f"{kept}: exists already: kept (it is replaced only when forced)", True)
     assert kept.read_text() == "mine\n"
-    code, _, _ = _cli(tmp_path, str(CORPUS / name), "-o", str(out), _origin_option(PLACED[name]), "--force")
+    code, _, _ = _cli(tmp_path, str(CORPUS / name), "-d", str(out), _origin_option(PLACED[name]), "--force")
     assert code == 0
     assert kept.read_text().startswith("(program: prs3-post")
 
@@ -347,7 +347,7 @@ def test_directory_search_skips_fifos_other_files_and_the_output_folder(tmp_path
 def test_report_json_accounts_for_every_record(tmp_path: Path) -> None:
     name = "mech491_APT_SimpleMillPlane.cls"
     report = tmp_path / "report.json"
-    code, _, _ = _cli(tmp_path, str(CORPUS / name), "-o", str(tmp_path / "out"), _origin_option(PLACED[name]),
+    code, _, _ = _cli(tmp_path, str(CORPUS / name), "-d", str(tmp_path / "out"), _origin_option(PLACED[name]),
                       "--report", str(report))
     assert code == 0
     data = json.loads(report.read_text())
@@ -387,7 +387,7 @@ def test_gcode_source_converts_and_verifies(tmp_path: Path, extra: tuple[str, ..
     LinuxCNC, and verify --against the G-code (a fanuc header is upper case)."""
     src = tmp_path / "tilt.gcode"
     src.write_text(TILTED)
-    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(tmp_path / "out"), "--part-origin=0,0,-850", *extra)
+    code, stdout, _ = _cli(tmp_path, str(src), "-d", str(tmp_path / "out"), "--part-origin=0,0,-850", *extra)
     assert code == 0, stdout
     out = tmp_path / "out" / name
     assert stdout.split("\t")[:3] == ["ok", str(src), str(out)]
@@ -402,7 +402,7 @@ def test_gcode_source_converts_and_verifies(tmp_path: Path, extra: tuple[str, ..
 def test_work_plane_puts_a_3_axis_program_on_a_plane(tmp_path: Path) -> None:
     src = tmp_path / "flat.nc"
     src.write_text("G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F100\nG1 X10\nM30\n")
-    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(tmp_path / "out"), "--part-origin=0,0,-850",
+    code, stdout, _ = _cli(tmp_path, str(src), "-d", str(tmp_path / "out"), "--part-origin=0,0,-850",
                            "--work-plane", "0,0,0,0.6,0,0.8")
     assert code == 0, stdout
     conversion = convert_file(str(src), dataclasses.replace(_settings((0.0, 0.0, -850.0)),
@@ -414,7 +414,7 @@ def test_work_plane_puts_a_3_axis_program_on_a_plane(tmp_path: Path) -> None:
 def test_a_dangling_link_in_a_folder_fails_as_a_missing_file(tmp_path: Path) -> None:
     (tmp_path / "cam").mkdir()
     os.symlink(tmp_path / "nowhere", tmp_path / "cam" / "gone.cls")
-    code, stdout, _ = _cli(tmp_path, str(tmp_path / "cam"), "-o", str(tmp_path / "out"))
+    code, stdout, _ = _cli(tmp_path, str(tmp_path / "cam"), "-d", str(tmp_path / "out"))
     assert code == 2
     assert stdout == f"failed\t{tmp_path / 'cam' / 'gone.cls'}\t-\t{tmp_path / 'cam' / 'gone.cls'}: file not found\n"
 
@@ -465,7 +465,7 @@ def test_bad_input_fails_with_its_message(tmp_path: Path, name: str, text: str, 
     src = tmp_path / name
     src.write_text(text)
     out = tmp_path / "out"
-    code, stdout, stderr = _cli(tmp_path, str(src), "-o", str(out))
+    code, stdout, stderr = _cli(tmp_path, str(src), "-d", str(out))
     assert code == 2
     assert stdout == f"failed\t{src}\t-\t{src}:{reason}\n"
     assert stderr.splitlines()[-1] == f"  {src}:{reason}"
@@ -475,7 +475,7 @@ def test_bad_input_fails_with_its_message(tmp_path: Path, name: str, text: str, 
 def test_an_input_in_the_output_folder_is_never_overwritten(tmp_path: Path) -> None:
     src = tmp_path / "t.ngc"
     src.write_text(TILTED)
-    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(tmp_path), "--part-origin=0,0,-850", "--force")
+    code, stdout, _ = _cli(tmp_path, str(src), "-d", str(tmp_path), "--part-origin=0,0,-850", "--force")
     assert code == 2
     assert stdout == (f"failed\t{src}\t-\t{src}: is also the input being converted: writing its program would "
                       "destroy it (choose another file)\n")
@@ -487,7 +487,7 @@ def test_the_corpus_folder_with_automatic_placement(tmp_path: Path) -> None:
     its own origin, recorded in its header and report), the others fail with their reason."""
     out = tmp_path / "out"
     report = tmp_path / "report.json"
-    result = CliRunner().invoke(main, ["convert", str(CORPUS), "-o", str(out), "--part-origin", "auto",
+    result = CliRunner().invoke(main, ["convert", str(CORPUS), "-d", str(out), "--part-origin", "auto",
                                        "--jobs", "2", "--report", str(report)])
     assert result.exit_code == 1
     files = {Path(f["input"]).name: f for f in json.loads(report.read_text())["files"]}
@@ -556,7 +556,7 @@ def test_ctrl_c_leaves_no_program_and_no_temp_file(tmp_path: Path) -> None:
     ready_read, ready_write = os.pipe()
     try:
         process = subprocess.Popen(
-            [sys.executable, "-c", _HELD_BATCH, str(ready_write), "convert", "a.cls", "b.cls", "-o", "out",
+            [sys.executable, "-c", _HELD_BATCH, str(ready_write), "convert", "a.cls", "b.cls", "-d", "out",
              "--part-origin=0,0,-850", "--jobs", "2"],
             cwd=tmp_path, env=env, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
             pass_fds=(ready_write,))
@@ -585,7 +585,7 @@ def test_a_report_named_like_a_program_is_refused_before_any_work(tmp_path: Path
     """--report OUT/x.ngc would replace the program of x.cls with the JSON report (exit 0)."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "x.cls").write_bytes((CORPUS / "mech491_APT_SimpleMillPlane.cls").read_bytes())
-    result = CliRunner().invoke(main, ["convert", "x.cls", "-o", "out", "--part-origin", "0,-17.2,-856",
+    result = CliRunner().invoke(main, ["convert", "x.cls", "-d", "out", "--part-origin", "0,-17.2,-856",
                                        "--jobs", "1", "--report", "./out/x.ngc"])
     assert (result.exit_code, result.stderr) == (
         2, "prs3-post: error: ./out/x.ngc: the program of x.cls and --report name the same file: one would "
@@ -596,7 +596,7 @@ def test_a_report_named_like_a_program_is_refused_before_any_work(tmp_path: Path
 def test_a_report_onto_an_input_names_the_input_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
     (tmp_path / "x.cls").write_bytes((CORPUS / "mech491_APT_SimpleMillPlane.cls").read_bytes())
-    result = CliRunner().invoke(main, ["convert", "x.cls", "-o", "out", "--report", "x.cls"])
+    result = CliRunner().invoke(main, ["convert", "x.cls", "-d", "out", "--report", "x.cls"])
     assert (result.exit_code, result.stderr) == (
         2, "prs3-post: error: x.cls: is also the input 1 (x.cls): writing --report would destroy it (choose another "
            "file)\n")
@@ -639,7 +639,7 @@ def test_a_feed_as_first_motion_is_an_input_error(tmp_path: Path, name: str, tex
     src = tmp_path / name
     src.write_text(text)
     out = tmp_path / "out"
-    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(out), origin)
+    code, stdout, _ = _cli(tmp_path, str(src), "-d", str(out), origin)
     assert code == 2
     assert stdout == (f"failed\t{src}\t-\t{src}:2: the first motion is a feed move, so its start point is unknown: "
                       f"{valid}\n")
@@ -653,7 +653,7 @@ def test_a_coordinate_beyond_a_kilometre_is_bad_input_not_out_of_reach(tmp_path:
     src = tmp_path / "far.cls"
     src.write_text(f"RAPID\nGOTO/0,0,0\nGOTO/{goto}\n")
     out = tmp_path / "out"
-    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(out), "--part-origin", "0,0,-700")
+    code, stdout, _ = _cli(tmp_path, str(src), "-d", str(out), "--part-origin", "0,0,-700")
     assert code == 2
     assert stdout == (f"failed\t{src}\t-\t{src}:3: GOTO/ {shown} is out of range (allowed: within ±1e+06 mm; is the "
                       "file in the right units?)\n")
@@ -663,7 +663,7 @@ def test_a_coordinate_beyond_a_kilometre_is_bad_input_not_out_of_reach(tmp_path:
 @pytest.mark.parametrize("tolerance", ["100", "0.00001"])
 def test_a_tolerance_outside_its_range_is_refused_before_any_work(tmp_path: Path, tolerance: str) -> None:
     out = tmp_path / "out"
-    code, stdout, stderr = _cli(tmp_path, str(CORPUS / "humman_deep_drill.clsf"), "-o", str(out), "--tolerance",
+    code, stdout, stderr = _cli(tmp_path, str(CORPUS / "humman_deep_drill.clsf"), "-d", str(out), "--tolerance",
                                 tolerance)
     assert (code, stdout) == (2, "")
     assert stderr == (f"prs3-post: error: --tolerance must be from 0.0001 mm (the resolution of the program) to 1 mm "
@@ -692,7 +692,7 @@ def test_an_empty_file_is_said_to_be_empty(tmp_path: Path, name: str, text: str,
                                            message: str) -> None:
     src = tmp_path / name
     src.write_text(text)
-    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(tmp_path / "out"), *forced)
+    code, stdout, _ = _cli(tmp_path, str(src), "-d", str(tmp_path / "out"), *forced)
     assert (code, stdout) == (2, f"failed\t{src}\t-\t{src}: {message}\n")
 
 
@@ -700,7 +700,7 @@ def test_a_report_in_a_missing_folder_is_refused_before_any_work(tmp_path: Path)
     name = "humman_deep_drill.clsf"
     out = tmp_path / "out"
     report = tmp_path / "no" / "r.json"
-    code, stdout, stderr = _cli(tmp_path, str(CORPUS / name), "-o", str(out), _origin_option(PLACED[name]),
+    code, stdout, stderr = _cli(tmp_path, str(CORPUS / name), "-d", str(out), _origin_option(PLACED[name]),
                                 "--report", str(report))
     assert (code, stdout) == (2, "")
     assert stderr == f"prs3-post: error: {report}: cannot write the output here: No such file or directory\n"
@@ -710,7 +710,7 @@ def test_a_report_in_a_missing_folder_is_refused_before_any_work(tmp_path: Path)
 def test_one_tcp_code_for_on_and_off_is_an_option_error(tmp_path: Path) -> None:
     """Refused once, before any file is read (the files are not even looked at)."""
     out = tmp_path / "out"
-    result = CliRunner().invoke(main, ["convert", str(tmp_path / "a.nc"), str(tmp_path / "b.nc"), "-o", str(out),
+    result = CliRunner().invoke(main, ["convert", str(tmp_path / "a.nc"), str(tmp_path / "b.nc"), "-d", str(out),
                                        "--source", "head-ab", "--tcp-on", "G43.4", "--tcp-off", "G43.4"])
     assert (result.exit_code, result.stdout) == (2, "")
     assert result.stderr.splitlines()[-1] == ("Error: Invalid value for '--tcp-on' / '--tcp-off': tcp: G43.4 both "
@@ -722,7 +722,7 @@ def test_one_tcp_code_for_on_and_off_is_an_option_error(tmp_path: Path) -> None:
 def test_a_folder_given_as_a_config_file_is_named_a_folder(tmp_path: Path, kind: str) -> None:
     folder = tmp_path / "dir.stl"
     folder.mkdir()
-    result = CliRunner().invoke(main, ["convert", str(tmp_path / "a.nc"), "-o", str(tmp_path / "out"),
+    result = CliRunner().invoke(main, ["convert", str(tmp_path / "a.nc"), "-d", str(tmp_path / "out"),
                                        f"--{kind}", str(folder)])
     assert result.exit_code == 2
     assert result.stderr.startswith(f"prs3-post: error: {folder}: is a folder, not a {kind} file: give a {kind} TOML "
@@ -738,7 +738,7 @@ def test_a_file_named_twice_is_converted_once_and_said_so(tmp_path: Path) -> Non
     names = [str(src), str(tmp_path / "b.cls"), str(src)]
     assert collect_inputs(names, repeats=repeats) == [str(src)]
     assert repeats == [(str(tmp_path / "b.cls"), str(src)), (str(src), str(src))]
-    code, _, stderr = _cli(tmp_path, *names, "-o", str(tmp_path / "out"), "--part-origin=0,0,-850")
+    code, _, stderr = _cli(tmp_path, *names, "-d", str(tmp_path / "out"), "--part-origin=0,0,-850")
     assert code == 0
     assert stderr.splitlines()[-1] == (f"prs3-post: 2 more names of files above, each converted once: "
                                        f"{tmp_path / 'b.cls'} (= {src}), {src} (= {src})")
@@ -769,7 +769,7 @@ def test_slowed_feeds_are_stated_in_the_header_and_the_report(tmp_path: Path, rs
     src = tmp_path / "fast.ngc"
     src.write_text(FAST)
     report = tmp_path / "report.json"
-    code, _, _ = _cli(tmp_path, str(src), "-o", str(tmp_path / "out"), _FAST_ORIGIN, "--report", str(report))
+    code, _, _ = _cli(tmp_path, str(src), "-d", str(tmp_path / "out"), _FAST_ORIGIN, "--report", str(report))
     assert code == 0
     out = tmp_path / "out" / "fast.ngc"
     text = out.read_text()
@@ -796,20 +796,20 @@ def test_no_clamp_refuses_a_feed_that_would_be_slowed(tmp_path: Path) -> None:
     src = tmp_path / "fast.ngc"
     src.write_text(FAST)
     out = tmp_path / "out"
-    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(out), _FAST_ORIGIN, "--no-clamp")
+    code, stdout, _ = _cli(tmp_path, str(src), "-d", str(out), _FAST_ORIGIN, "--no-clamp")
     assert code == 1
     reason = stdout.split("\t")[3].rstrip("\n")
     assert reason.startswith(f"{src}:5: the feed needs "), reason
     assert reason.endswith("x its top speed 5000.0 mm/min (slow the feed, or let it be clamped)"), reason
     assert not (out / "fast.ngc").exists()
-    code, _, _ = _cli(tmp_path, str(src), "-o", str(tmp_path / "clamped"), _FAST_ORIGIN, "--clamp")
+    code, _, _ = _cli(tmp_path, str(src), "-d", str(tmp_path / "clamped"), _FAST_ORIGIN, "--clamp")
     assert code == 0
 
 
 def test_a_5_axis_program_without_a_source_is_told_to_name_one(tmp_path: Path) -> None:
     """Issue 20: a rotary program read by the 3+2 reader names --source and the command that lists them."""
     src = REPO / "fixtures" / "bad" / "gcode" / "rotary_word.ngc"
-    code, stdout, _ = _cli(tmp_path, str(src), "-o", str(tmp_path / "out"))
+    code, stdout, _ = _cli(tmp_path, str(src), "-d", str(tmp_path / "out"))
     assert (code, stdout) == (2, (
         f"failed\t{src}\t-\t{src}:4: 5-axis program: rotary word 'A30' (A, B and C words turn rotary axes); the "
         "3+2 reader reads programs whose tool axis is set by G68.2/G53.1 or by the work plane, so it refuses this "
@@ -822,7 +822,7 @@ def test_a_limit_error_gives_the_part_origin_as_the_option_and_it_converts(tmp_p
     --part-origin=X,Y,Z, as the main job does, and that option converts the file."""
     drill = CORPUS / "humman_deep_drill.clsf"
     (tmp_path / "out").mkdir()
-    result = CliRunner().invoke(main, ["convert", str(drill), "-o", str(tmp_path / "out")])
+    result = CliRunner().invoke(main, ["convert", str(drill), "-d", str(tmp_path / "out")])
     assert result.exit_code == 1
     assert result.stdout.splitlines() == [
         f"failed\t{drill}\t-\t{drill}:10: stage X -355.0000 mm is below the minimum -300.0000 mm by 55.0000 mm (3 "
@@ -830,6 +830,6 @@ def test_a_limit_error_gives_the_part_origin_as_the_option_and_it_converts(tmp_p
         "-970.0000] mm, rotation 0.0000 deg about z; a part origin at machine [94.5, 0.0, -996.0] mm puts every "
         "point inside the machine's limits: --part-origin=94.5,0.0,-996.0"]
     option = result.stdout.rsplit(": ", 1)[1].strip()
-    again = CliRunner().invoke(main, ["convert", str(drill), "-o", str(tmp_path / "out"), option])
+    again = CliRunner().invoke(main, ["convert", str(drill), "-d", str(tmp_path / "out"), option])
     assert again.exit_code == 0, again.output
     assert (tmp_path / "out" / "humman_deep_drill.ngc").is_file()

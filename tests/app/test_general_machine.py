@@ -160,7 +160,7 @@ def test_every_golden_conversion_with_the_ideal_head_written_leg_by_leg(name: st
     cwd = os.getcwd()
     os.chdir(source.parent)                          # the header names the file, not a folder
     try:
-        result = invoke("convert", source.name, "-o", str(tmp_path), "--jobs", "1", "--machine", str(equal),
+        result = invoke("convert", source.name, "-d", str(tmp_path), "--jobs", "1", "--machine", str(equal),
                         *options)
     finally:
         os.chdir(cwd)
@@ -207,7 +207,7 @@ def test_job_file_convert_verify_and_preview_on_a_head_as_built(tmp_path: Path) 
     assert invoke("job", str(EXAMPLE), "--machine", str(AS_BUILT), "-o", str(out)).exit_code == 0
     assert invoke("verify", str(out)).output.splitlines()[-1] == "OK: within every limit and tolerance"
     source = CORPUS / "mech491_APT_Variable_Axis.cls"
-    result = invoke("convert", str(source), "-o", str(tmp_path), "--jobs", "1", "--machine", str(AS_BUILT),
+    result = invoke("convert", str(source), "-d", str(tmp_path), "--jobs", "1", "--machine", str(AS_BUILT),
                     _origin_option(PLACED[source.name]))
     assert result.exit_code == 0, result.output
     converted = tmp_path / "mech491_APT_Variable_Axis.ngc"

@@ -96,7 +96,7 @@ class _Batch:
         env = dict(os.environ, PYTHONPATH=str(REPO / "src"))
         try:
             self.process = subprocess.Popen(
-                [sys.executable, "-c", _HELD_BATCH, str(ready_write), mode, "convert", *names, "-o", "out",
+                [sys.executable, "-c", _HELD_BATCH, str(ready_write), mode, "convert", *names, "-d", "out",
                  "--part-origin=0,0,-850", "--jobs", "2"],
                 cwd=folder, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, pass_fds=(ready_write,))
         finally:

@@ -264,7 +264,7 @@ def _convert(tmp_path: Path, x: str, *options: str) -> tuple[object, Path]:
     source = tmp_path / f"hole{x}.ngc"
     source.write_text(f"G21 G90 G17\nG0 X{x} Y0 Z10\nG1 Z-3 F100\nG0 Z10\nM30\n", encoding="utf-8")
     out = tmp_path / "out"
-    result = CliRunner().invoke(main, ["convert", str(source), "-o", str(out), "--work-plane", f"{WALL}:4",
+    result = CliRunner().invoke(main, ["convert", str(source), "-d", str(out), "--work-plane", f"{WALL}:4",
                                        "--jobs", "1", *options])
     return result, out / source.name
 
@@ -304,7 +304,7 @@ def _convert_text(tmp_path: Path, name: str, text: str, *options: str) -> tuple[
     source = tmp_path / name
     source.write_text(text, encoding="utf-8")
     out = tmp_path / "out"
-    result = CliRunner().invoke(main, ["convert", str(source), "-o", str(out), "--work-plane", f"{WALL}:4",
+    result = CliRunner().invoke(main, ["convert", str(source), "-d", str(out), "--work-plane", f"{WALL}:4",
                                        "--jobs", "1", "--part", str(WALL), *options])
     return result, out / source.name
 
@@ -353,7 +353,7 @@ def test_convert_of_cl_checks_the_rapids_with_the_tldata_diameter(tmp_path, diam
     through = through.replace("TLDATA/MILL,6.0000,", f"TLDATA/MILL,{diameter},")
     source = tmp_path / "through.cls"
     source.write_text(through, encoding="utf-8")
-    result = CliRunner().invoke(main, ["convert", str(source), "-o", str(tmp_path / "out"), "--jobs", "1",
+    result = CliRunner().invoke(main, ["convert", str(source), "-d", str(tmp_path / "out"), "--jobs", "1",
                                        "--part", str(WALL)])
     assert result.exit_code == 1, result.output
     assert result.output.split("\n")[-2] == (
@@ -364,7 +364,7 @@ def test_convert_of_cl_checks_the_rapids_with_the_tldata_diameter(tmp_path, diam
                  ("RAPID", 15, 10)])
     source = tmp_path / "above.cls"
     source.write_text(above, encoding="utf-8")
-    result = CliRunner().invoke(main, ["convert", str(source), "-o", str(tmp_path / "out"), "--jobs", "1",
+    result = CliRunner().invoke(main, ["convert", str(source), "-d", str(tmp_path / "out"), "--jobs", "1",
                                        "--part", str(WALL)])
     assert result.exit_code == 0, result.output
     assert _collision_line(tmp_path / "out" / "above.ngc") == [
@@ -380,7 +380,7 @@ def test_a_tldata_diameter_outside_the_tools_range_is_bad_input(tmp_path, diamet
     text = text.replace("TLDATA/MILL,6.0000,", f"TLDATA/MILL,{diameter},")
     source = tmp_path / "big.cls"
     source.write_text(text, encoding="utf-8")
-    result = CliRunner().invoke(main, ["convert", str(source), "-o", str(tmp_path / "out"), "--jobs", "1",
+    result = CliRunner().invoke(main, ["convert", str(source), "-d", str(tmp_path / "out"), "--jobs", "1",
                                        "--part", str(WALL)])
     if shown == "500":                                 # taken (its rapids only retract along the tool axis)
         assert result.exit_code == 0, result.output
@@ -430,7 +430,7 @@ def test_a_thin_wall_between_the_samples_of_a_long_feed_move_is_caught(tmp_path)
     source = tmp_path / "long.ngc"
     source.write_text("G21 G90 G17\nG0 X8.1 Y-30 Z10\nG1 Z5 F100\nG1 Y30 F300\nG0 Z10\nM30\n", encoding="utf-8")
     convert = ["convert", str(source), "--work-plane", f"{WALL}:4", "--jobs", "1"]
-    result = CliRunner().invoke(main, [*convert, "-o", str(tmp_path / "out"), "--part", str(tmp_path / "plate.stl")])
+    result = CliRunner().invoke(main, [*convert, "-d", str(tmp_path / "out"), "--part", str(tmp_path / "plate.stl")])
     assert result.exit_code == 1, result.output
     # the plate crosses the holder's axis: it is 15 mm (the holder's radius) inside it, which its surface
     # points, straddling the 2 mm plate, saw as 'comes within 0.500 mm'
@@ -442,7 +442,7 @@ def test_a_thin_wall_between_the_samples_of_a_long_feed_move_is_caught(tmp_path)
                      np.tile(FACE.normal, (2, 1)), BODIES, None, np.zeros((0, 3)), clearance_min=DEFAULT_CLEARANCE_MIN)
     assert ends.distance[1] == pytest.approx(3.549, abs=1e-3)       # the two samples alone: clear
     # made without the check, verify finds it on the program's line of that move (line 20: the header has 11 lines)
-    result = CliRunner().invoke(main, [*convert, "-o", str(tmp_path / "unchecked"), "--no-collision-check"])
+    result = CliRunner().invoke(main, [*convert, "-d", str(tmp_path / "unchecked"), "--no-collision-check"])
     assert result.exit_code == 0, result.output
     result = CliRunner().invoke(main, ["verify", str(tmp_path / "unchecked" / "long.ngc"), "--against",
                                        str(tmp_path / "plate.stl")])

@@ -206,7 +206,7 @@ def converted(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("cam")
     source = folder / "hole30.ngc"
     source.write_text("G21 G90 G17\nG0 X30 Y0 Z10\nG1 Z-3 F100\nG0 Z10\nM30\n", encoding="utf-8")
-    result = invoke("convert", source, "-o", folder / "out", "--work-plane", f"{WALL}:4", "--jobs", "1")
+    result = invoke("convert", source, "-d", folder / "out", "--work-plane", f"{WALL}:4", "--jobs", "1")
     assert result.exit_code == 0, result.output
     return folder / "out" / "hole30.ngc"
 
@@ -242,7 +242,7 @@ def test_verify_of_a_converted_program_reports_the_tool_in_its_rapids(tmp_path):
                        encoding="utf-8")
     for source, check in ((above, "--part"), (through, "--no-collision-check")):
         options = [check, WALL, "--tool-diameter", "6"] if check == "--part" else [check]
-        result = invoke("convert", source, "-o", tmp_path / "out", "--work-plane", f"{WALL}:4", "--jobs", "1",
+        result = invoke("convert", source, "-d", tmp_path / "out", "--work-plane", f"{WALL}:4", "--jobs", "1",
                         *options)
         assert result.exit_code == 0, result.output
     result = invoke("verify", tmp_path / "out" / "above.ngc", "--part", WALL)

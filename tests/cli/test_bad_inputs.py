@@ -226,7 +226,7 @@ def test_a_huge_cl_coordinate_is_bad_input_shown_in_a_few_digits(tmp_path: Path,
     input errors at the line, the value shown as written and cut to 40 characters."""
     cl = tmp_path / "far.cls"
     cl.write_text(f"UNITS/MM\nFEDRAT/MMPM,100\nRAPID\nGOTO/{value},0,0\nFINI\n")    # RAPID: a feed cannot come first
-    result = invoke("convert", str(cl), "-o", str(tmp_path / "out"), "--part-origin", "0,0,-680")
+    result = invoke("convert", str(cl), "-d", str(tmp_path / "out"), "--part-origin", "0,0,-680")
     assert result.exit_code == 2
     problem = "is out of range (allowed: within ±1e+06 mm; is the file in the right units?)" if len(value) < 300 \
         else "is too large to be a finite number"

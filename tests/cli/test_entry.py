@@ -164,8 +164,8 @@ def _empty(kind: str, flag: str) -> str:
     (["demo", "--profile", "hole", "--dialect", ""], "dialect", "--dialect"),
     (["verify", SMALL, "--machine", ""], "machine", "--machine"),
     (["preview", SMALL, "-o", "x.png", "--dialect", ""], "dialect", "--dialect"),
-    (["convert", "x.cls", "-o", "out", "--machine", ""], "machine", "--machine"),
-    (["convert", "x.cls", "-o", "out", "--source", ""], "source", "--source"),
+    (["convert", "x.cls", "-d", "out", "--machine", ""], "machine", "--machine"),
+    (["convert", "x.cls", "-d", "out", "--source", ""], "source", "--source"),
 ], ids=["fk", "ik", "demo", "demo-dialect", "verify", "preview-dialect", "convert", "convert-source"])
 def test_an_empty_machine_or_dialect_name_says_what_is_valid(args: list[str], kind: str, flag: str) -> None:
     result = invoke(*args)

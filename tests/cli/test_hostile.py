@@ -45,7 +45,7 @@ def _usage_error(result) -> str:
     (["demo", "--profile", "hole", "--collision-check", "--no-collision-check", "-o", "d.ngc"],
      "Error: --collision-check/--no-collision-check given twice ('--collision-check' and "
      "'--no-collision-check'): give it once"),
-    (["convert", "in.ngc", "-o", "out", "--report", "a.json", "--report", "b.json"],
+    (["convert", "in.ngc", "-d", "out", "--report", "a.json", "--report", "b.json"],
      "Error: --report given twice ('a.json' and 'b.json'): give it once"),
     (["verify", "p.ngc", "--machine", "patel2020", "--machine", "patel2020-head"],
      "Error: --machine given twice ('patel2020' and 'patel2020-head'): give it once"),
@@ -67,7 +67,7 @@ def test_a_repeatable_option_and_a_value_that_looks_like_an_option_are_not_repea
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
     (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
-    result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", "0,0,0,0,0,1", "--ignore", "PAINT",
+    result = invoke("convert", "a.ngc", "-d", "out", "--work-plane", "0,0,0,0,0,1", "--ignore", "PAINT",
                     "--ignore", "FOO", "--", "-o")              # '-o' after '--' is an input file, not an option
     assert result.exit_code == 2, result.stderr                 # an input that is not there is bad input
     lines = result.stdout.splitlines()
@@ -101,21 +101,23 @@ def test_standard_input_is_refused_as_an_input_file(tmp_path: Path, monkeypatch:
 def test_convert_refuses_standard_input_and_reads_a_file_named_dash(tmp_path: Path,
                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
-    result = invoke("convert", "-", "-o", "out", "--work-plane", "0,0,0,0,0,1")
+    result = invoke("convert", "-", "-d", "out", "--work-plane", "0,0,0,0,0,1")
     assert result.exit_code == 2
     assert result.stdout == "failed\t-\t-\t-: standard input is not read: give the path of a file (a file named '-' " \
                             "is ./-)\n"
     assert not (tmp_path / "out" / "-.ngc").exists()
     (tmp_path / "-").write_text(PROGRAM_3AXIS)
-    result = invoke("convert", "./-", "-o", "out", "--work-plane", "0,0,0,0,0,1")
+    result = invoke("convert", "./-", "-d", "out", "--work-plane", "0,0,0,0,0,1")
     assert result.exit_code == 0, result.stderr
     assert (tmp_path / "out" / "-.ngc").is_file()
 
 
 @pytest.mark.parametrize(("option", "message"), [
-    (["-o", "-"], "Error: Invalid value for '-o' / '--output-dir': '-' is no folder: convert writes one program per "
-                  "input into OUTDIR, standard output cannot take them (a folder named '-' is ./-)"),
-    (["-o", "out", "--report", "-"], "Error: Invalid value for '--report': '-': standard output has one line per "
+    (["-d", "-"], "Error: Invalid value for '-d' / '--output-dir': '-' is no folder: convert writes one program per "
+                  "input into DIR, standard output cannot take them (a folder named '-' is ./-)"),
+    (["-o", "-"], "Error: Invalid value for '-o' / '--output': '-': standard output is not a program file here (a "
+                  "file named '-' is ./-)"),
+    (["-d", "out", "--report", "-"], "Error: Invalid value for '--report': '-': standard output has one line per "
                                      "file already, the report would be mixed into them (a file named '-' is ./-)"),
 ])
 def test_convert_refuses_standard_output_for_its_programs_and_report(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
@@ -133,7 +135,7 @@ def test_a_work_plane_that_is_neither_numbers_nor_a_file_says_what_is_valid(
     """`--work-plane nan` said only ``nan: file not found``."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
-    result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", text)
+    result = invoke("convert", "a.ngc", "-d", "out", "--work-plane", text)
     assert _usage_error(result) == (f"Error: Invalid value for '--work-plane': {text}: file not found, and not 6 or 9 "
                                     "plain decimal numbers: a work plane is PART.stl[:FACE] or "
                                     "OX,OY,OZ,NX,NY,NZ[,XX,XY,XZ] (mm)")
@@ -144,7 +146,7 @@ def test_a_work_plane_face_that_does_not_face_up_is_an_option_error(tmp_path: Pa
                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
     (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
-    result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", f"{WEDGE}:5")
+    result = invoke("convert", "a.ngc", "-d", "out", "--work-plane", f"{WEDGE}:5")
     assert _usage_error(result).startswith("Error: Invalid value for '--work-plane': face 5 does not face up")
 
 
@@ -268,7 +270,7 @@ def test_a_header_wrapped_at_the_shortest_line_reads_back(tmp_path: Path, ending
 @pytest.mark.skipif(not CL_SOURCE.is_file(), reason="the shared corpus is not here")
 def test_a_converted_program_with_short_lines_verifies_against_its_input(tmp_path: Path) -> None:
     dialect = _short_dialect(tmp_path, 80)
-    made = invoke("convert", str(CL_SOURCE), "-o", str(tmp_path / "out"), "--part-origin", "0,-17.2,-856",
+    made = invoke("convert", str(CL_SOURCE), "-d", str(tmp_path / "out"), "--part-origin", "0,-17.2,-856",
                   "--dialect", str(dialect))
     assert made.exit_code == 0, made.stdout + made.stderr
     program = tmp_path / "out" / "mech491_APT_SimpleMillPlane.ngc"
@@ -285,7 +287,7 @@ def converted(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
     if not CL_SOURCE.is_file():
         pytest.skip("the shared corpus is not here")
     out = tmp_path_factory.mktemp("converted")
-    made = invoke("convert", str(CL_SOURCE), "-o", str(out), "--part-origin", "0,-17.2,-856")
+    made = invoke("convert", str(CL_SOURCE), "-d", str(out), "--part-origin", "0,-17.2,-856")
     assert made.exit_code == 0, made.stdout + made.stderr
     return (out / "mech491_APT_SimpleMillPlane.ngc").read_text().splitlines()
 
@@ -358,7 +360,7 @@ def test_a_cl_number_is_made_of_ascii_digits(tmp_path: Path, cell: str) -> None:
     """GOTO/１,２,-1 was converted as GOTO/1,2,-1 (the record reader's \\d took any digit)."""
     source = tmp_path / "u.cls"
     source.write_text(f"UNITS/MM\nFEDRAT/MMPM,100\nRAPID\nGOTO/0,0,5\nGOTO/{cell},2,-1\nFINI\n", encoding="utf-8")
-    result = invoke("convert", str(source), "-o", str(tmp_path / "out"), "--part-origin=0,0,-850")
+    result = invoke("convert", str(source), "-d", str(tmp_path / "out"), "--part-origin=0,0,-850")
     assert result.exit_code == 2
     assert result.stdout == (f"failed\t{source}\t-\t{source}:5: GOTO/ value 1: '{cell}' is not a number (expected a "
                              "decimal like -12.5, .5 or 1.5E+02)\n")
@@ -386,7 +388,7 @@ def test_a_work_plane_stl_is_read_with_up_and_part_units(tmp_path: Path) -> None
     headers = []
     for plane, extra in ((f"{WEDGE}:4", []), (f"{tmp_path / 'wedge_yup.stl'}:4", ["--up", "y"])):
         out = tmp_path / f"out{len(headers)}"
-        result = invoke("convert", str(tmp_path / "a.ngc"), "-o", str(out), "--work-plane", plane, *extra)
+        result = invoke("convert", str(tmp_path / "a.ngc"), "-d", str(out), "--work-plane", plane, *extra)
         assert result.exit_code == 0, result.stdout + result.stderr
         headers.append(next(line for line in (out / "a.ngc").read_text().splitlines()
                             if line.startswith("(work plane: ")))
@@ -438,7 +440,7 @@ def test_a_job_file_error_names_its_key_and_shows_values_short(tmp_path: Path, b
 
 def test_a_long_tcp_code_list_is_shown_short(tmp_path: Path) -> None:
     (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
-    result = invoke("convert", str(tmp_path / "a.ngc"), "-o", str(tmp_path / "out"), "--source", "vector",
+    result = invoke("convert", str(tmp_path / "a.ngc"), "-d", str(tmp_path / "out"), "--source", "vector",
                     "--tcp-on", "G" * 5000)
     assert _usage_error(result) == ("Error: Invalid value for '--tcp-on': expected G or M codes separated by commas "
                                     f"(e.g. G43.4,M428), got '{'G' * 39}…'")
@@ -452,7 +454,7 @@ def test_a_report_onto_a_loop_of_symbolic_links_is_a_clear_error(tmp_path: Path,
     (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
     (tmp_path / "loop1").symlink_to("loop2")
     (tmp_path / "loop2").symlink_to("loop1")
-    result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", "0,0,0,0,0,1", "--report", "loop1")
+    result = invoke("convert", "a.ngc", "-d", "out", "--work-plane", "0,0,0,0,0,1", "--report", "loop1")
     assert (result.exit_code, result.stdout) == (2, "")
     assert result.stderr == "prs3-post: error: loop1: cannot write the output here: Too many levels of symbolic links\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc", "loop1", "loop2"]
@@ -466,7 +468,7 @@ def test_a_cl_file_given_as_a_program_says_to_convert_it(tmp_path: Path, command
     result = invoke(command, str(source), *(["-o", str(tmp_path / "p.png")] if command == "preview" else []))
     assert (result.exit_code, result.stdout) == (2, "")
     assert result.stderr == (f"prs3-post: error: {source}: an APT CL file (CAM output), not a program for this "
-                             f"machine: convert it first (prs3-post convert {source} -o OUTDIR), then give the "
+                             f"machine: convert it first (prs3-post convert {source} -o PROGRAM.ngc), then give the "
                              f"program, with --against {source} to compare them\n")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cam.cls"]
 
@@ -502,7 +504,7 @@ def test_an_automatic_part_origin_beyond_the_setups_range_is_a_limit_failure(tmp
     of a value the user never gave ('part origin: each of x, y, z must be ... within ±100000 mm')."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
-    result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", "0,0,0,0,0,1", "--tool-length", "1e6",
+    result = invoke("convert", "a.ngc", "-d", "out", "--work-plane", "0,0,0,0,0,1", "--tool-length", "1e6",
                     "--part-origin", "auto", "--jobs", "1")
     assert result.exit_code == 1, result.stderr
     reason = result.stdout.split("\t")[3]
@@ -519,7 +521,7 @@ def test_convert_refuses_the_parts_check_options_without_a_part(tmp_path: Path, 
     who gave a tool's diameter or a clearance believed the program checked."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
-    result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", "0,0,0,0,0,1", option, value)
+    result = invoke("convert", "a.ngc", "-d", "out", "--work-plane", "0,0,0,0,0,1", option, value)
     assert _usage_error(result) == (f"Error: {option} is used only with --part PART.stl (the check against the "
                                     "part): give the part, or leave it out")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc"]
@@ -531,7 +533,7 @@ def test_convert_refuses_tcp_codes_without_a_source(tmp_path: Path, monkeypatch:
     """--tcp-on G43.4 on a 3+2 program was taken and ignored (exit 0): only a 5-axis --source reads TCP codes."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
-    result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", "0,0,0,0,0,1", option, "G43.4")
+    result = invoke("convert", "a.ngc", "-d", "out", "--work-plane", "0,0,0,0,0,1", option, "G43.4")
     assert _usage_error(result) == (f"Error: {option} is used only with --source (a 5-axis program's TCP codes): "
                                     "give the source machine, or leave it out")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc"]
@@ -542,7 +544,7 @@ def test_convert_refuses_an_empty_word_to_ignore(tmp_path: Path, monkeypatch: py
     """'--ignore ""' was taken (a word no record has) and the file converted as without it."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
-    result = invoke("convert", "a.ngc", "-o", "out", "--work-plane", "0,0,0,0,0,1", "--ignore", word)
+    result = invoke("convert", "a.ngc", "-d", "out", "--work-plane", "0,0,0,0,0,1", "--ignore", word)
     assert _usage_error(result) == (f"Error: Invalid value for '--ignore': {word!r}: give a CL major word, "
                                     "like PAINT")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc"]
@@ -601,7 +603,7 @@ def test_a_cl_file_reads_alike_with_any_line_ends(tmp_path: Path, ending: str) -
     for column in ("kind", "tip", "axis", "feed", "source"):
         np.testing.assert_array_equal(getattr(read, column), getattr(expected, column))
     out = tmp_path / "out"
-    result = invoke("convert", str(tmp_path / "other.cls"), "-o", str(out), "--part-origin=0,0,-850", "--jobs", "1")
+    result = invoke("convert", str(tmp_path / "other.cls"), "-d", str(out), "--part-origin=0,0,-850", "--jobs", "1")
     assert result.exit_code == 0, result.output
 
 
@@ -609,7 +611,7 @@ def test_a_cl_file_reads_alike_with_any_line_ends(tmp_path: Path, ending: str) -
 def test_a_cl_error_names_its_line_with_any_line_ends(tmp_path: Path, ending: str) -> None:
     source = tmp_path / "bad.cls"
     source.write_bytes(_CL.replace("GOTO/10,5,-1", "GOTO/10,5").replace("\n", ending).encode())
-    result = invoke("convert", str(source), "-o", str(tmp_path / "out"), "--part-origin=0,0,-850", "--jobs", "1")
+    result = invoke("convert", str(source), "-d", str(tmp_path / "out"), "--part-origin=0,0,-850", "--jobs", "1")
     assert result.exit_code == 2
     assert result.stdout.split("\t")[3].startswith(f"{source}:10: "), result.stdout
 
@@ -644,11 +646,11 @@ def test_a_cam_gcode_program_reads_alike_with_any_line_ends(tmp_path: Path, endi
     assert len(expected) > 4
     for column in ("kind", "tip", "axis", "feed", "source"):
         np.testing.assert_array_equal(getattr(read, column), getattr(expected, column))
-    result = invoke("convert", str(tmp_path / "other.nc"), "-o", str(tmp_path / "out"), "--part-origin=0,0,-850",
+    result = invoke("convert", str(tmp_path / "other.nc"), "-d", str(tmp_path / "out"), "--part-origin=0,0,-850",
                     "--jobs", "1")
     assert result.exit_code == 0, result.output
     (tmp_path / "bad.nc").write_bytes(program.replace("X5", "X5 Q").replace("\n", ending).encode())
-    result = invoke("convert", str(tmp_path / "bad.nc"), "-o", str(tmp_path / "out2"), "--part-origin=0,0,-850",
+    result = invoke("convert", str(tmp_path / "bad.nc"), "-d", str(tmp_path / "out2"), "--part-origin=0,0,-850",
                     "--jobs", "1")
     assert result.exit_code == 2
     assert result.stdout.split("\t")[3].startswith(f"{tmp_path / 'bad.nc'}:5: "), result.stdout

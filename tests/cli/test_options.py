@@ -101,7 +101,7 @@ def test_convert_names_part_units_for_its_part_not_the_cl_files_unit(tmp_path):
     """The STL size error used to say --units, which in convert is the CL file's unit."""
     source = tmp_path / "tiny.cls"
     source.write_text(CL_TEXT)
-    result = invoke("convert", source, "-o", tmp_path / "out", "--part-origin", "auto", "--part", TINY)
+    result = invoke("convert", source, "-d", tmp_path / "out", "--part-origin", "auto", "--part", TINY)
     assert result.exit_code == 2
     assert result.stdout == f"failed\t{source}\t-\t{TINY}: {TINY_ERROR}\n"
 
@@ -125,8 +125,8 @@ def test_job_takes_part_units_and_its_size_warning_names_it(tmp_path):
 def test_convert_units_is_a_deprecated_alias_of_cl_units(tmp_path):
     source = tmp_path / "tiny.cls"
     source.write_text(CL_TEXT)
-    new = invoke("convert", source, "-o", tmp_path / "new", "--part-origin", "auto", "--cl-units", "inch")
-    old = invoke("convert", source, "-o", tmp_path / "old", "--part-origin", "auto", "--units", "inch")
+    new = invoke("convert", source, "-d", tmp_path / "new", "--part-origin", "auto", "--cl-units", "inch")
+    old = invoke("convert", source, "-d", tmp_path / "old", "--part-origin", "auto", "--units", "inch")
     assert (new.exit_code, old.exit_code) == (0, 0), new.stderr
     assert old.stderr.startswith(CL_UNITS_NOTE) and CL_UNITS_NOTE not in new.stderr
     made = (tmp_path / "new" / "tiny.ngc").read_text()
@@ -267,7 +267,7 @@ def test_convert_quiet_keeps_the_failures_and_verbose_lists_every_file(tmp_path)
     source = tmp_path / "tiny.cls"
     source.write_text(CL_TEXT)
     out = tmp_path / "out"
-    loud = invoke("convert", source, "-o", out, "--part-origin", "auto", "-v")
+    loud = invoke("convert", source, "-d", out, "--part-origin", "auto", "-v")
     assert loud.exit_code == 0, loud.stderr
     lines = loud.stderr.splitlines()
     assert lines[0] == ("prs3-post: 1 file, 1 at a time; machine patel2020, dialect linuxcnc, setup chosen for each "
@@ -276,9 +276,70 @@ def test_convert_quiet_keeps_the_failures_and_verbose_lists_every_file(tmp_path)
                         r"0 arcs, 0 holes in; 4 program moves, 0 subdivisions; [0-9.]+ s", lines[1])
     assert lines[2].startswith("prs3-post: converted 1 of 1 files, 4 input moves, arcs and holes in ")
     assert re.fullmatch(TIME_LINE, lines[3]) and len(lines) == 4
-    kept = invoke("convert", source, "-o", out, "--part-origin", "auto", "-q")   # the program exists: kept
+    kept = invoke("convert", source, "-d", out, "--part-origin", "auto", "-q")   # the program exists: kept
     assert kept.exit_code == 2
     assert kept.stderr == f"prs3-post: 1 failed:\n  {out / 'tiny.ngc'}: exists already: kept (convert with --force " \
                           "to replace it)\n"
     assert kept.stdout == f"failed\t{source}\t-\t{out / 'tiny.ngc'}: exists already: kept (convert with --force to " \
                           "replace it)\n"
+
+
+# ----------------------------------------------------------------------------- convert: -o FILE, -d DIR
+
+
+def _cl(tmp_path: Path, *names: str) -> list[Path]:
+    paths = [tmp_path / name for name in names]
+    for path in paths:
+        path.write_text(CL_TEXT)
+    return paths
+
+
+def test_convert_writes_one_program_with_o_and_a_folder_with_d(tmp_path):
+    (source,) = _cl(tmp_path, "tiny.cls")
+    one = invoke("convert", source, "-o", tmp_path / "one.ngc", "--part-origin", "auto")
+    assert (one.exit_code, one.stdout) == (0, f"ok\t{source}\t{tmp_path / 'one.ngc'}\t4 moves, 0 arcs, 0 holes in; "
+                                              f"4 program moves, 0 subdivisions; {one.stdout.split('; ')[-1]}")
+    folder = invoke("convert", source, "-d", tmp_path / "out", "--part-origin", "auto")
+    assert folder.exit_code == 0
+    assert (tmp_path / "one.ngc").read_text() == (tmp_path / "out" / "tiny.ngc").read_text()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["one.ngc", "out", "tiny.cls"]
+
+
+def test_convert_o_with_several_inputs_is_refused(tmp_path):
+    sources = _cl(tmp_path, "a.cls", "b.cls")
+    result = invoke("convert", *sources, "-o", tmp_path / "x.ngc", "--part-origin", "auto")
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr.splitlines()[-1] == ("Error: -o FILE writes the program of one input, and 2 files are given: "
+                                              "convert them into a folder with -d DIR")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.cls", "b.cls"]
+
+
+@pytest.mark.parametrize("trailing", ["", "/"], ids=["existing", "slash"])
+def test_convert_o_onto_a_folder_still_writes_into_it_with_a_note(tmp_path, trailing):
+    sources = _cl(tmp_path, "a.cls", "b.cls")
+    out = tmp_path / "out"
+    if not trailing:
+        out.mkdir()
+    result = invoke("convert", *sources, "-o", f"{out}{trailing}", "--part-origin", "auto")
+    assert result.exit_code == 0, result.stderr
+    assert result.stderr.splitlines()[0] == (f"prs3-post: note: -o {out}{trailing} (a folder) is deprecated: use -d "
+                                             f"{out}{trailing} (it means the same)")
+    assert sorted(p.name for p in out.iterdir()) == ["a.ngc", "b.ngc"]
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    ([], "Error: give -d DIR (a folder for the programs) or, for a single input, -o FILE (its program)"),
+    (["-o", "x.ngc", "-d", "out"], "Error: -o FILE (the program of one input) and -d DIR (a folder of programs): give "
+                                   "one of them"),
+], ids=["neither", "both"])
+def test_convert_needs_one_of_o_and_d(tmp_path, args, message):
+    (source,) = _cl(tmp_path, "tiny.cls")
+    result = invoke("convert", source, *args)
+    assert (result.exit_code, result.stderr.splitlines()[-1]) == (2, message)
+
+
+def test_convert_help_says_which_is_which():
+    text = " ".join(invoke("convert", "--help").stdout.split())
+    assert ("-d, --output-dir DIR Folder for the programs, one per input: DIR/<input stem><dialect extension> "
+            "(created if missing).") in text
+    assert "-o, --output FILE The program of a single INPUT, as one file (several inputs: -d DIR)." in text

@@ -101,7 +101,7 @@ def test_convert_loads_no_plotting_or_mesh_library(tmp_path):
     """A G-code file converted without a part, at a given origin, in this process: no matplotlib, trimesh
     or shapely, and none of the modules of the conversions it is not (about 40 ms of start-up)."""
     source = Path(__file__).resolve().parents[2] / "fixtures" / "gcode" / "wedge-face-3axis.ngc"
-    args = ["convert", str(source), "-o", str(tmp_path), "--part-origin=-60.9,-10.9,-745.0", "--jobs", "1"]
+    args = ["convert", str(source), "-d", str(tmp_path), "--part-origin=-60.9,-10.9,-745.0", "--jobs", "1"]
     assert _loaded_after(args, HEAVY + CONVERT_EXTRAS) == []
 
 

@@ -234,7 +234,7 @@ def test_closed_standard_output_still_writes_complete_files(tmp_path: Path) -> N
     open_dir, closed_dir = tmp_path / "open", tmp_path / "closed"
     runs = [(["demo", "--profile", "hole", "-o", "{}/prog.ngc"], 0, ""),
             (["ik", "--batch", str(tmp_path / "poses.csv"), "-o", "{}/strokes.csv"], 0, ""),
-            (["convert", str(tmp_path / "part.cls"), "-o", "{}/programs", "--jobs", "1"], 2, _CLOSED)]
+            (["convert", str(tmp_path / "part.cls"), "-d", "{}/programs", "--jobs", "1"], 2, _CLOSED)]
     for args, code, stderr in runs:
         for where in (open_dir, closed_dir):
             where.mkdir(exist_ok=True)

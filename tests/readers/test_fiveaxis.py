@@ -408,7 +408,7 @@ def test_converted_haas_program_replays_onto_the_cl_points(tmp_path: Path, rs274
 ])
 def test_linuxcnc_demos_fail_for_their_reason(name: str, message: str, tmp_path: Path) -> None:
     path = CORPUS / "gcode" / name
-    result = CliRunner().invoke(main, ["convert", str(path), "-o", str(tmp_path), "--jobs", "1",
+    result = CliRunner().invoke(main, ["convert", str(path), "-d", str(tmp_path), "--jobs", "1",
                                        "--source", "xyzac-trt", "--part-origin", "0,0,-900"])
     assert result.exit_code == (2 if "expression" in message else 1)   # bad input 2, a limit 1
     assert result.stdout == f"failed\t{path}\t-\t{path}:{message}\n"
@@ -425,7 +425,7 @@ def test_convert_bad_source_options(args: list[str], message: str, tmp_path: Pat
     program = tmp_path / "in.nc"
     program.write_text("G21\nG234 H1\nG0 X0 Y0 Z1 B0 C0\nM30\n")
     out = tmp_path / "out"
-    result = CliRunner().invoke(main, ["convert", str(program), "-o", str(out), "--jobs", "1", *args])
+    result = CliRunner().invoke(main, ["convert", str(program), "-d", str(out), "--jobs", "1", *args])
     assert result.exit_code == 2
     assert message in result.output.splitlines()
     assert not out.exists() or list(out.iterdir()) == []
@@ -447,7 +447,7 @@ def test_convert_refuses_a_source_whose_inert_codes_are_read(inert: str, message
     program = tmp_path / "in.nc"
     program.write_text("G21 G90\nG234 H1\nG0 X0 Y0 Z5 B0 C0\nG1 X10 F300\nG1 X20\nG49\nM30\n")
     out = tmp_path / "out"
-    result = CliRunner().invoke(main, ["convert", str(program), "-o", str(out), "--jobs", "1", "--source",
+    result = CliRunner().invoke(main, ["convert", str(program), "-d", str(out), "--jobs", "1", "--source",
                                        str(source), "--part-origin", "0,0,-900"])
     assert result.exit_code == 2, result.output
     assert result.stderr == f"prs3-post: error: {source}: {message}\n"
@@ -458,7 +458,7 @@ def test_convert_with_tcp_codes_given(tmp_path: Path) -> None:
     program = tmp_path / "in.nc"
     program.write_text("G21 G90\nM128\nG0 X0 Y0 Z5 B10 C0\nG1 X10 B12 C5 F300\nM129\nM30\n")
     out = tmp_path / "out"
-    args = ["convert", str(program), "-o", str(out), "--jobs", "1", "--source", "haas-umc750", "--part-origin",
+    args = ["convert", str(program), "-d", str(out), "--jobs", "1", "--source", "haas-umc750", "--part-origin",
             "0,0,-900"]
     refused = CliRunner().invoke(main, args)
     assert refused.exit_code == 2 and list(out.iterdir()) == []
@@ -471,7 +471,7 @@ def test_convert_with_tcp_codes_given(tmp_path: Path) -> None:
 def test_verify_against_the_haas_source(tmp_path: Path) -> None:
     """The header records the source convention and TCP codes, so that verify --against reads the input as
     the conversion did."""
-    args = ["convert", str(HAAS), "-o", str(tmp_path), "--jobs", "1", "--source", "haas-umc750",
+    args = ["convert", str(HAAS), "-d", str(tmp_path), "--jobs", "1", "--source", "haas-umc750",
             "--part-origin=" + ",".join(f"{v:g}" for v in _HAAS_ORIGIN)]
     assert CliRunner().invoke(main, args).exit_code == 0
     out = tmp_path / (HAAS.stem + ".ngc")

@@ -298,6 +298,17 @@ def convert_batch(inputs: Sequence[str], outdir: str, settings: ConvertSettings,
                        not_started=tuple(inputs[i] for i in not_started), seconds=time.perf_counter() - started)
 
 
+def convert_single(input_path: str, output: str, settings: ConvertSettings, *, force: bool = False,
+                   on_done: Callable[[FileOutcome], None] | None = None) -> BatchResult:
+    """Convert one file into the program ``output`` (written atomically; one that exists is kept unless
+    ``force``), in this process; ``on_done`` as in :func:`convert_batch`."""
+    started = time.perf_counter()
+    outcome = convert_one(input_path, output, settings, force=force)
+    if on_done is not None:
+        on_done(outcome)
+    return BatchResult(outcomes=(outcome,), seconds=time.perf_counter() - started)
+
+
 def _cores() -> int:
     try:
         return len(os.sched_getaffinity(0))

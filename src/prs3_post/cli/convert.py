@@ -7,6 +7,7 @@ import json
 import os
 import re
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -16,6 +17,7 @@ from prs3_post.app.requests import AUTO
 from prs3_post.app.values import ANGLE, LENGTH
 from prs3_post.cli.options import (
     CLEARANCE_MIN,
+    DEPRECATED,
     VERBOSE,
     Command,
     Decimal,
@@ -30,6 +32,7 @@ from prs3_post.cli.options import (
     job_part_rotation_option,
     line_number_options,
     machine_option,
+    note,
     option_error,
     run_reported,
     say,
@@ -52,7 +55,7 @@ from prs3_post.core.output_files import (
 # faces: each about 0.1 s of imports), so that `ik`, `fk` and a small `verify` start fast; so is the
 # reader registry (--format's choices, convert's settings).
 if TYPE_CHECKING:
-    from prs3_post.app.batch import FileOutcome
+    from prs3_post.app.batch import BatchResult, FileOutcome
 
 
 def _input_formats() -> tuple[str, ...]:
@@ -78,8 +81,11 @@ def _codes_option(text: str | None, flag: str) -> tuple[str, ...] | None:
 
 @click.command(cls=Command, aliases={"--units": "--cl-units"})
 @click.argument("inputs", nargs=-1, required=True, metavar="INPUT...")
-@click.option("-o", "--output-dir", "outdir", type=click.Path(file_okay=False), required=True, metavar="OUTDIR",
-              help="Folder for the programs, OUTDIR/<input stem><dialect extension> (created if missing).")
+@click.option("-d", "--output-dir", "outdir", type=click.Path(file_okay=False), default=None, metavar="DIR",
+              help="Folder for the programs, one per input: DIR/<input stem><dialect extension> (created if "
+                   "missing).")
+@click.option("-o", "--output", "out_path", type=OutputPath(dir_okay=True), default=None, metavar="FILE",
+              help="The program of a single INPUT, as one file (several inputs: -d DIR).")
 @click.option("--jobs", type=Integer(1, 1024), default=None, help="Files converted at a time, in worker processes.  "
               "[default: the number of cores]")
 @click.option("--fail-fast", is_flag=True, help="Stop at the first file that fails (files under way finish).")
@@ -131,8 +137,9 @@ def _codes_option(text: str | None, flag: str) -> tuple[str, ...] | None:
 @tolerance_option
 @clamp_option
 @verbosity_options
-def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: bool, force: bool, input_format: str,
-            report_path: str | None, tool_length: float | None, angle_tolerance_deg: float, units: str | None,
+def convert(inputs: tuple[str, ...], outdir: str | None, out_path: str | None, jobs: int | None, fail_fast: bool,
+            force: bool, input_format: str, report_path: str | None, tool_length: float | None,
+            angle_tolerance_deg: float, units: str | None,
             work_plane_text: str | None, ignore_words: tuple[str, ...], source_name: str | None,
             tcp_on: str | None, tcp_off: str | None, part_path: str | None, part_units: str, up: str,
             collision_check: bool, clearance_min: float, tool_diameter: float | None, machine_name: str,
@@ -150,15 +157,18 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
     because it exists) or bad options, 1 for a point outside a limit or out of reach, or files
     not started (--fail-fast).
 
+    -o FILE writes the program of one INPUT to FILE; -d DIR writes each input's program into DIR.
+
     \b
     Examples:
-      prs3-post convert ../shared/corpus/cl/mech491_APT_SimpleMillPlane.cls -o out --part-origin 0,-17.2,-856
-      prs3-post convert cam/ -o out --part-origin auto --jobs 2 --report out/report.json
+      prs3-post convert mech491_APT_SimpleMillPlane.cls -o plane.ngc --part-origin 0,-17.2,-856
+      prs3-post convert cam/ -d out --part-origin auto --jobs 2 --report out/report.json
     """
     from prs3_post.app.batch import (
         batch_summary,
         collect_inputs,
         convert_batch,
+        convert_single,
         default_jobs,
         outcome_line,
         output_path,
@@ -166,10 +176,14 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
     )
 
     def body() -> int:
-        if outdir == "-":                                # it made a folder named '-'
-            raise click.BadParameter("'-' is no folder: convert writes one program per input into OUTDIR, standard "
+        single, folder = _output(out_path, outdir)
+        if folder == "-":                                # it made a folder named '-'
+            raise click.BadParameter("'-' is no folder: convert writes one program per input into DIR, standard "
                                      "output cannot take them (a folder named '-' is ./-)",
-                                     param_hint="'-o' / '--output-dir'")
+                                     param_hint="'-d' / '--output-dir'")
+        if single == "-":                                # a file named '-' is ./-
+            raise click.BadParameter("'-': standard output is not a program file here (a file named '-' is ./-)",
+                                     param_hint="'-o' / '--output'")
         if report_path == "-":                           # the JSON went among the per-file lines
             raise click.BadParameter("'-': standard output has one line per file already, the report would be "
                                      "mixed into them (a file named '-' is ./-)", param_hint="'--report'")
@@ -202,17 +216,20 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
             raise option_error(error) from error
         dialect = settings.dialect
         repeats: list[tuple[str, str]] = []
-        files = collect_inputs(inputs, exclude=outdir, exclude_suffix=dialect.extension, repeats=repeats)
+        files = collect_inputs(inputs, exclude=folder, exclude_suffix=dialect.extension, repeats=repeats)
+        if single is not None and len(files) != 1:
+            raise click.UsageError(f"-o FILE writes the program of one input, and {len(files)} files are given: "
+                                   "convert them into a folder with -d DIR")
         if report_path is not None:
             refuse_overwriting({"--report": report_path}, {f"{i + 1} ({f})": f for i, f in enumerate(files)})
-            for file in files:                           # the report must not replace a program either
-                refuse_overwriting({f"the program of {file}": output_path(file, outdir, dialect),
-                                    "--report": report_path}, {})
-            # before any work: a report that cannot be written (its folder may be OUTDIR, made by the batch)
+            programs = [output_path(file, folder, dialect) for file in files] if folder is not None else []
+            for file, program in zip(files, programs, strict=False):   # the report must not replace a program
+                refuse_overwriting({f"the program of {file}": program, "--report": report_path}, {})
+            # before any work: a report that cannot be written (its folder may be DIR, made by the batch)
             # realpath, not Path.resolve(): a loop of symbolic links is check_writable's clear error, not a RuntimeError
-            folder, made = Path(os.path.realpath(report_path)).parent, Path(os.path.realpath(outdir))
-            if folder == made:                           # (a report beside OUTDIR: no folder made if it fails)
-                prepare_outdir(outdir)
+            beside = Path(os.path.realpath(report_path)).parent
+            if folder is not None and beside == Path(os.path.realpath(folder)):   # (else no folder made if it fails)
+                prepare_outdir(folder)
             check_writable(report_path)
         count = jobs or default_jobs()
         detail(f"{len(files)} file{'s' if len(files) != 1 else ''}, {min(count, len(files))} at a time; machine "
@@ -220,13 +237,18 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
                f"{_setup_words(settings.setup.describe(), part_origin, part_rotation)}, tolerance "
                f"{settings.tolerance:g} mm, axis tolerance {settings.angle_tolerance_deg:g} deg")
         terminal = sys.stderr.isatty() and verbosity() < VERBOSE     # -v: a line per file instead of the bar
+        def convert_all(on_done: Callable[[FileOutcome], None]) -> BatchResult:
+            if single is not None:
+                return convert_single(files[0], single, settings, force=force, on_done=on_done)
+            assert folder is not None                    # (_output gives one of them)
+            return convert_batch(files, folder, settings, jobs=count, fail_fast=fail_fast, force=force,
+                                 on_done=on_done)
+
         if terminal:
             with click.progressbar(length=len(files), label="converting", file=sys.stderr) as bar:
-                result = convert_batch(files, outdir, settings, jobs=count, fail_fast=fail_fast, force=force,
-                                       on_done=lambda outcome: bar.update(1))
+                result = convert_all(lambda outcome: bar.update(1))
         else:
-            result = convert_batch(files, outdir, settings, jobs=count, fail_fast=fail_fast, force=force,
-                                   on_done=lambda outcome: _file_done(outcome_line(_flag_named(outcome))))
+            result = convert_all(lambda outcome: _file_done(outcome_line(_flag_named(outcome))))
         result = dataclasses.replace(result, outcomes=tuple(_flag_named(o) for o in result.outcomes))
         if report_path is not None:
             write_atomic(report_path, json.dumps(result.record(), indent=1, allow_nan=False) + "\n")
@@ -242,6 +264,19 @@ def convert(inputs: tuple[str, ...], outdir: str, jobs: int | None, fail_fast: b
         return max(codes, default=0)
 
     run_reported(body)
+
+
+def _output(out_path: str | None, outdir: str | None) -> tuple[str | None, str | None]:
+    """``(program file, folder)``, one of them None: -o FILE or -d DIR, and -o DIR (a folder that exists, or
+    a path that ends in /), the old spelling of -d DIR, with its note."""
+    if out_path is not None and outdir is not None:
+        raise click.UsageError("-o FILE (the program of one input) and -d DIR (a folder of programs): give one of them")
+    if out_path is None and outdir is None:
+        raise click.UsageError("give -d DIR (a folder for the programs) or, for a single input, -o FILE (its program)")
+    if out_path is not None and out_path != "-" and (os.path.isdir(out_path) or out_path.endswith(("/", os.sep))):
+        note(DEPRECATED.format(old=f"-o {out_path} (a folder)", new=f"-d {out_path}"))
+        return None, out_path
+    return out_path, outdir
 
 
 def _file_done(line: str) -> None:

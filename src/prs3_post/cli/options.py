@@ -112,10 +112,11 @@ def demo_part() -> Path:
 
 
 class OutputPath(click.Path):
-    """A file the command writes (``-o``, ``--preview``): checked against the inputs before any work."""
+    """A file the command writes (``-o``, ``--preview``): checked against the inputs before any work.
+    ``dir_okay``: a folder is taken too (convert's ``-o DIR``, the old spelling of ``-d DIR``)."""
 
-    def __init__(self) -> None:
-        super().__init__(dir_okay=False)
+    def __init__(self, *, dir_okay: bool = False) -> None:
+        super().__init__(dir_okay=dir_okay)
 
 
 def _refuse_overwriting_inputs(ctx: click.Context) -> None:

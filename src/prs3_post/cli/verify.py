@@ -128,7 +128,7 @@ def _refuse_cl_file(path: str) -> None:
 
     if is_cl_file(path):
         raise InputError(f"an APT CL file (CAM output), not a program for this machine: convert it first "
-                         f"(prs3-post convert {path} -o OUTDIR), then give the program, with --against {path} to "
+                         f"(prs3-post convert {path} -o PROGRAM.ngc), then give the program, with --against {path} to "
                          "compare them", path=path)
 
 
