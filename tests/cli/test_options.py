@@ -106,6 +106,15 @@ def test_convert_names_part_units_for_its_part_not_the_cl_files_unit(tmp_path):
     assert result.stdout == f"failed\t{source}\t-\t{TINY}: {TINY_ERROR}\n"
 
 
+def test_convert_work_plane_stl_errors_name_part_units(tmp_path):
+    """The work plane's STL is read with --part-units: its size error named the bare key ('use units inch')."""
+    program = tmp_path / "a.ngc"
+    program.write_text("G21 G90 G17\nG0 X1 Y1 Z10\nG1 Z5 F100\nM30\n")
+    result = invoke("convert", program, "-d", tmp_path / "out", "--work-plane", f"{TINY}:0")
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr.splitlines()[-1] == f"Error: Invalid value for '--work-plane': {TINY}: {TINY_ERROR}"
+
+
 def test_job_takes_part_units_and_its_size_warning_names_it(tmp_path):
     job = tmp_path / "job.toml"
     job.write_text((REPO / "fixtures" / "jobs" / "example.toml").read_text()

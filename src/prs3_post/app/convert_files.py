@@ -94,7 +94,10 @@ def convert_settings(*, machine: str, dialect: str, part_origin: tuple[float, ..
     try:
         plane = work_plane_from_text(work_plane, units=part_units, up=part_up)[0] if work_plane is not None else None
     except (WorkPlaneError, InputError, FeatureError) as error:
-        raise FieldError(str(error), field="work_plane") from error
+        # the keys the STL's messages name ({units}: its unit) stay keys, for the front end to word
+        problem = FieldError(error.carried() if error.names_keys else str(error), field="work_plane")
+        problem.names_keys = error.names_keys        # only those: the rest (a path's braces) is as written
+        raise problem from error
     convention = None if source is None else load_source(source)
     try:
         return ConvertSettings(

@@ -158,7 +158,7 @@ class FieldError(Prs3Error):
     """
 
     exit_code = 2
-    names_keys = True
+    names_keys: bool | tuple[str, ...] = True
 
     def __init__(self, message: str, *, field: str, operation: int | None = None, also: tuple[str, ...] = ()):
         super().__init__(message)
