@@ -265,6 +265,6 @@ def test_limits_suggestion_dynamics_and_collision_on_a_head_as_built(tmp_path: P
     wall = str(REPO / "fixtures" / "parts" / "wall30.stl")
     hit = invoke("run", wall, "--profile", "hole", "--at", "30,0", "--machine", str(AS_BUILT), "-o", str(out))
     assert (hit.exit_code, hit.output) == (
-        1, "prs3-post: error: hole 1 feed: the holder hits the part, 2.488 mm deep (clearance min 1.000 mm); no "
+        1, "prs3-post: error: hole 1 approach: the holder hits the part, 2.446 mm deep (clearance min 1.000 mm); no "
            "setup changes that (the part and the tool axes move together): try a longer tool (--tool-table), a "
            "shorter holder (the machine file's [holder]), or another --at (or --face)\n")

@@ -178,3 +178,29 @@ def test_another_tool_moves_the_tip_along_the_tool_axis():
     longer = geometry.with_tool_length(geometry.tool_length + 10.0)
     assert longer.general is not None
     assert_allclose(np.array(longer.general.tool_tip) - BUILT.tool_tip, -10.0 * np.array(BUILT.tool_axis), atol=1e-12)
+
+
+@pytest.mark.parametrize(("shift", "deviation"), [(5.0, 7.621e-08), (50.0, 7.622e-06), (150.0, 6.863e-05)])
+def test_a_common_stroke_change_on_rails_not_parallel_is_bounded_by_its_second_difference(shift, deviation):
+    """On rails that are not parallel a common stroke change moves the head along them and turns it a
+    little: the replay's bound of such a move (sampled at its end only when the bound is small) is
+    SAFETY (2) times the tip's true deviation from its chord, here found on 401 samples."""
+    from pathlib import Path
+
+    from prs3_post.kinematics import replay
+
+    machine = load_machine(str(Path(__file__).resolve().parents[2] / "fixtures" / "machines"
+                               / "patel2020-as-built.toml"))
+    kin = kinematics_of(machine)
+    assert kin.shift_direction is None
+    axis = np.array([[0.3, 0.1, 0.9]]) / np.linalg.norm([0.3, 0.1, 0.9])
+    ik = kin.inverse(np.array([[0.0, 0.0, -680.0]]), axis)
+    start = np.concatenate([ik.stage[0], ik.strokes[0]])
+    joints = np.stack([start, start + np.array([10.0, 5.0, shift, shift, shift])])
+    bound = replay.translation_bound(machine, joints, replay._poses(machine, joints))
+    t = np.linspace(0.0, 1.0, 401)[:, None]
+    samples = joints[0] + t * (joints[1] - joints[0])
+    tip = kin.forward(samples[:, 2:], samples[:, :2]).tip
+    true = np.linalg.norm(tip - (tip[0] + t * (tip[-1] - tip[0])), axis=1).max()
+    assert true == pytest.approx(deviation, rel=1e-3)
+    assert np.isnan(bound[0]) and true < bound[1] < 2.1 * true

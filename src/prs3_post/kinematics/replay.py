@@ -36,8 +36,8 @@ the curvature of FK varies on the scale of the link length.
 
 Moves that translate the head: the guides are parallel, so adding s to all three strokes moves the
 whole head by −s along z and changes nothing else (by s along the kinematics' ``shift_direction``;
-a head as built whose rails are not parallel has none: it gets no such shortcut, and FK runs once
-per distinct joint row). A move whose three stroke changes are equal up
+a head as built whose rails are not parallel has none: FK runs once per run of equal joint rows,
+and such a move's bound is the second difference of the whole move, :func:`_whole_move_bound`). A move whose three stroke changes are equal up
 to d (|d_i| ≤ TRANSLATION_SPREAD: the output rounding leaves a few units) is a translation (linear:
 the stage and the common stroke change) plus g(t) = FK(q_{k-1} + t d), so its tip path and link
 angles curve only as g does. Such a move is sampled at its end point only (n_k = 1) when the bound
@@ -171,11 +171,12 @@ def _shift_keys_of_rows(strokes: FloatArray) -> tuple[FloatArray, IntArray]:
 
 
 def _distinct_rows(strokes: FloatArray) -> tuple[FloatArray, IntArray]:
-    """:func:`shift_keys` without the shift: the distinct rows of (N, J) joints and each row's index."""
+    """:func:`shift_keys` without the shift: (U, J) rows, a row for each run of equal rows of (N, J) joints
+    (a program repeats a pose row after row; a pose met again later is solved again: sorting rows
+    to find it costs more than its FK), and each row's index in them."""
     head = np.ones(len(strokes), dtype=bool)
     head[1:] = (strokes[1:] != strokes[:-1]).any(axis=1)
-    distinct, head_index = np.unique(strokes[head], axis=0, return_inverse=True)
-    return distinct.reshape(-1, strokes.shape[1]), head_index.reshape(-1)[np.cumsum(head) - 1]
+    return strokes[head].reshape(-1, strokes.shape[1]), np.cumsum(head) - 1
 
 
 def _poses(machine: Machine, joints: FloatArray, *, keys: tuple[FloatArray, IntArray] | None = None,
@@ -323,8 +324,8 @@ def translation_bound(machine: Machine, joints: FloatArray, ends: _Poses, moves:
     n = len(joints)
     bound = np.full(n, np.nan)
     direction = head_shift(machine)
-    if direction is None:                                # a common shift is no translation: sample every move
-        return bound
+    if direction is None:                                # a common shift is no translation: the whole move
+        return _whole_move_bound(machine, joints, ends, bound)
     moves = translation_candidates(joints) if moves is None else moves
     rows = moves.rows
     if not len(rows):
@@ -358,6 +359,27 @@ def translation_bound(machine: Machine, joints: FloatArray, ends: _Poses, moves:
         turn = bend if j == 0 else np.maximum(turn, bend)
     angle2 = kinematics_of(machine).link_length * turn
     bound[rows] = SAFETY * np.maximum(tip2, angle2) / 8.0     # NaN stays NaN: no assembly, sample it
+    return bound
+
+
+def _whole_move_bound(machine: Machine, joints: FloatArray, ends: _Poses, bound: FloatArray) -> FloatArray:
+    """:func:`translation_bound` on a head without a common shift (rails not parallel): the same
+    moves, whose strokes change alike, but the curvature of the whole move's tip path and link angles
+    from the second difference FK(q_k) − 2 FK(q_{k-1}) + FK(q_{k-1} − Δ) (Δ = q_k − q_{k-1}, stage
+    included: it is linear, its share cancels), ×SAFETY / 8. A common stroke change moves such a head
+    along its rails, nearly straight; what curves is its pose, slowly, on the scale of the links."""
+    rows = translation_candidates(joints).rows
+    if not len(rows):
+        return bound
+    before = rows - 1
+    start = np.take(joints, before, axis=0)
+    back = 2.0 * start - np.take(joints, rows, axis=0)
+    mirror = _poses(machine, back, condition=False)
+    second = np.take(ends.tip, rows, axis=0) - 2.0 * np.take(ends.tip, before, axis=0) + mirror.tip
+    bend = np.abs(np.take(ends.link_angle, rows, axis=0) - 2.0 * np.take(ends.link_angle, before, axis=0)
+                  + mirror.link_angle)
+    angle2 = kinematics_of(machine).link_length * np.max(bend, axis=1)
+    bound[rows] = SAFETY * np.maximum(np.sqrt(np.sum(second * second, axis=1)), angle2) / 8.0   # NaN: sample it
     return bound
 
 
