@@ -35,12 +35,13 @@ probe resolves the curvature (h·max|f'''| ≪ max|f''|), which holds for moves 
 the curvature of FK varies on the scale of the link length.
 
 Moves that translate the head: the guides are parallel, so adding s to all three strokes moves the
-whole head by −s along z and changes nothing else (by s along the kinematics' ``shift_direction``;
-a head as built whose rails are not parallel has none: FK runs once per run of equal joint rows,
-and such a move's bound is the second difference of the whole move, :func:`_whole_move_bound`). A move whose three stroke changes are equal up
-to d (|d_i| ≤ TRANSLATION_SPREAD: the output rounding leaves a few units) is a translation (linear:
-the stage and the common stroke change) plus g(t) = FK(q_{k-1} + t d), so its tip path and link
-angles curve only as g does. Such a move is sampled at its end point only (n_k = 1) when the bound
+whole head by −s along z and changes nothing else (by s along the kinematics' ``shift_direction``; a
+head as built whose rails are not parallel has none: FK runs once per run of equal joint rows, and
+such a move's bound is the second difference of the whole move, :func:`_whole_move_bound`). A move
+whose three stroke changes are equal up to d (|d_i| ≤ TRANSLATION_SPREAD: the output rounding leaves
+a few units) is a translation (linear: the stage and the common stroke change) plus g(t) =
+FK(q_{k-1} + t d), so its tip path and link angles curve only as g does.
+Such a move is sampled at its end point only (n_k = 1) when the bound
 from g's second difference g(1) − 2 g(0) + g(−1) (one more FK, at q_{k-1} − d), ×SAFETY / 8, is ≤ ε
 (that bound is its reported bound); else it is probed as above. A limit broken at its start point
 is the previous move's end point and is reported there. Against an intended path every move is
