@@ -127,9 +127,10 @@ def main() -> None:
                 wall.append(run.wall / ref.wall)
                 ours.append(run.peak_mb)
                 theirs.append(ref.peak_mb)
+                failure = "" if run.code == 0 else f" ({run.last})"
                 print(f"  {name} {k + 1}: {run.cpu:.2f} s CPU, {run.wall:.2f} s wall, peak RSS {run.peak_mb:.0f} MB, "
-                      f"exit {run.code}{'' if run.code == 0 else ' (' + run.last + ')'}; reference {ref.cpu:.2f} s CPU, {ref.wall:.2f} s wall, peak RSS "
-                      f"{ref.peak_mb:.0f} MB ({ref.last}); {load()}")
+                      f"exit {run.code}{failure}; reference {ref.cpu:.2f} s CPU, {ref.wall:.2f} s wall, "
+                      f"peak RSS {ref.peak_mb:.0f} MB ({ref.last}); {load()}")
             print(f"{name}: CPU {spread(cpu, '.2f')}× the reference (target ≤ {TARGETS[name]:g}×), wall "
                   f"{spread(wall, '.2f')}×; peak RSS {spread(ours, '.0f')} MB (reference {spread(theirs, '.0f')} MB)")
         print(f"after: {load()}")
