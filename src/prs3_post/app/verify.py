@@ -101,7 +101,7 @@ def _conflict(header: ProgramHeader | SourceHeader, key: str, what: str, recorde
                           "out to use the header's)", path=header.path, line=header.line(key), what=what)
 
 
-def _load_recorded(header: ProgramHeader | SourceHeader, kind: str, load: Callable[[str], _Config]) -> _Config:
+def load_recorded(header: ProgramHeader | SourceHeader, kind: str, load: Callable[[str], _Config]) -> _Config:
     """The machine or dialect a header names: its file when given by path, else the shipped name (a
     dialect may have upper-cased the comment: its lower-case spelling is tried too)."""
     name, file = (header.machine, header.machine_file) if kind == "machine" else (header.dialect, header.dialect_file)
@@ -201,9 +201,9 @@ def open_setting(path: str, *, machine: str | None = None, dialect: str | None =
 def _recorded_or_given(header: ProgramHeader | SourceHeader, kind: str, load: Callable[[str], _Config],
                        given: _Config | None) -> _Config:
     if given is None:
-        return _load_recorded(header, kind, load)
+        return load_recorded(header, kind, load)
     try:
-        recorded = _load_recorded(header, kind, load)
+        recorded = load_recorded(header, kind, load)
     except InputError:                                 # cannot compare: the given one is all there is
         return given
     if not _same(recorded, given):

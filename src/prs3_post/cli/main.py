@@ -16,6 +16,7 @@ import click
 from prs3_post.cli.calibrate import accuracy, calibrate
 from prs3_post.cli.convert import convert
 from prs3_post.cli.exits import report_interrupted
+from prs3_post.cli.export import export
 from prs3_post.cli.info import faces, machines, sources
 from prs3_post.cli.kinematics import fk, ik
 from prs3_post.cli.options import Command
@@ -122,7 +123,8 @@ def main() -> None:
     """
 
 
-for _command in (accuracy, calibrate, convert, demo, faces, fk, ik, job, machines, preview, run, sources, verify):
+for _command in (accuracy, calibrate, convert, demo, export, faces, fk, ik, job, machines, preview, run, sources,
+                 verify):
     main.add_command(_command)
 
 
