@@ -37,7 +37,7 @@ REPO = Path(__file__).resolve().parents[2]
 #: How many examples each command gets (the whole file runs in ~15 s; preview draws a figure).
 EXAMPLES = {"run": 40, "demo": 50, "faces": 40, "ik": 50, "fk": 50, "verify": 50, "preview": 12, "machines": 5,
             "sources": 5,
-            "job": 25, "convert": 30, "calibrate": 12, "accuracy": 6}
+            "job": 25, "convert": 30, "calibrate": 12, "accuracy": 6, "export": 30}
 #: Options set in one example, besides the required ones.
 MAX_OPTIONS = 4
 
@@ -157,7 +157,7 @@ INPUTS = {
 GOOD_OUTPUTS = {"preview": ("out/o.png", "out/o.svg"), "preview_path": ("out/o.png", "out/o.svg"),
                 "ik": ("out/o.csv", "-"), "run": ("out/o.ngc", "-"), "demo": ("out/o.ngc", "-"),
                 "job": ("out/o.ngc", "-"), "identify": ("out/o.toml", "-"), "plan": ("out/poses.csv", "-"),
-                "report_path": ("out/r.json", "-")}
+                "report_path": ("out/r.json", "-"), "export": ("out/o.cls", "out/o.csv", "-")}
 BAD_OUTPUTS = ("out/", "out/missing/o.png", "in/part.stl", "in/prog.ngc", "in/poses.csv", "out/o.txt", "")
 
 
@@ -286,3 +286,4 @@ test_fuzz_job = _fuzz("job")
 test_fuzz_convert = _fuzz("convert")
 test_fuzz_calibrate = _fuzz("calibrate")
 test_fuzz_accuracy = _fuzz("accuracy")
+test_fuzz_export = _fuzz("export")
