@@ -232,19 +232,24 @@ def cl_text(exported: Exported, *, chunk_rows: int = 20000) -> Iterator[str]:
         events.setdefault(min(event.before, n), []).append(event)
     tips = [fixed_column(exported.tip[:, j], TIP_DECIMALS) for j in range(3)]
     axes = [fixed_column(exported.axis[:, j], AXIS_DECIMALS) for j in range(3)]
-    feeds = fixed_column(np.nan_to_num(exported.feed, nan=0.0), FEED_DECIMALS)
-    kind = moves.kind
+    gotos = [f"GOTO/{x},{y},{z},{i},{j},{k}\n" for x, y, z, i, j, k in zip(*tips, *axes, strict=True)]
+    del tips, axes
+    valid = np.isfinite(exported.feed) & (exported.feed > 0.0)
+    feeds = fixed_column(np.where(valid, exported.feed, 0.0), FEED_DECIMALS)
+    rapid = (moves.kind == MoveKind.RAPID).tolist()
+    valid_rows = valid.tolist()
     current = ""
     out: list[str] = []
     for r in range(n):
-        for event in events.get(r, ()):
-            out += [f"{record}\n" for record in _event_records(event)]
-        if kind[r] == MoveKind.RAPID:
+        if r in events:
+            for event in events[r]:
+                out += [f"{record}\n" for record in _event_records(event)]
+        if rapid[r]:
             out.append("RAPID\n")
-        elif math.isfinite(exported.feed[r]) and exported.feed[r] > 0.0 and feeds[r] != current:
+        elif valid_rows[r] and feeds[r] != current:
             current = feeds[r]
             out.append(f"FEDRAT/MMPM,{current}\n")
-        out.append(f"GOTO/{tips[0][r]},{tips[1][r]},{tips[2][r]},{axes[0][r]},{axes[1][r]},{axes[2][r]}\n")
+        out.append(gotos[r])
         if len(out) >= chunk_rows:
             yield "".join(out)
             out = []
