@@ -230,29 +230,29 @@ def cl_text(exported: Exported, *, chunk_rows: int = 20000) -> Iterator[str]:
     events: dict[int, list[Event]] = {}
     for event in moves.events:
         events.setdefault(min(event.before, n), []).append(event)
-    tips = [fixed_column(exported.tip[:, j], TIP_DECIMALS) for j in range(3)]
-    axes = [fixed_column(exported.axis[:, j], AXIS_DECIMALS) for j in range(3)]
-    gotos = [f"GOTO/{x},{y},{z},{i},{j},{k}\n" for x, y, z, i, j, k in zip(*tips, *axes, strict=True)]
-    del tips, axes
     valid = np.isfinite(exported.feed) & (exported.feed > 0.0)
-    feeds = fixed_column(np.where(valid, exported.feed, 0.0), FEED_DECIMALS)
-    rapid = (moves.kind == MoveKind.RAPID).tolist()
-    valid_rows = valid.tolist()
     current = ""
-    out: list[str] = []
-    for r in range(n):
-        if r in events:
-            for event in events[r]:
-                out += [f"{record}\n" for record in _event_records(event)]
-        if rapid[r]:
-            out.append("RAPID\n")
-        elif valid_rows[r] and feeds[r] != current:
-            current = feeds[r]
-            out.append(f"FEDRAT/MMPM,{current}\n")
-        out.append(gotos[r])
-        if len(out) >= chunk_rows:
-            yield "".join(out)
-            out = []
+    for lo in range(0, n, chunk_rows):              # a block at a time: memory does not grow with the program
+        hi = min(n, lo + chunk_rows)
+        tips = [fixed_column(exported.tip[lo:hi, j], TIP_DECIMALS) for j in range(3)]
+        axes = [fixed_column(exported.axis[lo:hi, j], AXIS_DECIMALS) for j in range(3)]
+        gotos = [f"GOTO/{x},{y},{z},{i},{j},{k}\n" for x, y, z, i, j, k in zip(*tips, *axes, strict=True)]
+        feeds = fixed_column(np.where(valid[lo:hi], exported.feed[lo:hi], 0.0), FEED_DECIMALS)
+        rapid = (moves.kind[lo:hi] == MoveKind.RAPID).tolist()
+        valid_rows = valid[lo:hi].tolist()
+        out: list[str] = []
+        for r in range(hi - lo):
+            if r + lo in events:
+                for event in events[r + lo]:
+                    out += [f"{record}\n" for record in _event_records(event)]
+            if rapid[r]:
+                out.append("RAPID\n")
+            elif valid_rows[r] and feeds[r] != current:
+                current = feeds[r]
+                out.append(f"FEDRAT/MMPM,{current}\n")
+            out.append(gotos[r])
+        yield "".join(out)
+    out = []
     for event in events.get(n, ()):
         out += [f"{record}\n" for record in _event_records(event)]
     out.append("FINI\n")
