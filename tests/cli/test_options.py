@@ -261,8 +261,9 @@ def test_verbose_verify_says_what_the_program_was_read_with(tmp_path):
 @pytest.mark.parametrize(("args", "first"), [
     (["fk", "--strokes", "36.2244,170.3886,88.9519"], "prs3-post: machine patel2020: machines/patel2020.toml"),
     (["machines"], "prs3-post: patel2020: machines/patel2020.toml"),
+    (["sources"], "prs3-post: haas-umc750: sources/haas-umc750.toml"),
     (["faces", WEDGE], None),
-], ids=["fk", "machines", "faces"])
+], ids=["fk", "machines", "sources", "faces"])
 def test_verbose_ends_every_command_with_its_time(args, first):
     result = invoke(*args, "-v")
     assert result.exit_code == 0

@@ -63,6 +63,7 @@ def sources() -> None:
             words = " ".join(source.words or source.vector_words)
             tcp = f"{'/'.join(source.tcp_on)} {'/'.join(source.tcp_off)}"
             click.echo(f"{name:<14} {words:<6} {tcp:<12} {source.description}")
+            detail(f"{name}: {source.source}")
         return 0
 
     run_reported(body)
