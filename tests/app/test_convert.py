@@ -833,3 +833,24 @@ def test_a_limit_error_gives_the_part_origin_as_the_option_and_it_converts(tmp_p
     again = CliRunner().invoke(main, ["convert", str(drill), "-d", str(tmp_path / "out"), option])
     assert again.exit_code == 0, again.output
     assert (tmp_path / "out" / "humman_deep_drill.ngc").is_file()
+
+
+@pytest.mark.parametrize(("name", "text", "message"), [
+    ("t.cls", "LOADTL/100000\nRAPID\nGOTO/0,0,10\nGOTO/0,0,0\n",
+     "t.cls:1: LOADTL/ tool number 100000 is out of range (allowed: whole numbers 0 to 99999, the largest the "
+     "output dialect takes: its words.tool_number_max)"),
+    ("t.ngc", "G21 G90 G17\nT100000 M6\nG0 X0 Y0 Z10\nG1 Z0 F100\nM30\n",
+     "t.ngc:2: T100000 is out of range (allowed: whole tool numbers 0 to 99999, the largest the output dialect "
+     "takes: its words.tool_number_max)"),
+])
+def test_a_tool_number_beyond_the_dialects_is_bad_input_at_its_line(tmp_path, name, text, message):
+    """Issue 20 §4.5: a tool number above the dialect's words.tool_number_max (99999) but below any dialect's
+    failed when the program was written, exit 1 (the limit code), "tool_change event before row 0 ...", with a
+    part origin suggested; it is bad input, refused where it is read, exit 2, naming the valid range."""
+    source = tmp_path / name
+    source.write_text(text)
+    (tmp_path / "out").mkdir()
+    result = CliRunner().invoke(main, ["convert", str(source), "-o", str(tmp_path / "out"), "--part-origin", "auto"])
+    assert result.exit_code == 2
+    assert result.stdout.splitlines() == [f"failed\t{source}\t-\t{tmp_path}/{message}"]
+    assert list((tmp_path / "out").iterdir()) == []

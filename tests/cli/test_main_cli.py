@@ -302,6 +302,21 @@ def test_output_file_gets_ordinary_permissions(tmp_path):
     (["demo", "--profile", "hole", "--line-numbers", "--line-start", "99999", "--line-step", "1000"],
      "Invalid value for '--line-start': --line-start 99999 + --line-step 1000 passes dialect linuxcnc's largest "
      "block number 99999: every block would get the same number"),
+    # issue 20 §3: --depth 1e-300 wrote a hole of depth 0 (that verified OK) while --size 1e-6 was refused for
+    # its lap: one rule and one message for every length below the program's resolution
+    (["demo", "--profile", "hole", "--depth", "1e-300"],
+     "Invalid value for '--depth': 1e-300 mm is below the program's resolution, 0.0001 mm (dialect linuxcnc writes "
+     "lengths to 4 decimals), so the program could not show it: give at least 0.0001 mm"),
+    (["demo", "--profile", "square", "--size", "1e-6"],
+     "Invalid value for '--size': 1e-06 mm is below the program's resolution, 0.0001 mm (dialect linuxcnc writes "
+     "lengths to 4 decimals), so the program could not show it: give at least 0.0001 mm"),
+    (["demo", "--profile", "hole", "--peck", "1e-300", "--dialect", "fanuc"],
+     "Invalid value for '--peck': 1e-300 mm is below the program's resolution, 0.001 mm (dialect fanuc writes "
+     "lengths to 3 decimals), so the program could not show it: give at least 0.001 mm (or 0: no pecking)"),
+    (["demo", "--profile", "square", "--corner-radius", "5e-5"],
+     "Invalid value for '--corner-radius': 5e-05 mm is below the program's resolution, 0.0001 mm (dialect linuxcnc "
+     "writes lengths to 4 decimals), so the program could not show it: give at least 0.0001 mm (or 0: sharp "
+     "corners)"),
 ])
 def test_option_values_that_cannot_work_are_usage_errors(args, message):
     result = CliRunner().invoke(main, args)

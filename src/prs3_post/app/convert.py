@@ -139,6 +139,7 @@ class ConvertSettings:
     def read_options(self) -> ReadOptions:
         """How the inputs are to be read (each format takes what concerns it)."""
         return ReadOptions(tolerance=self.tolerance, circle_tolerance=self.circle_tolerance, units=self.units,
+                           tool_number_max=self.dialect.tool_number_max,
                            ignore=self.ignore, work_plane=self.work_plane, source=self.source, tcp_on=self.tcp_on,
                            tcp_off=self.tcp_off)
 

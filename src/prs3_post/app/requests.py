@@ -38,6 +38,7 @@ from prs3_post.app.values import (
 )
 from prs3_post.core.defaults import DEFAULT_CLEARANCE_MIN, DEFAULT_TOLERANCE, FEED_RANGE_MM_MIN
 from prs3_post.core.errors import FeatureError, FieldError, InputError, UnusedFields, quoted
+from prs3_post.core.numbers import exact_text
 from prs3_post.core.toolpath import Coolant
 from prs3_post.machine.loading import DEFAULT_DIALECT, DEFAULT_MACHINE, Dialect, Machine, load_dialect, load_machine
 from prs3_post.part.setup_transform import AUTO, UP_ROTATION, Setup, SetupError
@@ -312,6 +313,7 @@ def _spec(request: JobRequest, number: int, values: Mapping[str, Any], dialect: 
     if not 1 <= values["tool"] <= dialect.tool_number_max:       # both bounds, one message
         raise FieldError(f"must be 1..{dialect.tool_number_max} with dialect {dialect.name} (its "
                          f"words.tool_number_max), got {values['tool']}", field="tool", operation=number)
+    _check_resolution(values, dialect, number)
     cutting = Cutting(tool_diameter=tool_diameter, feed=values["feed"], plunge_feed=values["plunge_feed"],
                       spindle_rpm=values["spindle"], coolant=Coolant(values["coolant"]), tool_number=values["tool"])
     depth = DEFAULT_DEPTH[operation] if values["depth"] is None else values["depth"]
@@ -344,6 +346,39 @@ def _spec(request: JobRequest, number: int, values: Mapping[str, Any], dialect: 
         auto_origin=request.part_origin == AUTO, auto_rotation=request.part_rotation_deg == AUTO,
         tool_table=table, clamp=settings["clamp"], collision_check=settings["collision_check"],
         clearance_min=settings["clearance_min"])
+
+
+#: The operation's lengths the program writes (a depth, a size, a height over the face), and what 0
+#: means for those that may be 0 (None: it must be more).
+_DIMENSIONS: dict[str, str | None] = {
+    "depth": None, "size": None, "diameter": None, "step_down": None, "clearance": None, "retract": None,
+    "peck": "no pecking", "reapproach_gap": "feed resumes at the previous peck's bottom",
+    "corner_radius": "sharp corners",
+}
+
+
+def _check_resolution(values: Mapping[str, Any], dialect: Dialect, number: int) -> None:
+    """One rule for every length of an operation: more than 0 but less than the program's resolution (one
+    unit of the last digit the dialect writes) is refused, whatever it is: the program could not show
+    it (a depth of 1e-300 mm drilled a hole of depth 0).
+
+    Raises
+    ------
+    FieldError
+        ``1e-300 mm is below the program's resolution ...``, naming the key.
+    """
+    from prs3_post.post.visible_moves import length_resolution
+
+    decimals = dialect.decimals.length
+    resolution = length_resolution(decimals)
+    for key, zero in _DIMENSIONS.items():
+        value = values.get(key)
+        if value is not None and 0.0 < value < resolution:
+            smallest = exact_text(resolution, decimals)
+            also = "" if zero is None else f" (or 0: {zero})"
+            raise FieldError(f"{value:g} mm is below the program's resolution, {smallest} mm (dialect {dialect.name} "
+                             f"writes lengths to {decimals} decimals), so the program could not show it: give at "
+                             f"least {smallest} mm{also}", field=key, operation=number)
 
 
 def _table_diameter(table: ToolTable, values: Mapping[str, Any]) -> float:

@@ -14,6 +14,8 @@ MIN_FEED_MM_MIN, MAX_FEED_MM_MIN = FEED_RANGE_MM_MIN
 #: (a GOTO/ of six 20-digit numbers is about 130), few enough that a bad file is refused at once. The
 #: CAM G-code reader holds a block (its code, without comments) to the same.
 MAX_RECORD_CHARS = 65_536
+#: Why a tool change's range is the program's: the output names the tool in a T word of its dialect.
+DIALECT_TOOLS = ", the largest the output dialect takes: its words.tool_number_max"
 
 
 def join_toolpaths(parts: list[Toolpath]) -> Toolpath:

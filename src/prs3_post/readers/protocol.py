@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
 from prs3_post.core.toolpath import Toolpath
+from prs3_post.machine.dialect import TOOL_NUMBER_LIMIT
 
 if TYPE_CHECKING:
     from prs3_post.machine.cam_conventions import SourceConvention
@@ -41,6 +42,8 @@ class ReadOptions:
     work_plane : WorkPlane | None — where a G-code program's X, Y, Z are in the part (None: the part frame)
     source : SourceConvention | None — G-code is a 5-axis program of this source machine (None: 3+2)
     tcp_on, tcp_off : tuple of str | None — the codes that switch its TCP on and off (None: the source's)
+    tool_number_max : int — the largest tool number the output takes (the dialect's ``words.tool_number_max``):
+        a tool change beyond it is refused at its line
     """
 
     tolerance: float
@@ -51,6 +54,7 @@ class ReadOptions:
     source: SourceConvention | None = None
     tcp_on: tuple[str, ...] | None = None
     tcp_off: tuple[str, ...] | None = None
+    tool_number_max: int = TOOL_NUMBER_LIMIT
 
 
 @dataclass(frozen=True, slots=True)
@@ -198,6 +202,8 @@ class StreamDefaults:
     summary: Summary | None
     reads_ahead = True
     refuses_tilt = False
+    #: The largest tool number a tool change may have (:attr:`ReadOptions.tool_number_max`; the reader sets it).
+    tool_number_max = TOOL_NUMBER_LIMIT
 
     @property
     def read_as(self) -> str:

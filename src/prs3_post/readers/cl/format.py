@@ -34,8 +34,10 @@ class ClReader:
         """A :class:`~prs3_post.readers.cl.reader.ClStream` with the options' tolerance, units and ignored words."""
         from prs3_post.readers.cl.reader import ClStream  # numpy: loaded where a file is read (test_startup)
 
-        return ClStream(path, tolerance=options.tolerance, units=options.units, ignore=options.ignore,
-                        circle_tolerance=options.circle_tolerance)
+        stream = ClStream(path, tolerance=options.tolerance, units=options.units, ignore=options.ignore,
+                          circle_tolerance=options.circle_tolerance)
+        stream.tool_number_max = options.tool_number_max
+        return stream
 
 
 #: The registered APT CL reader.

@@ -212,6 +212,7 @@ class ClStream(StreamDefaults):
         file_units = units_of_file(unit_records(self._pieces(), self.path), self.path, self.units)
         reader = LineReader(self.path, MM_PER_INCH if file_units == "inch" else 1.0, self.ignore, self.tolerance,
                             self.circle_tolerance, self.apply_msys)
+        reader.tool_number_max = self.tool_number_max
         number = 1
         for lines in line_chunks(self._pieces(), self.chunk_lines):
             reader.lines(number, lines)

@@ -36,7 +36,7 @@ from prs3_post.readers.cl.syntax import (
     parse_number,
     quote,
 )
-from prs3_post.readers.common import MAX_FEED_MM_MIN, MIN_FEED_MM_MIN, join_toolpaths
+from prs3_post.readers.common import DIALECT_TOOLS, MAX_FEED_MM_MIN, MIN_FEED_MM_MIN, join_toolpaths
 from prs3_post.toolpaths.arcs import MAX_ARC_SEGMENTS, arc_points_3d, arc_segment_count, arc_sweep
 from prs3_post.toolpaths.cycles import MAX_PECKS, DrillCycle, Pecking, drill_rows, peck_count
 
@@ -68,6 +68,9 @@ class _ActiveCycle:
 
 class Records:
     """The modal state of a CL file as the records go by; rows in the LOCAL frame (mm) with their frame."""
+
+    #: The largest tool number a tool change may have (the stream sets the output dialect's).
+    tool_number_max = TOOL_NUMBER_LIMIT
 
     def __init__(self, path: str, scale: float, ignore: frozenset[str], tolerance: float, circle_tolerance: float,
                  apply_msys: bool = True):
@@ -439,9 +442,10 @@ class Records:
         (number,) = self.numbers(record, args[:1])
         if number < 0 or number != int(number):
             raise self.error(f"{record.word}/ tool number must be a whole number ≥ 0, got {args[0]}")
-        if number > TOOL_NUMBER_LIMIT:
+        if number > self.tool_number_max:
+            limit = self.tool_number_max
             raise self.error(f"{record.word}/ tool number {args[0]} is out of range (allowed: whole numbers 0 to "
-                             f"{TOOL_NUMBER_LIMIT})")
+                             f"{limit}{DIALECT_TOOLS if limit < TOOL_NUMBER_LIMIT else ''})")
         if record.word != "SELECT":
             shape = f": TLDATA/{','.join(self.tool_data[-1].words)}" if self.tool_data else ""
             self.event(EventKind.TOOL_CHANGE, value=float(number), text=f"tool {int(number)}{shape}")

@@ -22,7 +22,13 @@ from prs3_post.core.toolpath import Coolant, Event, EventKind, Toolpath
 from prs3_post.core.types import FloatArray
 from prs3_post.machine.dialect import TOOL_NUMBER_LIMIT
 from prs3_post.part.workplane import WorkPlane, euler_zxz_deg
-from prs3_post.readers.common import MAX_FEED_MM_MIN, MAX_RECORD_CHARS, MIN_FEED_MM_MIN, join_toolpaths
+from prs3_post.readers.common import (
+    DIALECT_TOOLS,
+    MAX_FEED_MM_MIN,
+    MAX_RECORD_CHARS,
+    MIN_FEED_MM_MIN,
+    join_toolpaths,
+)
 from prs3_post.readers.gcode.summary import GcodeCounts, GcodeCycle, GcodeFile, GcodePlane
 from prs3_post.readers.gcode.words import (
     AXES,
@@ -50,6 +56,9 @@ from prs3_post.toolpaths.cycles import MAX_PECKS, DrillCycle, Pecking, drill_row
 
 class Blocks:
     """The modal state of a program as the lines go by; rows in the coordinates of their plane (mm)."""
+
+    #: The largest tool number a T word may have (the stream sets the output dialect's).
+    tool_number_max = TOOL_NUMBER_LIMIT
 
     def __init__(self, path: str, work_plane: WorkPlane, tolerance: float, circle_tolerance: float):
         self.path, self.tolerance, self.circle_tolerance = path, tolerance, circle_tolerance
@@ -297,9 +306,10 @@ class Blocks:
         if tool is not None:
             if tool < 0 or tool != int(tool):
                 raise self.error(f"T must be a whole tool number ≥ 0, got {block.values['T'][1]}")
-            if tool > TOOL_NUMBER_LIMIT:
-                raise self.error(f"{block.values['T'][1]} is out of range (allowed: whole tool numbers 0 to "
-                                 f"{TOOL_NUMBER_LIMIT})")
+            if tool > self.tool_number_max:
+                limit = self.tool_number_max
+                raise self.error(f"{block.values['T'][1]} is out of range (allowed: whole tool numbers 0 to {limit}"
+                                 f"{DIALECT_TOOLS if limit < TOOL_NUMBER_LIMIT else ''})")
             self.tool = int(tool)
         if "tool change" in m:
             if self.tool is None:

@@ -55,12 +55,16 @@ class GcodeReader:
                                  path=path)
             from prs3_post.readers.fivex.reader import FivexStream  # only a 5-axis program needs it
 
-            return FivexStream(path, options.source, tolerance=options.tolerance, tcp_on=options.tcp_on,
+            five = FivexStream(path, options.source, tolerance=options.tolerance, tcp_on=options.tcp_on,
                                tcp_off=options.tcp_off, circle_tolerance=options.circle_tolerance)
+            five.tool_number_max = options.tool_number_max
+            return five
         from prs3_post.readers.gcode.reader import GcodeStream  # numpy: loaded where a file is read
 
-        return GcodeStream(path, tolerance=options.tolerance, work_plane=options.work_plane,
-                           circle_tolerance=options.circle_tolerance)
+        stream = GcodeStream(path, tolerance=options.tolerance, work_plane=options.work_plane,
+                             circle_tolerance=options.circle_tolerance)
+        stream.tool_number_max = options.tool_number_max
+        return stream
 
 
 #: The registered G-code reader.

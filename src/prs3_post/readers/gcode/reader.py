@@ -232,6 +232,7 @@ class GcodeStream(StreamDefaults):
     def __iter__(self) -> Iterator[Toolpath]:
         self._check()                                   # the whole text checked: its bytes are read below
         reader = self._reader()
+        reader.tool_number_max = self.tool_number_max
         number = 1
         for offset, block in line_blocks(self._pieces(), self.chunk_lines):
             number += reader.read_block(number, block, offset)
