@@ -54,7 +54,7 @@ BAD = [
      "prs3-post: error: fixtures/bad/downward.stl: the only inclined planar face, face 6 (45.0° from horizontal, "
      "area 707.1 mm²), faces down (normal z = -0.7071): the tool cannot reach it from above; found 7 faces: "
      "1 horizontal up, 1 horizontal down, 4 vertical, 1 inclined 45.0° facing down; if the part's -x axis "
-     "(as read) points up, face 6 (inclination 45.0°, area 707.1 mm²) is a candidate\n",
+     "(as read) points up (--up -x), face 6 (inclination 45.0°, area 707.1 mm²) is a candidate\n",
      2),
     ("wrong-units", ["run", "fixtures/bad/tiny.stl", "--profile", "hole"],
      "prs3-post: error: fixtures/bad/tiny.stl: part is only 0.1 x 0.1 x 0.325 mm (largest extent under 1 mm): "

@@ -37,7 +37,7 @@ CHAMFER_FACES_DOWN = (
     "the only inclined planar face, face 6 (45.0° from horizontal, area 1140.5 mm²), faces down "
     "(normal z = -0.7071): the tool cannot reach it from above; found 844 faces: 17 horizontal up, "
     "1 horizontal down, 32 vertical, 1 inclined 45.0° facing down, 793 strips of curved surfaces; "
-    "if the part's x axis (as read) points up, face 6 (inclination 45.0°, area 1140.5 mm²) is a candidate"
+    "if the part's x axis (as read) points up (--up x), face 6 (inclination 45.0°, area 1140.5 mm²) is a candidate"
 )
 
 
@@ -178,3 +178,22 @@ def test_corpus_part_works_with_the_part_origin_its_limit_error_suggests(tmp_pat
     assert second.exit_code == 0, second.stderr
     checked = invoke("verify", str(out), "--part", part, "--no-collision-check")   # made without it
     assert (checked.exit_code, checked.stdout.splitlines()[-1]) == (0, "OK: within every limit and tolerance")
+
+
+def test_an_up_hint_names_only_a_face_the_machine_can_take(tmp_path):
+    """Issue 20 §3: the --up hint must lead to a reachable face. featuretype's chamfer is 45° with x up: at the
+    tilt limit (within it: values at a limit are no violations) the hint stands, and following it writes a
+    program once placed; on a machine whose limit is 44.9° it would be a dead end, and the message says so."""
+    machine = tmp_path / "tilt449.toml"
+    shipped = Path(__file__).resolve().parents[2] / "postproc" / "machines" / "patel2020.toml"
+    machine.write_text(shipped.read_text().replace("max_tilt_deg = 45.0", "max_tilt_deg = 44.9"))
+    result = invoke(FEATURETYPE, "--part-units", "inch", "--profile", "hole", "--machine", str(machine))
+    assert (result.exit_code, result.stderr) == (2, (
+        f"prs3-post: error: {FEATURETYPE}: {CHAMFER_FACES_DOWN.split('; if the part')[0]}; no other up axis gives "
+        "a face this machine can take: with the part's x axis up, face 6 would be inclined 45.0°, beyond its "
+        "tilt, link angle or condition number limits\n"))
+    out = tmp_path / "chamfer.ngc"
+    followed = invoke(FEATURETYPE, "--part-units", "inch", "--up", "x", "--profile", "hole", "--part-origin", "auto",
+                      "-o", str(out))
+    assert followed.exit_code == 0, followed.stderr
+    assert out.is_file()

@@ -349,7 +349,8 @@ def test_bad_fixture_load_errors(name, message):
             "the only inclined planar face, face 6 (45.0° from horizontal, area 707.1 mm²), faces down "
             "(normal z = -0.7071): the tool cannot reach it from above; "
             "found 7 faces: 1 horizontal up, 1 horizontal down, 4 vertical, 1 inclined 45.0° facing down; "
-            "if the part's -x axis (as read) points up, face 6 (inclination 45.0°, area 707.1 mm²) is a candidate",
+            "if the part's -x axis (as read) points up (up -x), face 6 (inclination 45.0°, area 707.1 mm²) is a "
+            "candidate",
         ),
     ],
 )
@@ -454,7 +455,7 @@ FEATURETYPE_CHAMFER_DOWN = (
     "the only inclined planar face, face 6 (45.0° from horizontal, area 1140.5 mm²), faces down "
     "(normal z = -0.7071): the tool cannot reach it from above; found 844 faces: 17 horizontal up, "
     "1 horizontal down, 32 vertical, 1 inclined 45.0° facing down, 793 strips of curved surfaces; "
-    "if the part's x axis (as read) points up, face 6 (inclination 45.0°, area 1140.5 mm²) is a candidate"
+    "if the part's x axis (as read) points up (up x), face 6 (inclination 45.0°, area 1140.5 mm²) is a candidate"
 )
 
 
@@ -480,7 +481,7 @@ def test_angle_block_y_up_inch_15_degree_face():
         "no upward-facing inclined planar face at least 3 mm wide: found 210 faces: 1 horizontal up, "
         "2 inclined up narrower than 3 mm, 11 vertical, 2 inclined 15.0° facing down, 3 inclined 75.0° facing down "
         "(cannot be reached from above), 191 strips of curved surfaces; "
-        "if the part's y axis (as read) points up, face 1 (inclination 15.0°, area 750.6 mm²) is a candidate"
+        "if the part's y axis (as read) points up (up y), face 1 (inclination 15.0°, area 750.6 mm²) is a candidate"
     )
     # Turned Y-up (+90° about x), the same face is the 15° face automatic selection takes.
     turned = faces_of(CORPUS / "trimesh_angle_block.STL", units="inch", up="y")
@@ -667,7 +668,7 @@ def test_two_chamfers_facing_down_are_named():
     assert str(caught.value) == (
         "all 2 inclined planar faces (faces 4 and 5) face down: the tool cannot reach them from above; "
         "found 8 faces: 1 horizontal up, 1 horizontal down, 4 vertical, 2 inclined 45.0° facing down; "
-        "if the part's x axis (as read) points up, face 4 (inclination 45.0°, area 1414.2 mm²) is a candidate"
+        "if the part's x axis (as read) points up (up x), face 4 (inclination 45.0°, area 1414.2 mm²) is a candidate"
     )
 
 

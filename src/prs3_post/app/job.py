@@ -31,6 +31,7 @@ from prs3_post.check.collision import Approach, CollisionError, ProgramClearance
 from prs3_post.check.placement import (
     PlacementResult,
     SetupCheck,
+    axes_reachable,
     place,
     placement_error,
     suggest,
@@ -497,10 +498,11 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
     done: list[OperationResult] = []
     measured: list[ProgramClearance | str | None] = []     # each operation's check (None: not asked)
     for number, spec in enumerate(specs, start=1):
-        try:  # automatic selection skips faces narrower than the tool
-            face, note = select_face(faces, spec.face, min_width=max(MIN_FACE_WIDTH_MM, spec.cutting.tool_diameter))
+        try:  # automatic selection skips faces narrower than the tool; a hint names a face the machine reaches
+            face, note = select_face(faces, spec.face, min_width=max(MIN_FACE_WIDTH_MM, spec.cutting.tool_diameter),
+                                     reachable=partial(axes_reachable, spec.machine))
         except FeatureError as error:                     # about this file's faces: say which file
-            raise InputError(str(error), path=spec.part) from error
+            raise InputError(error.carried(), path=spec.part, names_keys=error.names_keys) from error
         path_part = _planned(spec, face, number, several)
         label = operation_label(number, spec, face) if several else ""
         done.append(OperationResult(face=face, face_note=note, path_part=path_part, tool_length=tool_length_of(spec),

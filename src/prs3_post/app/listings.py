@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -38,8 +39,9 @@ def faces_json(part: str, *, units: str, up: str) -> str:
     return json.dumps(face_table(find_faces(load_part(part, units=units, up=up))), indent=2, allow_nan=False)
 
 
-def faces_text(part: str, *, units: str, up: str) -> str:
-    """A part's faces as a table, and the automatic choice (or why there is none) on the last line."""
+def faces_text(part: str, *, units: str, up: str, spell: Callable[[str], str] = str) -> str:
+    """A part's faces as a table, and the automatic choice (or why there is none) on the last line (the
+    keys it names as ``spell`` words them: the command line's flags)."""
     from prs3_post.part.faces import find_faces, format_face_table, select_face
     from prs3_post.part.stl import load_part
 
@@ -47,5 +49,5 @@ def faces_text(part: str, *, units: str, up: str) -> str:
     try:
         choice = select_face(found, None)[1]
     except FeatureError as error:
-        choice = f"auto: {error}"
+        choice = f"auto: {error.worded(spell)}"
     return format_face_table(found) + choice + "\n"

@@ -43,7 +43,7 @@ import numpy as np
 from prs3_post.core.errors import LimitError, ReachError
 from prs3_post.core.numbers import exact_text
 from prs3_post.core.numbers import fixed as _fixed
-from prs3_post.core.toolpath import Toolpath
+from prs3_post.core.toolpath import MoveKind, Toolpath
 from prs3_post.core.types import BoolArray, FloatArray
 from prs3_post.kinematics import HEAD_XY_TOL, IKModel, PoseError, unit_axes
 from prs3_post.kinematics.registry import kinematics_of
@@ -135,6 +135,43 @@ def _values(machine: Machine, path: Toolpath, shift: FloatArray) -> tuple[FloatA
     """Every limit's value on the path moved by ``shift``, with its bounds: (N, L), (L,), (L,)."""
     columns = _columns(machine, path, shift)
     return columns.value, columns.low, columns.high
+
+
+# ============================================================================ axes the head takes
+
+
+#: The rotations about z :func:`axes_reachable` tries, in degrees.
+_REACH_ROTATIONS_DEG = np.arange(0.0, 360.0, 5.0)
+
+
+def axes_reachable(machine: Machine, axes: FloatArray) -> BoolArray:
+    """(K,) bool — which tool axes (K, 3), unit, part frame, the head can take at some setup: turned about z
+    by one of the rotations every 5°, the limits that depend on the axis alone (tilt, link angles,
+    condition number; compared as every limit is, within LIMIT_TOLERANCE) hold and the legs assemble; the
+    limits a part origin moves (strokes, stage) are left to the setup (one point fits any of them).
+    For a hint that must lead somewhere (a face another up axis would make a candidate)."""
+    axes = np.asarray(axes, dtype=np.float64).reshape(-1, 3)
+    out = np.zeros(len(axes), dtype=bool)
+    angle = np.radians(_REACH_ROTATIONS_DEG)
+    cos, sin = np.cos(angle), np.sin(angle)
+    count = len(angle)
+    for k, (ax, ay, az) in enumerate(axes):
+        if az <= 0.0:                                  # away from the spindle at every rotation
+            continue
+        turned = np.column_stack([cos * ax - sin * ay, sin * ax + cos * ay, np.full(count, az)])
+        tip = np.tile(np.asarray(machine.part_origin, dtype=np.float64), (count, 1))
+        path = Toolpath(kind=np.full(count, int(MoveKind.RAPID)), tip=tip, axis=turned, feed=np.zeros(count),
+                        source=np.arange(count))
+        columns = _columns(machine, path)
+        value = columns.value
+        moves = np.zeros(value.shape, dtype=bool)
+        for unit in np.eye(3):
+            with np.errstate(invalid="ignore"):
+                moves |= np.abs(_values(machine, path, unit)[0] - value) > _INDEPENDENT
+        with np.errstate(invalid="ignore"):
+            inside = limit_margins(value, columns.low, columns.high, columns.units) >= 0.0
+        out[k] = bool((np.isfinite(value).all(axis=1) & (inside | moves).all(axis=1)).any())
+    return out
 
 
 # ============================================================================ suggestion after an error

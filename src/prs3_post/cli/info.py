@@ -8,6 +8,7 @@ from prs3_post.cli.options import (
     PART_UNITS_ALIAS,
     Command,
     detail,
+    flag_of,
     part_units_option,
     run_reported,
     timed,
@@ -92,7 +93,8 @@ def faces(part: str, units: str, up: str, as_json: bool) -> None:
         from prs3_post.app.listings import faces_json, faces_text
 
         with timed("load and find the faces"):
-            table = faces_json(part, units=units, up=up) if as_json else faces_text(part, units=units, up=up)
+            table = (faces_json(part, units=units, up=up) if as_json
+                     else faces_text(part, units=units, up=up, spell=flag_of))
         click.echo(table, nl=as_json)
         return 0
 

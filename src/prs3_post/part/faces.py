@@ -43,6 +43,7 @@ lengths are mm.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -379,7 +380,8 @@ def candidate_reason(face: Face, *, min_width: float = MIN_FACE_WIDTH_MM) -> tup
 
 
 def select_face(
-    faces: tuple[Face, ...], choice: int | None, *, min_width: float = MIN_FACE_WIDTH_MM
+    faces: tuple[Face, ...], choice: int | None, *, min_width: float = MIN_FACE_WIDTH_MM,
+    reachable: Callable[[FloatArray], BoolArray] | None = None,
 ) -> tuple[Face, str]:
     """Pick the face to machine: automatically (``choice=None``) or by index.
 
@@ -395,6 +397,9 @@ def select_face(
     choice : int or None — a face index, or None for automatic selection
     min_width : float — mm, the narrowest face automatic selection takes (the smallest tool, or the
         operation's tool diameter where it is known)
+    reachable : callable, optional — (K, 3) unit normals → (K,) bool, the tool axes the machine can take:
+        where no face is a candidate, a face another up axis would make one is named (as a hint that
+        must lead somewhere) only when its normal, turned so, is one of them (None: any)
 
     Returns
     -------
@@ -423,7 +428,7 @@ def select_face(
 
     candidates = [f for f in faces if candidate_reason(f, min_width=min_width)[0]]
     if not candidates:
-        raise FeatureError(_no_candidate(faces, min_width))
+        raise FeatureError(_no_candidate(faces, min_width, reachable))
     largest = max(f.area for f in candidates)
     tied = sorted(f.index for f in candidates if largest - f.area <= EQUAL_AREA_RTOL * largest)
     face = faces[tied[0]]
@@ -447,7 +452,8 @@ def _describe(face: Face) -> str:
     return f"inclination {fixed(_degrees(face), 4)}°, area {fixed(face.area, 1)} mm²"
 
 
-def _no_candidate(faces: tuple[Face, ...], min_width: float) -> str:
+def _no_candidate(faces: tuple[Face, ...], min_width: float,
+                  reachable: Callable[[FloatArray], BoolArray] | None = None) -> str:
     """Why automatic selection found nothing, in plain words, with what was found."""
     planar = [f for f in faces if not f.curved]
     up = [f for f in planar if face_kind(f) == "inclined up"]  # all narrower than min_width here
@@ -466,7 +472,8 @@ def _no_candidate(faces: tuple[Face, ...], min_width: float) -> str:
                 f"all {len(down)} inclined planar faces (faces {names}) face down: "
                 "the tool cannot reach them from above"
             )
-        return f"{head}; found {_count_faces(faces, min_width=min_width, down_said=True)}" + _other_up(faces, min_width)
+        return (f"{head}; found {_count_faces(faces, min_width=min_width, down_said=True)}"
+                + _other_up(faces, min_width, reachable))
     if up:
         head = f"no upward-facing inclined planar face at least {min_width:g} mm wide"
     else:
@@ -474,11 +481,13 @@ def _no_candidate(faces: tuple[Face, ...], min_width: float) -> str:
             f"no upward-facing inclined face ({INCLINED_MIN_DEG:g}° < inclination < {INCLINED_MAX_DEG:g}°, "
             "normal z > 0)"
         )
-    return f"{head}: found {_count_faces(faces, min_width=min_width)}" + _other_up(faces, min_width)
+    return f"{head}: found {_count_faces(faces, min_width=min_width)}" + _other_up(faces, min_width, reachable)
 
 
-def _other_up(faces: tuple[Face, ...], min_width: float) -> str:
-    """The largest face that would be a candidate with another of the part's axes up, as a hint (or '').
+def _other_up(faces: tuple[Face, ...], min_width: float,
+              reachable: Callable[[FloatArray], BoolArray] | None = None) -> str:
+    """The largest face that would be a candidate with another of the part's axes up, as a hint naming
+    the ``{up}`` key (or ''); with ``reachable``, only a face whose turned normal the machine can take.
 
     Turning the part changes only which way its faces point, not their widths or whether they are
     curved strips: the candidate test runs on each face's normal component along that axis.
@@ -492,21 +501,34 @@ def _other_up(faces: tuple[Face, ...], min_width: float) -> str:
     area = np.array([f.area for f in usable])  # (K,)
     low, high = (math.cos(math.radians(d)) for d in (INCLINED_MAX_DEG, INCLINED_MIN_DEG))
     best: tuple[float, str, int, float] | None = None  # area, axis, face, inclination in degrees
+    beyond: tuple[float, str, int, float] | None = None  # the same of a face the machine cannot take
     for axis in UP_ROTATION:
         if axis == "z":
             continue
         up_z = normal @ up_rotation(axis)[2]  # (K,) normal z once `axis` points up (row 2 of the turn)
         fits = np.flatnonzero((up_z > low) & (up_z < high))
+        if reachable is not None and len(fits):
+            taken = reachable(normal[fits] @ up_rotation(axis).T)
+            if not taken.all():
+                k = int(fits[~taken][np.argmax(area[fits[~taken]])])
+                if beyond is None or area[k] > beyond[0]:
+                    beyond = (float(area[k]), axis, usable[k].index, math.degrees(math.acos(float(up_z[k]))))
+            fits = fits[taken]
         if len(fits):
             k = int(fits[np.argmax(area[fits])])
             if best is None or area[k] > best[0]:
                 best = (float(area[k]), axis, usable[k].index, math.degrees(math.acos(float(up_z[k]))))
     if best is None:
-        return ""
+        if beyond is None:
+            return ""
+        _, axis, index, inclination = beyond
+        return (f"; no other up axis gives a face this machine can take: with the part's {axis} axis up, face "
+                f"{index} would be inclined {fixed(inclination, 1)}°, beyond its tilt, link angle or condition "
+                "number limits")
     found_area, axis, index, inclination = best
     return (
-        f"; if the part's {axis} axis (as read) points up, face {index} (inclination {fixed(inclination, 1)}°, "
-        f"area {fixed(found_area, 1)} mm²) is a candidate"
+        f"; if the part's {axis} axis (as read) points up ({{up}} {axis}), face {index} (inclination "
+        f"{fixed(inclination, 1)}°, area {fixed(found_area, 1)} mm²) is a candidate"
     )
 
 
