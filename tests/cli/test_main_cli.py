@@ -73,13 +73,16 @@ BAD = [
     # the feature
     ("does-not-fit", ["run", WEDGE, "--profile", "square", "--size", "200"],
      "prs3-post: error: square 200.000 mm at (u 0.000, v 0.000) with tool Ø6.000: does not fit on face 4: "
-     "overshoots its edge by 69.668 mm\n", 2),
+     "overshoots its edge by 69.668 mm; the largest that fits at (u 0.000, v 0.000) is 93.999 mm (--size 93.999)\n",
+     2),
     ("does-not-fit-demo", ["demo", "--profile", "round", "--diameter", "120"],
      "prs3-post: error: round Ø120.000 mm at (u 0.000, v 0.000) with tool Ø6.000: does not fit on face 4: "
-     "overshoots its edge by 12.999 mm\n", 2),
+     "overshoots its edge by 12.999 mm; the largest that fits at (u 0.000, v 0.000) is 94.001 mm (--diameter "
+     "94.001)\n", 2),
     ("hole-off-the-face", ["run", WEDGE, "--profile", "hole", "--at", "0,0", "--at", "1000,0"],
      "prs3-post: error: hole 2 at (u 1000.000, v 0.000) with tool Ø6.000: does not fit on face 4: "
-     "overshoots its edge by 947.098 mm\n", 2),
+     "overshoots its edge by 947.098 mm; Ø6.000 fits at (u 52.901, v 0.000), the nearest place where it does "
+     "(--at 52.901,0)\n", 2),
     ("tool-larger-than-inside-round", ["run", WEDGE, "--profile", "round", "--side", "inside", "--diameter", "5",
                                        "--tool-diameter", "6"],
      "prs3-post: error: --side inside: the tool Ø6.000 mm does not fit inside the round Ø5.000 mm "

@@ -398,10 +398,10 @@ def test_converted_haas_program_replays_onto_the_cl_points(tmp_path: Path, rs274
 @pytest.mark.parametrize(("name", "message"), [
     ("linuxcnc_boat-xyzac.ngc", "663: the program's tool axis tilts 46.0620 deg from the part's z, beyond this "
      "machine's maximum tilt 45.0000 deg; 894 of 1883 rows (47.5%) tilt beyond it, and a setup turns the part about "
-     "z only"),
+     "z only, so no setup brings them within it (the CAM program must tilt the tool less)"),
     ("linuxcnc_impeller-7bl-xyzac.ngc", "8: the program's tool axis tilts 71.8410 deg from the part's z, beyond this "
      "machine's maximum tilt 45.0000 deg; 3653 of 4492 rows (81.3%) tilt beyond it, and a setup turns the part about "
-     "z only"),
+     "z only, so no setup brings them within it (the CAM program must tilt the tool less)"),
     ("linuxcnc_xyzab-tdr-demo.ngc", "10: LinuxCNC expression or parameter in 'g10 l20 p0 x-[#<_hal[xyzab_tdr_kins."
      "x-ro...': its values exist only in LinuxCNC's interpreter at run time (HAL pins, parameters), so the program "
      "cannot be converted; write it in plain numbers"),

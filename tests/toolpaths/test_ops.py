@@ -223,7 +223,10 @@ def test_one_hole_at_the_edge_does_not_fit_and_says_by_how_much() -> None:
     with pytest.raises(FeatureError) as err:
         plan_holes(FACE, np.array([[0.0, 0.0], [54.0, 0.0]]), hole_params(), CUT)
     assert error_text(err.value) == (
-        "hole 2 at (u 54.000, v 0.000) with tool Ø6.000: does not fit on face 0: overshoots its edge by 1.098 mm"
+        "hole 2 at (u 54.000, v 0.000) with tool Ø6.000: does not fit on face 0: overshoots its edge by 1.098 mm; "
+        # issue 20 §3: what fits instead (the tool's room is 55.9017 - 3 = 52.9017 from the centre)
+        "the largest tool that fits at (u 54.000, v 0.000) is Ø3.803 (--tool-diameter 3.803); Ø6.000 fits at "
+        "(u 52.901, v 0.000), the nearest place where it does (--at 52.901,0)"
     )
 
 
@@ -235,20 +238,25 @@ def test_hole_near_a_hole_in_the_face() -> None:
         plan_holes(with_opening, np.array([[-23.5, 0.0]]), hole_params(), CUT)
     assert error_text(err.value) == (
         "hole 1 at (u -23.500, v 0.000) with tool Ø6.000: does not fit on face 0: "
-        "cuts 1.500 mm into the hole in the face at (u -30.000, v 0.000)"
+        "cuts 1.500 mm into the hole in the face at (u -30.000, v 0.000); the largest tool that fits at "
+        "(u -23.500, v 0.000) is Ø2.999 (--tool-diameter 2.999); Ø6.000 fits at (u -21.999, v 0.000), the nearest "
+        "place where it does (--at -21.999,0)"      # Ø3 and u -22 touch the opening: refused as such
     )
     with pytest.raises(FeatureError) as err:   # reaches u = -25 exactly
         plan_holes(with_opening, np.array([[-22.0, 0.0]]), hole_params(), CUT)
     assert error_text(err.value) == (
         "hole 1 at (u -22.000, v 0.000) with tool Ø6.000: does not fit on face 0: "
-        "touches the hole in the face at (u -30.000, v 0.000)"
+        "touches the hole in the face at (u -30.000, v 0.000); the largest tool that fits at (u -22.000, v 0.000) is "
+        "Ø5.999 (--tool-diameter 5.999); Ø6.000 fits at (u -21.999, v 0.000), the nearest place where it does "
+        "(--at -21.999,0)"
     )
     with pytest.raises(FeatureError) as err:   # a big tool swallows the whole opening: 5 mm (its half-width)
         plan_holes(with_opening, np.array([[-30.0, 0.0]]), hole_params(),
                    Cutting(30.0, 600.0, 200.0, 8000.0, Coolant.OFF, 1))
     assert error_text(err.value) == (
         "hole 1 at (u -30.000, v 0.000) with tool Ø30.000: does not fit on face 0: "
-        "cuts 5.000 mm into the hole in the face at (u -30.000, v 0.000)"
+        "cuts 5.000 mm into the hole in the face at (u -30.000, v 0.000); Ø30.000 fits at (u -30.000, v -20.001), the "
+        "nearest place where it does (--at -30,-20.001)"     # beside the opening (v -5 to 5), by 0.001 mm
     )
     plan_holes(with_opening, np.array([[-21.0, 0.0]]), hole_params(), CUT)   # 1 mm of material left: fits
 
@@ -572,14 +580,16 @@ def test_outside_profile_that_overshoots_the_face_edge() -> None:
         plan_profile(FACE, np.array([40.0, 0.0]), SquareShape(40.0), profile_params(), CUT, tolerance=DEFAULT_TOLERANCE)
     assert error_text(err.value) == (
         "square 40.000 mm at (u 40.000, v 0.000) with tool Ø6.000: does not fit on face 0: "
-        "overshoots its edge by 7.098 mm"
+        "overshoots its edge by 7.098 mm; the largest that fits at (u 40.000, v 0.000) is 25.803 mm (--size 25.803); "
+        "it fits at (u -5.902, v 0.000), where the face is widest (--at -5.902,0)"
     )
     with pytest.raises(FeatureError) as err:   # outside a Ø30 at u = 40: tool centre radius 18, reach 21 → u 61
         plan_profile(FACE, np.array([40.0, 0.0]), RoundShape(30.0), profile_params(side=Side.OUTSIDE), CUT,
                      tolerance=DEFAULT_TOLERANCE)
     assert error_text(err.value) == (
         "round Ø30.000 mm at (u 40.000, v 0.000) with tool Ø6.000: does not fit on face 0: "
-        "overshoots its edge by 5.098 mm"
+        "overshoots its edge by 5.098 mm; the largest that fits at (u 40.000, v 0.000) is 19.803 mm (--diameter "
+        "19.803); it fits at (u -5.902, v 0.000), where the face is widest (--at -5.902,0)"
     )
 
 

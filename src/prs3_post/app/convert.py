@@ -283,7 +283,8 @@ def _refuse_tilt(machine: Machine, chunk: Toolpath, run: _Run) -> None:
     run.placeable = False
     raise LimitError(f"{chunk.describe(row)}: the program's tool axis tilts {tilt[row]:.4f} deg from the part's z, "
                      f"beyond this machine's maximum tilt {limit:.4f} deg; {beyond} of {total} rows "
-                     f"({100.0 * beyond / total:.1f}%) tilt beyond it, and a setup turns the part about z only")
+                     f"({100.0 * beyond / total:.1f}%) tilt beyond it, and a setup turns the part about z only, so no "
+                     "setup brings them within it (the CAM program must tilt the tool less)")
 
 
 def _refuse_feed_first(chunk: Toolpath, fmt: str) -> None:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -327,7 +328,7 @@ def _reach(region: shapely.Geometry, material: shapely.Geometry, *, tol: float =
     return high
 
 
-def check_fits(face: Face, region: shapely.Geometry, what: str) -> None:
+def check_fits(face: Face, region: shapely.Geometry, what: str, advice: Callable[[], str] | None = None) -> None:
     """Refuse a feature whose swept area leaves the face material.
 
     The region must lie within ``face.boundary`` (touching its outer edge is allowed: the tool
@@ -339,6 +340,8 @@ def check_fits(face: Face, region: shapely.Geometry, what: str) -> None:
     region : shapely geometry — face (u, v), mm: the area the tool sweeps (outline plus tool
         radius, e.g. from :func:`swept_region`)
     what : str — the feature, for the message, e.g. ``hole 2 at (u 10.000, v 0.000) with tool Ø6.000``
+    advice : callable, optional — what would fit instead (:mod:`prs3_post.toolpaths.fitting`), said after
+        the reason when it does not fit (called only then)
 
     Raises
     ------
@@ -352,8 +355,13 @@ def check_fits(face: Face, region: shapely.Geometry, what: str) -> None:
 
     outline = shapely.Polygon(face.boundary.exterior)
     head = f"{what}: does not fit on face {face.index}"
+
+    def instead() -> str:
+        words = advice() if advice is not None else ""
+        return f"; {words}" if words else ""
+
     if not region.covered_by(outline):
-        raise FeatureError(f"{head}: overshoots its edge by {_reach(region, outline):.3f} mm")
+        raise FeatureError(f"{head}: overshoots its edge by {_reach(region, outline):.3f} mm{instead()}")
     for ring in face.boundary.interiors:
         opening = shapely.Polygon(ring)
         if region.intersects(opening):
@@ -362,8 +370,8 @@ def check_fits(face: Face, region: shapely.Geometry, what: str) -> None:
             where = centroid if centroid.within(opening) else opening.representative_point()
             place = f"the hole in the face at {format_uv((where.x, where.y))}"
             if f"{depth:.3f}" == "0.000":
-                raise FeatureError(f"{head}: touches {place}")
-            raise FeatureError(f"{head}: cuts {depth:.3f} mm into {place}")
+                raise FeatureError(f"{head}: touches {place}{instead()}")
+            raise FeatureError(f"{head}: cuts {depth:.3f} mm into {place}{instead()}")
 
 
 # --------------------------------------------------------------------------------------------

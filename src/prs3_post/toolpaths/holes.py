@@ -19,6 +19,8 @@ retract), with the peck depths chosen here (:func:`~prs3_post.toolpaths.common.p
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -43,6 +45,10 @@ from prs3_post.toolpaths.common import (
     swept_region,
 )
 from prs3_post.toolpaths.cycles import DrillCycle, Pecking, drill_pattern
+from prs3_post.toolpaths.fitting import hole_advice
+
+if TYPE_CHECKING:
+    import shapely
 
 __all__ = ["HoleParams", "plan_holes"]
 
@@ -91,6 +97,11 @@ class HoleParams:
 def _on_axis(center_uv: FloatArray, w: float) -> FloatArray:
     """(3,) face point (u, v, w) mm on the hole's axis at height ``w`` (negative: depth)."""
     return np.array([center_uv[0], center_uv[1], w], dtype=np.float64)
+
+
+def _disc(center: FloatArray, diameter: float) -> shapely.Geometry:
+    """The region a tool of ``diameter`` mm sweeps drilling at ``center`` (face u, v)."""
+    return swept_region(center, 0.5 * diameter)
 
 
 def _hole_name(index: int, center_uv: FloatArray, cutting: Cutting) -> str:
@@ -153,7 +164,8 @@ def plan_holes(face: Face, centers_uv: FloatArray, params: HoleParams, cutting: 
         first = int(np.argmax(not_finite))
         raise FeatureError(f"hole {first + 1}: position {format_uv(centers[first])} is not a finite number")
     for index, center in enumerate(centers, start=1):   # refuse before planning anything
-        check_fits(face, swept_region(center, cutting.tool_radius), _hole_name(index, center, cutting))
+        check_fits(face, swept_region(center, cutting.tool_radius), _hole_name(index, center, cutting),
+                   advice=partial(hole_advice, face, center, cutting.tool_diameter, _disc))
     _refuse_repeated(centers, resolution)
 
     depths = (pass_depths(params.depth, params.peck, resolution=resolution, key="peck") if params.peck > 0

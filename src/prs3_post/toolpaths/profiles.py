@@ -30,7 +30,9 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from functools import partial
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -56,6 +58,10 @@ from prs3_post.toolpaths.common import (
     start_program,
     swept_region,
 )
+from prs3_post.toolpaths.fitting import profile_advice
+
+if TYPE_CHECKING:
+    import shapely
 
 __all__ = [
     "Direction",
@@ -439,7 +445,16 @@ def plan_profile(
         center, shape, params.side, params.direction, cutting.tool_diameter, tolerance=tolerance
     )
     what = f"{shape.describe()} at {format_uv(center)} with tool Ø{cutting.tool_diameter:.3f}"
-    check_fits(face, swept_region(contour, cutting.tool_radius), what)
+
+    def region_at(at: FloatArray, size: float) -> shapely.Geometry:
+        resized = replace(shape, size=size) if isinstance(shape, SquareShape) else replace(shape, diameter=size)
+        path = tool_center_contour(at, resized, params.side, params.direction, cutting.tool_diameter,
+                                   tolerance=tolerance)
+        return swept_region(path, cutting.tool_radius)
+
+    size, key = (shape.size, "size") if isinstance(shape, SquareShape) else (shape.diameter, "diameter")
+    check_fits(face, swept_region(contour, cutting.tool_radius), what,
+               advice=partial(profile_advice, face, center, size, key, region_at))
 
     name = "square" if isinstance(shape, SquareShape) else "round"
     lap = _Lap.of(contour, resolution)
