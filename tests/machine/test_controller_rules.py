@@ -9,10 +9,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 from pathlib import Path
 
+import click
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -180,8 +182,16 @@ def test_a_depth_pass_closer_than_the_resolution_merges_into_the_last() -> None:
 
 
 def test_the_pipeline_drops_rows_that_print_no_move() -> None:
-    # A clearance below the resolution: the feed down to the face would print no word at all.
-    result, dialect = _job(["--profile", "round", "--clearance", "0.00003", "--retract", "0.00003"])
+    # A clearance below the resolution: the feed down to the face would print no word at all. A request
+    # refuses it (issue 20 §3: one rule for every length below the resolution); the library's pipeline,
+    # given one, drops the rows it cannot show.
+    with pytest.raises(click.BadParameter, match="below the program's resolution"):
+        _job(["--profile", "round", "--clearance", "0.00003", "--retract", "0.00003"])
+    opts = demo.make_context("demo", ["--profile", "round"]).params
+    spec = _job_spec(str(demo_part()), opts)
+    work = dataclasses.replace(spec.work, params=dataclasses.replace(spec.work.params, clearance=0.00003,
+                                                                     retract=0.00003))
+    result, dialect = run_job(dataclasses.replace(spec, work=work)), spec.dialect
     labels = [result.post.path.describe(r) for r in range(len(result.post.path))]
     assert labels[:3] == ["round approach", "round pass 1/2 ramp", "round pass 1/2 ramp"]
     assert _g1_lines_that_move_nothing(result.text, dialect) == []
@@ -189,22 +199,22 @@ def test_the_pipeline_drops_rows_that_print_no_move() -> None:
 
 def _tiny_or(low: float, high: float) -> st.SearchStrategy[float]:
     """Values in [low, high], and ones just past a whole multiple (the slivers a sweep finds)."""
-    return st.one_of(st.floats(low, high), st.integers(1, 4).map(lambda k: k + 1e-5), st.just(1e-5))
+    return st.one_of(st.floats(low, high), st.integers(1, 4).map(lambda k: k + 1e-5), st.just(1e-3))
 
 
 @st.composite
 def _job_args(draw: st.DrawFn) -> list[str]:
     """Random valid main-job options for the demo part (sizes that fit its face)."""
     profile = draw(st.sampled_from(["hole", "square", "round"]))
-    clearance = draw(st.one_of(st.floats(1e-5, 5.0), st.just(3e-5)))
+    clearance = draw(st.one_of(st.floats(1e-3, 5.0), st.just(1e-3)))   # from the resolution (fanuc's: 0.001)
     retract = clearance + draw(st.one_of(st.just(0.0), st.floats(0.0, 10.0)))
-    args = ["--profile", profile, "--depth", repr(draw(_tiny_or(1e-5, 6.0))),
+    args = ["--profile", profile, "--depth", repr(draw(_tiny_or(1e-3, 6.0))),
             "--clearance", repr(clearance), "--retract", repr(retract),
             "--feed", repr(draw(st.floats(1.0, 5000.0))), "--plunge-feed", repr(draw(st.floats(1.0, 2000.0))),
             "--dialect", draw(st.sampled_from(["linuxcnc", "fanuc"]))]
     if profile == "hole":
         peck = draw(st.one_of(st.just(0.0), st.floats(0.5, 3.0), st.just(1.0)))
-        gap = draw(st.one_of(st.just(0.0), st.floats(0.0, 0.999 * peck))) if peck else 0.5
+        gap = draw(st.one_of(st.just(0.0), st.floats(1e-3, 0.999 * peck))) if peck else 0.5
         return [*args, "--peck", repr(peck), "--reapproach-gap", repr(gap)]
     args += ["--step-down", repr(draw(st.one_of(st.floats(0.3, 3.0), st.just(1.0)))),
              "--entry", draw(st.sampled_from(["ramp", "plunge"])), "--ramp-angle", repr(draw(st.floats(0.5, 30.0))),
@@ -212,7 +222,7 @@ def _job_args(draw: st.DrawFn) -> list[str]:
              "--side", draw(st.sampled_from(["on", "outside"]))]
     if profile == "square":
         size = draw(st.floats(8.0, 40.0))
-        corner = draw(st.one_of(st.just(0.0), st.just(1e-5), st.floats(0.0, size / 2)))
+        corner = draw(st.one_of(st.just(0.0), st.just(1e-3), st.floats(1e-3, size / 2)))
         return [*args, "--size", repr(size), "--corner-radius", repr(corner),
                 "--rotation", repr(draw(st.floats(-90, 90)))]
     return [*args, "--diameter", repr(draw(st.floats(1e-3, 40.0)))]
@@ -221,7 +231,7 @@ def _job_args(draw: st.DrawFn) -> list[str]:
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(args=_job_args())
 @example(args=REPROS["round-ramp-vertex"])
-@example(args=["--profile", "round", "--clearance", "0.00003", "--retract", "0.00003", "--dialect", "fanuc"])
+@example(args=["--profile", "round", "--clearance", "0.001", "--retract", "0.001", "--dialect", "fanuc"])
 def test_every_g1_moves_a_word_and_keeps_its_feed(args: list[str]) -> None:
     try:
         result, dialect = _job(args)
@@ -284,8 +294,12 @@ def test_a_step_finer_than_the_resolution_is_refused():
 
 
 def test_contour_points_closer_than_the_resolution_merge():
-    # Corners of radius 0.00001 mm: each corner arc is one step the program cannot show.
-    result, dialect = _job(["--profile", "square", "--corner-radius", "0.00001", "--depth", "1"])
+    # Corners of radius 0.00001 mm: each corner arc is one step the program cannot show (a request refuses
+    # the radius, issue 20 §3; the library, given it, merges the points).
+    opts = demo.make_context("demo", ["--profile", "square", "--depth", "1"]).params
+    spec = _job_spec(str(demo_part()), opts)
+    work = dataclasses.replace(spec.work, shape=dataclasses.replace(spec.work.shape, corner_radius=0.00001))
+    result, dialect = run_job(dataclasses.replace(spec, work=work)), spec.dialect
     lap = [r for r in range(len(result.path_part)) if result.path_part.describe(r) == "square pass 1/1 lap"]
     assert len(lap) == 4 + 1 + 1        # a point per corner (not 2), the contour's start, back to the ramp's end
     assert _g1_lines_that_move_nothing(result.text, dialect) == []
