@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from prs3_post.check.preview import figure_bytes
-from prs3_post.core.errors import Prs3Error
+from prs3_post.core.errors import MissingDependency
 from prs3_post.core.types import FloatArray, IntArray
 
 __all__ = ["accuracy_figure", "residual_figure"]
@@ -81,5 +81,5 @@ def _matplotlib(what: str) -> tuple[Any, Any]:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
     except ImportError as exc:
-        raise Prs3Error(f"{what} needs matplotlib: pip install 'prs3-post[plot]'") from exc
+        raise MissingDependency(f"{what} needs matplotlib: pip install 'prs3-post[plot]'") from exc
     return Figure, FigureCanvasAgg

@@ -1,0 +1,31 @@
+"""The session's new commands (calibrate, accuracy, export) under the hostile inputs every command meets."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from click.testing import CliRunner
+
+from prs3_post.cli.main import main
+
+REPO = Path(__file__).resolve().parents[2]
+MEASURED = REPO / "fixtures" / "calibration" / "measured.csv"
+NO_MATPLOTLIB = "prs3-post: error: {} needs matplotlib: pip install 'prs3-post[plot]'\n"
+
+
+def run(*args: object):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def test_pictures_without_matplotlib_exit_2_and_write_nothing(tmp_path, monkeypatch):
+    # A missing optional dependency is exit status 2 on every command (issue 20), as preview's is.
+    for name in [n for n in sys.modules if n.split(".")[0] in ("matplotlib", "mpl_toolkits")]:
+        monkeypatch.setitem(sys.modules, name, None)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)
+    result = run("calibrate", MEASURED, "--machine", "patel2020", "-o", tmp_path / "c.toml",
+                 "--preview", tmp_path / "r.png")
+    assert (result.exit_code, result.output) == (2, NO_MATPLOTLIB.format("calibrate --preview"))
+    result = run("accuracy", "--machine", "patel2020", "--preview", tmp_path / "a.png")
+    assert (result.exit_code, result.output) == (2, NO_MATPLOTLIB.format("accuracy --preview"))
+    assert list(tmp_path.iterdir()) == []
