@@ -29,3 +29,18 @@ def test_pictures_without_matplotlib_exit_2_and_write_nothing(tmp_path, monkeypa
     result = run("accuracy", "--machine", "patel2020", "--preview", tmp_path / "a.png")
     assert (result.exit_code, result.output) == (2, NO_MATPLOTLIB.format("accuracy --preview"))
     assert list(tmp_path.iterdir()) == []
+
+
+def test_calibrate_takes_its_group_options_before_the_subcommand(tmp_path):
+    # `calibrate --help` lists -q/-v: given before `plan` or `identify` (or the CSV) they must not
+    # turn the subcommand into a stray argument of `identify`.
+    for args in (("-q", "plan"), ("--verbose", "plan")):
+        out = tmp_path / f"{len(args)}{args[0]}.csv"
+        result = run("calibrate", *args, "--poses", "3", "-o", out)
+        assert result.exit_code == 0, result.output
+        assert out.read_text().startswith("t1,t2,t3,")
+    for args in (("-q", "identify", MEASURED), ("-q", MEASURED)):
+        out = tmp_path / f"c{len(args)}.toml"
+        result = run("calibrate", *args, "--machine", "patel2020", "-o", out)
+        assert result.exit_code == 0, result.output
+        assert out.read_text().startswith("# Machine patel2020 as calibrated")

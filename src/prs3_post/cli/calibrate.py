@@ -37,8 +37,12 @@ class _CalibrateGroup(click.Group):
     command_class = Command
 
     def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
-        if args and args[0] not in self.commands and args[0] not in ("-h", "--help"):
-            args = ["identify", *args]
+        lead = 0                                       # the group's own flags (-q, -v) may come first
+        while lead < len(args) and args[lead] in ("-q", "--quiet", "-v", "--verbose"):
+            lead += 1
+        rest = args[lead:]
+        if rest and rest[0] not in self.commands and rest[0] not in ("-h", "--help"):
+            args = [*args[:lead], "identify", *rest]
         return super().parse_args(ctx, args)
 
 
