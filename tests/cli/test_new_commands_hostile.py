@@ -44,3 +44,21 @@ def test_calibrate_takes_its_group_options_before_the_subcommand(tmp_path):
         result = run("calibrate", *args, "--machine", "patel2020", "-o", out)
         assert result.exit_code == 0, result.output
         assert out.read_text().startswith("# Machine patel2020 as calibrated")
+
+
+def test_export_names_what_is_wrong_with_a_file_that_is_no_text(tmp_path):
+    # A byte-order mark, an empty file or binary data: the reader's own words, not "no prs3-post header"
+    # (the mark is invisible, and the header is right there after it).
+    program = tmp_path / "sq.ngc"
+    assert run("demo", "--profile", "square", "-o", program).exit_code == 0
+    text = program.read_bytes()
+    cases = {"bom.ngc": (b"\xef\xbb\xbf" + text, "starts with a UTF-8 byte-order mark, which LinuxCNC rejects "
+                                                  "('Bad character')"),
+             "empty.ngc": (b"\n \n", "not a G-code program: the file is empty"),
+             "binary.ngc": (b"\x01\x02GIF", "not a G-code program: binary data (byte 0x01 at offset 0)")}
+    for name, (data, message) in cases.items():
+        path = tmp_path / name
+        path.write_bytes(data)
+        result = run("export", path, "-o", tmp_path / "out.cls")
+        assert (result.exit_code, result.output) == (2, f"prs3-post: error: {path}: {message}\n")
+    assert not (tmp_path / "out.cls").exists()

@@ -30,7 +30,9 @@ import numpy as np
 from prs3_post.app.requests import resolve_setup
 from prs3_post.app.verify import load_recorded, tool_lengths_of
 from prs3_post.check.verify import NOMINAL_RAPID_RATE, move_durations
-from prs3_post.core.errors import InputError, ReachError
+from prs3_post.core.errors import InputError, LexError, ReachError
+from prs3_post.core.input_files import open_input
+from prs3_post.core.lexer import decode
 from prs3_post.core.numbers import fixed, fixed_column
 from prs3_post.core.toolpath import Event, EventKind, MoveKind
 from prs3_post.core.types import FloatArray, IntArray
@@ -57,6 +59,8 @@ FEED_DECIMALS = 4
 TIME_DECIMALS = 4
 #: The CSV's columns.
 CSV_COLUMNS = ("line", "x", "y", "z", "i", "j", "k", "feed_mm_min", "time_s")
+#: How much of a file without a header is checked for being text.
+_TEXT_CHECK_BYTES = 1 << 16
 
 
 @dataclass(frozen=True, slots=True)
@@ -119,6 +123,7 @@ def export_program(path: str, *, machine: str | None = None, dialect: str | None
     style = (given_dialect or load_dialect(DEFAULT_DIALECT)).comments
     header = read_header(path, open_=style.open, close=style.close)
     if header is None:
+        _refuse_non_text(path)
         raise InputError("no prs3-post header (the '(program: prs3-post ...)' comments at its top): export needs the "
                          "machine, setup and tool length the program was made for; export a program made by "
                          "prs3-post (run, job or convert)", path=path, line=1)
@@ -156,6 +161,19 @@ def export_program(path: str, *, machine: str | None = None, dialect: str | None
     return Exported(program=program, header=header, machine=chosen, dialect=words, setup=setup, tool_lengths=lengths,
                     tip=tip_part, axis=axis_part, feed=_feeds(tip_part, moves.kind, moves.inverse_time),
                     duration=60.0 * move_durations(moves, rapid_rate=NOMINAL_RAPID_RATE, dynamics=chosen.dynamics))
+
+
+def _refuse_non_text(path: str) -> None:
+    """What the program reader says first about a file that is no G-code text (empty, a byte-order
+    mark, binary data), where no header was found: a missing header would hide it (a mark is invisible)."""
+    with open_input(path, "a G-code program") as stream:
+        head = stream.read(_TEXT_CHECK_BYTES)
+    if len(head) == _TEXT_CHECK_BYTES:
+        head = head[:head.rfind(b"\n") + 1] or head    # whole lines: no character cut in two
+    try:
+        decode(head)
+    except LexError as exc:
+        raise InputError(str(exc), path=path) from exc
 
 
 def _row_tool_lengths(events: tuple[Event, ...], n: int, lengths: dict[int, float], default: float) -> FloatArray:
