@@ -62,3 +62,20 @@ def test_export_names_what_is_wrong_with_a_file_that_is_no_text(tmp_path):
         result = run("export", path, "-o", tmp_path / "out.cls")
         assert (result.exit_code, result.output) == (2, f"prs3-post: error: {path}: {message}\n")
     assert not (tmp_path / "out.cls").exists()
+
+
+def test_a_value_over_the_csv_modules_limit_is_named_not_a_traceback(tmp_path):
+    # csv.reader raises its own csv.Error on a field of more than 131072 characters.
+    poses = tmp_path / "poses.csv"
+    poses.write_text("tip_x,tip_y,tip_z,axis_x,axis_y,axis_z\n0,0,-680,0,0,1\n" + "1" * 200_000 + "\n")
+    result = run("ik", "--batch", poses)
+    assert (result.exit_code, result.output) == (
+        2, f"prs3-post: error: {poses}:3: cannot read the line as CSV: field larger than field limit (131072)\n")
+    rows = MEASURED.read_text().splitlines()
+    measured = tmp_path / "measured.csv"
+    measured.write_text("\n".join([*rows[:3], rows[3] + "1" * 200_000, *rows[4:]]) + "\n")
+    out = tmp_path / "c.toml"
+    result = run("calibrate", measured, "--machine", "patel2020", "-o", out)
+    assert (result.exit_code, result.output) == (
+        2, f"prs3-post: error: {measured}:4: cannot read the line as CSV: field larger than field limit (131072)\n")
+    assert not out.exists()

@@ -16,6 +16,7 @@ from __future__ import annotations
 import csv
 import math
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -73,6 +74,18 @@ class Measurements:
                             has_axis=self.has_axis)
 
 
+def _csv_rows(rows: Iterator[list[str]], path: str) -> Iterator[list[str]]:
+    """The csv reader's rows, one a line; its own error (a field over its 131072-character limit) as an
+    InputError naming the line."""
+    number = 0
+    try:
+        for row in rows:
+            number += 1
+            yield row
+    except csv.Error as exc:
+        raise InputError(f"cannot read the line as CSV: {exc}", path=path, line=number + 1) from exc
+
+
 def read_measurements(path: str) -> Measurements:
     """Read a measurement CSV (see the module's docstring).
 
@@ -86,7 +99,7 @@ def read_measurements(path: str) -> Measurements:
         column, a missing required column, no rows.
     """
     lines = read_text(path, "a CSV file").splitlines()
-    rows = csv.reader(lines)
+    rows = _csv_rows(csv.reader(lines), path)
     header = next(rows, None)
     if header is None or not any(cell.strip() for cell in header):
         raise InputError(f"expected a header naming the columns ({','.join(MEASUREMENT_COLUMNS)}), got an empty "

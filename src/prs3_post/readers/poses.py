@@ -116,7 +116,10 @@ def check_header(line: bytes, path: str) -> None:
         text = line.decode("utf-8").removeprefix("\ufeff")
     except UnicodeDecodeError as exc:
         raise InputError(f"not UTF-8 text: {exc.reason} at byte {exc.start}", path=path) from exc
-    header = next(csv.reader(text.splitlines()[:1]), [])
+    try:
+        header = next(csv.reader(text.splitlines()[:1]), [])
+    except csv.Error as exc:                       # a field over the csv module's limit (131072 characters)
+        raise InputError(f"cannot read the line as CSV: {exc}", path=path, line=1) from exc
     if [h.strip() for h in header] != list(POSE_COLUMNS):
         raise InputError(f"expected the header {','.join(POSE_COLUMNS)}, got {','.join(header)!r}", path=path,
                          line=1)
@@ -183,7 +186,8 @@ def _parse_careful(lines: list[str], before: int, path: str) -> PoseTable:
     expected = ",".join(POSE_COLUMNS)
     values: list[list[float]] = []
     line_numbers: list[int] = []
-    for number, row in enumerate(csv.reader(lines), start=before + 1):
+    rows = csv.reader(lines)
+    for number, row in enumerate(_csv_rows(rows, before, path), start=before + 1):
         if not row or all(not cell.strip() for cell in row):
             continue
         if len(row) != len(POSE_COLUMNS):
@@ -195,6 +199,18 @@ def _parse_careful(lines: list[str], before: int, path: str) -> PoseTable:
         line_numbers.append(number)
     table = np.array(values, dtype=np.float64).reshape(-1, 6)
     return PoseTable(tip=table[:, :3], axis=table[:, 3:], line=np.array(line_numbers, dtype=np.int64))
+
+
+def _csv_rows(rows: Iterator[list[str]], before: int, path: str) -> Iterator[list[str]]:
+    """The csv reader's rows; its own error (a field over its 131072-character limit) as an InputError
+    naming the line (``before`` lines of the file come before the reader's first)."""
+    number = before
+    try:
+        for row in rows:
+            number += 1
+            yield row
+    except csv.Error as exc:
+        raise InputError(f"cannot read the line as CSV: {exc}", path=path, line=number + 1) from exc
 
 
 def _parse_fast(lines: list[str], before: int) -> PoseTable | None:
