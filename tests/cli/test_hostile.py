@@ -82,51 +82,51 @@ def test_a_repeatable_option_and_a_value_that_looks_like_an_option_are_not_repea
     (["run", "-", "--profile", "hole", "-o", "x.ngc"], "an STL file"),
     (["-", "--profile", "hole", "-o", "x.ngc"], "an STL file"),      # was: No such command '-'
     (["faces", "-"], "an STL file"),
-    (["verify", "-"], "a G-code program"),
-    (["preview", "-", "-o", "x.png"], "a G-code program"),
-    (["ik", "--batch", "-"], "a CSV file"),
     (["job", "-"], "a TOML file"),
 ])
-def test_standard_input_is_refused_as_an_input_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                    args: list[str], what: str) -> None:
-    """It said ``-: file not found``, as if a file named '-' were missing."""
+def test_standard_input_is_refused_as_a_part_or_a_toml_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                            args: list[str], what: str) -> None:
+    """It said ``-: file not found``, as if a file named '-' were missing. Standard input is read where
+    one program, CL file or pose table is the input (tests/cli/test_stdio.py); a part or a TOML file is
+    read alongside such an input, so it is always a file."""
     monkeypatch.chdir(tmp_path)
-    result = invoke(*args)
+    result = CliRunner().invoke(main, args, prog_name="prs3-post", input="solid x\nendsolid x\n")
     assert (result.exit_code, result.stdout) == (2, "")
-    assert result.stderr == f"prs3-post: error: -: standard input is not read: give the path of {what} " \
+    assert result.stderr == f"prs3-post: error: <stdin>: standard input is not read as {what}: give a file " \
                             "(a file named '-' is ./-)\n"
     assert list(tmp_path.iterdir()) == []
 
 
-def test_convert_refuses_standard_input_and_reads_a_file_named_dash(tmp_path: Path,
-                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+def test_convert_reads_standard_input_and_a_file_named_dash(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``-`` was refused; it is standard input now, and ``./-`` is the file named '-'."""
     monkeypatch.chdir(tmp_path)
-    result = invoke("convert", "-", "-d", "out", "--work-plane", "0,0,0,0,0,1")
-    assert result.exit_code == 2
-    assert result.stdout == "failed\t-\t-\t-: standard input is not read: give the path of a file (a file named '-' " \
-                            "is ./-)\n"
-    assert not (tmp_path / "out" / "-.ngc").exists()
+    result = CliRunner().invoke(main, ["convert", "-", "-o", "-", "--work-plane", "0,0,0,0,0,1"],
+                                prog_name="prs3-post", input=PROGRAM_3AXIS)
+    assert result.exit_code == 0, result.stderr
+    assert "(source: <stdin>, format gcode, " in result.stdout.splitlines()[3]
+    assert list(tmp_path.iterdir()) == []
     (tmp_path / "-").write_text(PROGRAM_3AXIS)
     result = invoke("convert", "./-", "-d", "out", "--work-plane", "0,0,0,0,0,1")
     assert result.exit_code == 0, result.stderr
     assert (tmp_path / "out" / "-.ngc").is_file()
 
 
-@pytest.mark.parametrize(("option", "message"), [
-    (["-d", "-"], "Error: Invalid value for '-d' / '--output-dir': '-' is no folder: convert writes one program per "
-                  "input into DIR, standard output cannot take them (a folder named '-' is ./-)"),
-    (["-o", "-"], "Error: Invalid value for '-o' / '--output': '-': standard output is not a program file here (a "
-                  "file named '-' is ./-)"),
-    (["-d", "out", "--report", "-"], "Error: Invalid value for '--report': '-': standard output has one line per "
-                                     "file already, the report would be mixed into them (a file named '-' is ./-)"),
+@pytest.mark.parametrize(("args", "message"), [
+    (["a.ngc", "-d", "-"], "Error: Invalid value for '-d' / '--output-dir': '-' is no folder: convert writes one "
+                           "program per input into DIR, standard output cannot take them (a folder named '-' is ./-)"),
+    (["a.ngc", "b.ngc", "-o", "-"], "Error: -o FILE writes the program of one input, and 2 files are given: convert "
+                                    "them into a folder with -d DIR"),
+    (["a.ngc", "-o", "-", "--report", "-"],
+     "Error: -o - and --report - both write to standard output: give one of them a file"),
 ])
-def test_convert_refuses_standard_output_for_its_programs_and_report(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                                     option: list[str], message: str) -> None:
-    """'-o -' made a folder named '-' (exit 0); '--report -' printed the JSON among the per-file lines."""
+def test_convert_refuses_two_things_on_standard_output(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                       args: list[str], message: str) -> None:
+    """'-o -' made a folder named '-' (exit 0); now it is one program on standard output, and only one."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "a.ngc").write_text(PROGRAM_3AXIS)
-    assert _usage_error(invoke("convert", "a.ngc", *option, "--work-plane", "0,0,0,0,0,1")) == message
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc"]
+    (tmp_path / "b.ngc").write_text(PROGRAM_3AXIS)
+    assert _usage_error(invoke("convert", *args, "--work-plane", "0,0,0,0,0,1")) == message
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.ngc", "b.ngc"]
 
 
 @pytest.mark.parametrize("text", ["nan", "1,2,3,0,0,nan", "inf,0,0,0,0,1", "0x1p3,0,0,0,0,1", "nowhere.stl:2"])

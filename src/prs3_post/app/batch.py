@@ -15,8 +15,8 @@ from pathlib import Path
 
 from prs3_post.app.convert import ConvertReport, ConvertSettings, write_conversion
 from prs3_post.app.workers import Died, run_tasks
-from prs3_post.core.errors import InputError, Prs3Error
-from prs3_post.core.output_files import refuse_overwriting, remove_temp_files
+from prs3_post.core.errors import STDIN_PATH, InputError, Prs3Error, shown_path
+from prs3_post.core.output_files import is_stdout, refuse_overwriting, remove_temp_files
 from prs3_post.kinematics.prs3.blocks import THREADS_VARIABLE
 from prs3_post.machine.loading import Dialect
 from prs3_post.readers.registry import suffixes
@@ -58,7 +58,7 @@ class FileOutcome:
 
     def record(self) -> dict[str, object]:
         """JSON-ready data."""
-        return {"input": self.input, "output": self.output if self.ok else None, "ok": self.ok,
+        return {"input": shown_path(self.input), "output": self.output if self.ok else None, "ok": self.ok,
                 "error": self.error or None, "seconds": round(self.seconds, 3),
                 "report": None if self.report is None else self.report.record()}
 
@@ -108,6 +108,9 @@ def collect_inputs(items: Sequence[str], *, exclude: str | None = None, exclude_
     InputError
         An item that names nothing (no such file, or a pattern or directory without CAM files).
     """
+    if STDIN_PATH in items and len(items) > 1:
+        raise InputError("standard input is one input: convert it alone (with -o FILE or -o -), the other files in "
+                         "another command", path=STDIN_PATH)
     found: list[str] = []
     skip = os.path.realpath(exclude) if exclude is not None else None
 
@@ -122,7 +125,9 @@ def collect_inputs(items: Sequence[str], *, exclude: str | None = None, exclude_
             repeats.append((path, first[key]))
 
     for item in items:
-        if os.path.isdir(item):
+        if item == STDIN_PATH:
+            found.append(item)
+        elif os.path.isdir(item):
             hits = list(_search(item, skip, exclude_suffix))
             if not hits:
                 raise InputError("no CAM files in this directory (searched for "
@@ -210,7 +215,7 @@ def convert_one(input_path: str, output: str, settings: ConvertSettings, *, forc
     start = time.perf_counter()
     try:
         refuse_overwriting({"its program": output}, {"being converted": input_path})
-        if not force and os.path.lexists(output):
+        if not force and not is_stdout(output) and os.path.lexists(output):
             raise OutputExists(f"{EXISTS} (it is replaced only when forced)", path=output)
         report = write_conversion(input_path, output, settings)
     except Prs3Error as error:
@@ -219,8 +224,9 @@ def convert_one(input_path: str, output: str, settings: ConvertSettings, *, forc
         message, keyed = str(error), error.carried() if error.names_keys else ""
         # an InputError starts with the file it is about; a limit or reach error found by no line (no
         # placement fits the whole file) says which input it is about first, as every failure does
-        if not isinstance(error, InputError) and not message.startswith(input_path):
-            message, keyed = f"{input_path}: {message}", keyed and f"{input_path}: {keyed}"
+        name = shown_path(input_path)
+        if not isinstance(error, InputError) and not message.startswith(name):
+            message, keyed = f"{name}: {message}", keyed and f"{name}: {keyed}"
         return FileOutcome(input=input_path, output=output, ok=False, error=message, exit_code=error.exit_code,
                            seconds=time.perf_counter() - start, exists=isinstance(error, OutputExists), keyed=keyed,
                            keys=() if isinstance(error.names_keys, bool) else error.names_keys,
@@ -259,6 +265,9 @@ def convert_batch(inputs: Sequence[str], outdir: str, settings: ConvertSettings,
     BatchResult — outcomes in input order
     """
     started = time.perf_counter()
+    if STDIN_PATH in inputs:
+        raise InputError("standard input has no file name to name its program after: convert it alone, into one "
+                         "file or standard output (-o -)", path=STDIN_PATH)
     prepare_outdir(outdir)
     outputs = [output_path(p, outdir, settings.dialect) for p in inputs]
     owners: dict[str, list[int]] = {}
@@ -300,8 +309,9 @@ def convert_batch(inputs: Sequence[str], outdir: str, settings: ConvertSettings,
 
 def convert_single(input_path: str, output: str, settings: ConvertSettings, *, force: bool = False,
                    on_done: Callable[[FileOutcome], None] | None = None) -> BatchResult:
-    """Convert one file into the program ``output`` (written atomically; one that exists is kept unless
-    ``force``), in this process; ``on_done`` as in :func:`convert_batch`."""
+    """Convert one file (``-``: standard input) into the program ``output``: a file (written atomically;
+    one that exists is kept unless ``force``), or ``-``, standard output, which gets the program once it
+    is complete (nothing of a file that fails). In this process; ``on_done`` as in :func:`convert_batch`."""
     started = time.perf_counter()
     outcome = convert_one(input_path, output, settings, force=force)
     if on_done is not None:
@@ -356,9 +366,10 @@ def outcome_line(outcome: FileOutcome) -> str:
     ``failed<TAB>INPUT<TAB>-<TAB>path:line: reason``."""
     if outcome.ok and outcome.report is not None:
         r = outcome.report
-        return (f"ok\t{outcome.input}\t{outcome.output}\t{r.input_moves} moves, {r.arcs} arcs, {r.cycle_holes} holes "
-                f"in; {r.emitted_moves} program moves, {r.subdivisions} subdivisions; {outcome.seconds:.3f} s")
-    return f"failed\t{outcome.input}\t-\t{_one_line(outcome.error)}"
+        return (f"ok\t{shown_path(outcome.input)}\t{outcome.output}\t{r.input_moves} moves, {r.arcs} arcs, "
+                f"{r.cycle_holes} holes in; {r.emitted_moves} program moves, {r.subdivisions} subdivisions; "
+                f"{outcome.seconds:.3f} s")
+    return f"failed\t{shown_path(outcome.input)}\t-\t{_one_line(outcome.error)}"
 
 
 def _one_line(text: str) -> str:

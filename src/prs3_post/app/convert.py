@@ -33,7 +33,7 @@ from prs3_post.core.defaults import (
     DEFAULT_CLEARANCE_MIN,
     DEFAULT_TOLERANCE,
 )
-from prs3_post.core.errors import InputError, LimitError, PoseError, ReachError
+from prs3_post.core.errors import InputError, LimitError, PoseError, ReachError, shown_path
 from prs3_post.core.input_files import open_input
 from prs3_post.core.output_files import HeadLast, write_atomic
 from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpath, join_programs
@@ -407,7 +407,7 @@ def _start(path: str, settings: ConvertSettings) -> _Run:
                       angle_tolerance=math.radians(settings.angle_tolerance_deg),
                       length_decimals=settings.dialect.decimals.length, placed=True, clamp=settings.clamp,
                       timed=True)
-    post.dynamics.file_name = Path(path).name           # the header's worst move: as its source entry names the file
+    post.dynamics.file_name = shown_path(Path(path).name)   # the header's worst move: as its source entry names it
     return _Run(path=path, settings=settings, fmt=fmt, sha256="", reader=reader, post=post)
 
 
@@ -420,7 +420,7 @@ def _header(run: _Run) -> SourceHeader:
         machine_file=file_given(settings.machine.source, "machines", settings.machine.name),
         dialect=settings.dialect.name,
         dialect_file=file_given(settings.dialect.source, "dialects", settings.dialect.name),
-        source_name=Path(run.path).name, source_sha256=run.sha256, source_format=run.fmt,
+        source_name=shown_path(Path(run.path).name), source_sha256=run.sha256, source_format=run.fmt,
         source_units=notes.units, ignore=notes.ignore, work_plane=notes.work_plane, setup=settings.setup,
         tool_length=settings.ik_machine.geometry.tool_length, tool_length_given=settings.tool_length is not None,
         tolerance=settings.tolerance, angle_tolerance_deg=settings.angle_tolerance_deg,

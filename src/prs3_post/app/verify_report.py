@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from prs3_post.check.verify import NOMINAL_RAPID_RATE, VerifyReport, row_times
+from prs3_post.core.errors import shown_path
 from prs3_post.core.numbers import fixed_or_na as fixed
 from prs3_post.core.toolpath import EventKind, MoveKind
 from prs3_post.core.types import FloatArray, IntArray
@@ -189,7 +190,7 @@ def report_record(report: VerifyReport, *, path: str = "", dialect: str = "", ra
             record["axis_deviation_deg"] = _num(math.degrees(a.axis_deviation[e]))
         rows.append(record)
     return {
-        "program": path, "dialect": dialect, "machine": report.machine, "ok": report.ok,
+        "program": shown_path(path), "dialect": dialect, "machine": report.machine, "ok": report.ok,
         "part_origin_mm": list(report.setup.origin), "part_rotation_deg": report.setup.rotation_deg,
         "tolerance_mm": report.tolerance,
         "axis_tolerance_deg": math.degrees(report.axis_tolerance),
@@ -233,8 +234,8 @@ def report_text(report: VerifyReport, *, path: str = "", dialect: str = "", rapi
     hint = f" ({all_listed})" if all_listed else ""
     head = summary(report, rapid_rate=rapid_rate)
     out = [
-        f"{path}: {head['moves']} moves ({head['feed_moves']} G1, {head['rapid_moves']} G0), dialect {dialect}, "
-        f"machine {report.machine}",
+        f"{shown_path(path)}: {head['moves']} moves ({head['feed_moves']} G1, {head['rapid_moves']} G0), "
+        f"dialect {dialect}, machine {report.machine}",
         f"  replay: {head['samples']} FK samples, {head['intervals_min']}..{head['intervals_max']} intervals per move, "
         f"sampling error ≤ {head['sampling_bound_mm']:.1e} mm",
     ]

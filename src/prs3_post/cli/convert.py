@@ -181,12 +181,9 @@ def convert(inputs: tuple[str, ...], outdir: str | None, out_path: str | None, j
             raise click.BadParameter("'-' is no folder: convert writes one program per input into DIR, standard "
                                      "output cannot take them (a folder named '-' is ./-)",
                                      param_hint="'-d' / '--output-dir'")
-        if single == "-":                                # a file named '-' is ./-
-            raise click.BadParameter("'-': standard output is not a program file here (a file named '-' is ./-)",
-                                     param_hint="'-o' / '--output'")
-        if report_path == "-":                           # the JSON went among the per-file lines
-            raise click.BadParameter("'-': standard output has one line per file already, the report would be "
-                                     "mixed into them (a file named '-' is ./-)", param_hint="'--report'")
+        to_stdout = single == "-"                        # one program, to standard output
+        if to_stdout and report_path == "-":
+            raise click.UsageError("-o - and --report - both write to standard output: give one of them a file")
         for word in ignore_words:
             if not word.strip():                         # a word no record has: taken, and nothing ignored
                 raise click.BadParameter(f"{word!r}: give a CL major word, like PAINT", param_hint="'--ignore'")
@@ -220,7 +217,7 @@ def convert(inputs: tuple[str, ...], outdir: str | None, out_path: str | None, j
         if single is not None and len(files) != 1:
             raise click.UsageError(f"-o FILE writes the program of one input, and {len(files)} files are given: "
                                    "convert them into a folder with -d DIR")
-        if report_path is not None:
+        if report_path is not None and report_path != "-":
             refuse_overwriting({"--report": report_path}, {f"{i + 1} ({f})": f for i, f in enumerate(files)})
             programs = [output_path(file, folder, dialect) for file in files] if folder is not None else []
             for file, program in zip(files, programs, strict=False):   # the report must not replace a program
@@ -237,6 +234,8 @@ def convert(inputs: tuple[str, ...], outdir: str | None, out_path: str | None, j
                f"{_setup_words(settings.setup.describe(), part_origin, part_rotation)}, tolerance "
                f"{settings.tolerance:g} mm, axis tolerance {settings.angle_tolerance_deg:g} deg")
         terminal = sys.stderr.isatty() and verbosity() < VERBOSE     # -v: a line per file instead of the bar
+        lines_to_stderr = to_stdout or report_path == "-"   # standard output has the program or the report
+
         def convert_all(on_done: Callable[[FileOutcome], None]) -> BatchResult:
             if single is not None:
                 return convert_single(files[0], single, settings, force=force, on_done=on_done)
@@ -248,7 +247,7 @@ def convert(inputs: tuple[str, ...], outdir: str | None, out_path: str | None, j
             with click.progressbar(length=len(files), label="converting", file=sys.stderr) as bar:
                 result = convert_all(lambda outcome: bar.update(1))
         else:
-            result = convert_all(lambda outcome: _file_done(outcome_line(_flag_named(outcome))))
+            result = convert_all(lambda outcome: _file_done(outcome_line(_flag_named(outcome)), err=lines_to_stderr))
         result = dataclasses.replace(result, outcomes=tuple(_flag_named(o) for o in result.outcomes))
         if report_path is not None:
             write_atomic(report_path, json.dumps(result.record(), indent=1, allow_nan=False) + "\n")
@@ -279,10 +278,12 @@ def _output(out_path: str | None, outdir: str | None) -> tuple[str | None, str |
     return out_path, outdir
 
 
-def _file_done(line: str) -> None:
-    """A file's line (``ok``/``failed``, tab-separated) on standard output, and with ``-v`` on standard error."""
-    click.echo(line)
-    detail(line.replace("\t", "  "))
+def _file_done(line: str, *, err: bool = False) -> None:
+    """A file's line (``ok``/``failed``, tab-separated) on standard output (``err``: standard error, when
+    standard output has the program or the report), and with ``-v`` on standard error."""
+    click.echo(line, err=err)
+    if not err:
+        detail(line.replace("\t", "  "))
 
 
 def _setup_words(described: str, part_origin: object, part_rotation: object) -> str:

@@ -32,6 +32,7 @@ from prs3_post.core.errors import (
 )
 from prs3_post.core.output_files import (
     refuse_overwriting,
+    refuse_standard_streams_twice,
     stdout_error,
 )
 
@@ -120,20 +121,27 @@ class OutputPath(click.Path):
 
 
 def _refuse_overwriting_inputs(ctx: click.Context) -> None:
-    """No output may be one of the command's input files (PART.stl, POSES.csv, a machine TOML ...)."""
+    """No output may be one of the command's input files (PART.stl, POSES.csv, a machine TOML ...); ``-``
+    (a standard stream) names one input and one output at most."""
     outputs: dict[str, str | None] = {}
     inputs: dict[str, str | None] = {}
+    streams: dict[str, str | tuple[str, ...] | None] = {}
     for param in ctx.command.params:
         value = ctx.params.get(param.name or "")
+        name = max(param.opts, key=len) if isinstance(param, click.Option) else param.human_readable_name
+        if isinstance(value, tuple) and all(isinstance(v, str) for v in value):
+            streams[name] = value                      # several inputs (convert's)
         if not isinstance(value, str):
             continue
-        name = max(param.opts, key=len) if isinstance(param, click.Option) else param.human_readable_name
         if isinstance(param.type, OutputPath):
             outputs[name] = value
         elif isinstance(param.type, click.Path) or param.name in ("machine_name", "dialect_name"):
             inputs[name] = value
+            if not (isinstance(param.type, click.Path) and not param.type.file_okay):   # a folder is no stream
+                streams[name] = value
     if ctx.command.name == "demo":
         inputs["the demo part"] = str(demo_part())
+    refuse_standard_streams_twice(outputs, streams)
     refuse_overwriting(outputs, inputs)
 
 

@@ -12,6 +12,20 @@ from collections.abc import Callable, Iterable
 ECHO_LIMIT = 40
 """Characters of a user's value that a message shows (a longer one is cut, with ``…``)."""
 
+STDIN_PATH = "-"
+"""The file name that means standard input (and, for an output, standard output)."""
+STDIN_NAME = "<stdin>"
+"""How messages name standard input read as a file (``<stdin>:12: ...``)."""
+
+
+def shown_path(path: str) -> str:
+    """A file name as messages show it: ``-`` (standard input) is ``<stdin>``.
+
+    >>> shown_path("-"), shown_path("part.cls")
+    ('<stdin>', 'part.cls')
+    """
+    return STDIN_NAME if path == STDIN_PATH else path
+
 
 def quoted(value: object, limit: int = ECHO_LIMIT) -> str:
     """A value from the user's input for a message: ``repr``, cut to ``limit`` characters plus ``…``, so that a
@@ -96,7 +110,8 @@ class InputError(Prs3Error):
         self.path, self.line = path, line
 
     def _framed(self, message: str) -> str:
-        where = self.path if self.line is None else f"{self.path}:{self.line}"
+        path = shown_path(self.path)
+        where = path if self.line is None else f"{path}:{self.line}"
         return f"{where}: {message}"
 
 

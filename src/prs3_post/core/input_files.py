@@ -4,19 +4,30 @@ Only regular files are read: a FIFO would block forever waiting for a writer, an
 as ``/dev/zero`` never ends. Each kind of input has a size limit (:data:`SIZE_LIMITS`), far above
 any real part, program or table, so that a wrong file is refused at once instead of filling the
 memory.
+
+The file name ``-`` is standard input, for the kinds of input in :data:`STDIN_KINDS` (a program, a
+CL file, a pose table): the readers read a file more than once (its header, then its body; its
+hash; again to name a problem), so standard input is copied once, on its first opening, into an
+unnamed temp file (the *spool*; up to the kind's size limit), and every opening of ``-`` reads
+that copy from its start. Messages name it ``<stdin>``
+(:func:`~prs3_post.core.errors.shown_path`).
 """
 
 from __future__ import annotations
 
+import errno
+import io
 import os
 import re
 import stat
+import sys
+import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from typing import TYPE_CHECKING, BinaryIO
 
 import numpy as np
 
-from prs3_post.core.errors import InputError
+from prs3_post.core.errors import STDIN_PATH, InputError
 
 if TYPE_CHECKING:
     from hashlib import _Hash as Hash
@@ -33,6 +44,11 @@ SIZE_LIMITS: dict[str, int] = {
 """Bytes, the largest file read for each kind of input (keyed by the ``what`` of :func:`read_input`)."""
 DEFAULT_SIZE_LIMIT = 1000 * MB
 """Bytes, the limit for a kind of input not in :data:`SIZE_LIMITS` (``a file``: any of them)."""
+
+STDIN_KINDS = frozenset({"a G-code program", "a CL file", "a CSV file", "a file"})
+"""The kinds of input (the ``what`` of :func:`open_input`) that ``-`` may name: standard input. A part,
+a TOML file or a tool table is always a file (they are read alongside the one input that may be
+standard input)."""
 
 _NOT_REGULAR = (
     (stat.S_ISFIFO, "a FIFO (named pipe)"),
@@ -58,13 +74,21 @@ def open_input(path: str, what: str) -> BinaryIO:
     Raises
     ------
     InputError
-        ``standard input is not read: give the path of <what> ...`` (for ``-``),
+        ``<stdin>: standard input is not read as <what>: give a file ...`` (for ``-``, but for
+        the kinds in :data:`STDIN_KINDS`), ``<stdin>: cannot read: it is closed ...``,
         ``file not found``, ``is a directory, not <what>``, ``permission denied``,
         ``is a FIFO (named pipe), not a regular file: give <what>``,
         ``is 1.2 GB, more than the 500 MB limit for <what>`` or ``cannot read the file: <reason>``.
     """
-    if path == "-":                 # read twice (header, body), hashed, size-checked: it must be a file
-        raise InputError(f"standard input is not read: give the path of {what} (a file named '-' is ./-)", path=path)
+    if path == STDIN_PATH:
+        if what not in STDIN_KINDS:
+            raise InputError(f"standard input is not read as {what}: give a file (a file named '-' is ./-)",
+                             path=path)
+        spool = _stdin_spool()
+        limit = SIZE_LIMITS.get(what, DEFAULT_SIZE_LIMIT)
+        if spool.size > limit:
+            raise InputError(f"is more than the {format_bytes(limit)} limit for {what}", path=path)
+        return spool.open()
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))   # a FIFO must not block the open
     except FileNotFoundError as exc:
@@ -90,6 +114,73 @@ def open_input(path: str, what: str) -> BinaryIO:
     except BaseException:
         os.close(fd)
         raise
+
+
+class _Spool:
+    """Standard input, copied into an unnamed temp file (see the module docstring)."""
+
+    def __init__(self, stdin: object, stream: BinaryIO, size: int):
+        self.stdin, self.stream, self.size = stdin, stream, size
+
+    def open(self) -> BinaryIO:
+        """A new reader of the copy, at its start, with its own position (two may read it at once:
+        a reader and a second pass that names a problem)."""
+        fd = self.stream.fileno()
+        try:
+            return open(f"/proc/self/fd/{fd}", "rb")    # Linux: the same unnamed file, its own offset
+        except OSError:
+            pass
+        self.stream.seek(0)                             # elsewhere: a copy in memory
+        return io.BytesIO(self.stream.read())
+
+    def close(self) -> None:
+        self.stream.close()
+
+
+_spool: _Spool | None = None
+_SPOOL_PIECE = 1 << 20
+
+
+def _stdin_spool() -> _Spool:
+    """The copy of standard input (made now, on the first call for this ``sys.stdin``).
+
+    Raises
+    ------
+    InputError
+        ``<stdin>: cannot read: it is closed ...``, ``is more than the 1.0 GB limit ...``, or the reason.
+    """
+    global _spool
+    stdin = sys.stdin
+    if _spool is not None and _spool.stdin is stdin:
+        return _spool
+    if _spool is not None:
+        _spool.close()
+        _spool = None
+    if stdin is None:                                   # `<&-`: Python starts with no sys.stdin
+        raise InputError("cannot read: it is closed (give a file, or redirect standard input from one)",
+                         path=STDIN_PATH)
+    limit = max(SIZE_LIMITS[kind] for kind in SIZE_LIMITS if kind in STDIN_KINDS)
+    stream = tempfile.TemporaryFile()
+    size = 0
+    try:
+        source = stdin.buffer
+        while piece := source.read(_SPOOL_PIECE):
+            size += len(piece)
+            if size > limit:
+                raise InputError(f"is more than the {format_bytes(limit)} limit for any input", path=STDIN_PATH)
+            stream.write(piece)
+        stream.flush()
+    except (OSError, ValueError) as exc:               # ValueError: a closed file object
+        stream.close()
+        if not isinstance(exc, OSError) or exc.errno == errno.EBADF:
+            raise InputError("cannot read: it is closed (give a file, or redirect standard input from one)",
+                             path=STDIN_PATH) from exc
+        raise InputError(f"cannot read: {exc.strerror or exc}", path=STDIN_PATH) from exc
+    except BaseException:                               # the limit, or Ctrl-C while reading
+        stream.close()
+        raise
+    _spool = _Spool(stdin, stream, size)
+    return _spool
 
 
 def read_input(path: str, what: str) -> bytes:

@@ -215,6 +215,35 @@ def stdout_error(exc: OSError) -> InputError | None:
     return _stdout_error(exc)
 
 
+def refuse_standard_streams_twice(outputs: Mapping[str, str | None],
+                                  inputs: Mapping[str, str | Sequence[str] | None]) -> None:
+    """Refuse ``-`` for two inputs (standard input can be read once) or for two outputs (two outputs
+    would be mixed on standard output).
+
+    Parameters
+    ----------
+    outputs, inputs : {name for messages: path as given, or several paths (an input's)}
+
+    Raises
+    ------
+    InputError
+        ``<stdin>: given for PROGRAM.ngc and --against: standard input is one input; give the other a file`` or
+        ``standard output: -o and --report both write to it: give one of them a file``.
+    """
+    readers = [name for name, value in inputs.items()
+               for path in ((value,) if value is None or isinstance(value, str) else value) if path == "-"]
+    if len(readers) > 1 and len(set(readers)) == 1:
+        raise InputError(f"given {len(readers)} times for {readers[0]}: standard input is one input; give it once",
+                         path="-")
+    if len(readers) > 1:
+        others = "others" if len(set(readers)) > 2 else "other"
+        raise InputError(f"given for {' and '.join(dict.fromkeys(readers))}: standard input is one input; give the "
+                         f"{others} a file", path="-")
+    writers = [name for name, path in outputs.items() if path == "-"]
+    if len(writers) > 1:
+        raise InputError(f"{' and '.join(writers)} both write to it: give one of them a file", path=STDOUT)
+
+
 def refuse_overwriting(outputs: Mapping[str, str | None], inputs: Mapping[str, str | None]) -> None:
     """Refuse outputs that are one of the inputs, or the same file as another output.
 

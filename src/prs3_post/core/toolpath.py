@@ -19,6 +19,7 @@ from typing import TypeVar
 
 import numpy as np
 
+from prs3_post.core.errors import shown_path
 from prs3_post.core.types import BoolArray, FloatArray, IntArray
 
 
@@ -148,7 +149,7 @@ def describe_source(source: IntArray, labels: tuple[str, ...], row: int, file: s
     step = int(source[row])
     if labels:
         return labels[step]
-    return f"{file}:{step}" if file else f"line {step}"
+    return f"{shown_path(file)}:{step}" if file else f"line {step}"
 
 
 @dataclass(frozen=True, slots=True)

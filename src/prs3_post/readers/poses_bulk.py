@@ -27,7 +27,7 @@ from typing import BinaryIO
 
 import numpy as np
 
-from prs3_post.core.errors import InputError
+from prs3_post.core.errors import STDIN_PATH, InputError
 from prs3_post.core.input_files import open_input
 from prs3_post.core.types import FloatArray
 from prs3_post.readers.poses import CHUNK_LINES, POSE_COLUMNS, PoseTable, check_header, check_range, iter_poses
@@ -69,7 +69,8 @@ def iter_poses_bulk(path: str, *, chunk_lines: int = CHUNK_LINES, min_bytes: int
     """
     done = 0                                        # chunks yielded by the bulk reader
     with open_input(path, "a CSV file") as stream:
-        bulk = chunk_lines > 1 and os.fstat(stream.fileno()).st_size >= min_bytes
+        # standard input (``-``) is read by the numpy reader: pyarrow opens files by name
+        bulk = chunk_lines > 1 and path != STDIN_PATH and os.fstat(stream.fileno()).st_size >= min_bytes
         if bulk:
             first = stream.readline()
             try:
