@@ -322,3 +322,18 @@ def test_a_body_that_fails_leaves_nothing_and_makes_no_head(tmp_path: Path) -> N
     assert made == []
     assert [p.name for p in tmp_path.iterdir()] == ["p.ngc"]
     assert target.read_text() == "old\n"
+
+
+def test_chunks_for_standard_output_are_written_once_all_are_made(capfdbinary: pytest.CaptureFixture[bytes]) -> None:
+    """A table streamed to standard output (ik --batch) whose third chunk fails wrote its first two;
+    now nothing is written, as for a file."""
+    def chunks():
+        yield "a,b\n"
+        yield b"1,2\n"
+        raise InputError("not a number: 'x'", path="-", line=3)
+
+    with pytest.raises(InputError, match=r"^<stdin>:3: not a number: 'x'$"):
+        output_module.write_stdout(chunks())
+    assert capfdbinary.readouterr().out == b""
+    output_module.write_stdout(iter(["a,b\n", b"1,2\n"]))
+    assert capfdbinary.readouterr().out == b"a,b\n1,2\n"

@@ -184,13 +184,17 @@ def write_outputs(items: Sequence[tuple[str | None, Output]]) -> None:
 
 
 def write_stdout(data: Output) -> None:
-    """Write ``data`` to standard output (text through ``sys.stdout``, bytes to its buffer).
+    """Write ``data`` to standard output (text through ``sys.stdout``, bytes to its buffer), once it is
+    all made: chunks are spooled to an unnamed temp file first, so that an error while making them
+    writes nothing (a program or table is whole or absent, on standard output as in a file).
 
     Raises
     ------
     InputError
         ``standard output: cannot write: No space left on device`` (or the pipe's reason).
     """
+    if not isinstance(data, (str, bytes, HeadLast)):    # made whole first: a failure midway writes nothing
+        data = HeadLast(body=data, head=lambda: b"")
     try:
         for chunk in _spooled(data, None) if isinstance(data, HeadLast) else _chunks(data):
             if isinstance(chunk, bytes):
