@@ -68,7 +68,8 @@ from prs3_post.part.face import Face
 from prs3_post.part.faces import MIN_FACE_WIDTH_MM, find_faces, project_onto_face, select_face
 from prs3_post.part.setup_transform import Setup
 from prs3_post.part.stl import load_part
-from prs3_post.post.dynamics import DynamicsTally, dynamics_entry
+from prs3_post.post.dynamics import NO_DYNAMICS, DynamicsTally, program_time, timed_entry
+from prs3_post.post.limits import LimitTally
 from prs3_post.post.pipeline import PostResult, PostStream, machine_path, post_process
 from prs3_post.post.visible_moves import length_resolution
 from prs3_post.readers.tooltable import Tool, ToolTable
@@ -297,22 +298,23 @@ def run_operations(specs: tuple[JobSpec, ...]) -> JobResult:
                      operations=tuple(done), tool_length=row_length, placement=job.placement, dynamics=job.dynamics)
 
 
-def check_job(spec: JobSpec) -> JobProgram:
+def check_job(spec: JobSpec, *, margins: bool = False) -> JobProgram:
     """:func:`check_operations` of a job of one operation (what the main job's command line writes)."""
-    return check_operations((spec,))
+    return check_operations((spec,), margins=margins)
 
 
-def check_operations(specs: tuple[JobSpec, ...]) -> JobProgram:
+def check_operations(specs: tuple[JobSpec, ...], *, margins: bool = False) -> JobProgram:
     """The job of :func:`run_operations`, checked (limits, reach, dynamics, collision: every row) and
     ready to be written a chunk at a time (:meth:`JobProgram.chunks`), holding only the joint
     program: the operations' toolpaths are post-processed POST_ROWS rows at a time and dropped once
-    posted, so that memory stays a few ten bytes per line of the program.
+    posted, so that memory stays a few ten bytes per line of the program. With ``margins``, the closest
+    approach to each limit over every row is kept too (:attr:`JobProgram.limits`).
 
     Raises
     ------
     As :func:`run_operations`.
     """
-    return _check(specs, keep=False)[0]
+    return _check(specs, keep=False, margins=margins)[0]
 
 
 #: Rows of the program that :meth:`JobProgram.chunks` formats together.
@@ -340,6 +342,11 @@ class JobProgram:
     tool_lengths : tuple of float — mm, each operation's tool length "TL"
     placement : PlacementResult | None — how the setup was chosen (None: as given)
     dynamics : str — the header's ``dynamics`` entry (cycle time, feeds slowed), for the summary
+    closest : Approach | None — the body nearest its clearance min (None: not checked)
+    faces : tuple of Face — each operation's face, in order
+    cycle_minutes : float | None — the cycle time of the machine's [dynamics] (None: it has none)
+    slowed_moves : int — moves whose feed was lowered to the axis speed limits
+    limits : LimitTally | None — the closest approach to each limit over every row (None: not asked for)
     """
 
     program: JointProgram
@@ -358,6 +365,10 @@ class JobProgram:
     dynamics: str = ""
     closest: Approach | None = None
     kinematics: Kinematics | None = None                  # whose joints the program's are (None: 3-PRS)
+    faces: tuple[Face, ...] = ()
+    cycle_minutes: float | None = None
+    slowed_moves: int = 0
+    limits: LimitTally | None = None
 
     def chunks(self, rows: int | None = None) -> Iterator[str]:
         """The program's text, ``rows`` (None: EMIT_ROWS) rows at a time (the header first, the end blocks last): the
@@ -386,6 +397,11 @@ class _Posted:
     ends: Toolpath
     dynamics: DynamicsTally | None
     full: PostResult | None
+    limits: LimitTally | None = None                    # a streamed operation's, when tallied
+
+    def tally(self) -> LimitTally | None:
+        """The closest approach to each limit over the rows (None: neither tallied nor kept)."""
+        return self.limits if self.limits is not None or self.full is None else LimitTally.of(self.full.limits)
 
     @staticmethod
     def of(post: PostResult) -> _Posted:
@@ -402,7 +418,8 @@ def _ends(first: Toolpath, last: Toolpath) -> Toolpath:
 
 
 def _post_operation(machine: Machine, paths: list[Toolpath], k: int, spec: JobSpec, decimals: int, *, keep: bool,
-                    several: bool, replan: Callable[[], Toolpath], check: SetupCheck | None) -> _Posted:
+                    several: bool, replan: Callable[[], Toolpath], check: SetupCheck | None,
+                    margins: bool = False) -> _Posted:
     """Operation ``k``'s toolpath ``paths[k]`` post-processed whole (``keep``), or POST_ROWS rows at a
     time into its joint program only: the toolpath is taken out of ``paths`` and cut into pieces that
     own their rows (:func:`~prs3_post.core.toolpath.toolpath_pieces`), each dropped once posted, so that
@@ -431,7 +448,7 @@ def _post_operation(machine: Machine, paths: list[Toolpath], k: int, spec: JobSp
         pieces = toolpath_pieces(columns, POST_ROWS, events=events, source_labels=labels, source_file=file)
         pieces.reverse()                               # popped in order, each freed once posted
         stream = PostStream(machine, spec.setup, tolerance=spec.tolerance, length_decimals=decimals,
-                            clamp=spec.clamp)
+                            clamp=spec.clamp, tally_limits=margins)
         programs: list[JointProgram] = []
         first = last = None
         try:
@@ -455,7 +472,8 @@ def _post_operation(machine: Machine, paths: list[Toolpath], k: int, spec: JobSp
                               advise=collision_advice) from error
     ends = _ends(first, last) if first is not None and last is not None else _NO_ROWS
     del first, last, result
-    return _Posted(join_programs(programs, source_labels=labels, source_file=file), ends, stream.dynamics, None)
+    return _Posted(join_programs(programs, source_labels=labels, source_file=file), ends, stream.dynamics, None,
+                   stream.limits)
 
 
 def _planned(spec: JobSpec, face: Face, number: int, several: bool) -> Toolpath:
@@ -477,10 +495,11 @@ def _planned(spec: JobSpec, face: Face, number: int, several: bool) -> Toolpath:
     return path_part
 
 
-def _check(specs: tuple[JobSpec, ...], *, keep: bool
+def _check(specs: tuple[JobSpec, ...], *, keep: bool, margins: bool = False
            ) -> tuple[JobProgram, tuple[PostResult, list[OperationResult], FloatArray] | None]:
     """The checked job and, with ``keep``, the whole PostResult, the operations (with their toolpaths)
-    and each row's tool length (mm); without, each operation's toolpath is dropped once posted."""
+    and each row's tool length (mm); without, each operation's toolpath is dropped once posted. With
+    ``margins``: each limit's closest approach (:attr:`JobProgram.limits`)."""
     if not specs:
         raise ValueError("a job has at least one operation")
     first = specs[0]
@@ -520,7 +539,7 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
         machine = spec.machine.with_tool_length(operation.tool_length)
         posted = _post_operation(machine, paths, k, spec, decimals, keep=keep, several=several,
                                  replan=partial(_planned, planned[k], done[k].face, k + 1, several),
-                                 check=_collision_check(spec, machine, triangles, operation.face))
+                                 check=_collision_check(spec, machine, triangles, operation.face), margins=margins)
         try:
             measured.append(measure_program(machine, posted.program, spec.setup, triangles, operation.face,
                                             spec.cutting.tool_diameter, clearance_min=spec.clearance_min)
@@ -548,7 +567,9 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
     header = header_of(first, sha, operations=specs if several else (), lengths=[o.tool_length for o in done])
     entries = with_placement(header_entries(header, done[0].face, description=first.machine.description,
                                             faces=tuple(o.face for o in done) if several else ()), placement)
-    dynamics = dynamics_entry(first.machine, program, [p.dynamics for p in posts])
+    tallies = [p.dynamics for p in posts if p.dynamics is not None]
+    minutes = None if first.machine.dynamics is None else program_time(first.machine.dynamics, program)
+    dynamics = NO_DYNAMICS if minutes is None else timed_entry(minutes, tallies)
     collisions = [m.entry(spec.clearance_min) if isinstance(m, ProgramClearance) else m or ""
                   for m, spec in zip(measured, specs, strict=True)]
     entries += (("dynamics", dynamics), ("collision", _collision_entry(specs, collisions)))
@@ -558,7 +579,9 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool
                      line_numbers=first.line_numbers, line_start=first.line_start, line_step=first.line_step,
                      face=done[0].face, face_note=done[0].face_note, setup=first.setup, triangles=triangles,
                      tool_lengths=tuple(o.tool_length for o in done), placement=placement, dynamics=dynamics,
-                     closest=_closest(measured, specs), kinematics=kinematics_of(first.machine))
+                     closest=_closest(measured, specs), kinematics=kinematics_of(first.machine),
+                     faces=tuple(o.face for o in done), cycle_minutes=minutes,
+                     slowed_moves=sum(t.clamped for t in tallies), limits=_job_limits(pieces) if margins else None)
     if not keep:
         return job, None
     fulls = [p.full for p in pieces if p.full is not None]      # keep=True: every piece is kept whole
@@ -775,12 +798,23 @@ def _rows(program: JointProgram, row: int) -> JointProgram:
                         source_labels=(program.describe(row % len(program)),))
 
 
+def _job_limits(pieces: list[_Posted]) -> LimitTally:
+    """The closest approach to each limit over the pieces joined in order (an operation's, a transition's)."""
+    tally, at = LimitTally(), 0
+    for piece in pieces:
+        own = piece.tally()
+        if own is not None:
+            tally.merged(own, at)
+        at += len(piece.program)
+    return tally
+
+
 def _with_events(posted: _Posted, events: tuple[Event, ...]) -> _Posted:
     full = posted.full
     if full is not None:
         full = replace(full, program=replace(full.program, events=events), path=replace(full.path, events=events))
     return _Posted(program=full.program if full is not None else replace(posted.program, events=events),
-                   ends=posted.ends, dynamics=posted.dynamics, full=full)
+                   ends=posted.ends, dynamics=posted.dynamics, full=full, limits=posted.limits)
 
 
 def _join_programs(programs: list[JointProgram]) -> JointProgram:

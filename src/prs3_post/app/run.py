@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     from prs3_post.app.job import JobProgram, JobSpec
     from prs3_post.readers.jobfile import JobFile
 
-__all__ = ["check_request", "check_specs", "job_preview", "post_part", "read_job", "run_job_file"]
+__all__ = ["check_request", "check_specs", "job_json", "job_preview", "post_part", "read_job", "run_job_file"]
 
 
 def read_job(path: str) -> JobFile:
@@ -44,8 +44,10 @@ def check_request(request: JobRequest) -> tuple[tuple[JobSpec, ...], JobProgram]
 
 
 def check_specs(specs: tuple[JobSpec, ...], *,
-                placement_hint: Callable[[tuple[str, str, str] | None], str] | None = None) -> JobProgram:
-    """The job of these operations, checked (:func:`~prs3_post.app.job.check_operations`).
+                placement_hint: Callable[[tuple[str, str, str] | None], str] | None = None,
+                margins: bool = False) -> JobProgram:
+    """The job of these operations, checked (:func:`~prs3_post.app.job.check_operations`; ``margins``:
+    with each limit's closest approach, for :func:`job_json`).
 
     ``placement_hint`` words, for a job that does not fit its setup, what to do about it: the front
     end's way to give the part origin that works (its argument; None: no translation of the part
@@ -56,12 +58,28 @@ def check_specs(specs: tuple[JobSpec, ...], *,
     from prs3_post.check.placement import Placement
 
     try:
-        return check_job(specs[0]) if len(specs) == 1 else check_operations(specs)
+        return check_job(specs[0], margins=margins) if len(specs) == 1 else check_operations(specs, margins=margins)
     except Placement as error:
         if placement_hint is None or error.blocked:
             raise
         origin = error.suggested_origin
         raise type(error)(f"{error}: {placement_hint(origin)}", setup=error.setup, suggested_origin=origin) from error
+
+
+def job_json(job: JobProgram, specs: tuple[JobSpec, ...], path: str, text: str) -> str:
+    """What a checked job wrote to ``path`` (its program ``text``), as one line of JSON
+    (:func:`~prs3_post.app.run_report.job_record`); each row's program line is read from the text, as
+    the preview names its lines."""
+    import json
+
+    from prs3_post.app.run_report import Written, job_record
+    from prs3_post.readers.program import read_program
+
+    first = specs[0]
+    moves = read_program(text, first.dialect, path=path, stage=first.machine.stage.present,
+                         kinematics=job.kinematics).moves
+    written = Written(path=path, lines=text.count("\n"), bytes=len(text.encode("utf-8")))
+    return json.dumps(job_record(job, specs, written, moves.source), allow_nan=False)
 
 
 def job_preview(job: JobProgram, specs: tuple[JobSpec, ...], fmt: str, *, text: str, path: str, title: str) -> bytes:

@@ -19,7 +19,9 @@ from prs3_post.cli.options import (
 
 @click.command(cls=Command)
 @verbosity_options
-def machines() -> None:
+@click.option("--json", "as_json", is_flag=True,
+              help="Print the list as JSON: each machine's geometry, limits, stage travel, dynamics and holder.")
+def machines(as_json: bool) -> None:
     """List the shipped machines (use a name or a TOML path with --machine).
 
     Each line: name, whether it has an XY stage, and its description. The files live in
@@ -32,8 +34,11 @@ def machines() -> None:
     """
 
     def body() -> int:
-        from prs3_post.app.listings import shipped_machines
+        from prs3_post.app.listings import machines_json, shipped_machines
 
+        if as_json:
+            click.echo(machines_json())
+            return 0
         for name, machine in shipped_machines():
             stage = "XY stage" if machine.stage.present else "no stage"
             click.echo(f"{name:<18} {stage:<9} {machine.description}")
@@ -45,7 +50,8 @@ def machines() -> None:
 
 @click.command(cls=Command)
 @verbosity_options
-def sources() -> None:
+@click.option("--json", "as_json", is_flag=True, help="Print the list as JSON: each source's words and TCP codes.")
+def sources(as_json: bool) -> None:
     """List the shipped 5-axis source conventions (how a program for another machine gives its tool axis).
 
     Each line: name, the rotary words (or the vector words), the TCP on/off codes and the
@@ -58,8 +64,11 @@ def sources() -> None:
     """
 
     def body() -> int:
-        from prs3_post.app.listings import shipped_sources
+        from prs3_post.app.listings import shipped_sources, sources_json
 
+        if as_json:
+            click.echo(sources_json())
+            return 0
         for name, source in shipped_sources():
             words = " ".join(source.words or source.vector_words)
             tcp = f"{'/'.join(source.tcp_on)} {'/'.join(source.tcp_off)}"

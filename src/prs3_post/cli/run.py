@@ -72,6 +72,11 @@ collision_check_option = click.option(
     "--collision-check/--no-collision-check", default=_SET["collision_check"], show_default=True,
     help="Check that the tool, holder and spindle nose stay clear of the part (the machine's "
          "[holder]) before writing; the header says when it was skipped.")
+json_option = click.option(
+    "--json", "as_json", is_flag=True,
+    help="Print what was written as one JSON object on standard output: the program file (path, lines, "
+         "bytes), the setup, the faces, every limit's closest approach (value, margin, line), the collision "
+         "check's closest body, the cycle time and the feeds slowed. The program goes to -o FILE.")
 preview_option = click.option(
     "--preview", "preview_path", type=OutputPath(), metavar="OUT.png|OUT.svg",
     help="Also draw the program (as `prs3-post preview` does, on this part and face). "
@@ -223,6 +228,8 @@ def _run_job(part: str, **opts: Any) -> int:
     """Build the request from the options, check the job, write the program (and its preview)."""
     from prs3_post.app.run import check_specs  # the job's modules: only the commands that run one
 
+    out_path, as_json = opts["out_path"], opts["as_json"]
+    _refuse_json_to_stdout(as_json, out_path)
     with timed("options, machine and dialect"):
         specs = job_specs_of(part, opts, given=given_options())
     fmt = image_format(opts["preview_path"], "'--preview'") if opts["preview_path"] else None
@@ -231,19 +238,27 @@ def _run_job(part: str, **opts: Any) -> int:
 
         require_plotting()
     with timed("post and check"):
-        job = check_specs(specs, placement_hint=_placement_hint)
-    out_path = opts["out_path"]
-    _write_job(job, specs, out_path, opts["preview_path"], fmt, title=Path(part).name, what=f"; {job.face_note}")
+        job = check_specs(specs, placement_hint=_placement_hint, margins=as_json)
+    _write_job(job, specs, out_path, opts["preview_path"], fmt, title=Path(part).name, what=f"; {job.face_note}",
+               as_json=as_json)
     return 0
 
 
-def _write_job(job: JobProgram, specs: tuple[JobSpec, ...], out_path: str | None, preview_path: str | None,
-               fmt: str | None, *, title: str, what: str) -> None:
-    """Write the checked job's program (and its preview, drawn first: no half results) and say what was
-    written; ``what`` ends the summary line (the main job's face, a job file's operation count)."""
-    from prs3_post.app.run import job_preview
+def _refuse_json_to_stdout(as_json: bool, out_path: str | None) -> None:
+    """``--json`` takes standard output: the program must go to a file."""
+    if as_json and is_stdout(out_path):
+        raise click.UsageError("--json prints its report on standard output: write the program to a file "
+                               "with -o FILE")
 
-    text = _ProgramText(job, whole=fmt is not None or not _streamable(out_path))
+
+def _write_job(job: JobProgram, specs: tuple[JobSpec, ...], out_path: str | None, preview_path: str | None,
+               fmt: str | None, *, title: str, what: str, as_json: bool = False) -> None:
+    """Write the checked job's program (and its preview, drawn first: no half results) and say what was
+    written; ``what`` ends the summary line (the main job's face, a job file's operation count).
+    ``as_json``: then print the JSON record of what was written (:func:`~prs3_post.app.run.job_json`)."""
+    from prs3_post.app.run import job_json, job_preview
+
+    text = _ProgramText(job, whole=as_json or fmt is not None or not _streamable(out_path))
     image = None
     if fmt is not None:
         with timed("preview"):
@@ -258,6 +273,8 @@ def _write_job(job: JobProgram, specs: tuple[JobSpec, ...], out_path: str | None
             say(job.dynamics)
     if image is not None:
         say(f"wrote {preview_path}")
+    if as_json:
+        click.echo(job_json(job, specs, str(out_path), text.whole))
 
 
 def _streamable(path: str | None) -> bool:
@@ -317,6 +334,7 @@ def _report_details(job: JobProgram, specs: tuple[JobSpec, ...]) -> None:
 @click.argument("part", type=click.Path(dir_okay=False), metavar="PART.stl")
 @job_options
 @verbosity_options
+@json_option
 def run(part: str, **opts: Any) -> None:
     """The main job: cut a hole, square or round profile on a part's inclined face.
 
@@ -337,6 +355,7 @@ def run(part: str, **opts: Any) -> None:
 @click.command(cls=Command, aliases=PART_UNITS_ALIAS)
 @job_options
 @verbosity_options
+@json_option
 def demo(**opts: Any) -> None:
     """The main job on the bundled demo part: the paper's wedge (26.57° face, Patel 2020).
 
@@ -396,9 +415,10 @@ _JOB_OVERRIDES = {"machine_name": "machine", "dialect_name": "dialect", "part_or
 @collision_check_option
 @preview_option
 @verbosity_options
+@json_option
 def job(job_path: str, out_path: str | None, machine_name: str, part_origin: tuple[float, ...] | str | None,
         part_rotation: float | str | None, dialect_name: str, units: str, collision_check: bool,
-        preview_path: str | None) -> None:
+        preview_path: str | None, as_json: bool) -> None:
     """Run a job file: several operations on one part, on one or more faces, with one or more tools.
 
     JOB.toml names the part (part, units, up), the setup ([setup] part_origin, part_rotation_deg),
@@ -420,6 +440,7 @@ def job(job_path: str, out_path: str | None, machine_name: str, part_origin: tup
         from prs3_post.app.run import check_specs, read_job
 
         ctx = click.get_current_context()
+        _refuse_json_to_stdout(as_json, out_path)
         job_file = read_job(job_path)
         named = {"part": job_file.part} | {key: job_file.settings.get(key)
                                             for key in ("tool_table", "machine", "dialect")}
@@ -435,14 +456,14 @@ def job(job_path: str, out_path: str | None, machine_name: str, part_origin: tup
             require_plotting()
         try:
             with timed("post and check"):
-                job = check_specs(specs)
+                job = check_specs(specs, margins=as_json)
         except FeatureError as error:                  # the job file, the operation and its key
             where = "" if error.operation is None else f"operation[{error.operation}]"
             where += f".{error.key}" if where and error.key else ""
             raise InputError(f"{where}: {error!s}" if where else str(error),
                              path=job_path) from error
         _write_job(job, specs, out_path, preview_path, fmt, title=Path(job_file.part).name,
-                   what=f", {len(specs)} operations")
+                   what=f", {len(specs)} operations", as_json=as_json)
         return 0
 
     run_reported(body)

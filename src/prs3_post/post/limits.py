@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from prs3_post.core.defaults import LIMIT_TOLERANCE
 from prs3_post.core.errors import LimitError
-from prs3_post.core.types import BoolArray, FloatArray
+from prs3_post.core.types import BoolArray, FloatArray, IntArray
 from prs3_post.kinematics import IKResult
 from prs3_post.kinematics.protocol import LimitColumns
 from prs3_post.kinematics.registry import kinematics_of
@@ -161,3 +161,90 @@ def raise_first_violation(report: LimitReport, describe_row: Callable[[int], str
     column = int(np.flatnonzero(~(report.margin[row] >= 0.0))[0])   # first limit broken (or NaN)
     count = f" ({len(bad)} points outside limits {scope})" if len(bad) > 1 else ""
     raise LimitError(f"{describe_row(row)}: {report.describe(row, column)}{count}")
+
+
+def _no_floats() -> FloatArray:
+    return np.zeros(0)
+
+
+def _no_rows() -> IntArray:
+    return np.zeros(0, dtype=np.int64)
+
+
+@dataclass(slots=True)
+class LimitTally:
+    """The closest approach to each limit over the rows of a program made in pieces: per limit, the
+    smallest margin, its value and its row (the first row on ties). Folded a report at a time
+    (:meth:`fold`), so that a streamed program need not be held; NaN margins (none in a checked
+    program) are passed over.
+
+    Attributes
+    ----------
+    names, units : (L,) str — as :class:`LimitReport`'s (empty until the first report)
+    low, high : (L,) float — the bounds (code units: mm, rad, number)
+    margin, value : (L,) float — the closest approach (``inf`` / NaN while no row is folded)
+    row : (L,) int — its row in the program (0-based; -1 while none)
+    rows : int — rows folded
+    """
+
+    names: tuple[str, ...] = ()
+    units: tuple[str, ...] = ()
+    low: FloatArray = field(default_factory=_no_floats)
+    high: FloatArray = field(default_factory=_no_floats)
+    margin: FloatArray = field(default_factory=_no_floats)
+    value: FloatArray = field(default_factory=_no_floats)
+    row: IntArray = field(default_factory=_no_rows)
+    rows: int = 0
+
+    def fold(self, report: LimitReport, first_row: int | None = None) -> None:
+        """Add the rows of ``report``, which are the program's rows from ``first_row`` (default: the rows
+        folded so far, consecutive)."""
+        start = self.rows if first_row is None else first_row
+        if not self.names:
+            count = len(report.names)
+            self.names, self.units, self.low, self.high = report.names, report.units, report.low, report.high
+            self.margin, self.value = np.full(count, np.inf), np.full(count, np.nan)
+            self.row = np.full(count, -1, dtype=np.int64)
+        n = len(report.margin)
+        self.rows = max(self.rows, start + n)
+        if not n:
+            return
+        margin = np.where(np.isnan(report.margin), np.inf, report.margin)     # (N, L)
+        best = np.argmin(margin, axis=0)                                     # the first of equals
+        found = margin[best, np.arange(len(best))]
+        better = found < self.margin
+        self.margin = np.where(better, found, self.margin)
+        self.value = np.where(better, report.value[best, np.arange(len(best))], self.value)
+        self.row = np.where(better, best + start, self.row)
+
+    def merged(self, other: LimitTally, offset: int) -> None:
+        """Fold ``other``, whose row 0 is this program's row ``offset`` (a piece joined after the others)."""
+        if not other.names:
+            self.rows = max(self.rows, offset + other.rows)
+            return
+        if not self.names:
+            self.names, self.units, self.low, self.high = other.names, other.units, other.low, other.high
+            self.margin, self.value = other.margin.copy(), other.value.copy()
+            self.row = np.where(other.row >= 0, other.row + offset, -1)
+            self.rows = offset + other.rows
+            return
+        better = other.margin < self.margin                                  # ties: the earlier row stays
+        self.margin = np.where(better, other.margin, self.margin)
+        self.value = np.where(better, other.value, self.value)
+        self.row = np.where(better, other.row + offset, self.row)
+        self.rows = max(self.rows, offset + other.rows)
+
+    def closest(self) -> LimitReport:
+        """The closest approaches as a report of one row (each column's value and margin from its own
+        :attr:`row`)."""
+        with np.errstate(invalid="ignore"):
+            ok = np.array([bool((self.margin >= 0.0).all())])
+        return LimitReport(names=self.names, units=self.units, low=self.low, high=self.high,
+                           value=self.value[None, :], margin=self.margin[None, :], ok=ok)
+
+    @staticmethod
+    def of(report: LimitReport) -> LimitTally:
+        """The tally of one report (its rows are rows 0…N-1)."""
+        tally = LimitTally()
+        tally.fold(report, 0)
+        return tally

@@ -33,7 +33,7 @@ from prs3_post.kinematics.registry import kinematics_of
 from prs3_post.machine.model import GENERAL_KINEMATICS, Machine
 from prs3_post.part.setup_transform import Setup
 from prs3_post.post.dynamics import DynamicsTally, joint_columns
-from prs3_post.post.limits import LimitReport, check_limits, raise_first_violation, within_limits
+from prs3_post.post.limits import LimitReport, LimitTally, check_limits, raise_first_violation, within_limits
 from prs3_post.post.linearize import linearize, subdivide_axis_changes
 from prs3_post.post.visible_moves import VisibleMoves
 
@@ -168,12 +168,15 @@ class PostStream:
         :func:`place_toolpath` through ``setup`` and :func:`~prs3_post.kinematics.unit_axes` make
         them (a caller that checked the axes by input line on the way; False: part frame)
     timed : bool — add up the cycle time of the rows fed (``dynamics.minutes``, for a program not kept whole)
+    tally_limits : bool — keep the closest approach to each limit of the rows fed (:attr:`limits`; each
+        chunk's margins are then computed: about 0.9 µs a row, where the check alone takes 0.1 µs)
     """
 
     def __init__(self, machine: Machine, setup: Setup, *, tolerance: float = DEFAULT_TOLERANCE,
                  angle_tolerance: float = DEFAULT_ANGLE_TOLERANCE, length_decimals: int | None = None,
-                 clamp: bool = True, placed: bool = False, timed: bool = False):
+                 clamp: bool = True, placed: bool = False, timed: bool = False, tally_limits: bool = False):
         self.machine, self.setup, self.placed = machine, setup, placed
+        self.limits = LimitTally() if tally_limits else None
         self.tolerance, self.angle_tolerance = tolerance, angle_tolerance
         self.model = model_for(machine)
         self._visible = None if length_decimals is None else VisibleMoves(length_decimals)
@@ -235,7 +238,11 @@ class PostStream:
                               condition=ik.condition[keep], reachable=ik.reachable[keep])
         if not checked:                                # (checked: every row is within, so are those kept)
             _raise_outside_limits(machine, path, ik, self._counted(scope, len(path)))
-        report = partial(check_limits, machine, ik, path.axis)   # made if the result's limits are read
+        # the limits' report: made if the result's limits are read, or now when they are tallied
+        report: LimitReport | Callable[[], LimitReport] = partial(check_limits, machine, ik, path.axis)
+        if self.limits is not None:
+            report = check_limits(machine, ik, path.axis)
+            self.limits.fold(report, self._program_rows)
         feeds = inverse_time(path, start=self._last_tip, steps=steps)
         self._input_rows += len(chunk)
         self._inserted += subdivided - len(chunk)
