@@ -15,6 +15,7 @@ that copy from its start. Messages name it ``<stdin>``
 
 from __future__ import annotations
 
+import atexit
 import errno
 import io
 import os
@@ -180,6 +181,7 @@ def _stdin_spool() -> _Spool:
         stream.close()
         raise
     _spool = _Spool(stdin, stream, size)
+    atexit.register(stream.close)                     # (it is gone with the process in any case)
     return _spool
 
 
