@@ -134,9 +134,9 @@ def invoke_capturing(args: list[str]) -> tuple[object, list[JobResult]]:
     captured: list[JobResult] = []
     real = job_module.check_job                # the CLI imports it when the main job runs
 
-    def spy(spec: JobSpec) -> JobProgram:
+    def spy(spec: JobSpec, **options: bool) -> JobProgram:
         with mock.patch.object(job_module, "POST_ROWS", 7):        # posted 7 rows at a time: the same program
-            job = real(spec)
+            job = real(spec, **options)
         result = run_job(spec)
         assert "".join(job.chunks(rows=5)) == "".join(job.chunks()) == result.text   # formatted in any chunks
         assert len(job.program) == len(result.post.program)
