@@ -81,8 +81,8 @@ def posted(args: list[str]) -> tuple[object, JobProgram]:
     kept: list[JobProgram] = []
     real = job_module.check_job
 
-    def spy(spec: JobSpec) -> JobProgram:
-        kept.append(real(spec))
+    def spy(spec: JobSpec, **options: bool) -> JobProgram:
+        kept.append(real(spec, **options))
         return kept[-1]
 
     with mock.patch.object(job_module, "check_job", spy):
@@ -179,9 +179,9 @@ def test_the_main_job_places_posts_and_round_trips_on_a_head_as_built(tmp_path: 
     kept: list[JobSpec] = []
     real = job_module.check_job
 
-    def spy(spec: JobSpec) -> JobProgram:
+    def spy(spec: JobSpec, **options: bool) -> JobProgram:
         kept.append(spec)
-        return real(spec)
+        return real(spec, **options)
 
     with mock.patch.object(job_module, "check_job", spy):
         result = invoke("demo", "--profile", "square", "--part-origin", "auto", "--part-rotation", "auto",
