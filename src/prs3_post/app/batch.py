@@ -16,7 +16,9 @@ from pathlib import Path
 from prs3_post.app.convert import ConvertReport, ConvertSettings, write_conversion
 from prs3_post.app.workers import Died, run_tasks
 from prs3_post.core.errors import STDIN_PATH, InputError, Prs3Error, shown_path
+from prs3_post.core.input_files import input_size
 from prs3_post.core.output_files import is_stdout, refuse_overwriting, remove_temp_files
+from prs3_post.core.types import Progress
 from prs3_post.kinematics.prs3.blocks import THREADS_VARIABLE
 from prs3_post.machine.loading import Dialect
 from prs3_post.readers.registry import suffixes
@@ -210,14 +212,16 @@ class OutputExists(InputError):
     """The program exists already and replacing it was not asked for."""
 
 
-def convert_one(input_path: str, output: str, settings: ConvertSettings, *, force: bool = False) -> FileOutcome:
-    """Convert one file and write its program atomically; every :class:`Prs3Error` becomes a failed outcome."""
+def convert_one(input_path: str, output: str, settings: ConvertSettings, *, force: bool = False,
+                progress: Progress | None = None) -> FileOutcome:
+    """Convert one file and write its program atomically; every :class:`Prs3Error` becomes a failed outcome.
+    ``progress``: told the bytes read of the file's size."""
     start = time.perf_counter()
     try:
         refuse_overwriting({"its program": output}, {"being converted": input_path})
         if not force and not is_stdout(output) and os.path.lexists(output):
             raise OutputExists(f"{EXISTS} (it is replaced only when forced)", path=output)
-        report = write_conversion(input_path, output, settings)
+        report = write_conversion(input_path, output, settings, progress=progress)
     except Prs3Error as error:
         from prs3_post.check.placement import Placement  # loaded by the conversion already
 
@@ -244,7 +248,8 @@ def _worker_init(threads: int) -> None:
 
 def convert_batch(inputs: Sequence[str], outdir: str, settings: ConvertSettings, *, jobs: int = 1,
                   fail_fast: bool = False, force: bool = False,
-                  on_done: Callable[[FileOutcome], None] | None = None) -> BatchResult:
+                  on_done: Callable[[FileOutcome], None] | None = None,
+                  progress: Progress | None = None) -> BatchResult:
     """Convert every input into ``outdir``, ``jobs`` files at a time in worker processes.
 
     Outputs are :func:`output_path`; two inputs with the same stem would write the same program, so
@@ -258,7 +263,9 @@ def convert_batch(inputs: Sequence[str], outdir: str, settings: ConvertSettings,
     ----------
     jobs : int — worker processes (1: in this process); each runs the kinematics on
         ``max(1, cores // jobs)`` threads, so that processes × threads ≤ cores
-    on_done : called in this process with each outcome as it comes (progress)
+    on_done : called in this process with each outcome as it comes
+    progress : told the bytes read of all the inputs' size, in this process: as they are read by a
+        conversion in this process, a file at a time as its worker finishes it
 
     Returns
     -------
@@ -290,11 +297,13 @@ def convert_batch(inputs: Sequence[str], outdir: str, settings: ConvertSettings,
             on_done(results[index])
     stopped = fail_fast and bool(results)
     not_started: list[int] = []
+    tally = _BytesDone(inputs, todo, progress)
     if stopped:
         not_started = todo
     elif jobs <= 1 or len(todo) <= 1:
         for position, index in enumerate(todo):
-            outcome = convert_one(inputs[index], outputs[index], settings, force=force)
+            outcome = convert_one(inputs[index], outputs[index], settings, force=force, progress=tally.reading(index))
+            tally.finished(index)
             results[index] = outcome
             if on_done is not None:
                 on_done(outcome)
@@ -302,21 +311,55 @@ def convert_batch(inputs: Sequence[str], outdir: str, settings: ConvertSettings,
                 not_started = todo[position + 1:]
                 break
     else:
-        not_started = _run_parallel(inputs, outputs, todo, settings, jobs, fail_fast, force, results, on_done)
+        def finished(outcome: FileOutcome) -> None:
+            tally.finished(inputs.index(outcome.input))
+            if on_done is not None:
+                on_done(outcome)
+
+        not_started = _run_parallel(inputs, outputs, todo, settings, jobs, fail_fast, force, results,
+                                    finished if progress is not None else on_done)
     return BatchResult(outcomes=tuple(results[i] for i in sorted(results)),
                        not_started=tuple(inputs[i] for i in not_started), seconds=time.perf_counter() - started)
 
 
 def convert_single(input_path: str, output: str, settings: ConvertSettings, *, force: bool = False,
-                   on_done: Callable[[FileOutcome], None] | None = None) -> BatchResult:
+                   on_done: Callable[[FileOutcome], None] | None = None,
+                   progress: Progress | None = None) -> BatchResult:
     """Convert one file (``-``: standard input) into the program ``output``: a file (written atomically;
     one that exists is kept unless ``force``), or ``-``, standard output, which gets the program once it
-    is complete (nothing of a file that fails). In this process; ``on_done`` as in :func:`convert_batch`."""
+    is complete (nothing of a file that fails). In this process; ``on_done`` and ``progress`` as in
+    :func:`convert_batch`."""
     started = time.perf_counter()
-    outcome = convert_one(input_path, output, settings, force=force)
+    outcome = convert_one(input_path, output, settings, force=force, progress=progress)
     if on_done is not None:
         on_done(outcome)
     return BatchResult(outcomes=(outcome,), seconds=time.perf_counter() - started)
+
+
+class _BytesDone:
+    """A batch's progress in bytes: the files finished, and the one being read in this process."""
+
+    def __init__(self, inputs: Sequence[str], todo: list[int], progress: Progress | None):
+        self.progress = progress
+        self.sizes = {index: input_size(inputs[index]) for index in todo} if progress is not None else {}
+        self.total = float(sum(self.sizes.values()))
+        self.done = 0.0
+
+    def reading(self, index: int) -> Progress | None:
+        """The progress of file ``index`` read in this process."""
+        progress = self.progress
+        if progress is None:
+            return None
+        size = self.sizes[index]
+
+        def told(done: float, total: float) -> None:
+            progress(self.done + (size * done / total if total > 0 else 0.0), self.total)
+        return told
+
+    def finished(self, index: int) -> None:
+        if self.progress is not None:
+            self.done += self.sizes.get(index, 0)
+            self.progress(self.done, self.total)
 
 
 def _cores() -> int:

@@ -37,7 +37,7 @@ from prs3_post.core.errors import InputError, LimitError, PoseError, ReachError,
 from prs3_post.core.input_files import open_input
 from prs3_post.core.output_files import HeadLast, write_atomic
 from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind, Toolpath, join_programs
-from prs3_post.core.types import FloatArray
+from prs3_post.core.types import FloatArray, Progress
 from prs3_post.core.version import __version__
 from prs3_post.emit.gcode import ProgramEmitter
 from prs3_post.emit.header import SourceCounts, SourceHeader
@@ -260,9 +260,24 @@ def input_format(path: str, requested: str = "auto") -> str:
     return requested if requested != "auto" else detect_format(head)
 
 
-def source_stream(path: str, settings: ConvertSettings, fmt: str) -> CamStream:
-    """The input's reader for its format ``fmt``, in chunks of lines (part frame, mm)."""
-    return reader_named(fmt).open(path, settings.read_options)
+def source_stream(path: str, settings: ConvertSettings, fmt: str, progress: Progress | None = None) -> CamStream:
+    """The input's reader for its format ``fmt``, in chunks of lines (part frame, mm); ``progress`` told
+    the bytes it reads."""
+    stream = reader_named(fmt).open(path, settings.read_options)
+    if progress is not None:
+        stream.progress = progress
+    return stream
+
+
+def _share(progress: Progress | None, first: float, last: float) -> Progress | None:
+    """``progress`` of one pass over the file that is the share ``first`` to ``last`` (fractions) of
+    the whole conversion's."""
+    if progress is None:
+        return None
+
+    def told(done: float, total: float) -> None:
+        progress(total * (first + (last - first) * done / total) if total > 0 else 0.0, total)
+    return told
 
 
 def _refuse_tilt(machine: Machine, chunk: Toolpath, run: _Run) -> None:
@@ -386,10 +401,11 @@ class _Run:
             five_axis=self.reader.read_as, slowed_moves=self.post.dynamics.clamped)
 
 
-def _start(path: str, settings: ConvertSettings) -> _Run:
+def _start(path: str, settings: ConvertSettings, progress: Progress | None = None) -> _Run:
     fmt = input_format(path, settings.input_format)
-    if settings.auto_origin or settings.auto_rotation:   # the whole path decides the setup: read it once more
-        whole = source_stream(path, settings, fmt).whole()
+    auto = settings.auto_origin or settings.auto_rotation
+    if auto:                                             # the whole path decides the setup: read it once more
+        whole = source_stream(path, settings, fmt, _share(progress, 0.0, 0.5)).whole()
         if not len(whole.toolpath):
             raise InputError("no moves in the file: nothing to convert", path=path)
         _refuse_feed_first(whole.toolpath, fmt)
@@ -401,7 +417,7 @@ def _start(path: str, settings: ConvertSettings) -> _Run:
                        rotation_deg=None if settings.auto_rotation else settings.setup.rotation_deg,
                        tolerance=settings.tolerance, angle_tolerance=math.radians(settings.angle_tolerance_deg))
         settings = dataclasses.replace(settings, setup=chosen.setup, auto_origin=False, auto_rotation=False)
-    reader = source_stream(path, settings, fmt)
+    reader = source_stream(path, settings, fmt, _share(progress, 0.5, 1.0) if auto else progress)
     machine = settings.ik_machine
     post = PostStream(machine, settings.setup, tolerance=settings.tolerance,
                       angle_tolerance=math.radians(settings.angle_tolerance_deg),
@@ -473,12 +489,14 @@ def _collision_advice(error: LimitError) -> tuple[str, tuple[str, ...]]:
             "file's [holder])", ("tool_length",))
 
 
-def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False) -> tuple[_Run, HeadLast]:
+def program_chunks(path: str, settings: ConvertSettings, *, keep: bool = False,
+                   progress: Progress | None = None) -> tuple[_Run, HeadLast]:
     """The conversion of one file as program text whose header is made last: the body's chunks are
     lazy (see :func:`prs3_post.app.streaming.program_text`), and the head, with the counts, is made once
     they are through (:class:`prs3_post.core.output_files.HeadLast`: a writer spools the body, then writes the
-    head and the body). The run's :meth:`_Run.report` follows the body."""
-    run = _start(path, settings)
+    head and the body). The run's :meth:`_Run.report` follows the body. ``progress``: told the bytes read
+    of the file's size (with an automatic setup, the reading that chooses it is the first half)."""
+    run = _start(path, settings, progress)
     stream = run.post
     triangles = _part_triangles(settings)
     if keep or triangles is not None:                   # keep each chunk's result (tests, verify --against)
@@ -590,15 +608,16 @@ def convert_file(path: str, settings: ConvertSettings) -> Conversion:
     return Conversion(text=text, report=report, path=join_toolpaths(path_rows) if path_rows else run.results[0].path)
 
 
-def write_conversion(path: str, output: str, settings: ConvertSettings) -> ConvertReport:
+def write_conversion(path: str, output: str, settings: ConvertSettings,
+                     progress: Progress | None = None) -> ConvertReport:
     """Convert one CAM file and write its program to ``output`` as it is made, atomically: a file that
-    fails leaves nothing (the temp file is removed).
+    fails leaves nothing (the temp file is removed). ``progress``: as :func:`program_chunks`.
 
     Raises
     ------
     InputError, LimitError, ReachError
         As :func:`convert_file`, and an output that cannot be written.
     """
-    run, program = program_chunks(path, settings)
+    run, program = program_chunks(path, settings, progress=progress)
     write_atomic(output, program)
     return run.report(run.post.finish())

@@ -32,7 +32,7 @@ from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARAN
 from prs3_post.core.errors import ConfigError, InputError, PoseError, Prs3Error, quoted
 from prs3_post.core.input_files import file_sha256
 from prs3_post.core.toolpath import MoveKind
-from prs3_post.core.types import BoolArray, FloatArray, IntArray
+from prs3_post.core.types import BoolArray, FloatArray, IntArray, Progress
 from prs3_post.emit.header import ProgramHeader, SourceCounts, SourceHeader
 from prs3_post.emit.header_read import read_counts, read_header
 from prs3_post.kinematics import unit_axes
@@ -627,8 +627,8 @@ def tool_lengths_of(header: ProgramHeader | SourceHeader | None) -> dict[int, fl
 def verify_loaded(program: ProgramFile, machine: Machine, setup: Setup, dialect: Dialect, *,
                   tolerance: float, axis_tolerance_deg: float = DEFAULT_ANGLE_TOLERANCE_DEG,
                   intended: Intended | None = None, tool_lengths: dict[int, float] | None = None,
-                  odd_feeds: bool = True) -> VerifyReport:
-    """verify_program on a read program, with the dialect's decimals (``odd_feeds``: see
+                  odd_feeds: bool = True, progress: Progress | None = None) -> VerifyReport:
+    """verify_program on a read program, with the dialect's decimals (``odd_feeds``, ``progress``: see
     :func:`~prs3_post.check.verify.verify_program`; :func:`odd_feeds_warned` of its header).
 
     Raises
@@ -642,7 +642,7 @@ def verify_loaded(program: ProgramFile, machine: Machine, setup: Setup, dialect:
         machine, program.moves, setup=setup, tolerance=tolerance,
         axis_tolerance=math.radians(axis_tolerance_deg), intended=intended,
         length_decimals=dialect.decimals.length, feed_decimals=dialect.decimals.inverse_time,
-        blending_lines=program.blending_lines, tool_lengths=tool_lengths, odd_feeds=odd_feeds,
+        blending_lines=program.blending_lines, tool_lengths=tool_lengths, odd_feeds=odd_feeds, progress=progress,
     )
 
 
@@ -666,7 +666,8 @@ def verify_steps(path: str, *, machine: str | None, dialect: str | None, origin:
                  rotation_deg: float | None, tolerance: float | None, axis_tolerance_deg: float, whole: bool,
                  intended_of: Callable[[ProgramContext], tuple[Intended | None, RebuiltJob | CamPart | None]] | None,
                  collision_check: bool, clearance_min: float | None,
-                 on_cross_check: Callable[[CrossCheck], None] | None = None) -> Verified:
+                 on_cross_check: Callable[[CrossCheck], None] | None = None,
+                 progress: Progress | None = None) -> Verified:
     """Verify a program, in the order the checks need: what it was made for (its header, or the values
     given), the tolerance (:func:`check_tolerance`), then either the whole program read with its
     intended path (``intended_of``: the front end's reading of what it is compared with) and its
@@ -698,13 +699,15 @@ def verify_steps(path: str, *, machine: str | None, dialect: str | None, origin:
         on_cross_check(cross_check(path, setting.dialect, stage=setting.machine.stage.present,
                                    kinematics=kinematics_of(setting.machine)))
     if not (whole or intended_of is not None):        # no samples needed: the program streams through
-        return Verified(verify_file(setting, tolerance=checked, axis_tolerance_deg=axis_tolerance_deg), setting, None)
+        return Verified(verify_file(setting, tolerance=checked, axis_tolerance_deg=axis_tolerance_deg,
+                                    progress=progress), setting, None)
     context = open_program(path, machine=machine, dialect=dialect, origin=origin, rotation_deg=rotation_deg)
     check_program_moves(context.header, len(context.program.moves))
     intended, rebuilt = intended_of(context) if intended_of is not None else (None, None)
     report = verify_loaded(context.program, context.machine, context.setup, context.dialect, tolerance=checked,
                            axis_tolerance_deg=axis_tolerance_deg, intended=intended,
-                           tool_lengths=tool_lengths_of(context.header), odd_feeds=odd_feeds_warned(context.header))
+                           tool_lengths=tool_lengths_of(context.header), odd_feeds=odd_feeds_warned(context.header),
+                           progress=progress)
     clearance: PartClearance | str | None = None
     if rebuilt is not None and not collision_check:
         clearance = "not measured (asked not to)"
@@ -754,11 +757,11 @@ def verify_program_file(path: str, *, machine: str | None = None, dialect: str |
 
 
 def verify_file(setting: ProgramSetting, *, tolerance: float, axis_tolerance_deg: float = DEFAULT_ANGLE_TOLERANCE_DEG,
-                chunk_lines: int = CHUNK_LINES) -> VerifyReport:
+                chunk_lines: int = CHUNK_LINES, progress: Progress | None = None) -> VerifyReport:
     """Read and verify a program a chunk of lines at a time (:class:`~prs3_post.readers.program.ProgramStream`
     into a :class:`~prs3_post.check.verify.Verifier`): memory does not grow with the samples, only by a few
     numbers per move. The report keeps no samples (the text report needs none); it is the report
-    :func:`verify_loaded` gives for any ``chunk_lines``.
+    :func:`verify_loaded` gives for any ``chunk_lines``. ``progress``: told the bytes read of the file's size.
 
     Raises
     ------
@@ -767,6 +770,7 @@ def verify_file(setting: ProgramSetting, *, tolerance: float, axis_tolerance_deg
     """
     stream = ProgramStream(setting.path, setting.dialect, stage=setting.machine.stage.present, chunk_lines=chunk_lines,
                            kinematics=kinematics_of(setting.machine))
+    stream.progress = progress
     decimals = setting.dialect.decimals
     verifier = Verifier(setting.machine, setup=setting.setup, tolerance=tolerance,
                         axis_tolerance=math.radians(axis_tolerance_deg), length_decimals=decimals.length,
@@ -798,19 +802,21 @@ def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str
                   dialect: Dialect, tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None,
                   face: Face | None = None, title: str = "", rapid_rate: float,
                   tool_lengths: dict[int, float] | None = None, rebuilt: RebuiltJob | None = None,
-                  closest: Approach | None = None) -> bytes:
-    """Replay a read program and draw it as ``png`` or ``svg`` bytes (:func:`preview_figure`)."""
+                  closest: Approach | None = None, progress: Progress | None = None) -> bytes:
+    """Replay a read program and draw it as ``png`` or ``svg`` bytes (:func:`preview_figure`; ``progress``:
+    told the rows replayed, before the drawing)."""
     from prs3_post.check.preview import figure_bytes
 
     return figure_bytes(preview_figure(program, machine, setup, dialect=dialect, tolerance=tolerance, mesh=mesh,
                                        face=face, title=title, rapid_rate=rapid_rate, tool_lengths=tool_lengths,
-                                       rebuilt=rebuilt, closest=closest), fmt)
+                                       rebuilt=rebuilt, closest=closest, progress=progress), fmt)
 
 
 def preview_figure(program: ProgramFile, machine: Machine, setup: Setup, *, dialect: Dialect,
                    tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None, face: Face | None = None,
                    title: str = "", rapid_rate: float, tool_lengths: dict[int, float] | None = None,
-                   rebuilt: RebuiltJob | None = None, closest: Approach | None = None) -> Figure:
+                   rebuilt: RebuiltJob | None = None, closest: Approach | None = None,
+                   progress: Progress | None = None) -> Figure:
     """Replay a read program and draw it (matplotlib is imported here); ``tool_lengths`` as
     :func:`~prs3_post.check.verify.verify_program`. With the job it was made by (``rebuilt``) and a machine
     with ``[holder]``, the body that comes closest to the part (:func:`part_clearance`, relative to
@@ -821,7 +827,7 @@ def preview_figure(program: ProgramFile, machine: Machine, setup: Setup, *, dial
 
     # against the job's path, as `verify --against` replays it: the same samples, the same closest approach
     report = verify_loaded(program, machine, setup, dialect, tolerance=tolerance, tool_lengths=tool_lengths,
-                           intended=None if rebuilt is None else rebuilt.intended)
+                           intended=None if rebuilt is None else rebuilt.intended, progress=progress)
     mark = None
     if rebuilt is not None:
         report, found = with_clearance(report, machine, rebuilt)

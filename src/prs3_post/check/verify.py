@@ -52,7 +52,7 @@ import numpy as np
 from prs3_post.core.defaults import NOMINAL_RAPID_RATE
 from prs3_post.core.errors import Prs3Error
 from prs3_post.core.toolpath import Event, EventKind, JointProgram, MoveKind, program_from_columns
-from prs3_post.core.types import BoolArray, FloatArray, IntArray
+from prs3_post.core.types import BoolArray, FloatArray, IntArray, Progress
 from prs3_post.kinematics import IKResult
 from prs3_post.kinematics import replay as kinematic
 from prs3_post.kinematics.prs3.kinematics import Prs3Kinematics
@@ -354,6 +354,7 @@ def verify_program(
     chunk_rows: int = CHUNK_ROWS,
     tool_lengths: dict[int, float] | None = None,
     odd_feeds: bool = True,
+    progress: Progress | None = None,
 ) -> VerifyReport:
     """Replay and check a program (module docstring), ``chunk_rows`` rows at a time (:class:`Verifier`).
 
@@ -377,6 +378,7 @@ def verify_program(
     odd_feeds : bool — without an intended path with feeds, warn of a G1 whose feed matches no other (a hand
         edit in a main job's program, whose operations each use a feed and a plunge feed); False for a converted
         program, whose feeds are the CAM program's
+    progress : Progress, optional — told the rows replayed of N, chunk by chunk
 
     Returns
     -------
@@ -403,6 +405,8 @@ def verify_program(
                 dataclasses.replace(e, before=e.before - first) for e in program.events
                 if e.kind is EventKind.TOOL_CHANGE and first <= e.before < first + step))
         verifier.add(rows)
+        if progress is not None:
+            progress(min(first + step, n), n)
     return verifier.report(blending_lines=blending_lines, program=program)
 
 

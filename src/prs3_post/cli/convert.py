@@ -6,7 +6,6 @@ import dataclasses
 import json
 import os
 import re
-import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -18,7 +17,7 @@ from prs3_post.app.values import ANGLE, LENGTH
 from prs3_post.cli.options import (
     CLEARANCE_MIN,
     DEPRECATED,
-    VERBOSE,
+    NORMAL,
     Command,
     Decimal,
     Integer,
@@ -42,6 +41,7 @@ from prs3_post.cli.options import (
     verbosity_options,
     was_given,
 )
+from prs3_post.cli.progress import ProgressBar
 from prs3_post.core.defaults import DEFAULT_ANGLE_TOLERANCE_DEG, DEFAULT_CLEARANCE_MIN
 from prs3_post.core.errors import FieldError, quoted, spelled
 from prs3_post.core.lexer import code_name
@@ -56,6 +56,7 @@ from prs3_post.core.output_files import (
 # reader registry (--format's choices, convert's settings).
 if TYPE_CHECKING:
     from prs3_post.app.batch import BatchResult, FileOutcome
+    from prs3_post.core.types import Progress
 
 
 def _input_formats() -> tuple[str, ...]:
@@ -233,19 +234,21 @@ def convert(inputs: tuple[str, ...], outdir: str | None, out_path: str | None, j
                f"{settings.machine.name}, dialect {dialect.name}, setup "
                f"{_setup_words(settings.setup.describe(), part_origin, part_rotation)}, tolerance "
                f"{settings.tolerance:g} mm, axis tolerance {settings.angle_tolerance_deg:g} deg")
-        terminal = sys.stderr.isatty() and verbosity() < VERBOSE     # -v: a line per file instead of the bar
         lines_to_stderr = to_stdout or report_path == "-"   # standard output has the program or the report
 
-        def convert_all(on_done: Callable[[FileOutcome], None]) -> BatchResult:
+        def convert_all(on_done: Callable[[FileOutcome], None], progress: Progress | None = None) -> BatchResult:
             if single is not None:
-                return convert_single(files[0], single, settings, force=force, on_done=on_done)
+                return convert_single(files[0], single, settings, force=force, on_done=on_done, progress=progress)
             assert folder is not None                    # (_output gives one of them)
             return convert_batch(files, folder, settings, jobs=count, fail_fast=fail_fast, force=force,
-                                 on_done=on_done)
+                                 on_done=on_done, progress=progress)
 
-        if terminal:
-            with click.progressbar(length=len(files), label="converting", file=sys.stderr) as bar:
-                result = convert_all(lambda outcome: bar.update(1))
+        # bytes read of every input, on a terminal only (-v: a line per file instead; -q: nothing)
+        bar = ProgressBar("converting", enabled=None if verbosity() == NORMAL else False)
+        if bar.enabled:
+            with bar:
+                bar(0.0, 1.0)
+                result = convert_all(lambda outcome: None, bar)
         else:
             result = convert_all(lambda outcome: _file_done(outcome_line(_flag_named(outcome)), err=lines_to_stderr))
         result = dataclasses.replace(result, outcomes=tuple(_flag_named(o) for o in result.outcomes))

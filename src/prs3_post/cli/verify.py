@@ -15,6 +15,7 @@ from prs3_post.app.values import ANGLE, FEED
 from prs3_post.cli.options import (
     DEPRECATED,
     PART_UNITS_ALIAS,
+    QUIET,
     Command,
     Decimal,
     OutputPath,
@@ -32,9 +33,11 @@ from prs3_post.cli.options import (
     say,
     timed,
     up_option,
+    verbosity,
     verbosity_options,
     was_given,
 )
+from prs3_post.cli.progress import ProgressBar
 from prs3_post.cli.run import given_options, job_options, job_specs_of
 from prs3_post.core.defaults import (
     DEFAULT_ANGLE_TOLERANCE_DEG,
@@ -111,6 +114,11 @@ def _open_program(ctx: click.Context, path: str, machine_name: str, dialect_name
         raise option_error(error) from error
     except HeaderConflict as error:
         raise InputError(f"{_HEADER_FLAGS[error.what]}: {error.args[0]}", path=error.path, line=error.line) from error
+
+
+def _bar_shown() -> bool | None:
+    """A progress bar is drawn on a terminal (None: if standard error is one), never with -q."""
+    return None if verbosity() > QUIET else False
 
 
 def _refuse_auto(part_origin: tuple[float, ...] | str | None, part_rotation: float | str | None) -> None:
@@ -300,6 +308,7 @@ def verify(program_path: str, part_path: str | None, against_path: str | None, a
                 raise click.UsageError(f"{', '.join(_option_flags(ctx, given))}: the operation options are only "
                                        "used with --part PART.stl")
         _refuse_auto(opts["part_origin"], opts["part_rotation"])
+        bar = ProgressBar("verifying", enabled=_bar_shown())   # bytes read, or rows replayed (on a terminal only)
         try:
             with timed("read and replay" + (" and the clearance" if part is not None else "")):
                 verified = verify_steps(
@@ -312,12 +321,14 @@ def verify(program_path: str, part_path: str | None, against_path: str | None, a
                                  if against or part else None),
                     collision_check=opts["collision_check"],
                     clearance_min=opts["clearance_min"] if was_given(ctx, "clearance_min") else None,
-                    on_cross_check=told if cross_check else None)
+                    on_cross_check=told if cross_check else None, progress=bar)
         except FieldError as error:
             raise option_error(error) from error
         except HeaderConflict as error:
             raise InputError(f"{_HEADER_FLAGS[error.what]}: {error.args[0]}", path=error.path,
                              line=error.line) from error
+        finally:
+            bar.close()
         report, setting, clearance = verified.report, verified.setting, verified.clearance
         _report_setting(setting.header is not None, setting.machine.name, setting.dialect.name,
                         setting.setup.describe())
@@ -444,11 +455,11 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
                 rebuilt = rebuild_job(header_job(context, part_path)) if context.machine.holder is not None else None
             with timed("the part"):
                 mesh, face = part_drawing(part_path, choice, units=part_units, up=part_up)
-        with timed("replay and draw"):
+        with timed("replay and draw"), ProgressBar("replaying", after="drawing", enabled=_bar_shown()) as bar:
             image = preview_bytes(context.program, context.machine, context.setup, fmt, dialect=context.dialect,
                                   mesh=mesh, face=face, rapid_rate=rapid_rate,
                                   tool_lengths=tool_lengths_of(context.header),
-                                  title=Path(part_path).name if part_path else "", rebuilt=rebuilt)
+                                  title=Path(part_path).name if part_path else "", rebuilt=rebuilt, progress=bar)
         write_atomic(out_path, image)
         say(f"wrote {out_path}")
         return 0

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, BinaryIO
 import numpy as np
 
 from prs3_post.core.errors import STDIN_PATH, InputError
+from prs3_post.core.types import Progress
 
 if TYPE_CHECKING:
     from hashlib import _Hash as Hash
@@ -254,17 +255,19 @@ def format_bytes(size: int) -> str:
     return f"{size} bytes"
 
 
-def iter_pieces(path: str, what: str, piece_bytes: int = 1 << 20,
-                digest: Hash | None = None) -> Iterator[tuple[int, bytes]]:
+def iter_pieces(path: str, what: str, piece_bytes: int = 1 << 20, digest: Hash | None = None,
+                progress: Progress | None = None) -> Iterator[tuple[int, bytes]]:
     """``(offset, bytes)`` pieces of the regular file at ``path``, each ending at a line end (or the file's end).
 
     For readers that stream a file: memory holds one piece, not the file. Checked and opened as
     :func:`open_input` does (``what`` as there); errors are raised when the iteration reaches them.
     ``digest`` (a :mod:`hashlib` hash), when given, is updated with every byte read: the hash of the
-    bytes the pieces are, whatever happens to the file's name meanwhile.
+    bytes the pieces are, whatever happens to the file's name meanwhile. ``progress``, when given, is
+    told the bytes read so far and the file's size after each read.
     """
     with open_input(path, what) as stream:
         offset, rest = 0, b""
+        size, done = (_size_of(stream) if progress is not None else 0), 0
         while True:
             try:
                 block = stream.read(piece_bytes)
@@ -272,6 +275,9 @@ def iter_pieces(path: str, what: str, piece_bytes: int = 1 << 20,
                 raise InputError(f"cannot read the file: {exc.strerror or exc}", path=path) from exc
             if not block:
                 break
+            if progress is not None:
+                done += len(block)
+                progress(done, max(size, done))
             if digest is not None:
                 digest.update(block)
             block = rest + block
@@ -283,6 +289,25 @@ def iter_pieces(path: str, what: str, piece_bytes: int = 1 << 20,
             offset, rest = offset + cut, block[cut:]
         if rest:
             yield offset, rest
+
+
+def _size_of(stream: BinaryIO) -> int:
+    """Bytes in the file ``stream`` reads (0 when it cannot say)."""
+    try:
+        return os.fstat(stream.fileno()).st_size
+    except (OSError, ValueError, io.UnsupportedOperation):   # (the copy of standard input in memory)
+        return len(stream.getbuffer()) if isinstance(stream, io.BytesIO) else 0
+
+
+def input_size(path: str) -> int:
+    """Bytes in the input ``path`` (``-``: standard input, copied now if it is not yet); 0 when it
+    cannot be read (its reader says why)."""
+    try:
+        if path == STDIN_PATH:
+            return _stdin_spool().size
+        return os.stat(path).st_size
+    except (OSError, InputError):
+        return 0
 
 
 def lf_line_ends(text: str) -> str:

@@ -61,7 +61,7 @@ from prs3_post.core.lexer import (
     split_comments,
 )
 from prs3_post.core.toolpath import Coolant, Event, EventKind, JointProgram, MoveKind, join_programs
-from prs3_post.core.types import BoolArray, FloatArray, IntArray
+from prs3_post.core.types import BoolArray, FloatArray, IntArray, Progress
 from prs3_post.kinematics.protocol import Kinematics, joint_letters
 from prs3_post.kinematics.prs3.kinematics import Prs3Kinematics
 from prs3_post.machine.loading import AXIS_LETTERS, Dialect
@@ -223,10 +223,11 @@ class ProgramStream:
         self.blending_lines: tuple[int, ...] = ()
         self.line_count = 0
         self.checked_lines: int | None = None
+        self.progress: Progress | None = None             # told the bytes read as the iteration reads them
 
-    def _pieces(self) -> Iterator[tuple[int, bytes]]:
+    def _pieces(self, progress: Progress | None = None) -> Iterator[tuple[int, bytes]]:
         """(offset, bytes) pieces of the file, each ending at a line end (or the file's end)."""
-        return iter_pieces(self.path, "a G-code program", self.piece_bytes)
+        return iter_pieces(self.path, "a G-code program", self.piece_bytes, progress=progress)
 
     def check(self) -> int:
         """Check that the whole file is text, with :func:`~prs3_post.core.lexer.decode`'s errors in its
@@ -265,7 +266,7 @@ class ProgramStream:
         number = 1
         size = self.chunk_lines
         # bytes: lines of the regular shape are read undecoded; every block but the last holds `size` lines
-        for at, block in line_blocks(self._pieces(), size):
+        for at, block in line_blocks(self._pieces(self.progress), size):
             if block.count(b"\n") < size:                # the lines left at the end: read with the end below
                 number += reader.block(number, block, at)
                 continue

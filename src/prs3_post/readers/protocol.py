@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
 from prs3_post.core.toolpath import Toolpath
+from prs3_post.core.types import Progress
 from prs3_post.machine.dialect import TOOL_NUMBER_LIMIT
 
 if TYPE_CHECKING:
@@ -181,6 +182,10 @@ class CamStream(Protocol):
         """What the file is read as, where that needs saying (the report and the program's first
         comment; "": nothing to say)."""
 
+    progress: Progress | None
+    """Told the bytes read and the file's size as the iteration reads the file (the front end's
+    progress; None: nobody asked), set before iterating."""
+
     def __iter__(self) -> Iterator[Toolpath]: ...
 
     def whole(self) -> Summary:
@@ -204,6 +209,7 @@ class StreamDefaults:
     refuses_tilt = False
     #: The largest tool number a tool change may have (:attr:`ReadOptions.tool_number_max`; the reader sets it).
     tool_number_max = TOOL_NUMBER_LIMIT
+    progress: Progress | None = None
 
     @property
     def read_as(self) -> str:

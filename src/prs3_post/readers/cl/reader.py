@@ -78,6 +78,7 @@ from prs3_post.core.defaults import MM_PER_INCH
 from prs3_post.core.errors import InputError
 from prs3_post.core.input_files import iter_pieces, lf_line_ends, line_chunks
 from prs3_post.core.toolpath import Toolpath
+from prs3_post.core.types import Progress
 from prs3_post.readers.cl.bulk import LineReader
 from prs3_post.readers.cl.summary import ClCounts, ClCycle, ClFile, ClFrame, ClToolData
 from prs3_post.readers.cl.syntax import (
@@ -193,16 +194,16 @@ class ClStream(StreamDefaults):
         self.summary: ClFile | None = None
         self.sha256: str | None = None                 # of the bytes read, once read (the header's)
 
-    def _pieces(self) -> Iterator[str]:
+    def _pieces(self, progress: Progress | None = None) -> Iterator[str]:
         """The file's text in pieces that end at line ends (a leading byte-order mark removed; CR and CRLF
         line ends made LF where there are CR-only ones); once through, :attr:`sha256` is the hash of the
-        bytes read (the last pass's: the records')."""
+        bytes read (the last pass's: the records'). ``progress``: told the bytes read."""
         digest = hashlib.sha256()
         if self._text is not None:
             digest.update(self._text.encode("utf-8"))
             yield lf_line_ends(self._text.removeprefix("\ufeff"))
         else:
-            for offset, piece in iter_pieces(self.path, "a CL file", self.piece_bytes, digest):
+            for offset, piece in iter_pieces(self.path, "a CL file", self.piece_bytes, digest, progress):
                 if offset == 0 and piece.startswith(b"\xef\xbb\xbf"):
                     piece, offset = piece[3:], 3
                 yield lf_line_ends(decoded_text(piece, self.path, offset))
@@ -214,7 +215,7 @@ class ClStream(StreamDefaults):
                             self.circle_tolerance, self.apply_msys)
         reader.tool_number_max = self.tool_number_max
         number = 1
-        for lines in line_chunks(self._pieces(), self.chunk_lines):
+        for lines in line_chunks(self._pieces(self.progress), self.chunk_lines):
             reader.lines(number, lines)
             number += len(lines)
             chunk = reader.take()

@@ -225,7 +225,7 @@ class GcodeStream(StreamDefaults):
             digest.update(data)
             yield 0, lf_line_end_bytes(data)
         else:
-            for offset, piece in iter_pieces(self.path, "a G-code program", self.piece_bytes, digest):
+            for offset, piece in iter_pieces(self.path, "a G-code program", self.piece_bytes, digest, self.progress):
                 yield offset, lf_line_end_bytes(piece) if self._cr_line_ends else piece
         self.sha256 = digest.hexdigest()
 
