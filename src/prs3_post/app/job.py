@@ -581,7 +581,8 @@ def _check(specs: tuple[JobSpec, ...], *, keep: bool, margins: bool = False
                      tool_lengths=tuple(o.tool_length for o in done), placement=placement, dynamics=dynamics,
                      closest=_closest(measured, specs), kinematics=kinematics_of(first.machine),
                      faces=tuple(o.face for o in done), cycle_minutes=minutes,
-                     slowed_moves=sum(t.clamped for t in tallies), limits=_job_limits(pieces) if margins else None)
+                     slowed_moves=sum(t.clamped for t in tallies),
+                     limits=LimitTally.joined((p.tally(), len(p.program)) for p in pieces) if margins else None)
     if not keep:
         return job, None
     fulls = [p.full for p in pieces if p.full is not None]      # keep=True: every piece is kept whole
@@ -796,17 +797,6 @@ def _rows(program: JointProgram, row: int) -> JointProgram:
     return JointProgram(kind=program.kind[at], stage=program.stage[at], strokes=program.strokes[at],
                         inverse_time=program.inverse_time[at], source=np.zeros(1, dtype=np.int64),
                         source_labels=(program.describe(row % len(program)),))
-
-
-def _job_limits(pieces: list[_Posted]) -> LimitTally:
-    """The closest approach to each limit over the pieces joined in order (an operation's, a transition's)."""
-    tally, at = LimitTally(), 0
-    for piece in pieces:
-        own = piece.tally()
-        if own is not None:
-            tally.merged(own, at)
-        at += len(piece.program)
-    return tally
 
 
 def _with_events(posted: _Posted, events: tuple[Event, ...]) -> _Posted:

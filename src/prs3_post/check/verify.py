@@ -353,8 +353,7 @@ def verify_program(
     keep_samples: bool = True,
     chunk_rows: int = CHUNK_ROWS,
     tool_lengths: dict[int, float] | None = None,
-    odd_feeds: bool = True,
-    progress: Progress | None = None,
+    odd_feeds: bool = True, progress: Progress | None = None,
 ) -> VerifyReport:
     """Replay and check a program (module docstring), ``chunk_rows`` rows at a time (:class:`Verifier`).
 
@@ -371,14 +370,13 @@ def verify_program(
         replay assumes exact stops at every row, as G61 asks)
     keep_samples : bool — keep every sample in ``report.replay`` (the JSON report and the preview
         need them; the text report does not)
-    chunk_rows : int — rows replayed at a time (the report does not depend on it)
+    chunk_rows : int — rows replayed at a time (the report does not depend on it); ``progress``: told (done, N)
     tool_lengths : dict, optional — mm, the tool length "TL" (platform centre to tip) of each tool
         number: after a tool change (M6 T) the tip is that far from the platform centre (a program
         made with a tool table states them in its header); None: the machine's for every row
     odd_feeds : bool — without an intended path with feeds, warn of a G1 whose feed matches no other (a hand
         edit in a main job's program, whose operations each use a feed and a plunge feed); False for a converted
         program, whose feeds are the CAM program's
-    progress : Progress, optional — told the rows replayed of N, chunk by chunk
 
     Returns
     -------

@@ -9,7 +9,7 @@ its margin is 0.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -241,6 +241,16 @@ class LimitTally:
             ok = np.array([bool((self.margin >= 0.0).all())])
         return LimitReport(names=self.names, units=self.units, low=self.low, high=self.high,
                            value=self.value[None, :], margin=self.margin[None, :], ok=ok)
+
+    @staticmethod
+    def joined(pieces: Iterable[tuple[LimitTally | None, int]]) -> LimitTally:
+        """The tally of pieces joined in order, given as each one's tally (None: not tallied) and rows."""
+        tally, at = LimitTally(), 0
+        for own, rows in pieces:
+            if own is not None:
+                tally.merged(own, at)
+            at += rows
+        return tally
 
     @staticmethod
     def of(report: LimitReport) -> LimitTally:
