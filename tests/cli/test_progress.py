@@ -60,7 +60,7 @@ def _percents(stderr: str, label: str) -> list[int]:
 
 def test_convert_draws_one_bar_by_bytes_from_0_to_100(tmp_path: Path) -> None:
     source = _program(tmp_path)
-    code, out, err = _cli(["convert", str(source), "-o", "out", *PLANE, "--jobs", "1"], tmp_path, terminal=True)
+    code, out, err = _cli(["convert", str(source), "-d", "out", *PLANE, "--jobs", "1"], tmp_path, terminal=True)
     assert code == 0, err
     shown = _percents(err, "converting")
     assert shown[0] == 0 and shown[-1] == 100
@@ -73,7 +73,7 @@ def test_convert_draws_one_bar_by_bytes_from_0_to_100(tmp_path: Path) -> None:
 
 def test_nothing_is_drawn_when_standard_error_is_not_a_terminal(tmp_path: Path) -> None:
     source = _program(tmp_path)
-    code, out, err = _cli(["convert", str(source), "-o", "out", *PLANE, "--jobs", "1"], tmp_path, terminal=False)
+    code, out, err = _cli(["convert", str(source), "-d", "out", *PLANE, "--jobs", "1"], tmp_path, terminal=False)
     assert code == 0, err
     assert "[" not in err and "%" not in err and "\r" not in err
     assert out.startswith(f"ok\t{source}\tout/long.ngc\t{LINES + 2} moves")
@@ -85,7 +85,7 @@ def test_nothing_is_drawn_when_standard_error_is_not_a_terminal(tmp_path: Path) 
 def test_verify_and_preview_show_progress(tmp_path: Path) -> None:
     pytest.importorskip("matplotlib")
     source = _program(tmp_path)
-    assert _cli(["convert", str(source), "-o", "out", *PLANE, "--jobs", "1"], tmp_path, terminal=False)[0] == 0
+    assert _cli(["convert", str(source), "-d", "out", *PLANE, "--jobs", "1"], tmp_path, terminal=False)[0] == 0
     code, out, err = _cli(["verify", "out/long.ngc"], tmp_path, terminal=True)
     assert code == 0, err
     assert out.endswith("OK: within every limit and tolerance\n")
