@@ -117,7 +117,7 @@ def test_convert_reads_standard_input_and_a_file_named_dash(tmp_path: Path, monk
     (["a.ngc", "b.ngc", "-o", "-"], "Error: -o FILE writes the program of one input, and 2 files are given: convert "
                                     "them into a folder with -d DIR"),
     (["a.ngc", "-o", "-", "--report", "-"],
-     "Error: -o - and --report - both write to standard output: give one of them a file"),
+     "prs3-post: error: standard output: --output and --report both write to it: give one of them a file"),
 ])
 def test_convert_refuses_two_things_on_standard_output(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                                        args: list[str], message: str) -> None:

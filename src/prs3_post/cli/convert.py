@@ -182,9 +182,8 @@ def convert(inputs: tuple[str, ...], outdir: str | None, out_path: str | None, j
             raise click.BadParameter("'-' is no folder: convert writes one program per input into DIR, standard "
                                      "output cannot take them (a folder named '-' is ./-)",
                                      param_hint="'-d' / '--output-dir'")
-        to_stdout = single == "-"                        # one program, to standard output
-        if to_stdout and report_path == "-":
-            raise click.UsageError("-o - and --report - both write to standard output: give one of them a file")
+        to_stdout = single == "-"                        # one program, to standard output (and not the report:
+                                                         # two outputs on it are refused before any work)
         for word in ignore_words:
             if not word.strip():                         # a word no record has: taken, and nothing ignored
                 raise click.BadParameter(f"{word!r}: give a CL major word, like PAINT", param_hint="'--ignore'")
