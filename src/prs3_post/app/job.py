@@ -342,7 +342,6 @@ class JobProgram:
     tool_lengths : tuple of float — mm, each operation's tool length "TL"
     placement : PlacementResult | None — how the setup was chosen (None: as given)
     dynamics : str — the header's ``dynamics`` entry (cycle time, feeds slowed), for the summary
-    closest : Approach | None — the body nearest its clearance min (None: not checked)
     faces : tuple of Face — each operation's face, in order
     cycle_minutes : float | None — the cycle time of the machine's [dynamics] (None: it has none)
     slowed_moves : int — moves whose feed was lowered to the axis speed limits
