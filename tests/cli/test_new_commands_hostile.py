@@ -79,3 +79,18 @@ def test_a_value_over_the_csv_modules_limit_is_named_not_a_traceback(tmp_path):
     assert (result.exit_code, result.output) == (
         2, f"prs3-post: error: {measured}:4: cannot read the line as CSV: field larger than field limit (131072)\n")
     assert not out.exists()
+
+
+def test_a_cl_line_of_sixty_thousand_digits_is_refused_at_once(tmp_path):
+    # The plain-GOTO pattern split a run of digits two ways per number: 4e4 digits took 7 s, 1e5 minutes.
+    import time
+
+    cl = tmp_path / "long.cls"
+    cl.write_text("GOTO/" + "1" * 60_000 + "\n")
+    started = time.perf_counter()
+    result = run("convert", cl, "-o", tmp_path / "long.ngc", "--part-origin", "auto")
+    assert time.perf_counter() - started < 5
+    assert result.exit_code == 2
+    assert "long.cls:1: GOTO/ value 1: '1111111111111111111111111111111111111111...' is too large to be a finite " \
+           "number" in result.output
+    assert not (tmp_path / "long.ngc").exists()

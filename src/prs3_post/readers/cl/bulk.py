@@ -19,7 +19,7 @@ from prs3_post.readers.common import MAX_RECORD_CHARS
 
 #: A GOTO as CAM systems write nearly all of them: plain decimals, no spaces, no comment. Such lines,
 #: one after another, are read in bulk (:meth:`LineReader.goto_run`); every other line record by record.
-_DECIMAL = r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)"
+_DECIMAL = r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)"  # one way to match a number: no backtracking on long digit runs
 _PLAIN_GOTO = re.compile(
     rf"GOTO/({_DECIMAL}),({_DECIMAL}),({_DECIMAL})(?:,({_DECIMAL}),({_DECIMAL}),({_DECIMAL}))?\r?\Z")
 #: Byte codes of :func:`_plain_gotos` (the delimiters of numbers from _GC_DOT on).
