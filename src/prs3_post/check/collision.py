@@ -187,12 +187,12 @@ class Approach:
     point: FloatArray
 
     def label(self, line: int) -> str:
-        """``closest: holder 8.637 mm clear, line 27`` (``line``: the program line of :attr:`row`)."""
+        """``closest: holder 8.635 mm clear, line 24`` (``line``: the program line of :attr:`row`)."""
         return approach_label(self.body, self.distance, self.exact, line)
 
 
 def approach_label(body: int, distance: float, exact: bool, line: int) -> str:
-    """The preview's words on a closest approach: ``closest: holder 8.637 mm clear, line 27``,
+    """The preview's words on a closest approach: ``closest: holder 8.635 mm clear, line 24``,
     ``closest: tool 2.000 mm deep in the part, line 9``."""
     what = f"{-distance:.3f} mm deep in the part" if distance < 0 else \
         f"{'over ' if not exact else ''}{distance:.3f} mm clear"

@@ -545,7 +545,7 @@ class ClearancePoses:
                 dist = _signed(world.reshape(-1, 3), self.part, cut, self.face, reach, outside,
                                per=len(mine)).reshape(len(r), -1)
             best = np.argmin(dist, axis=1)
-            measured = self._side(r, b, dist[np.arange(len(r)), best])
+            measured = self._side(r, b, dist[np.arange(len(r)), best], reach)
             self._solid(r, b, measured)
             exact = measured < (self.near if reach is None else reach)
             self.value[r, b] = np.where(exact, measured, np.maximum(measured, self.value[r, b]))  # two bounds
@@ -554,19 +554,30 @@ class ClearancePoses:
             self.found[b] = min(self.found[b], float(self.value[r, b].min()))
 
 
-    def _side(self, rows: IntArray, b: int, measured: FloatArray) -> FloatArray:
+    def _side(self, rows: IntArray, b: int, measured: FloatArray, reach: float | None = None) -> FloatArray:
         """``measured`` (the surface points' minimum at ``rows``) lowered to the exact clearance of body
         ``b``'s side where a triangle near it is nearest to an inner point of its axis segment: there the
         body's nearest point is on its side, across from it, and the clearance is that distance less the
         radius. The surface points alone overstate it by up to r (1 − cos(π / AZIMUTHS)) (0.128 mm for a
         15 mm holder) by where their azimuths fall, so the header's minimum (the main job's poses) and
         verify's (its own) would differ by that much; this is the same value at any pose and azimuth.
-        A pose nearest to an end of the axis (its rim) keeps the points' value; so does the cutting tool."""
+        A pose nearest to an end of the axis (its rim) keeps the points' value; so does the cutting tool.
+        With ``reach`` (the poses were measured against every triangle as far as that), the triangles
+        looked at are those whose boxes are within the measured clearance of the side, not only the
+        ones within :attr:`near`: a side 8 mm clear is as exact as one 1 mm clear."""
         radius, z0, z1 = (float(v) for v in self.cylinders[b])
         todo = np.flatnonzero((measured > 0.0) & ~(self.cutting[rows] & (b == 0)))
         if z1 <= z0 or not len(todo):
             return measured
-        near = [self.triangles_near(int(rows[k]), b) for k in todo.tolist()]
+        if reach is None:
+            near = [self.triangles_near(int(rows[k]), b) for k in todo.tolist()]
+        else:
+            ends = np.stack([self.tip[rows[todo]] + z * self.axis[rows[todo]] for z in (z0, z1)])
+            near = [np.zeros(0, dtype=np.int64) for _ in todo]
+            look = np.minimum(measured[todo], reach) + radius
+            for query, tri_ in self.part.index.pairs_near(ends.min(axis=0), ends.max(axis=0), look):
+                for k in np.unique(query).tolist():
+                    near[k] = np.concatenate([near[k], tri_[query == k]])
         count = np.array([len(t) for t in near])
         if not count.sum():
             return measured
