@@ -473,6 +473,22 @@ def test_a_cl_file_given_as_a_program_says_to_convert_it(tmp_path: Path, command
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cam.cls"]
 
 
+@pytest.mark.parametrize("command", ["verify", "preview"])
+def test_a_five_axis_cam_program_given_as_a_program_says_to_convert_it_with_a_source(tmp_path: Path,
+                                                                                   command: str) -> None:
+    """It said "cam.ngc:2: not G-code: cannot read 'M428 ;TCP:xyzac' as words" (the corpus's LinuxCNC xyzac
+    programs), or named the first A/B/C word as an unknown axis: the next step is convert with --source."""
+    source = tmp_path / "cam.ngc"
+    source.write_text("%\nM428 ;TCP:xyzac\nG21 G90\nG0 X0 Y0 Z10 A0 C0\nG1 Z0 A10 F100\nM2\n%\n")
+    result = invoke(command, str(source), *(["-o", str(tmp_path / "p.png")] if command == "preview" else []))
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == (f"prs3-post: error: {source}: 5-axis CAM output (it turns rotary axes: A, B or C words), "
+                             "not a program for this machine: convert it first with the source machine it was written "
+                             f"for (prs3-post convert {source} --source NAME -o PROGRAM.ngc; prs3-post sources lists "
+                             f"them), then give the program, with --against {source} to compare them\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cam.ngc"]
+
+
 @pytest.mark.parametrize(("text", "line", "column"), [
     ("G21 G90\rG0 X0\rM2\r", 1, 8),                       # CR-only line ends: one long line
     ("G21 G90\nG0 X0 Y0 U0 V100\r W0\nM2\n", 2, 17),

@@ -40,6 +40,33 @@ def is_cl_file(path: str) -> bool:
         return False
 
 
+def is_five_axis_cam(path: str) -> bool:
+    """Whether ``path`` is G-code without a prs3-post header whose first lines turn a rotary axis (A, B or
+    C words): 5-axis CAM output, to be converted with ``--source``, not a program for this machine. A file
+    that cannot be read is not (the program reader names its problem)."""
+    from prs3_post.core.input_files import open_input
+    from prs3_post.readers.detect import DETECT_BYTES, detect_format
+    from prs3_post.readers.gcode.bulk import refuse_rotary
+
+    try:
+        with open_input(path, "a file") as stream:
+            head = stream.read(max(DETECT_BYTES, _CAM_HEAD_BYTES))
+    except (InputError, OSError):
+        return False
+    if detect_format(head[:DETECT_BYTES]) != "gcode" or b"(program: prs3-post" in head:
+        return False
+    for number, line in enumerate(head.decode("utf-8", "replace").splitlines()[:-1], start=1):
+        try:
+            refuse_rotary(line, number, path)
+        except InputError:
+            return True
+    return False
+
+
+#: Bytes of a header-less program looked at for rotary words (a CAM program's first moves).
+_CAM_HEAD_BYTES = 65536
+
+
 def is_converted(header: ProgramHeader | SourceHeader | None) -> bool:
     """Whether a program's header is that of a program converted from CAM input (``prs3-post convert``)."""
     from prs3_post.emit.header import SourceHeader

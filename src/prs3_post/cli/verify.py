@@ -129,15 +129,21 @@ def _refuse_auto(part_origin: tuple[float, ...] | str | None, part_rotation: flo
                                      "setup its header states (or the one given as numbers)", param_hint=f"'{flag}'")
 
 
-def _refuse_cl_file(path: str) -> None:
+def _refuse_cl_file(path: str, dialect_given: bool = False) -> None:
     """CAM output given where a program for this machine goes (verify, preview): say so, not 'not G-code'.
-    Only a file that starts as an APT CL file does; any other problem is the program reader's to name."""
-    from prs3_post.app.verify_inputs import is_cl_file
+    Only a file that starts as an APT CL file, or (with the default dialect, whose axes have no A, B or C)
+    header-less G-code with rotary words, does; any other problem is the program reader's to name."""
+    from prs3_post.app.verify_inputs import is_cl_file, is_five_axis_cam
 
     if is_cl_file(path):
         raise InputError(f"an APT CL file (CAM output), not a program for this machine: convert it first "
                          f"(prs3-post convert {path} -o PROGRAM.ngc), then give the program, with --against {path} to "
                          "compare them", path=path)
+    if not dialect_given and is_five_axis_cam(path):
+        raise InputError(f"5-axis CAM output (it turns rotary axes: A, B or C words), not a program for this "
+                         f"machine: convert it first with the source machine it was written for (prs3-post convert "
+                         f"{path} --source NAME -o PROGRAM.ngc; prs3-post sources lists them), then give the program, "
+                         f"with --against {path} to compare them", path=path)
 
 
 #: The operation's keys a program's header records, in the order a contradiction names them.
@@ -296,7 +302,7 @@ def verify(program_path: str, part_path: str | None, against_path: str | None, a
     def body() -> int:
         ctx = click.get_current_context()
         part, against = _part_and_against(part_path, against_path)
-        _refuse_cl_file(program_path)
+        _refuse_cl_file(program_path, was_given(ctx, "dialect_name"))
         require_tolerance(opts["tolerance"])
         if not (math.isfinite(axis_tolerance_deg) and axis_tolerance_deg >= 0):
             raise click.BadParameter(f"must be a number ≥ 0 degrees, got {axis_tolerance_deg:g}",
@@ -427,7 +433,7 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
         ctx = click.get_current_context()
         fmt = image_format(out_path, "'-o' / '--output'")
         require_plotting()
-        _refuse_cl_file(program_path)
+        _refuse_cl_file(program_path, was_given(ctx, "dialect_name"))
         with timed("read"):
             context = _open_program(ctx, program_path, machine_name, dialect_name, part_origin, part_rotation,
                                     open_program)
