@@ -245,6 +245,17 @@ def test_output_folder_that_cannot_be_made(tmp_path: Path) -> None:
     assert stderr == f"prs3-post: error: {blocker / 'out'}: cannot create the output folder: Not a directory\n"
 
 
+def test_an_empty_output_folder_name_is_named(tmp_path: Path) -> None:
+    """It said "prs3-post: error: : cannot create the output folder: No such file or directory"."""
+    src = tmp_path / "a.cls"
+    src.write_text("RAPID\nGOTO/0,0,0\n")
+    code, stdout, stderr = _cli(tmp_path, str(src), "-d", "")
+    assert (code, stdout) == (2, "")
+    assert stderr == ("prs3-post: error: '': the output folder's name is empty: give the folder the programs go to "
+                      "(e.g. -d out)\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.cls"]
+
+
 def test_an_output_folder_on_a_read_only_file_system_says_so(tmp_path: Path,
                                                               monkeypatch: pytest.MonkeyPatch) -> None:
     """Not "permission denied" (root may write anywhere but there): the file system is read-only."""
