@@ -104,3 +104,13 @@ def test_a_head_described_leg_by_leg(tmp_path: Path) -> None:
     # no [[legs]] at all: the ideal head, solved by the general kinematics
     path.write_text(text)
     assert load_machine(str(path)).geometry.general == general_from_ideal(partial)
+
+
+def test_a_bool_where_a_number_goes_is_spelled_as_toml_spells_it(tmp_path):
+    """It said "legs[3].link_length_mm: expected a number in mm, got True" (Python's spelling)."""
+    text = (Path(__file__).resolve().parents[2] / "fixtures" / "machines" / "patel2020-as-built.toml").read_text()
+    path = tmp_path / "bool.toml"
+    path.write_text(text.replace("link_length_mm = 481.8", "link_length_mm = true", 1))
+    with pytest.raises(ConfigError) as error:
+        load_machine(str(path))
+    assert str(error.value).endswith("link_length_mm: expected a number in mm, got true")

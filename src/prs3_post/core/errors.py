@@ -31,9 +31,13 @@ def quoted(value: object, limit: int = ECHO_LIMIT) -> str:
     """A value from the user's input for a message: ``repr``, cut to ``limit`` characters plus ``…``, so that a
     10,000-character TOML string or header line is not printed back in full.
 
-    >>> quoted("G0 X1"), quoted("x" * 50), quoted([1.5, "a" * 60], limit=12)
-    ("'G0 X1'", "'xxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxx…'", "[1.5, 'aaaa…")
+    A bool is spelled as the TOML and JSON files it comes from spell it (``true``, not ``True``).
+
+    >>> quoted("G0 X1"), quoted("x" * 50), quoted([1.5, "a" * 60], limit=12), quoted(True)
+    ("'G0 X1'", "'xxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxx…'", "[1.5, 'aaaa…", 'true')
     """
+    if isinstance(value, bool):
+        return "true" if value else "false"
     return repr(shortened(value, limit)) if isinstance(value, str) else shortened(repr(value), limit)
 
 
