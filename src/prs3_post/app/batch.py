@@ -186,11 +186,12 @@ def prepare_outdir(outdir: str) -> None:
     Raises
     ------
     InputError
-        ``the output folder's name is empty``, ``cannot create the output folder: <reason>``, ``is not a folder``, or ``cannot write in the
-        output folder: permission denied`` (or ``read-only file system``).
+        ``the output folder's name is empty``, ``cannot create the output folder: <reason>``, ``is not a
+        folder``, or ``cannot write in the output folder: permission denied`` (or ``read-only file system``).
     """
     if not outdir:
-        raise InputError("the output folder's name is empty: give the folder the programs go to (e.g. -d out)", path="''")
+        raise InputError("the output folder's name is empty: give the folder the programs go to (e.g. -d out)",
+                         path="''")
     try:
         os.makedirs(outdir, exist_ok=True)
     except OSError as exc:

@@ -44,9 +44,11 @@ def is_five_axis_cam(path: str) -> bool:
     """Whether ``path`` is G-code without a prs3-post header whose first lines turn a rotary axis (A, B or
     C words): 5-axis CAM output, to be converted with ``--source``, not a program for this machine. A file
     that cannot be read is not (the program reader names its problem)."""
+    from prs3_post.core.errors import LexError
     from prs3_post.core.input_files import open_input
+    from prs3_post.core.lexer import split_comments
     from prs3_post.readers.detect import DETECT_BYTES, detect_format
-    from prs3_post.readers.gcode.bulk import refuse_rotary
+    from prs3_post.readers.gcode.words import ROTARY
 
     try:
         with open_input(path, "a file") as stream:
@@ -55,10 +57,12 @@ def is_five_axis_cam(path: str) -> bool:
         return False
     if detect_format(head[:DETECT_BYTES]) != "gcode" or b"(program: prs3-post" in head:
         return False
-    for number, line in enumerate(head.decode("utf-8", "replace").splitlines()[:-1], start=1):
+    for line in head.decode("utf-8", "replace").splitlines()[:-1]:
         try:
-            refuse_rotary(line, number, path)
-        except InputError:
+            code, _ = split_comments(line)
+        except LexError:
+            continue                                     # the program reader names what is wrong there
+        if ROTARY.search(code):
             return True
     return False
 
