@@ -175,7 +175,8 @@ def test_verify_can_be_asked_not_to_measure_the_clearance(wall_programs):
 
 def test_preview_on_the_part_marks_the_closest_approach_where_verify_finds_it(wall_programs):
     pytest.importorskip("matplotlib")
-    from prs3_post.app.verify import header_job, open_program, preview_figure, rebuild_job
+    from prs3_post.app.preview import preview_figure
+    from prs3_post.app.verify import header_job, open_program, rebuild_job
     from prs3_post.part.faces import find_faces, select_face
     from prs3_post.part.stl import load_part
 

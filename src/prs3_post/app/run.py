@@ -84,8 +84,8 @@ def job_json(job: JobProgram, specs: tuple[JobSpec, ...], path: str, text: str) 
 
 def job_preview(job: JobProgram, specs: tuple[JobSpec, ...], fmt: str, *, text: str, path: str, title: str) -> bytes:
     """The picture of a checked job's program (``text``, read back as the controller reads it) on its
-    part and (first) face, as ``png`` or ``svg`` bytes (:func:`~prs3_post.app.verify.preview_bytes`)."""
-    from prs3_post.app.verify import preview_bytes
+    part and (first) face, as ``png`` or ``svg`` bytes (:func:`~prs3_post.app.preview.preview_bytes`)."""
+    from prs3_post.app.preview import preview_bytes
     from prs3_post.readers.program import read_program
 
     first = specs[0]

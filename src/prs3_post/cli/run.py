@@ -234,7 +234,7 @@ def _run_job(part: str, **opts: Any) -> int:
         specs = job_specs_of(part, opts, given=given_options())
     fmt = image_format(opts["preview_path"], "'--preview'") if opts["preview_path"] else None
     if fmt is not None:
-        from prs3_post.app.verify import require_plotting
+        from prs3_post.app.preview import require_plotting
 
         require_plotting()
     with timed("post and check"):
@@ -451,7 +451,7 @@ def job(job_path: str, out_path: str | None, machine_name: str, part_origin: tup
             specs = _job_specs(job_file, overrides)
         fmt = image_format(preview_path, "'--preview'") if preview_path else None
         if fmt is not None:
-            from prs3_post.app.verify import require_plotting
+            from prs3_post.app.preview import require_plotting
 
             require_plotting()
         try:

@@ -417,16 +417,8 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
       prs3-post preview sq.ngc --part postproc/parts/patel2020-wedge.stl -o sq.png
       prs3-post demo --profile round -o round.ngc --preview round.svg
     """
-    from prs3_post.app.verify import (
-        HeaderConflict,
-        check_part,
-        header_job,
-        open_program,
-        preview_bytes,
-        rebuild_job,
-        require_plotting,
-        tool_lengths_of,
-    )
+    from prs3_post.app.preview import preview_bytes, require_plotting
+    from prs3_post.app.verify import HeaderConflict, check_part, header_job, open_program, rebuild_job, tool_lengths_of
     from prs3_post.app.verify_inputs import header_contradictions, part_drawing, recorded_part
 
     def body() -> int:

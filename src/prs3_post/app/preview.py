@@ -1,0 +1,102 @@
+"""The `preview` job: a program replayed through forward kinematics and drawn as one picture.
+
+    ProgramFile + machine, setup (app.verify.open_program) ──► verify_loaded ──► check.preview ──► PNG / SVG bytes
+                                     └── the job it was made by (app.verify.rebuild_job) ──► closest approach
+
+matplotlib is optional: :func:`require_plotting` refuses a picture before any work is done for it.
+No I/O beyond the readers; messages do not name command-line flags (the CLI adds them).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from prs3_post.app.verify import PartClearance, RebuiltJob, verify_loaded, with_clearance
+from prs3_post.core.defaults import DEFAULT_TOLERANCE
+from prs3_post.core.types import FloatArray, Progress
+from prs3_post.machine.loading import Dialect, Machine
+from prs3_post.part.face import Face
+from prs3_post.part.setup_transform import Setup
+from prs3_post.readers.program import ProgramFile
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from prs3_post.check.collision import Approach
+
+__all__ = ["closest_mark", "preview_bytes", "preview_figure", "require_plotting"]
+
+
+def require_plotting() -> None:
+    """Refuse a picture (``preview``, ``--preview``) before any work is done for it, when matplotlib cannot
+    be imported.
+
+    Raises
+    ------
+    MissingDependency
+        Giving the command that installs it.
+    """
+    from prs3_post.check.preview import require_matplotlib
+
+    require_matplotlib()
+
+
+def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str, *,
+                  dialect: Dialect, tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None,
+                  face: Face | None = None, title: str = "", rapid_rate: float,
+                  tool_lengths: dict[int, float] | None = None, rebuilt: RebuiltJob | None = None,
+                  closest: Approach | None = None, progress: Progress | None = None) -> bytes:
+    """Replay a read program and draw it as ``png`` or ``svg`` bytes (:func:`preview_figure`; ``progress``:
+    told the rows replayed, before the drawing)."""
+    from prs3_post.check.preview import figure_bytes
+
+    return figure_bytes(preview_figure(program, machine, setup, dialect=dialect, tolerance=tolerance, mesh=mesh,
+                                       face=face, title=title, rapid_rate=rapid_rate, tool_lengths=tool_lengths,
+                                       rebuilt=rebuilt, closest=closest, progress=progress), fmt)
+
+
+def preview_figure(program: ProgramFile, machine: Machine, setup: Setup, *, dialect: Dialect,
+                   tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None, face: Face | None = None,
+                   title: str = "", rapid_rate: float, tool_lengths: dict[int, float] | None = None,
+                   rebuilt: RebuiltJob | None = None, closest: Approach | None = None,
+                   progress: Progress | None = None) -> Figure:
+    """Replay a read program and draw it (matplotlib is imported here); ``tool_lengths`` as
+    :func:`~prs3_post.check.verify.verify_program`. With the job it was made by (``rebuilt``) and a machine
+    with ``[holder]``, the body that comes closest to the part (:func:`part_clearance`, relative to
+    its clearance min) is marked where it does, with its clearance and line; or, from the check that
+    made the program (the main job's, :attr:`~prs3_post.app.job.JobProgram.closest`), where ``closest``
+    says (its row is the program's move: the mark names that move's line)."""
+    from prs3_post.check.preview import render_preview
+
+    # against the job's path, as `verify --against` replays it: the same samples, the same closest approach
+    report = verify_loaded(program, machine, setup, dialect, tolerance=tolerance, tool_lengths=tool_lengths,
+                           intended=None if rebuilt is None else rebuilt.intended, progress=progress)
+    mark = None
+    if rebuilt is not None:
+        report, found = with_clearance(report, machine, rebuilt)
+        mark = None if isinstance(found, str) else closest_mark(found)
+    elif closest is not None:                          # the check made it already: its minimum, not measured again
+        mark = (closest.point, closest.label(int(program.moves.source[closest.row])), False)
+    label = "face" if face is None else f"face {face.index} ({math.degrees(face.inclination):.2f}°)"
+    heading = f"{title}: " if title else ""
+    return render_preview(
+        report, machine, mesh=mesh, face_triangles=None if face is None else face.triangles, face_label=label,
+        title=f"{heading}{Path(program.path).name}, machine {machine.name}, {len(program.moves)} moves "
+              f"({'ok' if report.ok else f'{len(report.problems)} problem' + 's' * (len(report.problems) > 1)})",
+        rapid_rate=rapid_rate, closest=mark,
+    )
+
+
+def closest_mark(found: PartClearance) -> tuple[FloatArray, str, bool] | None:
+    """Where the preview marks the closest approach (part frame, mm), its label, and whether it is a
+    collision (closer than the clearance min); None: no body near the part at any pose."""
+    from prs3_post.check.collision import approach_label
+
+    b = found.worst()
+    if not found.line[b]:
+        return None
+    d, asked = float(found.distance[b]), float(found.clearance_min[b])
+    return (found.point[b].copy(), approach_label(b, d, bool(found.exact[b]), int(found.line[b])), d < asked)
+
