@@ -10,12 +10,18 @@ No I/O beyond the readers; messages do not name command-line flags (the CLI adds
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from prs3_post.app.verify import PartClearance, RebuiltJob, verify_loaded, with_clearance
+from prs3_post.check.timeline import Mark, MarkKind
 from prs3_post.core.defaults import DEFAULT_TOLERANCE
+from prs3_post.core.toolpath import EventKind
 from prs3_post.core.types import FloatArray, Progress
+from prs3_post.emit.header import ProgramHeader, SourceHeader
 from prs3_post.machine.loading import Dialect, Machine
 from prs3_post.part.face import Face
 from prs3_post.part.setup_transform import Setup
@@ -26,7 +32,7 @@ if TYPE_CHECKING:
 
     from prs3_post.check.collision import Approach
 
-__all__ = ["closest_mark", "preview_bytes", "preview_figure", "require_plotting"]
+__all__ = ["closest_mark", "preview_bytes", "preview_figure", "program_marks", "require_plotting"]
 
 
 def require_plotting() -> None:
@@ -100,3 +106,63 @@ def closest_mark(found: PartClearance) -> tuple[FloatArray, str, bool] | None:
     d, asked = float(found.distance[b]), float(found.clearance_min[b])
     return (found.point[b].copy(), approach_label(b, d, bool(found.exact[b]), int(found.line[b])), d < asked)
 
+
+_M6 = re.compile(r"(?<![A-Z0-9.])M0*6(?![0-9.])", re.IGNORECASE)
+_TITLE = re.compile(r"\bon face (\d+):", re.IGNORECASE)
+
+
+def program_marks(program: ProgramFile, header: ProgramHeader | SourceHeader | None,
+                  dialect: Dialect) -> tuple[Mark, ...]:
+    """Where a program's tool changes and operations begin, as its text shows them (for
+    :func:`~prs3_post.check.timeline.timeline_of`).
+
+    A tool change is the M6 line of each tool change the reader found, labelled ``T2`` and the comment
+    on the line before it (the emitter writes the tool there: ``T2 D8.000 mm tool``). An operation of a
+    main job or job file (the header's operations, or its one) begins at its title comment, the one
+    the toolpath starts with (``drill 2 holes D6.000 on face 5: ...``, labelled up to its colon),
+    found among the lines before each tool change or spindle start, in order; in any other program
+    (converted, or without a header) each tool change begins one. Lines between two moves only are
+    read: a long program costs no scan of its text.
+    """
+    moves, lines = program.moves, program.lines
+    n = len(moves)
+    style = dialect.comments
+
+    def gap(row: int) -> range:                        # the lines between the move before ``row`` and its own
+        low = int(moves.source[row - 1]) + 1 if row > 0 else 1
+        high = int(moves.source[row]) if row < n else len(lines) + 1
+        return range(low, high)
+
+    def comment(line: int) -> str | None:              # a line holding one comment only: its text
+        text = lines[line - 1].strip()
+        if text.startswith(style.open) and text.endswith(style.close) and len(text) >= 2:
+            return text[len(style.open):len(text) - len(style.close)].strip()
+        return None
+
+    tools: list[Mark] = []
+    for event in moves.events:
+        if event.kind is not EventKind.TOOL_CHANGE:
+            continue
+        found = [ln for ln in gap(event.before) if _M6.search(lines[ln - 1].split(style.open)[0])]
+        line = found[0] if found else int(moves.source[min(event.before, n - 1)])
+        before = comment(line - 1) if line > 1 else None
+        label = f"T{int(event.value)}" + (f" {before}" if before else "")
+        tools.append(Mark(row=event.before, line=line, kind=MarkKind.TOOL_CHANGE, label=label))
+    if not isinstance(header, ProgramHeader):
+        return tuple(tools) + tuple(Mark(m.row, m.line, MarkKind.OPERATION, m.label) for m in tools)
+    faces = [record.face_index for record in header.operations] or [header.face_index]
+    starts = sorted({e.before for e in moves.events if e.kind in (EventKind.TOOL_CHANGE, EventKind.SPINDLE_ON,
+                                                                  EventKind.SPINDLE_ON_CCW)})
+    titles = [(ln, text) for row in starts for ln in gap(row) if (text := comment(ln)) is not None
+              and _TITLE.search(text)]
+    operations: list[Mark] = []
+    for number, face in enumerate(faces, start=1):
+        after = operations[-1].line if operations else 0
+        title = next(((ln, text) for ln, text in titles
+                      if ln > after and int(_TITLE.search(text).group(1)) == face), None)  # type: ignore[union-attr]
+        if title is None:                              # not this program's text: the tool changes say it
+            return tuple(tools) + tuple(Mark(m.row, m.line, MarkKind.OPERATION, m.label) for m in tools)
+        line, text = title
+        operations.append(Mark(row=int(np.searchsorted(moves.source, line, side="right")), line=line,
+                               kind=MarkKind.OPERATION, label=text.split(":")[0] or f"operation {number}"))
+    return tuple(tools) + tuple(operations)
