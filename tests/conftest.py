@@ -18,6 +18,7 @@ REPO = Path(__file__).resolve().parents[1]
 FIXTURES = REPO / "fixtures"
 SHARED = REPO.parent / "shared"
 RS274_CHECK = REPO / "scripts" / "rs274-check"       # LinuxCNC's interpreter, with the axes named
+CHROMIUM = Path("/usr/bin/chromium")                  # Debian's chromium (apt), driven by Playwright
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -82,3 +83,35 @@ def rs274_check():
         return done.returncode, done.stdout + done.stderr
 
     return check
+
+
+def chromium_available() -> tuple[bool, str]:
+    """Whether a real browser can run here (Debian's chromium, and Playwright to drive it), and why not."""
+    if not CHROMIUM.exists():
+        return False, f"{CHROMIUM} not found (apt-get install --no-install-recommends chromium)"
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ImportError:
+        return False, "playwright is not installed (pip install -e '.[test]')"
+    return True, ""
+
+
+@pytest.fixture(scope="session")
+def chromium():
+    """A headless chromium (Playwright's Browser), WebGL through SwiftShader; never ``playwright install``.
+
+    Skips where chromium or Playwright is missing, except in CI (CI set), where that is a failure.
+    """
+    ok, why = chromium_available()
+    if not ok:
+        if os.environ.get("CI"):
+            pytest.fail(f"the browser tests must run in CI: {why}")
+        pytest.skip(f"no browser: {why}")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as driver:
+        # --no-sandbox: chromium refuses to start as root without it (CI containers run as root)
+        browser = driver.chromium.launch(executable_path=str(CHROMIUM), args=[
+            "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"])
+        yield browser
+        browser.close()

@@ -455,11 +455,13 @@ def verbosity_options(func: Callable[..., Any]) -> Callable[..., Any]:
                              "command prints on standard output is unchanged.")(func)
 
 
-def image_format(path: str, flag: str) -> str:
-    """``png`` or ``svg`` from an output file's suffix; ``flag`` names the option in the error."""
+def image_format(path: str, flag: str, suffixes: tuple[str, ...] = (".png", ".svg"), *, what: str = "image") -> str:
+    """``png`` or ``svg`` (or another of ``suffixes``, without its dot) from an output file's suffix;
+    ``flag`` names the option in the error, ``what`` the file."""
     suffix = Path(path).suffix.lower()
-    if suffix not in (".png", ".svg"):
-        raise click.BadParameter(f"the image must end in .png or .svg, got {path!r}", param_hint=flag)
+    if suffix not in suffixes:
+        listed = " or ".join([", ".join(suffixes[:-1]), suffixes[-1]] if len(suffixes) > 1 else suffixes)
+        raise click.BadParameter(f"the {what} must end in {listed}, got {path!r}", param_hint=flag)
     return suffix[1:]
 
 

@@ -378,10 +378,12 @@ def _part_and_against(part: str | None, against: str | None) -> tuple[str | None
 @click.command(cls=Command, aliases=PART_UNITS_ALIAS)
 @click.argument("program_path", type=click.Path(dir_okay=False), metavar="PROGRAM.ngc")
 @click.option("-o", "--output", "out_path", type=OutputPath(), required=True,
-              metavar="OUT.png|OUT.svg",
-              help="Image file (PNG or SVG by suffix; written to a temp file, then renamed).")
+              metavar="OUT.png|OUT.svg|OUT.html",
+              help="Image file (PNG or SVG), or the interactive HTML view, by suffix; written to a temp file, "
+                   "then renamed.")
 @click.option("--part", "part_path", type=click.Path(dir_okay=False), metavar="PART.stl",
-              help="Draw the part (part coordinates) and highlight its face (--face).")
+              help="Draw the part (part coordinates) and highlight its face (--face). The HTML view finds the "
+                   "part a program's header names by itself (beside the program, here, or shipped).")
 @click.option("--face", "face_choice", default="auto", show_default=True, metavar="auto|N",
               help="Face to highlight: auto = the main job's automatic choice; N = index from `prs3-post faces`.")
 @part_units_option("Length unit of the --part STL.")
@@ -411,20 +413,29 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
     header when it has one; an option that says otherwise is an error.
     `prs3-post PART.stl ... --preview OUT.png` makes a program and its picture in one step.
 
+    -o OUT.html writes one self-contained page instead (plotly embedded: it opens offline, by
+    double-click): the machine drawn by forward kinematics at the slider's line over the part, its
+    faces and the tool path by operation, a play button, and every limit over time with its bounds.
+    Needs plotly: pip install 'prs3-post[plot]'. A long program is decimated (the extremes kept).
+
     \b
     Examples:
       prs3-post demo --profile square -o sq.ngc
       prs3-post preview sq.ngc --part postproc/parts/patel2020-wedge.stl -o sq.png
+      prs3-post preview sq.ngc -o sq.html
       prs3-post demo --profile round -o round.ngc --preview round.svg
     """
     from prs3_post.app.preview import preview_bytes, require_plotting
+    from prs3_post.app.preview_html import PREVIEW_SUFFIXES, header_part, require_view, view_html, view_part
     from prs3_post.app.verify import HeaderConflict, check_part, header_job, open_program, rebuild_job, tool_lengths_of
     from prs3_post.app.verify_inputs import header_contradictions, part_drawing, recorded_part
 
     def body() -> int:
         ctx = click.get_current_context()
-        fmt = image_format(out_path, "'-o' / '--output'")
-        require_plotting()
+        fmt = image_format(out_path, "'-o' / '--output'", tuple(PREVIEW_SUFFIXES), what="preview")
+        html = fmt == "html"
+        part = part_path
+        require_view() if html else require_plotting()
         _refuse_cl_file(program_path, was_given(ctx, "dialect_name"))
         with timed("read"):
             context = _open_program(ctx, program_path, machine_name, dialect_name, part_origin, part_rotation,
@@ -436,12 +447,19 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
                                      "time (each axis's top speed); leave it out", param_hint="'--rapid-rate'")
         mesh = face = None
         rebuilt: RebuiltJob | None = None
-        if part_path is not None:
+        if part is None and html:                 # the part its header names, when it is at hand
+            part, named = header_part(program_path, context.header)
+            if part is not None:
+                detail(f"the part: {part} (the header's)")
+            elif named:
+                note(f"the part the header names ({named}) is not beside the program, here or among the shipped "
+                     "parts: the view has no part (give it with --part)")
+        if part is not None:
             choice, part_units, part_up = face_index(face_choice), units, up
             header = context.header
             if header is not None:                     # the part as the program was made from it
                 try:
-                    check_part(header, part_path)
+                    check_part(header, part)
                 except HeaderConflict as error:
                     raise InputError(f"--part: {error.args[0]}", path=error.path, line=error.line) from error
                 recorded = recorded_part(header)       # check_part refuses a converted program's header
@@ -450,14 +468,25 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
                 _refuse_header_contradictions(header_contradictions(recorded, given))
                 choice, part_units, part_up = recorded["face"], recorded["units"], recorded["up"]
                 # the job it was made by: where its tool, holder and nose come closest to the part
-                rebuilt = rebuild_job(header_job(context, part_path)) if context.machine.holder is not None else None
+                # (and, for the HTML view, every operation's face)
+                rebuilt = (rebuild_job(header_job(context, part))
+                           if context.machine.holder is not None or html else None)
             with timed("the part"):
-                mesh, face = part_drawing(part_path, choice, units=part_units, up=part_up)
+                mesh, face = part_drawing(part, choice, units=part_units, up=part_up)
+        if html:
+            with timed("replay and draw"), ProgressBar("replaying", after="drawing", enabled=_bar_shown()) as bar:
+                page = view_html(context.program, context.machine, context.setup, dialect=context.dialect,
+                                 header=context.header,
+                                 part=None if mesh is None else view_part(mesh, face, rebuilt), rapid_rate=rapid_rate,
+                                 tool_lengths=tool_lengths_of(context.header), rebuilt=rebuilt, progress=bar)
+            write_atomic(out_path, page)
+            say(f"wrote {out_path}")
+            return 0
         with timed("replay and draw"), ProgressBar("replaying", after="drawing", enabled=_bar_shown()) as bar:
             image = preview_bytes(context.program, context.machine, context.setup, fmt, dialect=context.dialect,
                                   mesh=mesh, face=face, rapid_rate=rapid_rate,
                                   tool_lengths=tool_lengths_of(context.header),
-                                  title=Path(part_path).name if part_path else "", rebuilt=rebuilt, progress=bar)
+                                  title=Path(part).name if part else "", rebuilt=rebuilt, progress=bar)
         write_atomic(out_path, image)
         say(f"wrote {out_path}")
         return 0
