@@ -151,7 +151,8 @@ def test_preview_refuses_other_image_types_and_bad_programs(tmp_path):
     result = run("preview", VERIFY / "small.ngc", "-o", tmp_path / "p.jpg")
     assert result.exit_code == 2
     assert result.output.splitlines()[-1] == (
-        f"Error: Invalid value for '-o' / '--output': the image must end in .png or .svg, got '{tmp_path / 'p.jpg'}'")
+        f"Error: Invalid value for '-o' / '--output': the preview must end in .png, .svg or .html, "
+        f"got '{tmp_path / 'p.jpg'}'")
     result = run("demo", "--profile", "hole", "-o", tmp_path / "p.ngc", "--preview", tmp_path / "p.txt")
     assert result.exit_code == 2                       # both named '-o' / '--preview': the main job's -o is the program
     assert result.output.splitlines()[-1] == (
