@@ -5,7 +5,6 @@ from __future__ import annotations
 import io
 import json
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,7 +15,6 @@ from prs3_post.app.verify import open_program
 from prs3_post.check.html_view import (
     MACHINE_PIECES,
     PART_COLOUR,
-    MachineFrames,
     Stops,
     ViewData,
     machine_frames,

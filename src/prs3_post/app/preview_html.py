@@ -250,10 +250,16 @@ def view_html(program: ProgramFile, machine: Machine, setup: Setup, *, dialect: 
     """
 
     require_plotly()
+    # a program edited after it was made (other moves than its header's job): its faces are drawn, the
+    # job's path and clearance do not apply
+    matched = rebuilt is not None and len(rebuilt.result.post.program) == len(program.moves)
+    if rebuilt is not None and not matched:
+        notes += (f"the program has {len(program.moves)} moves, the job its header records "
+                  f"{len(rebuilt.result.post.program)}: its faces are drawn, the closest approach is not measured",)
     report = verify_loaded(program, machine, setup, dialect, tolerance=tolerance, tool_lengths=tool_lengths,
-                           intended=None if rebuilt is None else rebuilt.intended, progress=progress)
+                           intended=rebuilt.intended if rebuilt is not None and matched else None, progress=progress)
     mark = None
-    if rebuilt is not None:
+    if rebuilt is not None and matched:
         report, found = with_clearance(report, machine, rebuilt)
         mark = None if isinstance(found, str) else closest_mark(found)
     elif closest is not None:

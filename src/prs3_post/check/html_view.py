@@ -40,8 +40,8 @@ from prs3_post.check.machine_pose import MachinePose
 from prs3_post.core.errors import MissingDependency
 from prs3_post.core.types import FloatArray, IntArray
 
-__all__ = ["MACHINE_PIECES", "NO_PLOTLY", "PART_COLOUR", "Boundary", "Limit", "MachineFrames", "Marker", "PathTrace", "Series",
-           "Stops", "Surface", "TimePanel", "ViewData", "machine_frames", "render_view", "require_plotly",
+__all__ = ["MACHINE_PIECES", "NO_PLOTLY", "PART_COLOUR", "Boundary", "Limit", "MachineFrames", "Marker", "PathTrace",
+           "Series", "Stops", "Surface", "TimePanel", "ViewData", "machine_frames", "render_view", "require_plotly",
            "surface_from_triangles"]
 
 #: What the HTML view says without plotly (exit status 2).
@@ -350,11 +350,13 @@ def _plots(data: ViewData) -> tuple[list[dict[str, Any]], dict[str, Any]]:
                                     "zeroline": False}
         layout[f"xaxis{suffix}"] = {"anchor": f"y{suffix}", "showticklabels": p == count - 1,
                                     **({"matches": "x"} if p else {})}
+        # the title at the right: the boundaries' labels are written above the left of the first panel
         layout["annotations"].append({"text": f"<b>{html.escape(panel.title)}</b>", "xref": "paper",
-                                      "yref": "paper", "x": 0.0, "y": top, "xanchor": "left", "yanchor": "bottom",
+                                      "yref": "paper", "x": 1.0, "y": top, "xanchor": "right", "yanchor": "bottom",
                                       "showarrow": False, "font": {"size": 11}})
         for s in panel.series:
-            traces.append({"type": "scattergl" if len(time) > 20000 else "scatter", "mode": "lines", "name": s.name,
+            traces.append({"type": "scattergl" if len(time) > 20000 else "scatter", "name": s.name,
+                           "mode": "lines" if len(time) > 1 else "markers",
                            "x": _typed(time), "y": _typed(s.values), "xaxis": f"x{suffix}", "yaxis": f"y{suffix}",
                            "line": {"color": s.colour, "width": 1.3}, "connectgaps": False})
         for lim in panel.limits:                           # a trace, so that the y axis's autorange includes it
