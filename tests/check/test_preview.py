@@ -40,7 +40,7 @@ def run(*args: object):
 @pytest.fixture(scope="module")
 def drawn():
     """The small fixture program replayed and drawn on the wedge with its automatic face."""
-    from prs3_post.check.preview import render_preview
+    from prs3_post.check.preview import FaceMark, render_preview
 
     program = load_program(str(VERIFY / "small.ngc"), load_dialect("linuxcnc"))
     mesh = load_part(WEDGE)
@@ -48,7 +48,7 @@ def drawn():
     report = verify_program(MACHINE, program.moves, setup=SETUP,
                             tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE,
                             length_decimals=4, feed_decimals=4)
-    figure = render_preview(report, MACHINE, mesh=mesh.triangles, face_triangles=face.triangles, face_label="face 4",
+    figure = render_preview(report, MACHINE, mesh=mesh.triangles, faces=[FaceMark(face.triangles, "face 4", 0)],
                             rapid_rate=NOMINAL_RAPID_RATE)
     return program.moves, report, figure
 
@@ -60,41 +60,114 @@ def _pieces(data: np.ndarray) -> list[np.ndarray]:
     return [piece for piece in finite if len(piece)]
 
 
-@pytest.mark.parametrize(("label", "kind"), [("G1 (feed)", MoveKind.FEED), ("G0 (rapid)", MoveKind.RAPID)])
-def test_3d_path_is_the_fk_path_of_the_joint_interpolation(drawn, label, kind):
-    """Each move's piece is FK of (1 - t) q_a + t q_b at evenly spaced t, in part coordinates (1e-9 mm)."""
+def _limit_lines(ax) -> list[tuple[str, str, float]]:
+    """The horizontal lines across a plot (axhline: x 0..1 of the axes): label, colour, y."""
+    return [(ln.get_label(), ln.get_color(), float(ln.get_ydata()[0])) for ln in ax.get_lines()
+            if list(ln.get_xdata()) == [0, 1] and ln.get_ydata()[0] == ln.get_ydata()[1]]
+
+
+def _runs(rows: list[int]) -> list[list[int]]:
+    """Consecutive rows together."""
+    runs: list[list[int]] = []
+    for r in rows:
+        if runs and runs[-1][-1] == r - 1:
+            runs[-1].append(r)
+        else:
+            runs.append([r])
+    return runs
+
+
+@pytest.mark.parametrize(("gid", "kind"), [("feed 0", MoveKind.FEED), ("rapid 0", MoveKind.RAPID)])
+def test_3d_path_is_the_fk_path_of_the_joint_interpolation(drawn, gid, kind):
+    """Each run of moves of a kind is one piece; each move in it is FK of (1 - t) q_a + t q_b at evenly spaced
+    t, in part coordinates (1e-9 mm)."""
     moves, report, figure = drawn
-    line = next(ln for ln in figure.axes[0].get_lines() if ln.get_label() == label)
+    line = next(ln for ln in figure.axes[1].get_lines() if ln.get_gid() == gid)
     pieces = _pieces(np.column_stack(line.get_data_3d()))
     joints = np.column_stack([moves.stage, moves.strokes])
-    rows = [r for r in np.flatnonzero(moves.kind == kind).tolist() if r > 0]
-    assert len(pieces) == len(rows)
-    for r, piece in zip(rows, pieces, strict=True):
-        t = np.linspace(0.0, 1.0, len(piece))[:, None]
-        q = (1 - t) * joints[r - 1] + t * joints[r]
-        fk = forward(MACHINE.geometry, q[:, 2:], q[:, :2])
-        assert_allclose(piece, fk.tip - SETUP.shift, atol=1e-9)
-        assert len(piece) == report.replay.intervals[r] + 1   # 8 or more; 1 where the head only translates
+    runs = _runs([r for r in np.flatnonzero(moves.kind == kind).tolist() if r > 0])
+    assert len(pieces) == len(runs) >= 1
+    for run, piece in zip(runs, pieces, strict=True):
+        at = 0
+        for r in run:
+            n = report.replay.intervals[r]           # 8 or more; 1 where the head only translates
+            t = np.linspace(0.0, 1.0, n + 1)[:, None]
+            q = (1 - t) * joints[r - 1] + t * joints[r]
+            fk = forward(MACHINE.geometry, q[:, 2:], q[:, :2])
+            assert_allclose(piece[at:at + n + 1], fk.tip - SETUP.shift, atol=1e-9)
+            at += n
+        assert at + 1 == len(piece)
 
 
-def test_the_other_panels_show_program_data(drawn):
+def test_the_panels_show_program_data_with_the_limits_in_view(drawn):
+    from prs3_post.check.timeline import timeline_of
+
     moves, report, figure = drawn
-    ax3d, ax_t, ax_xy, ax_bar = figure.axes
-    assert [c.get_label() for c in ax3d.collections] == ["face 4", "start"]
-    assert [ln.get_label() for ln in ax3d.get_lines()] == ["part edges", "G1 (feed)", "G0 (rapid)", "tool axis"]
+    titles = [ax.get_title() for ax in figure.axes]
+    assert titles[1:] == [
+        "(b) tool path on the part by operation (FK replay, part coordinates)",
+        "(c) strokes T1..T3 (limits -100..400 mm)", "(d) stage X, Y (limits -300..300 mm)",
+        "(e) tool axis tilt (limits max 45°)", "(f) link angles (limits 30..85°)",
+        "(g) axis speeds, % of each axis' top speed ([dynamics]: stage 10000, strokes 5000 mm/min)",
+        "(h) closest approach to each limit"]
+    assert titles[0].startswith("(a) the machine at the worst margin: ")
+    _, ax_path, ax_t, ax_xy, ax_tilt, ax_link, ax_speed, ax_bar = figure.axes
+    assert [c.get_label() for c in ax_path.collections] == ["face 4", "start", "worst margin, line 8"]
+    timeline = timeline_of(report)
+    rep = report.replay
+    for leg, line in enumerate(ax_t.get_lines()[:3]):    # every sample at its time; each row's end: its words
+        assert line.get_label() == f"T{leg + 1}"
+        assert_allclose(line.get_xdata(), timeline.time, atol=0)
+        assert_allclose(line.get_ydata()[rep.end], moves.strokes[:, leg], atol=0)
     _start, end = row_times(moves, dynamics=MACHINE.dynamics,     # the machine's cycle time, not a nominal rate
                             rapid_rate=NOMINAL_RAPID_RATE)
-    for leg, line in enumerate(ax_t.get_lines()[:3]):
-        assert line.get_label() == f"T{leg + 1}"
-        assert_allclose(line.get_xdata()[1::2], end, atol=0)
-        assert_allclose(line.get_ydata()[1::2], moves.strokes[:, leg], atol=0)
-    assert ax_xy.get_xlabel() == "cycle time (min), the machine's [dynamics]; G0 shaded grey"
+    assert_allclose(ax_t.get_lines()[0].get_xdata()[rep.end], end, atol=1e-12)
+    limits = [(ln.get_label(), ln.get_color(), list(ln.get_ydata())) for ln in ax_t.get_lines()[3:]
+              if ln.get_color() == "#d62728" and ln.get_linestyle() == "-"]
+    assert limits == [("limit", "#d62728", [-100.0, -100.0]), ("_nolegend_", "#d62728", [400.0, 400.0])]
+    low, high = ax_t.get_ylim()
+    assert low < -100.0 and high > 400.0 and high - 400.0 == pytest.approx(0.06 * 500.0)
+    assert [y for _, _, y in _limit_lines(ax_tilt)] == pytest.approx([45.0])
+    assert [y for _, _, y in _limit_lines(ax_link)] == pytest.approx([30.0, 85.0])
+    assert [ln.get_label() for ln in ax_speed.get_lines()[:5]] == ["stage X", "stage Y", "T1", "T2", "T3"]
+    assert _limit_lines(ax_speed) == [("limit", "#d62728", 0.0), ("_nolegend_", "#d62728", 100.0)]
+    assert ax_speed.get_xlabel() == "cycle time (min), the machine's [dynamics]; G0 shaded grey"
     x_line = ax_xy.get_lines()[0]
-    assert x_line.get_label() == "X"
-    assert_allclose(x_line.get_ydata()[1::2], moves.stage[:, 0], atol=0)
+    assert x_line.get_label() == "stage X"
+    assert_allclose(x_line.get_ydata()[rep.end], moves.stage[:, 0], atol=0)
     widths = [patch.get_width() for patch in ax_bar.patches]
     assert_allclose(widths, [c.fraction_of_range for c in report.closest], atol=0)
     assert [t.get_text() for t in ax_bar.get_yticklabels()] == [c.name for c in report.closest]
+
+
+def test_the_machine_is_drawn_at_the_worst_margins_joints(drawn):
+    """Sliders, links, platform and tool of machine_pose at the worst sample's joints; the part moved by its stage."""
+    from prs3_post.check.machine_pose import machine_pose
+    from prs3_post.check.timeline import timeline_of
+
+    _, report, figure = drawn
+    timeline = timeline_of(report)
+    worst = min(report.closest, key=lambda c: c.fraction_of_range)
+    assert (timeline.worst_series, int(timeline.line[timeline.worst])) == (worst.name, worst.line) == ("T1 stroke", 8)
+    joints = report.replay.joints[timeline.worst]
+    pose = machine_pose(MACHINE, joints[2:][None], joints[:2][None])
+    ax = figure.axes[0]
+    assert figure.axes[0].get_title().replace("\n", " ") == (
+        "(a) the machine at the worst margin: T1 stroke 24.9 % of its range at line 8 (machine frame: the base "
+        "still, the part moved by the stage)")
+    by_gid = {artist.get_gid(): artist for artist in ax.get_children() if artist.get_gid()}
+    assert_allclose(np.column_stack(by_gid["sliders"]._offsets3d), pose.sliders[0], atol=1e-9)
+    for leg in range(3):
+        link = np.column_stack(by_gid[f"link {leg}"].get_data_3d())
+        assert_allclose(link, [pose.sliders[0, leg], pose.spherical[0, leg]], atol=1e-9)
+        assert_allclose(np.column_stack(by_gid[f"rail {leg}"].get_data_3d()), pose.rails[leg], atol=1e-9)
+    assert_allclose(np.column_stack(by_gid["tool tip"]._offsets3d)[0], pose.tip[0], atol=1e-9)
+    # the tip is where the replay puts it, less the stage: the part and the path move, the base stays
+    shift = np.array([joints[0], joints[1], 0.0])
+    assert_allclose(pose.tip[0], report.replay.tip[timeline.worst] - shift, atol=1e-6)
+    path = np.column_stack(by_gid["tool path"].get_data_3d())
+    assert_allclose(path, report.replay.tip - shift, atol=1e-9)
+    assert {"base", "platform", "tool", "holder", "spindle nose", "part", "table"} <= set(by_gid)
 
 
 def test_preview_png_is_a_real_picture(tmp_path):
@@ -103,9 +176,9 @@ def test_preview_png_is_a_real_picture(tmp_path):
     assert result.exit_code == 0, result.output
     assert result.output == f"prs3-post: wrote {out}\n"
     data = out.read_bytes()
-    assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) < 300_000
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) < 600_000
     image = matplotlib.image.imread(io.BytesIO(data))
-    assert image.shape == (800, 1300, 4)
+    assert image.shape == (1250, 1700, 4)
     grey = image[..., :3].mean(axis=2)
     assert grey.std() > 0.1                             # not blank: white background, dark lines, coloured areas
     colours = np.unique((image[..., :3] * 255).round().astype(np.uint8).reshape(-1, 3), axis=0)
@@ -185,24 +258,25 @@ def test_stage_panel_draws_each_axis_travel_in_its_own_colour(tmp_path):
     report = verify_program(machine, program.moves, setup=SETUP,
                             tolerance=DEFAULT_TOLERANCE, axis_tolerance=DEFAULT_ANGLE_TOLERANCE,
                             length_decimals=4, feed_decimals=4)
-    ax_xy = render_preview(report, machine, rapid_rate=NOMINAL_RAPID_RATE).axes[2]
-    x_colour, y_colour = "#9467bd", "#8c564b"
-    limit_lines = [(ln.get_label(), ln.get_color(), ln.get_linestyle(), list(ln.get_ydata()))
-                   for ln in ax_xy.get_lines()[2:]]
+    ax_xy = render_preview(report, machine, rapid_rate=NOMINAL_RAPID_RATE).axes[3]
+    x_colour, y_colour = "#1f77b4", "#ff7f0e"           # each axis' own travel in its colour, dashed
+    limit_lines = [(ln.get_label(), ln.get_color(), list(ln.get_ydata())) for ln in ax_xy.get_lines()[2:]
+                   if ln.get_color() in (x_colour, y_colour)]
     assert limit_lines == [
-        ("X travel", x_colour, ":", [-300.0, -300.0]), ("_nolegend_", x_colour, ":", [300.0, 300.0]),
-        ("Y travel", y_colour, ":", [-20.0, -20.0]), ("_nolegend_", y_colour, ":", [20.0, 20.0]),
+        ("stage X limit", x_colour, [-300.0, -300.0]), ("_nolegend_", x_colour, [300.0, 300.0]),
+        ("stage Y limit", y_colour, [-20.0, -20.0]), ("_nolegend_", y_colour, [20.0, 20.0]),
     ]
-    # beyond each axis' travel is shaded in its colour (y in data units; the bands reach 1e6 mm on)
+    # beyond each axis' travel is shaded in its colour, to the edge of the view
+    low, high = ax_xy.get_ylim()
     bands = []
     for patch in ax_xy.patches:
         y = patch.get_patch_transform().transform(patch.get_path().vertices)[:, 1]
         bands.append((to_hex(patch.get_facecolor()), float(y.min()), float(y.max())))
     beyond = [band for band in bands if band[0] in (x_colour, y_colour)]
-    assert beyond == [(x_colour, 300.0, 300.0 + 1e6), (x_colour, -300.0 - 1e6, -300.0),
-                      (y_colour, 20.0, 20.0 + 1e6), (y_colour, -20.0 - 1e6, -20.0)]
+    assert beyond == [(x_colour, low, -300.0), (x_colour, 300.0, high),
+                      (y_colour, low, -20.0), (y_colour, 20.0, high)]
     low, high = ax_xy.get_ylim()
-    assert low < -24.1429 < -20.0 < high                # the Y limit is in view, with the Y move beyond it
+    assert low < -300.0 < -24.1429 < -20.0 < 300.0 < high   # every limit in view, with the Y move beyond its own
     # out to Y −24 on line 12; line 13 comes back from there: its start is line 12's end point, reported
     # there, and the head only translates on it (stage and equal strokes), so it is sampled at its end
     assert [(p.line, p.kind) for p in report.problems] == [(12, "limit")]
@@ -214,10 +288,11 @@ def test_without_dynamics_the_time_axis_says_its_nominal_rapid_rate(drawn):
     moves, report, _ = drawn
     plain = dataclasses.replace(MACHINE, dynamics=None)
     figure = render_preview(dataclasses.replace(report, dynamics=None), plain, rapid_rate=2500.0)
-    ax_xy = figure.axes[2]
-    assert ax_xy.get_xlabel() == "program time (min), G1 1/F, G0 at 2500 mm/min (no [dynamics]); G0 shaded grey"
+    ax_speed = figure.axes[6]
+    assert ax_speed.get_xlabel() == "program time (min), G1 1/F, G0 at 2500 mm/min (no [dynamics]); G0 shaded grey"
+    assert ax_speed.get_title() == "(g) axis speeds (no [dynamics]: no top speed)"
     _start, end = row_times(moves, rapid_rate=2500.0)
-    assert_allclose(ax_xy.get_lines()[0].get_xdata()[1::2], end, atol=0)
+    assert_allclose(figure.axes[2].get_lines()[0].get_xdata()[report.replay.end], end, atol=1e-12)
     assert end[-1] != row_times(moves, dynamics=MACHINE.dynamics, rapid_rate=NOMINAL_RAPID_RATE)[1][-1]
 
 

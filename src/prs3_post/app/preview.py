@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -32,7 +33,8 @@ if TYPE_CHECKING:
 
     from prs3_post.check.collision import Approach
 
-__all__ = ["closest_mark", "preview_bytes", "preview_figure", "program_marks", "require_plotting"]
+__all__ = ["closest_mark", "preview_bytes", "preview_figure", "preview_part", "program_marks", "require_plotting",
+           "tool_diameters_of"]
 
 
 def require_plotting() -> None:
@@ -51,30 +53,34 @@ def require_plotting() -> None:
 
 def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str, *,
                   dialect: Dialect, tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None,
-                  face: Face | None = None, title: str = "", rapid_rate: float,
+                  faces: Sequence[Face] = (), title: str = "", rapid_rate: float,
                   tool_lengths: dict[int, float] | None = None, rebuilt: RebuiltJob | None = None,
-                  closest: Approach | None = None, progress: Progress | None = None) -> bytes:
+                  closest: Approach | None = None, header: ProgramHeader | SourceHeader | None = None,
+                  progress: Progress | None = None) -> bytes:
     """Replay a read program and draw it as ``png`` or ``svg`` bytes (:func:`preview_figure`; ``progress``:
     told the rows replayed, before the drawing)."""
     from prs3_post.check.preview import figure_bytes
 
     return figure_bytes(preview_figure(program, machine, setup, dialect=dialect, tolerance=tolerance, mesh=mesh,
-                                       face=face, title=title, rapid_rate=rapid_rate, tool_lengths=tool_lengths,
-                                       rebuilt=rebuilt, closest=closest, progress=progress), fmt)
+                                       faces=faces, title=title, rapid_rate=rapid_rate, tool_lengths=tool_lengths,
+                                       rebuilt=rebuilt, closest=closest, header=header, progress=progress), fmt)
 
 
 def preview_figure(program: ProgramFile, machine: Machine, setup: Setup, *, dialect: Dialect,
-                   tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None, face: Face | None = None,
+                   tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None, faces: Sequence[Face] = (),
                    title: str = "", rapid_rate: float, tool_lengths: dict[int, float] | None = None,
                    rebuilt: RebuiltJob | None = None, closest: Approach | None = None,
-                   progress: Progress | None = None) -> Figure:
+                   header: ProgramHeader | SourceHeader | None = None, progress: Progress | None = None) -> Figure:
     """Replay a read program and draw it (matplotlib is imported here); ``tool_lengths`` as
-    :func:`~prs3_post.check.verify.verify_program`. With the job it was made by (``rebuilt``) and a machine
+    :func:`~prs3_post.check.verify.verify_program`. ``faces``: each operation's face, in program order
+    (one face: every operation's); ``header``: the program's, for its operations, tool changes
+    (:func:`program_marks`) and tool diameters. With the job it was made by (``rebuilt``) and a machine
     with ``[holder]``, the body that comes closest to the part (:func:`part_clearance`, relative to
     its clearance min) is marked where it does, with its clearance and line; or, from the check that
     made the program (the main job's, :attr:`~prs3_post.app.job.JobProgram.closest`), where ``closest``
     says (its row is the program's move: the mark names that move's line)."""
-    from prs3_post.check.preview import render_preview
+    from prs3_post.check.preview import FaceMark, render_preview
+    from prs3_post.check.timeline import timeline_of
 
     # against the job's path, as `verify --against` replays it: the same samples, the same closest approach
     report = verify_loaded(program, machine, setup, dialect, tolerance=tolerance, tool_lengths=tool_lengths,
@@ -85,14 +91,47 @@ def preview_figure(program: ProgramFile, machine: Machine, setup: Setup, *, dial
         mark = None if isinstance(found, str) else closest_mark(found)
     elif closest is not None:                          # the check made it already: its minimum, not measured again
         mark = (closest.point, closest.label(int(program.moves.source[closest.row])), False)
-    label = "face" if face is None else f"face {face.index} ({math.degrees(face.inclination):.2f}°)"
+    timeline = timeline_of(report, rapid_rate=rapid_rate, marks=program_marks(program, header, dialect))
+    users: dict[int, list[int]] = {}                 # a face several operations work on: drawn once
+    for k, face in enumerate(faces):
+        users.setdefault(face.index, []).append(k)
+    marks = [FaceMark(triangles=face.triangles, operation=k,
+                      label=f"face {face.index} ({math.degrees(face.inclination):.2f}°)"
+                            + (f", op {', '.join(str(j + 1) for j in users[face.index])}" if len(faces) > 1 else ""))
+             for k, face in enumerate(faces) if users[face.index][0] == k]
     heading = f"{title}: " if title else ""
     return render_preview(
-        report, machine, mesh=mesh, face_triangles=None if face is None else face.triangles, face_label=label,
+        report, machine, mesh=mesh, faces=marks, timeline=timeline, tool_lengths=tool_lengths,
+        tool_diameters=tool_diameters_of(header),
         title=f"{heading}{Path(program.path).name}, machine {machine.name}, {len(program.moves)} moves "
               f"({'ok' if report.ok else f'{len(report.problems)} problem' + 's' * (len(report.problems) > 1)})",
         rapid_rate=rapid_rate, closest=mark,
     )
+
+
+def tool_diameters_of(header: ProgramHeader | SourceHeader | None) -> dict[int, float]:
+    """mm, the diameter of each tool a program's header states (empty: none stated)."""
+    if isinstance(header, ProgramHeader):
+        found = {tool.number: tool.diameter for tool in header.tools}
+        for cutting in [header.cutting, *(record.cutting for record in header.operations)]:
+            found.setdefault(cutting.tool_number, cutting.tool_diameter)
+        return found
+    return {}
+
+
+def preview_part(part: str, header: ProgramHeader | SourceHeader | None, face: int | None, *, units: str,
+                 up: str) -> tuple[FloatArray, tuple[Face, ...]]:
+    """A part's triangles (part frame, mm) and the faces to highlight: each operation's face a main job's
+    or job file's header records, else ``face`` (None: the automatic choice)."""
+    from prs3_post.part.faces import find_faces, select_face
+    from prs3_post.part.stl import load_part
+
+    loaded = load_part(part, units=units, up=up)
+    table = find_faces(loaded)
+    if isinstance(header, ProgramHeader):
+        indices = [record.face_index for record in header.operations] or [header.face_index]
+        return loaded.triangles, tuple(select_face(table, index)[0] for index in indices)
+    return loaded.triangles, (select_face(table, face)[0],)
 
 
 def closest_mark(found: PartClearance) -> tuple[FloatArray, str, bool] | None:

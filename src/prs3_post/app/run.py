@@ -84,17 +84,21 @@ def job_json(job: JobProgram, specs: tuple[JobSpec, ...], path: str, text: str) 
 
 def job_preview(job: JobProgram, specs: tuple[JobSpec, ...], fmt: str, *, text: str, path: str, title: str) -> bytes:
     """The picture of a checked job's program (``text``, read back as the controller reads it) on its
-    part and (first) face, as ``png`` or ``svg`` bytes (:func:`~prs3_post.app.preview.preview_bytes`)."""
+    part and each operation's face, as ``png`` or ``svg`` bytes (:func:`~prs3_post.app.preview.preview_bytes`)."""
     from prs3_post.app.preview import preview_bytes
+    from prs3_post.emit.header_read import header_comments, parse_header
     from prs3_post.readers.program import read_program
 
     first = specs[0]
     program = read_program(text, first.dialect, path=path, stage=first.machine.stage.present)
+    style = first.dialect.comments
+    head = text[:65536]                                # the header's lines: its operations, tools, the setup
+    header = parse_header(header_comments(head[:head.rfind("\n") + 1], open_=style.open, close=style.close), path=path)
     lengths = (None if first.tool_table is None
                else {spec.cutting.tool_number: length for spec, length in zip(specs, job.tool_lengths, strict=True)})
     return preview_bytes(program, first.machine, job.setup, fmt, tolerance=first.tolerance, tool_lengths=lengths,
-                         mesh=job.triangles, face=job.face, title=title, dialect=first.dialect, closest=job.closest,
-                         rapid_rate=NOMINAL_RAPID_RATE)
+                         mesh=job.triangles, faces=job.faces, title=title, dialect=first.dialect, closest=job.closest,
+                         header=header, rapid_rate=NOMINAL_RAPID_RATE)
 
 
 def post_part(part: str, *, profile: str, operation: Mapping[str, Any] | None = None, **settings: Any) -> str:

@@ -401,15 +401,17 @@ def _part_and_against(part: str | None, against: str | None) -> tuple[str | None
 def preview(program_path: str, out_path: str, part_path: str | None, face_choice: str, units: str, up: str,
             machine_name: str, dialect_name: str, part_origin: tuple[float, ...] | None, part_rotation: float | None,
             rapid_rate: float) -> None:
-    """Draw a program: the FK tool path on the part, the axes over time, the limit margins.
+    """Draw a program: the machine at its worst pose, the FK tool path on the part, every limit over time.
 
-    One figure: (a) 3D view in part coordinates of the part mesh (--part), its face (highlighted)
-    and the tool-tip path replayed through forward kinematics (G1 solid, G0 dashed) with the tool
-    axis at a few points; (b) the strokes T1..T3 and stage X, Y over program time (the cycle time
-    of the machine's [dynamics]; without them G1: 1/F min, G0: the longest joint travel at
-    --rapid-rate), the machine's limits shaded; (c) the worst margin
-    of every limit as a fraction of its range. Needs matplotlib: pip install 'prs3-post[plot]'.
-    The machine, dialect and setup (and the part's units, up axis and face) come from the program's
+    One figure: (a) the machine (base, rails, sliders, links, platform, spindle, holder, tool) at the
+    sample with the smallest margin to any limit, with the part at its setup; (b) 3D view in part
+    coordinates of the part mesh (--part), each operation's face and the tool-tip path replayed
+    through forward kinematics in the operation's colour (G1 solid, G0 dashed); (c)-(g) the strokes,
+    stage X, Y, tilt, link angles and axis speeds over program time (the cycle time of the
+    machine's [dynamics]; without them G1: 1/F min, G0: the longest joint travel at --rapid-rate),
+    each limit a red line in view, operations and tool changes marked with their lines; (h) the
+    worst margin of every limit as a fraction of its range. Needs matplotlib: pip install 'prs3-post[plot]'.
+    The machine, dialect and setup (and the part's units, up axis and faces) come from the program's
     header when it has one; an option that says otherwise is an error.
     `prs3-post PART.stl ... --preview OUT.png` makes a program and its picture in one step.
 
@@ -425,10 +427,10 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
       prs3-post preview sq.ngc -o sq.html
       prs3-post demo --profile round -o round.ngc --preview round.svg
     """
-    from prs3_post.app.preview import preview_bytes, require_plotting
+    from prs3_post.app.preview import preview_bytes, preview_part, require_plotting
     from prs3_post.app.preview_html import PREVIEW_SUFFIXES, header_part, require_view, view_html, view_part
     from prs3_post.app.verify import HeaderConflict, check_part, header_job, open_program, rebuild_job, tool_lengths_of
-    from prs3_post.app.verify_inputs import header_contradictions, part_drawing, recorded_part
+    from prs3_post.app.verify_inputs import header_contradictions, recorded_part
 
     def body() -> int:
         ctx = click.get_current_context()
@@ -445,7 +447,8 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
         if context.machine.dynamics is not None and was_given(ctx, "rapid_rate"):
             raise click.BadParameter(f"machine {context.machine.name} has [dynamics]: the time axis shows its cycle "
                                      "time (each axis's top speed); leave it out", param_hint="'--rapid-rate'")
-        mesh = face = None
+        mesh = None
+        faces: tuple[Any, ...] = ()                     # each operation's face, to highlight
         rebuilt: RebuiltJob | None = None
         if part is None and html:                 # the part its header names, when it is at hand
             part, named = header_part(program_path, context.header)
@@ -472,19 +475,20 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
                 rebuilt = (rebuild_job(header_job(context, part))
                            if context.machine.holder is not None or html else None)
             with timed("the part"):
-                mesh, face = part_drawing(part, choice, units=part_units, up=part_up)
+                mesh, faces = preview_part(part, context.header, choice, units=part_units, up=part_up)
         if html:
             with timed("replay and draw"), ProgressBar("replaying", after="drawing", enabled=_bar_shown()) as bar:
                 page = view_html(context.program, context.machine, context.setup, dialect=context.dialect,
                                  header=context.header,
-                                 part=None if mesh is None else view_part(mesh, face, rebuilt), rapid_rate=rapid_rate,
-                                 tool_lengths=tool_lengths_of(context.header), rebuilt=rebuilt, progress=bar)
+                                 part=None if mesh is None else view_part(mesh, faces[0] if faces else None, rebuilt),
+                                 rapid_rate=rapid_rate, tool_lengths=tool_lengths_of(context.header), rebuilt=rebuilt,
+                                 progress=bar)
             write_atomic(out_path, page)
             say(f"wrote {out_path}")
             return 0
         with timed("replay and draw"), ProgressBar("replaying", after="drawing", enabled=_bar_shown()) as bar:
             image = preview_bytes(context.program, context.machine, context.setup, fmt, dialect=context.dialect,
-                                  mesh=mesh, face=face, rapid_rate=rapid_rate,
+                                  mesh=mesh, faces=faces, rapid_rate=rapid_rate, header=context.header,
                                   tool_lengths=tool_lengths_of(context.header),
                                   title=Path(part).name if part else "", rebuilt=rebuilt, progress=bar)
         write_atomic(out_path, image)
