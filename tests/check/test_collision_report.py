@@ -184,9 +184,9 @@ def test_preview_on_the_part_marks_the_closest_approach_where_verify_finds_it(wa
     mesh = load_part(str(WALL))
     face, _ = select_face(find_faces(mesh), None, min_width=6.0)
     figure = preview_figure(context.program, context.machine, context.setup, dialect=context.dialect,
-                            mesh=mesh.triangles, face=face, rebuilt=rebuild_job(header_job(context, str(WALL))),
+                            mesh=mesh.triangles, faces=(face,), rebuilt=rebuild_job(header_job(context, str(WALL))),
                             rapid_rate=NOMINAL_RAPID_RATE)
-    ax3d = figure.axes[0]
+    ax3d = figure.axes[1]                               # (b): the path on the part
     marker = next(c for c in ax3d.collections if c.get_label().startswith("closest: "))
     assert marker.get_label() == "closest: holder 2.488 mm deep in the part, line 27"
     assert np.asarray(marker._offsets3d).ravel() == pytest.approx([52.488, 189.500, 298.406], abs=1e-3)

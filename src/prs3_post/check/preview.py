@@ -371,6 +371,7 @@ def _path_panel(ax: Any, poly_cls: Any, report: VerifyReport, timeline: Timeline
         colour = _LIMIT_COLOUR if hit else "#9467bd"
         ax.scatter([point[0]], [point[1]], [point[2]], color=colour, marker="X", s=60, label=_short(text, 70),
                    depthshade=False, zorder=8)
+        ax.text(point[0], point[1], point[2], "  " + text.split(" ")[1], color=colour, fontsize=8, zorder=8)
     ax.plot(marks[:, 0], marks[:, 1], marks[:, 2], color=_AXIS_COLOUR, linewidth=1.6, alpha=0.8, label="tool axis",
             zorder=3)
     ax.set_xlabel("x (mm)")
