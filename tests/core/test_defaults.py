@@ -28,7 +28,7 @@ ALLOWED = {
     "FLAT_KEY_MM": "a hash cell size of the collision scan, not a tolerance anyone sets",
     "TRANSLATION_SPREAD": "how alike the three stroke changes of a replayed move are for a translation",
     "TOOL_DIAMETER_RANGE": "the smallest tool diameter accepted, a range bound",
-    "render_preview": "a label's offset in the preview's bar chart (a fraction of the axes)",
+    "_margin_panel": "a label's offset in the preview's bar chart (a fraction of the axes)",
     "project_onto_face": "how far a job's point may be off its face, a check of that input",
 }
 
