@@ -19,6 +19,7 @@ from prs3_post.cli.exits import report_interrupted
 from prs3_post.cli.export import export
 from prs3_post.cli.info import faces, machines, sources
 from prs3_post.cli.kinematics import fk, ik
+from prs3_post.cli.linuxcnc import linuxcnc_config
 from prs3_post.cli.options import Command
 from prs3_post.cli.run import demo, job, run
 from prs3_post.cli.verify import preview, verify
@@ -123,8 +124,8 @@ def main() -> None:
     """
 
 
-for _command in (accuracy, calibrate, convert, demo, export, faces, fk, ik, job, machines, preview, run, sources,
-                 verify):
+for _command in (accuracy, calibrate, convert, demo, export, faces, fk, ik, job, linuxcnc_config, machines, preview,
+                 run, sources, verify):
     main.add_command(_command)
 
 

@@ -18,7 +18,8 @@ import math
 __all__ = [
     "DEFAULT_ACTUATOR_RESOLUTION_MM", "DEFAULT_ANGLE_TOLERANCE", "DEFAULT_ANGLE_TOLERANCE_DEG",
     "DEFAULT_CIRCLE_TOLERANCE", "DEFAULT_CLEARANCE_MIN", "DEFAULT_MEASUREMENT_NOISE_MM", "DEFAULT_TOLERANCE",
-    "FEED_RANGE_MM_MIN", "LIMIT_TOLERANCE", "MAX_SPINDLE_RPM", "MIN_SPINDLE_RPM", "MM_PER_INCH", "NOMINAL_RAPID_RATE",
+    "FEED_RANGE_MM_MIN", "LIMIT_TOLERANCE", "MAX_SPINDLE_RPM", "MIN_SPINDLE_RPM", "MM_PER_INCH", "NOMINAL_ACCEL",
+    "NOMINAL_RAPID_RATE",
 ]
 
 DEFAULT_TOLERANCE = 0.002
@@ -39,6 +40,10 @@ DEFAULT_CLEARANCE_MIN = 1.0
 NOMINAL_RAPID_RATE = 5000.0
 """mm/min: the joint-space rate a G0 move is timed at where the machine file has no ``[dynamics]``
 (``verify --rapid-rate``)."""
+
+NOMINAL_ACCEL = 500.0
+"""mm/s²: the acceleration a LinuxCNC configuration gives each axis where the machine file has no
+``[dynamics]`` (``prs3-post linuxcnc-config``; the speed is :data:`NOMINAL_RAPID_RATE`)."""
 
 MM_PER_INCH = 25.4
 """mm in an inch (G20 programs, ``UNITS/INCHES`` CL files, STL parts in inches)."""
