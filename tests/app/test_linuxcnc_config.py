@@ -157,9 +157,9 @@ def test_options_reach_the_ini(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(("kwargs", "field", "message"), [
-    ({"display": ""}, "display", "give the display program on one line (like 'axis'), got ''"),
+    ({"display": ""}, "display", "give the display program on one line, printable (like 'axis'), got ''"),
     ({"display": "axis\nDISPLAY = x"}, "display",
-     "give the display program on one line (like 'axis'), got 'axis\\nDISPLAY = x'"),
+     "give the display program on one line, printable (like 'axis'), got 'axis\\nDISPLAY = x'"),
     ({"max_feed_override": 0.5}, "max_feed_override", "expected 1 to 100 (1 = 100 %), got 0.5"),
     ({"max_feed_override": float("inf")}, "max_feed_override", "expected 1 to 100 (1 = 100 %), got inf"),
 ])
@@ -247,3 +247,11 @@ def test_the_ini_reads_in_linuxcnc(tmp_path: Path) -> None:
     done = subprocess.run(["/usr/bin/python3", "-c", script, str(config.ini)], capture_output=True, text=True,
                           check=True)
     assert done.stdout == "5 XYUVW 400.000 ['patel2020.hal']\n"
+
+
+def test_file_names_have_no_blanks(tmp_path: Path) -> None:
+    machine = tmp_path / "my machine (2).toml"
+    shutil.copy(MACHINES / "patel2020.toml", machine)
+    config = write_config(str(machine), str(tmp_path / "sim"))
+    assert sorted(config.files) == ["my_machine__2_.hal", "my_machine__2_.ini", "prs3.var", "tool.tbl"]
+    assert read_ini(config.ini)["HAL"]["HALFILE"] == ["my_machine__2_.hal"]

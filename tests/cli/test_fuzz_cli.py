@@ -1,7 +1,8 @@
 """Fuzzing every command of the CLI: random option values and mutated input files.
 
 For each command (``run``, ``demo``, ``faces``, ``ik``, ``fk``, ``verify``, ``preview``,
-``machines``, ``job``, ``convert``, ``calibrate`` and ``calibrate plan``, ``accuracy``) hypothesis
+``machines``, ``job``, ``convert``, ``calibrate`` and ``calibrate plan``, ``accuracy``, ``export``,
+``linuxcnc-config``) hypothesis
 draws option values for the command's own click parameters (read from
 the command, so a new option is fuzzed too): mostly sensible values, sometimes hostile ones
 (``nan``, ``1e308``, ``1_0``, empty, non-ASCII digits), and input files (STL, program, CSV,
@@ -37,7 +38,7 @@ REPO = Path(__file__).resolve().parents[2]
 #: How many examples each command gets (the whole file runs in ~15 s; preview draws a figure).
 EXAMPLES = {"run": 40, "demo": 50, "faces": 40, "ik": 50, "fk": 50, "verify": 50, "preview": 12, "machines": 5,
             "sources": 5,
-            "job": 25, "convert": 30, "calibrate": 12, "accuracy": 6, "export": 30}
+            "job": 25, "convert": 30, "calibrate": 12, "accuracy": 6, "export": 30, "linuxcnc-config": 20}
 #: Options set in one example, besides the required ones.
 MAX_OPTIONS = 4
 
@@ -157,7 +158,8 @@ INPUTS = {
 GOOD_OUTPUTS = {"preview": ("out/o.png", "out/o.svg"), "preview_path": ("out/o.png", "out/o.svg"),
                 "ik": ("out/o.csv", "-"), "run": ("out/o.ngc", "-"), "demo": ("out/o.ngc", "-"),
                 "job": ("out/o.ngc", "-"), "identify": ("out/o.toml", "-"), "plan": ("out/poses.csv", "-"),
-                "report_path": ("out/r.json", "-"), "export": ("out/o.cls", "out/o.csv", "-")}
+                "report_path": ("out/r.json", "-"), "export": ("out/o.cls", "out/o.csv", "-"),
+                "out_dir": ("out/sim",)}
 BAD_OUTPUTS = ("out/", "out/missing/o.png", "in/part.stl", "in/prog.ngc", "in/poses.csv", "out/o.txt", "")
 
 
@@ -287,3 +289,4 @@ test_fuzz_convert = _fuzz("convert")
 test_fuzz_calibrate = _fuzz("calibrate")
 test_fuzz_accuracy = _fuzz("accuracy")
 test_fuzz_export = _fuzz("export")
+test_fuzz_linuxcnc_config = _fuzz("linuxcnc-config")

@@ -45,7 +45,7 @@ def test_quiet_says_nothing(tmp_path: Path) -> None:
                                 "once"),
     (["--max-feed-override", "0"], "Error: Invalid value for '--max-feed-override': expected 1 to 100 (1 = 100 %), "
                                    "got 0.0"),
-    (["--display", " "], "Error: Invalid value for '--display': give the display program on one line (like "
+    (["--display", " "], "Error: Invalid value for '--display': give the display program on one line, printable (like "
                          "'axis'), got ' '"),
 ])
 def test_bad_inputs_write_nothing(tmp_path: Path, args: list[str], message: str) -> None:

@@ -28,6 +28,7 @@ Nothing here runs LinuxCNC; the files are text, written whole or not at all.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -151,7 +152,13 @@ def write_config(machine: str, folder: str, *, tool_table: str | None = None, di
 
 def ini_name(machine: Machine) -> str:
     """The INI file's name: the machine's (``patel2020.ini``)."""
-    return f"{machine.name}.ini"
+    return f"{file_stem(machine)}.ini"
+
+
+def file_stem(machine: Machine) -> str:
+    """The machine's name as the configuration's file names use it: letters, digits, ``. _ -`` only (LinuxCNC's
+    launcher and HAL files split names at blanks)."""
+    return re.sub(r"[^A-Za-z0-9._-]", "_", machine.name) or "machine"
 
 
 def config_axes(machine: Machine, dialect: str | None = None) -> tuple[ConfigAxis, ...]:
@@ -193,14 +200,15 @@ def config_files(machine: Machine, machine_text: str, *, tool_table: ToolTable |
     file and, with ``vismach``, the vismach model, its HAL file and the machine file it reads
     (``machine_text``, the machine's TOML as loaded). Parameters as :func:`write_config`."""
     shown = DEFAULT_DISPLAY if display is None else display
-    if not shown.strip() or "\n" in shown or "\r" in shown:
-        raise FieldError(f"give the display program on one line (like {DEFAULT_DISPLAY!r}), got {shown!r}",
+    if not shown.strip() or not shown.isprintable():                # one line, no control characters
+        raise FieldError(f"give the display program on one line, printable (like {DEFAULT_DISPLAY!r}), "
+                         f"got {shown!r}",
                          field="display")
     if not (math.isfinite(max_feed_override) and 1.0 <= max_feed_override <= MAX_FEED_OVERRIDE_LIMIT):
         raise FieldError(f"expected 1 to {MAX_FEED_OVERRIDE_LIMIT:g} (1 = 100 %), got {max_feed_override!r}",
                          field="max_feed_override")
     axes = config_axes(machine, dialect)
-    hal = f"{machine.name}.hal"
+    hal = f"{file_stem(machine)}.hal"
     files = {
         ini_name(machine): FolderFile(ini_text(machine, axes, display=shown, hal_files=(hal,) + (
             ("vismach.hal",) if vismach else ()), max_feed_override=max_feed_override)),
@@ -209,7 +217,7 @@ def config_files(machine: Machine, machine_text: str, *, tool_table: ToolTable |
         PARAMETER_FILE: FolderFile(""),
     }
     if vismach:
-        toml = f"{machine.name}.toml"
+        toml = f"{file_stem(machine)}.toml"
         files["vismach.hal"] = FolderFile(vismach_hal(axes, machine))
         files[VISMACH_SCRIPT] = FolderFile(vismach_script(machine, toml, TOOL_TABLE), executable=True)
         files[toml] = FolderFile(machine_text)
