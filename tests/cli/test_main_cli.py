@@ -412,7 +412,8 @@ def test_a_program_failing_while_it_is_written_leaves_nothing(tmp_path, monkeypa
     assert out.read_text() == "old\n" and sorted(p.name for p in tmp_path.iterdir()) == ["old.ngc"]
 
 
-COMMANDS = "accuracy, calibrate, convert, demo, export, faces, fk, ik, job, linuxcnc-config, machines, preview, run, sources, verify"
+COMMANDS = ("accuracy, calibrate, convert, demo, export, faces, fk, ik, job, linuxcnc-config, machines, preview, run, "
+            "sources, verify")
 
 
 @pytest.mark.parametrize(("word", "hint"), [("verfy", "did you mean 'verify'? "), ("nosuchcommand", "")])
