@@ -467,7 +467,8 @@ def _series_panel(ax: Any, series: tuple[Series, ...], timeline: Timeline, ylabe
         same = [other_name for other_name, other in seen if np.array_equal(values, other, equal_nan=True)]
         style, width = _STYLES[i % len(_STYLES)]        # thick to thin: a line on top of another shows both
         ax.plot(x, values, color=_SERIES_COLOURS[i % len(_SERIES_COLOURS)], linestyle=style, linewidth=width,
-                label=name + (f" (= {same[0]})" if same else ""), zorder=3 + i)
+                label=name + (f" (= {same[0]})" if same else ""), zorder=3 + i,
+                drawstyle="steps-pre" if s.unit in ("%", "mm/min") else "default")   # a speed holds over its move
         seen.append((name, values))
         finite = values[np.isfinite(values)]
         if len(finite):
