@@ -403,6 +403,7 @@ def _time_panels(plots: list[Any], report: VerifyReport, timeline: Timeline, *, 
         _series_panel(ax_stage, stage, shown, "stage (mm)", "(d) stage X, Y" + _bounds_text(stage))
     else:
         ax_stage.set_title("(d) stage X, Y: this machine has no stage", fontsize=10)
+        ax_stage.set_yticks([])
     tilt = shown.group("tilt")
     _series_panel(ax_tilt, tilt, shown, "tilt (deg)", "(e) tool axis tilt" + _bounds_text(tilt))
     link = shown.group("link angle")
