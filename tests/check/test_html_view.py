@@ -29,7 +29,6 @@ from prs3_post.machine.loading import load_machine
 pytest.importorskip("plotly")
 
 MACHINE = load_machine("patel2020")
-PATH_COLOUR = "#1f5fbf"                    # the first operation's (app/preview_html.OPERATION_COLOURS)
 
 
 def _rgb(colour: str) -> np.ndarray:
@@ -136,16 +135,16 @@ def test_the_view_in_a_browser(chromium, square_view):
         page.wait_for_selector("body[data-ready='1']", timeout=15000)
         assert "WebGL is not supported" not in page.inner_text("body")
         assert page.evaluate("document.querySelectorAll('#view-scene canvas').length") >= 1
-        assert page.evaluate("!!document.getElementById('view-scene')._fullLayout.scene._scene.glplot")
+        for scene in ("view-part", "view-machine"):     # the part's scene, and the machine's stacked on it
+            assert page.evaluate(f"!!document.getElementById('{scene}')._fullLayout.scene._scene.glplot")
 
+        read = ("(k) => { const t = document.getElementById('view-machine').data[k]; return [t.x, t.y, t.z]; }")
         tool = len(MACHINE_PIECES) - 1                   # the last machine trace: the tool
-        read = ("(k) => { const d = document.getElementById('view-scene').data, m = window.prs3View; "
-                "const t = d[d.length - 1 - k]; return [t.x, t.y, t.z]; }")
-        before = np.array(page.evaluate(read, 0), dtype=float).T
+        before = np.array(page.evaluate(read, tool), dtype=float).T
         stops = page.evaluate("window.prs3View.stops")
         k = stops // 2
         page.locator("#slider").fill(str(k))
-        after = np.array(page.evaluate(read, 0), dtype=float).T
+        after = np.array(page.evaluate(read, tool), dtype=float).T
         assert np.abs(after - before).max() > 1.0        # the tool moved
         # where our forward kinematics puts it at that line (float32 in the page)
         line = int(re.match(r"line (\d+)", page.inner_text("#info")).group(1))
@@ -154,12 +153,14 @@ def test_the_view_in_a_browser(chromium, square_view):
         joints = joints_of(context.program.moves)[row]
         expected = machine_frames(machine_pose(context.machine, joints[None, 2:], joints[None, :2])).points[0, -2:]
         assert_allclose(after, expected, atol=2e-3)
-        assert tool == 7
         cursor = page.evaluate("document.getElementById('view-plots').layout.shapes[0].x0")
         assert cursor > 0.0
 
+        whole = page.locator("#view-scene").screenshot()   # the whole machine
         page.get_by_text("part", exact=True).last.click()   # frame the part and the path
+        page.locator("#view-part g.traces", has_text="machine").locator(".legendtoggle").click()   # hide the machine
         page.wait_for_timeout(300)
+        assert page.evaluate("document.getElementById('view-machine').style.visibility") == "hidden"
         picture = page.locator("#view-scene").screenshot()
     finally:
         page.close()
@@ -167,9 +168,12 @@ def test_the_view_in_a_browser(chromium, square_view):
     assert requests == [url]                            # nothing but the file itself
     from PIL import Image
 
+    pixels = np.asarray(Image.open(io.BytesIO(whole)).convert("RGB")).astype(int).reshape(-1, 3)
+    links = np.abs(pixels - _rgb(MACHINE_PIECES[3][3])).max(axis=1) <= 12
+    assert links.sum() > 300, links.sum()
     pixels = np.asarray(Image.open(io.BytesIO(picture)).convert("RGB")).astype(int).reshape(-1, 3)
-    path = np.abs(pixels - _rgb(PATH_COLOUR)).max(axis=1) <= 12
     r, g, b = pixels.T
+    path = (b - r >= 90) & (b >= 140) & (g < 140)        # the first operation's blue #1f5fbf, under its face
     tan = (r > g) & (g > b) & (r - b >= 20) & (r - b <= 90) & (r >= 120)     # the part's tan, shaded
     assert path.sum() > 200, path.sum()
     assert tan.sum() > 5000, tan.sum()

@@ -271,8 +271,11 @@ def _ranges(centre: list[float], half: float) -> dict[str, list[float]]:
     return {f"scene.{a}axis.range": [c - half, c + half] for a, c in zip("xyz", centre, strict=True)}
 
 
-def _scene(data: ViewData) -> tuple[list[dict[str, Any]], dict[str, Any], list[int]]:
-    """The 3D figure's traces, layout, and the indices of the machine's traces."""
+def _scene(data: ViewData) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The 3D figures: the part, faces, paths and markers (still), and the machine (restyled at each
+    stop), drawn in two plotly scenes stacked on each other with one camera: a restyle recomputes every
+    trace of its scene, and the machine's alone costs milliseconds where a long path would take seconds.
+    Returns each as ``{"data": traces, "layout": layout}``."""
     traces: list[dict[str, Any]] = []
     for s in data.surfaces:
         v, t = np.asarray(s.vertices).reshape(-1, 3), np.asarray(s.triangles).reshape(-1, 3)
@@ -289,22 +292,23 @@ def _scene(data: ViewData) -> tuple[list[dict[str, Any]], dict[str, Any], list[i
                        "text": [m.text], "textposition": "top center", "textfont": {"color": m.colour, "size": 12},
                        "marker": {"color": m.colour, "size": 6, "symbol": m.symbol}, "hovertext": [m.text],
                        "hoverinfo": "text"})
-    machine_index = []
+    # the machine's legend entry (its traces are in the other scene): a click shows or hides the machine
+    traces.append({"type": "scatter3d", "mode": "lines", "name": "machine", "x": [None], "y": [None], "z": [None],
+                   "line": {"color": MACHINE_PIECES[0][3], "width": 4}, "hoverinfo": "skip"})
+    machine: list[dict[str, Any]] = []
     first = data.machine.points[0] if len(data.machine.points) else np.full((_POINTS_PER_STOP, 3), np.nan)
     at = 0
     for name, count, width, colour in MACHINE_PIECES:
         chunk = first[at:at + count]
         at += count
-        machine_index.append(len(traces))
-        trace: dict[str, Any] = {"type": "scatter3d", "name": "machine" if not machine_index[:-1] else name,
-                                 "legendgroup": "machine", "showlegend": not machine_index[:-1],
+        trace: dict[str, Any] = {"type": "scatter3d", "name": name, "showlegend": False, "hoverinfo": "skip",
                                  "x": _listed(chunk[:, 0]), "y": _listed(chunk[:, 1]), "z": _listed(chunk[:, 2]),
-                                 "hoverinfo": "name", "connectgaps": False}
+                                 "connectgaps": False}
         if width:
             trace |= {"mode": "lines", "line": {"color": colour, "width": width}}
         else:
             trace |= {"mode": "markers", "marker": {"color": colour, "size": 5, "symbol": "square"}}
-        traces.append(trace)
+        machine.append(trace)
     path_points = [np.asarray(p.points).reshape(-1, 3) for p in data.paths] + \
         [np.asarray(m.point).reshape(-1, 3) for m in data.markers]
     part_points = [np.asarray(s.vertices).reshape(-1, 3) for s in data.surfaces]
@@ -314,20 +318,31 @@ def _scene(data: ViewData) -> tuple[list[dict[str, Any]], dict[str, Any], list[i
     near = np.concatenate(path_points + [np.asarray(s.vertices).reshape(-1, 3) for s in data.surfaces if s.focus]
                           + [np.zeros((0, 3))])
     near_centre, near_half = _box(near, 0.3)
-    axis = {"showbackground": True, "backgroundcolor": "#f4f4f8", "title": {"text": ""}}
+    ranges = {f"{a}axis": {"range": [c - half, c + half]} for a, c in zip("xyz", centre, strict=True)}
+    # both scenes on the same area: the legend sits inside the page below it (outside, it would push
+    # the part's margins and not the machine's)
+    scene = {"aspectmode": "cube", "camera": {"eye": {"x": 1.5, "y": -1.5, "z": 0.9}},
+             "domain": {"x": [0.0, 1.0], "y": [0.16, 1.0]}}
+    margin = {"l": 0, "r": 0, "t": 30, "b": 0}
+    axis = {"showbackground": True, "backgroundcolor": "#f4f4f8"}
     layout = {
-        "margin": {"l": 0, "r": 0, "t": 30, "b": 90},
-        "uirevision": "keep",
-        "legend": {"orientation": "h", "x": 0.0, "y": 0.0, "yanchor": "top", "font": {"size": 11}},
-        "scene": {"aspectmode": "cube", "camera": {"eye": {"x": 1.5, "y": -1.5, "z": 0.9}},
-                  **{f"{a}axis": {**axis, "title": {"text": f"{a} (mm)"},
-                                  "range": [c - half, c + half]} for a, c in zip("xyz", centre, strict=True)}},
+        "margin": margin, "uirevision": "keep",
+        "legend": {"orientation": "h", "x": 0.0, "y": 0.15, "yanchor": "top", "font": {"size": 11}},
+        "scene": {**scene, **{f"{a}axis": {**axis, **ranges[f"{a}axis"], "title": {"text": f"{a} (mm)"}}
+                              for a in "xyz"}},
         "updatemenus": [{"type": "buttons", "direction": "right", "x": 1.0, "xanchor": "right", "y": 1.0,
                          "yanchor": "top", "showactive": False, "buttons": [
                              {"label": "whole machine", "method": "relayout", "args": [_ranges(centre, half)]},
                              {"label": "part", "method": "relayout", "args": [_ranges(near_centre, near_half)]}]}],
     }
-    return traces, layout, machine_index
+    bare = {"visible": False, "showbackground": False, "showgrid": False, "zeroline": False, "showspikes": False}
+    machine_layout = {
+        "margin": margin, "uirevision": "keep", "showlegend": False, "paper_bgcolor": "rgba(0,0,0,0)",
+        "plot_bgcolor": "rgba(0,0,0,0)",
+        "scene": {**scene, "bgcolor": "rgba(0,0,0,0)",
+                  **{f"{a}axis": {**bare, **ranges[f"{a}axis"]} for a in "xyz"}},
+    }
+    return {"data": traces, "layout": layout}, {"data": machine, "layout": machine_layout}
 
 
 def _plots(data: ViewData) -> tuple[list[dict[str, Any]], dict[str, Any]]:
@@ -388,14 +403,15 @@ def render_view(data: ViewData) -> str:
         :data:`NO_PLOTLY`.
     """
     plotly_js = _plotly_js()
-    scene_traces, scene_layout, machine_index = _scene(data)
+    scene, machine = _scene(data)
     plot_traces, plot_layout = _plots(data)
     stops = data.stops
     payload = {
-        "scene": {"data": scene_traces, "layout": scene_layout},
+        "scene": scene,
+        "machine_scene": machine,
         "plots": {"data": plot_traces, "layout": plot_layout},
-        "machine": {"traces": machine_index, "counts": [p[1] for p in MACHINE_PIECES],
-                    "points": _typed(data.machine.points), "per_stop": _POINTS_PER_STOP},
+        "machine": {"counts": [p[1] for p in MACHINE_PIECES], "points": _typed(data.machine.points),
+                    "per_stop": _POINTS_PER_STOP},
         "stops": {"line": np.asarray(stops.line).astype(int).tolist(),
                   "time": [round(float(t), 6) for t in np.asarray(stops.time)],
                   "text": list(stops.text), "names": list(stops.value_names),
@@ -422,7 +438,9 @@ header h1 { font-size: 15px; margin: 0 0 2px 0; }
 #slider { flex: 1; }
 #info { font-family: monospace; white-space: pre; padding: 0 10px 6px 10px; min-height: 2.6em; }
 #main { display: flex; height: calc(100vh - 150px); min-height: 480px; }
-#view-scene { flex: 1.3; min-width: 0; }
+#view-scene { flex: 1.3; min-width: 0; position: relative; }
+#view-part, #view-machine { position: absolute; left: 0; top: 0; right: 0; bottom: 0; }
+#view-machine { pointer-events: none; }
 #view-plots { flex: 1; min-width: 0; }
 </style></head>
 <body>
@@ -433,7 +451,8 @@ header h1 { font-size: 15px; margin: 0 0 2px 0; }
 <input id="slider" type="range" min="0" max="0" value="0" step="1" aria-label="program line">
 <span id="where"></span></div>
 <div id="info"></div>
-<div id="main"><div id="view-scene"></div><div id="view-plots"></div></div>
+<div id="main"><div id="view-scene"><div id="view-part"></div><div id="view-machine"></div></div>
+<div id="view-plots"></div></div>
 <script>@PLOTLY@</script>
 <script id="prs3-data" type="application/json">@DATA@</script>
 <script>@SCRIPT@</script>
@@ -457,7 +476,8 @@ _SCRIPT = r"""
   var speed = document.getElementById("speed");
   slider.max = String(Math.max(n - 1, 0));
   var config = {displaylogo: false, responsive: true, typesetMath: false, topojsonURL: ""};
-  var scene = document.getElementById("view-scene"), plots = document.getElementById("view-plots");
+  var scene = document.getElementById("view-part"), machine = document.getElementById("view-machine");
+  var plots = document.getElementById("view-plots");
   function num(v) { return (v === null || isNaN(v)) ? "-" : v.toFixed(4); }
   function machineAt(k) {
     var xs = [], ys = [], zs = [], at = k * M.per_stop * 3;
@@ -477,7 +497,7 @@ _SCRIPT = r"""
     k = Math.max(0, Math.min(n - 1, k | 0));
     current = k;
     slider.value = String(k);
-    Plotly.restyle(scene, machineAt(k), M.traces);
+    Plotly.restyle(machine, machineAt(k));
     var t = S.time[k];
     Plotly.relayout(plots, {"shapes[0].x0": t, "shapes[0].x1": t});
     where.textContent = "stop " + (k + 1) + " / " + n;
@@ -498,8 +518,23 @@ _SCRIPT = r"""
   slider.addEventListener("input", function () { show(Number(slider.value)); });
   Promise.all([
     Plotly.newPlot(scene, D.scene.data, D.scene.layout, config),
+    Plotly.newPlot(machine, D.machine_scene.data, D.machine_scene.layout,
+                   {displayModeBar: false, responsive: true, typesetMath: false}),
     Plotly.newPlot(plots, D.plots.data, D.plots.layout, config)
   ]).then(function () {
+    // one camera: what the part's scene is turned, zoomed or framed to, the machine's follows
+    function follow(ev) {
+      var update = {}, any = false;
+      for (var key in ev) if (key.indexOf("scene") === 0) { update[key] = ev[key]; any = true; }
+      if (any) Plotly.relayout(machine, update);
+    }
+    scene.on("plotly_relayout", follow);
+    scene.on("plotly_relayouting", follow);
+    scene.on("plotly_legendclick", function (ev) {
+      if (ev.data[ev.curveNumber].name !== "machine") return true;
+      machine.style.visibility = machine.style.visibility === "hidden" ? "visible" : "hidden";
+      return false;
+    });
     plots.on("plotly_click", function (ev) {
       if (!ev.points.length) return;
       var t = ev.points[0].x, best = 0;
@@ -509,6 +544,6 @@ _SCRIPT = r"""
     show(0);
     document.body.setAttribute("data-ready", "1");
   });
-  window.prs3View = {show: show, scene: scene, plots: plots, stops: n};
+  window.prs3View = {show: show, scene: scene, machine: machine, plots: plots, stops: n};
 })();
 """
