@@ -63,7 +63,7 @@ def main() -> None:
         if made.code != 0:
             raise SystemExit(f"preview failed: {made.last}")
         lines = sum(1 for _ in open(program, "rb"))
-        print(f"{program.name}: {lines} lines; load average {load()}")
+        print(f"{program.name}: {lines} lines; {load()}")
         print(f"preview -o view.html: {made.wall:.1f} s wall, {made.cpu:.1f} s CPU, peak {made.peak_mb:.0f} MB")
         print(f"view.html: {view.stat().st_size / 1e6:.2f} MB")
         times = load_times(view, args.repeat)

@@ -80,7 +80,7 @@ MAX_PLOT_SAMPLES = 30_000
 #: The lines of one plot, in order.
 SERIES_COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b")
 #: Each operation's colour (path, face), in program order, round again after the last.
-OPERATION_COLOURS = ("#1f5fbf", "#e07b00", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf")
+OPERATION_COLOURS = ("#1f5fbf", "#2ca02c", "#9467bd", "#d62728", "#17becf", "#e377c2", "#8c564b")
 
 
 @dataclass(frozen=True, slots=True)
@@ -376,7 +376,7 @@ def _surfaces(part: ViewPart | None, setup: Setup) -> tuple[Surface, ...]:
     for k, (label, face) in enumerate(part.faces):
         on_face[face.triangles] = True
         faces.append(surface_from_triangles(label, triangles[face.triangles],
-                                            OPERATION_COLOURS[k % len(OPERATION_COLOURS)], opacity=0.35, focus=True))
+                                            OPERATION_COLOURS[k % len(OPERATION_COLOURS)], opacity=0.5, focus=True))
     rest = [surface_from_triangles("part", triangles[~on_face], PART_COLOUR, opacity=0.6)] if (~on_face).any() else []
     return tuple(rest + faces)
 
