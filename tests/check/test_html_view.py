@@ -154,7 +154,12 @@ def test_the_view_in_a_browser(chromium, square_view):
         expected = machine_frames(machine_pose(context.machine, joints[None, 2:], joints[None, :2])).points[0, -2:]
         assert_allclose(after, expected, atol=2e-3)
         cursor = page.evaluate("document.getElementById('view-plots').layout.shapes[0].x0")
-        assert cursor > 0.0
+        data = json.loads(page.evaluate("document.getElementById('prs3-data').textContent"))
+        assert cursor == data["stops"]["time"][k] > 0.0    # the plots' cursor at that line's time
+        page.click("#play")                                 # play runs on from there to the end, and stops
+        assert page.inner_text("#play").endswith("pause")
+        page.wait_for_function(f"document.getElementById('slider').value === '{stops - 1}' && "
+                               "document.getElementById('play').textContent.endsWith('play')", timeout=10000)
 
         whole = page.locator("#view-scene").screenshot()   # the whole machine
         page.get_by_text("part", exact=True).last.click()   # frame the part and the path

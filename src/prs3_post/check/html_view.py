@@ -22,7 +22,10 @@ own script is a few lines that pick rows. It has:
 
 The machine's points at each stop come from :func:`machine_frames` (our forward kinematics through
 :func:`prs3_post.check.machine_pose.machine_pose`): the page's script copies one stop's row into the
-machine's traces and computes nothing. Builders here do no I/O; plotly is imported lazily, and only
+machine's traces and computes nothing. The machine has its own plotly scene, stacked on the part's
+with the same area and camera (the part's turns and zooms are copied to it): a restyle recomputes
+every trace of its scene, and the machine's eight small traces take milliseconds where a long tool
+path would take seconds at every step. Builders here do no I/O; plotly is imported lazily, and only
 for its JavaScript bundle (``pip install 'prs3-post[plot]'``).
 """
 
