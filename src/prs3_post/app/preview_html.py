@@ -333,13 +333,15 @@ def _plots(timeline: Timeline) -> dict[str, Any]:
         limits: list[Limit] = []
         for k, member in enumerate(members):
             values, low, high = member.shown()
-            series.append(Series(name=member.name, values=values, colour=SERIES_COLOURS[k % len(SERIES_COLOURS)]))
+            series.append(Series(name=member.name, values=values, colour=SERIES_COLOURS[k % len(SERIES_COLOURS)],
+                                 short=_short_name(group, member.name)))
             for bound, word in ((low, "min"), (high, "max")):
                 if np.isfinite(bound) and all(abs(bound - lim.value) > 1e-9 for lim in limits):
                     own = f"{member.name} " if len(members) > 1 and not _same_bounds(members) else ""
                     limits.append(Limit(name=f"{own}{word} {bound:g}", value=float(bound)))
         unit = members[0].unit
-        panels.append(TimePanel(title=_panel_title(group, members), unit=unit or "-", series=tuple(series),
+        panels.append(TimePanel(title=group if len(members) > 1 else members[0].name, unit=unit or "-",
+                                series=tuple(series),
                                 limits=tuple(limits)))
     boundaries = []
     number = 0
@@ -358,11 +360,10 @@ def _same_bounds(members: tuple[TimelineSeries, ...]) -> bool:
     return len({(m.low, m.high) for m in members}) == 1
 
 
-def _panel_title(group: str, members: tuple[TimelineSeries, ...]) -> str:
-    """``stroke: T1 T2 T3`` and the like (the members' names without the group's words)."""
+def _short_name(group: str, name: str) -> str:
+    """A series' name without its group's words: ``T1 stroke`` in ``stroke`` → ``T1``."""
     words = group.split(" ")
-    short = [" ".join(w for w in m.name.split(" ") if w not in words) or m.name for m in members]
-    return f"{group}: {', '.join(short)}" if len(members) > 1 else members[0].name
+    return " ".join(w for w in name.split(" ") if w not in words) or name
 
 
 def _surfaces(part: ViewPart | None, setup: Setup) -> tuple[Surface, ...]:

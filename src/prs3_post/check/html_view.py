@@ -62,6 +62,10 @@ MACHINE_PIECES: tuple[tuple[str, int, int, str], ...] = (
     ("tool", 2, 6, "#d03030"),
 )
 _POINTS_PER_STOP = sum(p[1] for p in MACHINE_PIECES)
+# each line of a panel drawn wider and solid, the next narrower and dashed...: lines that coincide
+# (the three strokes of a path at a constant tool axis) stay told apart
+_STYLES = ({"width": 2.4, "dash": "solid"}, {"width": 1.8, "dash": "dash"}, {"width": 1.4, "dash": "dot"},
+           {"width": 1.4, "dash": "solid"}, {"width": 1.4, "dash": "dashdot"})
 #: The part's colour (a light tan: apart from the machine's greys and the operations' colours).
 PART_COLOUR = "#d2b48c"
 
@@ -159,11 +163,13 @@ class Stops:
 
 @dataclass(frozen=True, slots=True)
 class Series:
-    """One line of a time panel: (M,) float ``values`` at :attr:`ViewData.time` (NaN: a gap)."""
+    """One line of a time panel: (M,) float ``values`` at :attr:`ViewData.time` (NaN: a gap); ``name``
+    on hover, ``short`` in the panel's title in the line's colour (empty: ``name``)."""
 
     name: str
     values: FloatArray
     colour: str
+    short: str = ""
 
 
 @dataclass(frozen=True, slots=True)
@@ -369,14 +375,17 @@ def _plots(data: ViewData) -> tuple[list[dict[str, Any]], dict[str, Any]]:
         layout[f"xaxis{suffix}"] = {"anchor": f"y{suffix}", "showticklabels": p == count - 1,
                                     **({"matches": "x"} if p else {})}
         # the title at the right: the boundaries' labels are written above the left of the first panel
-        layout["annotations"].append({"text": f"<b>{html.escape(panel.title)}</b>", "xref": "paper",
+        key = "  ".join(f"<span style='color:{s.colour}'>{html.escape(s.short or s.name)}</span>"
+                        for s in panel.series) if len(panel.series) > 1 else ""
+        layout["annotations"].append({"text": f"<b>{html.escape(panel.title)}</b>  {key}".rstrip(), "xref": "paper",
                                       "yref": "paper", "x": 1.0, "y": top, "xanchor": "right", "yanchor": "bottom",
                                       "showarrow": False, "font": {"size": 11}})
-        for s in panel.series:
+        for k, s in enumerate(panel.series):
             traces.append({"type": "scattergl" if len(time) > 20000 else "scatter", "name": s.name,
                            "mode": "lines" if len(time) > 1 else "markers",
                            "x": _typed(time), "y": _typed(s.values), "xaxis": f"x{suffix}", "yaxis": f"y{suffix}",
-                           "line": {"color": s.colour, "width": 1.3}, "connectgaps": False})
+                           "line": {"color": s.colour, **(_STYLES[k % len(_STYLES)] if len(panel.series) > 1
+                                                                    else {"width": 1.5})}, "connectgaps": False})
         for lim in panel.limits:                           # a trace, so that the y axis's autorange includes it
             traces.append({"type": "scatter", "mode": "lines", "name": lim.name, "x": t_end,
                            "y": [lim.value, lim.value], "xaxis": f"x{suffix}", "yaxis": f"y{suffix}",
