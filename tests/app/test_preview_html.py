@@ -147,3 +147,28 @@ def test_without_plotly_the_command_says_how_to_install_it(tmp_path, monkeypatch
     assert (result.exit_code, result.output) == (
         2, "prs3-post: error: the HTML view needs plotly: pip install 'prs3-post[plot]'\n")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_decimated_view_stops_at_the_closest_approach_the_worst_margin_and_each_boundary(tmp_path, monkeypatch):
+    import prs3_post.app.preview_html as preview_html
+
+    monkeypatch.setattr(preview_html, "MAX_STOPS", 40)
+    program, view = tmp_path / "example.ngc", tmp_path / "example.html"
+    assert run("job", JOB, "-o", program, "-q").exit_code == 0
+    result = run("preview", program, "-o", view, "--part", REPO / "fixtures" / "parts" / "twofaces.stl")
+    assert result.exit_code == 0
+    data = page_data(view)
+    lines = data["stops"]["line"]
+    assert 40 <= len(lines) < 60 and lines == sorted(lines)
+    names = [t["name"] for t in data["scene"]["data"]]
+    closest = next(n for n in names if n.startswith("closest: "))
+    worst = next(n for n in names if n.startswith("worst margin: "))
+    assert (closest, worst) == ("closest: tool over 3.182 mm clear, line 631",
+                                "worst margin: stage X 18.5 % of its range, line 57")
+    assert {631, 57} <= set(lines)
+    moves = open_program(str(program)).program.moves.source.tolist()
+    assert moves[0] in lines and moves[-1] in lines
+    notes = re.findall(r"<div class='note'>(.*?)</div>", view.read_text(encoding="utf-8"))
+    assert notes == [f"{len(moves)} moves: the slider stops at {len(lines)} of them (evenly spaced, with every "
+                     "axis&#x27;s extremes, each operation&#x27;s and tool change&#x27;s first line, the worst margin "
+                     "and the closest approach)"]

@@ -259,11 +259,14 @@ def view_html(program: ProgramFile, machine: Machine, setup: Setup, *, dialect: 
     report = verify_loaded(program, machine, setup, dialect, tolerance=tolerance, tool_lengths=tool_lengths,
                            intended=rebuilt.intended if rebuilt is not None and matched else None, progress=progress)
     mark = None
+    closest_line = 0
     if rebuilt is not None and matched:
         report, found = with_clearance(report, machine, rebuilt)
         mark = None if isinstance(found, str) else closest_mark(found)
+        closest_line = 0 if isinstance(found, str) else int(found.line[found.worst()])
     elif closest is not None:
-        mark = (closest.point, closest.label(int(program.moves.source[closest.row])), False)
+        closest_line = int(program.moves.source[closest.row])
+        mark = (closest.point, closest.label(closest_line), False)
     timeline = timeline_of(report, rapid_rate=rapid_rate, marks=program_marks(program, header, dialect))
     moves = report.program
     n = len(moves)
@@ -276,8 +279,7 @@ def view_html(program: ProgramFile, machine: Machine, setup: Setup, *, dialect: 
         markers.append(Marker(name=text, point=setup.points_to_machine(np.asarray(point).reshape(1, 3))[0],
                               text=f"closest, line {text.rsplit('line ', 1)[-1]}" if "line " in text else text,
                               colour="#d62728" if hit else "#7b2cbf", symbol="x"))
-        if closest is not None:
-            keep.append(np.array([closest.row]))
+        keep.append(np.flatnonzero(moves.source == closest_line)[:1])    # its line is a stop
     if timeline.worst >= 0:
         row = int(timeline.row[timeline.worst])
         line = int(moves.source[row])
@@ -288,7 +290,7 @@ def view_html(program: ProgramFile, machine: Machine, setup: Setup, *, dialect: 
                               point=tip[timeline.worst], text=f"worst margin, line {line}",
                               colour="#d62728" if fraction < 0 else "#ff7f0e"))
     joints = joints_of(moves)
-    stops = stop_rows(joints, np.concatenate(keep))
+    stops = stop_rows(joints, np.concatenate(keep), most=MAX_STOPS)
     tool_length = _row_tool_lengths(moves, machine, tool_lengths)
     kinematics = kinematics_of(machine)
     letters = joint_letters(kinematics.joint_names, kinematics.default_letters, dialect.axes)
@@ -315,7 +317,8 @@ def _decimation_notes(rows: int, stops: int, samples: int) -> tuple[str, ...]:
     notes = []
     if stops < rows:
         notes.append(f"{rows} moves: the slider stops at {stops} of them (evenly spaced, with every axis's "
-                     "extremes, each operation's and tool change's first line and the worst margin)")
+                     "extremes, each operation's and tool change's first line, the worst margin and the closest "
+                     "approach)")
     if samples > MAX_PLOT_SAMPLES:
         notes.append(f"the plots show {MAX_PLOT_SAMPLES} or so of {samples} replay samples: in each stretch of "
                      "time, every quantity's lowest and highest value")
