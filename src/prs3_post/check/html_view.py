@@ -50,13 +50,15 @@ __all__ = ["MACHINE_PIECES", "NO_PLOTLY", "PART_COLOUR", "Boundary", "Limit", "M
 #: What the HTML view says without plotly (exit status 2).
 NO_PLOTLY = "the HTML view needs plotly: pip install 'prs3-post[plot]'"
 
-#: The machine's traces: name, points per stop, line width (px; 0: markers), colour.
+#: The machine's traces: name, points per stop, line width (px; 0: markers, -1: a filled triangle), colour.
 MACHINE_PIECES: tuple[tuple[str, int, int, str], ...] = (
     ("base", 4, 4, "#555555"),
+    ("base plate", 3, -1, "#9a9a9a"),
     ("rails", 9, 5, "#888888"),
     ("sliders", 3, 0, "#333333"),
     ("links", 9, 6, "#e0a030"),
     ("platform", 4, 7, "#4060a0"),
+    ("platform plate", 3, -1, "#7090d0"),
     ("spindle nose", 2, 40, "#6a6a7a"),
     ("holder", 2, 18, "#a0a0b0"),
     ("tool", 2, 6, "#d03030"),
@@ -243,7 +245,8 @@ def machine_frames(pose: MachinePose) -> MachineFrames:
     link_lines = np.concatenate([links, np.broadcast_to(nan[:, None], (n, 3, 1, 3))], axis=2).reshape(n, -1, 3)
     platform = np.concatenate([pose.spherical, pose.spherical[:, :1]], axis=1)
     bodies = pose.body_segments()                                                    # (N, B, 2, 3) tool, holder, nose
-    pieces = [base, rail_lines, pose.sliders, link_lines, platform, bodies[:, 2], bodies[:, 1], bodies[:, 0]]
+    pieces = [base, tops, rail_lines, pose.sliders, link_lines, platform, pose.spherical, bodies[:, 2], bodies[:, 1],
+              bodies[:, 0]]
     points = pose.on_table(np.concatenate(pieces, axis=1))
     points[~pose.converged] = np.nan
     return MachineFrames(points=points)
@@ -313,7 +316,12 @@ def _scene(data: ViewData) -> tuple[dict[str, Any], dict[str, Any]]:
         trace: dict[str, Any] = {"type": "scatter3d", "name": name, "showlegend": False, "hoverinfo": "skip",
                                  "x": _listed(chunk[:, 0]), "y": _listed(chunk[:, 1]), "z": _listed(chunk[:, 2]),
                                  "connectgaps": False}
-        if width:
+        if width < 0:
+            trace = {"type": "mesh3d", "name": name, "showlegend": False, "hoverinfo": "skip", "color": colour,
+                     "opacity": 0.45, "i": [0], "j": [1], "k": [2], "flatshading": True,
+                     **({"x": _listed(chunk[:, 0]), "y": _listed(chunk[:, 1]), "z": _listed(chunk[:, 2])}
+                        if np.isfinite(chunk).all() else {"x": [], "y": [], "z": []})}
+        elif width:
             trace |= {"mode": "lines", "line": {"color": colour, "width": width}}
         else:
             trace |= {"mode": "markers", "marker": {"color": colour, "size": 5, "symbol": "square"}}
@@ -422,7 +430,8 @@ def render_view(data: ViewData) -> str:
         "scene": scene,
         "machine_scene": machine,
         "plots": {"data": plot_traces, "layout": plot_layout},
-        "machine": {"counts": [p[1] for p in MACHINE_PIECES], "points": _typed(data.machine.points),
+        "machine": {"counts": [p[1] for p in MACHINE_PIECES], "meshes": [p[2] < 0 for p in MACHINE_PIECES],
+                    "points": _typed(data.machine.points),
                     "per_stop": _POINTS_PER_STOP},
         "stops": {"line": np.asarray(stops.line).astype(int).tolist(),
                   "time": [round(float(t), 6) for t in np.asarray(stops.time)],
@@ -499,6 +508,8 @@ _SCRIPT = r"""
         var a = rows[at], b = rows[at + 1], c = rows[at + 2];
         x.push(isNaN(a) ? null : a); y.push(isNaN(b) ? null : b); z.push(isNaN(c) ? null : c);
       }
+      // a triangle without a pose (a null corner) is drawn empty, not with holes
+      if (M.meshes[p] && (x.indexOf(null) >= 0 || y.indexOf(null) >= 0 || z.indexOf(null) >= 0)) x = y = z = [];
       xs.push(x); ys.push(y); zs.push(z);
     }
     return {x: xs, y: ys, z: zs};
