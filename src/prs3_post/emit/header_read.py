@@ -43,7 +43,8 @@ from prs3_post.toolpaths import (
 from prs3_post.toolpaths.common import MAX_TOLERANCE, MIN_TOLERANCE
 from prs3_post.toolpaths.work import HoleJob, ProfileJob
 
-__all__ = ["HEADER_ECHO", "HEAD_BYTES", "header_comments", "parse_header", "read_counts", "read_header"]
+__all__ = ["HEADER_ECHO", "HEAD_BYTES", "cycle_minutes", "header_comments", "parse_header", "read_counts",
+           "read_header"]
 
 #: How many bytes of a program's start :func:`read_header` looks at (a header is about 1 KB).
 HEAD_BYTES = 64 * 1024
@@ -407,6 +408,20 @@ _FORMS |= {
     _TOOL_LENGTH: "'L mm, as given|the machine's'",
     _SOURCE_TOLERANCE: "'T mm, angle A deg'",
 }
+
+
+_CYCLE_TIME = re.compile(rf"\(\s*dynamics\s*:\s*cycle time ({_NUMBER}) min = ", re.IGNORECASE)
+
+
+def cycle_minutes(line: str) -> float | None:
+    """The cycle time (min) a header's ``dynamics`` line states, None where it states none.
+
+    >>> cycle_minutes("(dynamics: cycle time 0.082 min = 4.9 s, no feed slowed by the axis speed limits)")
+    0.082
+    >>> cycle_minutes("(dynamics: none in the machine file: feeds not checked against axis speeds, no cycle time)")
+    """
+    found = _CYCLE_TIME.match(line)
+    return None if found is None else float(found.group(1))
 
 
 def read_counts(text: str) -> SourceCounts:
