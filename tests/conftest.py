@@ -96,6 +96,19 @@ def chromium_available() -> tuple[bool, str]:
     return True, ""
 
 
+def linuxcnc_available() -> tuple[bool, str]:
+    """Whether `prs3-post sim` can run LinuxCNC here (its launcher, and Debian's python3 with the
+    linuxcnc module), and why not."""
+    if shutil.which("linuxcnc") is None:
+        return False, "the linuxcnc launcher is not on PATH (apt-get install linuxcnc-uspace)"
+    if not Path("/usr/bin/python3").exists():
+        return False, "/usr/bin/python3 missing"
+    probe = subprocess.run(["/usr/bin/python3", "-c", "import linuxcnc"], capture_output=True, check=False)
+    if probe.returncode != 0:
+        return False, "LinuxCNC's python module is not installed (apt-get install linuxcnc-uspace)"
+    return True, ""
+
+
 @pytest.fixture(scope="session")
 def chromium():
     """A headless chromium (Playwright's Browser), WebGL through SwiftShader; never ``playwright install``.
@@ -115,3 +128,14 @@ def chromium():
             "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"])
         yield browser
         browser.close()
+
+
+@pytest.fixture(scope="session")
+def linuxcnc() -> None:
+    """Needs LinuxCNC (`prs3-post sim`): skips where it is not installed, except in CI (CI set), where
+    that is a failure."""
+    ok, why = linuxcnc_available()
+    if not ok:
+        if os.environ.get("CI"):
+            pytest.fail(f"LinuxCNC must run in CI: {why}")
+        pytest.skip(f"LinuxCNC unavailable: {why}")

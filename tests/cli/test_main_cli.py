@@ -413,7 +413,7 @@ def test_a_program_failing_while_it_is_written_leaves_nothing(tmp_path, monkeypa
 
 
 COMMANDS = ("accuracy, calibrate, convert, demo, export, faces, fk, ik, job, linuxcnc-config, machines, preview, run, "
-            "sources, verify")
+            "sim, sources, verify")
 
 
 @pytest.mark.parametrize(("word", "hint"), [("verfy", "did you mean 'verify'? "), ("nosuchcommand", "")])

@@ -30,6 +30,8 @@ ALLOWED = {
     "TOOL_DIAMETER_RANGE": "the smallest tool diameter accepted, a range bound",
     "_margin_panel": "a label's offset in the preview's bar chart (a fraction of the axes)",
     "project_onto_face": "how far a job's point may be off its face, a check of that input",
+    "POLL_S": "seconds between two status reads of `sim`'s display program (outside the package's imports)",
+    "WAIT_POLL_S": "seconds between two status reads of `sim`'s display program while it waits for a step",
 }
 
 

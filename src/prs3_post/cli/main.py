@@ -22,6 +22,7 @@ from prs3_post.cli.kinematics import fk, ik
 from prs3_post.cli.linuxcnc import linuxcnc_config
 from prs3_post.cli.options import Command
 from prs3_post.cli.run import demo, job, run
+from prs3_post.cli.sim import sim
 from prs3_post.cli.verify import preview, verify
 from prs3_post.core.errors import OutputClosed, quoted
 from prs3_post.core.output_files import (
@@ -125,7 +126,7 @@ def main() -> None:
 
 
 for _command in (accuracy, calibrate, convert, demo, export, faces, fk, ik, job, linuxcnc_config, machines, preview,
-                 run, sources, verify):
+                 run, sim, sources, verify):
     main.add_command(_command)
 
 
