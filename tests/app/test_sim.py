@@ -109,6 +109,25 @@ def test_a_file_that_is_not_a_program_is_refused_before_linuxcnc(monkeypatch: py
     assert "example.toml:" in result.output
 
 
+def test_a_linuxcnc_that_does_not_start_is_reported_with_its_output(monkeypatch: pytest.MonkeyPatch,
+                                                                   tmp_path: Path) -> None:
+    fake = tmp_path / "linuxcnc"
+    fake.write_text("#!/bin/sh\necho 'Starting LinuxCNC...'\necho 'HAL: ERROR: no such pin'\nexit 1\n",
+                    encoding="utf-8")
+    fake.chmod(0o755)
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(runs))
+    monkeypatch.setattr(sim_module, "linuxcnc_launcher", lambda: str(fake))
+    monkeypatch.setattr(sim_module, "can_isolate", lambda: False)   # (a namespace's /tmp would hide the fake)
+    monkeypatch.setattr(sim_module, "_wait_for_other_linuxcnc", lambda tell: None)
+    result = invoke("sim", DEMO)
+    assert result.exit_code == 1
+    assert result.output == ("prs3-post: error: LinuxCNC did not run the program: Starting LinuxCNC...; HAL: "
+                             "ERROR: no such pin\n")
+    assert list(runs.iterdir()) == []
+
+
 def test_an_error_without_a_line_belongs_to_the_one_before_it() -> None:
     moves = open_program(str(DEMO)).program.moves
     result = {"errors": [
@@ -186,18 +205,31 @@ def test_the_example_job_runs_in_linuxcnc(run_folder: Path) -> None:
     assert report.header_minutes == 1.287
 
 
+def test_without_namespaces_it_runs_alone_on_the_host(run_folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where LinuxCNC cannot have namespaces of its own (not root), it runs as the host's one instance."""
+    running = sim_module.linuxcnc_processes()
+    if running:
+        pytest.skip(f"another LinuxCNC runs on this host: {running}")
+    monkeypatch.setattr(sim_module, "can_isolate", lambda: False)
+    _check_pass(simulate(str(DEMO), feed_override=OVERRIDE))
+    assert not Path("/tmp/linuxcnc.lock").exists()
+
+
 def test_a_move_out_of_range_fails_naming_its_line(run_folder: Path, tmp_path: Path) -> None:
+    """The demo's plunge sent to V474.8608 (the strokes end at 400 mm), after a program stop (M0) that the
+    display resumes as an operator's cycle start would."""
     text = DEMO.read_text(encoding="utf-8")
     bad = tmp_path / "bad.ngc"
-    bad.write_text(text.replace("G1 X-5.0002 U40.6968 V174.8608", "G1 X-5.0002 U40.6968 V474.8608"),
+    bad.write_text(text.replace("G93\nG1 X-5.0002 U40.6968 V174.8608", "M0\nG93\nG1 X-5.0002 U40.6968 V474.8608"),
                    encoding="utf-8")
     result = invoke("sim", bad, "--feed-override", OVERRIDE)
     assert result.exit_code == 1, result.output
     lines = result.output.splitlines()
     assert lines[0] == "bad.ngc in LinuxCNC (machine patel2020, feed override 10 = 1000 %)"
-    assert "  controller: line 27: Linear move would exceed V's positive limit" in lines
-    assert "    line 27: G1 X-5.0002 U40.6968 V474.8608 W93.4242 F14.2857" in lines
-    assert lines[-1].startswith("FAIL: the controller stopped the program at line 27 (")
+    assert "  controller note: line 25: program stop after this line's move: resumed (cycle start)" in lines
+    assert "  controller: line 28: Linear move would exceed V's positive limit" in lines
+    assert "    line 28: G1 X-5.0002 U40.6968 V474.8608 W93.4242 F14.2857" in lines
+    assert lines[-1].startswith("FAIL: the controller stopped the program at line 28 (")
 
 
 def test_ctrl_c_stops_linuxcnc_in_order(run_folder: Path) -> None:

@@ -144,6 +144,8 @@ class _Session:
         before = None
         first_moved = last_moved = None
         started = timed_out = False
+        paused = 0.0
+        pause_started: float | None = None
         while True:
             self._check_stop()
             stat.poll()
@@ -154,6 +156,17 @@ class _Session:
                 first_moved = now if first_moved is None else first_moved
                 last_moved = now
             before = position
+            if stat.interp_state == lc.INTERP_PAUSED:     # M0 (or M1 with optional stop on): cycle start
+                if pause_started is None:
+                    pause_started = now
+                    self.result["messages"].append({
+                        "kind": "text", "text": "program stop after this line's move: resumed (cycle start)",
+                        "line": stat.motion_line or stat.current_line or None, "named": False,
+                        "stage": self.result["stage"]})
+                    self.command.auto(lc.AUTO_RESUME)
+            elif pause_started is not None:
+                paused += now - pause_started                # the operator's time, not the program's
+                pause_started = None
             busy = stat.interp_state != lc.INTERP_IDLE
             started = started or busy
             if (started or now - start > 1.0) and not busy:
@@ -173,7 +186,10 @@ class _Session:
         if self.result["stage"] == "ended":
             self.result["stage"] = "done"
         self.result["run_s"] = end - start
-        self.result["motion_s"] = None if first_moved is None or last_moved is None else last_moved - first_moved
+        self.result["motion_s"] = None
+        if first_moved is not None and last_moved is not None:
+            self.result["motion_s"] = last_moved - first_moved - paused
+        self.result["paused_s"] = paused
         self.result["joints"] = list(stat.joint_actual_position[: stat.joints])
         self.result["feed_override"] = stat.feedrate
 
