@@ -128,6 +128,24 @@ def test_a_linuxcnc_that_does_not_start_is_reported_with_its_output(monkeypatch:
     assert list(runs.iterdir()) == []
 
 
+def test_runs_take_turns_on_one_lock() -> None:
+    """Another process holding the lock (another sim running): this one says it waits, then goes on."""
+    holder = subprocess.Popen([sys.executable, "-c", (
+        "import fcntl, os, sys, time; from prs3_post.app.sim import SIM_LOCK\n"
+        "fd = os.open(SIM_LOCK, os.O_RDONLY | os.O_CREAT, 0o666); fcntl.flock(fd, fcntl.LOCK_EX)\n"
+        "print('held', flush=True); time.sleep(1.0)")], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout is not None and holder.stdout.readline() == "held\n"
+        told: list[str] = []
+        started = time.monotonic()
+        with sim_module._sim_lock(told.append):
+            waited = time.monotonic() - started
+    finally:
+        holder.wait(timeout=30)
+    assert told == ["waiting for another prs3-post sim to finish"]
+    assert waited > 0.5
+
+
 def test_an_error_without_a_line_belongs_to_the_one_before_it() -> None:
     moves = open_program(str(DEMO)).program.moves
     result = {"errors": [

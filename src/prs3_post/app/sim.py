@@ -428,16 +428,19 @@ def _unprivileged_uid() -> int:
 def _sim_lock(tell: Callable[[str], None]) -> Iterator[None]:
     """One `sim` at a time on the host (LinuxCNC runs one instance, and runs side by side would slow each
     other's clocks): :data:`SIM_LOCK`, held while LinuxCNC runs."""
-    with open(SIM_LOCK, "a+b") as handle:
+    try:                                             # read-only: a lock file another user made is theirs
+        handle = os.open(SIM_LOCK, os.O_RDONLY | os.O_CREAT, 0o666)
+    except OSError as exc:
+        raise SimError(f"cannot open the lock that runs of sim take turns on, {SIM_LOCK}: {exc.strerror}") from exc
+    try:
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             tell("waiting for another prs3-post sim to finish")
             fcntl.flock(handle, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
+        yield
+    finally:
+        os.close(handle)                             # (closing releases the lock)
 
 
 def linuxcnc_processes() -> list[tuple[int, str]]:
@@ -655,12 +658,12 @@ def report_lines(report: SimReport) -> list[str]:
     if report.motion_s is not None and finished:
         total = "" if report.run_s is None else f", {seconds(report.run_s)} from cycle start to the end"
         out.append(f"  run time: {fixed(report.motion_s, 3)} s of motion{total}")
-    if report.estimate_s is not None:
+    if report.estimate_s is not None and finished:
         header = ("no estimate in the header" if report.header_minutes is None else
                   f"the header's {fixed(report.header_minutes * 60.0, 1)} s at 100 %")
         how = "" if k == 1 else f"; each feed × {k:g} up to the axes' top speeds, rapids at their top speeds"
         ratio = report.time_ratio
-        versus = "" if ratio is None or not finished else f": the motion took {(ratio - 1) * 100:+.1f} %"
+        versus = "" if ratio is None else f": the motion took {(ratio - 1) * 100:+.1f} %"
         out.append(f"  estimate: {fixed(report.estimate_s, 3)} s at feed override {k:g} ({header}{how}){versus}")
     if report.screenshot is not None:
         out.append(f"  screenshot: {report.screenshot} (the vismach model at the end)")
