@@ -24,6 +24,7 @@ import pytest
 from click.testing import CliRunner
 
 import prs3_post.app.sim as sim_module
+from prs3_post.app.linuxcnc_config import config_axes
 from prs3_post.app.sim import (
     POSITION_TOLERANCE_MM,
     ControllerMessage,
@@ -33,6 +34,7 @@ from prs3_post.app.sim import (
 from prs3_post.app.verify import open_program
 from prs3_post.cli.main import main
 from prs3_post.core.errors import FieldError
+from prs3_post.machine.loading import load_machine
 
 REPO = Path(__file__).resolve().parents[2]
 GOLDEN = REPO / "fixtures" / "golden"
@@ -144,6 +146,19 @@ def test_runs_take_turns_on_one_lock() -> None:
         holder.wait(timeout=30)
     assert told == ["waiting for another prs3-post sim to finish"]
     assert waited > 0.5
+
+
+def test_the_joints_are_in_the_configurations_order() -> None:
+    """Stage X, Y, then the strokes; a machine without a stage has the strokes alone (as its configuration)."""
+    context = open_program(str(DEMO))
+    moves = context.program.moves
+    np.testing.assert_allclose(sim_module.config_joints(context.machine, moves, -1),
+                               [1.708, 12.0703, 27.2803, 161.4444, 80.0078])
+    head = load_machine("patel2020-head")
+    np.testing.assert_allclose(sim_module.config_joints(head, moves, 0), [27.2803, 161.4444, 80.0078])
+    axes = config_axes(head)
+    assert sim_module._start_move(axes, sim_module.config_joints(head, moves, 0)) == (
+        "G90 G0 U27.280300 V161.444400 W80.007800")
 
 
 def test_an_error_without_a_line_belongs_to_the_one_before_it() -> None:

@@ -244,14 +244,14 @@ def simulate(path: str, *, machine: str | None = None, feed_override: float = 1.
     with _sim_lock(tell), _run_folder(keep) as folder:
         inside = ISOLATED_ROOT if isolated else folder        # the run folder as LinuxCNC sees it
         config = _configure(context, folder, inside, feed_override, vismach=screenshot is not None)
-        program = folder / "program" / Path(path).name
+        program = folder / "program" / (Path(path).name if path != "-" else "stdin.ngc")
         program.parent.mkdir()
-        shutil.copyfile(path, program)
+        program.write_text("\n".join(context.program.lines) + "\n", encoding="utf-8")   # as read (and checked)
         time_limit = _time_limit(estimate, moves)
         settings = {
             "result": str(inside / "result.json"),
             "feed_override": feed_override,
-            "start": _start_move(config.axes, moves),
+            "start": _start_move(config.axes, config_joints(context.machine, moves, 0)),
             "timeout_s": time_limit,
             "screenshot": None if screenshot is None else str(inside / "screenshot.png"),
             "stop": str(inside / "stop"),
@@ -276,7 +276,7 @@ def simulate(path: str, *, machine: str | None = None, feed_override: float = 1.
         report = SimReport(
             path=path, context=context, config=config, stage=str(result.get("stage")),
             messages=_messages(result, moves), final=_final(result, len(config.axes)),
-            expected=joint_columns(moves.stage[-1], moves.strokes[-1])[0], last_line=int(moves.source[-1]),
+            expected=config_joints(context.machine, moves, -1), last_line=int(moves.source[-1]),
             run_s=result.get("run_s"), motion_s=result.get("motion_s"), feed_override=feed_override,
             applied_override=result.get("feed_override"), header_minutes=header_minutes, estimate_s=estimate,
             screenshot=written, screenshot_error=shot_error, kept=folder if keep else None,
@@ -341,10 +341,17 @@ def _time_limit(estimate_s: float | None, moves: JointProgram) -> float:
     return min(86400.0, float(feed_minutes.sum()) * 60.0 + len(moves) + 60.0)
 
 
-def _start_move(axes: tuple[ConfigAxis, ...], moves: JointProgram) -> str:
-    """The MDI move to the program's first point (``G0 X1.708 Y12.0703 U27.2803 ...``)."""
-    first = joint_columns(moves.stage[0], moves.strokes[0])[0]
-    return "G90 G0 " + " ".join(f"{axis.letter}{value:.6f}" for axis, value in zip(axes, first, strict=True))
+def config_joints(machine: Machine, moves: JointProgram, row: int) -> np.ndarray:
+    """(J,) mm: a program row's joints in the configuration's order (stage X, Y where the machine has a
+    stage, then the head's joints)."""
+    if machine.stage.present:
+        return joint_columns(moves.stage[row], moves.strokes[row])[0]
+    return np.asarray(moves.strokes[row], dtype=np.float64).copy()
+
+
+def _start_move(axes: tuple[ConfigAxis, ...], joints: np.ndarray) -> str:
+    """The MDI move to the program's first point (``G90 G0 X1.708000 Y12.070300 U27.280300 ...``)."""
+    return "G90 G0 " + " ".join(f"{axis.letter}{value:.6f}" for axis, value in zip(axes, joints, strict=True))
 
 
 def _configure(context: ProgramContext, folder: Path, inside: Path, feed_override: float, *,
@@ -627,7 +634,7 @@ def seconds(value: float) -> str:
 def report_lines(report: SimReport) -> list[str]:
     """The report `sim` prints: what the controller said, where the joints stopped, the times, and the
     verdict (``OK: ...`` or ``FAIL: ...``) last."""
-    name = Path(report.path).name
+    name = "standard input" if report.path == "-" else Path(report.path).name
     axes = report.config.axes
     k = report.feed_override
     out = [f"{name} in LinuxCNC (machine {report.context.machine.name}, feed override {k:g} = {k * 100:.0f} %)"]
