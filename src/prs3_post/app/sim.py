@@ -43,6 +43,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -532,11 +533,11 @@ def _launch(launcher: str, xvfb: str | None, config: LinuxcncConfig, folder: Pat
     command = [launcher, "-r", str(ini), str(inside / program)]
     if xvfb is not None:                             # a server number of its own (-a tries the next ones)
         command = [xvfb, "-a", "-n", str(200 + os.getpid() % 700), "-s", f"-screen 0 {XVFB_SCREEN}", *command]
-    if isolated:
-        command = ["unshare", *NAMESPACES, "--", "/bin/sh", "-c",
-                   'mount --bind "$0" /tmp && cd /tmp && exec "$@"', str(folder), *command]
+    if isolated:                                     # sh stays the namespace's init: xvfb-run as init hangs
+        command = ["unshare", *NAMESPACES, "--", "/bin/sh", "-c", 'mount --bind "$0" /tmp && cd /tmp && "$@"',
+                   str(folder), *command]
     log = folder / "linuxcnc.log"
-    with open(log, "wb") as out:
+    with open(log, "wb") as out, _terminate_as_interrupt():
         process = subprocess.Popen(command, cwd=folder, env=_system_env(extra), stdin=subprocess.DEVNULL,
                                    stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
         try:
@@ -544,9 +545,30 @@ def _launch(launcher: str, xvfb: str | None, config: LinuxcncConfig, folder: Pat
         except subprocess.TimeoutExpired:
             _stop(process, folder)
             raise SimError(f"LinuxCNC did not end within {time_limit:.0f} s: stopped ({_log_tail(log)})") from None
-        except BaseException:                        # Ctrl-C: LinuxCNC shuts down in order before we go
+        except BaseException:                        # Ctrl-C, SIGTERM: LinuxCNC shuts down in order before we go
             _stop(process, folder)
             raise
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM while LinuxCNC runs: handled as Ctrl-C is (LinuxCNC is shut down first)."""
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    raise Terminated
+
+
+@contextlib.contextmanager
+def _terminate_as_interrupt() -> Iterator[None]:
+    """While LinuxCNC runs, SIGTERM stops the run as Ctrl-C does (in the main thread, where signals land)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _stop(process: subprocess.Popen[bytes], folder: Path) -> None:
