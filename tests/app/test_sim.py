@@ -123,6 +123,7 @@ def test_a_linuxcnc_that_does_not_start_is_reported_with_its_output(monkeypatch:
     monkeypatch.setattr(sim_module, "linuxcnc_launcher", lambda: str(fake))
     monkeypatch.setattr(sim_module, "can_isolate", lambda: False)   # (a namespace's /tmp would hide the fake)
     monkeypatch.setattr(sim_module, "_wait_for_other_linuxcnc", lambda tell: None)
+    monkeypatch.setattr(sim_module, "_check_reachable", lambda folder: None)     # (no realtime part to run)
     result = invoke("sim", DEMO)
     assert result.exit_code == 1
     assert result.output == ("prs3-post: error: LinuxCNC did not run the program: Starting LinuxCNC...; HAL: "
@@ -244,6 +245,10 @@ def test_without_namespaces_it_runs_alone_on_the_host(run_folder: Path, monkeypa
     if running:
         pytest.skip(f"another LinuxCNC runs on this host: {running}")
     monkeypatch.setattr(sim_module, "can_isolate", lambda: False)
+    if os.geteuid() == 0:                    # rtapi_app runs as nobody, and must reach its FIFO in the run
+        with pytest.raises(sim_module.SimError, match=r"cannot be entered by the user LinuxCNC's realtime part"):
+            simulate(str(DEMO), feed_override=OVERRIDE)          # pytest's temporary folders are the owner's
+        monkeypatch.setattr(tempfile, "tempdir", "/tmp")
     _check_pass(simulate(str(DEMO), feed_override=OVERRIDE))
     assert not Path("/tmp/linuxcnc.lock").exists()
 

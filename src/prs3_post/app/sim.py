@@ -244,6 +244,8 @@ def simulate(path: str, *, machine: str | None = None, feed_override: float = 1.
     isolated = can_isolate()
     with _sim_lock(tell), _run_folder(keep) as folder:
         inside = ISOLATED_ROOT if isolated else folder        # the run folder as LinuxCNC sees it
+        if not isolated and os.geteuid() == 0:
+            _check_reachable(folder)
         config = _configure(context, folder, inside, feed_override, vismach=screenshot is not None)
         program = folder / "program" / (Path(path).name if path != "-" else "stdin.ngc")
         program.parent.mkdir()
@@ -419,6 +421,22 @@ def _run_folder(keep: bool) -> Iterator[Path]:
     finally:
         if not keep:
             shutil.rmtree(folder, ignore_errors=True)
+
+
+def _check_reachable(folder: Path) -> None:
+    """The realtime part, run as an unprivileged user, makes its FIFO in the run's folder: every folder on
+    the way there must let others through.
+
+    Raises
+    ------
+    SimError
+        ``the temporary folder /root/tmp/... cannot be entered by nobody ...: set TMPDIR ...``
+    """
+    for parent in folder.parents:
+        if not parent.stat().st_mode & 0o001:
+            raise SimError(f"the temporary folder {folder} cannot be entered by the user LinuxCNC's realtime part "
+                           f"runs as (uid {_unprivileged_uid()}): {parent} is closed to others; set TMPDIR to a "
+                           "folder everyone may enter, like /tmp")
 
 
 def _unprivileged_uid() -> int:
