@@ -156,12 +156,24 @@ def test_options_reach_the_ini(tmp_path: Path) -> None:
     assert value(ini, "DISPLAY", "MAX_FEED_OVERRIDE") == "10.000"
 
 
+def test_the_joints_home_where_asked_within_their_limits(tmp_path: Path) -> None:
+    """`sim` homes the joints at a program's first point: the controller starts there."""
+    config = write_config("patel2020", str(tmp_path / "sim"), home=(1.708, -312.5, 27.2803, 161.4444, 480.0))
+    ini = read_ini(config.ini)
+    assert [value(ini, f"JOINT_{j}", "HOME") for j in range(5)] == ["1.708", "-300.000", "27.2803", "161.4444",
+                                                                    "400.000"]
+    assert [value(ini, f"JOINT_{j}", "HOME_OFFSET") for j in range(5)] == [
+        value(ini, f"JOINT_{j}", "HOME") for j in range(5)]
+    assert [axis.home for axis in config.axes] == [1.708, -300.0, 27.2803, 161.4444, 400.0]
+
+
 @pytest.mark.parametrize(("kwargs", "field", "message"), [
     ({"display": ""}, "display", "give the display program on one line, printable (like 'axis'), got ''"),
     ({"display": "axis\nDISPLAY = x"}, "display",
      "give the display program on one line, printable (like 'axis'), got 'axis\\nDISPLAY = x'"),
     ({"max_feed_override": 0.5}, "max_feed_override", "expected 1 to 100 (1 = 100 %), got 0.5"),
     ({"max_feed_override": float("inf")}, "max_feed_override", "expected 1 to 100 (1 = 100 %), got inf"),
+    ({"home": (1.0, 2.0)}, "home", "expected 5 positions (one per joint: XYUVW), got 2"),
 ])
 def test_bad_options_are_refused(kwargs: dict[str, object], field: str, message: str) -> None:
     with pytest.raises(FieldError) as caught:

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from prs3_post.app.linuxcnc_vismach import VISMACH_SCRIPT, vismach_hal, vismach_script
@@ -46,7 +46,7 @@ from prs3_post.machine.model import Machine
 from prs3_post.readers.tooltable import Tool, ToolTable, read_tool_table
 
 __all__ = ["DEFAULT_DISPLAY", "DEFAULT_MAX_FEED_OVERRIDE", "PARAMETER_FILE", "TOOL_TABLE", "ConfigAxis",
-           "LinuxcncConfig", "config_axes", "config_files", "tool_table_text", "write_config"]
+           "LinuxcncConfig", "config_axes", "config_files", "homed_at", "tool_table_text", "write_config"]
 
 #: The display program LinuxCNC starts (``[DISPLAY] DISPLAY``) unless another is given.
 DEFAULT_DISPLAY = "axis"
@@ -112,7 +112,8 @@ class LinuxcncConfig:
 
 def write_config(machine: str, folder: str, *, tool_table: str | None = None, dialect: str | None = None,
                  display: str | None = None, vismach: bool = False,
-                 max_feed_override: float = DEFAULT_MAX_FEED_OVERRIDE, force: bool = False) -> LinuxcncConfig:
+                 max_feed_override: float = DEFAULT_MAX_FEED_OVERRIDE, force: bool = False,
+                 home: tuple[float, ...] | None = None) -> LinuxcncConfig:
     """Write a LinuxCNC simulation configuration for ``machine`` into the folder ``folder``.
 
     Parameters
@@ -125,6 +126,8 @@ def write_config(machine: str, folder: str, *, tool_table: str | None = None, di
     vismach : bool — load the vismach model of the machine (a window: it needs an X display)
     max_feed_override : float — the largest feed override the display offers (1 = 100 %)
     force : bool — replace an existing folder that has files in it
+    home : tuple of float | None — mm, where each joint homes, in the configuration's order (each moved
+        inside its limits; None: the stroke and stage zero): `sim` homes at a program's first point
 
     Raises
     ------
@@ -143,11 +146,11 @@ def write_config(machine: str, folder: str, *, tool_table: str | None = None, di
         raise ConfigError(f"cannot read the file again: {exc}", path=loaded.source) from exc
     table = None if tool_table is None else read_tool_table(tool_table)
     files = config_files(loaded, machine_text, tool_table=table, dialect=dialect, display=display,
-                         vismach=vismach, max_feed_override=max_feed_override)
+                         vismach=vismach, max_feed_override=max_feed_override, home=home)
     inputs = [str(machine_path)] + ([tool_table] if tool_table is not None else [])
     written = write_folder(folder, files, replace=force, inputs=inputs)
     return LinuxcncConfig(folder=written, ini=written / ini_name(loaded), files=tuple(files), machine=loaded,
-                          axes=config_axes(loaded, dialect), tools=_tools(loaded, table))
+                          axes=homed_at(config_axes(loaded, dialect), home), tools=_tools(loaded, table))
 
 
 def ini_name(machine: Machine) -> str:
@@ -195,7 +198,8 @@ def config_axes(machine: Machine, dialect: str | None = None) -> tuple[ConfigAxi
 
 def config_files(machine: Machine, machine_text: str, *, tool_table: ToolTable | None = None,
                  dialect: str | None = None, display: str | None = None, vismach: bool = False,
-                 max_feed_override: float = DEFAULT_MAX_FEED_OVERRIDE) -> dict[str, FolderFile]:
+                 max_feed_override: float = DEFAULT_MAX_FEED_OVERRIDE,
+                 home: tuple[float, ...] | None = None) -> dict[str, FolderFile]:
     """The configuration's files, {name: file}: the INI, the HAL file, the tool table, the parameter
     file and, with ``vismach``, the vismach model, its HAL file and the machine file it reads
     (``machine_text``, the machine's TOML as loaded). Parameters as :func:`write_config`."""
@@ -207,7 +211,7 @@ def config_files(machine: Machine, machine_text: str, *, tool_table: ToolTable |
     if not (math.isfinite(max_feed_override) and 1.0 <= max_feed_override <= MAX_FEED_OVERRIDE_LIMIT):
         raise FieldError(f"expected 1 to {MAX_FEED_OVERRIDE_LIMIT:g} (1 = 100 %), got {max_feed_override!r}",
                          field="max_feed_override")
-    axes = config_axes(machine, dialect)
+    axes = homed_at(config_axes(machine, dialect), home)
     hal = f"{file_stem(machine)}.hal"
     files = {
         ini_name(machine): FolderFile(ini_text(machine, axes, display=shown, hal_files=(hal,) + (
@@ -222,6 +226,23 @@ def config_files(machine: Machine, machine_text: str, *, tool_table: ToolTable |
         files[VISMACH_SCRIPT] = FolderFile(vismach_script(machine, toml, TOOL_TABLE), executable=True)
         files[toml] = FolderFile(machine_text)
     return files
+
+
+def homed_at(axes: tuple[ConfigAxis, ...], home: tuple[float, ...] | None) -> tuple[ConfigAxis, ...]:
+    """The axes homing at ``home`` (mm, one per joint in order, each moved inside its limits); None: as they are.
+
+    Raises
+    ------
+    FieldError
+        Not one position per joint.
+    """
+    if home is None:
+        return axes
+    if len(home) != len(axes):
+        raise FieldError(f"expected {len(axes)} positions (one per joint: {''.join(a.letter for a in axes)}), got "
+                         f"{len(home)}", field="home")
+    return tuple(replace(axis, home=min(max(float(value), axis.low), axis.high))
+                 for axis, value in zip(axes, home, strict=True))
 
 
 def _home(low: float, high: float) -> float:

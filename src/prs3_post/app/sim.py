@@ -4,10 +4,12 @@
     temporary folder ──► linuxcnc -r (milltask + motmod, non-realtime) with our display program ──►
     errors, final joints, run time ──► pass / fail
 
-The display program (:mod:`prs3_post.app.sim_display`, run by Debian's python3 and its ``linuxcnc``
-module) does what an operator would: E-stop reset, machine on, home, feed override, move to the
-program's first point, auto mode, open, run, and read the error channel until the interpreter is
-idle. This module prepares the folder, starts LinuxCNC and judges what the display wrote:
+The configuration homes every joint at the program's first point (the controller starts there, as the
+program's cycle time does: not with a long rapid from the stroke zero). The display program
+(:mod:`prs3_post.app.sim_display`, run by Debian's python3 and its ``linuxcnc`` module) does what an
+operator would: E-stop reset, machine on, home, feed override, (a move to the first point, where
+homing could not put it: outside the limits), auto mode, open, run, and read the error channel until
+the interpreter is idle. This module prepares the folder, starts LinuxCNC and judges what the display wrote:
 
 - **pass**: the program ran to its end with no controller error, and every joint stopped within
   :data:`POSITION_TOLERANCE_MM` of the words of the program's last motion line;
@@ -246,7 +248,9 @@ def simulate(path: str, *, machine: str | None = None, feed_override: float = 1.
         inside = ISOLATED_ROOT if isolated else folder        # the run folder as LinuxCNC sees it
         if not isolated and os.geteuid() == 0:
             _check_reachable(folder)
-        config = _configure(context, folder, inside, feed_override, vismach=screenshot is not None)
+        first = config_joints(context.machine, moves, 0)
+        config = _configure(context, folder, inside, feed_override, vismach=screenshot is not None,
+                            home=tuple(first.tolist()))
         program = folder / "program" / (Path(path).name if path != "-" else "stdin.ngc")
         program.parent.mkdir()
         program.write_text("\n".join(context.program.lines) + "\n", encoding="utf-8")   # as read (and checked)
@@ -254,7 +258,8 @@ def simulate(path: str, *, machine: str | None = None, feed_override: float = 1.
         settings = {
             "result": str(inside / "result.json"),
             "feed_override": feed_override,
-            "start": _start_move(config.axes, config_joints(context.machine, moves, 0)),
+            "start": _start_move(config.axes, first),
+            "start_joints": first.tolist(),
             "timeout_s": time_limit,
             "screenshot": None if screenshot is None else str(inside / "screenshot.png"),
             "stop": str(inside / "stop"),
@@ -358,9 +363,10 @@ def _start_move(axes: tuple[ConfigAxis, ...], joints: np.ndarray) -> str:
 
 
 def _configure(context: ProgramContext, folder: Path, inside: Path, feed_override: float, *,
-               vismach: bool) -> LinuxcncConfig:
+               vismach: bool, home: tuple[float, ...]) -> LinuxcncConfig:
     """The configuration in ``folder/config``, with the display program (``inside``: the run folder as
-    LinuxCNC sees it) and the program's tools."""
+    LinuxCNC sees it), the program's tools, and the joints homing at ``home`` (the program's first point:
+    the controller starts there, as the program's cycle time does)."""
     display = folder / "display.py"
     source = Path(__file__).with_name("sim_display.py")
     display.write_text(source.read_text(encoding="utf-8"), encoding="utf-8")
@@ -371,7 +377,7 @@ def _configure(context: ProgramContext, folder: Path, inside: Path, feed_overrid
     tools = _tool_table(context, folder)
     return write_config(_reference(context.machine), str(folder / "config"), tool_table=tools,
                         dialect=_reference(context.dialect), display=str(inside / "display.py"), vismach=vismach,
-                        max_feed_override=max(1.0, feed_override))
+                        max_feed_override=max(1.0, feed_override), home=home)
 
 
 def _reference(loaded: Machine | Dialect) -> str:

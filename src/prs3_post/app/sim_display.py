@@ -6,9 +6,9 @@ INI PROGRAM`` as arguments) once the motion controller and the task are up, and 
 when it returns. It runs under Debian's ``/usr/bin/python3``, whose ``linuxcnc`` module talks to the
 controller, not under prs3-post's environment: the standard library only, and nothing of prs3-post.
 
-What it does, as an operator at a panel would: E-stop reset, machine on, home every joint, set the
-feed override, move to the program's first point (MDI, so that the program's first move is not a
-long rapid from home that the program's cycle time does not count), then open the program and run
+What it does, as an operator at a panel would: E-stop reset, machine on, home every joint (the
+configuration homes them at the program's first point), set the feed override, move to the
+program's first point where homing did not put the joints there (MDI), then open the program and run
 it in auto mode, polling the controller every few milliseconds until the interpreter is idle. Every
 message of the error channel is kept with its program line. The result (a JSON file, the path in
 the settings) has the controller's errors, the joints' final positions, and the times: from cycle
@@ -17,9 +17,10 @@ at which one still moved). With a screenshot asked for, the window of the vismac
 display LinuxCNC runs under, Xvfb) is saved as a PNG at the end.
 
 The settings come as a JSON file named by the environment variable ``PRS3_SIM_SETTINGS``:
-``{"result": PATH, "feed_override": K, "start": "G0 X.. Y..", "timeout_s": S, "screenshot": PATH|null,
-"stop": PATH}``. When the ``stop`` file appears (prs3-post stopping the run: Ctrl-C), or on SIGTERM, the
-display aborts the program and ends, which lets LinuxCNC's launcher shut everything down in order.
+``{"result": PATH, "feed_override": K, "start": "G0 X.. Y..", "start_joints": [..], "timeout_s": S,
+"screenshot": PATH|null, "stop": PATH}``. When the ``stop`` file appears (prs3-post stopping the run:
+Ctrl-C), or on SIGTERM, the display aborts the program and ends, which lets LinuxCNC's launcher shut
+everything down in order.
 """
 
 from __future__ import annotations
@@ -110,7 +111,11 @@ class _Session:
         cmd.feedrate(float(settings["feed_override"]))
         cmd.rapidrate(1.0)
         cmd.wait_complete()
-        if settings.get("start"):
+        stat.poll()
+        there = settings.get("start_joints") is not None and all(
+            abs(a - b) < 1e-6 for a, b in zip(stat.joint_actual_position[: stat.joints], settings["start_joints"],
+                                              strict=True))
+        if settings.get("start") and not there:              # (homed there: nothing to move)
             self._step("first point")
             cmd.mode(lc.MODE_MDI)
             cmd.wait_complete()

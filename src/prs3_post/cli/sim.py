@@ -37,9 +37,9 @@ def sim(program_path: str, machine_name: str | None, feed_override: float, scree
 
     The program runs in LinuxCNC's own interpreter, task and motion controller (milltask and motmod,
     non-realtime, no X display) with the configuration `prs3-post linuxcnc-config` writes for the
-    machine the header names, in a temporary folder. A small display program does what an operator
-    would: E-stop reset, machine on, home, feed override, a move to the program's first point,
-    auto mode, cycle start; it reads the controller's error channel until the program ends.
+    machine the header names, in a temporary folder, with every joint homing at the program's first
+    point. A small display program does what an operator would: E-stop reset, machine on, home, feed
+    override, auto mode, cycle start; it reads the controller's error channel until the program ends.
 
     It passes when the program runs to its end with no controller error and every joint stops within
     0.001 mm of the last motion line's words (exit 0); a controller error names its line (exit 1).
