@@ -91,6 +91,25 @@ def test_a_screenshot_without_xvfb_says_how_to_install_it(monkeypatch: pytest.Mo
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_screenshot_without_a_vismach_model_says_so(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    import prs3_post.app.linuxcnc_config as config_module
+
+    def no_model(*args: object) -> str:
+        raise NotImplementedError("no model of this kinematics")
+
+    monkeypatch.setattr(sim_module, "linuxcnc_launcher", lambda: "/usr/bin/linuxcnc")
+    monkeypatch.setattr(sim_module.shutil, "which", lambda name: f"/usr/bin/{name}")
+    monkeypatch.setattr(config_module, "vismach_hal", no_model)
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(runs))
+    result = invoke("sim", DEMO, "--screenshot", tmp_path / "end.png")
+    assert result.exit_code == 2
+    assert result.output == ("prs3-post: error: --screenshot needs a vismach model of machine patel2020, which "
+                             "linuxcnc-config cannot write (no model of this kinematics): run without --screenshot\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["runs"] and list(runs.iterdir()) == []
+
+
 @pytest.mark.parametrize("value", ["0", "-1", "100.5", "nan"])
 def test_a_feed_override_out_of_range_is_refused(value: str) -> None:
     result = invoke("sim", DEMO, "--feed-override", value)

@@ -375,6 +375,15 @@ def _configure(context: ProgramContext, folder: Path, inside: Path, feed_overrid
         raise SimError(f"the temporary folder {folder} has a space in its name, which LinuxCNC's launcher cannot "
                        "take in [DISPLAY] DISPLAY: set TMPDIR to a folder without one")
     tools = _tool_table(context, folder)
+    try:
+        return _write(context, folder, inside, feed_override, vismach=vismach, home=home, tools=tools)
+    except NotImplementedError as exc:                 # a kinematics without a vismach model
+        raise MissingDependency(f"--screenshot needs a vismach model of machine {context.machine.name}, which "
+                                f"linuxcnc-config cannot write ({exc}): run without --screenshot") from exc
+
+
+def _write(context: ProgramContext, folder: Path, inside: Path, feed_override: float, *, vismach: bool,
+           home: tuple[float, ...], tools: str | None) -> LinuxcncConfig:
     return write_config(_reference(context.machine), str(folder / "config"), tool_table=tools,
                         dialect=_reference(context.dialect), display=str(inside / "display.py"), vismach=vismach,
                         max_feed_override=max(1.0, feed_override), home=home)
