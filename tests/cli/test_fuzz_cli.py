@@ -2,7 +2,7 @@
 
 For each command (``run``, ``demo``, ``faces``, ``ik``, ``fk``, ``verify``, ``preview``,
 ``machines``, ``job``, ``convert``, ``calibrate`` and ``calibrate plan``, ``accuracy``, ``export``,
-``linuxcnc-config``) hypothesis
+``linuxcnc-config``, ``sim`` up to LinuxCNC's run) hypothesis
 draws option values for the command's own click parameters (read from
 the command, so a new option is fuzzed too): mostly sensible values, sometimes hostile ones
 (``nan``, ``1e308``, ``1_0``, empty, non-ASCII digits), and input files (STL, program, CSV,
@@ -32,13 +32,14 @@ from hypothesis import strategies as st
 
 from prs3_post.cli.main import main
 from prs3_post.cli.options import Decimal, Integer, Numbers, OutputPath
+from prs3_post.core.errors import MissingDependency
 
 REPO = Path(__file__).resolve().parents[2]
 
 #: How many examples each command gets (the whole file runs in ~15 s; preview draws a figure).
 EXAMPLES = {"run": 40, "demo": 50, "faces": 40, "ik": 50, "fk": 50, "verify": 50, "preview": 12, "machines": 5,
             "sources": 5,
-            "job": 25, "convert": 30, "calibrate": 12, "accuracy": 6, "export": 30, "linuxcnc-config": 20}
+            "job": 25, "convert": 30, "calibrate": 12, "accuracy": 6, "export": 30, "linuxcnc-config": 20, "sim": 25}
 #: Options set in one example, besides the required ones.
 MAX_OPTIONS = 4
 
@@ -159,7 +160,7 @@ GOOD_OUTPUTS = {"preview": ("out/o.png", "out/o.svg"), "preview_path": ("out/o.p
                 "ik": ("out/o.csv", "-"), "run": ("out/o.ngc", "-"), "demo": ("out/o.ngc", "-"),
                 "job": ("out/o.ngc", "-"), "identify": ("out/o.toml", "-"), "plan": ("out/poses.csv", "-"),
                 "report_path": ("out/r.json", "-"), "export": ("out/o.cls", "out/o.csv", "-"),
-                "out_dir": ("out/sim",)}
+                "out_dir": ("out/sim",), "screenshot": ("out/o.png",)}
 BAD_OUTPUTS = ("out/", "out/missing/o.png", "in/part.stl", "in/prog.ngc", "in/poses.csv", "out/o.txt", "")
 
 
@@ -236,6 +237,8 @@ def check_command(name: str, data: st.DataObject, monkeypatch: pytest.MonkeyPatc
         (folder / "in").mkdir()
         (folder / "out").mkdir()
         monkeypatch.chdir(folder)
+        if name == "sim":      # a run in LinuxCNC takes seconds: all up to it is fuzzed, the run itself is not
+            monkeypatch.setattr("prs3_post.app.sim.linuxcnc_launcher", _no_linuxcnc)
         args = group + _arguments(data.draw, command, folder)
         inputs = _snapshot(folder)
         result = CliRunner().invoke(main, args, prog_name="prs3-post")
@@ -254,6 +257,10 @@ def check_command(name: str, data: st.DataObject, monkeypatch: pytest.MonkeyPatc
             assert [f"out/{n}" for n in written] in ([], [report]), context
         now = _snapshot(folder)
         assert {name: now.get(name) for name in inputs} == inputs, context      # outputs may be new files
+
+
+def _no_linuxcnc() -> str:
+    raise MissingDependency("LinuxCNC is left out of the fuzzing")
 
 
 FUZZ = settings(deadline=None, derandomize=True, database=None, print_blob=False,
@@ -290,3 +297,4 @@ test_fuzz_calibrate = _fuzz("calibrate")
 test_fuzz_accuracy = _fuzz("accuracy")
 test_fuzz_export = _fuzz("export")
 test_fuzz_linuxcnc_config = _fuzz("linuxcnc-config")
+test_fuzz_sim = _fuzz("sim")
