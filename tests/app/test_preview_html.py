@@ -172,3 +172,20 @@ def test_a_decimated_view_stops_at_the_closest_approach_the_worst_margin_and_eac
     assert notes == [f"{len(moves)} moves: the slider stops at {len(lines)} of them (evenly spaced, with every "
                      "axis&#x27;s extremes, each operation&#x27;s and tool change&#x27;s first line, the worst margin "
                      "and the closest approach)"]
+
+
+def test_a_line_where_the_head_does_not_assemble_has_no_machine(tmp_path):
+    import base64
+
+    program, view = tmp_path / "bad.ngc", tmp_path / "bad.html"
+    program.write_text("G0 X0 Y0 U300 V300 W300\nG0 X0 Y0 U-900 V900 W300\nG0 X0 Y0 U250 V300 W300\nM2\n")
+    result = run("preview", program, "-o", view)
+    assert (result.exit_code, result.output) == (0, f"prs3-post: wrote {view}\n")
+    data = page_data(view)
+    machine = data["machine"]
+    rows = np.frombuffer(base64.b64decode(machine["points"]["bdata"]), dtype="<f4").reshape(3, -1, 3)
+    assert machine["per_stop"] == rows.shape[1]
+    assert np.isnan(rows[1]).all() and np.isfinite(rows[0]).all(axis=1).sum() > 20
+    assert data["stops"]["line"] == [1, 2, 3]
+    # the box that keeps plotly's camera finite when no machine point is
+    assert data["machine_scene"]["data"][-1]["name"] == "box"

@@ -319,8 +319,8 @@ def _scene(data: ViewData) -> tuple[dict[str, Any], dict[str, Any]]:
         if width < 0:
             trace = {"type": "mesh3d", "name": name, "showlegend": False, "hoverinfo": "skip", "color": colour,
                      "opacity": 0.45, "i": [0], "j": [1], "k": [2], "flatshading": True,
-                     **({"x": _listed(chunk[:, 0]), "y": _listed(chunk[:, 1]), "z": _listed(chunk[:, 2])}
-                        if np.isfinite(chunk).all() else {"x": [], "y": [], "z": []})}
+                     "x": _listed(chunk[:, 0]), "y": _listed(chunk[:, 1]), "z": _listed(chunk[:, 2]),
+                     "visible": bool(np.isfinite(chunk).all())}
         elif width:
             trace |= {"mode": "lines", "line": {"color": colour, "width": width}}
         else:
@@ -352,6 +352,12 @@ def _scene(data: ViewData) -> tuple[dict[str, Any], dict[str, Any]]:
                              {"label": "whole machine", "method": "relayout", "args": [_ranges(centre, half)]},
                              {"label": "part", "method": "relayout", "args": [_ranges(near_centre, near_half)]}]}],
     }
+    # two points that are never drawn, at the corners of the box: a stop without a pose (every machine
+    # point null) leaves the scene with no data, and plotly's camera goes NaN without them
+    corners = [[c - half, c + half] for c in centre]
+    machine.append({"type": "scatter3d", "mode": "markers", "name": "box", "showlegend": False,
+                    "hoverinfo": "skip", "x": corners[0], "y": corners[1], "z": corners[2],
+                    "marker": {"size": 1, "opacity": 0}})
     bare = {"visible": False, "showbackground": False, "showgrid": False, "zeroline": False, "showspikes": False}
     machine_layout = {
         "margin": margin, "uirevision": "keep", "showlegend": False, "paper_bgcolor": "rgba(0,0,0,0)",
@@ -431,6 +437,7 @@ def render_view(data: ViewData) -> str:
         "machine_scene": machine,
         "plots": {"data": plot_traces, "layout": plot_layout},
         "machine": {"counts": [p[1] for p in MACHINE_PIECES], "meshes": [p[2] < 0 for p in MACHINE_PIECES],
+                    "traces": list(range(len(MACHINE_PIECES))),
                     "points": _typed(data.machine.points),
                     "per_stop": _POINTS_PER_STOP},
         "stops": {"line": np.asarray(stops.line).astype(int).tolist(),
@@ -501,18 +508,18 @@ _SCRIPT = r"""
   var plots = document.getElementById("view-plots");
   function num(v) { return (v === null || isNaN(v)) ? "-" : v.toFixed(4); }
   function machineAt(k) {
-    var xs = [], ys = [], zs = [], at = k * M.per_stop * 3;
+    var xs = [], ys = [], zs = [], shown = [], at = k * M.per_stop * 3;
     for (var p = 0; p < M.counts.length; p++) {
       var x = [], y = [], z = [];
       for (var q = 0; q < M.counts[p]; q++, at += 3) {
         var a = rows[at], b = rows[at + 1], c = rows[at + 2];
         x.push(isNaN(a) ? null : a); y.push(isNaN(b) ? null : b); z.push(isNaN(c) ? null : c);
       }
-      // a triangle without a pose (a null corner) is drawn empty, not with holes
-      if (M.meshes[p] && (x.indexOf(null) >= 0 || y.indexOf(null) >= 0 || z.indexOf(null) >= 0)) x = y = z = [];
+      // a plate without a pose (a null corner) is hidden (plotly keeps drawing an emptied mesh)
+      shown.push(!M.meshes[p] || x.indexOf(null) < 0);
       xs.push(x); ys.push(y); zs.push(z);
     }
-    return {x: xs, y: ys, z: zs};
+    return {x: xs, y: ys, z: zs, visible: shown};
   }
   var current = 0;
   function show(k) {
@@ -520,7 +527,7 @@ _SCRIPT = r"""
     k = Math.max(0, Math.min(n - 1, k | 0));
     current = k;
     slider.value = String(k);
-    Plotly.restyle(machine, machineAt(k));
+    Plotly.restyle(machine, machineAt(k), M.traces);
     var t = S.time[k];
     Plotly.relayout(plots, {"shapes[0].x0": t, "shapes[0].x1": t});
     where.textContent = "stop " + (k + 1) + " / " + n;
