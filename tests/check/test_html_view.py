@@ -156,7 +156,8 @@ def test_the_view_in_a_browser(chromium, square_view):
         cursor = page.evaluate("document.getElementById('view-plots').layout.shapes[0].x0")
         data = json.loads(page.evaluate("document.getElementById('prs3-data').textContent"))
         assert cursor == data["stops"]["time"][k] > 0.0    # the plots' cursor at that line's time
-        page.click("#play")                                 # play runs on from there to the end, and stops
+        page.locator("#slider").fill(str(stops - 3))
+        page.click("#play")                                 # play runs on to the end, and stops
         assert page.inner_text("#play").endswith("pause")
         page.wait_for_function(f"document.getElementById('slider').value === '{stops - 1}' && "
                                "document.getElementById('play').textContent.endsWith('play')", timeout=10000)
