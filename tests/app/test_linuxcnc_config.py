@@ -45,7 +45,7 @@ def value(ini: dict[str, dict[str, list[str]]], section: str, key: str) -> str:
 
 
 def test_the_ini_has_the_machine_s_joints_limits_and_speeds(tmp_path: Path) -> None:
-    config = write_config("patel2020", str(tmp_path / "sim"))
+    config = write_config("patel2020", str(tmp_path / "sim"), vismach=False)
     assert config.ini == tmp_path / "sim" / "patel2020.ini"
     assert sorted(config.files) == ["patel2020.hal", "patel2020.ini", "prs3.var", "tool.tbl"]
     ini = read_ini(config.ini)
@@ -213,7 +213,8 @@ def test_a_full_folder_is_kept_unless_forced(tmp_path: Path) -> None:
                                 "replace it"
     assert sorted(p.name for p in folder.iterdir()) == ["mine.txt"]
     write_config("patel2020", str(folder), force=True)
-    assert sorted(p.name for p in folder.iterdir()) == ["patel2020.hal", "patel2020.ini", "prs3.var", "tool.tbl"]
+    assert sorted(p.name for p in folder.iterdir()) == ["patel2020.hal", "patel2020.ini", "patel2020.toml", "prs3.var",
+                                                        "prs3_vismach.py", "tool.tbl", "vismach.hal"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sim"]                  # no temp folder left
 
 
@@ -252,7 +253,7 @@ def test_the_ini_reads_in_linuxcnc(tmp_path: Path) -> None:
         if os.environ.get("CI"):
             pytest.fail("LinuxCNC's Python module must be installed in CI (apt-get install linuxcnc-uspace)")
         pytest.skip("LinuxCNC is not installed")
-    config = write_config("patel2020", str(tmp_path / "sim"))
+    config = write_config("patel2020", str(tmp_path / "sim"), vismach=False)
     script = ("import linuxcnc, sys; ini = linuxcnc.ini(sys.argv[1]); "
               "print(ini.find('KINS', 'JOINTS'), ini.find('TRAJ', 'COORDINATES'), ini.find('JOINT_2', 'MAX_LIMIT'), "
               "ini.findall('HAL', 'HALFILE'))")
@@ -265,5 +266,6 @@ def test_file_names_have_no_blanks(tmp_path: Path) -> None:
     machine = tmp_path / "my machine (2).toml"
     shutil.copy(MACHINES / "patel2020.toml", machine)
     config = write_config(str(machine), str(tmp_path / "sim"))
-    assert sorted(config.files) == ["my_machine__2_.hal", "my_machine__2_.ini", "prs3.var", "tool.tbl"]
-    assert read_ini(config.ini)["HAL"]["HALFILE"] == ["my_machine__2_.hal"]
+    assert sorted(config.files) == ["my_machine__2_.hal", "my_machine__2_.ini", "my_machine__2_.toml", "prs3.var",
+                                    "prs3_vismach.py", "tool.tbl", "vismach.hal"]
+    assert read_ini(config.ini)["HAL"]["HALFILE"] == ["my_machine__2_.hal", "vismach.hal"]

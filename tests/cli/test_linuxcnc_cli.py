@@ -28,6 +28,7 @@ def test_it_writes_the_folder_and_says_how_to_start_it(tmp_path: Path) -> None:
     ini = (out / "patel2020.ini").read_text()
     assert "\nDISPLAY = gmoccapy\n" in ini and "\nMAX_FEED_OVERRIDE = 4.000\n" in ini
     assert (out / "tool.tbl").read_text().splitlines()[1] == "T2 P2 D8.000 Z71.250 ;8 mm end mill"
+    assert (out / "prs3_vismach.py").is_file() and "\nHALFILE = vismach.hal\n" in ini
 
 
 def test_quiet_says_nothing(tmp_path: Path) -> None:
@@ -82,6 +83,6 @@ def test_force_replaces_a_full_folder(tmp_path: Path) -> None:
     assert result.exit_code == 2
     assert result.stderr == (f"prs3-post: error: {out}: exists and is not empty: give a new or empty folder, or "
                              "--force to replace it\n")
-    result = invoke("linuxcnc-config", "-o", str(out), "--force")
+    result = invoke("linuxcnc-config", "-o", str(out), "--force", "--no-vismach")
     assert result.exit_code == 0, result.output
     assert sorted(p.name for p in out.iterdir()) == ["patel2020.hal", "patel2020.ini", "prs3.var", "tool.tbl"]

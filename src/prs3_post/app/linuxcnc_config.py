@@ -32,7 +32,7 @@ import re
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from prs3_post.app.linuxcnc_vismach import VISMACH_SCRIPT, vismach_hal, vismach_script
+from prs3_post.app.linuxcnc_vismach import VISMACH_HAL, VISMACH_SCRIPT, vismach_hal, vismach_script
 from prs3_post.app.requests import DEFAULT_TOOL_DIAMETER
 from prs3_post.core.defaults import NOMINAL_ACCEL, NOMINAL_RAPID_RATE
 from prs3_post.core.errors import ConfigError, FieldError
@@ -77,6 +77,7 @@ class ConfigAxis:
     home : float — mm, where it homes (inside the limits)
     velocity : float — mm/s, its top speed
     acceleration : float — mm/s², its acceleration
+    pin : str — the vismach model's input pin of its position (``stage-x``, ``t1``)
     """
 
     letter: str
@@ -86,6 +87,7 @@ class ConfigAxis:
     home: float
     velocity: float
     acceleration: float
+    pin: str = ""
 
 
 @dataclass(frozen=True, slots=True)
@@ -111,7 +113,7 @@ class LinuxcncConfig:
 
 
 def write_config(machine: str, folder: str, *, tool_table: str | None = None, dialect: str | None = None,
-                 display: str | None = None, vismach: bool = False,
+                 display: str | None = None, vismach: bool = True,
                  max_feed_override: float = DEFAULT_MAX_FEED_OVERRIDE, force: bool = False,
                  home: tuple[float, ...] | None = None) -> LinuxcncConfig:
     """Write a LinuxCNC simulation configuration for ``machine`` into the folder ``folder``.
@@ -184,10 +186,12 @@ def config_axes(machine: Machine, dialect: str | None = None) -> tuple[ConfigAxi
     if machine.stage.present:
         for letter, name, (low, high) in ((loaded.axes.x, "stage X", machine.stage.travel_x),
                                           (loaded.axes.y, "stage Y", machine.stage.travel_y)):
-            axes.append(ConfigAxis(letter, name, low, high, _home(low, high), stage_speed, stage_accel))
+            axes.append(ConfigAxis(letter, name, low, high, _home(low, high), stage_speed, stage_accel,
+                                   pin=name.lower().replace(" ", "-")))
     low, high = machine.limits.stroke
     for letter, name in zip(letters, kinematics.joint_names, strict=True):
-        axes.append(ConfigAxis(letter, f"stroke {name}", low, high, _home(low, high), stroke_speed, stroke_accel))
+        axes.append(ConfigAxis(letter, f"stroke {name}", low, high, _home(low, high), stroke_speed, stroke_accel,
+                               pin=name.lower()))
     for axis in axes:
         if axis.letter in ROTARY_LETTERS:
             raise ConfigError(f"axes: the dialect writes {axis.name} as {axis.letter!r}, which LinuxCNC treats as a "
@@ -197,7 +201,7 @@ def config_axes(machine: Machine, dialect: str | None = None) -> tuple[ConfigAxi
 
 
 def config_files(machine: Machine, machine_text: str, *, tool_table: ToolTable | None = None,
-                 dialect: str | None = None, display: str | None = None, vismach: bool = False,
+                 dialect: str | None = None, display: str | None = None, vismach: bool = True,
                  max_feed_override: float = DEFAULT_MAX_FEED_OVERRIDE,
                  home: tuple[float, ...] | None = None) -> dict[str, FolderFile]:
     """The configuration's files, {name: file}: the INI, the HAL file, the tool table, the parameter
@@ -215,15 +219,16 @@ def config_files(machine: Machine, machine_text: str, *, tool_table: ToolTable |
     hal = f"{file_stem(machine)}.hal"
     files = {
         ini_name(machine): FolderFile(ini_text(machine, axes, display=shown, hal_files=(hal,) + (
-            ("vismach.hal",) if vismach else ()), max_feed_override=max_feed_override)),
+            (VISMACH_HAL,) if vismach else ()), max_feed_override=max_feed_override)),
         hal: FolderFile(hal_text(machine, axes)),
         TOOL_TABLE: FolderFile(tool_table_text(_tools(machine, tool_table))),
         PARAMETER_FILE: FolderFile(""),
     }
     if vismach:
         toml = f"{file_stem(machine)}.toml"
-        files["vismach.hal"] = FolderFile(vismach_hal(axes, machine))
-        files[VISMACH_SCRIPT] = FolderFile(vismach_script(machine, toml, TOOL_TABLE), executable=True)
+        files[VISMACH_HAL] = FolderFile(vismach_hal(axes, machine))
+        pins = tuple(axis.pin for axis in axes if not axis.name.startswith("stage"))
+        files[VISMACH_SCRIPT] = FolderFile(vismach_script(machine, toml, TOOL_TABLE, pins), executable=True)
         files[toml] = FolderFile(machine_text)
     return files
 
