@@ -226,7 +226,7 @@ def config_files(machine: Machine, machine_text: str, *, tool_table: ToolTable |
     }
     if vismach:
         toml = f"{file_stem(machine)}.toml"
-        files[VISMACH_HAL] = FolderFile(vismach_hal(axes, machine))
+        files[VISMACH_HAL] = FolderFile(vismach_hal([(axis.letter, axis.pin) for axis in axes], machine))
         pins = tuple(axis.pin for axis in axes if not axis.name.startswith("stage"))
         files[VISMACH_SCRIPT] = FolderFile(vismach_script(machine, toml, TOOL_TABLE, pins), executable=True)
         files[toml] = FolderFile(machine_text)

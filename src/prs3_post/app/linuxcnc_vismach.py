@@ -17,14 +17,11 @@ scene as JSON without a display (what the tests compare with our FK).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from prs3_post.core.version import __version__
 from prs3_post.machine.model import Machine
-
-if TYPE_CHECKING:
-    from prs3_post.app.linuxcnc_config import ConfigAxis
 
 __all__ = ["VISMACH_COMPONENT", "VISMACH_HAL", "VISMACH_SCRIPT", "package_folder", "vismach_hal", "vismach_script"]
 
@@ -41,13 +38,14 @@ def package_folder() -> Path:
     return Path(__file__).resolve().parents[1]
 
 
-def vismach_hal(axes: tuple[ConfigAxis, ...], machine: Machine) -> str:
-    """The HAL file that starts the model and feeds it each joint's position and the tool in the spindle."""
+def vismach_hal(joints: Sequence[tuple[str, str]], machine: Machine) -> str:
+    """The HAL file that starts the model and feeds it each joint's position and the tool in the spindle;
+    ``joints``: (axis letter, the model's pin) of joint 0, 1, …"""
     out = [f"# The vismach model of {machine.name}: a window showing the machine at the joints' positions (it",
            "# needs an X display). Rotate it with the mouse; its trail is the tool tip's path on the table.",
            f"loadusr -Wn {VISMACH_COMPONENT} {SYSTEM_PYTHON} {VISMACH_SCRIPT}"]
-    for index, axis in enumerate(axes):
-        out.append(f"net {axis.letter.lower()}-pos-fb joint.{index}.pos-fb => {VISMACH_COMPONENT}.{axis.pin}")
+    for index, (letter, pin) in enumerate(joints):
+        out.append(f"net {letter.lower()}-pos-fb joint.{index}.pos-fb => {VISMACH_COMPONENT}.{pin}")
     out.append(f"net tool-in-spindle iocontrol.0.tool-number => {VISMACH_COMPONENT}.tool-number")
     return "\n".join(out) + "\n"
 
