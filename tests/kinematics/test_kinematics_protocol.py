@@ -150,3 +150,17 @@ def test_ik_batch_has_the_toys_columns(ram_machine: Path, tmp_path: Path) -> Non
     assert float(values["R"]) == pytest.approx(ram, abs=1e-3)
     assert [float(values[f"L{i + 1}"]) for i in range(3)] == pytest.approx(strokes - 0.5 * ram, abs=1e-3)
     assert values["ok"] == "true"
+
+
+def test_linuxcnc_config_of_the_toy(ram_machine: Path, tmp_path: Path) -> None:
+    """A joint per axis whatever the kinematics; the vismach model draws only a 3-PRS head."""
+    code, text = run("linuxcnc-config", "--machine", ram_machine, "-o", tmp_path / "sim")
+    assert code == 2
+    assert text == (f"prs3-post: error: {ram_machine}: kinematics: the vismach model draws a 3-PRS head (3-prs, "
+                    "3-prs-general), not 'ram-4': leave it out (--no-vismach)\n")
+    assert not (tmp_path / "sim").exists()
+    code, text = run("linuxcnc-config", "--machine", ram_machine, "-o", tmp_path / "sim", "--no-vismach")
+    assert code == 2                                  # its default letters are A B C Z: rotary to LinuxCNC
+    assert text == ("prs3-post: error: dialects/linuxcnc.toml: axes: the dialect writes stroke L1 as 'A', which "
+                    "LinuxCNC treats as a rotary axis in degrees: give a dialect that writes the stage and the strokes "
+                    "with X Y Z U V W\n")

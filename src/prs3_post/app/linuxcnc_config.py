@@ -32,7 +32,7 @@ import re
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from prs3_post.app.linuxcnc_vismach import VISMACH_HAL, VISMACH_SCRIPT, vismach_hal, vismach_script
+from prs3_post.app.linuxcnc_vismach import VISMACH_HAL, VISMACH_SCRIPT, check_drawable, vismach_hal, vismach_script
 from prs3_post.app.requests import DEFAULT_TOOL_DIAMETER
 from prs3_post.core.defaults import NOMINAL_ACCEL, NOMINAL_RAPID_RATE
 from prs3_post.core.errors import ConfigError, FieldError
@@ -134,7 +134,9 @@ def write_config(machine: str, folder: str, *, tool_table: str | None = None, di
     Raises
     ------
     ConfigError
-        The machine or dialect file, or a dialect whose letters LinuxCNC cannot take.
+        The machine or dialect file, or a dialect whose letters LinuxCNC cannot take; with ``vismach``, a
+        kinematics the model cannot draw (:class:`~prs3_post.app.linuxcnc_vismach.NoVismachModel`, also a
+        NotImplementedError).
     InputError
         The tool table; the folder (not a folder, not empty, holds an input, cannot be written).
     FieldError
@@ -215,6 +217,8 @@ def config_files(machine: Machine, machine_text: str, *, tool_table: ToolTable |
     if not (math.isfinite(max_feed_override) and 1.0 <= max_feed_override <= MAX_FEED_OVERRIDE_LIMIT):
         raise FieldError(f"expected 1 to {MAX_FEED_OVERRIDE_LIMIT:g} (1 = 100 %), got {max_feed_override!r}",
                          field="max_feed_override")
+    if vismach:
+        check_drawable(machine)
     axes = homed_at(config_axes(machine, dialect), home)
     hal = f"{file_stem(machine)}.hal"
     files = {

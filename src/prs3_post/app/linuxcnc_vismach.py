@@ -20,10 +20,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
+from prs3_post.core.errors import ConfigError
 from prs3_post.core.version import __version__
-from prs3_post.machine.model import Machine
+from prs3_post.machine.model import DEFAULT_KINEMATICS, GENERAL_KINEMATICS, Machine
 
-__all__ = ["VISMACH_COMPONENT", "VISMACH_HAL", "VISMACH_SCRIPT", "package_folder", "vismach_hal", "vismach_script"]
+__all__ = ["VISMACH_COMPONENT", "VISMACH_HAL", "VISMACH_SCRIPT", "NoVismachModel", "check_drawable", "package_folder",
+           "vismach_hal", "vismach_script"]
 
 #: The model's HAL component (``loadusr -Wn``), its script's and its HAL file's names in the folder.
 VISMACH_COMPONENT = "prs3-vismach"
@@ -31,6 +33,21 @@ VISMACH_SCRIPT = "prs3_vismach.py"
 VISMACH_HAL = "vismach.hal"
 #: The Python LinuxCNC's own Python programs (and vismach) run under.
 SYSTEM_PYTHON = "/usr/bin/python3"
+
+
+#: The kinematics the model draws (machine_pose's: the 3-PRS head, ideal or as built).
+DRAWN_KINEMATICS = (DEFAULT_KINEMATICS, GENERAL_KINEMATICS)
+
+
+class NoVismachModel(ConfigError, NotImplementedError):
+    """The machine's kinematics has no vismach model (a configuration without one still runs)."""
+
+
+def check_drawable(machine: Machine) -> None:
+    """Raise :class:`NoVismachModel` unless the model can draw ``machine``'s kinematics."""
+    if machine.kinematics not in DRAWN_KINEMATICS:
+        raise NoVismachModel(f"kinematics: the vismach model draws a 3-PRS head ({', '.join(DRAWN_KINEMATICS)}), "
+                             f"not {machine.kinematics!r}: leave it out (--no-vismach)", path=machine.source)
 
 
 def package_folder() -> Path:
