@@ -110,3 +110,27 @@ def test_the_hal_file_feeds_the_model(tmp_path: Path) -> None:
                                                               "patel2020.toml").read_text()
     without = write_config("patel2020", str(tmp_path / "plain"), vismach=False)
     assert sorted(without.files) == ["patel2020.hal", "patel2020.ini", "prs3.var", "tool.tbl"]
+
+
+def test_the_model_runs_in_linuxcnc(linuxcnc: None, tmp_path: Path) -> None:
+    """LinuxCNC starts the configuration with its model (under Xvfb, through `sim --screenshot`), and the
+    picture shows the machine: the orange links, the blue sliders and the green platform. Optional like the
+    screenshot itself: skipped without xvfb-run."""
+    import shutil
+
+    from click.testing import CliRunner
+    from PIL import Image
+
+    from prs3_post.cli.main import main
+
+    if shutil.which("xvfb-run") is None:
+        pytest.skip("no xvfb-run (apt-get install xvfb)")
+    shot = tmp_path / "end.png"
+    program = REPO / "fixtures" / "golden" / "wedge-hole-case2a.ngc"
+    result = CliRunner().invoke(main, ["sim", str(program), "--feed-override", "10", "--screenshot", str(shot)])
+    assert result.exit_code == 0, result.output
+    pixels = np.asarray(Image.open(shot).convert("RGB")).astype(int)
+    red, green, blue = pixels[..., 0], pixels[..., 1], pixels[..., 2]
+    assert ((red > 150) & (green > 60) & (green < 180) & (blue < 70)).sum() > 100          # links
+    assert ((blue > 150) & (red < 100)).sum() > 100                                       # sliders
+    assert ((green > 120) & (red < 120) & (blue < 120)).sum() > 50                        # platform
