@@ -43,7 +43,7 @@ SETUP_TIMEOUT_S = 30.0
 #: s, how long the error channel is still read after the program ended (late messages).
 DRAIN_S = 0.2
 #: s, how long the vismach model gets to draw the final pose before the screenshot.
-SETTLE_S = 1.5
+SETTLE_S = 0.5
 #: A program line named in a controller message (``Linear move on line 27 would exceed ...``).
 LINE_IN_MESSAGE = re.compile(r"\bline (\d+)\b")
 
