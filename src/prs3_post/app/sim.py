@@ -60,7 +60,7 @@ from prs3_post.core.errors import FieldError, InputError, MissingDependency, Prs
 from prs3_post.core.numbers import fixed
 from prs3_post.core.output_files import check_writable, write_atomic
 from prs3_post.core.toolpath import EventKind, JointProgram
-from prs3_post.emit.header_read import cycle_minutes
+from prs3_post.emit.header_read import cycle_time
 from prs3_post.machine.loading import Dialect
 from prs3_post.machine.model import Dynamics, Machine
 from prs3_post.post.dynamics import clamp_feeds, joint_columns, joint_deltas, move_times
@@ -142,7 +142,8 @@ class SimReport:
     motion_s : float | None — s, the first joint's start to the last one's stop
     feed_override : float — as asked; ``applied``: as the controller reported it
     applied_override : float | None
-    header_minutes : float | None — the header's cycle-time estimate (None: not stated)
+    header_minutes : float | None — the header's cycle-time estimate (None: not stated); ``header_seconds``:
+        the same in seconds as the header writes it
     estimate_s : float | None — s, the same model's estimate at the feed override (None: no [dynamics])
     screenshot : str | None — the PNG written
     screenshot_error : str | None — why it was not
@@ -164,6 +165,7 @@ class SimReport:
     feed_override: float
     applied_override: float | None
     header_minutes: float | None
+    header_seconds: float | None
     estimate_s: float | None
     screenshot: str | None
     screenshot_error: str | None
@@ -240,7 +242,7 @@ def simulate(path: str, *, machine: str | None = None, feed_override: float = 1.
         if xvfb is None:
             raise MissingDependency(f"--screenshot needs a virtual X display (xvfb-run), which is not installed: "
                                     f"{INSTALL_XVFB}")
-    header_minutes = _header_minutes(context)
+    stated = _header_cycle_time(context)
     dynamics = context.machine.dynamics
     estimate = None if dynamics is None else estimate_minutes(dynamics, moves, feed_override) * 60.0
     isolated = can_isolate()
@@ -286,7 +288,8 @@ def simulate(path: str, *, machine: str | None = None, feed_override: float = 1.
             messages=_messages(result, moves), final=_final(result, len(config.axes)),
             expected=config_joints(context.machine, moves, -1), last_line=int(moves.source[-1]),
             run_s=result.get("run_s"), motion_s=result.get("motion_s"), feed_override=feed_override,
-            applied_override=result.get("feed_override"), header_minutes=header_minutes, estimate_s=estimate,
+            applied_override=result.get("feed_override"), header_minutes=None if stated is None else stated[0],
+            header_seconds=None if stated is None else stated[1], estimate_s=estimate,
             screenshot=written, screenshot_error=shot_error, kept=folder if keep else None,
             steps=tuple((str(name), float(when) - launched) for name, when in result.get("steps", ())),
         )
@@ -331,13 +334,13 @@ def estimate_minutes(dynamics: Dynamics, moves: JointProgram, feed_override: flo
     return float(move_times(dynamics, moves.kind, deltas, feeds).sum()) + dwell
 
 
-def _header_minutes(context: ProgramContext) -> float | None:
-    """The header's cycle-time estimate, min (None: no ``dynamics`` entry or the machine had none)."""
+def _header_cycle_time(context: ProgramContext) -> tuple[float, float] | None:
+    """The header's cycle-time estimate, (min, s) (None: no ``dynamics`` entry or the machine had none)."""
     header = context.header
     line = None if header is None else header.line("dynamics")
     if line is None:
         return None
-    return cycle_minutes(context.program.lines[line - 1])
+    return cycle_time(context.program.lines[line - 1])
 
 
 def _time_limit(estimate_s: float | None, moves: JointProgram) -> float:
@@ -721,8 +724,8 @@ def report_lines(report: SimReport) -> list[str]:
         total = "" if report.run_s is None else f", {seconds(report.run_s)} from cycle start to the end"
         out.append(f"  run time: {fixed(report.motion_s, 3)} s of motion{total}")
     if report.estimate_s is not None and finished:
-        header = ("no estimate in the header" if report.header_minutes is None else
-                  f"the header's {fixed(report.header_minutes * 60.0, 1)} s at 100 %")
+        header = ("no estimate in the header" if report.header_seconds is None else
+                  f"the header's {fixed(report.header_seconds, 1)} s at 100 %")
         how = "" if k == 1 else f"; each feed × {k:g} up to the axes' top speeds, rapids at their top speeds"
         ratio = report.time_ratio
         versus = "" if ratio is None else f": the motion took {(ratio - 1) * 100:+.1f} %"

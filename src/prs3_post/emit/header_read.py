@@ -43,7 +43,7 @@ from prs3_post.toolpaths import (
 from prs3_post.toolpaths.common import MAX_TOLERANCE, MIN_TOLERANCE
 from prs3_post.toolpaths.work import HoleJob, ProfileJob
 
-__all__ = ["HEADER_ECHO", "HEAD_BYTES", "cycle_minutes", "header_comments", "parse_header", "read_counts",
+__all__ = ["HEADER_ECHO", "HEAD_BYTES", "cycle_time", "header_comments", "parse_header", "read_counts",
            "read_header"]
 
 #: How many bytes of a program's start :func:`read_header` looks at (a header is about 1 KB).
@@ -410,18 +410,19 @@ _FORMS |= {
 }
 
 
-_CYCLE_TIME = re.compile(rf"\(\s*dynamics\s*:\s*cycle time ({_NUMBER}) min = ", re.IGNORECASE)
+_CYCLE_TIME = re.compile(rf"\(\s*dynamics\s*:\s*cycle time ({_NUMBER}) min = ({_NUMBER}) s", re.IGNORECASE)
 
 
-def cycle_minutes(line: str) -> float | None:
-    """The cycle time (min) a header's ``dynamics`` line states, None where it states none.
+def cycle_time(line: str) -> tuple[float, float] | None:
+    """The cycle time a header's ``dynamics`` line states, in minutes and in seconds as written (the
+    seconds have their own rounding); None where it states none.
 
-    >>> cycle_minutes("(dynamics: cycle time 0.082 min = 4.9 s, no feed slowed by the axis speed limits)")
-    0.082
-    >>> cycle_minutes("(dynamics: none in the machine file: feeds not checked against axis speeds, no cycle time)")
+    >>> cycle_time("(dynamics: cycle time 0.064 min = 3.9 s, no feed slowed by the axis speed limits)")
+    (0.064, 3.9)
+    >>> cycle_time("(dynamics: none in the machine file: feeds not checked against axis speeds, no cycle time)")
     """
     found = _CYCLE_TIME.match(line)
-    return None if found is None else float(found.group(1))
+    return None if found is None else (float(found.group(1)), float(found.group(2)))
 
 
 def read_counts(text: str) -> SourceCounts:
