@@ -20,10 +20,12 @@ import numpy as np
 from prs3_post.app.verify import PartClearance, RebuiltJob, verify_loaded, with_clearance
 from prs3_post.check.timeline import Mark, MarkKind
 from prs3_post.core.defaults import DEFAULT_TOLERANCE
+from prs3_post.core.errors import Prs3Error
+from prs3_post.core.input_files import file_sha256
 from prs3_post.core.toolpath import EventKind
 from prs3_post.core.types import FloatArray, Progress
 from prs3_post.emit.header import ProgramHeader, SourceHeader
-from prs3_post.machine.loading import Dialect, Machine
+from prs3_post.machine.loading import Dialect, Machine, postproc_dir
 from prs3_post.part.face import Face
 from prs3_post.part.setup_transform import Setup
 from prs3_post.readers.program import ProgramFile
@@ -33,8 +35,8 @@ if TYPE_CHECKING:
 
     from prs3_post.check.collision import Approach
 
-__all__ = ["closest_mark", "preview_bytes", "preview_figure", "preview_part", "program_marks", "require_plotting",
-           "tool_diameters_of"]
+__all__ = ["closest_mark", "header_part", "preview_bytes", "preview_figure", "preview_part", "program_marks",
+           "program_part", "require_plotting", "tool_diameters_of"]
 
 
 def require_plotting() -> None:
@@ -117,6 +119,43 @@ def tool_diameters_of(header: ProgramHeader | SourceHeader | None) -> dict[int, 
             found.setdefault(cutting.tool_number, cutting.tool_diameter)
         return found
     return {}
+
+
+def header_part(program_path: str, header: ProgramHeader | SourceHeader | None) -> tuple[str | None, str]:
+    """The part a main job's program was made from, found by the name and SHA-256 its header records:
+    beside the program, in the current folder, or among the shipped parts (``postproc/parts``).
+
+    Returns
+    -------
+    path : str | None — the part's file (None: no header part, or no file there has its bytes)
+    name : str — the part's name in the header ("" when it names none)
+    """
+    if not isinstance(header, ProgramHeader):
+        return None, ""
+    name = Path(header.part_name).name
+    for folder in (Path(program_path).parent, Path.cwd(), postproc_dir() / "parts"):
+        candidate = folder / name
+        try:
+            if candidate.is_file() and file_sha256(str(candidate)) == header.part_sha256:
+                return str(candidate), name
+        except (OSError, Prs3Error):
+            continue
+    return None, name
+
+
+def program_part(program_path: str, part: str | None,
+                 header: ProgramHeader | SourceHeader | None) -> tuple[str | None, str]:
+    """The part a preview (picture or HTML view) draws a program on: ``part`` when one is given, else the
+    part the program's header names when :func:`header_part` finds it.
+
+    Returns
+    -------
+    path : str | None — the part's file (None: none given, and the header's not found or none named)
+    named : str — the part's name in the header when it was looked for ("" otherwise)
+    """
+    if part is not None:
+        return part, ""
+    return header_part(program_path, header)
 
 
 def preview_part(part: str, header: ProgramHeader | SourceHeader | None, face: int | None, *, units: str,

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from prs3_post.app.preview import closest_mark, program_marks
+from prs3_post.app.preview import closest_mark, header_part, program_marks
 from prs3_post.app.verify import RebuiltJob, verify_loaded, with_clearance
 from prs3_post.check.html_view import (
     MACHINE_PIECES,
@@ -49,7 +49,6 @@ from prs3_post.check.machine_pose import machine_pose
 from prs3_post.check.timeline import MarkKind, Timeline, timeline_of
 from prs3_post.check.timeline import Series as TimelineSeries
 from prs3_post.core.defaults import DEFAULT_TOLERANCE
-from prs3_post.core.errors import Prs3Error
 from prs3_post.core.toolpath import EventKind, JointProgram, MoveKind
 from prs3_post.core.types import BoolArray, FloatArray, IntArray, Progress
 from prs3_post.emit.header import ProgramHeader, SourceHeader
@@ -101,31 +100,6 @@ def require_view() -> None:
         Giving the command that installs it.
     """
     require_plotly()
-
-
-def header_part(program_path: str, header: ProgramHeader | SourceHeader | None) -> tuple[str | None, str]:
-    """The part a main job's program was made from, found by the name and SHA-256 its header records:
-    beside the program, in the current folder, or among the shipped parts (``postproc/parts``).
-
-    Returns
-    -------
-    path : str | None — the part's file (None: no header part, or no file there has its bytes)
-    name : str — the part's name in the header ("" when it names none)
-    """
-    from prs3_post.core.input_files import file_sha256
-    from prs3_post.machine.loading import postproc_dir
-
-    if not isinstance(header, ProgramHeader):
-        return None, ""
-    name = Path(header.part_name).name
-    for folder in (Path(program_path).parent, Path.cwd(), postproc_dir() / "parts"):
-        candidate = folder / name
-        try:
-            if candidate.is_file() and file_sha256(str(candidate)) == header.part_sha256:
-                return str(candidate), name
-        except (OSError, Prs3Error):
-            continue
-    return None, name
 
 
 def view_part(triangles: FloatArray, face: Face | None, rebuilt: RebuiltJob | None) -> ViewPart:

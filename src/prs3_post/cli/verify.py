@@ -427,8 +427,8 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
       prs3-post preview sq.ngc -o sq.html
       prs3-post demo --profile round -o round.ngc --preview round.svg
     """
-    from prs3_post.app.preview import preview_bytes, preview_part, require_plotting
-    from prs3_post.app.preview_html import PREVIEW_SUFFIXES, header_part, require_view, view_html, view_part
+    from prs3_post.app.preview import preview_bytes, preview_part, program_part, require_plotting
+    from prs3_post.app.preview_html import PREVIEW_SUFFIXES, require_view, view_html, view_part
     from prs3_post.app.verify import HeaderConflict, check_part, header_job, open_program, rebuild_job, tool_lengths_of
     from prs3_post.app.verify_inputs import header_contradictions, recorded_part
 
@@ -436,7 +436,6 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
         ctx = click.get_current_context()
         fmt = image_format(out_path, "'-o' / '--output'", tuple(PREVIEW_SUFFIXES), what="preview")
         html = fmt == "html"
-        part = part_path
         require_view() if html else require_plotting()
         _refuse_cl_file(program_path, was_given(ctx, "dialect_name"))
         with timed("read"):
@@ -450,13 +449,12 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
         mesh = None
         faces: tuple[Any, ...] = ()                     # each operation's face, to highlight
         rebuilt: RebuiltJob | None = None
-        if part is None and html:                 # the part its header names, when it is at hand
-            part, named = header_part(program_path, context.header)
-            if part is not None:
-                detail(f"the part: {part} (the header's)")
-            elif named:
-                note(f"the part the header names ({named}) is not beside the program, here or among the shipped "
-                     "parts: the view has no part (give it with --part)")
+        part, named = program_part(program_path, part_path, context.header)
+        if part is not None and part_path is None:
+            detail(f"the part: {part} (the header's)")
+        elif named:
+            note(f"the part the header names ({named}) is not beside the program, here or among the shipped "
+                 f"parts: the {'view' if html else 'picture'} has no part (give it with --part)")
         if part is not None:
             choice, part_units, part_up = face_index(face_choice), units, up
             header = context.header
