@@ -269,3 +269,21 @@ def test_file_names_have_no_blanks(tmp_path: Path) -> None:
     assert sorted(config.files) == ["my_machine__2_.hal", "my_machine__2_.ini", "my_machine__2_.toml", "prs3.var",
                                     "prs3_vismach.py", "tool.tbl", "vismach.hal"]
     assert read_ini(config.ini)["HAL"]["HALFILE"] == ["my_machine__2_.hal", "vismach.hal"]
+
+
+def test_a_name_or_description_with_a_newline_stays_on_its_line(tmp_path: Path) -> None:
+    machine = tmp_path / "a\n[EMC]\nb.toml"                     # each would start a section of its own
+    text = (MACHINES / "patel2020.toml").read_text(encoding="utf-8")
+    machine.write_text(text.replace('description = "', 'description = "x\\n[HAL]\\nHALFILE = evil.hal\\r '),
+                       encoding="utf-8")
+    config = write_config(str(machine), str(tmp_path / "sim"))
+    ini = read_ini(config.ini)
+    assert (ini["EMC"]["MACHINE"], ini["HAL"]["HALFILE"]) == (["prs3-post a [EMC] b"],
+                                                                ["a__EMC__b.hal", "vismach.hal"])
+    lines = Path(config.ini).read_text(encoding="utf-8").splitlines()
+    assert lines[0].startswith("# LinuxCNC configuration of the machine a [EMC] b (x [HAL] HALFILE = evil.hal  Patel")
+    assert [ln for ln in lines if ln.startswith("[")].count("[EMC]") == 1
+    hal = (tmp_path / "sim" / "a__EMC__b.hal").read_text(encoding="utf-8").splitlines()
+    assert hal[0].startswith("# Simulated drives of a [EMC] b: the motion controller")
+    tools = (tmp_path / "sim" / "tool.tbl").read_text(encoding="utf-8").splitlines()
+    assert [ln for ln in tools if not ln.startswith("T")] == []

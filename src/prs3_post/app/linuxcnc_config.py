@@ -162,6 +162,12 @@ def ini_name(machine: Machine) -> str:
     return f"{file_stem(machine)}.ini"
 
 
+def one_line(text: str) -> str:
+    """``text`` (a machine's name, description or file name) kept on one line of the INI, HAL or tool table:
+    control characters as blanks (a newline in a name would start a line, a section, of its own)."""
+    return re.sub(r"[\x00-\x1f\x7f]+", " ", text)
+
+
 def file_stem(machine: Machine) -> str:
     """The machine's name as the configuration's file names use it: letters, digits, ``. _ -`` only (LinuxCNC's
     launcher and HAL files split names at blanks)."""
@@ -265,7 +271,7 @@ def _tools(machine: Machine, table: ToolTable | None) -> tuple[Tool, ...]:
         return table.tools
     length = machine.geometry.tool_length - machine.geometry.gauge_offset
     return (Tool(number=1, pocket=1, diameter=DEFAULT_TOOL_DIAMETER, length=length,
-                 comment=f"the machine's tool: tool_length_mm - gauge_offset_mm of {machine.name}"),)
+                 comment=f"the machine's tool: tool_length_mm - gauge_offset_mm of {one_line(machine.name)}"),)
 
 
 def tool_table_text(tools: tuple[Tool, ...]) -> str:
@@ -301,8 +307,8 @@ def ini_text(machine: Machine, axes: tuple[ConfigAxis, ...], *, display: str, ha
                 f"no [dynamics] in the machine file: the nominal {fixed(NOMINAL_RAPID_RATE, 0)} mm/min and "
                 f"{fixed(NOMINAL_ACCEL, 0)} mm/s²")
     out = [
-        f"# LinuxCNC configuration of the machine {machine.name} ({machine.description}),",
-        f"# written by prs3-post {__version__} linuxcnc-config from {Path(machine.source).name}.",
+        f"# LinuxCNC configuration of the machine {one_line(machine.name)} ({one_line(machine.description)}),",
+        f"# written by prs3-post {__version__} linuxcnc-config from {one_line(Path(machine.source).name)}.",
         "# Joints (trivial kinematics, one per program axis): "
         + ", ".join(f"{i} = {axis.letter} ({axis.name})" for i, axis in enumerate(axes)) + ".",
         "# Limits are the machine file's; speeds and accelerations " + dynamics + ".",
@@ -310,7 +316,7 @@ def ini_text(machine: Machine, axes: tuple[ConfigAxis, ...], *, display: str, ha
         "",
         "[EMC]",
         "VERSION = 1.1",
-        f"MACHINE = prs3-post {machine.name}",
+        f"MACHINE = prs3-post {one_line(machine.name)}",
         "DEBUG = 0",
         "",
         "[DISPLAY]",
@@ -377,8 +383,8 @@ def ini_text(machine: Machine, axes: tuple[ConfigAxis, ...], *, display: str, ha
 def hal_text(machine: Machine, axes: tuple[ConfigAxis, ...]) -> str:
     """The HAL file: the motion controller with simulated drives (each joint's command is its feedback)."""
     out = [
-        f"# Simulated drives of {machine.name}: the motion controller, each joint's commanded position looped",
-        "# back as its feedback, the E-stop and the tool changer answering at once (as LinuxCNC's sim configs).",
+        f"# Simulated drives of {one_line(machine.name)}: the motion controller, each joint's commanded position",
+        "# looped back as its feedback, the E-stop and the tool changer answering at once (as LinuxCNC's sim configs).",
         "loadrt [KINS]KINEMATICS",
         "loadrt [EMCMOT]EMCMOT servo_period_nsec=[EMCMOT]SERVO_PERIOD num_joints=[KINS]JOINTS",
         "addf motion-command-handler servo-thread",
