@@ -382,8 +382,8 @@ def _part_and_against(part: str | None, against: str | None) -> tuple[str | None
               help="Image file (PNG or SVG), or the interactive HTML view, by suffix; written to a temp file, "
                    "then renamed.")
 @click.option("--part", "part_path", type=click.Path(dir_okay=False), metavar="PART.stl",
-              help="Draw the part (part coordinates) and highlight its face (--face). The HTML view finds the "
-                   "part a program's header names by itself (beside the program, here, or shipped).")
+              help="Draw the part (part coordinates) and highlight its face (--face). Without it, the part a "
+                   "program's header names is found by itself (beside the program, here, or shipped).")
 @click.option("--face", "face_choice", default="auto", show_default=True, metavar="auto|N",
               help="Face to highlight: auto = the main job's automatic choice; N = index from `prs3-post faces`.")
 @part_units_option("Length unit of the --part STL.")
@@ -405,7 +405,8 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
 
     One figure: (a) the machine (base, rails, sliders, links, platform, spindle, holder, tool) at the
     sample with the smallest margin to any limit, with the part at its setup; (b) 3D view in part
-    coordinates of the part mesh (--part), each operation's face and the tool-tip path replayed
+    coordinates of the part mesh (--part, else the part the header names when it is beside the program,
+    here or among the shipped parts), each operation's face and the tool-tip path replayed
     through forward kinematics in the operation's colour (G1 solid, G0 dashed); (c)-(g) the strokes,
     stage X, Y, tilt, link angles and axis speeds over program time (the cycle time of the
     machine's [dynamics]; without them G1: 1/F min, G0: the longest joint travel at --rapid-rate),
