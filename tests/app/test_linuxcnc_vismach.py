@@ -7,8 +7,10 @@ environment computes with :func:`vismach_scene` (our forward kinematics), to the
 
 from __future__ import annotations
 
+import ast
 import json
 import os
+import shutil
 import subprocess
 from pathlib import Path
 
@@ -134,3 +136,18 @@ def test_the_model_runs_in_linuxcnc(linuxcnc: None, tmp_path: Path) -> None:
     assert ((red > 150) & (green > 60) & (green < 180) & (blue < 70)).sum() > 100          # links
     assert ((blue > 150) & (red < 100)).sum() > 100                                       # sliders
     assert ((green > 120) & (red < 120) & (blue < 120)).sum() > 50                        # platform
+
+
+def test_a_machine_name_cannot_end_the_script_s_docstring(tmp_path: Path) -> None:
+    name = 'x"""\nopen("PWNED", "w")\n"""'                    # a file name: the machine's name
+    shutil.copy(REPO / "postproc" / "machines" / "patel2020.toml", tmp_path / f"{name}.toml")
+    config = write_config(str(tmp_path / f"{name}.toml"), str(tmp_path / "sim"))
+    tree = ast.parse((config.folder / "prs3_vismach.py").read_text(encoding="utf-8"))
+    assert ast.get_docstring(tree, clean=False).startswith(  # type: ignore[union-attr]
+        "The vismach model of the 3-PRS machine x''' open('PWNED', 'w') ''', written by prs3-post")
+    assert [ast.unparse(node) for node in ast.walk(tree) if isinstance(node, ast.Call) and "PWNED" in ast.unparse(node)
+            ] == ["os.path.join(HERE, 'x____open__PWNED____w______.toml')"]        # the machine file's copy only
+    assert next(ast.literal_eval(node.value) for node in tree.body if isinstance(node, ast.Assign)
+                and ast.unparse(node.targets[0]) == "NAME") == name
+    hal = (config.folder / "vismach.hal").read_text(encoding="utf-8").splitlines()
+    assert hal[0] == '# The vismach model of x""" open("PWNED", "w") """: a window showing the machine at the joints\''

@@ -32,7 +32,14 @@ import re
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from prs3_post.app.linuxcnc_vismach import VISMACH_HAL, VISMACH_SCRIPT, check_drawable, vismach_hal, vismach_script
+from prs3_post.app.linuxcnc_vismach import (
+    VISMACH_HAL,
+    VISMACH_SCRIPT,
+    check_drawable,
+    one_line,
+    vismach_hal,
+    vismach_script,
+)
 from prs3_post.app.requests import DEFAULT_TOOL_DIAMETER
 from prs3_post.core.defaults import NOMINAL_ACCEL, NOMINAL_RAPID_RATE
 from prs3_post.core.errors import ConfigError, FieldError
@@ -160,12 +167,6 @@ def write_config(machine: str, folder: str, *, tool_table: str | None = None, di
 def ini_name(machine: Machine) -> str:
     """The INI file's name: the machine's (``patel2020.ini``)."""
     return f"{file_stem(machine)}.ini"
-
-
-def one_line(text: str) -> str:
-    """``text`` (a machine's name, description or file name) kept on one line of the INI, HAL or tool table:
-    control characters as blanks (a newline in a name would start a line, a section, of its own)."""
-    return re.sub(r"[\x00-\x1f\x7f]+", " ", text)
 
 
 def file_stem(machine: Machine) -> str:

@@ -17,6 +17,7 @@ scene as JSON without a display (what the tests compare with our FK).
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -55,11 +56,18 @@ def package_folder() -> Path:
     return Path(__file__).resolve().parents[1]
 
 
+def one_line(text: str) -> str:
+    """``text`` (a machine's name, description or file name) kept on one line of the configuration's files:
+    control characters as blanks (a newline in a name would start a line, a section, a statement of its own)."""
+    return re.sub(r"[\x00-\x1f\x7f]+", " ", text)
+
+
 def vismach_hal(joints: Sequence[tuple[str, str]], machine: Machine) -> str:
     """The HAL file that starts the model and feeds it each joint's position and the tool in the spindle;
     ``joints``: (axis letter, the model's pin) of joint 0, 1, …"""
-    out = [f"# The vismach model of {machine.name}: a window showing the machine at the joints' positions (it",
-           "# needs an X display). Rotate it with the mouse; its trail is the tool tip's path on the table.",
+    out = [f"# The vismach model of {one_line(machine.name)}: a window showing the machine at the joints'",
+           "# positions (it needs an X display). Rotate it with the mouse; its trail is the tool tip's path on the",
+           "# table.",
            f"loadusr -Wn {VISMACH_COMPONENT} {SYSTEM_PYTHON} {VISMACH_SCRIPT}"]
     for index, (letter, pin) in enumerate(joints):
         out.append(f"net {letter.lower()}-pos-fb joint.{index}.pos-fb => {VISMACH_COMPONENT}.{pin}")
@@ -70,13 +78,14 @@ def vismach_hal(joints: Sequence[tuple[str, str]], machine: Machine) -> str:
 def vismach_script(machine: Machine, toml: str, tools: str, pins: tuple[str, ...]) -> str:
     """The model's script: ``toml`` and ``tools`` are the machine file's and the tool table's names in the
     configuration's folder, ``pins`` the head joints' pin names (``t1``, ``t2``, ``t3``)."""
-    return _SCRIPT.format(name=machine.name, version=__version__, package=str(package_folder()), toml=toml,
-                          tools=tools, pins=pins, stage=machine.stage.present, component=VISMACH_COMPONENT,
+    doc_name = one_line(machine.name).replace("\\", "/").replace('"', "'")   # in the docstring: not its end
+    return _SCRIPT.format(name=machine.name, doc_name=doc_name, version=__version__, package=str(package_folder()),
+                          toml=toml, tools=tools, pins=pins, stage=machine.stage.present, component=VISMACH_COMPONENT,
                           python=SYSTEM_PYTHON)
 
 
 _SCRIPT = '''#!{python}
-"""The vismach model of the 3-PRS machine {name}, written by prs3-post {version} linuxcnc-config.
+"""The vismach model of the 3-PRS machine {doc_name}, written by prs3-post {version} linuxcnc-config.
 
 LinuxCNC starts it (vismach.hal) under its system Python. It draws the machine at the joints'
 positions: the base, the rails with their sliders, the links, the platform, the spindle and the tool,
