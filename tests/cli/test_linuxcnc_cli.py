@@ -86,3 +86,12 @@ def test_force_replaces_a_full_folder(tmp_path: Path) -> None:
     result = invoke("linuxcnc-config", "-o", str(out), "--force", "--no-vismach")
     assert result.exit_code == 0, result.output
     assert sorted(p.name for p in out.iterdir()) == ["patel2020.hal", "patel2020.ini", "prs3.var", "tool.tbl"]
+
+
+def test_the_folder_is_not_standard_output(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    result = invoke("linuxcnc-config", "-o", "-")
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr == ("prs3-post: error: '-': standard output cannot take a folder of files: give the folder "
+                             "to write (e.g. -o config)\n")
+    assert list(tmp_path.iterdir()) == []                       # no folder named '-'

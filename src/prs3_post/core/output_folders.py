@@ -55,11 +55,15 @@ def write_folder(path: str, files: Mapping[str, FolderFile], *, replace: bool = 
     Raises
     ------
     InputError
-        ``the output folder's name is empty``, ``is not a folder``, ``exists and is not empty``,
+        ``the output folder's name is empty``, ``standard output cannot take a folder``, ``is not a folder``,
+        ``exists and is not empty``,
         ``holds the input ...``, ``cannot write the folder here: <reason>``.
     """
     if not path:
         raise InputError("the output folder's name is empty: give the folder to write (e.g. -o config)", path="''")
+    if path == "-":                                     # the command line's standard output: not a folder
+        raise InputError("standard output cannot take a folder of files: give the folder to write (e.g. -o config)",
+                         path="'-'")
     target = Path(os.path.realpath(path))
     try:
         mode: int | None = os.stat(target).st_mode
