@@ -303,3 +303,21 @@ def test_rapid_rate_is_refused_on_a_machine_with_dynamics(tmp_path):
                                              "[dynamics]: the time axis shows its cycle time (each axis's top "
                                              "speed); leave it out")
     assert not (tmp_path / "s.png").exists()
+
+
+def test_a_margin_far_outside_keeps_the_margin_panel_readable(tmp_path):
+    from prs3_post.check.preview import render_preview
+
+    program = tmp_path / "far.ngc"                   # T3 at 9999 mm: 1920 % of its range outside
+    program.write_text("G93\nG0 X0 Y0 U300 V300 W300\nG1 X1 Y0 U300 V300 W9999 F100\nM2\n")
+    moves = load_program(str(program), load_dialect("linuxcnc")).moves
+    report = verify_program(MACHINE, moves, setup=SETUP, tolerance=DEFAULT_TOLERANCE,
+                            axis_tolerance=DEFAULT_ANGLE_TOLERANCE, length_decimals=4, feed_decimals=4)
+    figure = render_preview(report, MACHINE, rapid_rate=NOMINAL_RAPID_RATE)
+    ax = next(a for a in figure.axes if a.get_title() == "(h) closest approach to each limit")
+    assert ax.get_xlim() == (-1.05, 1.3)
+    assert list(ax.get_xticks()) == [-1.0, -0.5, 0.0, 0.2, 0.4, 0.6, 0.8, 1.0]
+    names = [t.get_text() for t in ax.get_yticklabels()]
+    bar = ax.patches[names.index("T3 stroke")]               # one bar per limit, in the labels' order
+    assert bar.get_width() == -1.0
+    assert "-1919.8 % (line 3)" in [t.get_text() for t in ax.texts]

@@ -552,6 +552,10 @@ def _boundary_labels(ax: Any, timeline: Timeline, worst_time: float | None) -> N
                 va="bottom", color=_WORST_COLOUR, clip_on=True, zorder=6, bbox=box)
 
 
+#: Panel (h)'s lowest bar: a limit missed by more than its whole range is drawn there.
+_MARGIN_FLOOR = -1.0
+
+
 def _margin_panel(ax: Any, report: VerifyReport) -> None:
     """(h): the worst margin of every limit as a fraction of its range."""
     names = [c.name for c in report.closest]
@@ -559,13 +563,15 @@ def _margin_panel(ax: Any, report: VerifyReport) -> None:
     shown = np.nan_to_num(fraction, nan=-1.0)
     colours = ["#d62728" if f < 0 else "#ff9f1c" if f < 0.1 else "#2ca02c" for f in shown.tolist()]
     positions = np.arange(len(names))[::-1]
-    ax.barh(positions, shown, color=colours, height=0.7)
+    # a bar further out than a whole range is drawn to -1 (its label says how far): the scale stays readable
+    ax.barh(positions, np.maximum(shown, _MARGIN_FLOOR), color=colours, height=0.7)
     ax.set_yticks(positions, names, fontsize=8)
     for y, f, c in zip(positions.tolist(), shown.tolist(), report.closest, strict=True):
         ax.text(max(f, 0.0) + 0.01, y, f"{100 * f:.1f} % (line {c.line})", va="center", fontsize=7)
     ax.axvline(0.0, color="black", linewidth=0.6)
-    ax.set_xlim(min(-0.05, float(shown.min(initial=0.0)) - 0.05), 1.3)
-    ax.set_xticks([0.0, 0.2, 0.4, 0.6, 0.8, 1.0])
+    low = min(-0.05, max(float(shown.min(initial=0.0)), _MARGIN_FLOOR) - 0.05)
+    ax.set_xlim(low, 1.3)
+    ax.set_xticks(([-1.0, -0.5] if low < -0.5 else []) + [0.0, 0.2, 0.4, 0.6, 0.8, 1.0])
     ax.set_xlabel("worst margin / range of the limit")
     ax.set_title("(h) closest approach to each limit", fontsize=10)
     ax.grid(True, axis="x", linewidth=0.3)
