@@ -91,6 +91,17 @@ def test_a_screenshot_without_xvfb_says_how_to_install_it(monkeypatch: pytest.Mo
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("shot", ["end.jpg", "-"])
+def test_a_screenshot_is_a_png_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, shot: str) -> None:
+    monkeypatch.chdir(tmp_path)                        # refused before LinuxCNC is looked for
+    monkeypatch.setattr(sim_module, "linuxcnc_launcher", lambda: pytest.fail("LinuxCNC was started"))
+    result = invoke("sim", DEMO, "--screenshot", shot)
+    assert (result.exit_code, result.stdout) == (2, "")
+    assert result.stderr.splitlines()[-1] == (f"Error: Invalid value for '--screenshot': the screenshot must end in "
+                                              f".png, got '{shot}'")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_screenshot_without_a_vismach_model_says_so(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     import prs3_post.app.linuxcnc_config as config_module
 

@@ -10,6 +10,7 @@ from prs3_post.cli.options import (
     Decimal,
     OutputPath,
     detail,
+    image_format,
     run_reported,
     say,
     timed,
@@ -57,6 +58,8 @@ def sim(program_path: str, machine_name: str | None, feed_override: float, scree
     from prs3_post.app.sim import report_lines, simulate, steps_text  # only when it is asked for
 
     def body() -> int:
+        if screenshot is not None:                     # a PNG file (standard output has the report)
+            image_format(screenshot, "'--screenshot'", (".png",), what="screenshot")
         with timed("run in LinuxCNC"):
             report = simulate(program_path, machine=machine_name, feed_override=feed_override,
                               screenshot=screenshot, keep=keep, progress=detail)
