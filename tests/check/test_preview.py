@@ -321,3 +321,17 @@ def test_a_margin_far_outside_keeps_the_margin_panel_readable(tmp_path):
     bar = ax.patches[names.index("T3 stroke")]               # one bar per limit, in the labels' order
     assert bar.get_width() == -1.0
     assert "-1919.8 % (line 3)" in [t.get_text() for t in ax.texts]
+
+
+def test_a_one_line_program_shows_its_one_sample(tmp_path):
+    from prs3_post.check.preview import render_preview
+
+    program = tmp_path / "one.ngc"
+    program.write_text("G0 X0 Y0 U300 V300 W300\nM2\n")
+    moves = load_program(str(program), load_dialect("linuxcnc")).moves
+    report = verify_program(MACHINE, moves, setup=SETUP, tolerance=DEFAULT_TOLERANCE,
+                            axis_tolerance=DEFAULT_ANGLE_TOLERANCE, length_decimals=4, feed_decimals=4)
+    figure = render_preview(report, MACHINE, rapid_rate=NOMINAL_RAPID_RATE)
+    ax = next(a for a in figure.axes if a.get_title().startswith("(c) strokes"))
+    t1 = next(line for line in ax.get_lines() if line.get_label() == "T1")
+    assert (t1.get_marker(), list(t1.get_ydata())) == ("o", [300.0])   # a line through one point draws nothing

@@ -469,6 +469,7 @@ def _series_panel(ax: Any, series: tuple[Series, ...], timeline: Timeline, ylabe
         style, width = _STYLES[i % len(_STYLES)]        # thick to thin: a line on top of another shows both
         ax.plot(x, values, color=_SERIES_COLOURS[i % len(_SERIES_COLOURS)], linestyle=style, linewidth=width,
                 label=name + (f" (= {same[0]})" if same else ""), zorder=3 + i,
+                marker="o" if len(x) == 1 else None, markersize=4,          # one sample: a line would not show
                 drawstyle="steps-pre" if s.unit in ("%", "mm/min") else "default")   # a speed holds over its move
         seen.append((name, values))
         finite = values[np.isfinite(values)]
