@@ -3,6 +3,10 @@
     ProgramFile + machine, setup (app.verify.open_program) ──► verify_loaded ──► check.preview ──► PNG / SVG bytes
                                      └── the job it was made by (app.verify.rebuild_job) ──► closest approach
 
+Which part a preview draws and what its closest approach is measured against (a main job's program:
+the job made again from its checked part; a converted one: its part, as ``verify --part`` measures it)
+is :func:`preview_part_of`, for the picture and the HTML view alike.
+
 matplotlib is optional: :func:`require_plotting` refuses a picture before any work is done for it.
 No I/O beyond the readers; messages do not name command-line flags (the CLI adds them).
 """
@@ -11,16 +15,17 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from prs3_post.app.verify import PartClearance, RebuiltJob, verify_loaded, with_clearance
+from prs3_post.app.verify import CamPart, PartClearance, ProgramContext, RebuiltJob, verify_loaded, with_clearance
 from prs3_post.check.timeline import Mark, MarkKind
 from prs3_post.core.defaults import DEFAULT_TOLERANCE
-from prs3_post.core.errors import Prs3Error
+from prs3_post.core.errors import InputError, Prs3Error
 from prs3_post.core.input_files import file_sha256
 from prs3_post.core.toolpath import EventKind
 from prs3_post.core.types import FloatArray, Progress
@@ -35,8 +40,8 @@ if TYPE_CHECKING:
 
     from prs3_post.check.collision import Approach
 
-__all__ = ["closest_mark", "header_part", "preview_bytes", "preview_figure", "preview_part", "program_marks",
-           "program_part", "require_plotting", "tool_diameters_of"]
+__all__ = ["HeaderContradiction", "PreviewPart", "closest_mark", "header_part", "preview_bytes", "preview_figure",
+           "preview_part", "preview_part_of", "program_marks", "program_part", "require_plotting", "tool_diameters_of"]
 
 
 def require_plotting() -> None:
@@ -56,7 +61,7 @@ def require_plotting() -> None:
 def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str, *,
                   dialect: Dialect, tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None,
                   faces: Sequence[Face] = (), title: str = "", rapid_rate: float,
-                  tool_lengths: dict[int, float] | None = None, rebuilt: RebuiltJob | None = None,
+                  tool_lengths: dict[int, float] | None = None, rebuilt: RebuiltJob | CamPart | None = None,
                   closest: Approach | None = None, header: ProgramHeader | SourceHeader | None = None,
                   progress: Progress | None = None) -> bytes:
     """Replay a read program and draw it as ``png`` or ``svg`` bytes (:func:`preview_figure`; ``progress``:
@@ -71,7 +76,7 @@ def preview_bytes(program: ProgramFile, machine: Machine, setup: Setup, fmt: str
 def preview_figure(program: ProgramFile, machine: Machine, setup: Setup, *, dialect: Dialect,
                    tolerance: float = DEFAULT_TOLERANCE, mesh: FloatArray | None = None, faces: Sequence[Face] = (),
                    title: str = "", rapid_rate: float, tool_lengths: dict[int, float] | None = None,
-                   rebuilt: RebuiltJob | None = None, closest: Approach | None = None,
+                   rebuilt: RebuiltJob | CamPart | None = None, closest: Approach | None = None,
                    header: ProgramHeader | SourceHeader | None = None, progress: Progress | None = None) -> Figure:
     """Replay a read program and draw it (matplotlib is imported here); ``tool_lengths`` as
     :func:`~prs3_post.check.verify.verify_program`. ``faces``: each operation's face, in program order
@@ -80,13 +85,15 @@ def preview_figure(program: ProgramFile, machine: Machine, setup: Setup, *, dial
     with ``[holder]``, the body that comes closest to the part (:func:`part_clearance`, relative to
     its clearance min) is marked where it does, with its clearance and line; or, from the check that
     made the program (the main job's, :attr:`~prs3_post.app.job.JobProgram.closest`), where ``closest``
-    says (its row is the program's move: the mark names that move's line)."""
+    says (its row is the program's move: the mark names that move's line). ``rebuilt`` may be a converted
+    program's part (:class:`~prs3_post.app.verify.CamPart`): its closest approach is marked as ``verify
+    --part`` measures it, the program is not compared with a path."""
     from prs3_post.check.preview import FaceMark, render_preview
     from prs3_post.check.timeline import timeline_of
 
     # against the job's path, as `verify --against` replays it: the same samples, the same closest approach
     report = verify_loaded(program, machine, setup, dialect, tolerance=tolerance, tool_lengths=tool_lengths,
-                           intended=None if rebuilt is None else rebuilt.intended, progress=progress)
+                           intended=rebuilt.intended if isinstance(rebuilt, RebuiltJob) else None, progress=progress)
     mark = None
     if rebuilt is not None:
         report, found = with_clearance(report, machine, rebuilt)
@@ -161,16 +168,104 @@ def program_part(program_path: str, part: str | None,
 def preview_part(part: str, header: ProgramHeader | SourceHeader | None, face: int | None, *, units: str,
                  up: str) -> tuple[FloatArray, tuple[Face, ...]]:
     """A part's triangles (part frame, mm) and the faces to highlight: each operation's face a main job's
-    or job file's header records, else ``face`` (None: the automatic choice)."""
+    or job file's header records, else ``face`` (None: the automatic choice, or none for a converted
+    program: its header names no face)."""
     from prs3_post.part.faces import find_faces, select_face
     from prs3_post.part.stl import load_part
 
     loaded = load_part(part, units=units, up=up)
+    if isinstance(header, SourceHeader) and face is None:
+        return loaded.triangles, ()
     table = find_faces(loaded)
     if isinstance(header, ProgramHeader):
         indices = [record.face_index for record in header.operations] or [header.face_index]
         return loaded.triangles, tuple(select_face(table, index)[0] for index in indices)
     return loaded.triangles, (select_face(table, face)[0],)
+
+
+class HeaderContradiction(InputError):
+    """Options given (for the part's face, units, up axis) that say otherwise than a main job's header.
+
+    Attributes
+    ----------
+    wrong : list of (key, the header's value shown) — each option that contradicts it
+    """
+
+    def __init__(self, wrong: list[tuple[str, Any]], *, path: str):
+        super().__init__(f"contradicts the program's header: {', '.join(key for key, _ in wrong)}", path=path)
+        self.wrong = wrong
+
+
+@dataclass(frozen=True, slots=True)
+class PreviewPart:
+    """The part a preview draws a program on, and what its closest approach is measured against.
+
+    Attributes
+    ----------
+    path : str | None — the part's file (None: no part drawn)
+    named : str — the part's name in the header, when it was looked for and not found ("" otherwise)
+    from_header : bool — the part is the one the header names, found (not given)
+    mesh : (T, 3, 3) float | None — its triangles (part frame, mm)
+    faces : tuple of Face — the faces to highlight, in operation order (a converted program: none
+        unless a face is asked for)
+    against : RebuiltJob | CamPart | None — the job a main job's program was made by, or a converted
+        program's part, to measure the closest approach with (None: not measured)
+    """
+
+    path: str | None
+    named: str
+    from_header: bool
+    mesh: FloatArray | None
+    faces: tuple[Face, ...]
+    against: RebuiltJob | CamPart | None
+
+
+def preview_part_of(context: ProgramContext, part: str | None, *, face: int | None, units: str, up: str,
+                    given: Mapping[str, Any], html: bool) -> PreviewPart:
+    """The part ``preview`` draws a program on (:func:`program_part`: ``part``, else its header's), loaded.
+
+    A main job's program (:class:`ProgramHeader`): the part must be the one it was made from (by
+    SHA-256), its face, units and up axis are the header's (``given``: the ones asked for explicitly,
+    by key ``face``/``units``/``up``, must agree), and the job is made again for the closest
+    approach of the tool, holder and nose (when the machine has ``[holder]``, or for the HTML view's
+    faces). A converted program (:class:`SourceHeader`) or one without a header: the part at the
+    program's setup, in ``units`` and ``up``, ``face`` highlighted when given; a converted program's
+    closest approach is measured as ``verify --part`` does (the machine has ``[holder]``).
+
+    Raises
+    ------
+    HeaderConflict
+        Not the part a main job's program was made from.
+    HeaderContradiction
+        An option given says otherwise than a main job's header.
+    """
+    from prs3_post.app.verify import check_part, header_job, rebuild_job
+    from prs3_post.app.verify_inputs import cam_part, header_contradictions, recorded_part
+
+    header = context.header
+    path, named = program_part(context.program.path, part, header)
+    if path is None:
+        return PreviewPart(path=None, named=named, from_header=False, mesh=None, faces=(), against=None)
+    from_header = part is None
+    against: RebuiltJob | CamPart | None = None
+    if isinstance(header, ProgramHeader):             # the part as the program was made from it
+        check_part(header, path)
+        recorded = recorded_part(header)
+        wrong = header_contradictions(recorded, given)
+        if wrong:
+            raise HeaderContradiction(wrong, path=header.path)
+        face, units, up = recorded["face"], recorded["units"], recorded["up"]
+        # the job it was made by: where its tool, holder and nose come closest to the part
+        # (and, for the HTML view, every operation's face)
+        if context.machine.holder is not None or html:
+            against = rebuild_job(header_job(context, path))
+    elif isinstance(header, SourceHeader) and context.machine.holder is not None:
+        against = cam_part(context, path, units=units, up=up)
+        if face is None:                               # loaded once: no face to find
+            return PreviewPart(path=path, named=named, from_header=from_header, mesh=against.triangles, faces=(),
+                               against=against)
+    mesh, faces = preview_part(path, header, face, units=units, up=up)
+    return PreviewPart(path=path, named=named, from_header=from_header, mesh=mesh, faces=faces, against=against)
 
 
 def closest_mark(found: PartClearance) -> tuple[FloatArray, str, bool] | None:

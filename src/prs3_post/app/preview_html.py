@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from prs3_post.app.preview import closest_mark, header_part, program_marks
-from prs3_post.app.verify import RebuiltJob, verify_loaded, with_clearance
+from prs3_post.app.verify import CamPart, RebuiltJob, verify_loaded, with_clearance
 from prs3_post.check.html_view import (
     MACHINE_PIECES,
     PART_COLOUR,
@@ -102,9 +102,9 @@ def require_view() -> None:
     require_plotly()
 
 
-def view_part(triangles: FloatArray, face: Face | None, rebuilt: RebuiltJob | None) -> ViewPart:
-    """The part to draw: the job's operations' faces (``rebuilt``), else ``face`` (None: none)."""
-    if rebuilt is not None:
+def view_part(triangles: FloatArray, face: Face | None, rebuilt: RebuiltJob | CamPart | None) -> ViewPart:
+    """The part to draw: the job's operations' faces (``rebuilt`` a job), else ``face`` (None: none)."""
+    if isinstance(rebuilt, RebuiltJob):
         faces = tuple((f"op {k + 1}: {spec.operation.value} on face {op.face.index}", op.face)
                       for k, (spec, op) in enumerate(zip(rebuilt.specs, rebuilt.result.operations, strict=True)))
         return ViewPart(triangles=rebuilt.result.triangles, faces=faces)
@@ -210,7 +210,7 @@ def _machine_at(machine: Machine, joints: FloatArray, tool_length: FloatArray) -
 def view_html(program: ProgramFile, machine: Machine, setup: Setup, *, dialect: Dialect,
               header: ProgramHeader | SourceHeader | None, tolerance: float = DEFAULT_TOLERANCE,
               part: ViewPart | None = None, rapid_rate: float, tool_lengths: dict[int, float] | None = None,
-              rebuilt: RebuiltJob | None = None, closest: Approach | None = None, title: str = "",
+              rebuilt: RebuiltJob | CamPart | None = None, closest: Approach | None = None, title: str = "",
               notes: tuple[str, ...] = (), progress: Progress | None = None) -> str:
     """Replay a read program and draw it as the HTML page (module docstring,
     :mod:`prs3_post.check.html_view`); the arguments as :func:`prs3_post.app.preview.preview_figure`'s,
@@ -226,15 +226,16 @@ def view_html(program: ProgramFile, machine: Machine, setup: Setup, *, dialect: 
     require_plotly()
     # a program edited after it was made (other moves than its header's job): its faces are drawn, the
     # job's path and clearance do not apply
-    matched = rebuilt is not None and len(rebuilt.result.post.program) == len(program.moves)
-    if rebuilt is not None and not matched:
+    job = rebuilt if isinstance(rebuilt, RebuiltJob) else None
+    matched = job is not None and len(job.result.post.program) == len(program.moves)
+    if job is not None and not matched:
         notes += (f"the program has {len(program.moves)} moves, the job its header records "
-                  f"{len(rebuilt.result.post.program)}: its faces are drawn, the closest approach is not measured",)
+                  f"{len(job.result.post.program)}: its faces are drawn, the closest approach is not measured",)
     report = verify_loaded(program, machine, setup, dialect, tolerance=tolerance, tool_lengths=tool_lengths,
-                           intended=rebuilt.intended if rebuilt is not None and matched else None, progress=progress)
+                           intended=job.intended if job is not None and matched else None, progress=progress)
     mark = None
     closest_line = 0
-    if rebuilt is not None and matched:
+    if rebuilt is not None and (matched or job is None):  # a converted program's part: measured as verify does
         report, found = with_clearance(report, machine, rebuilt)
         mark = None if isinstance(found, str) else closest_mark(found)
         closest_line = 0 if isinstance(found, str) else int(found.line[found.worst()])

@@ -383,7 +383,10 @@ def _part_and_against(part: str | None, against: str | None) -> tuple[str | None
                    "then renamed.")
 @click.option("--part", "part_path", type=click.Path(dir_okay=False), metavar="PART.stl",
               help="Draw the part (part coordinates) and highlight its face (--face). Without it, the part a "
-                   "program's header names is found by itself (beside the program, here, or shipped).")
+                   "program's header names is found by itself (beside the program, here, or shipped). A main "
+                   "job's program: the part it was made from (SHA-256); a converted program, or one without a "
+                   "header: any part, drawn at the program's setup (a converted one: no face unless --face, and "
+                   "the holder's closest approach as verify --part measures it).")
 @click.option("--face", "face_choice", default="auto", show_default=True, metavar="auto|N",
               help="Face to highlight: auto = the main job's automatic choice; N = index from `prs3-post faces`.")
 @part_units_option("Length unit of the --part STL.")
@@ -428,10 +431,9 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
       prs3-post preview sq.ngc -o sq.html
       prs3-post demo --profile round -o round.ngc --preview round.svg
     """
-    from prs3_post.app.preview import preview_bytes, preview_part, program_part, require_plotting
+    from prs3_post.app.preview import HeaderContradiction, preview_bytes, preview_part_of, require_plotting
     from prs3_post.app.preview_html import PREVIEW_SUFFIXES, require_view, view_html, view_part
-    from prs3_post.app.verify import HeaderConflict, check_part, header_job, open_program, rebuild_job, tool_lengths_of
-    from prs3_post.app.verify_inputs import header_contradictions, recorded_part
+    from prs3_post.app.verify import HeaderConflict, open_program, tool_lengths_of
 
     def body() -> int:
         ctx = click.get_current_context()
@@ -447,34 +449,22 @@ def preview(program_path: str, out_path: str, part_path: str | None, face_choice
         if context.machine.dynamics is not None and was_given(ctx, "rapid_rate"):
             raise click.BadParameter(f"machine {context.machine.name} has [dynamics]: the time axis shows its cycle "
                                      "time (each axis's top speed); leave it out", param_hint="'--rapid-rate'")
-        mesh = None
-        faces: tuple[Any, ...] = ()                     # each operation's face, to highlight
-        rebuilt: RebuiltJob | None = None
-        part, named = program_part(program_path, part_path, context.header)
-        if part is not None and part_path is None:
+        given = _given_values(ctx, {"face_choice": face_choice, "units": units, "up": up}, ("face", "units", "up"))
+        with timed("the part"):
+            try:
+                drawn = preview_part_of(context, part_path, face=face_index(face_choice), units=units, up=up,
+                                        given=given, html=html)
+            except HeaderConflict as error:
+                raise InputError(f"--part: {error.args[0]}", path=error.path, line=error.line) from error
+            except HeaderContradiction as error:
+                _refuse_header_contradictions(error.wrong)
+                raise
+        part, mesh, faces, rebuilt = drawn.path, drawn.mesh, drawn.faces, drawn.against
+        if drawn.from_header:
             detail(f"the part: {part} (the header's)")
-        elif named:
-            note(f"the part the header names ({named}) is not beside the program, here or among the shipped "
+        elif drawn.named:
+            note(f"the part the header names ({drawn.named}) is not beside the program, here or among the shipped "
                  f"parts: the {'view' if html else 'picture'} has no part (give it with --part)")
-        if part is not None:
-            choice, part_units, part_up = face_index(face_choice), units, up
-            header = context.header
-            if header is not None:                     # the part as the program was made from it
-                try:
-                    check_part(header, part)
-                except HeaderConflict as error:
-                    raise InputError(f"--part: {error.args[0]}", path=error.path, line=error.line) from error
-                recorded = recorded_part(header)       # check_part refuses a converted program's header
-                given = _given_values(ctx, {"face_choice": face_choice, "units": units, "up": up},
-                                      ("face", "units", "up"))
-                _refuse_header_contradictions(header_contradictions(recorded, given))
-                choice, part_units, part_up = recorded["face"], recorded["units"], recorded["up"]
-                # the job it was made by: where its tool, holder and nose come closest to the part
-                # (and, for the HTML view, every operation's face)
-                rebuilt = (rebuild_job(header_job(context, part))
-                           if context.machine.holder is not None or html else None)
-            with timed("the part"):
-                mesh, faces = preview_part(part, context.header, choice, units=part_units, up=part_up)
         if html:
             with timed("replay and draw"), ProgressBar("replaying", after="drawing", enabled=_bar_shown()) as bar:
                 page = view_html(context.program, context.machine, context.setup, dialect=context.dialect,
