@@ -150,3 +150,17 @@ def test_a_main_jobs_program_keeps_its_part_check(tmp_path):
     assert wrong.output.endswith("Error: --face (header: auto), --part-units (header: mm): contradict the program's "
                                  "header; leave them out to use the header's values\n")
     assert not (tmp_path / "sq.png").exists()
+
+
+def test_a_one_line_program_is_one_move_in_both_titles(tmp_path, monkeypatch):
+    import prs3_post.check.preview as drawing
+
+    program = tmp_path / "one.ngc"
+    program.write_text("G0 X0 Y0 U300 V300 W300\nM2\n")
+    drawn = []
+    monkeypatch.setattr(drawing, "figure_bytes", lambda figure, fmt: drawn.append(figure) or b"")
+    assert run("preview", program, "-o", tmp_path / "one.png", "-q").exit_code == 0
+    assert drawn[0]._suptitle.get_text() == "one.ngc, machine patel2020, 1 move (ok)"
+    pytest.importorskip("plotly")
+    assert run("preview", program, "-o", tmp_path / "one.html", "-q").exit_code == 0
+    assert "<title>one.ngc: machine patel2020, 1 move</title>" in (tmp_path / "one.html").read_text(encoding="utf-8")

@@ -109,10 +109,11 @@ def preview_figure(program: ProgramFile, machine: Machine, setup: Setup, *, dial
                             + (f", op {', '.join(str(j + 1) for j in users[face.index])}" if len(faces) > 1 else ""))
              for k, face in enumerate(faces) if users[face.index][0] == k]
     heading = f"{title}: " if title else ""
+    moves = f"{len(program.moves)} move" + "s" * (len(program.moves) != 1)
     return render_preview(
         report, machine, mesh=mesh, faces=marks, timeline=timeline, tool_lengths=tool_lengths,
         tool_diameters=tool_diameters_of(header),
-        title=f"{heading}{Path(program.path).name}, machine {machine.name}, {len(program.moves)} moves "
+        title=f"{heading}{Path(program.path).name}, machine {machine.name}, {moves} "
               f"({'ok' if report.ok else f'{len(report.problems)} problem' + 's' * (len(report.problems) > 1)})",
         rapid_rate=rapid_rate, closest=mark,
     )

@@ -273,7 +273,7 @@ def view_html(program: ProgramFile, machine: Machine, setup: Setup, *, dialect: 
              *(f"{letter} ({name})" for letter, name in zip(letters, kinematics.joint_names, strict=True)))
     lines = moves.source[stops]
     data = ViewData(
-        title=title or f"{Path(program.path).name}: machine {machine.name}, {n} moves",
+        title=title or f"{Path(program.path).name}: machine {machine.name}, {n} move{'s' * (n != 1)}",
         machine=_machine_at(machine, joints[stops], tool_length[stops]),
         stops=Stops(line=lines, time=timeline.time[rep.end[stops]],
                     text=tuple(program.lines[int(line) - 1].strip() for line in lines.tolist()),
