@@ -164,3 +164,18 @@ def test_a_one_line_program_is_one_move_in_both_titles(tmp_path, monkeypatch):
     pytest.importorskip("plotly")
     assert run("preview", program, "-o", tmp_path / "one.html", "-q").exit_code == 0
     assert "<title>one.ngc: machine patel2020, 1 move</title>" in (tmp_path / "one.html").read_text(encoding="utf-8")
+
+
+def test_a_program_without_a_header_is_drawn_on_any_part_with_no_face_unless_asked(tmp_path):
+    program, picture = tmp_path / "one.ngc", tmp_path / "one.png"
+    program.write_text("G0 X0 Y0 U300 V300 W300\nM2\n")      # the bracket has no face the main job would take
+    result = run("preview", program, "--part", BRACKET, "-o", picture)
+    assert (result.exit_code, result.output) == (0, f"prs3-post: wrote {picture}\n")
+    assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    from prs3_post.app.preview import preview_part_of
+
+    context = open_program(str(program))
+    drawn = preview_part_of(context, str(BRACKET), face=None, units="mm", up="z", given={}, html=False)
+    assert (drawn.faces, drawn.against, drawn.mesh.shape) == ((), None, (12, 3, 3))
+    asked = preview_part_of(context, str(BRACKET), face=3, units="mm", up="z", given={}, html=False)
+    assert [f.index for f in asked.faces] == [3]

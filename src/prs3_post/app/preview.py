@@ -169,13 +169,13 @@ def program_part(program_path: str, part: str | None,
 def preview_part(part: str, header: ProgramHeader | SourceHeader | None, face: int | None, *, units: str,
                  up: str) -> tuple[FloatArray, tuple[Face, ...]]:
     """A part's triangles (part frame, mm) and the faces to highlight: each operation's face a main job's
-    or job file's header records, else ``face`` (None: the automatic choice, or none for a converted
-    program: its header names no face)."""
+    or job file's header records, else ``face`` (None: none: a converted program, or one without a
+    header, names no face; the part need not have one the main job would choose)."""
     from prs3_post.part.faces import find_faces, select_face
     from prs3_post.part.stl import load_part
 
     loaded = load_part(part, units=units, up=up)
-    if isinstance(header, SourceHeader) and face is None:
+    if not isinstance(header, ProgramHeader) and face is None:
         return loaded.triangles, ()
     table = find_faces(loaded)
     if isinstance(header, ProgramHeader):
@@ -207,8 +207,8 @@ class PreviewPart:
     named : str — the part's name in the header, when it was looked for and not found ("" otherwise)
     from_header : bool — the part is the one the header names, found (not given)
     mesh : (T, 3, 3) float | None — its triangles (part frame, mm)
-    faces : tuple of Face — the faces to highlight, in operation order (a converted program: none
-        unless a face is asked for)
+    faces : tuple of Face — the faces to highlight, in operation order (a converted program, or one
+        without a header: none unless a face is asked for)
     against : RebuiltJob | CamPart | None — the job a main job's program was made by, or a converted
         program's part, to measure the closest approach with (None: not measured)
     """
@@ -230,7 +230,7 @@ def preview_part_of(context: ProgramContext, part: str | None, *, face: int | No
     by key ``face``/``units``/``up``, must agree), and the job is made again for the closest
     approach of the tool, holder and nose (when the machine has ``[holder]``, or for the HTML view's
     faces). A converted program (:class:`SourceHeader`) or one without a header: the part at the
-    program's setup, in ``units`` and ``up``, ``face`` highlighted when given; a converted program's
+    program's setup, in ``units`` and ``up``, ``face`` highlighted when given (else none); a converted program's
     closest approach is measured as ``verify --part`` does (the machine has ``[holder]``).
 
     Raises

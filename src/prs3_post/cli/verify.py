@@ -385,7 +385,7 @@ def _part_and_against(part: str | None, against: str | None) -> tuple[str | None
               help="Draw the part (part coordinates) and highlight its face (--face). Without it, the part a "
                    "program's header names is found by itself (beside the program, here, or shipped). A main "
                    "job's program: the part it was made from (SHA-256); a converted program, or one without a "
-                   "header: any part, drawn at the program's setup (a converted one: no face unless --face, and "
+                   "header: any part, drawn at the program's setup, no face unless --face (a converted one: with "
                    "the holder's closest approach as verify --part measures it).")
 @click.option("--face", "face_choice", default="auto", show_default=True, metavar="auto|N",
               help="Face to highlight: auto = the main job's automatic choice; N = index from `prs3-post faces`.")
